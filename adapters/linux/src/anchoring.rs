@@ -1,0 +1,193 @@
+//! Offline anchoring: replay VO, GNSS and speed files through the core [`Anchorer`] in
+//! time order, exactly as the device would see them live, and write the anchored track.
+
+use std::path::{Path, PathBuf};
+
+use clap::{Args, ValueEnum};
+use dash2sim_core::anchor::{AnchorConfig, AnchorMode, Anchorer, Observability, Quality};
+use dash2sim_core::sim3::Sim3;
+use dash2sim_core::time::Timestamp;
+use serde_json::json;
+
+use crate::trajectory::{self, Format, Trajectory};
+
+/// Arguments of `dash2sim anchor`.
+#[derive(Debug, Args)]
+pub struct AnchorArgs {
+    /// VO trajectory (TUM; any frame, unknown scale).
+    #[arg(long)]
+    vo: PathBuf,
+    /// GNSS positions in the local ENU frame (TUM; orientation ignored).
+    #[arg(long)]
+    gnss: PathBuf,
+    /// Vehicle speed CSV: `t,speed_mps` per line (a header line is allowed).
+    #[arg(long)]
+    speed: Option<PathBuf>,
+    /// 1-σ horizontal GNSS error, m (HDOP × UERE when the receiver reports HDOP).
+    #[arg(long, default_value_t = 2.5)]
+    sigma: f64,
+    /// `full`: 7-DoF Sim(3); `gravity`: VO z is vertical, estimate yaw/scale/translation.
+    #[arg(long, value_enum, default_value = "full")]
+    mode: ModeArg,
+    /// Forgetting time constant, s (`inf` never forgets).
+    #[arg(long, default_value_t = 20.0)]
+    forget: f64,
+    /// Write the anchored trajectory (TUM) here; frames before the estimate is
+    /// observable are left out.
+    #[arg(long, short = 'o')]
+    output: Option<PathBuf>,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ModeArg {
+    Full,
+    Gravity,
+}
+
+/// The estimate the device had at one VO frame.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameEstimate {
+    /// VO frame time, s.
+    pub t: f64,
+    /// The VO → ENU transform in force (after any anchor up to this frame).
+    pub estimate: Option<Sim3>,
+    /// Quality after the latest anchor.
+    pub quality: Quality,
+}
+
+/// Read a `t,value` CSV (first line may be a header); errors name the line.
+pub fn read_speed_csv(path: &Path) -> Result<Vec<(f64, f64)>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut rows = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let mut fields = line.split(',').map(str::trim);
+        let parsed = (fields.next().map(str::parse::<f64>), fields.next().map(str::parse::<f64>));
+        match parsed {
+            (Some(Ok(t)), Some(Ok(v))) if t.is_finite() && v.is_finite() => {
+                if rows.last().is_some_and(|&(prev, _)| t < prev) {
+                    return Err(format!("{}:{}: timestamp {t} is earlier than the previous one", path.display(), i + 1));
+                }
+                rows.push((t, v));
+            }
+            _ if i == 0 => {} // header
+            _ => return Err(format!("{}:{}: expected `t,speed` with finite numbers", path.display(), i + 1)),
+        }
+    }
+    if rows.is_empty() {
+        return Err(format!("{}: no speed samples", path.display()));
+    }
+    Ok(rows)
+}
+
+fn stamp(t: f64) -> Result<Timestamp, String> {
+    Timestamp::from_secs_f64(t).ok_or_else(|| format!("timestamp {t} is out of range"))
+}
+
+/// Feed the three streams through an anchorer in time order; one estimate per VO frame.
+pub fn replay(vo: &Trajectory, gnss: &Trajectory, speed: &[(f64, f64)], sigma_m: f64, config: AnchorConfig) -> Result<Vec<FrameEstimate>, String> {
+    if vo.stamps.is_empty() || gnss.stamps.is_empty() {
+        return Err("VO and GNSS trajectories need timestamps (TUM format)".into());
+    }
+    let mut anchorer: Anchorer = Anchorer::new(config);
+    let (mut i_speed, mut i_gnss) = (0, 0);
+    let mut frames = Vec::with_capacity(vo.len());
+    for (&t_vo, pose) in vo.stamps.iter().zip(&vo.poses) {
+        // Everything that happened up to this frame, speed before GNSS at equal times.
+        while let Some(&(t, v)) = speed.get(i_speed).filter(|(t, _)| *t <= t_vo) {
+            anchorer.push_speed(stamp(t)?, v).map_err(|e| format!("speed at {t}: {e}"))?;
+            i_speed += 1;
+        }
+        while let Some(&t) = gnss.stamps.get(i_gnss).filter(|&&t| t <= t_vo) {
+            let p = gnss.poses[i_gnss].translation;
+            anchorer.push_gnss(stamp(t)?, p, sigma_m).map_err(|e| format!("GNSS at {t}: {e}"))?;
+            i_gnss += 1;
+        }
+        anchorer.push_vo(stamp(t_vo)?, pose.translation).map_err(|e| format!("VO at {t_vo}: {e}"))?;
+        frames.push(FrameEstimate { t: t_vo, estimate: anchorer.estimate().copied(), quality: *anchorer.quality() });
+    }
+    Ok(frames)
+}
+
+/// The anchored trajectory: each VO pose mapped with the estimate of its time.
+pub fn anchored_trajectory(vo: &Trajectory, frames: &[FrameEstimate]) -> Trajectory {
+    let mut out = Trajectory::default();
+    for (pose, f) in vo.poses.iter().zip(frames) {
+        if let Some(t) = f.estimate {
+            out.stamps.push(f.t);
+            out.poses.push(t.transform_pose(pose));
+        }
+    }
+    out
+}
+
+/// `dash2sim anchor`.
+pub fn run(args: &AnchorArgs) -> Result<(), String> {
+    if !(args.sigma.is_finite() && args.sigma > 0.0) {
+        return Err(format!("--sigma {} must be a positive number of metres", args.sigma));
+    }
+    if !(args.forget > 0.0) {
+        return Err(format!("--forget {} must be positive (or inf)", args.forget));
+    }
+    let vo = Trajectory::read(&args.vo, Format::Tum).map_err(|e| e.to_string())?;
+    let gnss = Trajectory::read(&args.gnss, Format::Tum).map_err(|e| e.to_string())?;
+    let speed = match &args.speed {
+        Some(p) => read_speed_csv(p)?,
+        None => Vec::new(),
+    };
+    let config = AnchorConfig {
+        mode: if args.mode == ModeArg::Gravity { AnchorMode::GravityAligned } else { AnchorMode::Full },
+        forgetting_time_constant_s: args.forget,
+        ..AnchorConfig::default()
+    };
+    let frames = replay(&vo, &gnss, &speed, args.sigma, config)?;
+    let anchored = anchored_trajectory(&vo, &frames);
+    if let Some(out) = &args.output {
+        trajectory::write_file(&anchored, out, Format::Tum).map_err(|e| format!("{}: {e}", out.display()))?;
+    }
+    let first_observable = frames.iter().find(|f| f.quality.observability == Observability::Observable).map(|f| f.t - vo.stamps[0]);
+    let last = frames.last().ok_or("no VO frames")?;
+    let q = &last.quality;
+    if args.json {
+        let out = json!({
+            "frames": vo.len(),
+            "anchored_frames": anchored.len(),
+            "observable_after_s": first_observable,
+            "estimate": last.estimate.as_ref().map(crate::cli::sim3_json),
+            "observability": format!("{:?}", q.observability),
+            "anchors_used": q.anchors_used,
+            "anchors_rejected": q.anchors_rejected,
+            "anchors_dropped": q.anchors_dropped,
+            "rms_residual_m": q.rms_residual_m,
+            "rotation_sigma_deg": q.rotation_sigma_rad.to_degrees(),
+            "scale_rel_sigma": q.scale_rel_sigma,
+            "latency_s": q.latency_s,
+            "wheel_factor": q.wheel_factor,
+        });
+        println!("{out}");
+    } else {
+        println!("anchored {} of {} VO frames", anchored.len(), vo.len());
+        match first_observable {
+            Some(s) => println!("observable after {s:.2} s"),
+            None => println!("never observable: {:?}", q.observability),
+        }
+        if let Some(t) = &last.estimate {
+            println!("final scale {:.6} (±{:.3} %)", t.scale, 100.0 * q.scale_rel_sigma);
+        }
+        println!("anchors: {} used, {} rejected, {} dropped", q.anchors_used, q.anchors_rejected, q.anchors_dropped);
+        if let Some(l) = q.latency_s {
+            println!("GNSS latency estimate {:.0} ms", l * 1e3);
+        }
+        if let Some(f) = q.wheel_factor {
+            println!("wheel speed factor {f:.5}");
+        }
+    }
+    Ok(())
+}
+

@@ -1,0 +1,195 @@
+//! The `dash2sim` command line (DESIGN §4). `main.rs` only calls [`run`].
+//!
+//! Every subcommand has `--help`; `--json` prints machine-readable JSON on stdout;
+//! errors go to stderr with a non-zero exit status.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use dash2sim_core::sim3::Sim3;
+use dash2sim_core::traj::{Delta, RpePairs, Statistics};
+use serde_json::json;
+
+use crate::anchoring::{self, AnchorArgs};
+use crate::evaluate::{self, Align, Evaluation, Relation};
+use crate::sync::DEFAULT_MAX_DIFF_S;
+use crate::trajectory::Format;
+
+/// dash2sim: metric, geo-referenced 4D driving logs from a dashcam.
+#[derive(Debug, Parser)]
+#[command(name = "dash2sim", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Trajectory evaluation with evo's definitions (APE, RPE).
+    #[command(subcommand)]
+    Traj(TrajCommand),
+    /// Anchor a VO trajectory (unknown scale) to GNSS positions and wheel speed.
+    Anchor(AnchorArgs),
+}
+
+#[derive(Debug, Subcommand)]
+enum TrajCommand {
+    /// Absolute pose error of EST against REF.
+    Ape(ApeArgs),
+    /// Relative pose error of EST against REF.
+    Rpe(RpeArgs),
+}
+
+#[derive(Debug, Args)]
+struct CommonArgs {
+    /// Reference trajectory (ground truth).
+    reference: PathBuf,
+    /// Estimated trajectory.
+    estimate: PathBuf,
+    /// File format (`euroc`: reference is an EuRoC ground-truth CSV, estimate TUM).
+    #[arg(long, value_enum, default_value = "tum")]
+    format: Format,
+    /// Alignment of the estimate to the reference before measuring.
+    #[arg(long, value_enum, default_value = "none")]
+    align: Align,
+    /// Which pose error to measure.
+    #[arg(long, short = 'r', value_enum, default_value = "trans")]
+    pose_relation: Relation,
+    /// Largest timestamp difference for association, s.
+    #[arg(long, default_value_t = DEFAULT_MAX_DIFF_S)]
+    max_diff: f64,
+    /// Print JSON on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, Args)]
+struct ApeArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum DeltaUnit {
+    /// Frames (poses).
+    Frames,
+    /// Metres of travelled path.
+    M,
+}
+
+#[derive(Debug, Args)]
+struct RpeArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// Pair spacing, in `--unit`.
+    #[arg(long, default_value_t = 1.0)]
+    delta: f64,
+    /// Unit of `--delta`.
+    #[arg(long, value_enum, default_value = "frames")]
+    unit: DeltaUnit,
+    /// Use every pair at that spacing, not only consecutive ones.
+    #[arg(long)]
+    all_pairs: bool,
+    /// Choose metre-spaced pairs on the reference path (evo's default is the estimate's).
+    #[arg(long)]
+    pairs_from_reference: bool,
+}
+
+/// Parse the process arguments and run; the exit code tells success.
+pub fn run() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Traj(TrajCommand::Ape(args)) => traj_ape(&args),
+        Command::Traj(TrajCommand::Rpe(args)) => traj_rpe(&args),
+        Command::Anchor(args) => anchoring::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(message) => {
+            eprintln!("dash2sim: error: {message}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn traj_ape(args: &ApeArgs) -> Result<(), String> {
+    let c = &args.common;
+    check_max_diff(c.max_diff)?;
+    let (r, e) = evaluate::load_pair(&c.reference, &c.estimate, c.format, c.max_diff).map_err(|e| e.to_string())?;
+    let eval = evaluate::ape(&r, &e, c.align, c.pose_relation).map_err(|e| e.to_string())?;
+    report("APE", c, &eval, None);
+    Ok(())
+}
+
+fn traj_rpe(args: &RpeArgs) -> Result<(), String> {
+    let c = &args.common;
+    check_max_diff(c.max_diff)?;
+    let delta = match args.unit {
+        DeltaUnit::Frames if args.delta >= 1.0 && args.delta.fract() == 0.0 && args.delta < 1e9 => Delta::Frames(args.delta as usize),
+        DeltaUnit::Frames => return Err(format!("--delta {} is not a whole number of frames ≥ 1", args.delta)),
+        DeltaUnit::M if args.delta.is_finite() && args.delta > 0.0 => Delta::Metres(args.delta),
+        DeltaUnit::M => return Err(format!("--delta {} m must be positive", args.delta)),
+    };
+    let pairs = RpePairs { delta, all_pairs: args.all_pairs, from_reference: args.pairs_from_reference };
+    let (r, e) = evaluate::load_pair(&c.reference, &c.estimate, c.format, c.max_diff).map_err(|e| e.to_string())?;
+    let eval = evaluate::rpe(&r, &e, c.align, c.pose_relation, pairs).map_err(|e| e.to_string())?;
+    report("RPE", c, &eval, Some(args));
+    Ok(())
+}
+
+fn check_max_diff(max_diff: f64) -> Result<(), String> {
+    if max_diff.is_finite() && max_diff >= 0.0 {
+        Ok(())
+    } else {
+        Err(format!("--max-diff {max_diff} must be a non-negative number of seconds"))
+    }
+}
+
+/// The alignment as `{"R": [[..]], "t": [..], "s": ..}`.
+pub fn sim3_json(t: &Sim3) -> serde_json::Value {
+    let r = &t.rotation;
+    json!({
+        "R": (0..3).map(|i| (0..3).map(|j| r[(i, j)]).collect::<Vec<_>>()).collect::<Vec<_>>(),
+        "t": [t.translation.x, t.translation.y, t.translation.z],
+        "s": t.scale,
+    })
+}
+
+/// Statistics with evo's key names.
+pub fn stats_json(s: &Statistics) -> serde_json::Value {
+    json!({"rmse": s.rmse, "mean": s.mean, "median": s.median, "std": s.std, "min": s.min, "max": s.max, "sse": s.sse})
+}
+
+fn report(metric: &str, c: &CommonArgs, eval: &Evaluation, rpe: Option<&RpeArgs>) {
+    let relation = c.pose_relation.to_possible_value().map(|v| v.get_name().to_owned()).unwrap_or_default();
+    let align = c.align.to_possible_value().map(|v| v.get_name().to_owned()).unwrap_or_default();
+    if c.json {
+        let mut out = json!({
+            "metric": metric.to_lowercase(),
+            "pose_relation": relation,
+            "align": align,
+            "alignment": sim3_json(&eval.alignment),
+            "stats": stats_json(&eval.stats),
+            "n": eval.n,
+            "matched": eval.matched,
+        });
+        if let Some(r) = rpe {
+            out["delta"] = json!(r.delta);
+            out["delta_unit"] = json!(if r.unit == DeltaUnit::M { "m" } else { "frames" });
+            out["all_pairs"] = json!(r.all_pairs);
+        }
+        println!("{out}");
+        return;
+    }
+    println!("{metric} ({relation}), alignment: {align}, {} values from {} matched poses", eval.n, eval.matched);
+    if c.align != Align::None {
+        let t = &eval.alignment;
+        println!("  s = {:.9}", t.scale);
+        println!("  t = [{:.6}, {:.6}, {:.6}]", t.translation.x, t.translation.y, t.translation.z);
+    }
+    let s = &eval.stats;
+    for (name, v) in [("max", s.max), ("mean", s.mean), ("median", s.median), ("min", s.min), ("rmse", s.rmse), ("sse", s.sse), ("std", s.std)] {
+        println!("{name:>10}\t{v:.6}");
+    }
+}

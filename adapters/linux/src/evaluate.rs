@@ -1,0 +1,165 @@
+//! `traj ape` / `traj rpe`: read, associate, align, measure — evo's pipeline.
+
+use std::path::Path;
+
+use dash2sim_core::sim3::{AlignError, AlignMode, Moments, Sim3};
+use dash2sim_core::traj::{self, PoseRelation, RpePairs, Statistics, TrajError};
+
+use crate::sync;
+use crate::trajectory::{Format, Trajectory, TrajectoryError};
+
+/// Fewer matched poses than this cannot be aligned or meaningfully evaluated.
+pub const MIN_MATCHED_POSES: usize = 3;
+
+/// How the estimate is aligned to the reference before measuring.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Align {
+    /// No alignment.
+    None,
+    /// Rotation and translation (evo `-a`).
+    Se3,
+    /// Rotation, translation and scale (evo `-as`).
+    Sim3,
+    /// Scale only (evo `-s`).
+    Scale,
+}
+
+/// Which pose error is measured (evo `-r`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Relation {
+    /// Translation part, m.
+    Trans,
+    /// Full transformation, unit-less.
+    Full,
+    /// Rotation angle, degrees.
+    AngleDeg,
+    /// Rotation angle, radians.
+    AngleRad,
+}
+
+impl Relation {
+    fn core(self) -> PoseRelation {
+        match self {
+            Relation::Trans => PoseRelation::TranslationPart,
+            Relation::Full => PoseRelation::FullTransformation,
+            Relation::AngleDeg => PoseRelation::RotationAngleDeg,
+            Relation::AngleRad => PoseRelation::RotationAngleRad,
+        }
+    }
+}
+
+/// What went wrong evaluating.
+#[derive(Debug)]
+pub enum EvalError {
+    /// A file could not be read or parsed.
+    File(TrajectoryError),
+    /// Too few poses matched by timestamp (or KITTI files of different length).
+    TooFewMatches {
+        /// Poses matched.
+        matched: usize,
+        /// Poses in the reference.
+        reference: usize,
+        /// Poses in the estimate.
+        estimate: usize,
+    },
+    /// The alignment failed.
+    Align(AlignError),
+    /// The metric failed.
+    Metric(TrajError),
+}
+
+impl std::fmt::Display for EvalError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            EvalError::File(e) => write!(f, "{e}"),
+            EvalError::TooFewMatches { matched, reference, estimate } => write!(
+                f,
+                "only {matched} poses matched (reference {reference}, estimate {estimate}); at least {MIN_MATCHED_POSES} are needed"
+            ),
+            EvalError::Align(e) => write!(f, "alignment failed: {e}"),
+            EvalError::Metric(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for EvalError {}
+
+impl From<TrajectoryError> for EvalError {
+    fn from(e: TrajectoryError) -> Self {
+        EvalError::File(e)
+    }
+}
+
+/// The result of an APE or RPE evaluation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Evaluation {
+    /// The transform applied to the estimate (identity for `--align none`).
+    pub alignment: Sim3,
+    /// Error statistics.
+    pub stats: Statistics,
+    /// Number of errors (poses for APE, pairs for RPE).
+    pub n: usize,
+    /// Matched poses.
+    pub matched: usize,
+}
+
+/// Reference and estimate, read and associated. KITTI files pair by index.
+pub fn load_pair(reference: &Path, estimate: &Path, format: Format, max_diff: f64) -> Result<(Trajectory, Trajectory), EvalError> {
+    let traj_ref = Trajectory::read(reference, format)?;
+    let est_format = if format == Format::Euroc { Format::Tum } else { format };
+    let traj_est = Trajectory::read(estimate, est_format)?;
+    let (n_ref, n_est) = (traj_ref.len(), traj_est.len());
+    let (r, e) = if format == Format::Kitti {
+        if traj_ref.len() != traj_est.len() {
+            return Err(EvalError::TooFewMatches { matched: 0, reference: traj_ref.len(), estimate: traj_est.len() });
+        }
+        (traj_ref, traj_est)
+    } else {
+        sync::associate(&traj_ref, &traj_est, max_diff)
+    };
+    if r.len() < MIN_MATCHED_POSES {
+        return Err(EvalError::TooFewMatches { matched: r.len(), reference: n_ref, estimate: n_est });
+    }
+    Ok((r, e))
+}
+
+/// The Umeyama transform estimate → reference for `align`.
+pub fn alignment(reference: &Trajectory, estimate: &Trajectory, align: Align) -> Result<Sim3, EvalError> {
+    let mode = match align {
+        Align::None => return Ok(Sim3::identity()),
+        Align::Se3 => AlignMode::Se3,
+        Align::Sim3 => AlignMode::Sim3,
+        Align::Scale => AlignMode::ScaleOnly,
+    };
+    let mut moments = Moments::new();
+    for (x, y) in estimate.positions().zip(reference.positions()) {
+        moments.push(x, y, 1.0).map_err(EvalError::Align)?;
+    }
+    moments.align(mode).map_err(EvalError::Align)
+}
+
+fn aligned(estimate: &Trajectory, t: &Sim3) -> Trajectory {
+    Trajectory { stamps: estimate.stamps.clone(), poses: estimate.poses.iter().map(|p| t.transform_pose(p)).collect() }
+}
+
+/// Absolute pose error of associated trajectories.
+pub fn ape(reference: &Trajectory, estimate: &Trajectory, align: Align, relation: Relation) -> Result<Evaluation, EvalError> {
+    let t = alignment(reference, estimate, align)?;
+    let est = aligned(estimate, &t);
+    let mut errors = vec![0.0; reference.len()];
+    let n = traj::ape(&reference.poses, &est.poses, relation.core(), &mut errors).map_err(EvalError::Metric)?;
+    let stats = Statistics::from_errors(&mut errors[..n]).map_err(EvalError::Metric)?;
+    Ok(Evaluation { alignment: t, stats, n, matched: reference.len() })
+}
+
+/// Relative pose error of associated trajectories.
+pub fn rpe(reference: &Trajectory, estimate: &Trajectory, align: Align, relation: Relation, pairs: RpePairs) -> Result<Evaluation, EvalError> {
+    let t = alignment(reference, estimate, align)?;
+    let est = aligned(estimate, &t);
+    let mut scratch = vec![0.0; reference.len()];
+    // At most one pair per pose: every pair (i, j) has a distinct i.
+    let mut errors = vec![0.0; reference.len()];
+    let n = traj::rpe(&reference.poses, &est.poses, pairs, relation.core(), &mut scratch, &mut errors).map_err(EvalError::Metric)?;
+    let stats = Statistics::from_errors(&mut errors[..n]).map_err(EvalError::Metric)?;
+    Ok(Evaluation { alignment: t, stats, n, matched: reference.len() })
+}

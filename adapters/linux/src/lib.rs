@@ -1,0 +1,12 @@
+//! # dash2sim-linux
+//!
+//! std adapters around `dash2sim-core` and the `dash2sim` command line: trajectory files
+//! (TUM, KITTI, EuRoC), timestamp association, evaluation and offline anchoring.
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+pub mod anchoring;
+pub mod cli;
+pub mod evaluate;
+pub mod sync;
+pub mod trajectory;

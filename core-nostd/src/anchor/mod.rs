@@ -1,0 +1,490 @@
+//! Incremental Sim(3) anchoring of a visual-odometry trajectory to geo-referenced anchors.
+//!
+//! Monocular VO knows its trajectory only up to an unknown similarity (and drifts); GNSS
+//! fixes and wheel speed know where the car is in metres but are noisy. The [`Anchorer`]
+//! estimates, after every anchor, the [`Sim3`] taking VO coordinates to the local ENU
+//! frame, in O(1) time and memory per anchor:
+//!
+//! * **Moments, not points.** Each anchor updates weighted Umeyama moments
+//!   ([`Moments`]); the estimate is a closed form of them. Weights are `1/σ²` from the
+//!   fix's HDOP/GST σ ([`gnss_sigma`]), times a robust Cauchy factor.
+//! * **Outliers.** A fix is rejected when it disagrees with the current estimate by more
+//!   than `gate_sigma·σ`, or when it moved farther from the last accepted fix than the
+//!   wheels travelled (a multipath jump), so one bad fix never pulls the estimate.
+//! * **Drift.** Past weight decays with time constant `forgetting_time_constant_s`, so
+//!   the Sim(3) follows slow VO drift and memory stays bounded on long drives.
+//! * **Latency.** A GNSS fix describes the antenna some tens of ms before it is received.
+//!   `K` latency hypotheses (0, step, 2·step, …) are tracked side by side, each pairing
+//!   fixes with the VO position at `t_rx − latency`; their one-step-ahead prediction
+//!   errors are accumulated and the smallest wins (refined by a parabola through its
+//!   neighbours). With speed changes the hypotheses separate; at constant velocity the
+//!   latency is indistinguishable from a translation, and does no harm.
+//! * **Scale from the wheels.** Wheel distance over VO path length (recent window), with
+//!   the wheel factor calibrated online against the GNSS path, is fused with the GNSS
+//!   scale by inverse variance.
+//! * **Observability.** The weakest rotation axis and the scale get a standard deviation
+//!   from the moments (inflated for time-correlated GNSS error); until they are below the
+//!   configured bounds the quality says why and the last good estimate is held — a
+//!   straight drive leaves roll about the road axis unknown, and no wild estimate is
+//!   reported. [`AnchorMode::GravityAligned`] (yaw, scale, translation) needs only
+//!   horizontal spread and is the better choice when the VO frame's vertical is known.
+
+mod history;
+mod wheel;
+
+use nalgebra::Vector3;
+
+use crate::sim3::{AlignMode, Moments, Sim3};
+use crate::time::{Duration, Timestamp};
+use history::{Odometer, VoHistory, VoSample};
+use wheel::WheelScale;
+
+/// VO samples kept for latency look-back (3.2 s at 20 Hz).
+const VO_HISTORY: usize = 64;
+/// GNSS fixes waiting for the VO sample that brackets them.
+const PENDING_ANCHORS: usize = 8;
+
+/// Which similarity the anchorer estimates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum AnchorMode {
+    /// Full 7-DoF Sim(3): arbitrary VO orientation.
+    Full,
+    /// 4-DoF: VO z axis is already vertical (gravity-aligned); yaw, scale, translation.
+    GravityAligned,
+}
+
+/// Anchoring parameters; [`AnchorConfig::default`] suits a car dashcam with a consumer
+/// GNSS receiver at 1–10 Hz and VO at 10–30 Hz.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AnchorConfig {
+    /// Degrees of freedom estimated.
+    pub mode: AnchorMode,
+    /// Past anchors' weight decays as exp(−Δt/τ); `f64::INFINITY` never forgets.
+    pub forgetting_time_constant_s: f64,
+    /// Cauchy down-weighting scale, in σ.
+    pub robust_scale_sigma: f64,
+    /// Residual (in σ) beyond which an anchor is rejected once the estimate is observable.
+    pub gate_sigma: f64,
+    /// Time over which GNSS errors stay correlated; information is discounted
+    /// accordingly when judging observability.
+    pub gnss_correlation_time_s: f64,
+    /// Largest standard deviation of rotation (weakest axis) for "observable", rad.
+    pub max_rotation_sigma_rad: f64,
+    /// Largest relative standard deviation of scale for "observable".
+    pub max_scale_rel_sigma: f64,
+    /// Minimum anchors before an estimate is reported observable.
+    pub min_anchors: u32,
+    /// Spacing of latency hypotheses; `Duration::ZERO` disables latency estimation.
+    pub latency_step: Duration,
+    /// Time constant of the wheel/VO path-length window, s.
+    pub wheel_time_constant_s: f64,
+    /// Relative σ of the wheel scale beyond calibration (VO path noise, slip).
+    pub wheel_scale_rel_sigma: f64,
+}
+
+impl Default for AnchorConfig {
+    fn default() -> Self {
+        AnchorConfig {
+            mode: AnchorMode::Full,
+            forgetting_time_constant_s: 20.0,
+            robust_scale_sigma: 3.0,
+            gate_sigma: 6.0,
+            gnss_correlation_time_s: 2.0,
+            max_rotation_sigma_rad: 1.0f64.to_radians(),
+            max_scale_rel_sigma: 0.02,
+            min_anchors: 5,
+            latency_step: Duration::from_millis(25),
+            wheel_time_constant_s: 8.0,
+            wheel_scale_rel_sigma: 0.002,
+        }
+    }
+}
+
+/// Why the estimate is (not yet) trusted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Observability {
+    /// Fewer anchors than `min_anchors`, or no alignment possible yet.
+    TooFewAnchors,
+    /// Anchors (nearly) on a line: rotation about it is not determined.
+    Collinear,
+    /// Not enough travel for the scale.
+    ScaleUncertain,
+    /// Every parameter is within its bound.
+    Observable,
+}
+
+/// The state of the estimate after the latest anchor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Quality {
+    /// Verdict on the latest fit.
+    pub observability: Observability,
+    /// Anchors that contributed (possibly down-weighted).
+    pub anchors_used: u32,
+    /// Anchors rejected as outliers.
+    pub anchors_rejected: u32,
+    /// Anchors dropped (no VO to pair with, or queue full).
+    pub anchors_dropped: u32,
+    /// Weighted RMS residual of the current fit, m.
+    pub rms_residual_m: f64,
+    /// Standard deviation of rotation about the weakest axis, rad.
+    pub rotation_sigma_rad: f64,
+    /// Relative standard deviation of the scale.
+    pub scale_rel_sigma: f64,
+    /// Estimated GNSS latency, s (when latency estimation is on and data suffice).
+    pub latency_s: Option<f64>,
+    /// Calibrated wheel factor (true / odometer distance), when speed is fed.
+    pub wheel_factor: Option<f64>,
+}
+
+/// Why an input was refused. The anchorer's state is unchanged by a refused input.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum AnchorError {
+    /// NaN or infinite value.
+    NonFinite,
+    /// Non-positive or non-finite σ.
+    InvalidSigma,
+    /// Timestamp earlier than the previous one of the same stream.
+    OutOfOrder,
+}
+
+impl core::fmt::Display for AnchorError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            AnchorError::NonFinite => "value is NaN or infinite",
+            AnchorError::InvalidSigma => "sigma must be positive and finite",
+            AnchorError::OutOfOrder => "timestamp earlier than the previous sample",
+        })
+    }
+}
+
+impl core::error::Error for AnchorError {}
+
+/// Horizontal 1-σ position error of a fix, m: from GST (σ_lat, σ_lon) when the receiver
+/// gives it, else HDOP × user equivalent range error (UERE, typically 2–5 m).
+pub fn gnss_sigma(hdop: Option<f64>, gst_lat_lon_sigma_m: Option<(f64, f64)>, uere_m: f64) -> Option<f64> {
+    if let Some((a, b)) = gst_lat_lon_sigma_m {
+        let s = libm::sqrt(0.5 * (a * a + b * b));
+        if s.is_finite() && s > 0.0 {
+            return Some(s);
+        }
+    }
+    let s = hdop? * uere_m;
+    (s.is_finite() && s > 0.0).then_some(s)
+}
+
+/// A GNSS fix waiting for the VO sample after it.
+#[derive(Clone, Copy, Debug)]
+struct PendingFix {
+    t: Timestamp,
+    enu: Vector3<f64>,
+    sigma: f64,
+}
+
+/// One latency hypothesis: moments, its latest fit and its accumulated prediction error.
+#[derive(Clone, Copy, Debug)]
+struct Hypothesis {
+    latency: Duration,
+    moments: Moments,
+    fit: Option<Sim3>,
+    prediction_sse: f64,
+}
+
+/// Incremental anchoring of VO to GNSS and wheel speed, with `K` latency hypotheses.
+#[derive(Debug)]
+pub struct Anchorer<const K: usize = 9> {
+    config: AnchorConfig,
+    hypotheses: [Hypothesis; K],
+    history: VoHistory<VO_HISTORY>,
+    pending: heapless::Deque<PendingFix, PENDING_ANCHORS>,
+    odometer: Odometer,
+    wheel: WheelScale,
+    last_fix_time: Option<Timestamp>,
+    last_accepted: Option<(Timestamp, Vector3<f64>, Option<f64>)>,
+    mean_fix_interval_s: f64,
+    estimate: Option<Sim3>,
+    quality: Quality,
+}
+
+impl<const K: usize> Anchorer<K> {
+    /// An anchorer with no data.
+    pub fn new(config: AnchorConfig) -> Self {
+        let step = config.latency_step;
+        let hypotheses = core::array::from_fn(|k| Hypothesis {
+            latency: Duration::from_micros(step.micros().saturating_mul(k as i64)),
+            moments: Moments::new(),
+            fit: None,
+            prediction_sse: 0.0,
+        });
+        Anchorer {
+            config,
+            hypotheses,
+            history: VoHistory::new(),
+            pending: heapless::Deque::new(),
+            odometer: Odometer::default(),
+            wheel: WheelScale::default(),
+            last_fix_time: None,
+            last_accepted: None,
+            mean_fix_interval_s: 0.0,
+            estimate: None,
+            quality: Quality {
+                observability: Observability::TooFewAnchors,
+                anchors_used: 0,
+                anchors_rejected: 0,
+                anchors_dropped: 0,
+                rms_residual_m: 0.0,
+                rotation_sigma_rad: f64::INFINITY,
+                scale_rel_sigma: f64::INFINITY,
+                latency_s: None,
+                wheel_factor: None,
+            },
+        }
+    }
+
+    /// The configuration in use.
+    pub fn config(&self) -> &AnchorConfig {
+        &self.config
+    }
+
+    /// The latest observable estimate (VO → ENU), held while the fit is not observable.
+    pub fn estimate(&self) -> Option<&Sim3> {
+        self.estimate.as_ref()
+    }
+
+    /// The state of the latest fit.
+    pub fn quality(&self) -> &Quality {
+        &self.quality
+    }
+
+    /// The latest VO position mapped into ENU with the current estimate.
+    pub fn current_position(&self) -> Option<Vector3<f64>> {
+        Some(self.estimate?.transform_point(&self.history.latest()?.position))
+    }
+
+    /// A vehicle-speed sample (wheel-based or vehicle speed, m/s).
+    pub fn push_speed(&mut self, t: Timestamp, speed_mps: f64) -> Result<(), AnchorError> {
+        if !speed_mps.is_finite() {
+            return Err(AnchorError::NonFinite);
+        }
+        if self.odometer.last_time().is_some_and(|last| t < last) {
+            return Err(AnchorError::OutOfOrder);
+        }
+        self.odometer.push(t, speed_mps.max(0.0));
+        Ok(())
+    }
+
+    /// A VO position (VO frame, unknown scale). Processes any fixes it now brackets.
+    pub fn push_vo(&mut self, t: Timestamp, position: Vector3<f64>) -> Result<(), AnchorError> {
+        if !position.iter().all(|v| v.is_finite()) {
+            return Err(AnchorError::NonFinite);
+        }
+        if self.history.latest().is_some_and(|s| t <= s.t) {
+            return Err(AnchorError::OutOfOrder);
+        }
+        let odometer_m = self.odometer.at(t);
+        if let Some(odo) = odometer_m {
+            self.wheel.push_frame(t, &position, odo, self.config.wheel_time_constant_s);
+        }
+        self.history.push(VoSample { t, position, odometer_m });
+        while let Some(fix) = self.pending.front().copied() {
+            if fix.t > t {
+                break;
+            }
+            self.pending.pop_front();
+            self.process_fix(fix);
+        }
+        Ok(())
+    }
+
+    /// A GNSS fix received at `t_rx`, converted to the local ENU frame, with its 1-σ
+    /// horizontal error (see [`gnss_sigma`]). It is used as soon as a VO sample at or
+    /// after `t_rx` arrives.
+    pub fn push_gnss(&mut self, t_rx: Timestamp, enu: Vector3<f64>, sigma_m: f64) -> Result<(), AnchorError> {
+        if !enu.iter().all(|v| v.is_finite()) {
+            return Err(AnchorError::NonFinite);
+        }
+        if !(sigma_m.is_finite() && sigma_m > 0.0) {
+            return Err(AnchorError::InvalidSigma);
+        }
+        if self.last_fix_time.is_some_and(|last| t_rx < last) {
+            return Err(AnchorError::OutOfOrder);
+        }
+        if let Some(last) = self.last_fix_time {
+            let dt = (t_rx - last).as_secs_f64();
+            self.mean_fix_interval_s = if self.mean_fix_interval_s == 0.0 { dt } else { 0.9 * self.mean_fix_interval_s + 0.1 * dt };
+        }
+        self.last_fix_time = Some(t_rx);
+        let fix = PendingFix { t: t_rx, enu, sigma: sigma_m };
+        if self.history.latest().is_some_and(|s| s.t >= t_rx) {
+            self.process_fix(fix);
+        } else if let Err(oldest_first) = self.pending.push_back(fix) {
+            // Queue full: VO has stalled; the oldest waiting fix is the least useful.
+            let _ = oldest_first;
+            self.pending.pop_front();
+            let _ = self.pending.push_back(fix);
+            self.quality.anchors_dropped = self.quality.anchors_dropped.saturating_add(1);
+        }
+        Ok(())
+    }
+
+    fn best_index(&self) -> usize {
+        let mut best = 0;
+        for (k, h) in self.hypotheses.iter().enumerate() {
+            if h.prediction_sse < self.hypotheses[best].prediction_sse {
+                best = k;
+            }
+        }
+        best
+    }
+
+    fn process_fix(&mut self, fix: PendingFix) {
+        // VO (and odometer) at the instant each hypothesis says the fix describes.
+        let mut paired = [None; K];
+        for (slot, h) in paired.iter_mut().zip(&self.hypotheses) {
+            *slot = self.history.at(fix.t - h.latency);
+        }
+        let best = self.best_index();
+        let Some((x_best, odo_best)) = paired[best] else {
+            self.quality.anchors_dropped = self.quality.anchors_dropped.saturating_add(1);
+            return;
+        };
+
+        let base_weight = 1.0 / (fix.sigma * fix.sigma);
+        let mut weight = base_weight;
+        // Robust weighting against the current fit of the leading hypothesis.
+        if let Some(fit) = self.hypotheses[best].fit {
+            let u = (fix.enu - fit.transform_point(&x_best)).norm() / fix.sigma;
+            if self.quality.observability == Observability::Observable && u > self.config.gate_sigma {
+                self.reject();
+                return;
+            }
+            let r = u / self.config.robust_scale_sigma;
+            weight /= 1.0 + r * r;
+        }
+        // Jump test against the wheels: the fix cannot have moved farther than the car.
+        if let (Some((t0, p0, Some(o0))), Some(o1)) = (self.last_accepted, odo_best) {
+            let moved = (fix.enu - p0).norm();
+            let travelled = (o1 - o0).abs();
+            let slack = self.config.gate_sigma * fix.sigma * core::f64::consts::SQRT_2;
+            if (fix.t - t0).as_secs_f64() < 10.0 && moved > travelled * 1.1 + slack {
+                self.reject();
+                return;
+            }
+        }
+
+        let forget = match self.last_accepted {
+            Some((t0, _, _)) => libm::exp(-(fix.t - t0).as_secs_f64() / self.config.forgetting_time_constant_s),
+            None => 1.0,
+        };
+        let align_mode = match self.config.mode {
+            AnchorMode::Full => AlignMode::Sim3,
+            AnchorMode::GravityAligned => AlignMode::YawScale,
+        };
+        for (h, pair) in self.hypotheses.iter_mut().zip(paired) {
+            let Some((x, _)) = pair else {
+                // This look-back is not covered yet: count it as a poor prediction.
+                h.prediction_sse += base_weight * fix.sigma * fix.sigma * 4.0;
+                continue;
+            };
+            if let Some(fit) = h.fit {
+                h.prediction_sse += weight * (fix.enu - fit.transform_point(&x)).norm_squared();
+            }
+            h.moments.forget(forget);
+            // Finite by the checks in push_gnss / push_vo.
+            let _ = h.moments.push(&x, &fix.enu, weight);
+            h.fit = h.moments.align(align_mode).ok();
+        }
+        self.quality.anchors_used = self.quality.anchors_used.saturating_add(1);
+        self.last_accepted = Some((fix.t, fix.enu, odo_best));
+
+        let best = self.best_index();
+        if let Some((_, Some(odo))) = paired[best] {
+            self.wheel.push_fix(fix.t, &fix.enu, odo);
+        }
+        self.update_estimate(best);
+    }
+
+    fn reject(&mut self) {
+        self.quality.anchors_rejected = self.quality.anchors_rejected.saturating_add(1);
+    }
+
+    /// Parabolic refinement of the best latency hypothesis.
+    fn latency_estimate(&self, best: usize) -> Option<f64> {
+        if self.config.latency_step == Duration::ZERO || K < 3 {
+            return None;
+        }
+        let step = self.config.latency_step.as_secs_f64();
+        let base = self.hypotheses[best].latency.as_secs_f64();
+        if best == 0 || best + 1 >= K {
+            return Some(base);
+        }
+        let (a, b, c) = (
+            self.hypotheses[best - 1].prediction_sse,
+            self.hypotheses[best].prediction_sse,
+            self.hypotheses[best + 1].prediction_sse,
+        );
+        let denom = a - 2.0 * b + c;
+        let offset = if denom > 0.0 { 0.5 * (a - c) / denom } else { 0.0 };
+        Some(base + offset.clamp(-0.5, 0.5) * step)
+    }
+
+    fn update_estimate(&mut self, best: usize) {
+        let h = &self.hypotheses[best];
+        self.quality.latency_s = self.latency_estimate(best);
+        self.quality.wheel_factor = self.wheel.calibration().map(|(f, _)| f);
+        let Some(mut fit) = h.fit else {
+            self.quality.observability = Observability::TooFewAnchors;
+            return;
+        };
+        let m = &h.moments;
+        // Information discount for time-correlated GNSS error.
+        let inflation = if self.mean_fix_interval_s > 0.0 {
+            (self.config.gnss_correlation_time_s / self.mean_fix_interval_s).max(1.0)
+        } else {
+            1.0
+        };
+        let sxx = m.covariance_x() * m.weight();
+        let eig = sxx.symmetric_eigenvalues();
+        let largest = eig[0].max(eig[1]).max(eig[2]).max(0.0);
+        let trace = sxx.trace().max(0.0);
+        let rotation_info = match self.config.mode {
+            // Rotation about the axis of largest spread is the worst determined.
+            AnchorMode::Full => trace - largest,
+            AnchorMode::GravityAligned => sxx[(0, 0)] + sxx[(1, 1)],
+        };
+        let c = fit.scale;
+        let rotation_sigma = libm::sqrt(inflation / (c * c * rotation_info));
+        // GNSS information on the scale, then fused with the wheel scale.
+        let gnss_var = inflation / trace;
+        let mut scale_var = gnss_var;
+        if let (Some(wheel_scale), Some((_, gnss_path))) = (self.wheel.scale(), self.wheel.calibration()) {
+            let sigma = m.weight().recip().sqrt().min(100.0);
+            let rel = self.config.wheel_scale_rel_sigma + core::f64::consts::SQRT_2 * sigma / gnss_path;
+            let wheel_var = (rel * wheel_scale) * (rel * wheel_scale);
+            if gnss_var.is_finite() && wheel_var > 0.0 {
+                let fused = (c / gnss_var + wheel_scale / wheel_var) / (1.0 / gnss_var + 1.0 / wheel_var);
+                scale_var = 1.0 / (1.0 / gnss_var + 1.0 / wheel_var);
+                fit.scale = fused;
+                fit.translation = m.mean_y() - fit.rotation * m.mean_x() * fused;
+            }
+        }
+        let scale_rel_sigma = libm::sqrt(scale_var) / fit.scale;
+        self.quality.rotation_sigma_rad = rotation_sigma;
+        self.quality.scale_rel_sigma = scale_rel_sigma;
+        self.quality.rms_residual_m = if m.weight() > 0.0 { libm::sqrt(m.weighted_sse(&fit) / m.weight()) } else { 0.0 };
+        self.quality.observability = if m.count() < self.config.min_anchors {
+            Observability::TooFewAnchors
+        } else if !(rotation_sigma <= self.config.max_rotation_sigma_rad) {
+            Observability::Collinear
+        } else if !(scale_rel_sigma <= self.config.max_scale_rel_sigma) {
+            Observability::ScaleUncertain
+        } else {
+            Observability::Observable
+        };
+        if self.quality.observability == Observability::Observable && fit.is_valid() {
+            self.estimate = Some(fit);
+        }
+    }
+}

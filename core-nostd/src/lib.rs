@@ -1,0 +1,29 @@
+//! # dash2sim-core
+//!
+//! The on-device half of dash2sim: `#![no_std]`, allocation-free, no `unsafe`.
+//! It turns what a dashcam sees and where it is into a metric, geo-referenced 4D log.
+//!
+//! | module | concept |
+//! |---|---|
+//! | [`time`] | the one timestamp type (i64 µs) |
+//! | [`geo`] | WGS84 ↔ ECEF ↔ local ENU |
+//! | [`sim3`] | similarity transforms, poses, Umeyama from moments |
+//! | [`anchor`] | incremental Sim(3) anchoring of VO to GNSS and wheel speed |
+//! | [`traj`] | APE / RPE with evo's definitions |
+//!
+//! Capacity is part of the types; nothing here allocates or panics on untrusted input.
+#![no_std]
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
+
+#[cfg(feature = "std")]
+extern crate std;
+
+pub mod anchor;
+pub mod geo;
+pub mod sim3;
+pub mod time;
+pub mod traj;
+
+pub use nalgebra;
