@@ -30,7 +30,7 @@ pub struct AnchorArgs {
     #[arg(long, value_enum, default_value = "full")]
     mode: ModeArg,
     /// Forgetting time constant, s (`inf` never forgets).
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = 12.0)]
     forget: f64,
     /// Write the anchored trajectory (TUM) here; frames before the estimate is
     /// observable are left out.

@@ -43,6 +43,11 @@ use wheel::WheelScale;
 const VO_HISTORY: usize = 64;
 /// GNSS fixes waiting for the VO sample that brackets them.
 const PENDING_ANCHORS: usize = 8;
+/// Degrees of freedom from which the residuals, not the stated σ, set the noise level.
+const MIN_DOF_FOR_POSTERIOR: f64 = 10.0;
+/// The a-posteriori variance factor is not trusted below this (a fit that absorbs its
+/// own noise must not claim near-perfect precision).
+const MIN_VARIANCE_FACTOR: f64 = 0.01;
 
 /// Which similarity the anchorer estimates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -69,8 +74,11 @@ pub struct AnchorConfig {
     /// Time over which GNSS errors stay correlated; information is discounted
     /// accordingly when judging observability.
     pub gnss_correlation_time_s: f64,
-    /// Largest standard deviation of rotation (weakest axis) for "observable", rad.
-    pub max_rotation_sigma_rad: f64,
+    /// Largest position error (m, 1σ) that rotation and scale uncertainty may add at
+    /// the current VO position for "observable". Rotation about an axis the drive has
+    /// run along barely moves points near that axis, so a straight road is fine for
+    /// positions while roll stays undetermined (see [`Quality::rotation_sigma_rad`]).
+    pub max_geometry_sigma_m: f64,
     /// Largest relative standard deviation of scale for "observable".
     pub max_scale_rel_sigma: f64,
     /// Minimum anchors before an estimate is reported observable.
@@ -87,15 +95,15 @@ impl Default for AnchorConfig {
     fn default() -> Self {
         AnchorConfig {
             mode: AnchorMode::Full,
-            forgetting_time_constant_s: 20.0,
+            forgetting_time_constant_s: 12.0,
             robust_scale_sigma: 3.0,
             gate_sigma: 6.0,
             gnss_correlation_time_s: 2.0,
-            max_rotation_sigma_rad: 1.0f64.to_radians(),
+            max_geometry_sigma_m: 1.0,
             max_scale_rel_sigma: 0.02,
             min_anchors: 5,
             latency_step: Duration::from_millis(25),
-            wheel_time_constant_s: 8.0,
+            wheel_time_constant_s: 5.0,
             wheel_scale_rel_sigma: 0.002,
         }
     }
@@ -107,7 +115,8 @@ impl Default for AnchorConfig {
 pub enum Observability {
     /// Fewer anchors than `min_anchors`, or no alignment possible yet.
     TooFewAnchors,
-    /// Anchors (nearly) on a line: rotation about it is not determined.
+    /// Rotation not determined well enough for the current position (anchors too
+    /// nearly on a line through it).
     Collinear,
     /// Not enough travel for the scale.
     ScaleUncertain,
@@ -128,8 +137,12 @@ pub struct Quality {
     pub anchors_dropped: u32,
     /// Weighted RMS residual of the current fit, m.
     pub rms_residual_m: f64,
-    /// Standard deviation of rotation about the weakest axis, rad.
+    /// Standard deviation of rotation about the weakest axis, rad. On a straight road
+    /// this is roll about the road axis and may stay large.
     pub rotation_sigma_rad: f64,
+    /// Position error (m, 1σ, 3D) that rotation and scale uncertainty add at the
+    /// current VO position, on top of the GNSS mean error.
+    pub geometry_sigma_m: f64,
     /// Relative standard deviation of the scale.
     pub scale_rel_sigma: f64,
     /// Estimated GNSS latency, s (when latency estimation is on and data suffice).
@@ -204,6 +217,9 @@ pub struct Anchorer<const K: usize = 9> {
     last_fix_time: Option<Timestamp>,
     last_accepted: Option<(Timestamp, Vector3<f64>, Option<f64>)>,
     mean_fix_interval_s: f64,
+    /// Σw² with the same forgetting as the moments (Σw is in the moments), for Kish's
+    /// effective number of anchors (Σw)²/Σw².
+    weight_squares: f64,
     estimate: Option<Sim3>,
     quality: Quality,
 }
@@ -228,6 +244,7 @@ impl<const K: usize> Anchorer<K> {
             last_fix_time: None,
             last_accepted: None,
             mean_fix_interval_s: 0.0,
+            weight_squares: 0.0,
             estimate: None,
             quality: Quality {
                 observability: Observability::TooFewAnchors,
@@ -236,6 +253,7 @@ impl<const K: usize> Anchorer<K> {
                 anchors_dropped: 0,
                 rms_residual_m: 0.0,
                 rotation_sigma_rad: f64::INFINITY,
+                geometry_sigma_m: f64::INFINITY,
                 scale_rel_sigma: f64::INFINITY,
                 latency_s: None,
                 wheel_factor: None,
@@ -396,6 +414,7 @@ impl<const K: usize> Anchorer<K> {
             let _ = h.moments.push(&x, &fix.enu, weight);
             h.fit = h.moments.align(align_mode).ok();
         }
+        self.weight_squares = self.weight_squares * forget * forget + weight * weight;
         self.quality.anchors_used = self.quality.anchors_used.saturating_add(1);
         self.last_accepted = Some((fix.t, fix.enu, odo_best));
 
@@ -403,7 +422,7 @@ impl<const K: usize> Anchorer<K> {
         if let Some((_, Some(odo))) = paired[best] {
             self.wheel.push_fix(fix.t, &fix.enu, odo);
         }
-        self.update_estimate(best);
+        self.update_estimate(best, &x_best);
     }
 
     fn reject(&mut self) {
@@ -430,7 +449,7 @@ impl<const K: usize> Anchorer<K> {
         Some(base + offset.clamp(-0.5, 0.5) * step)
     }
 
-    fn update_estimate(&mut self, best: usize) {
+    fn update_estimate(&mut self, best: usize, current: &Vector3<f64>) {
         let h = &self.hypotheses[best];
         self.quality.latency_s = self.latency_estimate(best);
         self.quality.wheel_factor = self.wheel.calibration().map(|(f, _)| f);
@@ -439,23 +458,47 @@ impl<const K: usize> Anchorer<K> {
             return;
         };
         let m = &h.moments;
-        // Information discount for time-correlated GNSS error.
-        let inflation = if self.mean_fix_interval_s > 0.0 {
+        // Variance inflation: GNSS errors are correlated over `gnss_correlation_time_s`,
+        // so neighbouring fixes are not independent; and the stated σ is scaled by the
+        // a-posteriori variance factor σ0² = Σwr²/(n_eff − p) once there are enough
+        // degrees of freedom (before that, never below the stated σ).
+        let correlation = if self.mean_fix_interval_s > 0.0 {
             (self.config.gnss_correlation_time_s / self.mean_fix_interval_s).max(1.0)
         } else {
             1.0
         };
+        let n_eff = if self.weight_squares > 0.0 { m.weight() * m.weight() / self.weight_squares } else { 0.0 };
+        let dof = n_eff - 7.0;
+        let sigma0_sq = if dof > 0.0 { m.weighted_sse(&fit) / (m.weight() / n_eff) / dof } else { f64::INFINITY };
+        let variance_factor = if dof >= MIN_DOF_FOR_POSTERIOR { sigma0_sq.max(MIN_VARIANCE_FACTOR) } else { sigma0_sq.max(1.0) };
+        let inflation = correlation * variance_factor;
         let sxx = m.covariance_x() * m.weight();
-        let eig = sxx.symmetric_eigenvalues();
-        let largest = eig[0].max(eig[1]).max(eig[2]).max(0.0);
         let trace = sxx.trace().max(0.0);
-        let rotation_info = match self.config.mode {
-            // Rotation about the axis of largest spread is the worst determined.
-            AnchorMode::Full => trace - largest,
-            AnchorMode::GravityAligned => sxx[(0, 0)] + sxx[(1, 1)],
-        };
+        let offset = current - m.mean_x();
         let c = fit.scale;
-        let rotation_sigma = libm::sqrt(inflation / (c * c * rotation_info));
+        // Rotation information about unit axis a is c²·aᵀ(tr(S)·I − S)a (S = Σw x'x'ᵀ);
+        // its eigen-axes are those of S. A rotation error θ about a moves the current
+        // point by θ·c·‖a × offset‖, so c cancels in the position variance.
+        let (rotation_sigma, rotation_var_m2) = match self.config.mode {
+            AnchorMode::Full => {
+                let eig = sxx.symmetric_eigen();
+                let mut weakest = 0.0f64;
+                let mut var = 0.0;
+                for i in 0..3 {
+                    let info = (trace - eig.eigenvalues[i]).max(0.0);
+                    let axis = eig.eigenvectors.column(i);
+                    let lever2 = axis.cross(&offset).norm_squared();
+                    weakest = weakest.max(1.0 / (c * c * info));
+                    var += if lever2 > 0.0 { lever2 / info } else { 0.0 };
+                }
+                (libm::sqrt(inflation * weakest), inflation * var)
+            }
+            AnchorMode::GravityAligned => {
+                let info = sxx[(0, 0)] + sxx[(1, 1)];
+                let lever2 = offset.x * offset.x + offset.y * offset.y;
+                (libm::sqrt(inflation / (c * c * info)), inflation * lever2 / info)
+            }
+        };
         // GNSS information on the scale, then fused with the wheel scale.
         let gnss_var = inflation / trace;
         let mut scale_var = gnss_var;
@@ -471,12 +514,14 @@ impl<const K: usize> Anchorer<K> {
             }
         }
         let scale_rel_sigma = libm::sqrt(scale_var) / fit.scale;
+        let geometry_sigma = libm::sqrt(rotation_var_m2 + scale_var * offset.norm_squared());
         self.quality.rotation_sigma_rad = rotation_sigma;
+        self.quality.geometry_sigma_m = geometry_sigma;
         self.quality.scale_rel_sigma = scale_rel_sigma;
         self.quality.rms_residual_m = if m.weight() > 0.0 { libm::sqrt(m.weighted_sse(&fit) / m.weight()) } else { 0.0 };
         self.quality.observability = if m.count() < self.config.min_anchors {
             Observability::TooFewAnchors
-        } else if !(rotation_sigma <= self.config.max_rotation_sigma_rad) {
+        } else if !(geometry_sigma <= self.config.max_geometry_sigma_m) {
             Observability::Collinear
         } else if !(scale_rel_sigma <= self.config.max_scale_rel_sigma) {
             Observability::ScaleUncertain
