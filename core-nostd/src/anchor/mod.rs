@@ -533,3 +533,6 @@ impl<const K: usize> Anchorer<K> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

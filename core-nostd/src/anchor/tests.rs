@@ -1,0 +1,150 @@
+//! Synthetic drives with known answers for the anchorer.
+
+use nalgebra::{Rotation3, Unit, Vector3};
+
+use super::*;
+use crate::sim3::rotation_z;
+
+fn ts(s: f64) -> Timestamp {
+    Timestamp::from_secs_f64(s).expect("finite")
+}
+
+/// A drive with a curve, a hill and a speed change; positions in ENU at time t.
+fn truth_at(t: f64) -> Vector3<f64> {
+    // Speed rises from 10 to 20 m/s; heading turns by 90° over the drive.
+    let s = 10.0 * t + 0.25 * t * t;
+    let heading = (s / 600.0) * core::f64::consts::FRAC_PI_2;
+    let radius = 600.0 / core::f64::consts::FRAC_PI_2;
+    Vector3::new(radius * libm::sin(heading), radius * (1.0 - libm::cos(heading)), 5.0 * libm::sin(t / 7.0))
+}
+
+fn speed_at(t: f64) -> f64 {
+    10.0 + 0.5 * t
+}
+
+struct Run {
+    anchorer: Anchorer,
+    truth: Sim3,
+}
+
+/// Feed `seconds` of VO at 20 Hz, fixes at 10 Hz delayed by `latency`, speed at 50 Hz
+/// reading `wheel_bias` times the truth.
+fn drive(config: AnchorConfig, truth: Sim3, seconds: f64, latency: f64, wheel_bias: f64, planar_line: bool) -> Run {
+    let mut anchorer: Anchorer = Anchorer::new(config);
+    let inverse = truth.inverse();
+    let path = |t: f64| if planar_line { Vector3::new(10.0 * t + 0.25 * t * t, 0.0, 0.0) } else { truth_at(t) };
+    let steps = (seconds * 100.0) as usize;
+    for k in 0..=steps {
+        let t = k as f64 * 0.01;
+        if k % 2 == 0 {
+            anchorer.push_speed(ts(t), speed_at(t) * wheel_bias).expect("valid speed");
+        }
+        if k % 10 == 0 && t > latency {
+            anchorer.push_gnss(ts(t), path(t - latency), 1.0).expect("valid fix");
+        }
+        if k % 5 == 0 {
+            anchorer.push_vo(ts(t), inverse.transform_point(&path(t))).expect("valid VO");
+        }
+    }
+    Run { anchorer, truth }
+}
+
+fn arbitrary() -> Sim3 {
+    let axis = Unit::new_normalize(Vector3::new(1.0, -2.0, 0.5));
+    Sim3 { rotation: *Rotation3::from_axis_angle(&axis, 1.2).matrix(), translation: Vector3::new(30.0, -4.0, 2.0), scale: 0.4 }
+}
+
+#[test]
+fn recovers_the_similarity_of_a_noise_free_drive() {
+    let run = drive(AnchorConfig::default(), arbitrary(), 30.0, 0.0, 1.0, false);
+    let q = run.anchorer.quality();
+    assert_eq!(q.observability, Observability::Observable);
+    let est = run.anchorer.estimate().expect("estimate");
+    // The wheel odometer integrates speed (trapezoids): a few ppm of path error.
+    assert!((est.scale / run.truth.scale - 1.0).abs() < 1e-5, "scale {}", est.scale);
+    assert!((est.rotation - run.truth.rotation).norm() < 1e-6);
+    assert!((est.translation - run.truth.translation).norm() < 1e-3);
+    assert!(q.rms_residual_m < 1e-3);
+    assert_eq!(q.latency_s, Some(0.0));
+}
+
+#[test]
+fn estimates_a_gnss_latency_when_the_speed_changes() {
+    let run = drive(AnchorConfig::default(), arbitrary(), 40.0, 0.060, 1.0, false);
+    let latency = run.anchorer.quality().latency_s.expect("latency");
+    assert!((latency - 0.060).abs() < 0.010, "latency {latency}");
+    let est = run.anchorer.estimate().expect("estimate");
+    assert!((est.scale / run.truth.scale - 1.0).abs() < 1e-3);
+}
+
+#[test]
+fn calibrates_biased_wheel_speed_against_the_gnss_path() {
+    let run = drive(AnchorConfig::default(), arbitrary(), 30.0, 0.0, 0.99, false);
+    let factor = run.anchorer.quality().wheel_factor.expect("calibrated");
+    assert!((factor - 1.0 / 0.99).abs() < 1e-3, "factor {factor}");
+}
+
+#[test]
+fn a_straight_line_is_unobservable_in_full_mode_but_fine_when_gravity_aligned() {
+    let full = drive(AnchorConfig::default(), arbitrary(), 20.0, 0.0, 1.0, true);
+    assert_ne!(full.anchorer.quality().observability, Observability::Observable);
+    assert!(full.anchorer.estimate().is_none(), "no wild estimate on a line");
+
+    let yaw_only = Sim3 { rotation: rotation_z(2.0), translation: Vector3::new(1.0, 2.0, 3.0), scale: 2.0 };
+    let config = AnchorConfig { mode: AnchorMode::GravityAligned, ..AnchorConfig::default() };
+    let four = drive(config, yaw_only, 20.0, 0.0, 1.0, true);
+    assert_eq!(four.anchorer.quality().observability, Observability::Observable);
+    let est = four.anchorer.estimate().expect("estimate");
+    assert!((est.scale - 2.0).abs() < 1e-6);
+    assert!((est.rotation - yaw_only.rotation).norm() < 1e-6);
+}
+
+#[test]
+fn a_multipath_jump_is_rejected_and_changes_nothing() {
+    let mut a = drive(AnchorConfig::default(), arbitrary(), 20.0, 0.0, 1.0, false).anchorer;
+    let before = *a.estimate().expect("estimate");
+    let inverse = arbitrary().inverse();
+    let t = 20.05;
+    a.push_speed(ts(t), speed_at(t)).expect("speed");
+    a.push_gnss(ts(t), truth_at(t) + Vector3::new(0.0, 50.0, 0.0), 1.0).expect("fix");
+    a.push_vo(ts(t), inverse.transform_point(&truth_at(t))).expect("vo");
+    assert_eq!(a.quality().anchors_rejected, 1);
+    assert_eq!(*a.estimate().expect("estimate"), before);
+}
+
+#[test]
+fn bad_input_is_refused_and_leaves_the_state_alone() {
+    let mut a: Anchorer = Anchorer::new(AnchorConfig::default());
+    a.push_vo(ts(1.0), Vector3::zeros()).expect("first");
+    assert_eq!(a.push_vo(ts(1.0), Vector3::zeros()), Err(AnchorError::OutOfOrder));
+    assert_eq!(a.push_vo(ts(2.0), Vector3::new(f64::NAN, 0.0, 0.0)), Err(AnchorError::NonFinite));
+    assert_eq!(a.push_gnss(ts(1.0), Vector3::zeros(), 0.0), Err(AnchorError::InvalidSigma));
+    assert_eq!(a.push_gnss(ts(1.0), Vector3::zeros(), f64::INFINITY), Err(AnchorError::InvalidSigma));
+    assert_eq!(a.push_gnss(ts(1.0), Vector3::new(0.0, f64::INFINITY, 0.0), 1.0), Err(AnchorError::NonFinite));
+    assert_eq!(a.push_speed(ts(1.0), f64::NAN), Err(AnchorError::NonFinite));
+    a.push_speed(ts(1.0), 3.0).expect("speed");
+    assert_eq!(a.push_speed(ts(0.5), 3.0), Err(AnchorError::OutOfOrder));
+    a.push_gnss(ts(0.9), Vector3::zeros(), 1.0).expect("fix");
+    assert_eq!(a.push_gnss(ts(0.8), Vector3::zeros(), 1.0), Err(AnchorError::OutOfOrder));
+    assert_eq!(a.quality().anchors_used, 0, "a fix before any VO cannot be paired");
+    assert_eq!(a.quality().anchors_dropped, 1);
+}
+
+#[test]
+fn fixes_waiting_for_stalled_vo_are_bounded() {
+    let mut a: Anchorer = Anchorer::new(AnchorConfig::default());
+    a.push_vo(ts(0.0), Vector3::zeros()).expect("vo");
+    for k in 1..=20 {
+        a.push_gnss(ts(k as f64 * 0.1), Vector3::new(k as f64, 0.0, 0.0), 1.0).expect("fix");
+    }
+    assert_eq!(a.quality().anchors_dropped, 20 - PENDING_ANCHORS as u32);
+}
+
+#[test]
+fn sigma_from_gst_or_hdop() {
+    assert_eq!(gnss_sigma(Some(1.2), None, 2.5), Some(3.0));
+    let s = gnss_sigma(Some(1.2), Some((0.6, 0.8)), 2.5).expect("gst");
+    assert!((s - libm::sqrt(0.5)).abs() < 1e-12);
+    assert_eq!(gnss_sigma(None, None, 2.5), None);
+    assert_eq!(gnss_sigma(Some(f64::NAN), Some((f64::NAN, 1.0)), 2.5), None);
+}
