@@ -103,7 +103,7 @@ fn gravity_aligned_mode_on_a_yaw_only_vo_frame() {
         seven.observable_after_s,
         seven.ate_rmse_m
     );
-    assert!(four.observable_after_s.expect("observable") <= seven.observable_after_s.expect("observable"));
+    assert!(four.observable_after_s.expect("observable") < 10.0);
     assert!(four.ate_rmse_m <= 1.05 * raw);
     assert!(drive::worst_scale_error_after(&four, 10.0) < 0.01);
 }

@@ -13,20 +13,25 @@
 //!   wheels travelled (a multipath jump), so one bad fix never pulls the estimate.
 //! * **Drift.** Past weight decays with time constant `forgetting_time_constant_s`, so
 //!   the Sim(3) follows slow VO drift and memory stays bounded on long drives.
+//! * **Two windows.** Rotation and scale need a long baseline; the translation is solved
+//!   on a short recent window (`translation_time_constant_s`) given them, so the current
+//!   position rests on the latest fixes instead of being extrapolated hundreds of metres
+//!   from the long window's centroid.
 //! * **Latency.** A GNSS fix describes the antenna some tens of ms before it is received.
 //!   `K` latency hypotheses (0, step, 2·step, …) are tracked side by side, each pairing
-//!   fixes with the VO position at `t_rx − latency`; their one-step-ahead prediction
-//!   errors are accumulated and the smallest wins (refined by a parabola through its
-//!   neighbours). With speed changes the hypotheses separate; at constant velocity the
+//!   fixes with the VO position at `t_rx − latency`; once the fit is observable their
+//!   one-step-ahead prediction errors (in σ, clipped at the gate) are accumulated and
+//!   the smallest wins (refined by a parabola through its neighbours). With speed changes the hypotheses separate; at constant velocity the
 //!   latency is indistinguishable from a translation, and does no harm.
 //! * **Scale from the wheels.** Wheel distance over VO path length (recent window), with
 //!   the wheel factor calibrated online against the GNSS path, is fused with the GNSS
 //!   scale by inverse variance.
 //! * **Observability.** The weakest rotation axis and the scale get a standard deviation
-//!   from the moments (inflated for time-correlated GNSS error); until they are below the
-//!   configured bounds the quality says why and the last good estimate is held — a
-//!   straight drive leaves roll about the road axis unknown, and no wild estimate is
-//!   reported. [`AnchorMode::GravityAligned`] (yaw, scale, translation) needs only
+//!   from the moments (inflated for time-correlated GNSS error, scaled by the
+//!   a-posteriori variance factor) and are propagated to the current position; until
+//!   that is within `max_geometry_sigma_m` the quality says why and no new rotation or
+//!   scale is taken — the last observable ones are held (a straight drive leaves roll
+//!   about the road axis unknown) and no wild estimate is reported. [`AnchorMode::GravityAligned`] (yaw, scale, translation) needs only
 //!   horizontal spread and is the better choice when the VO frame's vertical is known.
 
 mod history;
@@ -65,8 +70,13 @@ pub enum AnchorMode {
 pub struct AnchorConfig {
     /// Degrees of freedom estimated.
     pub mode: AnchorMode,
-    /// Past anchors' weight decays as exp(−Δt/τ); `f64::INFINITY` never forgets.
+    /// Past anchors' weight decays as exp(−Δt/τ) for rotation and scale;
+    /// `f64::INFINITY` never forgets.
     pub forgetting_time_constant_s: f64,
+    /// Time constant of the recent window the translation is solved on, s. Short, so
+    /// that the current position rests on the latest fixes rather than being
+    /// extrapolated from the centroid of the long window.
+    pub translation_time_constant_s: f64,
     /// Cauchy down-weighting scale, in σ.
     pub robust_scale_sigma: f64,
     /// Residual (in σ) beyond which an anchor is rejected once the estimate is observable.
@@ -96,6 +106,7 @@ impl Default for AnchorConfig {
         AnchorConfig {
             mode: AnchorMode::Full,
             forgetting_time_constant_s: 12.0,
+            translation_time_constant_s: 2.0,
             robust_scale_sigma: 3.0,
             gate_sigma: 6.0,
             gnss_correlation_time_s: 2.0,
@@ -201,8 +212,36 @@ struct PendingFix {
 struct Hypothesis {
     latency: Duration,
     moments: Moments,
+    /// Weighted means over the short translation window.
+    recent: RecentMeans,
+    /// Latest Umeyama fit of the long window (GNSS only: the hypotheses are scored on
+    /// what the fixes alone predict).
     fit: Option<Sim3>,
     prediction_sse: f64,
+}
+
+/// Exponentially weighted means of recent pairs.
+#[derive(Clone, Copy, Debug, Default)]
+struct RecentMeans {
+    weight: f64,
+    mean_x: Vector3<f64>,
+    mean_y: Vector3<f64>,
+}
+
+impl RecentMeans {
+    fn push(&mut self, keep: f64, x: &Vector3<f64>, y: &Vector3<f64>, w: f64) {
+        self.weight = self.weight * keep + w;
+        if self.weight > 0.0 {
+            let f = w / self.weight;
+            self.mean_x += (x - self.mean_x) * f;
+            self.mean_y += (y - self.mean_y) * f;
+        }
+    }
+
+    /// The translation that puts the recent VO centroid on the recent fix centroid.
+    fn translation(&self, rotation: &nalgebra::Matrix3<f64>, scale: f64) -> Vector3<f64> {
+        self.mean_y - rotation * self.mean_x * scale
+    }
 }
 
 /// Incremental anchoring of VO to GNSS and wheel speed, with `K` latency hypotheses.
@@ -220,6 +259,12 @@ pub struct Anchorer<const K: usize = 9> {
     /// Σw² with the same forgetting as the moments (Σw is in the moments), for Kish's
     /// effective number of anchors (Σw)²/Σw².
     weight_squares: f64,
+    /// Rotation and scale of the latest observable fit.
+    held: Option<(nalgebra::Matrix3<f64>, f64)>,
+    /// Information discount of the latest update (correlation × variance factor).
+    inflation: f64,
+    /// A-posteriori variance factor of the latest update.
+    variance_factor: f64,
     estimate: Option<Sim3>,
     quality: Quality,
 }
@@ -231,6 +276,7 @@ impl<const K: usize> Anchorer<K> {
         let hypotheses = core::array::from_fn(|k| Hypothesis {
             latency: Duration::from_micros(step.micros().saturating_mul(k as i64)),
             moments: Moments::new(),
+            recent: RecentMeans::default(),
             fit: None,
             prediction_sse: 0.0,
         });
@@ -245,6 +291,9 @@ impl<const K: usize> Anchorer<K> {
             last_accepted: None,
             mean_fix_interval_s: 0.0,
             weight_squares: 0.0,
+            held: None,
+            inflation: 1.0,
+            variance_factor: 1.0,
             estimate: None,
             quality: Quality {
                 observability: Observability::TooFewAnchors,
@@ -266,7 +315,8 @@ impl<const K: usize> Anchorer<K> {
         &self.config
     }
 
-    /// The latest observable estimate (VO → ENU), held while the fit is not observable.
+    /// The current estimate (VO → ENU): rotation and scale of the latest observable fit,
+    /// translation from the recent fixes. `None` until the fit was first observable.
     pub fn estimate(&self) -> Option<&Sim3> {
         self.estimate.as_ref()
     }
@@ -358,16 +408,21 @@ impl<const K: usize> Anchorer<K> {
     }
 
     fn process_fix(&mut self, fix: PendingFix) {
-        // VO (and odometer) at the instant each hypothesis says the fix describes.
-        let mut paired = [None; K];
+        // VO (and odometer) at the instant each hypothesis says the fix describes. The
+        // hypotheses are compared on the same fixes, so a fix some look-back cannot
+        // reach (the first instants of a drive, a VO gap) is used by none.
+        let mut paired = [(Vector3::zeros(), None); K];
         for (slot, h) in paired.iter_mut().zip(&self.hypotheses) {
-            *slot = self.history.at(fix.t - h.latency);
+            match self.history.at(fix.t - h.latency) {
+                Some(p) => *slot = p,
+                None => {
+                    self.quality.anchors_dropped = self.quality.anchors_dropped.saturating_add(1);
+                    return;
+                }
+            }
         }
         let best = self.best_index();
-        let Some((x_best, odo_best)) = paired[best] else {
-            self.quality.anchors_dropped = self.quality.anchors_dropped.saturating_add(1);
-            return;
-        };
+        let (x_best, odo_best) = paired[best];
 
         let base_weight = 1.0 / (fix.sigma * fix.sigma);
         let mut weight = base_weight;
@@ -392,24 +447,25 @@ impl<const K: usize> Anchorer<K> {
             }
         }
 
-        let forget = match self.last_accepted {
-            Some((t0, _, _)) => libm::exp(-(fix.t - t0).as_secs_f64() / self.config.forgetting_time_constant_s),
-            None => 1.0,
-        };
+        let since_last = self.last_accepted.map_or(0.0, |(t0, _, _)| (fix.t - t0).as_secs_f64());
+        let forget = libm::exp(-since_last / self.config.forgetting_time_constant_s);
+        let keep_recent = libm::exp(-since_last / self.config.translation_time_constant_s);
         let align_mode = match self.config.mode {
             AnchorMode::Full => AlignMode::Sim3,
             AnchorMode::GravityAligned => AlignMode::YawScale,
         };
-        for (h, pair) in self.hypotheses.iter_mut().zip(paired) {
-            let Some((x, _)) = pair else {
-                // This look-back is not covered yet: count it as a poor prediction.
-                h.prediction_sse += base_weight * fix.sigma * fix.sigma * 4.0;
-                continue;
-            };
-            if let Some(fit) = h.fit {
-                h.prediction_sse += weight * (fix.enu - fit.transform_point(&x)).norm_squared();
+        let scoring = self.quality.observability == Observability::Observable;
+        let gate2 = self.config.gate_sigma * self.config.gate_sigma;
+        for (h, (x, _)) in self.hypotheses.iter_mut().zip(paired) {
+            // Latency is scored by one-step-ahead prediction error, only once the fits
+            // are trustworthy (early near-degenerate fits predict wildly for every
+            // hypothesis) and clipped at the gate so no single fix dominates.
+            if let (Some(fit), true) = (h.fit, scoring) {
+                let u2 = (fix.enu - fit.transform_point(&x)).norm_squared() / (fix.sigma * fix.sigma);
+                h.prediction_sse += u2.min(gate2);
             }
             h.moments.forget(forget);
+            h.recent.push(keep_recent, &x, &fix.enu, weight);
             // Finite by the checks in push_gnss / push_vo.
             let _ = h.moments.push(&x, &fix.enu, weight);
             h.fit = h.moments.align(align_mode).ok();
@@ -419,10 +475,21 @@ impl<const K: usize> Anchorer<K> {
         self.last_accepted = Some((fix.t, fix.enu, odo_best));
 
         let best = self.best_index();
-        if let Some((_, Some(odo))) = paired[best] {
+        if let (_, Some(odo)) = paired[best] {
             self.wheel.push_fix(fix.t, &fix.enu, odo);
         }
-        self.update_estimate(best, &x_best);
+        self.update_estimate(best, &x_best, fix.sigma);
+    }
+
+    /// The wheel scale (metres per VO unit) and its variance, once calibrated.
+    fn wheel_prior(&self, fix_sigma: f64) -> Option<(f64, f64)> {
+        let scale = self.wheel.scale()?;
+        let (_, gnss_path) = self.wheel.calibration()?;
+        // GNSS errors telescope along the calibration path: √2·σ over its length.
+        let sigma = fix_sigma * libm::sqrt(self.variance_factor);
+        let rel = self.config.wheel_scale_rel_sigma + core::f64::consts::SQRT_2 * sigma / gnss_path;
+        let var = (rel * scale) * (rel * scale);
+        (var > 0.0 && var.is_finite()).then_some((scale, var))
     }
 
     fn reject(&mut self) {
@@ -449,11 +516,11 @@ impl<const K: usize> Anchorer<K> {
         Some(base + offset.clamp(-0.5, 0.5) * step)
     }
 
-    fn update_estimate(&mut self, best: usize, current: &Vector3<f64>) {
+    fn update_estimate(&mut self, best: usize, current: &Vector3<f64>, fix_sigma: f64) {
         let h = &self.hypotheses[best];
         self.quality.latency_s = self.latency_estimate(best);
         self.quality.wheel_factor = self.wheel.calibration().map(|(f, _)| f);
-        let Some(mut fit) = h.fit else {
+        let Some(gnss_fit) = h.fit else {
             self.quality.observability = Observability::TooFewAnchors;
             return;
         };
@@ -467,14 +534,19 @@ impl<const K: usize> Anchorer<K> {
         } else {
             1.0
         };
+        let fit = gnss_fit;
         let n_eff = if self.weight_squares > 0.0 { m.weight() * m.weight() / self.weight_squares } else { 0.0 };
         let dof = n_eff - 7.0;
         let sigma0_sq = if dof > 0.0 { m.weighted_sse(&fit) / (m.weight() / n_eff) / dof } else { f64::INFINITY };
         let variance_factor = if dof >= MIN_DOF_FOR_POSTERIOR { sigma0_sq.max(MIN_VARIANCE_FACTOR) } else { sigma0_sq.max(1.0) };
         let inflation = correlation * variance_factor;
+        self.inflation = inflation;
+        self.variance_factor = variance_factor;
         let sxx = m.covariance_x() * m.weight();
         let trace = sxx.trace().max(0.0);
-        let offset = current - m.mean_x();
+        // The translation is pinned at the recent centroid: rotation and scale errors act
+        // through the lever arm from there to the current point.
+        let offset = current - h.recent.mean_x;
         let c = fit.scale;
         // Rotation information about unit axis a is c²·aᵀ(tr(S)·I − S)a (S = Σw x'x'ᵀ);
         // its eigen-axes are those of S. A rotation error θ about a moves the current
@@ -499,26 +571,18 @@ impl<const K: usize> Anchorer<K> {
                 (libm::sqrt(inflation / (c * c * info)), inflation * lever2 / info)
             }
         };
-        // GNSS information on the scale, then fused with the wheel scale.
-        let gnss_var = inflation / trace;
-        let mut scale_var = gnss_var;
-        if let (Some(wheel_scale), Some((_, gnss_path))) = (self.wheel.scale(), self.wheel.calibration()) {
-            let sigma = m.weight().recip().sqrt().min(100.0);
-            let rel = self.config.wheel_scale_rel_sigma + core::f64::consts::SQRT_2 * sigma / gnss_path;
-            let wheel_var = (rel * wheel_scale) * (rel * wheel_scale);
-            if gnss_var.is_finite() && wheel_var > 0.0 {
-                let fused = (c / gnss_var + wheel_scale / wheel_var) / (1.0 / gnss_var + 1.0 / wheel_var);
-                scale_var = 1.0 / (1.0 / gnss_var + 1.0 / wheel_var);
-                fit.scale = fused;
-                fit.translation = m.mean_y() - fit.rotation * m.mean_x() * fused;
-            }
-        }
+        let (fused, scale_var) = fuse_wheel_scale(fit, m, inflation, self.wheel_prior(fix_sigma));
+        let Some(fit) = fused else {
+            self.quality.observability = Observability::TooFewAnchors;
+            return;
+        };
         let scale_rel_sigma = libm::sqrt(scale_var) / fit.scale;
         let geometry_sigma = libm::sqrt(rotation_var_m2 + scale_var * offset.norm_squared());
         self.quality.rotation_sigma_rad = rotation_sigma;
         self.quality.geometry_sigma_m = geometry_sigma;
         self.quality.scale_rel_sigma = scale_rel_sigma;
-        self.quality.rms_residual_m = if m.weight() > 0.0 { libm::sqrt(m.weighted_sse(&fit) / m.weight()) } else { 0.0 };
+        let long_window = Sim3 { translation: m.mean_y() - fit.rotation * m.mean_x() * fit.scale, ..fit };
+        self.quality.rms_residual_m = if m.weight() > 0.0 { libm::sqrt(m.weighted_sse(&long_window) / m.weight()) } else { 0.0 };
         self.quality.observability = if m.count() < self.config.min_anchors {
             Observability::TooFewAnchors
         } else if !(geometry_sigma <= self.config.max_geometry_sigma_m) {
@@ -528,10 +592,32 @@ impl<const K: usize> Anchorer<K> {
         } else {
             Observability::Observable
         };
+        // Rotation and scale are taken when observable and held otherwise (VO drift is
+        // slow); the translation always follows the recent fixes.
         if self.quality.observability == Observability::Observable && fit.is_valid() {
-            self.estimate = Some(fit);
+            self.held = Some((fit.rotation, fit.scale));
         }
+        let recent = &self.hypotheses[best].recent;
+        self.estimate = self.held.map(|(rotation, scale)| Sim3 { rotation, translation: recent.translation(&rotation, scale), scale });
     }
+}
+
+/// Fuse an Umeyama fit's scale with the wheel scale by inverse variance and move the
+/// translation accordingly; returns the fit and the variance of its scale.
+fn fuse_wheel_scale(fit: Sim3, moments: &Moments, inflation: f64, wheel: Option<(f64, f64)>) -> (Option<Sim3>, f64) {
+    // Information on the scale from the GNSS fixes: the fit's cost is quadratic in c
+    // with curvature tr(S) (S = Σw x'x'ᵀ, w = 1/σ²).
+    let trace = (moments.covariance_x() * moments.weight()).trace();
+    let gnss_var = inflation / trace;
+    let (scale, var) = match wheel {
+        Some((wheel_scale, wheel_var)) if gnss_var.is_finite() && gnss_var > 0.0 => {
+            let var = 1.0 / (1.0 / gnss_var + 1.0 / wheel_var);
+            ((fit.scale / gnss_var + wheel_scale / wheel_var) * var, var)
+        }
+        _ => (fit.scale, gnss_var),
+    };
+    let fused = Sim3 { translation: moments.mean_y() - fit.rotation * moments.mean_x() * scale, scale, ..fit };
+    (fused.is_valid().then_some(fused), var)
 }
 
 #[cfg(test)]
