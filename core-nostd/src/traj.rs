@@ -175,9 +175,9 @@ fn nearest_rotation_if_needed(r: &Matrix3<f64>) -> Matrix3<f64> {
     if orthogonal {
         return *r;
     }
-    let svd = r.svd(true, true);
-    match (svd.u, svd.v_t) {
-        (Some(u), Some(v_t)) => u * v_t,
+    let svd = nalgebra::SVD::try_new(*r, true, true, f64::EPSILON * 5.0, crate::sim3::umeyama::MAX_DECOMPOSITION_ITERATIONS);
+    match svd {
+        Some(nalgebra::SVD { u: Some(u), v_t: Some(v_t), .. }) => u * v_t,
         _ => *r,
     }
 }

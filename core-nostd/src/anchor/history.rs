@@ -17,7 +17,7 @@ pub(crate) struct VoSample {
 }
 
 /// The last `N` VO samples, oldest first.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub(crate) struct VoHistory<const N: usize> {
     samples: Deque<VoSample, N>,
 }

@@ -39,6 +39,7 @@ mod wheel;
 
 use nalgebra::Vector3;
 
+use crate::sim3::umeyama::MAX_DECOMPOSITION_ITERATIONS;
 use crate::sim3::{AlignMode, Moments, Sim3};
 use crate::time::{Duration, Timestamp};
 use history::{Odometer, VoHistory, VoSample};
@@ -245,7 +246,7 @@ impl RecentMeans {
 }
 
 /// Incremental anchoring of VO to GNSS and wheel speed, with `K` latency hypotheses.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Anchorer<const K: usize = 9> {
     config: AnchorConfig,
     hypotheses: [Hypothesis; K],
@@ -553,7 +554,10 @@ impl<const K: usize> Anchorer<K> {
         // point by θ·c·‖a × offset‖, so c cancels in the position variance.
         let (rotation_sigma, rotation_var_m2) = match self.config.mode {
             AnchorMode::Full => {
-                let eig = sxx.symmetric_eigen();
+                let Some(eig) = nalgebra::SymmetricEigen::try_new(sxx, f64::EPSILON * 5.0, MAX_DECOMPOSITION_ITERATIONS) else {
+                    self.quality.observability = Observability::Collinear;
+                    return;
+                };
                 let mut weakest = 0.0f64;
                 let mut var = 0.0;
                 for i in 0..3 {

@@ -32,6 +32,10 @@ pub enum AlignMode {
     YawScale,
 }
 
+/// Iteration bound of the 3×3 SVD and eigen-decompositions: they converge in a few
+/// dozen sweeps; nalgebra's default (0) means no bound at all.
+pub(crate) const MAX_DECOMPOSITION_ITERATIONS: usize = 500;
+
 /// Why an alignment could not be computed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -106,13 +110,20 @@ impl Moments {
         let dy = y - self.mean_y;
         // West (1979): the co-moment grows by w·(1 − w/W')·d dᵀ with the old means.
         let k = w * (1.0 - w / total);
-        self.mean_x += dx * (w / total);
-        self.mean_y += dy * (w / total);
-        self.sxx += dx * dx.transpose() * k;
-        self.syx += dy * dx.transpose() * k;
-        self.syy += dy.norm_squared() * k;
-        self.weight = total;
-        self.count = self.count.saturating_add(1);
+        let next = Moments {
+            count: self.count.saturating_add(1),
+            weight: total,
+            mean_x: self.mean_x + dx * (w / total),
+            mean_y: self.mean_y + dy * (w / total),
+            sxx: self.sxx + dx * dx.transpose() * k,
+            syx: self.syx + dy * dx.transpose() * k,
+            syy: self.syy + dy.norm_squared() * k,
+        };
+        // Finite inputs can still overflow (coordinates near 1e154): refuse, keep state.
+        if !next.is_finite() {
+            return Err(AlignError::NonFinite);
+        }
+        *self = next;
         Ok(())
     }
 
@@ -126,6 +137,13 @@ impl Moments {
         self.sxx *= factor;
         self.syx *= factor;
         self.syy *= factor;
+    }
+
+    fn is_finite(&self) -> bool {
+        self.weight.is_finite()
+            && self.syy.is_finite()
+            && self.mean_x.iter().chain(self.mean_y.iter()).all(|v| v.is_finite())
+            && self.sxx.iter().chain(self.syx.iter()).all(|v| v.is_finite())
     }
 
     /// Number of points pushed (not reduced by forgetting).
@@ -197,7 +215,10 @@ impl Moments {
 
 /// R = U S Vᵀ and tr(DS) from the cross-covariance (Umeyama eq. 39–43).
 fn umeyama_rotation(cov: &Matrix3<f64>) -> Result<(Matrix3<f64>, f64), AlignError> {
-    let svd = cov.svd(true, true);
+    if !cov.iter().all(|v| v.is_finite()) {
+        return Err(AlignError::NonFinite);
+    }
+    let svd = nalgebra::SVD::try_new(*cov, true, true, f64::EPSILON * 5.0, MAX_DECOMPOSITION_ITERATIONS).ok_or(AlignError::Degenerate)?;
     let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
         return Err(AlignError::Degenerate);
     };
@@ -290,6 +311,10 @@ mod tests {
         }
         assert_eq!(m.align(AlignMode::Sim3), Err(AlignError::Degenerate));
         assert_eq!(m.push(&Vector3::new(f64::NAN, 0.0, 0.0), &Vector3::zeros(), 1.0), Err(AlignError::NonFinite));
+        // Finite but overflowing when squared: refused, state kept.
+        let before = m;
+        assert_eq!(m.push(&Vector3::new(1e200, 0.0, 0.0), &Vector3::zeros(), 1.0), Err(AlignError::NonFinite));
+        assert_eq!(m, before);
         assert_eq!(m.count(), 10);
     }
 
