@@ -110,9 +110,7 @@ impl Geodetic {
         let pp = f / (3.0 * k * k * g * g);
         let q = libm::sqrt(1.0 + 2.0 * e2 * e2 * pp);
         let r0 = -pp * e2 * p / (1.0 + q)
-            + libm::sqrt(
-                0.5 * a * a * (1.0 + 1.0 / q) - pp * (1.0 - e2) * z * z / (q * (1.0 + q)) - 0.5 * pp * p * p,
-            );
+            + libm::sqrt(0.5 * a * a * (1.0 + 1.0 / q) - pp * (1.0 - e2) * z * z / (q * (1.0 + q)) - 0.5 * pp * p * p);
         let pe = p - e2 * r0;
         let u = libm::sqrt(pe * pe + z * z);
         let v = libm::sqrt(pe * pe + (1.0 - e2) * z * z);

@@ -117,11 +117,7 @@ impl Statistics {
         let var = pairwise_sum(errors, |e| (e - mean) * (e - mean)) / n;
         errors.sort_unstable_by(f64::total_cmp);
         let mid = errors.len() / 2;
-        let median = if errors.len() % 2 == 1 {
-            errors[mid]
-        } else {
-            (errors[mid - 1] + errors[mid]) / 2.0
-        };
+        let median = if errors.len() % 2 == 1 { errors[mid] } else { (errors[mid - 1] + errors[mid]) / 2.0 };
         Ok(Statistics {
             rmse: libm::sqrt(sse / n),
             mean,
@@ -175,7 +171,8 @@ fn nearest_rotation_if_needed(r: &Matrix3<f64>) -> Matrix3<f64> {
     if orthogonal {
         return *r;
     }
-    let svd = nalgebra::SVD::try_new(*r, true, true, f64::EPSILON * 5.0, crate::sim3::umeyama::MAX_DECOMPOSITION_ITERATIONS);
+    let svd =
+        nalgebra::SVD::try_new(*r, true, true, f64::EPSILON * 5.0, crate::sim3::umeyama::MAX_DECOMPOSITION_ITERATIONS);
     match svd {
         Some(nalgebra::SVD { u: Some(u), v_t: Some(v_t), .. }) => u * v_t,
         _ => *r,
@@ -439,7 +436,8 @@ mod tests {
     #[test]
     fn rpe_is_zero_for_a_rigidly_moved_copy() {
         let a = line(16, 2.0);
-        let moved = crate::sim3::Sim3 { rotation: rotation_z(1.0), translation: Vector3::new(5.0, 5.0, 0.0), scale: 1.0 };
+        let moved =
+            crate::sim3::Sim3 { rotation: rotation_z(1.0), translation: Vector3::new(5.0, 5.0, 0.0), scale: 1.0 };
         let b = a.map(|p| moved.transform_pose(&p));
         let mut out = [1.0; 16];
         let frames = RpePairs { delta: Delta::Frames(1), all_pairs: false, from_reference: false };
@@ -447,7 +445,14 @@ mod tests {
         assert_eq!(n, 15);
         assert!(out[..n].iter().all(|&e| e < 1e-12));
         assert_eq!(
-            rpe(&a, &b, RpePairs { delta: Delta::Metres(100.0), ..frames }, PoseRelation::TranslationPart, &mut [], &mut out),
+            rpe(
+                &a,
+                &b,
+                RpePairs { delta: Delta::Metres(100.0), ..frames },
+                PoseRelation::TranslationPart,
+                &mut [],
+                &mut out
+            ),
             Err(TrajError::Empty)
         );
     }

@@ -101,8 +101,10 @@ pub fn run(inputs: &Inputs, model: &VoModel, gnss: &Trajectory, use_speed: bool,
     let speed: &[(f64, f64)] = if use_speed { &inputs.speed } else { &[] };
     let frames = anchoring::replay(&vo, gnss, speed, 2.5, config).expect("replay");
     let t0 = vo.stamps[0];
-    let observable_after_s = frames.iter().find(|f| f.quality.observability == Observability::Observable).map(|f| f.t - t0);
-    let anchored: Vec<_> = frames.iter().zip(&vo.poses).map(|(f, p)| f.estimate.map(|t| t.transform_point(&p.translation))).collect();
+    let observable_after_s =
+        frames.iter().find(|f| f.quality.observability == Observability::Observable).map(|f| f.t - t0);
+    let anchored: Vec<_> =
+        frames.iter().zip(&vo.poses).map(|(f, p)| f.estimate.map(|t| t.transform_point(&p.translation))).collect();
     let (mut sse, mut n) = (0.0, 0);
     for (a, truth) in anchored.iter().zip(&inputs.truth.poses) {
         if let Some(a) = a {

@@ -19,9 +19,8 @@ pub fn workspace_root() -> PathBuf {
 /// `$DASH2SIM_DATA/<sub>` if it exists; otherwise `None` after printing why the calling
 /// test is skipped. Panics instead when `DASH2SIM_REQUIRE_DATA=1`.
 pub fn data_dir(sub: &str) -> Option<PathBuf> {
-    let base = std::env::var_os("DASH2SIM_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| workspace_root().join("../shared/data"));
+    let base =
+        std::env::var_os("DASH2SIM_DATA").map(PathBuf::from).unwrap_or_else(|| workspace_root().join("../shared/data"));
     let dir = base.join(sub);
     if dir.is_dir() {
         return Some(dir);

@@ -3,8 +3,8 @@
 //! the real u-blox fixes and the real CAN speed. Targets from issue #2.
 
 use dash2sim_core::anchor::{AnchorConfig, AnchorMode};
-use dash2sim_core::time::Duration;
 use dash2sim_core::sim3::rotation_z;
+use dash2sim_core::time::Duration;
 use dash2sim_tests::drive::{self, VoModel};
 use dash2sim_tests::{data_dir, read_json};
 
@@ -23,7 +23,10 @@ fn anchoring_meets_the_scale_ate_and_observability_targets() {
     let last = out.frames.last().expect("frames");
     eprintln!("observable after {:?} s", out.observable_after_s);
     for s in [5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 50.0, 59.9] {
-        eprintln!("t={s:>4} s scale error {:?}", drive::scale_error_at(&out, s).map(|e| format!("{:+.3} %", 100.0 * e)));
+        eprintln!(
+            "t={s:>4} s scale error {:?}",
+            drive::scale_error_at(&out, s).map(|e| format!("{:+.3} %", 100.0 * e))
+        );
     }
     eprintln!("ATE rmse {:.3} m (raw GNSS APE {raw:.3} m)", out.ate_rmse_m);
     eprintln!("latency {:?} s, wheel factor {:?}", last.quality.latency_s, last.quality.wheel_factor);
@@ -80,7 +83,8 @@ fn fifty_metre_outliers_do_not_move_the_track() {
     // The final estimate applied to the whole VO track, with and without outliers.
     let vo = model.make_vo(&inputs.truth);
     let (fc, fd) = (clean.frames.last().and_then(|f| f.estimate).expect("estimate"), last.estimate.expect("estimate"));
-    let final_shift = vo.positions().map(|x| (fc.transform_point(x) - fd.transform_point(x)).norm()).fold(0.0, f64::max);
+    let final_shift =
+        vo.positions().map(|x| (fc.transform_point(x) - fd.transform_point(x)).norm()).fold(0.0, f64::max);
     eprintln!("outliers: worst online difference {worst_online:.3} m, final track moved {final_shift:.3} m");
     assert!(worst_online < 2.0, "an online estimate jumped by {worst_online} m");
     assert!(final_shift < 0.2, "final track moved {final_shift} m");
@@ -114,10 +118,18 @@ fn each_part_of_the_anchorer_earns_its_place() {
     let inputs = drive::load(&dir);
     let model = VoModel::arbitrary();
     let full = drive::run(&inputs, &model, &inputs.gnss, true, AnchorConfig::default());
-    let no_latency = drive::run(&inputs, &model, &inputs.gnss, true, AnchorConfig { latency_step: Duration::ZERO, ..AnchorConfig::default() });
+    let no_latency = drive::run(
+        &inputs,
+        &model,
+        &inputs.gnss,
+        true,
+        AnchorConfig { latency_step: Duration::ZERO, ..AnchorConfig::default() },
+    );
     let no_wheels = drive::run(&inputs, &model, &inputs.gnss, false, AnchorConfig::default());
     let end = |o: &drive::Outcome| 100.0 * drive::scale_error_at(o, 59.9).unwrap_or(f64::NAN);
-    eprintln!("| variant | observable after (s) | ATE (m) | scale error at 60 s (%) | worst scale error after 10 s (%) |");
+    eprintln!(
+        "| variant | observable after (s) | ATE (m) | scale error at 60 s (%) | worst scale error after 10 s (%) |"
+    );
     for (name, o) in [("full", &full), ("no latency estimation", &no_latency), ("no wheel speed", &no_wheels)] {
         eprintln!(
             "| {name} | {:.2} | {:.3} | {:+.3} | {:.3} |",

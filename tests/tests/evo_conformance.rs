@@ -70,7 +70,9 @@ fn every_evo_case_is_reproduced() {
         let (r, e) = load(&dir, format, case["ref"].as_str().expect("ref"), case["est"].as_str().expect("est"));
         assert_eq!(r.len() as u64, case["num_ref_poses_after_assoc"].as_u64().expect("count"), "{name}: matched poses");
 
-        for (key, align) in [("ape_trans_se3", Align::Se3), ("ape_trans_sim3", Align::Sim3), ("ape_trans_scale_only", Align::Scale)] {
+        for (key, align) in
+            [("ape_trans_se3", Align::Se3), ("ape_trans_sim3", Align::Sim3), ("ape_trans_scale_only", Align::Scale)]
+        {
             let got = evaluate::ape(&r, &e, align, Relation::Trans).expect("ape");
             assert_stats(&format!("{name} {key}"), &got.stats, &case[key]["stats"]);
             let want = &case[key]["umeyama_est_to_ref"];
@@ -86,7 +88,9 @@ fn every_evo_case_is_reproduced() {
         assert_stats(&format!("{name} not aligned"), &got.stats, &case["ape_trans_not_aligned"]);
 
         for (suffix, delta) in [("delta1frames", Delta::Frames(1)), ("delta10.0meters", Delta::Metres(10.0))] {
-            for (prefix, relation) in [("rpe_translation_part", Relation::Trans), ("rpe_rotation_angle_deg", Relation::AngleDeg)] {
+            for (prefix, relation) in
+                [("rpe_translation_part", Relation::Trans), ("rpe_rotation_angle_deg", Relation::AngleDeg)]
+            {
                 let key = format!("{prefix}_{suffix}");
                 let want = &case[&key];
                 match evaluate::rpe(&r, &e, Align::None, relation, rpe_pairs(delta)) {
@@ -97,7 +101,10 @@ fn every_evo_case_is_reproduced() {
                     ),
                 }
                 if want.get("error").is_some() {
-                    assert!(evaluate::rpe(&r, &e, Align::None, relation, rpe_pairs(delta)).is_err(), "{name} {key}: evo found no pairs");
+                    assert!(
+                        evaluate::rpe(&r, &e, Align::None, relation, rpe_pairs(delta)).is_err(),
+                        "{name} {key}: evo found no pairs"
+                    );
                 }
                 checked += 1;
             }

@@ -14,8 +14,10 @@ fn geodetic_and_enu_agree_with_pymap3d_within_a_millimetre() {
     let Some(dir) = data_dir("comma2k19") else { return };
     let frames = std::fs::read_to_string(dir.join("expected/global_pose_frames.csv")).expect("frames");
     let ecef: Vec<Vector3<f64>> = frames.lines().skip(1).map(numbers).map(|v| Vector3::new(v[4], v[5], v[6])).collect();
-    let fixture = std::fs::read_to_string(workspace_root().join("tests/fixtures/pymap3d_comma2k19.csv")).expect("fixture");
-    let expected: Vec<Vec<f64>> = fixture.lines().filter(|l| !l.starts_with('#') && !l.starts_with("frame")).map(numbers).collect();
+    let fixture =
+        std::fs::read_to_string(workspace_root().join("tests/fixtures/pymap3d_comma2k19.csv")).expect("fixture");
+    let expected: Vec<Vec<f64>> =
+        fixture.lines().filter(|l| !l.starts_with('#') && !l.starts_with("frame")).map(numbers).collect();
     assert_eq!(expected.len(), ecef.len());
 
     let origin = Geodetic::from_ecef(&ecef[0]).expect("origin");
@@ -29,6 +31,9 @@ fn geodetic_and_enu_agree_with_pymap3d_within_a_millimetre() {
         let enu = frame.ecef_to_enu(p);
         worst_enu = worst_enu.max((enu - Vector3::new(want[4], want[5], want[6])).norm());
     }
-    eprintln!("worst difference to pymap3d: geodetic {worst_geo:.3e} m, ENU {worst_enu:.3e} m over {} positions", ecef.len());
+    eprintln!(
+        "worst difference to pymap3d: geodetic {worst_geo:.3e} m, ENU {worst_enu:.3e} m over {} positions",
+        ecef.len()
+    );
     assert!(worst_geo < 1e-3 && worst_enu < 1e-3);
 }

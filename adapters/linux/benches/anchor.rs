@@ -48,7 +48,11 @@ fn anchor_update(c: &mut Criterion) {
         )
     });
     c.bench_function("anchor_vo_frame_only", |b| {
-        b.iter_batched_ref(|| base.clone(), |a| a.push_vo(ts(t + 0.001), position(t + 0.001) * 0.5), BatchSize::SmallInput)
+        b.iter_batched_ref(
+            || base.clone(),
+            |a| a.push_vo(ts(t + 0.001), position(t + 0.001) * 0.5),
+            BatchSize::SmallInput,
+        )
     });
 }
 

@@ -13,7 +13,9 @@ use dash2sim_linux::evaluate::{self, Align, Relation};
 use dash2sim_linux::trajectory::Format;
 
 fn evo_dir() -> Option<PathBuf> {
-    let base = std::env::var_os("DASH2SIM_DATA").map(PathBuf::from).unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")));
+    let base = std::env::var_os("DASH2SIM_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")));
     let dir = base.join("evo");
     if dir.is_dir() {
         return Some(dir);
@@ -40,9 +42,13 @@ fn kitti(c: &mut Criterion) {
         })
     });
     let (r, e) = evaluate::load_pair(&gt, &orb, Format::Kitti, 0.01).expect("load");
-    group.bench_function("ape_sim3_compute_only", |b| b.iter(|| evaluate::ape(&r, &e, Align::Sim3, Relation::Trans).expect("ape")));
+    group.bench_function("ape_sim3_compute_only", |b| {
+        b.iter(|| evaluate::ape(&r, &e, Align::Sim3, Relation::Trans).expect("ape"))
+    });
     let rpe_1f = RpePairs { delta: Delta::Frames(1), ..rpe_10m };
-    group.bench_function("rpe_1frame_angle_compute_only", |b| b.iter(|| evaluate::rpe(&r, &e, Align::None, Relation::AngleDeg, rpe_1f).expect("rpe")));
+    group.bench_function("rpe_1frame_angle_compute_only", |b| {
+        b.iter(|| evaluate::rpe(&r, &e, Align::None, Relation::AngleDeg, rpe_1f).expect("rpe"))
+    });
     group.finish();
 }
 

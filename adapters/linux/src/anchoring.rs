@@ -72,7 +72,11 @@ pub fn read_speed_csv(path: &Path) -> Result<Vec<(f64, f64)>, String> {
         match parsed {
             (Some(Ok(t)), Some(Ok(v))) if t.is_finite() && v.is_finite() => {
                 if rows.last().is_some_and(|&(prev, _)| t < prev) {
-                    return Err(format!("{}:{}: timestamp {t} is earlier than the previous one", path.display(), i + 1));
+                    return Err(format!(
+                        "{}:{}: timestamp {t} is earlier than the previous one",
+                        path.display(),
+                        i + 1
+                    ));
                 }
                 rows.push((t, v));
             }
@@ -91,7 +95,13 @@ fn stamp(t: f64) -> Result<Timestamp, String> {
 }
 
 /// Feed the three streams through an anchorer in time order; one estimate per VO frame.
-pub fn replay(vo: &Trajectory, gnss: &Trajectory, speed: &[(f64, f64)], sigma_m: f64, config: AnchorConfig) -> Result<Vec<FrameEstimate>, String> {
+pub fn replay(
+    vo: &Trajectory,
+    gnss: &Trajectory,
+    speed: &[(f64, f64)],
+    sigma_m: f64,
+    config: AnchorConfig,
+) -> Result<Vec<FrameEstimate>, String> {
     if vo.stamps.is_empty() || gnss.stamps.is_empty() {
         return Err("VO and GNSS trajectories need timestamps (TUM format)".into());
     }
@@ -132,7 +142,7 @@ pub fn run(args: &AnchorArgs) -> Result<(), String> {
     if !(args.sigma.is_finite() && args.sigma > 0.0) {
         return Err(format!("--sigma {} must be a positive number of metres", args.sigma));
     }
-    if !(args.forget > 0.0) {
+    if args.forget.is_nan() || args.forget <= 0.0 {
         return Err(format!("--forget {} must be positive (or inf)", args.forget));
     }
     let vo = Trajectory::read(&args.vo, Format::Tum).map_err(|e| e.to_string())?;
@@ -151,7 +161,8 @@ pub fn run(args: &AnchorArgs) -> Result<(), String> {
     if let Some(out) = &args.output {
         trajectory::write_file(&anchored, out, Format::Tum).map_err(|e| format!("{}: {e}", out.display()))?;
     }
-    let first_observable = frames.iter().find(|f| f.quality.observability == Observability::Observable).map(|f| f.t - vo.stamps[0]);
+    let first_observable =
+        frames.iter().find(|f| f.quality.observability == Observability::Observable).map(|f| f.t - vo.stamps[0]);
     let last = frames.last().ok_or("no VO frames")?;
     let q = &last.quality;
     if args.json {
@@ -190,4 +201,3 @@ pub fn run(args: &AnchorArgs) -> Result<(), String> {
     }
     Ok(())
 }
-

@@ -126,7 +126,9 @@ fn traj_rpe(args: &RpeArgs) -> Result<(), String> {
     let c = &args.common;
     check_max_diff(c.max_diff)?;
     let delta = match args.unit {
-        DeltaUnit::Frames if args.delta >= 1.0 && args.delta.fract() == 0.0 && args.delta < 1e9 => Delta::Frames(args.delta as usize),
+        DeltaUnit::Frames if args.delta >= 1.0 && args.delta.fract() == 0.0 && args.delta < 1e9 => {
+            Delta::Frames(args.delta as usize)
+        }
         DeltaUnit::Frames => return Err(format!("--delta {} is not a whole number of frames ≥ 1", args.delta)),
         DeltaUnit::M if args.delta.is_finite() && args.delta > 0.0 => Delta::Metres(args.delta),
         DeltaUnit::M => return Err(format!("--delta {} m must be positive", args.delta)),
@@ -189,7 +191,15 @@ fn report(metric: &str, c: &CommonArgs, eval: &Evaluation, rpe: Option<&RpeArgs>
         println!("  t = [{:.6}, {:.6}, {:.6}]", t.translation.x, t.translation.y, t.translation.z);
     }
     let s = &eval.stats;
-    for (name, v) in [("max", s.max), ("mean", s.mean), ("median", s.median), ("min", s.min), ("rmse", s.rmse), ("sse", s.sse), ("std", s.std)] {
+    for (name, v) in [
+        ("max", s.max),
+        ("mean", s.mean),
+        ("median", s.median),
+        ("min", s.min),
+        ("rmse", s.rmse),
+        ("sse", s.sse),
+        ("std", s.std),
+    ] {
         println!("{name:>10}\t{v:.6}");
     }
 }

@@ -104,7 +104,12 @@ pub struct Evaluation {
 }
 
 /// Reference and estimate, read and associated. KITTI files pair by index.
-pub fn load_pair(reference: &Path, estimate: &Path, format: Format, max_diff: f64) -> Result<(Trajectory, Trajectory), EvalError> {
+pub fn load_pair(
+    reference: &Path,
+    estimate: &Path,
+    format: Format,
+    max_diff: f64,
+) -> Result<(Trajectory, Trajectory), EvalError> {
     let traj_ref = Trajectory::read(reference, format)?;
     let est_format = if format == Format::Euroc { Format::Tum } else { format };
     let traj_est = Trajectory::read(estimate, est_format)?;
@@ -143,7 +148,12 @@ fn aligned(estimate: &Trajectory, t: &Sim3) -> Trajectory {
 }
 
 /// Absolute pose error of associated trajectories.
-pub fn ape(reference: &Trajectory, estimate: &Trajectory, align: Align, relation: Relation) -> Result<Evaluation, EvalError> {
+pub fn ape(
+    reference: &Trajectory,
+    estimate: &Trajectory,
+    align: Align,
+    relation: Relation,
+) -> Result<Evaluation, EvalError> {
     let t = alignment(reference, estimate, align)?;
     let est = aligned(estimate, &t);
     let mut errors = vec![0.0; reference.len()];
@@ -153,13 +163,20 @@ pub fn ape(reference: &Trajectory, estimate: &Trajectory, align: Align, relation
 }
 
 /// Relative pose error of associated trajectories.
-pub fn rpe(reference: &Trajectory, estimate: &Trajectory, align: Align, relation: Relation, pairs: RpePairs) -> Result<Evaluation, EvalError> {
+pub fn rpe(
+    reference: &Trajectory,
+    estimate: &Trajectory,
+    align: Align,
+    relation: Relation,
+    pairs: RpePairs,
+) -> Result<Evaluation, EvalError> {
     let t = alignment(reference, estimate, align)?;
     let est = aligned(estimate, &t);
     let mut scratch = vec![0.0; reference.len()];
     // At most one pair per pose: every pair (i, j) has a distinct i.
     let mut errors = vec![0.0; reference.len()];
-    let n = traj::rpe(&reference.poses, &est.poses, pairs, relation.core(), &mut scratch, &mut errors).map_err(EvalError::Metric)?;
+    let n = traj::rpe(&reference.poses, &est.poses, pairs, relation.core(), &mut scratch, &mut errors)
+        .map_err(EvalError::Metric)?;
     let stats = Statistics::from_errors(&mut errors[..n]).map_err(EvalError::Metric)?;
     Ok(Evaluation { alignment: t, stats, n, matched: reference.len() })
 }

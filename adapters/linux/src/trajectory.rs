@@ -151,11 +151,13 @@ impl Trajectory {
             match format {
                 Format::Tum => {
                     traj.stamps.push(v[0]);
-                    traj.poses.push(Pose::from_quaternion_wxyz([v[7], v[4], v[5], v[6]], Vector3::new(v[1], v[2], v[3])));
+                    traj.poses
+                        .push(Pose::from_quaternion_wxyz([v[7], v[4], v[5], v[6]], Vector3::new(v[1], v[2], v[3])));
                 }
                 Format::Euroc => {
                     traj.stamps.push(v[0] / 1e9);
-                    traj.poses.push(Pose::from_quaternion_wxyz([v[4], v[5], v[6], v[7]], Vector3::new(v[1], v[2], v[3])));
+                    traj.poses
+                        .push(Pose::from_quaternion_wxyz([v[4], v[5], v[6], v[7]], Vector3::new(v[1], v[2], v[3])));
                 }
                 Format::Kitti => {
                     #[rustfmt::skip]
@@ -253,7 +255,7 @@ mod tests {
     fn euroc_stamps_are_nanoseconds_and_quaternion_is_w_first() {
         let text = "#timestamp,p_x,p_y,p_z,q_w,q_x,q_y,q_z,v\n1403715523912143104,1,2,3,1,0,0,0,9\n";
         let t = parse(text, Format::Euroc).expect("valid");
-        assert!((t.stamps[0] - 1403715523.912143104).abs() < 1e-6);
+        assert!((t.stamps[0] - 1_403_715_523.912_143).abs() < 1e-6);
         assert_eq!(t.poses[0].rotation, Matrix3::identity());
     }
 

@@ -30,7 +30,17 @@ fn stderr(o: &Output) -> String {
 
 #[test]
 fn ape_json_has_alignment_stats_and_count() {
-    let out = dash2sim(&["traj", "ape", &fixture("truth.tum"), &fixture("gnss.tum"), "--align", "sim3", "--max-diff", "0.026", "--json"]);
+    let out = dash2sim(&[
+        "traj",
+        "ape",
+        &fixture("truth.tum"),
+        &fixture("gnss.tum"),
+        "--align",
+        "sim3",
+        "--max-diff",
+        "0.026",
+        "--json",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
     assert_eq!(v["alignment"]["R"].as_array().map(Vec::len), Some(3));
@@ -46,7 +56,18 @@ fn ape_json_has_alignment_stats_and_count() {
 fn rpe_in_metres_and_all_pairs() {
     // Both files carry identity orientations, so the relative error is the error of
     // 20 m displacements: a few decimetres of GNSS noise.
-    let args = ["traj", "rpe", &fixture("truth.tum"), &fixture("gnss.tum"), "--max-diff", "0.026", "--delta", "20", "--unit", "m"];
+    let args = [
+        "traj",
+        "rpe",
+        &fixture("truth.tum"),
+        &fixture("gnss.tum"),
+        "--max-diff",
+        "0.026",
+        "--delta",
+        "20",
+        "--unit",
+        "m",
+    ];
     let consecutive = dash2sim(&[&args[..], &["--json"]].concat());
     let all = dash2sim(&[&args[..], &["--all-pairs", "--json"]].concat());
     assert!(consecutive.status.success() && all.status.success(), "{}", stderr(&all));
@@ -121,7 +142,13 @@ fn missing_file_and_bad_options() {
 
 #[test]
 fn every_subcommand_has_help() {
-    for args in [&["--help"][..], &["traj", "--help"], &["traj", "ape", "--help"], &["traj", "rpe", "--help"], &["anchor", "--help"]] {
+    for args in [
+        &["--help"][..],
+        &["traj", "--help"],
+        &["traj", "ape", "--help"],
+        &["traj", "rpe", "--help"],
+        &["anchor", "--help"],
+    ] {
         let out = dash2sim(args);
         assert!(out.status.success(), "{args:?}");
         assert!(String::from_utf8_lossy(&out.stdout).contains("Usage"), "{args:?}");
@@ -133,7 +160,16 @@ fn anchor_writes_a_metric_track_close_to_the_truth() {
     let dir = scratch("anchor");
     let out_path = dir.join("anchored.tum").display().to_string();
     let out = dash2sim(&[
-        "anchor", "--vo", &fixture("vo.tum"), "--gnss", &fixture("gnss.tum"), "--speed", &fixture("speed.csv"), "-o", &out_path, "--json",
+        "anchor",
+        "--vo",
+        &fixture("vo.tum"),
+        "--gnss",
+        &fixture("gnss.tum"),
+        "--speed",
+        &fixture("speed.csv"),
+        "-o",
+        &out_path,
+        "--json",
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");

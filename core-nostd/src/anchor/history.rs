@@ -94,7 +94,7 @@ impl Odometer {
     pub fn at(&self, t: Timestamp) -> Option<f64> {
         let (t0, v0) = self.last?;
         let dt = (t - t0).as_secs_f64();
-        (libm::fabs(dt) <= MAX_SPEED_AGE_S).then(|| self.distance_m + v0 * dt)
+        (libm::fabs(dt) <= MAX_SPEED_AGE_S).then_some(self.distance_m + v0 * dt)
     }
 }
 
@@ -110,7 +110,11 @@ mod tests {
     fn interpolates_inside_and_refuses_outside() {
         let mut h: VoHistory<4> = VoHistory::new();
         for k in 0..6 {
-            h.push(VoSample { t: ts(k as f64 * 0.1), position: Vector3::new(k as f64, 0.0, 0.0), odometer_m: Some(k as f64 * 2.0) });
+            h.push(VoSample {
+                t: ts(k as f64 * 0.1),
+                position: Vector3::new(k as f64, 0.0, 0.0),
+                odometer_m: Some(k as f64 * 2.0),
+            });
         }
         // Oldest two were evicted.
         assert_eq!(h.at(ts(0.1)), None);

@@ -382,7 +382,8 @@ impl<const K: usize> Anchorer<K> {
         }
         if let Some(last) = self.last_fix_time {
             let dt = (t_rx - last).as_secs_f64();
-            self.mean_fix_interval_s = if self.mean_fix_interval_s == 0.0 { dt } else { 0.9 * self.mean_fix_interval_s + 0.1 * dt };
+            self.mean_fix_interval_s =
+                if self.mean_fix_interval_s == 0.0 { dt } else { 0.9 * self.mean_fix_interval_s + 0.1 * dt };
         }
         self.last_fix_time = Some(t_rx);
         let fix = PendingFix { t: t_rx, enu, sigma: sigma_m };
@@ -539,7 +540,8 @@ impl<const K: usize> Anchorer<K> {
         let n_eff = if self.weight_squares > 0.0 { m.weight() * m.weight() / self.weight_squares } else { 0.0 };
         let dof = n_eff - 7.0;
         let sigma0_sq = if dof > 0.0 { m.weighted_sse(&fit) / (m.weight() / n_eff) / dof } else { f64::INFINITY };
-        let variance_factor = if dof >= MIN_DOF_FOR_POSTERIOR { sigma0_sq.max(MIN_VARIANCE_FACTOR) } else { sigma0_sq.max(1.0) };
+        let variance_factor =
+            if dof >= MIN_DOF_FOR_POSTERIOR { sigma0_sq.max(MIN_VARIANCE_FACTOR) } else { sigma0_sq.max(1.0) };
         let inflation = correlation * variance_factor;
         self.inflation = inflation;
         self.variance_factor = variance_factor;
@@ -554,7 +556,9 @@ impl<const K: usize> Anchorer<K> {
         // point by θ·c·‖a × offset‖, so c cancels in the position variance.
         let (rotation_sigma, rotation_var_m2) = match self.config.mode {
             AnchorMode::Full => {
-                let Some(eig) = nalgebra::SymmetricEigen::try_new(sxx, f64::EPSILON * 5.0, MAX_DECOMPOSITION_ITERATIONS) else {
+                let Some(eig) =
+                    nalgebra::SymmetricEigen::try_new(sxx, f64::EPSILON * 5.0, MAX_DECOMPOSITION_ITERATIONS)
+                else {
                     self.quality.observability = Observability::Collinear;
                     return;
                 };
@@ -586,12 +590,13 @@ impl<const K: usize> Anchorer<K> {
         self.quality.geometry_sigma_m = geometry_sigma;
         self.quality.scale_rel_sigma = scale_rel_sigma;
         let long_window = Sim3 { translation: m.mean_y() - fit.rotation * m.mean_x() * fit.scale, ..fit };
-        self.quality.rms_residual_m = if m.weight() > 0.0 { libm::sqrt(m.weighted_sse(&long_window) / m.weight()) } else { 0.0 };
+        self.quality.rms_residual_m =
+            if m.weight() > 0.0 { libm::sqrt(m.weighted_sse(&long_window) / m.weight()) } else { 0.0 };
         self.quality.observability = if m.count() < self.config.min_anchors {
             Observability::TooFewAnchors
-        } else if !(geometry_sigma <= self.config.max_geometry_sigma_m) {
+        } else if geometry_sigma.is_nan() || geometry_sigma > self.config.max_geometry_sigma_m {
             Observability::Collinear
-        } else if !(scale_rel_sigma <= self.config.max_scale_rel_sigma) {
+        } else if scale_rel_sigma.is_nan() || scale_rel_sigma > self.config.max_scale_rel_sigma {
             Observability::ScaleUncertain
         } else {
             Observability::Observable
@@ -602,7 +607,11 @@ impl<const K: usize> Anchorer<K> {
             self.held = Some((fit.rotation, fit.scale));
         }
         let recent = &self.hypotheses[best].recent;
-        self.estimate = self.held.map(|(rotation, scale)| Sim3 { rotation, translation: recent.translation(&rotation, scale), scale });
+        self.estimate = self.held.map(|(rotation, scale)| Sim3 {
+            rotation,
+            translation: recent.translation(&rotation, scale),
+            scale,
+        });
     }
 }
 

@@ -51,7 +51,11 @@ fn drive(config: AnchorConfig, truth: Sim3, seconds: f64, latency: f64, wheel_bi
 
 fn arbitrary() -> Sim3 {
     let axis = Unit::new_normalize(Vector3::new(1.0, -2.0, 0.5));
-    Sim3 { rotation: *Rotation3::from_axis_angle(&axis, 1.2).matrix(), translation: Vector3::new(30.0, -4.0, 2.0), scale: 0.4 }
+    Sim3 {
+        rotation: *Rotation3::from_axis_angle(&axis, 1.2).matrix(),
+        translation: Vector3::new(30.0, -4.0, 2.0),
+        scale: 0.4,
+    }
 }
 
 #[test]

@@ -69,10 +69,7 @@ impl Sim3 {
     /// Map a pose: its position is transformed as a point, its orientation is rotated.
     /// This is what evo's `scale(s)` followed by `transform(se3(R, t))` does.
     pub fn transform_pose(&self, pose: &Pose) -> Pose {
-        Pose {
-            rotation: self.rotation * pose.rotation,
-            translation: self.transform_point(&pose.translation),
-        }
+        Pose { rotation: self.rotation * pose.rotation, translation: self.transform_point(&pose.translation) }
     }
 
     /// True when every component is finite and the scale is positive.

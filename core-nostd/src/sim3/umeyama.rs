@@ -218,7 +218,8 @@ fn umeyama_rotation(cov: &Matrix3<f64>) -> Result<(Matrix3<f64>, f64), AlignErro
     if !cov.iter().all(|v| v.is_finite()) {
         return Err(AlignError::NonFinite);
     }
-    let svd = nalgebra::SVD::try_new(*cov, true, true, f64::EPSILON * 5.0, MAX_DECOMPOSITION_ITERATIONS).ok_or(AlignError::Degenerate)?;
+    let svd = nalgebra::SVD::try_new(*cov, true, true, f64::EPSILON * 5.0, MAX_DECOMPOSITION_ITERATIONS)
+        .ok_or(AlignError::Degenerate)?;
     let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
         return Err(AlignError::Degenerate);
     };
@@ -276,7 +277,11 @@ mod tests {
 
     #[test]
     fn recovers_a_known_similarity_exactly() {
-        let truth = Sim3 { rotation: rot(Vector3::new(0.3, -1.0, 0.5), 2.1), translation: Vector3::new(5.0, -7.0, 100.0), scale: 3.7 };
+        let truth = Sim3 {
+            rotation: rot(Vector3::new(0.3, -1.0, 0.5), 2.1),
+            translation: Vector3::new(5.0, -7.0, 100.0),
+            scale: 3.7,
+        };
         let mut m = Moments::new();
         for p in points() {
             m.push(&p, &truth.transform_point(&p), 1.0).expect("finite");

@@ -48,7 +48,12 @@ fn main() -> ! {
         Some(est) => {
             let q = anchorer.quality();
             hprintln!("dash2sim-core on Cortex-M7: observable after {:?} s", first_observable);
-            hprintln!("scale {} (truth 0.4), anchors used {}, rms residual {} m", est.scale, q.anchors_used, q.rms_residual_m);
+            hprintln!(
+                "scale {} (truth 0.4), anchors used {}, rms residual {} m",
+                est.scale,
+                q.anchors_used,
+                q.rms_residual_m
+            );
             libm::fabs(est.scale / 0.4 - 1.0) < 1e-4 && (est.rotation - truth.rotation).norm() < 1e-4
         }
         None => {
