@@ -206,14 +206,31 @@ impl Trajectory {
         }
         Ok(())
     }
+
+    /// Write as an EuRoC ground-truth style CSV: `t_ns, p_x, p_y, p_z, q_w, q_x, q_y, q_z`.
+    pub fn write_euroc(&self, out: &mut impl std::io::Write) -> std::io::Result<()> {
+        writeln!(
+            out,
+            "#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],q_RS_w [],q_RS_x [],q_RS_y [],q_RS_z []"
+        )?;
+        for (k, pose) in self.poses.iter().enumerate() {
+            let t = self.stamps.get(k).copied().unwrap_or(k as f64);
+            let q = dash2sim_core::nalgebra::UnitQuaternion::from_matrix(&pose.rotation);
+            let p = pose.translation;
+            let ns = (t * 1e9).round() as i64;
+            writeln!(out, "{ns},{:.9},{:.9},{:.9},{:.9},{:.9},{:.9},{:.9}", p.x, p.y, p.z, q.w, q.i, q.j, q.k)?;
+        }
+        Ok(())
+    }
 }
 
-/// Write a trajectory to `path` in `format` (EuRoC is written as TUM, as evo does).
+/// Write a trajectory to `path` in `format`.
 pub fn write_file(traj: &Trajectory, path: &Path, format: Format) -> std::io::Result<()> {
     let mut out = std::io::BufWriter::new(fs::File::create(path)?);
     match format {
         Format::Kitti => traj.write_kitti(&mut out)?,
-        Format::Tum | Format::Euroc => traj.write_tum(&mut out)?,
+        Format::Tum => traj.write_tum(&mut out)?,
+        Format::Euroc => traj.write_euroc(&mut out)?,
     }
     out.flush()
 }
@@ -249,6 +266,19 @@ mod tests {
         let mut out = Vec::new();
         t.write_kitti(&mut out).expect("write");
         assert_eq!(parse(std::str::from_utf8(&out).expect("utf8"), Format::Kitti).expect("valid"), t);
+    }
+
+    #[test]
+    fn euroc_round_trip() {
+        let text = "0.5 1 2 3 0 0.6 0 0.8\n1.25 4 5 6 0 0 0 1\n";
+        let t = parse(text, Format::Tum).expect("valid");
+        let mut out = Vec::new();
+        t.write_euroc(&mut out).expect("write");
+        let back = parse(std::str::from_utf8(&out).expect("utf8"), Format::Euroc).expect("valid");
+        assert_eq!(back.stamps, t.stamps);
+        for (a, b) in back.poses.iter().zip(&t.poses) {
+            assert!((a.to_matrix() - b.to_matrix()).norm() < 1e-8);
+        }
     }
 
     #[test]

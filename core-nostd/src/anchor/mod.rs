@@ -273,6 +273,7 @@ pub struct Anchorer<const K: usize = 9> {
 impl<const K: usize> Anchorer<K> {
     /// An anchorer with no data.
     pub fn new(config: AnchorConfig) -> Self {
+        const { assert!(K >= 1, "an Anchorer needs at least one latency hypothesis") };
         let step = config.latency_step;
         let hypotheses = core::array::from_fn(|k| Hypothesis {
             latency: Duration::from_micros(step.micros().saturating_mul(k as i64)),
