@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use dash2sim_core::sim3::{AlignError, AlignMode, Moments, Sim3};
+use dash2sim_core::sim3::{AlignError, AlignMode, Moments, Pose, Sim3};
 use dash2sim_core::traj::{self, PoseRelation, RpePairs, Statistics, TrajError};
 
 use crate::sync;
@@ -143,8 +143,21 @@ pub fn alignment(reference: &Trajectory, estimate: &Trajectory, align: Align) ->
     moments.align(mode).map_err(EvalError::Align)
 }
 
-fn aligned(estimate: &Trajectory, t: &Sim3) -> Trajectory {
-    Trajectory { stamps: estimate.stamps.clone(), poses: estimate.poses.iter().map(|p| t.transform_pose(p)).collect() }
+/// Align the estimate, let `metric` write one error per value into a buffer of
+/// `reference.len()` (the most either metric produces: every RPE pair has a distinct
+/// first index), and summarise.
+fn evaluate(
+    reference: &Trajectory,
+    estimate: &Trajectory,
+    align: Align,
+    metric: impl FnOnce(&[Pose], &mut [f64]) -> Result<usize, TrajError>,
+) -> Result<Evaluation, EvalError> {
+    let t = alignment(reference, estimate, align)?;
+    let est: Vec<Pose> = estimate.poses.iter().map(|p| t.transform_pose(p)).collect();
+    let mut errors = vec![0.0; reference.len()];
+    let n = metric(&est, &mut errors).map_err(EvalError::Metric)?;
+    let stats = Statistics::from_errors(&mut errors[..n]).map_err(EvalError::Metric)?;
+    Ok(Evaluation { alignment: t, stats, n, matched: reference.len() })
 }
 
 /// Absolute pose error of associated trajectories.
@@ -154,12 +167,7 @@ pub fn ape(
     align: Align,
     relation: Relation,
 ) -> Result<Evaluation, EvalError> {
-    let t = alignment(reference, estimate, align)?;
-    let est = aligned(estimate, &t);
-    let mut errors = vec![0.0; reference.len()];
-    let n = traj::ape(&reference.poses, &est.poses, relation.core(), &mut errors).map_err(EvalError::Metric)?;
-    let stats = Statistics::from_errors(&mut errors[..n]).map_err(EvalError::Metric)?;
-    Ok(Evaluation { alignment: t, stats, n, matched: reference.len() })
+    evaluate(reference, estimate, align, |est, errors| traj::ape(&reference.poses, est, relation.core(), errors))
 }
 
 /// Relative pose error of associated trajectories.
@@ -170,13 +178,8 @@ pub fn rpe(
     relation: Relation,
     pairs: RpePairs,
 ) -> Result<Evaluation, EvalError> {
-    let t = alignment(reference, estimate, align)?;
-    let est = aligned(estimate, &t);
     let mut scratch = vec![0.0; reference.len()];
-    // At most one pair per pose: every pair (i, j) has a distinct i.
-    let mut errors = vec![0.0; reference.len()];
-    let n = traj::rpe(&reference.poses, &est.poses, pairs, relation.core(), &mut scratch, &mut errors)
-        .map_err(EvalError::Metric)?;
-    let stats = Statistics::from_errors(&mut errors[..n]).map_err(EvalError::Metric)?;
-    Ok(Evaluation { alignment: t, stats, n, matched: reference.len() })
+    evaluate(reference, estimate, align, |est, errors| {
+        traj::rpe(&reference.poses, est, pairs, relation.core(), &mut scratch, errors)
+    })
 }
