@@ -10,7 +10,9 @@
 //!   fix's HDOP/GST σ ([`gnss_sigma`]), times a robust Cauchy factor.
 //! * **Outliers.** A fix is rejected when it disagrees with the current estimate by more
 //!   than `gate_sigma·σ`, or when it moved farther from the last accepted fix than the
-//!   wheels travelled (a multipath jump), so one bad fix never pulls the estimate.
+//!   wheels travelled (a multipath jump), so one bad fix never pulls the estimate. After
+//!   a long run of rejections the anchorer recovers: fixes are taken at full weight until
+//!   they agree with the fit again, so a real shift is followed, not rejected forever.
 //! * **Drift.** Past weight decays with time constant `forgetting_time_constant_s`, so
 //!   the Sim(3) follows slow VO drift and memory stays bounded on long drives.
 //! * **Two windows.** Rotation and scale need a long baseline; the translation is solved
@@ -49,6 +51,15 @@ use wheel::WheelScale;
 const VO_HISTORY: usize = 64;
 /// GNSS fixes waiting for the VO sample that brackets them.
 const PENDING_ANCHORS: usize = 8;
+/// After this many consecutive rejected fixes the positions have really moved (receiver
+/// reset, datum change, a wrong estimate): the anchorer recovers by taking fixes at full
+/// weight until they agree with the fit again, rather than rejecting everything forever.
+const MAX_CONSECUTIVE_REJECTIONS: u32 = 30;
+/// A fix farther from the last accepted one than the wheels travelled times this factor
+/// (plus the gate) is a jump.
+const JUMP_TRAVEL_FACTOR: f64 = 1.1;
+/// The jump test compares with the last accepted fix only within this time, s.
+const JUMP_TEST_WINDOW_S: f64 = 10.0;
 /// Degrees of freedom from which the residuals, not the stated σ, set the noise level.
 const MIN_DOF_FOR_POSTERIOR: f64 = 10.0;
 /// The a-posteriori variance factor is not trusted below this (a fit that absorbs its
@@ -256,6 +267,9 @@ pub struct Anchorer<const K: usize = 9> {
     wheel: WheelScale,
     last_fix_time: Option<Timestamp>,
     last_accepted: Option<(Timestamp, Vector3<f64>, Option<f64>)>,
+    consecutive_rejections: u32,
+    /// Taking fixes at full weight after a lasting shift, until they agree again.
+    recovering: bool,
     mean_fix_interval_s: f64,
     /// Σw² with the same forgetting as the moments (Σw is in the moments), for Kish's
     /// effective number of anchors (Σw)²/Σw².
@@ -291,6 +305,8 @@ impl<const K: usize> Anchorer<K> {
             wheel: WheelScale::default(),
             last_fix_time: None,
             last_accepted: None,
+            consecutive_rejections: 0,
+            recovering: false,
             mean_fix_interval_s: 0.0,
             weight_squares: 0.0,
             held: None,
@@ -390,12 +406,14 @@ impl<const K: usize> Anchorer<K> {
         let fix = PendingFix { t: t_rx, enu, sigma: sigma_m };
         if self.history.latest().is_some_and(|s| s.t >= t_rx) {
             self.process_fix(fix);
-        } else if let Err(oldest_first) = self.pending.push_back(fix) {
-            // Queue full: VO has stalled; the oldest waiting fix is the least useful.
-            let _ = oldest_first;
-            self.pending.pop_front();
+        } else {
+            if self.pending.is_full() {
+                // VO has stalled; the oldest waiting fix is the least useful.
+                self.pending.pop_front();
+                self.quality.anchors_dropped = self.quality.anchors_dropped.saturating_add(1);
+            }
+            // Cannot fail: a slot is free.
             let _ = self.pending.push_back(fix);
-            self.quality.anchors_dropped = self.quality.anchors_dropped.saturating_add(1);
         }
         Ok(())
     }
@@ -429,26 +447,38 @@ impl<const K: usize> Anchorer<K> {
 
         let base_weight = 1.0 / (fix.sigma * fix.sigma);
         let mut weight = base_weight;
+        // After a long run of rejections the fixes have really moved: recover by taking
+        // them at full weight (no gate, no down-weighting) until they agree again.
+        if self.consecutive_rejections >= MAX_CONSECUTIVE_REJECTIONS {
+            self.recovering = true;
+        }
         // Robust weighting against the current fit of the leading hypothesis.
         if let Some(fit) = self.hypotheses[best].fit {
             let u = (fix.enu - fit.transform_point(&x_best)).norm() / fix.sigma;
-            if self.quality.observability == Observability::Observable && u > self.config.gate_sigma {
-                self.reject();
-                return;
+            if u <= self.config.gate_sigma {
+                self.recovering = false;
             }
-            let r = u / self.config.robust_scale_sigma;
-            weight /= 1.0 + r * r;
+            if !self.recovering {
+                if self.quality.observability == Observability::Observable && u > self.config.gate_sigma {
+                    self.reject();
+                    return;
+                }
+                let r = u / self.config.robust_scale_sigma;
+                weight /= 1.0 + r * r;
+            }
         }
         // Jump test against the wheels: the fix cannot have moved farther than the car.
-        if let (Some((t0, p0, Some(o0))), Some(o1)) = (self.last_accepted, odo_best) {
+        if let (Some((t0, p0, Some(o0))), Some(o1), false) = (self.last_accepted, odo_best, self.recovering) {
             let moved = (fix.enu - p0).norm();
             let travelled = (o1 - o0).abs();
             let slack = self.config.gate_sigma * fix.sigma * core::f64::consts::SQRT_2;
-            if (fix.t - t0).as_secs_f64() < 10.0 && moved > travelled * 1.1 + slack {
+            let recent = (fix.t - t0).as_secs_f64() < JUMP_TEST_WINDOW_S;
+            if recent && moved > travelled * JUMP_TRAVEL_FACTOR + slack {
                 self.reject();
                 return;
             }
         }
+        self.consecutive_rejections = 0;
 
         let since_last = self.last_accepted.map_or(0.0, |(t0, _, _)| (fix.t - t0).as_secs_f64());
         let forget = libm::exp(-since_last / self.config.forgetting_time_constant_s);
@@ -496,6 +526,7 @@ impl<const K: usize> Anchorer<K> {
     }
 
     fn reject(&mut self) {
+        self.consecutive_rejections = self.consecutive_rejections.saturating_add(1);
         self.quality.anchors_rejected = self.quality.anchors_rejected.saturating_add(1);
     }
 

@@ -152,3 +152,27 @@ fn sigma_from_gst_or_hdop() {
     assert_eq!(gnss_sigma(None, None, 2.5), None);
     assert_eq!(gnss_sigma(Some(f64::NAN), Some((f64::NAN, 1.0)), 2.5), None);
 }
+
+#[test]
+fn a_lasting_shift_of_the_fixes_is_followed_not_rejected_forever() {
+    let mut a = drive(AnchorConfig::default(), arbitrary(), 20.0, 0.0, 1.0, false).anchorer;
+    let inverse = arbitrary().inverse();
+    let shift = Vector3::new(0.0, 30.0, 0.0);
+    for k in 1..=3000 {
+        let t = 20.0 + k as f64 * 0.01;
+        if k % 2 == 0 {
+            a.push_speed(ts(t), speed_at(t)).expect("speed");
+        }
+        if k % 10 == 0 {
+            a.push_gnss(ts(t), truth_at(t) + shift, 1.0).expect("fix");
+        }
+        if k % 5 == 0 {
+            a.push_vo(ts(t), inverse.transform_point(&truth_at(t))).expect("vo");
+        }
+    }
+    let q = a.quality();
+    assert!(q.anchors_rejected >= MAX_CONSECUTIVE_REJECTIONS, "the shift was first rejected");
+    let now = truth_at(50.0) + shift;
+    let followed = a.current_position().expect("estimate");
+    assert!((followed - now).norm() < 0.1, "still {} m away after 30 s", (followed - now).norm());
+}
