@@ -241,12 +241,21 @@ struct RecentMeans {
 }
 
 impl RecentMeans {
+    /// Forget by `keep` and add the pair; an update that would overflow is refused and
+    /// leaves the means as they were.
     fn push(&mut self, keep: f64, x: &Vector3<f64>, y: &Vector3<f64>, w: f64) {
-        self.weight = self.weight * keep + w;
-        if self.weight > 0.0 {
-            let f = w / self.weight;
-            self.mean_x += (x - self.mean_x) * f;
-            self.mean_y += (y - self.mean_y) * f;
+        let weight = self.weight * keep + w;
+        if weight <= 0.0 {
+            return;
+        }
+        let f = w / weight;
+        let next = RecentMeans {
+            weight,
+            mean_x: self.mean_x + (x - self.mean_x) * f,
+            mean_y: self.mean_y + (y - self.mean_y) * f,
+        };
+        if next.weight.is_finite() && next.mean_x.iter().chain(next.mean_y.iter()).all(|v| v.is_finite()) {
+            *self = next;
         }
     }
 
@@ -639,11 +648,15 @@ impl<const K: usize> Anchorer<K> {
             self.held = Some((fit.rotation, fit.scale));
         }
         let recent = &self.hypotheses[best].recent;
-        self.estimate = self.held.map(|(rotation, scale)| Sim3 {
+        let candidate = self.held.map(|(rotation, scale)| Sim3 {
             rotation,
             translation: recent.translation(&rotation, scale),
             scale,
         });
+        // Extreme (finite) inputs can still overflow the product: never report that.
+        if let Some(t) = candidate.filter(Sim3::is_valid) {
+            self.estimate = Some(t);
+        }
     }
 }
 
