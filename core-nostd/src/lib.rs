@@ -10,6 +10,7 @@
 //! | [`sim3`] | similarity transforms, poses, Umeyama from moments |
 //! | [`anchor`] | incremental Sim(3) anchoring of VO to GNSS and wheel speed |
 //! | [`traj`] | APE / RPE with evo's definitions |
+//! | [`nmea`] | NMEA 0183: framer, sentences, messages, epoch assembly |
 //!
 //! Capacity is part of the types; nothing here allocates or panics on untrusted input.
 #![no_std]
@@ -22,6 +23,7 @@ extern crate std;
 
 pub mod anchor;
 pub mod geo;
+pub mod nmea;
 pub mod sim3;
 pub mod time;
 pub mod traj;

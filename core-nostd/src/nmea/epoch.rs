@@ -1,0 +1,329 @@
+//! Merging the sentences of one fix into a [`GnssFix`], like gpsd's TPV report.
+//!
+//! A receiver reports one epoch as several sentences (GGA, GSA, GSV, RMC, VTG, …). The
+//! assembler keeps the current state; a sentence carrying a different time of day starts
+//! a new epoch and hands back the finished one. Position and velocity are per epoch;
+//! date, DOPs, satellites used and error estimates persist until replaced, as they do in
+//! gpsd.
+
+use super::messages::{Date, Message, TimeOfDay};
+use crate::time::Timestamp;
+
+/// Knots → m/s (exact by definition of the knot).
+pub const KNOTS_TO_MPS: f64 = 1852.0 / 3600.0;
+
+/// Fix dimension, as gpsd's `mode`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FixMode {
+    /// Nothing known yet.
+    #[default]
+    Unknown,
+    /// No fix.
+    NoFix,
+    /// Horizontal fix.
+    Fix2d,
+    /// Horizontal and vertical fix.
+    Fix3d,
+}
+
+impl FixMode {
+    /// gpsd's number: 0 unknown, 1 no fix, 2, 3.
+    pub fn gpsd(self) -> u8 {
+        match self {
+            FixMode::Unknown => 0,
+            FixMode::NoFix => 1,
+            FixMode::Fix2d => 2,
+            FixMode::Fix3d => 3,
+        }
+    }
+}
+
+/// One epoch's fix: gpsd TPV fields where they exist.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct GnssFix {
+    /// UTC date (from RMC or ZDA; persists).
+    pub date: Option<Date>,
+    /// UTC time of day of this epoch.
+    pub time_of_day: Option<TimeOfDay>,
+    /// Fix mode.
+    pub mode: FixMode,
+    /// GGA quality indicator.
+    pub quality: Option<u8>,
+    /// Latitude, degrees.
+    pub lat: Option<f64>,
+    /// Longitude, degrees.
+    pub lon: Option<f64>,
+    /// Altitude above mean sea level, m.
+    pub alt_msl: Option<f64>,
+    /// Geoid separation, m.
+    pub geoid_sep: Option<f64>,
+    /// Speed over ground, m/s.
+    pub speed_mps: Option<f64>,
+    /// Course over ground, degrees true.
+    pub track_deg: Option<f64>,
+    /// Magnetic variation, degrees (east positive).
+    pub mag_var_deg: Option<f64>,
+    /// True heading (HDT), degrees.
+    pub heading_deg: Option<f64>,
+    /// Satellites used.
+    pub satellites_used: Option<u32>,
+    /// Horizontal DOP.
+    pub hdop: Option<f64>,
+    /// Vertical DOP.
+    pub vdop: Option<f64>,
+    /// Position DOP.
+    pub pdop: Option<f64>,
+    /// 1-σ latitude error (GST), m.
+    pub sigma_lat_m: Option<f64>,
+    /// 1-σ longitude error (GST), m.
+    pub sigma_lon_m: Option<f64>,
+    /// 1-σ altitude error (GST), m.
+    pub sigma_alt_m: Option<f64>,
+}
+
+/// Days since 1970-01-01 of a proleptic Gregorian date (Hinnant's `days_from_civil`).
+pub fn days_since_unix_epoch(d: Date) -> i64 {
+    let (y, m, day) = (i64::from(d.year), i64::from(d.month), i64::from(d.day));
+    let y = if m <= 2 { y - 1 } else { y };
+    let era = if y >= 0 { y } else { y - 399 } / 400;
+    let yoe = y - era * 400;
+    let mp = (m + 9) % 12;
+    let doy = (153 * mp + 2) / 5 + day - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    era * 146_097 + doe - 719_468
+}
+
+impl GnssFix {
+    /// UTC time as microseconds since the Unix epoch, when date and time are known.
+    pub fn time(&self) -> Option<Timestamp> {
+        let (date, tod) = (self.date?, self.time_of_day?);
+        Some(Timestamp::from_micros(days_since_unix_epoch(date) * 86_400_000_000 + tod.0))
+    }
+
+    /// Height above the ellipsoid, m (MSL altitude plus geoid separation).
+    pub fn alt_hae(&self) -> Option<f64> {
+        Some(self.alt_msl? + self.geoid_sep?)
+    }
+
+    /// True when the fix has at least a horizontal position.
+    pub fn has_position(&self) -> bool {
+        self.mode >= FixMode::Fix2d && self.lat.is_some() && self.lon.is_some()
+    }
+
+    fn clear_epoch(&mut self) {
+        *self = GnssFix {
+            date: self.date,
+            mode: self.mode,
+            satellites_used: self.satellites_used,
+            hdop: self.hdop,
+            vdop: self.vdop,
+            pdop: self.pdop,
+            mag_var_deg: self.mag_var_deg,
+            geoid_sep: self.geoid_sep,
+            ..GnssFix::default()
+        };
+    }
+}
+
+/// Merges messages into per-epoch fixes.
+#[derive(Clone, Debug, Default)]
+pub struct EpochAssembler {
+    current: GnssFix,
+    /// True once the current epoch holds anything.
+    dirty: bool,
+}
+
+impl EpochAssembler {
+    /// An empty assembler.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The state of the epoch being assembled (what gpsd would report now).
+    pub fn current(&self) -> &GnssFix {
+        &self.current
+    }
+
+    /// Start a new epoch if `time` differs from the current one; returns the finished one.
+    fn at(&mut self, time: Option<TimeOfDay>) -> Option<GnssFix> {
+        let time = time?;
+        match self.current.time_of_day {
+            Some(t) if t == time => None,
+            previous => {
+                let finished = (self.dirty && previous.is_some()).then_some(self.current);
+                self.current.clear_epoch();
+                self.current.time_of_day = Some(time);
+                self.dirty = false;
+                finished
+            }
+        }
+    }
+
+    /// Merge one message; returns the previous epoch's fix when this one starts a new epoch.
+    pub fn push(&mut self, message: &Message<'_>) -> Option<GnssFix> {
+        let fix = &mut self.current;
+        let finished = match message {
+            Message::Gga(g) => {
+                let done = self.at(g.time);
+                let fix = &mut self.current;
+                fix.quality = Some(g.quality);
+                if g.quality == 0 {
+                    fix.mode = FixMode::NoFix;
+                } else {
+                    fix.lat = g.lat.or(fix.lat);
+                    fix.lon = g.lon.or(fix.lon);
+                    fix.alt_msl = g.alt_msl.or(fix.alt_msl);
+                    fix.geoid_sep = g.geoid_sep.or(fix.geoid_sep);
+                    let dimension = if g.alt_msl.is_some() { FixMode::Fix3d } else { FixMode::Fix2d };
+                    if fix.mode < FixMode::Fix2d || dimension == FixMode::Fix3d {
+                        fix.mode = dimension;
+                    }
+                }
+                fix.satellites_used = g.satellites.or(fix.satellites_used);
+                fix.hdop = g.hdop.or(fix.hdop);
+                done
+            }
+            Message::Rmc(m) => {
+                let done = self.at(m.time);
+                let fix = &mut self.current;
+                fix.date = m.date.or(fix.date);
+                if m.valid {
+                    fix.lat = m.lat.or(fix.lat);
+                    fix.lon = m.lon.or(fix.lon);
+                    fix.speed_mps = m.speed_knots.map(|k| k * KNOTS_TO_MPS).or(fix.speed_mps);
+                    fix.track_deg = m.track_deg.or(fix.track_deg);
+                    fix.mag_var_deg = m.mag_var_deg.or(fix.mag_var_deg);
+                    if fix.mode < FixMode::Fix2d {
+                        fix.mode = FixMode::Fix2d;
+                    }
+                } else {
+                    fix.mode = FixMode::NoFix;
+                }
+                done
+            }
+            Message::Gll(g) => {
+                let done = self.at(g.time);
+                let fix = &mut self.current;
+                if g.valid && g.mode != Some(b'N') {
+                    fix.lat = g.lat.or(fix.lat);
+                    fix.lon = g.lon.or(fix.lon);
+                    if fix.mode < FixMode::Fix2d {
+                        fix.mode = FixMode::Fix2d;
+                    }
+                }
+                done
+            }
+            Message::Gns(g) => {
+                let done = self.at(g.time);
+                let fix = &mut self.current;
+                if g.any_fix {
+                    fix.lat = g.lat.or(fix.lat);
+                    fix.lon = g.lon.or(fix.lon);
+                    fix.alt_msl = g.alt_msl.or(fix.alt_msl);
+                    fix.geoid_sep = g.geoid_sep.or(fix.geoid_sep);
+                    let dimension = if g.alt_msl.is_some() { FixMode::Fix3d } else { FixMode::Fix2d };
+                    if fix.mode < FixMode::Fix2d || dimension == FixMode::Fix3d {
+                        fix.mode = dimension;
+                    }
+                } else {
+                    fix.mode = FixMode::NoFix;
+                }
+                fix.satellites_used = g.satellites.or(fix.satellites_used);
+                fix.hdop = g.hdop.or(fix.hdop);
+                done
+            }
+            Message::Vtg(v) => {
+                fix.track_deg = v.track_deg.or(fix.track_deg);
+                fix.speed_mps =
+                    v.speed_knots.map(|k| k * KNOTS_TO_MPS).or(v.speed_kmh.map(|k| k / 3.6)).or(fix.speed_mps);
+                None
+            }
+            Message::Gsa(a) => {
+                match a.fix_type {
+                    Some(1) => fix.mode = FixMode::NoFix,
+                    Some(2) => fix.mode = FixMode::Fix2d,
+                    Some(3) => fix.mode = FixMode::Fix3d,
+                    _ => {}
+                }
+                fix.pdop = a.pdop.or(fix.pdop);
+                fix.hdop = a.hdop.or(fix.hdop);
+                fix.vdop = a.vdop.or(fix.vdop);
+                None
+            }
+            Message::Gst(g) => {
+                let done = self.at(g.time);
+                let fix = &mut self.current;
+                fix.sigma_lat_m = g.sigma_lat_m;
+                fix.sigma_lon_m = g.sigma_lon_m;
+                fix.sigma_alt_m = g.sigma_alt_m;
+                done
+            }
+            Message::Zda(z) => {
+                let done = self.at(z.time);
+                self.current.date = z.date.or(self.current.date);
+                done
+            }
+            Message::Hdt(h) => {
+                fix.heading_deg = h.heading_deg.or(fix.heading_deg);
+                None
+            }
+            Message::Gsv(_) | Message::Proprietary(_) | Message::Unknown(_) => return None,
+        };
+        self.dirty = true;
+        finished
+    }
+
+    /// The last epoch, at the end of the input.
+    pub fn finish(&mut self) -> Option<GnssFix> {
+        let done = (self.dirty && self.current.time_of_day.is_some()).then_some(self.current);
+        self.dirty = false;
+        done
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nmea::messages::parse;
+    use crate::nmea::sentence::Sentence;
+
+    fn push(a: &mut EpochAssembler, line: &[u8]) -> Option<GnssFix> {
+        a.push(&parse(&Sentence::parse(line, false).expect("sentence")).expect("message"))
+    }
+
+    #[test]
+    fn merges_an_epoch_and_hands_it_back_when_the_next_starts() {
+        let mut a = EpochAssembler::new();
+        assert_eq!(push(&mut a, b"$GPGGA,165007.000,4143.6058,N,08338.0778,W,1,06,1.5,204.3,M,-33.7,M,,0000"), None);
+        push(&mut a, b"$GPGSA,A,3,31,16,29,23,20,32,,,,,,,2.8,1.5,2.4");
+        push(&mut a, b"$GPRMC,165007.000,A,4143.6058,N,08338.0778,W,0.55,36.58,180710,,,A");
+        let now = a.current();
+        assert_eq!(now.mode, FixMode::Fix3d);
+        assert!((now.speed_mps.expect("speed") - 0.283).abs() < 5e-4);
+        assert!((now.alt_hae().expect("hae") - 170.6).abs() < 1e-9);
+        let t = now.time().expect("time");
+        // 2010-07-18T16:50:07Z
+        assert_eq!(t.micros(), 1_279_471_807_000_000);
+        let done = push(&mut a, b"$GPGGA,165008.000,4143.6059,N,08338.0786,W,1,06,1.5,204.1,M,-33.7,M,,0000").expect("epoch");
+        assert_eq!(done.time(), Some(t));
+        assert_eq!(a.current().speed_mps, None, "velocity is per epoch");
+        assert_eq!(a.current().date, done.date, "the date persists");
+        assert_eq!(a.finish().map(|f| f.alt_msl), Some(Some(204.1)));
+    }
+
+    #[test]
+    fn invalid_status_means_no_fix() {
+        let mut a = EpochAssembler::new();
+        push(&mut a, b"$GPRMC,120000,V,,,,,,,010120,,");
+        assert_eq!(a.current().mode, FixMode::NoFix);
+        assert!(!a.current().has_position());
+    }
+
+    #[test]
+    fn civil_days() {
+        assert_eq!(days_since_unix_epoch(Date { year: 1970, month: 1, day: 1 }), 0);
+        assert_eq!(days_since_unix_epoch(Date { year: 2000, month: 3, day: 1 }), 11_017);
+        assert_eq!(days_since_unix_epoch(Date { year: 2024, month: 2, day: 29 }), 19_782);
+    }
+}

@@ -1,0 +1,114 @@
+//! NMEA 0183 from a GNSS receiver's serial port: sans-io, zero-copy, no allocation.
+//!
+//! [`framer`] cuts a byte stream into sentences, [`sentence`] checks and splits one,
+//! [`messages`] decodes the fields, [`epoch`] merges an epoch's sentences into a
+//! [`GnssFix`]. [`Decoder`] chains them and counts what it saw and rejected.
+
+pub mod epoch;
+pub mod framer;
+pub mod messages;
+pub mod sentence;
+
+pub use epoch::{EpochAssembler, FixMode, GnssFix};
+pub use framer::{Feed, FrameError, Framer};
+pub use messages::{Message, MessageError};
+pub use sentence::{Sentence, SentenceError, Talker};
+
+/// What a [`Decoder`] has seen.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DecoderStats {
+    /// Sentences decoded into a known message.
+    pub decoded: u32,
+    /// Well-formed sentences of types not decoded (TXT, proprietary, AIS…).
+    pub unknown: u32,
+    /// Rejected: bad checksum.
+    pub bad_checksum: u32,
+    /// Rejected: missing checksum (when required) or malformed address.
+    pub malformed: u32,
+    /// Rejected: a field out of range or not a number.
+    pub bad_fields: u32,
+    /// Dropped by the framer (too long, binary, interrupted).
+    pub dropped: u32,
+}
+
+/// The outcome of one sentence, for callers that report problems (with their position).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Event<'a> {
+    /// A decoded message; `fix` is the previous epoch when this sentence started a new one.
+    Message {
+        /// The message.
+        message: Message<'a>,
+        /// A finished epoch, if any.
+        fix: Option<GnssFix>,
+    },
+    /// A sentence that failed its checksum or was malformed.
+    BadSentence(SentenceError),
+    /// A sentence whose fields could not be decoded.
+    BadFields(MessageError),
+}
+
+/// Sentence-level decoder with epoch assembly. Feed it lines from a [`Framer`].
+#[derive(Clone, Debug, Default)]
+pub struct Decoder {
+    /// Accept sentences without a checksum (older or cheap receivers).
+    pub allow_missing_checksum: bool,
+    assembler: EpochAssembler,
+    stats: DecoderStats,
+}
+
+impl Decoder {
+    /// A decoder that accepts sentences without checksums but rejects wrong ones.
+    pub fn new() -> Self {
+        Decoder { allow_missing_checksum: true, ..Self::default() }
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> &DecoderStats {
+        &self.stats
+    }
+
+    /// The epoch being assembled.
+    pub fn current(&self) -> &GnssFix {
+        self.assembler.current()
+    }
+
+    /// Count a sentence the framer dropped.
+    pub fn note_dropped(&mut self) {
+        self.stats.dropped = self.stats.dropped.saturating_add(1);
+    }
+
+    /// Decode one line.
+    pub fn line<'a>(&mut self, line: &'a [u8]) -> Event<'a> {
+        let sentence = match Sentence::parse(line, !self.allow_missing_checksum) {
+            Ok(s) => s,
+            Err(e) => {
+                match e {
+                    SentenceError::BadChecksum { .. } => self.stats.bad_checksum = self.stats.bad_checksum.saturating_add(1),
+                    _ => self.stats.malformed = self.stats.malformed.saturating_add(1),
+                }
+                return Event::BadSentence(e);
+            }
+        };
+        match messages::parse(&sentence) {
+            Ok(message) => {
+                if matches!(message, Message::Unknown(_) | Message::Proprietary(_)) {
+                    self.stats.unknown = self.stats.unknown.saturating_add(1);
+                } else {
+                    self.stats.decoded = self.stats.decoded.saturating_add(1);
+                }
+                let fix = self.assembler.push(&message);
+                Event::Message { message, fix }
+            }
+            Err(e) => {
+                self.stats.bad_fields = self.stats.bad_fields.saturating_add(1);
+                Event::BadFields(e)
+            }
+        }
+    }
+
+    /// The last epoch, at the end of the input.
+    pub fn finish(&mut self) -> Option<GnssFix> {
+        self.assembler.finish()
+    }
+}

@@ -1,0 +1,242 @@
+//! One NMEA 0183 sentence: checksum, talker, type and a zero-copy field cursor.
+//!
+//! `$TTSSS,f1,f2,...*HH` — `TT` the talker (GP, GN, …), `SSS` the sentence type,
+//! `HH` the XOR of every byte between `$` and `*`. Proprietary sentences are `$P` followed
+//! by a manufacturer code. Once [`Sentence::parse`] has succeeded no accessor panics.
+
+/// Who sent a sentence. Total: unknown talkers keep their two bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Talker {
+    /// GPS.
+    Gps,
+    /// Any combination of systems (GN).
+    Gnss,
+    /// GLONASS.
+    Glonass,
+    /// Galileo.
+    Galileo,
+    /// BeiDou (GB or BD).
+    Beidou,
+    /// QZSS (GQ).
+    Qzss,
+    /// NavIC / IRNSS (GI).
+    Navic,
+    /// A proprietary sentence (`$P...`).
+    Proprietary,
+    /// Any other talker (instruments, AIS, ...).
+    Other([u8; 2]),
+}
+
+/// Why a line is not a usable sentence.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SentenceError {
+    /// Does not start with `$`/`!` or the address is shorter than 5 characters.
+    Malformed,
+    /// No `*HH` at the end.
+    MissingChecksum,
+    /// The checksum does not match.
+    BadChecksum {
+        /// Sent in the sentence.
+        expected: u8,
+        /// Computed over the bytes.
+        computed: u8,
+    },
+}
+
+impl core::fmt::Display for SentenceError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            SentenceError::Malformed => f.write_str("malformed sentence"),
+            SentenceError::MissingChecksum => f.write_str("missing checksum"),
+            SentenceError::BadChecksum { expected, computed } => {
+                write!(f, "bad checksum: sentence says {expected:02X}, bytes give {computed:02X}")
+            }
+        }
+    }
+}
+
+impl core::error::Error for SentenceError {}
+
+/// A checked sentence borrowing the line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Sentence<'a> {
+    /// Who sent it.
+    pub talker: Talker,
+    /// The type, e.g. `b"GGA"`; for proprietary sentences the manufacturer code and
+    /// anything after it up to the first comma (e.g. `b"UBX"`, `b"GRME"`).
+    pub kind: &'a [u8],
+    /// Everything after the address, without the checksum (starts after the comma).
+    pub fields: &'a [u8],
+}
+
+fn hex(b: u8) -> Option<u8> {
+    match b {
+        b'0'..=b'9' => Some(b - b'0'),
+        b'A'..=b'F' => Some(b - b'A' + 10),
+        b'a'..=b'f' => Some(b - b'a' + 10),
+        _ => None,
+    }
+}
+
+impl<'a> Sentence<'a> {
+    /// Check and split a line (as delivered by the framer). With `require_checksum`
+    /// false, a sentence without `*HH` is accepted (a bad one never is).
+    pub fn parse(line: &'a [u8], require_checksum: bool) -> Result<Sentence<'a>, SentenceError> {
+        let (&start, body) = line.split_first().ok_or(SentenceError::Malformed)?;
+        if start != b'$' && start != b'!' {
+            return Err(SentenceError::Malformed);
+        }
+        let body = match body.iter().rposition(|&b| b == b'*') {
+            Some(star) if body.len() == star + 3 => {
+                let expected = match (hex(body[star + 1]), hex(body[star + 2])) {
+                    (Some(h), Some(l)) => (h << 4) | l,
+                    _ => return Err(SentenceError::MissingChecksum),
+                };
+                let data = &body[..star];
+                let computed = data.iter().fold(0u8, |acc, &b| acc ^ b);
+                if computed != expected {
+                    return Err(SentenceError::BadChecksum { expected, computed });
+                }
+                data
+            }
+            _ if require_checksum => return Err(SentenceError::MissingChecksum),
+            _ => body,
+        };
+        let comma = body.iter().position(|&b| b == b',').unwrap_or(body.len());
+        let address = &body[..comma];
+        let fields = body.get(comma + 1..).unwrap_or(&[]);
+        if address.first() == Some(&b'P') {
+            return Ok(Sentence { talker: Talker::Proprietary, kind: &address[1..], fields });
+        }
+        if address.len() < 5 {
+            return Err(SentenceError::Malformed);
+        }
+        let talker = match [address[0], address[1]] {
+            [b'G', b'P'] => Talker::Gps,
+            [b'G', b'N'] => Talker::Gnss,
+            [b'G', b'L'] => Talker::Glonass,
+            [b'G', b'A'] => Talker::Galileo,
+            [b'G', b'B'] | [b'B', b'D'] => Talker::Beidou,
+            [b'G', b'Q'] | [b'Q', b'Z'] => Talker::Qzss,
+            [b'G', b'I'] => Talker::Navic,
+            other => Talker::Other(other),
+        };
+        Ok(Sentence { talker, kind: &address[2..], fields })
+    }
+
+    /// A cursor over the comma-separated fields.
+    pub fn cursor(&self) -> Fields<'a> {
+        Fields { rest: Some(self.fields) }
+    }
+}
+
+/// Iterates fields; a missing field reads as empty, so parsers never index out of range.
+#[derive(Clone, Debug)]
+pub struct Fields<'a> {
+    rest: Option<&'a [u8]>,
+}
+
+/// A field that is present but not what its position requires.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FieldError {
+    /// 1-based field index.
+    pub index: u8,
+}
+
+impl<'a> Fields<'a> {
+    /// The next raw field (empty when the sentence has ended).
+    pub fn next_raw(&mut self) -> &'a [u8] {
+        match self.rest {
+            None => &[],
+            Some(rest) => match rest.iter().position(|&b| b == b',') {
+                Some(i) => {
+                    self.rest = rest.get(i + 1..);
+                    &rest[..i]
+                }
+                None => {
+                    self.rest = None;
+                    rest
+                }
+            },
+        }
+    }
+
+    /// Skip `n` fields.
+    pub fn skip(&mut self, n: usize) {
+        for _ in 0..n {
+            self.next_raw();
+        }
+    }
+
+    /// The next field as a finite `f64`; `Ok(None)` when empty.
+    pub fn f64(&mut self) -> Result<Option<f64>, ()> {
+        let raw = self.next_raw();
+        if raw.is_empty() {
+            return Ok(None);
+        }
+        let text = core::str::from_utf8(raw).map_err(|_| ())?;
+        let v: f64 = text.parse().map_err(|_| ())?;
+        if v.is_finite() {
+            Ok(Some(v))
+        } else {
+            Err(())
+        }
+    }
+
+    /// The next field as an unsigned integer; `Ok(None)` when empty.
+    pub fn u32(&mut self) -> Result<Option<u32>, ()> {
+        let raw = self.next_raw();
+        if raw.is_empty() {
+            return Ok(None);
+        }
+        let mut v: u32 = 0;
+        for &b in raw {
+            let d = b.checked_sub(b'0').filter(|d| *d <= 9).ok_or(())?;
+            v = v.checked_mul(10).and_then(|v| v.checked_add(u32::from(d))).ok_or(())?;
+        }
+        Ok(Some(v))
+    }
+
+    /// The next field's first byte; `None` when empty.
+    pub fn char(&mut self) -> Option<u8> {
+        self.next_raw().first().copied()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn checksum_talker_and_fields() {
+        let s = Sentence::parse(b"$GPGGA,165007.000,4143.6058,N,08338.0778,W,1,06,1.5,204.3,M,-33.7,M,,0000*67", true)
+            .expect("valid");
+        assert_eq!(s.talker, Talker::Gps);
+        assert_eq!(s.kind, b"GGA");
+        let mut c = s.cursor();
+        assert_eq!(c.f64(), Ok(Some(165007.0)));
+        c.skip(4);
+        assert_eq!(c.u32(), Ok(Some(1)));
+        c.skip(6);
+        assert_eq!(c.next_raw(), b"");
+        assert_eq!(c.next_raw(), b"0000");
+        assert_eq!(c.next_raw(), b"", "past the end reads empty");
+    }
+
+    #[test]
+    fn bad_missing_and_proprietary() {
+        let computed = b"GPGGA,1".iter().fold(0, |acc, b| acc ^ b);
+        assert_eq!(Sentence::parse(b"$GPGGA,1*00", true), Err(SentenceError::BadChecksum { expected: 0, computed }));
+        assert_eq!(Sentence::parse(b"$GPGGA,1", true), Err(SentenceError::MissingChecksum));
+        assert!(Sentence::parse(b"$GPGGA,1", false).is_ok());
+        let p = Sentence::parse(b"$PGRME,15.0,M,45.0,M,25.0,M", false).expect("proprietary");
+        assert_eq!((p.talker, p.kind), (Talker::Proprietary, &b"GRME"[..]));
+        assert_eq!(Sentence::parse(b"$GP", false), Err(SentenceError::Malformed));
+        assert_eq!(Sentence::parse(b"GPGGA", false), Err(SentenceError::Malformed));
+        let other = Sentence::parse(b"$SDDPT,1.0,0.0", false).expect("instrument");
+        assert_eq!(other.talker, Talker::Other(*b"SD"));
+    }
+}
