@@ -122,6 +122,62 @@ impl Geodetic {
     }
 }
 
+/// Iteration bound of Vincenty's inverse method (it converges in a handful of
+/// iterations except for nearly antipodal points).
+const VINCENTY_MAX_ITERATIONS: usize = 200;
+
+/// Distance (m) on the WGS84 ellipsoid between two points and the initial bearing
+/// (degrees clockwise from north, 0..360) from the first to the second — Vincenty's
+/// inverse method (1975). `None` when it does not converge (nearly antipodal points).
+pub fn distance_and_bearing(lat1_deg: f64, lon1_deg: f64, lat2_deg: f64, lon2_deg: f64) -> Option<(f64, f64)> {
+    let (a, b, f) = (WGS84_A, WGS84_B, WGS84_F);
+    let l = (lon2_deg - lon1_deg).to_radians();
+    let u1 = libm::atan((1.0 - f) * libm::tan(lat1_deg.to_radians()));
+    let u2 = libm::atan((1.0 - f) * libm::tan(lat2_deg.to_radians()));
+    let (su1, cu1) = (libm::sin(u1), libm::cos(u1));
+    let (su2, cu2) = (libm::sin(u2), libm::cos(u2));
+    let mut lambda = l;
+    for _ in 0..VINCENTY_MAX_ITERATIONS {
+        let (sl, cl) = (libm::sin(lambda), libm::cos(lambda));
+        let sin_sigma =
+            libm::sqrt((cu2 * sl) * (cu2 * sl) + (cu1 * su2 - su1 * cu2 * cl) * (cu1 * su2 - su1 * cu2 * cl));
+        if sin_sigma == 0.0 {
+            return Some((0.0, 0.0));
+        }
+        let cos_sigma = su1 * su2 + cu1 * cu2 * cl;
+        let sigma = libm::atan2(sin_sigma, cos_sigma);
+        let sin_alpha = cu1 * cu2 * sl / sin_sigma;
+        let cos2_alpha = 1.0 - sin_alpha * sin_alpha;
+        let cos_2sm = if cos2_alpha != 0.0 { cos_sigma - 2.0 * su1 * su2 / cos2_alpha } else { 0.0 };
+        let c = f / 16.0 * cos2_alpha * (4.0 + f * (4.0 - 3.0 * cos2_alpha));
+        let previous = lambda;
+        lambda = l
+            + (1.0 - c)
+                * f
+                * sin_alpha
+                * (sigma + c * sin_sigma * (cos_2sm + c * cos_sigma * (-1.0 + 2.0 * cos_2sm * cos_2sm)));
+        if libm::fabs(lambda - previous) < 1e-12 {
+            let u_sq = cos2_alpha * (a * a - b * b) / (b * b);
+            let big_a = 1.0 + u_sq / 16384.0 * (4096.0 + u_sq * (-768.0 + u_sq * (320.0 - 175.0 * u_sq)));
+            let big_b = u_sq / 1024.0 * (256.0 + u_sq * (-128.0 + u_sq * (74.0 - 47.0 * u_sq)));
+            let delta_sigma = big_b
+                * sin_sigma
+                * (cos_2sm
+                    + big_b / 4.0
+                        * (cos_sigma * (-1.0 + 2.0 * cos_2sm * cos_2sm)
+                            - big_b / 6.0
+                                * cos_2sm
+                                * (-3.0 + 4.0 * sin_sigma * sin_sigma)
+                                * (-3.0 + 4.0 * cos_2sm * cos_2sm)));
+            let distance = b * big_a * (sigma - delta_sigma);
+            let (sl, cl) = (libm::sin(lambda), libm::cos(lambda));
+            let bearing = libm::atan2(cu2 * sl, cu1 * su2 - su1 * cu2 * cl).to_degrees();
+            return Some((distance, if bearing < 0.0 { bearing + 360.0 } else { bearing }));
+        }
+    }
+    None
+}
+
 /// A local east-north-up tangent plane at a geodetic origin.
 ///
 /// Anchoring, tracking and the map all work in one such frame per drive; its origin is
@@ -209,6 +265,18 @@ mod tests {
         assert!(north.y > 110.0 && north.y < 112.0 && north.x.abs() < 1e-6, "{north:?}");
         let east = frame.geodetic_to_enu(&Geodetic::new(37.721, -122.4713, 31.6).expect("valid"));
         assert!(east.x > 87.0 && east.x < 89.0 && east.y.abs() < 1e-3, "{east:?}");
+    }
+
+    #[test]
+    fn vincenty_distance_and_bearing() {
+        // Flinders Peak → Buninyong, Vincenty's own test line: 54 972.271 m, 306° 52′ 05.37″.
+        let (d, b) = distance_and_bearing(-37.951_033_417, 144.424_867_889, -37.652_821_139, 143.926_495_528)
+            .expect("converges");
+        assert!((d - 54_972.271).abs() < 1e-3, "{d}");
+        assert!((b - (306.0 + 52.0 / 60.0 + 5.37 / 3600.0)).abs() < 1e-5, "{b}");
+        assert_eq!(distance_and_bearing(10.0, 20.0, 10.0, 20.0), Some((0.0, 0.0)));
+        let (east, bearing) = distance_and_bearing(0.0, 0.0, 0.0, 1.0).expect("converges");
+        assert!((east - 111_319.491).abs() < 1e-3 && (bearing - 90.0).abs() < 1e-9);
     }
 
     proptest! {

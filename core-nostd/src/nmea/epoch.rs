@@ -3,8 +3,8 @@
 //! A receiver reports one epoch as several sentences (GGA, GSA, GSV, RMC, VTG, …). The
 //! assembler keeps the current state; a sentence carrying a different time of day starts
 //! a new epoch and hands back the finished one. Position and velocity are per epoch;
-//! date, DOPs, satellites used and error estimates persist until replaced, as they do in
-//! gpsd.
+//! date, mode, DOPs, satellites used and the geoid separation persist until replaced, as
+//! they do in gpsd (which forgets the mode only when a time-only ZDA opens a cycle).
 
 use super::messages::{Date, Message, TimeOfDay};
 use crate::time::Timestamp;
@@ -132,6 +132,10 @@ pub struct EpochAssembler {
     current: GnssFix,
     /// True once the current epoch holds anything.
     dirty: bool,
+    /// The receiver reported a speed in this epoch (else it may be derived).
+    speed_reported: bool,
+    /// Time and position of the previous epoch, for deriving speed.
+    previous: Option<(Timestamp, f64, f64)>,
 }
 
 impl EpochAssembler {
@@ -152,46 +156,82 @@ impl EpochAssembler {
             Some(t) if t == time => None,
             previous => {
                 let finished = (self.dirty && previous.is_some()).then_some(self.current);
+                if let (Some(t), Some(lat), Some(lon), true) =
+                    (self.current.time(), self.current.lat, self.current.lon, self.current.has_position())
+                {
+                    self.previous = Some((t, lat, lon));
+                }
                 self.current.clear_epoch();
                 self.current.time_of_day = Some(time);
                 self.dirty = false;
+                self.speed_reported = false;
                 finished
+            }
+        }
+    }
+
+    /// When the receiver reports no speed, derive it (as gpsd does) from the distance to
+    /// the previous epoch's position over the time between them.
+    fn derive_speed(&mut self) {
+        if self.speed_reported || !self.current.has_position() {
+            return;
+        }
+        let (Some((t0, lat0, lon0)), Some(t), Some(lat), Some(lon)) =
+            (self.previous, self.current.time(), self.current.lat, self.current.lon)
+        else {
+            return;
+        };
+        let dt = (t - t0).as_secs_f64();
+        if dt > 0.0 {
+            if let Some((distance, _)) = crate::geo::distance_and_bearing(lat0, lon0, lat, lon) {
+                self.current.speed_mps = Some(distance / dt);
             }
         }
     }
 
     /// Merge one message; returns the previous epoch's fix when this one starts a new epoch.
     pub fn push(&mut self, message: &Message<'_>) -> Option<GnssFix> {
+        let finished = self.merge(message);
+        self.derive_speed();
+        finished
+    }
+
+    fn merge(&mut self, message: &Message<'_>) -> Option<GnssFix> {
         let fix = &mut self.current;
         let finished = match message {
             Message::Gga(g) => {
                 let done = self.at(g.time);
                 let fix = &mut self.current;
                 fix.quality = Some(g.quality);
-                if g.quality == 0 {
+                // Quality 0, or a "fix" from no satellites, is no fix.
+                if g.quality == 0 || g.satellites == Some(0) {
                     fix.mode = FixMode::NoFix;
                 } else {
                     fix.lat = g.lat.or(fix.lat);
                     fix.lon = g.lon.or(fix.lon);
                     fix.alt_msl = g.alt_msl.or(fix.alt_msl);
                     fix.geoid_sep = g.geoid_sep.or(fix.geoid_sep);
-                    let dimension = if g.alt_msl.is_some() { FixMode::Fix3d } else { FixMode::Fix2d };
-                    if fix.mode < FixMode::Fix2d || dimension == FixMode::Fix3d {
-                        fix.mode = dimension;
-                    }
+                    // gpsd: a vertical fix needs an altitude and at least 4 satellites.
+                    let three_d = g.alt_msl.is_some() && g.satellites.is_none_or(|n| n >= 4);
+                    fix.mode = if three_d { FixMode::Fix3d } else { FixMode::Fix2d };
                 }
                 fix.satellites_used = g.satellites.or(fix.satellites_used);
                 fix.hdop = g.hdop.or(fix.hdop);
                 done
             }
             Message::Rmc(m) => {
-                let done = self.at(m.time);
+                // A warning ('V') RMC does not vouch for its time either (gpsd keeps the
+                // last valid time).
+                let done = if m.valid { self.at(m.time) } else { None };
                 let fix = &mut self.current;
                 fix.date = m.date.or(fix.date);
                 if m.valid {
                     fix.lat = m.lat.or(fix.lat);
                     fix.lon = m.lon.or(fix.lon);
-                    fix.speed_mps = m.speed_knots.map(|k| k * KNOTS_TO_MPS).or(fix.speed_mps);
+                    if let Some(k) = m.speed_knots {
+                        fix.speed_mps = Some(k * KNOTS_TO_MPS);
+                        self.speed_reported = true;
+                    }
                     fix.track_deg = m.track_deg.or(fix.track_deg);
                     fix.mag_var_deg = m.mag_var_deg.or(fix.mag_var_deg);
                     if fix.mode < FixMode::Fix2d {
@@ -211,6 +251,8 @@ impl EpochAssembler {
                     if fix.mode < FixMode::Fix2d {
                         fix.mode = FixMode::Fix2d;
                     }
+                } else {
+                    fix.mode = FixMode::NoFix;
                 }
                 done
             }
@@ -235,14 +277,18 @@ impl EpochAssembler {
             }
             Message::Vtg(v) => {
                 fix.track_deg = v.track_deg.or(fix.track_deg);
-                fix.speed_mps =
-                    v.speed_knots.map(|k| k * KNOTS_TO_MPS).or(v.speed_kmh.map(|k| k / 3.6)).or(fix.speed_mps);
+                if let Some(speed) = v.speed_knots.map(|k| k * KNOTS_TO_MPS).or(v.speed_kmh.map(|k| k / 3.6)) {
+                    fix.speed_mps = Some(speed);
+                    self.speed_reported = true;
+                }
                 None
             }
             Message::Gsa(a) => {
+                // As gpsd: GSA's dimension does not downgrade a 3D fix this epoch's GGA
+                // established (receivers report the GSA of one constellation as "2").
                 match a.fix_type {
                     Some(1) => fix.mode = FixMode::NoFix,
-                    Some(2) => fix.mode = FixMode::Fix2d,
+                    Some(2) if fix.mode != FixMode::Fix3d || fix.alt_msl.is_none() => fix.mode = FixMode::Fix2d,
                     Some(3) => fix.mode = FixMode::Fix3d,
                     _ => {}
                 }
@@ -261,6 +307,10 @@ impl EpochAssembler {
             }
             Message::Zda(z) => {
                 let done = self.at(z.time);
+                if self.current.time_of_day == z.time && !self.dirty {
+                    // A cycle opened by a time-only sentence knows nothing of the fix yet.
+                    self.current.mode = FixMode::Unknown;
+                }
                 self.current.date = z.date.or(self.current.date);
                 done
             }
@@ -305,9 +355,13 @@ mod tests {
         let t = now.time().expect("time");
         // 2010-07-18T16:50:07Z
         assert_eq!(t.micros(), 1_279_471_807_000_000);
-        let done = push(&mut a, b"$GPGGA,165008.000,4143.6059,N,08338.0786,W,1,06,1.5,204.1,M,-33.7,M,,0000").expect("epoch");
+        let done =
+            push(&mut a, b"$GPGGA,165008.000,4143.6059,N,08338.0786,W,1,06,1.5,204.1,M,-33.7,M,,0000").expect("epoch");
         assert_eq!(done.time(), Some(t));
-        assert_eq!(a.current().speed_mps, None, "velocity is per epoch");
+        // No speed reported yet in the new epoch: derived from the move over 1 s.
+        let (moved, _) = crate::geo::distance_and_bearing(41.726763333, -83.634630000, 41.726765000, -83.634643333)
+            .expect("converges");
+        assert!((a.current().speed_mps.expect("derived") - moved).abs() < 1e-3);
         assert_eq!(a.current().date, done.date, "the date persists");
         assert_eq!(a.finish().map(|f| f.alt_msl), Some(Some(204.1)));
     }

@@ -88,7 +88,13 @@ impl<const N: usize> Default for Framer<N> {
 impl<const N: usize> Framer<N> {
     /// An empty framer.
     pub const fn new() -> Self {
-        Framer { buf: [0; N], len: 0, in_sentence: false, skipping: false, stats: FramerStats { sentences: 0, junk_bytes: 0, too_long: 0, binary: 0, interrupted: 0 } }
+        Framer {
+            buf: [0; N],
+            len: 0,
+            in_sentence: false,
+            skipping: false,
+            stats: FramerStats { sentences: 0, junk_bytes: 0, too_long: 0, binary: 0, interrupted: 0 },
+        }
     }
 
     /// Counters so far.

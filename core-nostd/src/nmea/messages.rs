@@ -390,7 +390,9 @@ pub fn parse<'a>(s: &Sentence<'a>) -> Result<Message<'a>, MessageError> {
             let lon = r.coordinate(180.0)?;
             let speed_knots = r.f64()?;
             let track_deg = r.f64()?;
-            let date = r.date_ddmmyy()?;
+            // A malformed date (some receivers write `2208-1` before they know it) costs
+            // the date only; the position and velocity of the sentence are still good.
+            let date = r.date_ddmmyy().unwrap_or(None);
             let var = r.f64()?;
             let var_dir = r.char();
             let mag_var_deg = var.map(|v| if var_dir == Some(b'W') { -v } else { v });
@@ -515,23 +517,32 @@ mod tests {
 
     #[test]
     fn gga_from_a_garmin() {
-        let Ok(Message::Gga(g)) = decode(b"$GPGGA,165007.000,4143.6058,N,08338.0778,W,1,06,1.5,204.3,M,-33.7,M,,0000*67") else {
+        let Ok(Message::Gga(g)) =
+            decode(b"$GPGGA,165007.000,4143.6058,N,08338.0778,W,1,06,1.5,204.3,M,-33.7,M,,0000*67")
+        else {
             panic!("not GGA");
         };
         assert_eq!(g.time, Some(TimeOfDay(((16 * 60 + 50) * 60 + 7) * 1_000_000)));
         assert!((g.lat.expect("lat") - 41.726763333).abs() < 1e-9);
         assert!((g.lon.expect("lon") + 83.634630000).abs() < 1e-9);
-        assert_eq!((g.quality, g.satellites, g.hdop, g.alt_msl, g.geoid_sep), (1, Some(6), Some(1.5), Some(204.3), Some(-33.7)));
+        assert_eq!(
+            (g.quality, g.satellites, g.hdop, g.alt_msl, g.geoid_sep),
+            (1, Some(6), Some(1.5), Some(204.3), Some(-33.7))
+        );
     }
 
     #[test]
     fn rmc_date_speed_and_variation() {
-        let Ok(Message::Rmc(m)) = decode(b"$GPRMC,165007.000,A,4143.6058,N,08338.0778,W,0.55,36.58,180710,7.0,W,A") else {
+        let Ok(Message::Rmc(m)) = decode(b"$GPRMC,165007.000,A,4143.6058,N,08338.0778,W,0.55,36.58,180710,7.0,W,A")
+        else {
             panic!("not RMC");
         };
         assert!(m.valid);
         assert_eq!(m.date, Some(Date { year: 2010, month: 7, day: 18 }));
-        assert_eq!((m.speed_knots, m.track_deg, m.mag_var_deg, m.mode), (Some(0.55), Some(36.58), Some(-7.0), Some(b'A')));
+        assert_eq!(
+            (m.speed_knots, m.track_deg, m.mag_var_deg, m.mode),
+            (Some(0.55), Some(36.58), Some(-7.0), Some(b'A'))
+        );
     }
 
     #[test]
@@ -544,8 +555,14 @@ mod tests {
 
     #[test]
     fn out_of_range_and_malformed_fields_name_the_field() {
-        assert_eq!(decode(b"$GPGGA,120000,9500.000,N,00000.000,E,1,5,1.0,1,M,0,M,,"), Err(MessageError::OutOfRange { index: 2 }));
-        assert_eq!(decode(b"$GPGGA,120000,4500.000,N,00000.000,E,1,x,1.0,1,M,0,M,,"), Err(MessageError::BadField { index: 7 }));
+        assert_eq!(
+            decode(b"$GPGGA,120000,9500.000,N,00000.000,E,1,5,1.0,1,M,0,M,,"),
+            Err(MessageError::OutOfRange { index: 2 })
+        );
+        assert_eq!(
+            decode(b"$GPGGA,120000,4500.000,N,00000.000,E,1,x,1.0,1,M,0,M,,"),
+            Err(MessageError::BadField { index: 7 })
+        );
         assert_eq!(decode(b"$GPRMC,250000,A,,,,,,,,,"), Err(MessageError::OutOfRange { index: 1 }));
         assert_eq!(decode(b"$GPZDA,120000,01,13,2020,,"), Err(MessageError::OutOfRange { index: 4 }));
     }
@@ -559,14 +576,21 @@ mod tests {
     #[test]
     fn gsa_gsv_gst_gns_zda_hdt() {
         let Ok(Message::Gsa(a)) = decode(b"$GPGSA,A,3,31,16,29,23,20,32,,,,,,,2.8,1.5,2.4") else { panic!() };
-        assert_eq!((a.fix_type, a.satellites_used, a.pdop, a.hdop, a.vdop), (Some(3), 6, Some(2.8), Some(1.5), Some(2.4)));
+        assert_eq!(
+            (a.fix_type, a.satellites_used, a.pdop, a.hdop, a.vdop),
+            (Some(3), 6, Some(2.8), Some(1.5), Some(2.4))
+        );
         let Ok(Message::Gsv(v)) = decode(b"$GPGSV,3,3,10,03,08,171,,14,06,129,") else { panic!() };
         assert_eq!((v.total, v.number, v.in_view), (3, 3, Some(10)));
         assert_eq!(v.satellites[1].map(|s| s.prn), Some(14));
         assert_eq!(v.satellites[2], None);
-        let Ok(Message::Gst(t)) = decode(b"$GPGST,172814.0,0.006,0.023,0.020,273.6,0.023,0.020,0.031") else { panic!() };
+        let Ok(Message::Gst(t)) = decode(b"$GPGST,172814.0,0.006,0.023,0.020,273.6,0.023,0.020,0.031") else {
+            panic!()
+        };
         assert_eq!((t.sigma_lat_m, t.sigma_lon_m, t.sigma_alt_m), (Some(0.023), Some(0.020), Some(0.031)));
-        let Ok(Message::Gns(n)) = decode(b"$GNGNS,014035.00,4332.69262,S,17235.48549,E,RR,13,0.9,25.63,11.24,,") else { panic!() };
+        let Ok(Message::Gns(n)) = decode(b"$GNGNS,014035.00,4332.69262,S,17235.48549,E,RR,13,0.9,25.63,11.24,,") else {
+            panic!()
+        };
         assert_eq!((n.mode, n.any_fix, n.satellites), (Some(b'R'), true, Some(13)));
         assert!(n.lat.expect("lat") < 0.0);
         let Ok(Message::Zda(z)) = decode(b"$GPZDA,160012.71,11,03,2004,-1,00") else { panic!() };

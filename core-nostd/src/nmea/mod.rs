@@ -84,7 +84,9 @@ impl Decoder {
             Ok(s) => s,
             Err(e) => {
                 match e {
-                    SentenceError::BadChecksum { .. } => self.stats.bad_checksum = self.stats.bad_checksum.saturating_add(1),
+                    SentenceError::BadChecksum { .. } => {
+                        self.stats.bad_checksum = self.stats.bad_checksum.saturating_add(1)
+                    }
                     _ => self.stats.malformed = self.stats.malformed.saturating_add(1),
                 }
                 return Event::BadSentence(e);
