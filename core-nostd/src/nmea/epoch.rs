@@ -298,12 +298,12 @@ impl EpochAssembler {
                 None
             }
             Message::Gst(g) => {
-                let done = self.at(g.time);
-                let fix = &mut self.current;
+                // Error statistics describe the fix; their time does not open a cycle
+                // (receivers send GST after, and sometimes ahead of, the fix sentences).
                 fix.sigma_lat_m = g.sigma_lat_m;
                 fix.sigma_lon_m = g.sigma_lon_m;
                 fix.sigma_alt_m = g.sigma_alt_m;
-                done
+                None
             }
             Message::Zda(z) => {
                 let done = self.at(z.time);
