@@ -31,6 +31,22 @@ enum Command {
     Traj(TrajCommand),
     /// Anchor a VO trajectory (unknown scale) to GNSS positions and wheel speed.
     Anchor(AnchorArgs),
+    /// NMEA 0183 captures.
+    #[command(subcommand)]
+    Nmea(NmeaCommand),
+}
+
+#[derive(Debug, Subcommand)]
+enum NmeaCommand {
+    /// Decode a capture: one fix per epoch (gpsd TPV names) and a summary; problems on
+    /// stderr with their line numbers.
+    Decode {
+        /// The capture (raw receiver output).
+        file: PathBuf,
+        /// JSON lines on stdout.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Debug, Subcommand)]
@@ -103,6 +119,7 @@ pub fn run() -> ExitCode {
         Command::Traj(TrajCommand::Ape(args)) => traj_ape(&args),
         Command::Traj(TrajCommand::Rpe(args)) => traj_rpe(&args),
         Command::Anchor(args) => anchoring::run(&args),
+        Command::Nmea(NmeaCommand::Decode { file, json }) => crate::nmea_decode::run(&file, json),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

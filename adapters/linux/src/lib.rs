@@ -8,5 +8,6 @@
 pub mod anchoring;
 pub mod cli;
 pub mod evaluate;
+pub mod nmea_decode;
 pub mod sync;
 pub mod trajectory;

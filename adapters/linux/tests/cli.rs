@@ -196,3 +196,46 @@ fn anchor_rejects_bad_speed_files() {
     assert!(!out.status.success());
     assert!(stderr(&out).contains("speed.csv:3"), "{}", stderr(&out));
 }
+
+/// `$body*HH` with a correct checksum.
+fn nmea(body: &str) -> String {
+    format!("${body}*{:02X}", body.bytes().fold(0u8, |a, b| a ^ b))
+}
+
+#[test]
+fn nmea_decode_reports_bad_input_by_line_and_keeps_the_rest() {
+    let dir = scratch("nmea");
+    let lines = [
+        nmea("GPGGA,120000.00,4807.0380,N,01131.0000,E,1,08,0.9,545.4,M,46.9,M,,"),
+        nmea("GPRMC,120000.00,A,4807.0380,N,01131.0000,E,022.4,084.4,230394,003.1,W"),
+        "$GPGGA,120001.00,4807.0390,N,01131.0010,E,1,08,0.9,545.5,M,46.9,M,,*00".to_owned(),
+        "$GPRMC,120001.00,A,4807.03".to_owned(),
+        nmea("GPGGA,120002.00,9507.0380,N,01131.0000,E,1,08,0.9,545.4,M,46.9,M,,"),
+        "garbage !@# \u{1}\u{2} not nmea".to_owned(),
+        nmea("GPGGA,120003.00,4807.0400,N,01131.0020,E,1,08,0.9,545.6,M,46.9,M,,"),
+        nmea("GPRMC,120003.00,A,4807.0400,N,01131.0020,E,022.4,084.4,230394,003.1,W"),
+    ];
+    let file = write(&dir, "bad.nmea", &(lines.join("\r\n") + "\r\n"));
+    let out = dash2sim(&["nmea", "decode", &file, "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let err = stderr(&out);
+    for expected in [
+        "bad.nmea:3: bad checksum",
+        "bad.nmea:4: field 4 is malformed",
+        "bad.nmea:5: field 2 is out of range",
+        "bad.nmea:6: non-printable byte",
+    ] {
+        assert!(err.contains(expected), "missing {expected:?} in {err}");
+    }
+    let objects: Vec<serde_json::Value> =
+        String::from_utf8_lossy(&out.stdout).lines().map(|l| serde_json::from_str(l).expect("JSON line")).collect();
+    let fixes: Vec<_> = objects.iter().filter(|o| o["class"] == "TPV" && o.get("lat").is_some()).collect();
+    assert_eq!(fixes.len(), 2, "the two good epochs survive: {objects:?}");
+    assert_eq!(fixes[1]["time"], "1994-03-23T12:00:03.000Z");
+    assert!((fixes[1]["speed"].as_f64().expect("speed") - 22.4 * 1852.0 / 3600.0).abs() < 1e-9);
+    let summary = objects.last().expect("summary");
+    assert_eq!(summary["class"], "SUMMARY");
+    assert_eq!(summary["rejected"]["bad_checksum"], 1);
+    assert_eq!(summary["rejected"]["bad_fields"], 2);
+    assert_eq!(summary["rejected"]["binary"], 1);
+}

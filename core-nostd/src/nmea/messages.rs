@@ -306,10 +306,11 @@ impl<'a> Reader<'a> {
         if deg > limit {
             return Err(self.range());
         }
+        // A value without its hemisphere is a truncated sentence, not a northern one.
         match hemisphere {
-            Some(b'N' | b'E') | None => Ok(Some(deg)),
+            Some(b'N' | b'E') => Ok(Some(deg)),
             Some(b'S' | b'W') => Ok(Some(-deg)),
-            Some(_) => Err(self.bad()),
+            _ => Err(self.bad()),
         }
     }
 
@@ -565,6 +566,8 @@ mod tests {
         );
         assert_eq!(decode(b"$GPRMC,250000,A,,,,,,,,,"), Err(MessageError::OutOfRange { index: 1 }));
         assert_eq!(decode(b"$GPZDA,120000,01,13,2020,,"), Err(MessageError::OutOfRange { index: 4 }));
+        // Truncated after the latitude value: its hemisphere (field 4) is missing.
+        assert_eq!(decode(b"$GPRMC,120001.00,A,4807.03"), Err(MessageError::BadField { index: 4 }));
     }
 
     #[test]
