@@ -192,7 +192,9 @@ impl EpochAssembler {
     /// Merge one message; returns the previous epoch's fix when this one starts a new epoch.
     pub fn push(&mut self, message: &Message<'_>) -> Option<GnssFix> {
         let finished = self.merge(message);
-        self.derive_speed();
+        if matches!(message, Message::Gga(_) | Message::Rmc(_) | Message::Gll(_) | Message::Gns(_) | Message::Vtg(_)) {
+            self.derive_speed();
+        }
         finished
     }
 

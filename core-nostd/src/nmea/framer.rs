@@ -115,8 +115,28 @@ impl<const N: usize> Framer<N> {
     /// Consume bytes until a sentence completes, one is dropped, or the input ends.
     /// Call again with `remaining` until [`Feed::Consumed`].
     pub fn feed<'s, 'i>(&'s mut self, input: &'i [u8]) -> Feed<'s, 'i> {
-        for (i, &b) in input.iter().enumerate() {
-            let rest = input.get(i + 1..).unwrap_or(&[]);
+        let mut i = 0;
+        while i < input.len() {
+            // Fast path inside a sentence: copy the run of ordinary printable bytes.
+            if self.in_sentence && !self.skipping {
+                let run = input[i..].iter().position(|&b| !(0x20..0x7f).contains(&b) || b == b'$' || b == b'!');
+                let run = run.unwrap_or(input.len() - i);
+                let room = N - self.len;
+                if run > room {
+                    self.drop_sentence(FrameError::TooLong);
+                    self.skipping = true;
+                    return Feed::Dropped { error: FrameError::TooLong, remaining: &input[i + room + 1..] };
+                }
+                self.buf[self.len..self.len + run].copy_from_slice(&input[i..i + run]);
+                self.len += run;
+                i += run;
+                if i >= input.len() {
+                    break;
+                }
+            }
+            let b = input[i];
+            i += 1;
+            let rest = input.get(i..).unwrap_or(&[]);
             if b == b'$' || b == b'!' {
                 let interrupted = self.in_sentence && self.len > 0;
                 self.skipping = false;

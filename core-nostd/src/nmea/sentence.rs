@@ -177,6 +177,9 @@ impl<'a> Fields<'a> {
         if raw.is_empty() {
             return Ok(None);
         }
+        if let Some(v) = exact_decimal(raw) {
+            return Ok(Some(v));
+        }
         let text = core::str::from_utf8(raw).map_err(|_| ())?;
         let v: f64 = text.parse().map_err(|_| ())?;
         if v.is_finite() {
@@ -206,9 +209,63 @@ impl<'a> Fields<'a> {
     }
 }
 
+/// Powers of ten exactly representable in `f64`.
+const POW10: [f64; 16] = [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15];
+
+/// `[-+]digits[.digits]` with at most 15 significant digits, converted exactly: the
+/// mantissa and the power of ten are both exact in `f64`, so one division rounds
+/// correctly — the same value `str::parse` gives (Clinger's fast path). `None` for any
+/// other form, which then takes the general parser.
+fn exact_decimal(raw: &[u8]) -> Option<f64> {
+    let (negative, digits) = match raw.split_first()? {
+        (b'-', rest) => (true, rest),
+        (b'+', rest) => (false, rest),
+        _ => (false, raw),
+    };
+    let (int, frac) = match digits.iter().position(|&b| b == b'.') {
+        Some(dot) => (&digits[..dot], &digits[dot + 1..]),
+        None => (digits, &[][..]),
+    };
+    if int.len() + frac.len() > 15 || int.len() + frac.len() == 0 {
+        return None;
+    }
+    let mut mantissa: u64 = 0;
+    for &b in int.iter().chain(frac) {
+        let d = b.wrapping_sub(b'0');
+        if d > 9 {
+            return None;
+        }
+        mantissa = mantissa * 10 + u64::from(d);
+    }
+    let v = mantissa as f64 / POW10[frac.len()];
+    Some(if negative { -v } else { v })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn exact_decimal_equals_the_standard_parser(int in 0u64..100_000_000, frac in 0u64..10_000_000, digits in 0usize..8, negative: bool) {
+            extern crate std;
+            use std::format;
+            let text = if digits == 0 { format!("{int}") } else { format!("{int}.{:0width$}", frac % 10u64.pow(digits as u32), width = digits) };
+            let text = if negative { format!("-{text}") } else { text };
+            let expected: f64 = text.parse().expect("number");
+            prop_assert_eq!(exact_decimal(text.as_bytes()).map(f64::to_bits), Some(expected.to_bits()));
+        }
+    }
+
+    #[test]
+    fn exact_decimal_declines_what_it_cannot_do_exactly() {
+        assert_eq!(exact_decimal(b"1234567890.1234567"), None, "more than 15 digits");
+        assert_eq!(exact_decimal(b"1e5"), None);
+        assert_eq!(exact_decimal(b"."), None);
+        assert_eq!(exact_decimal(b"1.2.3"), None);
+        assert_eq!(exact_decimal(b"4807.038"), Some(4807.038));
+    }
 
     #[test]
     fn checksum_talker_and_fields() {
