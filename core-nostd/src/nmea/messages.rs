@@ -115,12 +115,13 @@ pub struct Gsa {
 pub struct SatelliteInView {
     /// PRN / satellite number.
     pub prn: u32,
-    /// Elevation, degrees.
-    pub elevation_deg: Option<f64>,
+    /// Elevation, degrees. (`f32`: sentences carry at most 0.1° — and a smaller
+    /// message is cheaper to move on a microcontroller.)
+    pub elevation_deg: Option<f32>,
     /// Azimuth, degrees.
-    pub azimuth_deg: Option<f64>,
+    pub azimuth_deg: Option<f32>,
     /// Signal-to-noise ratio, dB-Hz.
-    pub snr_dbhz: Option<f64>,
+    pub snr_dbhz: Option<f32>,
 }
 
 /// GSV: satellites in view (one part of a group).
@@ -278,12 +279,12 @@ impl<'a> Reader<'a> {
 
     fn f64(&mut self) -> Result<Option<f64>, MessageError> {
         self.index = self.index.saturating_add(1);
-        self.fields.f64().map_err(|()| MessageError::BadField { index: self.index })
+        self.fields.f64().map_err(|e| MessageError::BadField { index: e.index })
     }
 
     fn u32(&mut self) -> Result<Option<u32>, MessageError> {
         self.index = self.index.saturating_add(1);
-        self.fields.u32().map_err(|()| MessageError::BadField { index: self.index })
+        self.fields.u32().map_err(|e| MessageError::BadField { index: e.index })
     }
 
     fn char(&mut self) -> Option<u8> {
@@ -450,9 +451,9 @@ pub fn parse<'a>(s: &Sentence<'a>) -> Result<Message<'a>, MessageError> {
             let mut satellites = [None; 4];
             for slot in satellites.iter_mut() {
                 let prn = r.u32()?;
-                let elevation_deg = r.f64()?;
-                let azimuth_deg = r.f64()?;
-                let snr_dbhz = r.f64()?;
+                let elevation_deg = r.f64()?.map(|v| v as f32);
+                let azimuth_deg = r.f64()?.map(|v| v as f32);
+                let snr_dbhz = r.f64()?.map(|v| v as f32);
                 *slot = prn.map(|prn| SatelliteInView { prn, elevation_deg, azimuth_deg, snr_dbhz });
             }
             Message::Gsv(Gsv { total, number, in_view, satellites })
@@ -574,6 +575,12 @@ mod tests {
     fn unknown_and_proprietary_are_not_errors() {
         assert_eq!(decode(b"$GPTXT,01,01,02,hello"), Ok(Message::Unknown(b"TXT")));
         assert_eq!(decode(b"$PUBX,00,1"), Ok(Message::Proprietary(b"UBX")));
+    }
+
+    #[test]
+    fn messages_stay_small() {
+        // Moved by value through the decoder on every sentence.
+        assert!(size_of::<Message<'_>>() <= 168, "{}", size_of::<Message<'_>>());
     }
 
     #[test]

@@ -33,6 +33,8 @@ pub struct DecoderStats {
 }
 
 /// The outcome of one sentence, for callers that report problems (with their position).
+// Returned by value and consumed at once; there is no allocator to box the large variant.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Event<'a> {
     /// A decoded message; `fix` is the previous epoch when this sentence started a new one.

@@ -128,7 +128,7 @@ impl<'a> Sentence<'a> {
 
     /// A cursor over the comma-separated fields.
     pub fn cursor(&self) -> Fields<'a> {
-        Fields { rest: Some(self.fields) }
+        Fields { rest: Some(self.fields), index: 0 }
     }
 }
 
@@ -136,6 +136,8 @@ impl<'a> Sentence<'a> {
 #[derive(Clone, Debug)]
 pub struct Fields<'a> {
     rest: Option<&'a [u8]>,
+    /// 1-based index of the field read last.
+    index: u8,
 }
 
 /// A field that is present but not what its position requires.
@@ -146,9 +148,18 @@ pub struct FieldError {
     pub index: u8,
 }
 
+impl core::fmt::Display for FieldError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "field {} is malformed", self.index)
+    }
+}
+
+impl core::error::Error for FieldError {}
+
 impl<'a> Fields<'a> {
     /// The next raw field (empty when the sentence has ended).
     pub fn next_raw(&mut self) -> &'a [u8] {
+        self.index = self.index.saturating_add(1);
         match self.rest {
             None => &[],
             Some(rest) => match rest.iter().position(|&b| b == b',') {
@@ -172,7 +183,7 @@ impl<'a> Fields<'a> {
     }
 
     /// The next field as a finite `f64`; `Ok(None)` when empty.
-    pub fn f64(&mut self) -> Result<Option<f64>, ()> {
+    pub fn f64(&mut self) -> Result<Option<f64>, FieldError> {
         let raw = self.next_raw();
         if raw.is_empty() {
             return Ok(None);
@@ -180,25 +191,27 @@ impl<'a> Fields<'a> {
         if let Some(v) = exact_decimal(raw) {
             return Ok(Some(v));
         }
-        let text = core::str::from_utf8(raw).map_err(|_| ())?;
-        let v: f64 = text.parse().map_err(|_| ())?;
+        let bad = FieldError { index: self.index };
+        let text = core::str::from_utf8(raw).map_err(|_| bad)?;
+        let v: f64 = text.parse().map_err(|_| bad)?;
         if v.is_finite() {
             Ok(Some(v))
         } else {
-            Err(())
+            Err(bad)
         }
     }
 
     /// The next field as an unsigned integer; `Ok(None)` when empty.
-    pub fn u32(&mut self) -> Result<Option<u32>, ()> {
+    pub fn u32(&mut self) -> Result<Option<u32>, FieldError> {
         let raw = self.next_raw();
         if raw.is_empty() {
             return Ok(None);
         }
+        let bad = FieldError { index: self.index };
         let mut v: u32 = 0;
         for &b in raw {
-            let d = b.checked_sub(b'0').filter(|d| *d <= 9).ok_or(())?;
-            v = v.checked_mul(10).and_then(|v| v.checked_add(u32::from(d))).ok_or(())?;
+            let d = b.checked_sub(b'0').filter(|d| *d <= 9).ok_or(bad)?;
+            v = v.checked_mul(10).and_then(|v| v.checked_add(u32::from(d))).ok_or(bad)?;
         }
         Ok(Some(v))
     }
