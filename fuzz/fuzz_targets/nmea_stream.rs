@@ -11,7 +11,7 @@ fuzz_target!(|data: &[u8]| {
     let chunk = usize::from(chunk % 16) + 1;
     let mut framer: Framer<96> = Framer::new();
     let mut decoder = Decoder::new();
-    let mut check = |fix: dash2sim_core::nmea::GnssFix| {
+    let check = |fix: dash2sim_core::nmea::GnssFix| {
         if let Some(lat) = fix.lat {
             assert!((-90.0..=90.0).contains(&lat), "{fix:?}");
         }
