@@ -3,14 +3,13 @@
 //! panic, and every fix they produce is plausible.
 #![no_main]
 
-use dash2sim_core::nmea::{Decoder, Event, Feed, Framer};
+use dash2sim_core::nmea::{Event, Stream, StreamEvent};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let Some((&chunk, bytes)) = data.split_first() else { return };
     let chunk = usize::from(chunk % 16) + 1;
-    let mut framer: Framer<96> = Framer::new();
-    let mut decoder = Decoder::new();
+    let mut stream: Stream<96> = Stream::new();
     let check = |fix: dash2sim_core::nmea::GnssFix| {
         if let Some(lat) = fix.lat {
             assert!((-90.0..=90.0).contains(&lat), "{fix:?}");
@@ -21,22 +20,14 @@ fuzz_target!(|data: &[u8]| {
         assert!(fix.speed_mps.is_none_or(f64::is_finite));
     };
     for piece in bytes.chunks(chunk) {
-        let mut input = piece;
-        loop {
-            match framer.feed(input) {
-                Feed::Consumed => break,
-                Feed::Sentence { line, remaining } => {
-                    assert!(line.len() <= 96);
-                    if let Event::Message { fix: Some(fix), .. } = decoder.line(line) {
-                        check(fix);
-                    }
-                    input = remaining;
-                }
-                Feed::Dropped { remaining, .. } => input = remaining,
+        stream.feed(piece, |event| {
+            if let StreamEvent::Sentence(Event::Message { fix: Some(fix), .. }) = event {
+                check(fix);
             }
-        }
+        });
     }
-    if let Some(fix) = decoder.finish() {
+    if let Some(fix) = stream.decoder.finish() {
         check(fix);
     }
+    assert!(stream.framer.stats().sentences >= stream.decoder.stats().decoded);
 });

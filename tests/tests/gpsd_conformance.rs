@@ -11,7 +11,8 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use dash2sim_core::nmea::{Decoder, Feed, Framer, GnssFix};
+use dash2sim_core::nmea::{Decoder, Event, GnssFix, Stream, StreamEvent};
+use dash2sim_linux::nmea_decode::iso8601;
 use dash2sim_tests::data_dir;
 
 /// The raw text of `"key":value` in a JSON line.
@@ -30,27 +31,7 @@ fn printed_tolerance(raw: &str) -> f64 {
 }
 
 fn iso_time(fix: &GnssFix) -> Option<String> {
-    let t = fix.time()?.micros();
-    let days = t.div_euclid(86_400_000_000);
-    let micros = t.rem_euclid(86_400_000_000);
-    // Civil from days (Hinnant).
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    let ms = micros / 1000;
-    Some(format!(
-        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{:03}Z",
-        ms / 3_600_000,
-        ms / 60_000 % 60,
-        ms / 1000 % 60,
-        ms % 1000
-    ))
+    fix.time().map(|t| iso8601(t.micros()))
 }
 
 #[derive(Default)]
@@ -194,29 +175,20 @@ fn gpsd_dated_epochs(chk: &Path) -> u64 {
 /// Frame and decode a whole capture in 7-byte chunks (as a UART would deliver it);
 /// returns (epochs with a full UTC time, sentences, sentences dropped by the framer).
 fn decode_all(bytes: &[u8]) -> (u64, u64, u64) {
-    let mut framer: Framer = Framer::new();
-    let mut decoder = Decoder::new();
+    let mut stream: Stream = Stream::new();
     let (mut fixes, mut sentences, mut dropped) = (0, 0, 0);
     for chunk in bytes.chunks(7) {
-        let mut input = chunk;
-        loop {
-            match framer.feed(input) {
-                Feed::Consumed => break,
-                Feed::Sentence { line, remaining } => {
-                    sentences += 1;
-                    if let dash2sim_core::nmea::Event::Message { fix: Some(fix), .. } = decoder.line(line) {
-                        fixes += u64::from(fix.time().is_some());
-                    }
-                    input = remaining;
-                }
-                Feed::Dropped { remaining, .. } => {
-                    dropped += 1;
-                    decoder.note_dropped();
-                    input = remaining;
+        stream.feed(chunk, |event| match event {
+            StreamEvent::Sentence(event) => {
+                sentences += 1;
+                if let Event::Message { fix: Some(fix), .. } = event {
+                    fixes += u64::from(fix.time().is_some());
                 }
             }
-        }
+            StreamEvent::Dropped(_) => dropped += 1,
+        });
     }
+    let decoder = &mut stream.decoder;
     if decoder.finish().is_some_and(|f| f.time().is_some()) {
         fixes += 1;
     }

@@ -5,7 +5,7 @@
 //! allocator comes from `allocation-counter`, which replaces the global allocator of this
 //! test crate only.
 
-use dash2sim_core::nmea::{Decoder, Event, Feed, Framer};
+use dash2sim_core::nmea::{Event, Stream, StreamEvent};
 
 const STREAM: &[u8] = b"junk\r\n$GPGGA,165007.000,4143.6058,N,08338.0778,W,1,06,1.5,204.3,M,-33.7,M,,0000*67\r\n\
 $GPGSA,A,3,31,16,29,23,20,32,,,,,,,2.8,1.5,2.4*36\r\n\
@@ -18,30 +18,25 @@ $GPGGA,165008.000,4143.6059,N,08338.0786,W,1,06,1.5,204.1,M,-33.7,M,,0000*6A\r\n
 
 #[test]
 fn decoding_allocates_nothing() {
-    let mut framer: Framer = Framer::new();
-    let mut decoder = Decoder::new();
+    let mut stream: Stream = Stream::new();
     let mut fixes = 0;
     let info = allocation_counter::measure(|| {
         for _ in 0..200 {
             for chunk in STREAM.chunks(5) {
-                let mut input = chunk;
-                loop {
-                    match framer.feed(input) {
-                        Feed::Consumed => break,
-                        Feed::Sentence { line, remaining } => {
-                            if let Event::Message { fix: Some(_), .. } = decoder.line(line) {
-                                fixes += 1;
-                            }
-                            input = remaining;
-                        }
-                        Feed::Dropped { remaining, .. } => input = remaining,
+                stream.feed(chunk, |event| {
+                    if let StreamEvent::Sentence(Event::Message { fix: Some(_), .. }) = event {
+                        fixes += 1;
                     }
-                }
+                });
             }
         }
     });
     assert!(fixes > 300, "{fixes} fixes");
-    assert!(decoder.stats().bad_checksum > 0 && decoder.stats().bad_fields > 0 && decoder.stats().unknown > 0);
+    assert!(
+        stream.decoder.stats().bad_checksum > 0
+            && stream.decoder.stats().bad_fields > 0
+            && stream.decoder.stats().unknown > 0
+    );
     assert_eq!(info.count_total, 0, "decoding allocated {} times", info.count_total);
 }
 

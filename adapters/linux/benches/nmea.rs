@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use dash2sim_core::nmea::{Decoder, Event, Feed, Framer};
+use dash2sim_core::nmea::{Event, Stream, StreamEvent};
 
 fn corpus() -> Option<Vec<u8>> {
     let base = std::env::var_os("DASH2SIM_DATA")
@@ -27,22 +27,13 @@ fn corpus() -> Option<Vec<u8>> {
 
 /// Ours: framer → checked sentence → message → epoch assembly. Returns fixes.
 fn dash2sim_decode(bytes: &[u8]) -> usize {
-    let mut framer: Framer = Framer::new();
-    let mut decoder = Decoder::new();
+    let mut stream: Stream = Stream::new();
     let mut fixes = 0;
-    let mut input = bytes;
-    loop {
-        match framer.feed(input) {
-            Feed::Consumed => break,
-            Feed::Sentence { line, remaining } => {
-                if let Event::Message { fix: Some(_), .. } = decoder.line(line) {
-                    fixes += 1;
-                }
-                input = remaining;
-            }
-            Feed::Dropped { remaining, .. } => input = remaining,
+    stream.feed(bytes, |event| {
+        if let StreamEvent::Sentence(Event::Message { fix: Some(_), .. }) = event {
+            fixes += 1;
         }
-    }
+    });
     fixes
 }
 

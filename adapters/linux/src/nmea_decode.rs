@@ -7,7 +7,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use dash2sim_core::nmea::{Decoder, Event, Feed, Framer, GnssFix};
+use dash2sim_core::nmea::{Event, GnssFix, Stream, StreamEvent};
 use serde_json::{json, Map, Value};
 
 /// ISO 8601 UTC with milliseconds, as gpsd prints TPV times.
@@ -101,45 +101,34 @@ pub fn run(path: &Path, as_json: bool) -> Result<(), String> {
 }
 
 fn decode(path: &Path, bytes: &[u8], as_json: bool, out: &mut impl Write) -> std::io::Result<()> {
-    let mut framer: Framer = Framer::new();
-    let mut decoder = Decoder::new();
+    let mut stream: Stream = Stream::new();
     let mut fixes = 0u64;
-    let mut emit = |fix: &GnssFix, out: &mut dyn Write| -> std::io::Result<()> {
+    let mut write_fix = |fix: &GnssFix, out: &mut dyn Write| -> std::io::Result<()> {
         fixes += 1;
-        if as_json {
-            writeln!(out, "{}", tpv_json(fix))
-        } else {
-            writeln!(out, "{}", table_row(fix))
-        }
+        writeln!(out, "{}", if as_json { tpv_json(fix).to_string() } else { table_row(fix) })
     };
     let name = path.display();
+    let mut result = Ok(());
     // Feed line by line so problems can name their line.
     for (index, line) in bytes.split_inclusive(|&b| b == b'\n').enumerate() {
         let line_no = index + 1;
-        let mut input = line;
-        loop {
-            match framer.feed(input) {
-                Feed::Consumed => break,
-                Feed::Sentence { line, remaining } => {
-                    match decoder.line(line) {
-                        Event::Message { fix: Some(fix), .. } => emit(&fix, out)?,
-                        Event::Message { .. } => {}
-                        Event::BadSentence(e) => eprintln!("{name}:{line_no}: {e}"),
-                        Event::BadFields(e) => eprintln!("{name}:{line_no}: {e}"),
-                    }
-                    input = remaining;
-                }
-                Feed::Dropped { error, remaining } => {
-                    decoder.note_dropped();
-                    eprintln!("{name}:{line_no}: {error}");
-                    input = remaining;
+        stream.feed(line, |event| match event {
+            StreamEvent::Sentence(Event::Message { fix: Some(fix), .. }) => {
+                if result.is_ok() {
+                    result = write_fix(&fix, out);
                 }
             }
-        }
+            StreamEvent::Sentence(Event::Message { .. }) => {}
+            StreamEvent::Sentence(Event::BadSentence(e)) => eprintln!("{name}:{line_no}: {e}"),
+            StreamEvent::Sentence(Event::BadFields(e)) => eprintln!("{name}:{line_no}: {e}"),
+            StreamEvent::Dropped(e) => eprintln!("{name}:{line_no}: {e}"),
+        });
+        std::mem::replace(&mut result, Ok(()))?;
     }
-    if let Some(fix) = decoder.finish() {
-        emit(&fix, out)?;
+    if let Some(fix) = stream.decoder.finish() {
+        write_fix(&fix, out)?;
     }
+    let (decoder, framer) = (&stream.decoder, &stream.framer);
     let s = decoder.stats();
     let f = framer.stats();
     let summary = json!({

@@ -116,3 +116,49 @@ impl Decoder {
         self.assembler.finish()
     }
 }
+
+/// What a [`Stream`] reports for each sentence or damaged stretch of bytes.
+// Passed by reference-free value to a callback and consumed at once (see `Event`).
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StreamEvent<'a> {
+    /// A complete sentence and what the decoder made of it.
+    Sentence(Event<'a>),
+    /// A started sentence the framer dropped.
+    Dropped(FrameError),
+}
+
+/// A [`Framer`] and a [`Decoder`] together: bytes from the serial port in, one event per
+/// sentence out, in order.
+#[derive(Clone, Debug, Default)]
+pub struct Stream<const N: usize = 128> {
+    /// The framer (for its counters).
+    pub framer: Framer<N>,
+    /// The decoder (for its counters, the current epoch and `finish`).
+    pub decoder: Decoder,
+}
+
+impl<const N: usize> Stream<N> {
+    /// A stream that accepts sentences without checksums (see [`Decoder::new`]).
+    pub fn new() -> Self {
+        Stream { framer: Framer::new(), decoder: Decoder::new() }
+    }
+
+    /// Feed a chunk of any size; `on_event` is called for every sentence it completes.
+    pub fn feed(&mut self, mut input: &[u8], mut on_event: impl FnMut(StreamEvent<'_>)) {
+        loop {
+            match self.framer.feed(input) {
+                Feed::Consumed => return,
+                Feed::Sentence { line, remaining } => {
+                    on_event(StreamEvent::Sentence(self.decoder.line(line)));
+                    input = remaining;
+                }
+                Feed::Dropped { error, remaining } => {
+                    self.decoder.note_dropped();
+                    on_event(StreamEvent::Dropped(error));
+                    input = remaining;
+                }
+            }
+        }
+    }
+}
