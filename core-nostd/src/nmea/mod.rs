@@ -118,7 +118,7 @@ impl Decoder {
 }
 
 /// What a [`Stream`] reports for each sentence or damaged stretch of bytes.
-// Passed by reference-free value to a callback and consumed at once (see `Event`).
+// Passed by value to a callback and consumed at once (see `Event`).
 #[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum StreamEvent<'a> {
