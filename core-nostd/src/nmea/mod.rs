@@ -145,6 +145,8 @@ impl<const N: usize> Stream<N> {
     }
 
     /// Feed a chunk of any size; `on_event` is called for every sentence it completes.
+    // Inlined so the event is built in the caller's frame rather than moved into it.
+    #[inline(always)]
     pub fn feed(&mut self, mut input: &[u8], mut on_event: impl FnMut(StreamEvent<'_>)) {
         loop {
             match self.framer.feed(input) {
