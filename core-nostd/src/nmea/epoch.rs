@@ -111,6 +111,47 @@ impl GnssFix {
         self.mode >= FixMode::Fix2d && self.lat.is_some() && self.lon.is_some()
     }
 
+    /// A fix with height (GGA, GNS): position, altitude and its dimension. As gpsd, a
+    /// vertical fix needs an altitude and at least 4 satellites; a "fix" from no
+    /// satellites is no fix.
+    #[allow(clippy::too_many_arguments)]
+    fn take_fix(
+        &mut self,
+        valid: bool,
+        lat: Option<f64>,
+        lon: Option<f64>,
+        alt_msl: Option<f64>,
+        geoid_sep: Option<f64>,
+        satellites: Option<u32>,
+        hdop: Option<f64>,
+    ) {
+        if valid && satellites != Some(0) {
+            self.lat = lat.or(self.lat);
+            self.lon = lon.or(self.lon);
+            self.alt_msl = alt_msl.or(self.alt_msl);
+            self.geoid_sep = geoid_sep.or(self.geoid_sep);
+            let three_d = alt_msl.is_some() && satellites.is_none_or(|n| n >= 4);
+            self.mode = if three_d { FixMode::Fix3d } else { FixMode::Fix2d };
+        } else {
+            self.mode = FixMode::NoFix;
+        }
+        self.satellites_used = satellites.or(self.satellites_used);
+        self.hdop = hdop.or(self.hdop);
+    }
+
+    /// A horizontal-only position (RMC, GLL): at least a 2D fix when valid, else no fix.
+    fn take_horizontal(&mut self, valid: bool, lat: Option<f64>, lon: Option<f64>) {
+        if valid {
+            self.lat = lat.or(self.lat);
+            self.lon = lon.or(self.lon);
+            if self.mode < FixMode::Fix2d {
+                self.mode = FixMode::Fix2d;
+            }
+        } else {
+            self.mode = FixMode::NoFix;
+        }
+    }
+
     fn clear_epoch(&mut self) {
         *self = GnssFix {
             date: self.date,
@@ -203,22 +244,8 @@ impl EpochAssembler {
         let finished = match message {
             Message::Gga(g) => {
                 let done = self.at(g.time);
-                let fix = &mut self.current;
-                fix.quality = Some(g.quality);
-                // Quality 0, or a "fix" from no satellites, is no fix.
-                if g.quality == 0 || g.satellites == Some(0) {
-                    fix.mode = FixMode::NoFix;
-                } else {
-                    fix.lat = g.lat.or(fix.lat);
-                    fix.lon = g.lon.or(fix.lon);
-                    fix.alt_msl = g.alt_msl.or(fix.alt_msl);
-                    fix.geoid_sep = g.geoid_sep.or(fix.geoid_sep);
-                    // gpsd: a vertical fix needs an altitude and at least 4 satellites.
-                    let three_d = g.alt_msl.is_some() && g.satellites.is_none_or(|n| n >= 4);
-                    fix.mode = if three_d { FixMode::Fix3d } else { FixMode::Fix2d };
-                }
-                fix.satellites_used = g.satellites.or(fix.satellites_used);
-                fix.hdop = g.hdop.or(fix.hdop);
+                self.current.quality = Some(g.quality);
+                self.current.take_fix(g.quality != 0, g.lat, g.lon, g.alt_msl, g.geoid_sep, g.satellites, g.hdop);
                 done
             }
             Message::Rmc(m) => {
@@ -227,54 +254,25 @@ impl EpochAssembler {
                 let done = if m.valid { self.at(m.time) } else { None };
                 let fix = &mut self.current;
                 fix.date = m.date.or(fix.date);
+                fix.take_horizontal(m.valid, m.lat, m.lon);
                 if m.valid {
-                    fix.lat = m.lat.or(fix.lat);
-                    fix.lon = m.lon.or(fix.lon);
                     if let Some(k) = m.speed_knots {
                         fix.speed_mps = Some(k * KNOTS_TO_MPS);
                         self.speed_reported = true;
                     }
                     fix.track_deg = m.track_deg.or(fix.track_deg);
                     fix.mag_var_deg = m.mag_var_deg.or(fix.mag_var_deg);
-                    if fix.mode < FixMode::Fix2d {
-                        fix.mode = FixMode::Fix2d;
-                    }
-                } else {
-                    fix.mode = FixMode::NoFix;
                 }
                 done
             }
             Message::Gll(g) => {
                 let done = self.at(g.time);
-                let fix = &mut self.current;
-                if g.valid && g.mode != Some(b'N') {
-                    fix.lat = g.lat.or(fix.lat);
-                    fix.lon = g.lon.or(fix.lon);
-                    if fix.mode < FixMode::Fix2d {
-                        fix.mode = FixMode::Fix2d;
-                    }
-                } else {
-                    fix.mode = FixMode::NoFix;
-                }
+                self.current.take_horizontal(g.valid && g.mode != Some(b'N'), g.lat, g.lon);
                 done
             }
             Message::Gns(g) => {
                 let done = self.at(g.time);
-                let fix = &mut self.current;
-                if g.any_fix {
-                    fix.lat = g.lat.or(fix.lat);
-                    fix.lon = g.lon.or(fix.lon);
-                    fix.alt_msl = g.alt_msl.or(fix.alt_msl);
-                    fix.geoid_sep = g.geoid_sep.or(fix.geoid_sep);
-                    let dimension = if g.alt_msl.is_some() { FixMode::Fix3d } else { FixMode::Fix2d };
-                    if fix.mode < FixMode::Fix2d || dimension == FixMode::Fix3d {
-                        fix.mode = dimension;
-                    }
-                } else {
-                    fix.mode = FixMode::NoFix;
-                }
-                fix.satellites_used = g.satellites.or(fix.satellites_used);
-                fix.hdop = g.hdop.or(fix.hdop);
+                self.current.take_fix(g.any_fix, g.lat, g.lon, g.alt_msl, g.geoid_sep, g.satellites, g.hdop);
                 done
             }
             Message::Vtg(v) => {
