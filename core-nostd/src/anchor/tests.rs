@@ -177,38 +177,12 @@ fn a_lasting_shift_of_the_fixes_is_followed_not_rejected_forever() {
     assert!((followed - now).norm() < 0.1, "still {} m away after 30 s", (followed - now).norm());
 }
 
-/// Replays a byte string exactly as the `anchor_inputs` fuzz target decodes it and
-/// checks every estimate on the way.
-fn replay_fuzz_input(data: &[u8]) {
-    fn f64_at(bytes: &[u8]) -> f64 {
-        let mut b = [0u8; 8];
-        for (d, s) in b.iter_mut().zip(bytes) {
-            *d = *s;
-        }
-        f64::from_le_bytes(b)
-    }
-    let Some((&mode, mut rest)) = data.split_first() else { return };
-    let mode = if mode & 1 == 0 { AnchorMode::Full } else { AnchorMode::GravityAligned };
-    let mut anchorer: Anchorer = Anchorer::new(AnchorConfig { mode, ..AnchorConfig::default() });
-    while rest.len() >= 27 {
-        let (record, tail) = rest.split_at(27);
-        rest = tail;
-        let t = Timestamp::from_micros(i64::from(u16::from_le_bytes([record[1], record[2]])) * 1000);
-        let v = Vector3::new(f64_at(&record[3..]), f64_at(&record[11..]), f64_at(&record[19..]));
-        let _ = match record[0] % 3 {
-            0 => anchorer.push_vo(t, v),
-            1 => anchorer.push_gnss(t, v, v.x.abs() % 10.0 + 0.1),
-            _ => anchorer.push_speed(t, v.y),
-        };
-        if let Some(est) = anchorer.estimate() {
-            assert!(est.is_valid(), "{est:?}");
-        }
-    }
-}
+// `replay_anchor_input`: the `anchor_inputs` fuzz target's own decoding of its input.
+include!("../../../fuzz/anchor_input.rs");
 
 #[test]
 fn fuzz_regression_overflowing_translation() {
     // Huge but finite coordinates overflowed the translation of an otherwise valid
     // estimate (found by `cargo fuzz run anchor_inputs`).
-    replay_fuzz_input(include_bytes!("../../../fuzz/regressions/anchor_inputs-overflowing-translation.bin"));
+    replay_anchor_input(include_bytes!("../../../fuzz/regressions/anchor_inputs-overflowing-translation.bin"));
 }
