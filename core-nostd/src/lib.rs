@@ -11,6 +11,7 @@
 //! | [`anchor`] | incremental Sim(3) anchoring of VO to GNSS and wheel speed |
 //! | [`traj`] | APE / RPE with evo's definitions |
 //! | [`nmea`] | NMEA 0183: framer, sentences, messages, epoch assembly |
+//! | [`can`] | CAN: J1939/NMEA 2000 ids, fast packets, GNSS/speed decoders, DBC signals |
 //!
 //! Capacity is part of the types; nothing here allocates or panics on untrusted input.
 #![no_std]
@@ -22,6 +23,7 @@
 extern crate std;
 
 pub mod anchor;
+pub mod can;
 pub mod geo;
 pub mod nmea;
 pub mod sim3;
