@@ -9,6 +9,7 @@
 
 use std::path::{Path, PathBuf};
 
+pub mod can;
 pub mod drive;
 
 /// The workspace root.

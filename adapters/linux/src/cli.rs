@@ -34,6 +34,25 @@ enum Command {
     /// NMEA 0183 captures.
     #[command(subcommand)]
     Nmea(NmeaCommand),
+    /// CAN captures (candump): NMEA 2000, J1939, OBD-II and DBC-defined signals.
+    #[command(subcommand)]
+    Can(CanCommand),
+}
+
+#[derive(Debug, Subcommand)]
+enum CanCommand {
+    /// Decode a candump capture (any of its three text dialects): one message per line
+    /// and a summary; problems on stderr with their line numbers.
+    Decode {
+        /// The capture.
+        file: PathBuf,
+        /// DBC files for vendor-specific ids (repeatable; later files win on equal ids).
+        #[arg(long = "dbc", value_name = "F.dbc")]
+        dbc: Vec<PathBuf>,
+        /// JSON lines on stdout.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Debug, Subcommand)]
@@ -120,6 +139,7 @@ pub fn run() -> ExitCode {
         Command::Traj(TrajCommand::Rpe(args)) => traj_rpe(&args),
         Command::Anchor(args) => anchoring::run(&args),
         Command::Nmea(NmeaCommand::Decode { file, json }) => crate::nmea_decode::run(&file, json),
+        Command::Can(CanCommand::Decode { file, dbc, json }) => crate::can_decode::run(&file, &dbc, json),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

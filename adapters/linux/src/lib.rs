@@ -6,6 +6,7 @@
 #![deny(missing_docs)]
 
 pub mod anchoring;
+pub mod can_decode;
 pub mod cli;
 pub mod evaluate;
 pub mod nmea_decode;

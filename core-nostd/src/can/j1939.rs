@@ -53,7 +53,7 @@ impl VehiclePosition {
         if data.len() < 8 {
             return Err(Truncated { pgn: VEHICLE_POSITION, len: data.len(), needed: 8 });
         }
-        let degrees = |raw: u32| f64::from(raw) * 1e-7 - 210.0;
+        let degrees = |raw: u32| f64::from(raw) / 1e7 - 210.0;
         Ok(VehiclePosition { latitude: u32_valid(data, 0).map(degrees), longitude: u32_valid(data, 4).map(degrees) })
     }
 }

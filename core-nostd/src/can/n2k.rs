@@ -1,5 +1,9 @@
 //! NMEA 2000 GNSS messages (DESIGN §3, canboat's `canboat.json`). Angles in degrees as
 //! canboat prints them; `None` where the sender said "not available".
+//!
+//! Decimal resolutions are applied by dividing by an exact power of ten, never by
+//! multiplying with an inexact one, so 379220534 × 1e-7° becomes the double nearest
+//! 37.9220534 and prints as the decimal on the wire.
 
 use super::bytes::{array, i16_at, i32_at, i64_at, u16_at, u32_at, u8_at};
 
@@ -53,8 +57,8 @@ impl PositionRapid {
     pub fn decode(data: &[u8]) -> Result<Self, Truncated> {
         need(POSITION_RAPID, data, 8)?;
         Ok(PositionRapid {
-            latitude: i32_at(data, 0).map(|v| f64::from(v) * 1e-7),
-            longitude: i32_at(data, 4).map(|v| f64::from(v) * 1e-7),
+            latitude: i32_at(data, 0).map(|v| f64::from(v) / 1e7),
+            longitude: i32_at(data, 4).map(|v| f64::from(v) / 1e7),
         })
     }
 }
@@ -115,8 +119,8 @@ impl CogSogRapid {
         Ok(CogSogRapid {
             sid: u8_at(data, 0),
             cog_reference: CogReference::from_bits(data[1]),
-            cog: u16_at(data, 2).map(|v| (f64::from(v) * 1e-4).to_degrees()),
-            sog: u16_at(data, 4).map(|v| f64::from(v) * 0.01),
+            cog: u16_at(data, 2).map(|v| (f64::from(v) / 1e4).to_degrees()),
+            sog: u16_at(data, 4).map(|v| f64::from(v) / 100.0),
         })
     }
 }
@@ -167,16 +171,16 @@ impl GnssPosition {
             sid: u8_at(data, 0),
             date: u16_at(data, 1),
             time: u32_at(data, 3),
-            latitude: i64_at(data, 7).map(|v| v as f64 * 1e-16),
-            longitude: i64_at(data, 15).map(|v| v as f64 * 1e-16),
-            altitude: i64_at(data, 23).map(|v| v as f64 * 1e-6),
+            latitude: i64_at(data, 7).map(|v| v as f64 / 1e16),
+            longitude: i64_at(data, 15).map(|v| v as f64 / 1e16),
+            altitude: i64_at(data, 23).map(|v| v as f64 / 1e6),
             gnss_type: type_method & 0x0F,
             method: type_method >> 4,
             integrity: array::<1>(data, 32).map_or(0, |[b]| b & 0x3),
             satellites: u8_at(data, 33),
-            hdop: i16_at(data, 34).map(|v| f64::from(v) * 0.01),
-            pdop: i16_at(data, 36).map(|v| f64::from(v) * 0.01),
-            geoidal_separation: i32_at(data, 38).map(|v| f64::from(v) * 0.01),
+            hdop: i16_at(data, 34).map(|v| f64::from(v) / 100.0),
+            pdop: i16_at(data, 36).map(|v| f64::from(v) / 100.0),
+            geoidal_separation: i32_at(data, 38).map(|v| f64::from(v) / 100.0),
             reference_stations: u8_at(data, 42),
         })
     }
