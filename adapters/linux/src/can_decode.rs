@@ -149,7 +149,7 @@ pub fn decode_source<R: BufRead>(
             }
             Err(e) => {
                 decoder.summary.bad_lines += 1;
-                on_problem(line, &e.to_string().trim_start_matches(&format!("line {line}: ")).to_owned());
+                on_problem(line, e.to_string().trim_start_matches(&format!("line {line}: ")));
             }
         }
     }
