@@ -148,6 +148,9 @@ fn every_subcommand_has_help() {
         &["traj", "ape", "--help"],
         &["traj", "rpe", "--help"],
         &["anchor", "--help"],
+        &["nmea", "decode", "--help"],
+        &["can", "--help"],
+        &["can", "decode", "--help"],
     ] {
         let out = dash2sim(args);
         assert!(out.status.success(), "{args:?}");
@@ -238,4 +241,74 @@ fn nmea_decode_reports_bad_input_by_line_and_keeps_the_rest() {
     assert_eq!(summary["rejected"]["bad_checksum"], 1);
     assert_eq!(summary["rejected"]["bad_fields"], 2);
     assert_eq!(summary["rejected"]["binary"], 1);
+}
+
+#[test]
+fn can_decode_reports_bad_lines_and_lost_fast_packets_and_keeps_the_rest() {
+    let dir = scratch("can");
+    let dbc = write(
+        &dir,
+        "speed.dbc",
+        "VERSION \"\"\n\nBS_:\n\nBU_: XXX\n\nBO_ 180 SPEED: 8 XXX\n SG_ SPEED : 47|16@0+ (0.01,0) [0|250] \"km/h\" XXX\n",
+    );
+    let log = [
+        "(1410714882.622188) can0 09F80102#36729A16021AB80D",
+        "(1410714882.700000) can0 09F80102#3672",
+        "this is not candump",
+        "(1410714882.800000) can0 0DF80502#202FEBC73F704B43",
+        "(1410714882.900000) can0 0DF80502#2124C0751E3CEB42",
+        "(1410714884.000000) can0 7E8#03410D3900000000",
+        "(1410714884.100000) can0 0B4#00000000001E1400",
+        "(1410714884.200000) can0 0CFEF100#FF0032FFFFFFFFFF",
+        "(1410714884.300000) can0 123##1001122",
+    ];
+    let file = write(&dir, "bus.log", &(log.join("\n") + "\n"));
+    let out = dash2sim(&["can", "decode", &file, "--dbc", &dbc, "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let err = stderr(&out);
+    for expected in [
+        "bus.log:2: PGN 129025 needs 8 bytes, got 2",
+        "bus.log:3: malformed CAN id",
+        "bus.log:6: PGN 129029 from 2: fast-packet message dropped after 2 frames: frames stopped (timeout)",
+        "bus.log:9: CAN FD frames are not supported",
+    ] {
+        assert!(err.contains(expected), "missing {expected:?} in {err}");
+    }
+    let objects: Vec<serde_json::Value> =
+        String::from_utf8_lossy(&out.stdout).lines().map(|l| serde_json::from_str(l).expect("JSON line")).collect();
+    assert_eq!(objects.len(), 5, "{objects:?}");
+    let position = &objects[0];
+    assert_eq!(
+        (&position["t"], &position["bus"], &position["id"]),
+        (&1_410_714_882.622_188.into(), &"can0".into(), &"0x09F80102".into())
+    );
+    assert_eq!(
+        (&position["src"], &position["pgn"], &position["fields"]["Latitude"]),
+        (&2.into(), &129_025.into(), &37.922_053_4.into())
+    );
+    assert_eq!((&objects[1]["pid"], &objects[1]["fields"]["Vehicle Speed"]), (&13.into(), &57.into()));
+    assert_eq!((&objects[2]["message"], &objects[2]["fields"]["SPEED"]), (&"SPEED".into(), &77.0.into()));
+    assert_eq!(
+        (&objects[3]["pgn"], &objects[3]["fields"]["Wheel-Based Vehicle Speed"]),
+        (&65_265.into(), &(50.0 / 3.6).into())
+    );
+    let summary = &objects[4];
+    assert_eq!(
+        (&summary["class"], &summary["frames"], &summary["bad_lines"]),
+        (&"SUMMARY".into(), &7.into(), &2.into())
+    );
+    assert_eq!((&summary["bad_frames"], &summary["fast_packet"]["timed_out"]), (&1.into(), &1.into()));
+}
+
+#[test]
+fn can_decode_names_a_bad_dbc_and_a_missing_capture() {
+    let dir = scratch("can-errors");
+    let dbc = write(&dir, "bad.dbc", "BO_ banana");
+    let log = write(&dir, "bus.log", "(1.0) can0 123#00\n");
+    let out = dash2sim(&["can", "decode", &log, "--dbc", &dbc]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("bad.dbc: not a valid DBC file"), "{}", stderr(&out));
+    let out = dash2sim(&["can", "decode", &dir.join("missing.log").display().to_string()]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("missing.log"), "{}", stderr(&out));
 }
