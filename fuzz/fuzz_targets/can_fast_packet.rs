@@ -4,8 +4,8 @@
 
 use dash2sim_core::can::frame::id_from_raw;
 use dash2sim_core::can::{CanFrame, Decoder, Event};
-use embedded_can::Frame;
 use dash2sim_core::time::Timestamp;
+use embedded_can::Frame;
 use libfuzzer_sys::fuzz_target;
 
 /// Ids that reach every decoder: 129025/6/9 from two sources, CCVS1, VP1, OBD.

@@ -54,8 +54,8 @@ mod tests {
 
     #[test]
     fn tolerance_follows_the_printed_digits() {
-        assert!((printed_tolerance("56.098655") - 5e-7).abs() < 1e-12);
-        assert!((printed_tolerance("1.62727447e+09") - 5.0).abs() < 1e-3);
-        assert!((printed_tolerance("29") - 0.5).abs() < 1e-12);
+        assert!((printed_tolerance("56.098655") - 5e-7).abs() < 1e-10);
+        assert!((printed_tolerance("1.62727447e+09") - 5.0).abs() < 1e-2);
+        assert!((printed_tolerance("29") - 0.5).abs() < 1e-10);
     }
 }
