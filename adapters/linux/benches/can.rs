@@ -44,7 +44,7 @@ fn decode_json(bytes: &[u8], table: &SignalTable) -> usize {
         &mut reader,
         &mut decoder,
         |v| {
-            criterion::black_box(v);
+            std::hint::black_box(v);
             messages += 1;
             Ok(())
         },
