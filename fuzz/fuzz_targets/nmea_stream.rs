@@ -10,7 +10,7 @@ fuzz_target!(|data: &[u8]| {
     let Some((&chunk, bytes)) = data.split_first() else { return };
     let chunk = usize::from(chunk % 16) + 1;
     let mut stream: Stream<96> = Stream::new();
-    let check = |fix: dash2sim_core::nmea::GnssFix| {
+    let check = |fix: &dash2sim_core::nmea::GnssFix| {
         if let Some(lat) = fix.lat {
             assert!((-90.0..=90.0).contains(&lat), "{fix:?}");
         }
@@ -27,7 +27,7 @@ fuzz_target!(|data: &[u8]| {
         });
     }
     if let Some(fix) = stream.decoder.finish() {
-        check(fix);
+        check(&fix);
     }
     assert!(stream.framer.stats().sentences >= stream.decoder.stats().decoded);
 });

@@ -115,7 +115,7 @@ fn decode(path: &Path, bytes: &[u8], as_json: bool, out: &mut impl Write) -> std
         stream.feed(line, |event| match event {
             StreamEvent::Sentence(Event::Message { fix: Some(fix), .. }) => {
                 if result.is_ok() {
-                    result = write_fix(&fix, out);
+                    result = write_fix(fix, out);
                 }
             }
             StreamEvent::Sentence(Event::Message { .. }) => {}

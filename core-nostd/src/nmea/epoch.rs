@@ -171,6 +171,8 @@ impl GnssFix {
 #[derive(Clone, Debug, Default)]
 pub struct EpochAssembler {
     current: GnssFix,
+    /// The last finished epoch; lent out by [`EpochAssembler::push`] instead of copied.
+    finished: GnssFix,
     /// True once the current epoch holds anything.
     dirty: bool,
     /// The receiver reported a speed in this epoch (else it may be derived).
@@ -190,13 +192,17 @@ impl EpochAssembler {
         &self.current
     }
 
-    /// Start a new epoch if `time` differs from the current one; returns the finished one.
-    fn at(&mut self, time: Option<TimeOfDay>) -> Option<GnssFix> {
-        let time = time?;
+    /// Start a new epoch if `time` differs from the current one; true when that finished
+    /// one (now in `self.finished`).
+    fn at(&mut self, time: Option<TimeOfDay>) -> bool {
+        let Some(time) = time else { return false };
         match self.current.time_of_day {
-            Some(t) if t == time => None,
+            Some(t) if t == time => false,
             previous => {
-                let finished = (self.dirty && previous.is_some()).then_some(self.current);
+                let finished = self.dirty && previous.is_some();
+                if finished {
+                    self.finished = self.current;
+                }
                 if let (Some(t), Some(lat), Some(lon), true) =
                     (self.current.time(), self.current.lat, self.current.lon, self.current.has_position())
                 {
@@ -231,15 +237,17 @@ impl EpochAssembler {
     }
 
     /// Merge one message; returns the previous epoch's fix when this one starts a new epoch.
-    pub fn push(&mut self, message: &Message<'_>) -> Option<GnssFix> {
+    /// The fix is lent, not copied: at ~300 bytes, copying it out for every sentence cost
+    /// more than the rest of the epoch logic.
+    pub fn push(&mut self, message: &Message<'_>) -> Option<&GnssFix> {
         let finished = self.merge(message);
         if matches!(message, Message::Gga(_) | Message::Rmc(_) | Message::Gll(_) | Message::Gns(_) | Message::Vtg(_)) {
             self.derive_speed();
         }
-        finished
+        finished.then_some(&self.finished)
     }
 
-    fn merge(&mut self, message: &Message<'_>) -> Option<GnssFix> {
+    fn merge(&mut self, message: &Message<'_>) -> bool {
         let fix = &mut self.current;
         let finished = match message {
             Message::Gga(g) => {
@@ -251,7 +259,7 @@ impl EpochAssembler {
             Message::Rmc(m) => {
                 // A warning ('V') RMC does not vouch for its time either (gpsd keeps the
                 // last valid time).
-                let done = if m.valid { self.at(m.time) } else { None };
+                let done = m.valid && self.at(m.time);
                 let fix = &mut self.current;
                 fix.date = m.date.or(fix.date);
                 fix.take_horizontal(m.valid, m.lat, m.lon);
@@ -281,7 +289,7 @@ impl EpochAssembler {
                     fix.speed_mps = Some(speed);
                     self.speed_reported = true;
                 }
-                None
+                false
             }
             Message::Gsa(a) => {
                 // As gpsd: GSA's dimension does not downgrade a 3D fix this epoch's GGA
@@ -295,7 +303,7 @@ impl EpochAssembler {
                 fix.pdop = a.pdop.or(fix.pdop);
                 fix.hdop = a.hdop.or(fix.hdop);
                 fix.vdop = a.vdop.or(fix.vdop);
-                None
+                false
             }
             Message::Gst(g) => {
                 // Error statistics describe the fix; their time does not open a cycle
@@ -303,7 +311,7 @@ impl EpochAssembler {
                 fix.sigma_lat_m = g.sigma_lat_m;
                 fix.sigma_lon_m = g.sigma_lon_m;
                 fix.sigma_alt_m = g.sigma_alt_m;
-                None
+                false
             }
             Message::Zda(z) => {
                 let done = self.at(z.time);
@@ -316,9 +324,9 @@ impl EpochAssembler {
             }
             Message::Hdt(h) => {
                 fix.heading_deg = h.heading_deg.or(fix.heading_deg);
-                None
+                false
             }
-            Message::Gsv(_) | Message::Proprietary(_) | Message::Unknown(_) => return None,
+            Message::Gsv(_) | Message::Proprietary(_) | Message::Unknown(_) => return false,
         };
         self.dirty = true;
         finished
@@ -339,7 +347,7 @@ mod tests {
     use crate::nmea::sentence::Sentence;
 
     fn push(a: &mut EpochAssembler, line: &[u8]) -> Option<GnssFix> {
-        a.push(&parse(&Sentence::parse(line, false).expect("sentence")).expect("message"))
+        a.push(&parse(&Sentence::parse(line, false).expect("sentence")).expect("message")).copied()
     }
 
     #[test]

@@ -247,4 +247,42 @@ mod tests {
         let s = f.stats();
         assert_eq!((s.interrupted, s.too_long, s.binary), (1, 1, 1));
     }
+
+    /// Every sentence and drop, as (kind, bytes) in order, plus the counters.
+    fn trace<const N: usize>(
+        chunks: impl Iterator<Item = impl AsRef<[u8]>>,
+    ) -> (heapless::Vec<(u8, heapless::Vec<u8, 64>), 64>, FramerStats) {
+        let mut framer = Framer::<N>::new();
+        let mut out = heapless::Vec::new();
+        for chunk in chunks {
+            let mut input = chunk.as_ref();
+            loop {
+                match framer.feed(input) {
+                    Feed::Consumed => break,
+                    Feed::Sentence { line, remaining } => {
+                        let _ = out.push((b'S', heapless::Vec::from_slice(line).unwrap_or_default()));
+                        input = remaining;
+                    }
+                    Feed::Dropped { error, remaining } => {
+                        let _ = out.push((error as u8, heapless::Vec::new()));
+                        input = remaining;
+                    }
+                }
+            }
+        }
+        (out, *framer.stats())
+    }
+
+    proptest::proptest! {
+        /// Chunking does not matter (the run copy and the byte-wise path agree): the same
+        /// input framed at once and one byte at a time gives the same sentences, drops
+        /// and counters (bytes drawn from the ones that matter: starts, line ends, binary).
+        #[test]
+        fn whole_input_and_single_bytes_frame_alike(bytes in proptest::collection::vec(
+            proptest::sample::select(&b"$!\r\n\x01\x7fAAAAAAAB,,,*0"[..]), 0..200)) {
+            let whole = trace::<6>(core::iter::once(&bytes[..]));
+            let single = trace::<6>(bytes.chunks(1));
+            proptest::prop_assert_eq!(whole, single);
+        }
+    }
 }

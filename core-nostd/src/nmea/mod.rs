@@ -33,16 +33,14 @@ pub struct DecoderStats {
 }
 
 /// The outcome of one sentence, for callers that report problems (with their position).
-// Returned by value and consumed at once; there is no allocator to box the large variant.
-#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Event<'a> {
     /// A decoded message; `fix` is the previous epoch when this sentence started a new one.
     Message {
         /// The message.
         message: Message<'a>,
-        /// A finished epoch, if any.
-        fix: Option<GnssFix>,
+        /// A finished epoch, if any (lent by the decoder until the next sentence).
+        fix: Option<&'a GnssFix>,
     },
     /// A sentence that failed its checksum or was malformed.
     BadSentence(SentenceError),
@@ -81,7 +79,7 @@ impl Decoder {
     }
 
     /// Decode one line.
-    pub fn line<'a>(&mut self, line: &'a [u8]) -> Event<'a> {
+    pub fn line<'a>(&'a mut self, line: &'a [u8]) -> Event<'a> {
         let sentence = match Sentence::parse(line, !self.allow_missing_checksum) {
             Ok(s) => s,
             Err(e) => {
@@ -118,8 +116,6 @@ impl Decoder {
 }
 
 /// What a [`Stream`] reports for each sentence or damaged stretch of bytes.
-// Passed by value to a callback and consumed at once (see `Event`).
-#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum StreamEvent<'a> {
     /// A complete sentence and what the decoder made of it.
