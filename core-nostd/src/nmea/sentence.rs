@@ -235,22 +235,28 @@ fn exact_decimal(raw: &[u8]) -> Option<f64> {
         (b'+', rest) => (false, rest),
         _ => (false, raw),
     };
-    let (int, frac) = match digits.iter().position(|&b| b == b'.') {
-        Some(dot) => (&digits[..dot], &digits[dot + 1..]),
-        None => (digits, &[][..]),
-    };
-    if int.len() + frac.len() > 15 || int.len() + frac.len() == 0 {
-        return None;
-    }
+    // One pass: digits into the mantissa, counting those after the (single) dot.
     let mut mantissa: u64 = 0;
-    for &b in int.iter().chain(frac) {
+    let mut count = 0usize;
+    let mut frac_len = 0usize;
+    let mut seen_dot = false;
+    for &b in digits {
+        if b == b'.' && !seen_dot {
+            seen_dot = true;
+            continue;
+        }
         let d = b.wrapping_sub(b'0');
-        if d > 9 {
+        if d > 9 || count == 15 {
             return None;
         }
         mantissa = mantissa * 10 + u64::from(d);
+        count += 1;
+        frac_len += usize::from(seen_dot);
     }
-    let v = mantissa as f64 / POW10[frac.len()];
+    if count == 0 {
+        return None;
+    }
+    let v = mantissa as f64 / POW10[frac_len];
     Some(if negative { -v } else { v })
 }
 
