@@ -161,3 +161,22 @@ fn fast_packet_reassembly_matches_canboat_counts() {
     assert_eq!(problems.len(), 4);
     assert!(problems.iter().all(|(line, text)| *line > 0 && text.contains("timeout")), "{problems:?}");
 }
+
+#[test]
+fn crlf_and_lf_logs_read_the_same_frames() {
+    use dash2sim_can::candump::CandumpReader;
+    use dash2sim_can::FrameSource;
+    let Some(canboat) = data_dir("canboat") else { return };
+    let read = |name: &str| {
+        let text = std::fs::read(canboat.join("samples").join(name)).expect("sample");
+        let mut reader = CandumpReader::new(&text[..]);
+        let mut records = Vec::new();
+        while let Some(record) = reader.next_frame() {
+            records.push(record.expect("every line is a frame"));
+        }
+        records
+    };
+    let (lf, crlf) = (read("candump-fast.txt"), read("candump-fast-cr.txt"));
+    assert_eq!(lf.len(), 23);
+    assert_eq!(lf, crlf);
+}
