@@ -11,6 +11,8 @@
 //! | [`anchor`] | incremental Sim(3) anchoring of VO to GNSS and wheel speed |
 //! | [`traj`] | APE / RPE with evo's definitions |
 //! | [`nmea`] | NMEA 0183: framer, sentences, messages, epoch assembly |
+//! | [`box2d`] | image boxes, IoU, GIoU |
+//! | [`assign`] | optimal assignment (SciPy's algorithm) without allocation |
 //! | [`can`] | CAN: J1939/NMEA 2000 ids, fast packets, GNSS/speed decoders, DBC signals |
 //!
 //! Capacity is part of the types; nothing here allocates or panics on untrusted input.
@@ -23,6 +25,8 @@
 extern crate std;
 
 pub mod anchor;
+pub mod assign;
+pub mod box2d;
 pub mod can;
 pub mod geo;
 pub mod nmea;
