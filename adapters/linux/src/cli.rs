@@ -37,6 +37,27 @@ enum Command {
     /// CAN captures (candump): NMEA 2000, J1939, OBD-II and DBC-defined signals.
     #[command(subcommand)]
     Can(CanCommand),
+    /// Multi-object tracking evaluation (MOTChallenge files).
+    #[command(subcommand)]
+    Mot(MotCommand),
+}
+
+#[derive(Debug, Subcommand)]
+enum MotCommand {
+    /// CLEAR-MOT and identity metrics of TEST against GT with motmetrics' definitions
+    /// (IoU distance, pairs with IoU < 1 − max-distance never match).
+    Eval {
+        /// Ground truth, MOTChallenge CSV (`frame,id,left,top,width,height,conf,...`).
+        gt: PathBuf,
+        /// Tracker output, same format.
+        test: PathBuf,
+        /// Largest 1 − IoU that may match (motmetrics' `distth`).
+        #[arg(long, default_value_t = 0.5)]
+        max_distance: f64,
+        /// Print JSON (motmetrics' metric names) on stdout.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Debug, Subcommand)]
@@ -140,6 +161,7 @@ pub fn run() -> ExitCode {
         Command::Anchor(args) => anchoring::run(&args),
         Command::Nmea(NmeaCommand::Decode { file, json }) => crate::nmea_decode::run(&file, json),
         Command::Can(CanCommand::Decode { file, dbc, json }) => crate::can_decode::run(&file, &dbc, json),
+        Command::Mot(MotCommand::Eval { gt, test, max_distance, json }) => mot_eval(&gt, &test, max_distance, json),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -174,6 +196,22 @@ fn traj_rpe(args: &RpeArgs) -> Result<(), String> {
     let (r, e) = evaluate::load_pair(&c.reference, &c.estimate, c.format, c.max_diff).map_err(|e| e.to_string())?;
     let eval = evaluate::rpe(&r, &e, c.align, c.pose_relation, pairs).map_err(|e| e.to_string())?;
     report("RPE", c, &eval, Some(args));
+    Ok(())
+}
+
+fn mot_eval(gt: &std::path::Path, test: &std::path::Path, max_distance: f64, as_json: bool) -> Result<(), String> {
+    if !(0.0..=1.0).contains(&max_distance) {
+        return Err(format!("--max-distance {max_distance} must be within [0, 1]"));
+    }
+    let (gt, test) = (crate::mot::read_mot(gt)?, crate::mot::read_mot(test)?);
+    let summary = crate::mot::summarize(&crate::mot::compare(&gt, &test, max_distance));
+    if as_json {
+        println!("{}", summary.to_json());
+    } else {
+        for (name, value) in &summary.values {
+            println!("{name:>20}  {value}");
+        }
+    }
     Ok(())
 }
 

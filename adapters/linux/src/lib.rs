@@ -9,6 +9,7 @@ pub mod anchoring;
 pub mod can_decode;
 pub mod cli;
 pub mod evaluate;
+pub mod mot;
 pub mod nmea_decode;
 pub mod sync;
 pub mod trajectory;

@@ -151,6 +151,7 @@ fn every_subcommand_has_help() {
         &["nmea", "decode", "--help"],
         &["can", "--help"],
         &["can", "decode", "--help"],
+        &["mot", "eval", "--help"],
     ] {
         let out = dash2sim(args);
         assert!(out.status.success(), "{args:?}");
@@ -311,4 +312,32 @@ fn can_decode_names_a_bad_dbc_and_a_missing_capture() {
     let out = dash2sim(&["can", "decode", &dir.join("missing.log").display().to_string()]);
     assert!(!out.status.success());
     assert!(stderr(&out).contains("missing.log"), "{}", stderr(&out));
+}
+
+#[test]
+fn mot_eval_scores_and_names_bad_lines() {
+    let dir = scratch("mot");
+    let gt =
+        write(&dir, "gt.txt", "1,1,10,10,20,40,1,-1,-1,-1\n1,2,100,10,20,40,1,-1,-1,-1\n2,1,12,10,20,40,1,-1,-1,-1\n");
+    let test = write(
+        &dir,
+        "test.txt",
+        "1,7,10,10,20,40,-1,-1,-1,-1\n2,7,12,10,20,40,-1,-1,-1,-1\n2,8,300,10,20,40,-1,-1,-1,-1\n",
+    );
+    let out = dash2sim(&["mot", "eval", &gt, &test, "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    // 3 objects, 2 matched (id 7 on object 1 twice), 1 miss, 1 false positive.
+    assert_eq!(
+        (&summary["num_matches"], &summary["num_misses"], &summary["num_false_positives"]),
+        (&2.0.into(), &1.0.into(), &1.0.into())
+    );
+    assert_eq!(summary["mota"], serde_json::json!(1.0 - 2.0 / 3.0));
+    let bad = write(&dir, "bad.txt", "1,1,10,10,20,40,1\n2,1,10,10,0,40,1\n");
+    let out = dash2sim(&["mot", "eval", &gt, &bad]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("bad.txt:2: box has zero or negative size"), "{}", stderr(&out));
+    let bad = write(&dir, "nan.txt", "1,1,x,10,20,40\n");
+    let out = dash2sim(&["mot", "eval", &gt, &bad]);
+    assert!(stderr(&out).contains("nan.txt:1: column 3 \"x\" is not a number"), "{}", stderr(&out));
 }

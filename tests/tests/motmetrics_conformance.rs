@@ -1,0 +1,71 @@
+//! `dash2sim mot eval` against motmetrics 1.4.0 on MOTChallenge TUD-Campus (see
+//! `motmetrics/PROVENANCE.md`): every summary metric, and the event list frame by frame.
+
+use dash2sim_linux::mot::{compare, read_mot, summarize, EventKind};
+use dash2sim_tests::data_dir;
+
+#[test]
+fn tud_campus_summary_equals_motmetrics() {
+    let Some(dir) = data_dir("motmetrics") else { return };
+    let gt = read_mot(&dir.join("TUD-Campus/gt.txt")).expect("gt");
+    let test = read_mot(&dir.join("TUD-Campus/test.txt")).expect("test");
+    let summary = summarize(&compare(&gt, &test, 0.5));
+    let expected = dash2sim_tests::read_json(&dir.join("expected/motchallenge_summary_TUD-Campus.json"));
+    let expected = expected["summary"]["TUD-Campus"].as_object().expect("summary");
+    assert!(expected.len() >= 20);
+    let mut worst = 0.0f64;
+    for (name, want) in expected {
+        let want = want.as_f64().expect("number");
+        let got = summary.get(name).unwrap_or_else(|| panic!("{name} missing"));
+        assert!((got - want).abs() <= 1e-6, "{name}: {got} vs motmetrics {want}");
+        worst = worst.max((got - want).abs());
+    }
+    println!("{} metrics equal motmetrics, worst difference {worst:.1e}", expected.len());
+    assert!((summary.get("mota").expect("mota") - 0.526_462).abs() < 1e-6);
+    assert!((summary.get("idf1").expect("idf1") - 0.557_659).abs() < 1e-6);
+}
+
+#[test]
+fn tud_campus_events_equal_motmetrics() {
+    let Some(dir) = data_dir("motmetrics") else { return };
+    let gt = read_mot(&dir.join("TUD-Campus/gt.txt")).expect("gt");
+    let test = read_mot(&dir.join("TUD-Campus/test.txt")).expect("test");
+    let acc = compare(&gt, &test, 0.5);
+    let text =
+        std::fs::read_to_string(dir.join("expected/TUD-Campus_mot_events_motmetrics-1.4.0.csv")).expect("events");
+    let id = |cell: &str| (!cell.is_empty()).then(|| cell.parse::<f64>().expect("id") as i64);
+    // Within a frame motmetrics lists events in the order it makes them; so do we.
+    let expected: Vec<(i64, String, Option<i64>, Option<i64>, Option<f64>)> = text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let c: Vec<&str> = l.split(',').collect();
+            (
+                c[0].parse().expect("frame"),
+                c[2].to_owned(),
+                id(c[3]),
+                id(c[4]),
+                (!c[5].is_empty()).then(|| c[5].parse().expect("D")),
+            )
+        })
+        .collect();
+    let name = |k: EventKind| match k {
+        EventKind::Match => "MATCH",
+        EventKind::Switch => "SWITCH",
+        EventKind::Miss => "MISS",
+        EventKind::FalsePositive => "FP",
+        EventKind::Ascend => "ASCEND",
+        EventKind::Transfer => "TRANSFER",
+        EventKind::Migrate => "MIGRATE",
+    };
+    let ours = acc.events();
+    assert_eq!(ours.len(), expected.len());
+    for (e, (frame, kind, o, h, d)) in ours.iter().zip(&expected) {
+        assert_eq!((e.frame, name(e.kind), e.object, e.hypothesis), (*frame, kind.as_str(), *o, *h), "{e:?}");
+        match (e.distance, d) {
+            (Some(a), Some(b)) => assert!((a - b).abs() < 1e-12, "{e:?} vs {b}"),
+            (a, b) => assert_eq!(a.is_some(), b.is_some(), "{e:?}"),
+        }
+    }
+    println!("{} events equal motmetrics'", ours.len());
+}
