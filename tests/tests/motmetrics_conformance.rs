@@ -25,6 +25,9 @@ fn tud_campus_summary_equals_motmetrics() {
     assert!((summary.get("idf1").expect("idf1") - 0.557_659).abs() < 1e-6);
 }
 
+/// frame, type, object, hypothesis, distance — one row of motmetrics' event CSV.
+type ExpectedEvent = (i64, String, Option<i64>, Option<i64>, Option<f64>);
+
 #[test]
 fn tud_campus_events_equal_motmetrics() {
     let Some(dir) = data_dir("motmetrics") else { return };
@@ -35,7 +38,7 @@ fn tud_campus_events_equal_motmetrics() {
         std::fs::read_to_string(dir.join("expected/TUD-Campus_mot_events_motmetrics-1.4.0.csv")).expect("events");
     let id = |cell: &str| (!cell.is_empty()).then(|| cell.parse::<f64>().expect("id") as i64);
     // Within a frame motmetrics lists events in the order it makes them; so do we.
-    let expected: Vec<(i64, String, Option<i64>, Option<i64>, Option<f64>)> = text
+    let expected: Vec<ExpectedEvent> = text
         .lines()
         .skip(1)
         .map(|l| {
