@@ -58,7 +58,7 @@ pub fn read_mot(path: &Path) -> Result<Vec<MotRow>, String> {
 }
 
 /// What happened to an object or hypothesis in one frame (motmetrics' event types; the
-/// RAW events are kept separately as [`Raw`]).
+/// RAW events are kept separately, as per-frame counts).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EventKind {
     /// Object matched to the hypothesis it had before (or its first one).
