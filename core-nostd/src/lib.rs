@@ -13,6 +13,7 @@
 //! | [`nmea`] | NMEA 0183: framer, sentences, messages, epoch assembly |
 //! | [`box2d`] | image boxes, IoU, GIoU |
 //! | [`assign`] | optimal assignment (SciPy's algorithm) without allocation |
+//! | [`ekf`] | fixed-size (extended) Kalman filter, Joseph form |
 //! | [`can`] | CAN: J1939/NMEA 2000 ids, fast packets, GNSS/speed decoders, DBC signals |
 //!
 //! Capacity is part of the types; nothing here allocates or panics on untrusted input.
@@ -28,6 +29,7 @@ pub mod anchor;
 pub mod assign;
 pub mod box2d;
 pub mod can;
+pub mod ekf;
 pub mod geo;
 pub mod nmea;
 pub mod sim3;
