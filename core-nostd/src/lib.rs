@@ -13,6 +13,7 @@
 //! | [`nmea`] | NMEA 0183: framer, sentences, messages, epoch assembly |
 //! | [`box2d`] | image boxes, IoU, GIoU |
 //! | [`assign`] | optimal assignment (SciPy's algorithm) without allocation |
+//! | [`track2d`] | ByteTrack-style 2D tracking-by-detection |
 //! | [`ekf`] | fixed-size (extended) Kalman filter, Joseph form |
 //! | [`can`] | CAN: J1939/NMEA 2000 ids, fast packets, GNSS/speed decoders, DBC signals |
 //!
@@ -34,6 +35,7 @@ pub mod geo;
 pub mod nmea;
 pub mod sim3;
 pub mod time;
+pub mod track2d;
 pub mod traj;
 
 pub use nalgebra;

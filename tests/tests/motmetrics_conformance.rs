@@ -72,3 +72,25 @@ fn tud_campus_events_equal_motmetrics() {
     }
     println!("{} events equal motmetrics'", ours.len());
 }
+
+/// Issue #4: our tracker, fed the supplied tracker's boxes without their ids, must reach
+/// at least that tracker's IDF1 (0.5577) on TUD-Campus.
+#[test]
+fn track2d_on_tud_campus_beats_the_supplied_tracker() {
+    let Some(dir) = data_dir("motmetrics") else { return };
+    let gt = read_mot(&dir.join("TUD-Campus/gt.txt")).expect("gt");
+    let mut detections = read_mot(&dir.join("TUD-Campus/test.txt")).expect("test");
+    for d in &mut detections {
+        d.id = -1;
+    }
+    let (tracks, stats, skipped) = dash2sim_linux::track2d::track(&detections);
+    assert!(skipped.is_empty());
+    assert_eq!((stats.frames, stats.rejected_detections), (71, 0));
+    let summary = summarize(&compare(&gt, &tracks, 0.5));
+    let (idf1, mota) = (summary.get("idf1").expect("idf1"), summary.get("mota").expect("mota"));
+    println!(
+        "track2d on TUD-Campus: IDF1 {idf1:.4} (supplied tracker 0.5577), MOTA {mota:.4} (0.5265), {} switches",
+        summary.get("num_switches").unwrap_or(f64::NAN)
+    );
+    assert!(idf1 >= 0.5577, "IDF1 {idf1}");
+}

@@ -37,6 +37,15 @@ enum Command {
     /// CAN captures (candump): NMEA 2000, J1939, OBD-II and DBC-defined signals.
     #[command(subcommand)]
     Can(CanCommand),
+    /// Track 2D detections (MOTChallenge CSV; id column may be -1) with the ByteTrack-style
+    /// tracker; tracks are written as MOTChallenge CSV.
+    Track2d {
+        /// Detections.
+        detections: PathBuf,
+        /// Output tracks.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Multi-object tracking evaluation (MOTChallenge files).
     #[command(subcommand)]
     Mot(MotCommand),
@@ -161,6 +170,7 @@ pub fn run() -> ExitCode {
         Command::Anchor(args) => anchoring::run(&args),
         Command::Nmea(NmeaCommand::Decode { file, json }) => crate::nmea_decode::run(&file, json),
         Command::Can(CanCommand::Decode { file, dbc, json }) => crate::can_decode::run(&file, &dbc, json),
+        Command::Track2d { detections, output } => crate::track2d::run(&detections, &output),
         Command::Mot(MotCommand::Eval { gt, test, max_distance, json }) => mot_eval(&gt, &test, max_distance, json),
     };
     match result {

@@ -12,4 +12,5 @@ pub mod evaluate;
 pub mod mot;
 pub mod nmea_decode;
 pub mod sync;
+pub mod track2d;
 pub mod trajectory;

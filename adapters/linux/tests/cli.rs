@@ -152,6 +152,7 @@ fn every_subcommand_has_help() {
         &["can", "--help"],
         &["can", "decode", "--help"],
         &["mot", "eval", "--help"],
+        &["track2d", "--help"],
     ] {
         let out = dash2sim(args);
         assert!(out.status.success(), "{args:?}");
@@ -340,4 +341,22 @@ fn mot_eval_scores_and_names_bad_lines() {
     let bad = write(&dir, "nan.txt", "1,1,x,10,20,40\n");
     let out = dash2sim(&["mot", "eval", &gt, &bad]);
     assert!(stderr(&out).contains("nan.txt:1: column 3 \"x\" is not a number"), "{}", stderr(&out));
+}
+
+#[test]
+fn track2d_keeps_one_id_along_a_moving_box_and_skips_rows_out_of_order() {
+    let dir = scratch("track2d");
+    let mut lines: Vec<String> = (1..=5).map(|f| format!("{f},-1,{},10,20,40,0.9,-1,-1,-1", 10 + 2 * f)).collect();
+    lines.push("2,-1,14,10,20,40,0.9,-1,-1,-1".to_owned());
+    let dets = write(&dir, "dets.txt", &(lines.join("\n") + "\n"));
+    let tracks = dir.join("tracks.txt").display().to_string();
+    let out = dash2sim(&["track2d", &dets, "-o", &tracks]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).contains("row 6: frame 2 after frame 5, skipped"), "{}", stderr(&out));
+    let text = std::fs::read_to_string(&tracks).expect("tracks");
+    let rows: Vec<Vec<&str>> = text.lines().map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 5, "{text}");
+    assert!(rows.iter().all(|r| r[1] == "1"), "one id: {text}");
+    let x: f64 = rows[4][2].parse().expect("x");
+    assert!((x - 20.0).abs() < 0.5, "follows the box: {x}");
 }
