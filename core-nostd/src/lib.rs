@@ -14,6 +14,7 @@
 //! | [`box2d`] | image boxes, IoU, GIoU |
 //! | [`assign`] | optimal assignment (SciPy's algorithm) without allocation |
 //! | [`track2d`] | ByteTrack-style 2D tracking-by-detection |
+//! | [`claim`] | claim-and-suppress with a video propagator (Algorithm 1) |
 //! | [`ekf`] | fixed-size (extended) Kalman filter, Joseph form |
 //! | [`can`] | CAN: J1939/NMEA 2000 ids, fast packets, GNSS/speed decoders, DBC signals |
 //!
@@ -30,6 +31,7 @@ pub mod anchor;
 pub mod assign;
 pub mod box2d;
 pub mod can;
+pub mod claim;
 pub mod ekf;
 pub mod geo;
 pub mod nmea;
