@@ -12,6 +12,7 @@
 //! | [`traj`] | APE / RPE with evo's definitions |
 //! | [`nmea`] | NMEA 0183: framer, sentences, messages, epoch assembly |
 //! | [`box2d`] | image boxes, IoU, GIoU |
+//! | [`box3d`] | oriented 3D boxes, 3D IoU and GIoU (AB3DMOT) |
 //! | [`assign`] | optimal assignment (SciPy's algorithm) without allocation |
 //! | [`track2d`] | ByteTrack-style 2D tracking-by-detection |
 //! | [`claim`] | claim-and-suppress with a video propagator (Algorithm 1) |
@@ -30,6 +31,7 @@ extern crate std;
 pub mod anchor;
 pub mod assign;
 pub mod box2d;
+pub mod box3d;
 pub mod can;
 pub mod claim;
 pub mod ekf;
