@@ -16,6 +16,7 @@
 //! | [`assign`] | optimal assignment (SciPy's algorithm) without allocation |
 //! | [`track2d`] | ByteTrack-style 2D tracking-by-detection |
 //! | [`claim`] | claim-and-suppress with a video propagator (Algorithm 1) |
+//! | [`track3d`] | AB3DMOT-style 3D track manager with class priors |
 //! | [`ekf`] | fixed-size (extended) Kalman filter, Joseph form |
 //! | [`can`] | CAN: J1939/NMEA 2000 ids, fast packets, GNSS/speed decoders, DBC signals |
 //!
@@ -40,6 +41,7 @@ pub mod nmea;
 pub mod sim3;
 pub mod time;
 pub mod track2d;
+pub mod track3d;
 pub mod traj;
 
 pub use nalgebra;

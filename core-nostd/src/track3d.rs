@@ -1,0 +1,409 @@
+//! 3D track manager in the AB3DMOT style (Weng et al. 2020; DESIGN §3): one constant-
+//! velocity Kalman filter per object on [x y z θ l w h vx vy vz], association per class by
+//! 3D GIoU or centre distance through the optimal solver, tracks reported after
+//! `min_hits` hits and dropped after `max_age` missed frames.
+//!
+//! Orientation: detectors often flip a box by π; when a detection's yaw differs from the
+//! prediction by more than π/2 the prediction is turned by π first (AB3DMOT's
+//! correction), and yaw is kept in [−π, π). Class priors refuse impossible detections
+//! (sizes outside bounds, centres too far from the ground). Tracks whose speed stays
+//! below a threshold are reported static — cones and barrels — the rest dynamic.
+//!
+//! Capacity is in the type: `Tracker3d<N>` keeps at most N tracks; when full, the track
+//! with the fewest hits makes room or the candidate is dropped, and it is counted.
+
+use core::f64::consts::PI;
+
+use nalgebra::{SMatrix, SVector};
+
+use crate::assign::Solver;
+use crate::box3d::Box3d;
+use crate::ekf::Kalman;
+
+/// How detections of a class are matched to tracks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Association {
+    /// 3D GIoU at least this (AB3DMOT uses −0.2 for cars).
+    Giou(f64),
+    /// Horizontal centre distance at most this, metres (small objects: cones).
+    Distance(f64),
+}
+
+/// Per-class settings and priors.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClassConfig {
+    /// Matching rule.
+    pub association: Association,
+    /// Smallest plausible (l, w, h), metres.
+    pub min_size: [f64; 3],
+    /// Largest plausible (l, w, h).
+    pub max_size: [f64; 3],
+    /// Largest |centre z − (ground + h/2)|, metres.
+    pub max_ground_offset: f64,
+}
+
+/// Tracker settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Config3d<'a> {
+    /// Settings per class id (detections of other classes are refused).
+    pub classes: &'a [ClassConfig],
+    /// Hits before a track is reported (AB3DMOT: 3; reported at once in the first frames).
+    pub min_hits: u32,
+    /// Missed frames before a track is dropped (AB3DMOT: 2).
+    pub max_age: u32,
+    /// Ground height in the tracking frame, metres.
+    pub ground_z: f64,
+    /// Below this speed (m per frame) a track is static.
+    pub static_speed: f64,
+}
+
+/// A 3D detection.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Detection3d {
+    /// Class id (index into [`Config3d::classes`]).
+    pub class: u16,
+    /// Box.
+    pub bbox: Box3d,
+    /// Score in [0, 1].
+    pub score: f64,
+}
+
+/// A reported track.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Track3dOutput {
+    /// Id, from 1, never reused.
+    pub id: u32,
+    /// Class id.
+    pub class: u16,
+    /// Filtered box.
+    pub bbox: Box3d,
+    /// Velocity (x, y, z) per frame.
+    pub velocity: [f64; 3],
+    /// Speed below the static threshold.
+    pub is_static: bool,
+}
+
+/// Counters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stats3d {
+    /// Frames processed.
+    pub frames: u64,
+    /// Detections refused: non-finite, unknown class, score outside [0, 1], or outside
+    /// the class priors.
+    pub rejected: u64,
+    /// Detections beyond capacity.
+    pub dropped_detections: u64,
+    /// Tracks evicted or candidates dropped for lack of capacity.
+    pub dropped_tracks: u64,
+    /// Updates the filter refused (numerically singular).
+    pub refused_updates: u64,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Track {
+    id: u32,
+    class: u16,
+    kf: Kalman<10>,
+    hits: u32,
+    since_update: u32,
+}
+
+/// Wrap an angle into [−π, π).
+pub fn wrap_angle(a: f64) -> f64 {
+    let mut r = libm::fmod(a + PI, 2.0 * PI);
+    if r < 0.0 {
+        r += 2.0 * PI;
+    }
+    let wrapped = r - PI;
+    if wrapped.is_finite() {
+        wrapped
+    } else {
+        0.0
+    }
+}
+
+fn state_of(b: &Box3d) -> SVector<f64, 7> {
+    SVector::<f64, 7>::from_column_slice(&[b.x, b.y, b.z, wrap_angle(b.yaw), b.l, b.w, b.h])
+}
+
+fn box_of(x: &SVector<f64, 10>) -> Box3d {
+    Box3d { x: x[0], y: x[1], z: x[2], yaw: x[3], l: x[4], w: x[5], h: x[6] }
+}
+
+/// AB3DMOT's matrices: F (constant velocity, one frame), H = [I7 0], Q, R.
+fn model() -> (SMatrix<f64, 10, 10>, SMatrix<f64, 7, 10>, SMatrix<f64, 10, 10>, SMatrix<f64, 7, 7>) {
+    let mut f = SMatrix::<f64, 10, 10>::identity();
+    f[(0, 7)] = 1.0;
+    f[(1, 8)] = 1.0;
+    f[(2, 9)] = 1.0;
+    let mut h = SMatrix::<f64, 7, 10>::zeros();
+    for i in 0..7 {
+        h[(i, i)] = 1.0;
+    }
+    let mut q = SMatrix::<f64, 10, 10>::identity();
+    for i in 7..10 {
+        q[(i, i)] = 0.01;
+    }
+    (f, h, q, SMatrix::<f64, 7, 7>::identity())
+}
+
+/// AB3DMOT tracker with at most `N` tracks (and N detections per frame).
+#[derive(Clone, Debug)]
+pub struct Tracker3d<'a, const N: usize> {
+    config: Config3d<'a>,
+    tracks: heapless::Vec<Track, N>,
+    next_id: u32,
+    frame: u64,
+    solver: Solver<N>,
+    stats: Stats3d,
+}
+
+impl<'a, const N: usize> Tracker3d<'a, N> {
+    /// An empty tracker.
+    pub fn new(config: Config3d<'a>) -> Self {
+        Tracker3d {
+            config,
+            tracks: heapless::Vec::new(),
+            next_id: 1,
+            frame: 0,
+            solver: Solver::default(),
+            stats: Stats3d::default(),
+        }
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> &Stats3d {
+        &self.stats
+    }
+
+    /// Whether a detection is plausible for its class.
+    fn plausible(&self, d: &Detection3d) -> bool {
+        let b = &d.bbox;
+        let finite = [b.x, b.y, b.z, b.yaw, b.l, b.w, b.h].iter().all(|v| v.is_finite());
+        let Some(class) = self.config.classes.get(usize::from(d.class)) else { return false };
+        let size_ok = [b.l, b.w, b.h]
+            .iter()
+            .zip(class.min_size.iter().zip(&class.max_size))
+            .all(|(v, (lo, hi))| v >= lo && v <= hi);
+        let ground_ok = (b.z - (self.config.ground_z + b.h / 2.0)).abs() <= class.max_ground_offset;
+        finite && (0.0..=1.0).contains(&d.score) && size_ok && ground_ok
+    }
+
+    /// One frame: predict, associate, update, start and retire tracks; `emit` receives
+    /// the tracks to report.
+    pub fn update(&mut self, detections: &[Detection3d], mut emit: impl FnMut(Track3dOutput)) {
+        self.frame += 1;
+        self.stats.frames += 1;
+        let (f, h, q, r) = model();
+        for t in self.tracks.iter_mut() {
+            t.kf.predict(&f, &q);
+            t.kf.x[3] = wrap_angle(t.kf.x[3]);
+            t.since_update += 1;
+        }
+        // Plausible detections, at most N.
+        let mut picked = heapless::Vec::<usize, N>::new();
+        for (i, d) in detections.iter().enumerate() {
+            if !self.plausible(d) {
+                self.stats.rejected += 1;
+            } else if picked.push(i).is_err() {
+                self.stats.dropped_detections += 1;
+            }
+        }
+        let tracks = &self.tracks;
+        let classes = self.config.classes;
+        let cost = |t: usize, c: usize| -> Option<f64> {
+            let (track, d) = (&tracks[t], &detections[picked[c]]);
+            if track.class != d.class {
+                return None;
+            }
+            let predicted = box_of(&track.kf.x);
+            match classes.get(usize::from(d.class))?.association {
+                Association::Giou(min) => {
+                    let g = predicted.giou(&d.bbox);
+                    (g >= min).then_some(-g)
+                }
+                Association::Distance(max) => {
+                    let dist = predicted.centre_distance(&d.bbox);
+                    (dist <= max).then_some(dist)
+                }
+            }
+        };
+        let mut out = [None; N];
+        if self.solver.solve_sparse(self.tracks.len(), picked.len(), cost, &mut out).is_err() {
+            out = [None; N];
+        }
+        let mut used = [false; N];
+        for (t, c) in out.iter().take(self.tracks.len()).enumerate() {
+            let Some(c) = *c else { continue };
+            used[c] = true;
+            let d = &detections[picked[c]];
+            let track = &mut self.tracks[t];
+            // Turn the prediction by π when the detection points the other way.
+            let mut z = state_of(&d.bbox);
+            let diff = wrap_angle(z[3] - track.kf.x[3]);
+            if diff.abs() > PI / 2.0 {
+                track.kf.x[3] = wrap_angle(track.kf.x[3] + PI);
+            }
+            z[3] = track.kf.x[3] + wrap_angle(z[3] - track.kf.x[3]);
+            if track.kf.update(&z, &h, &r).is_err() {
+                self.stats.refused_updates += 1;
+            }
+            track.kf.x[3] = wrap_angle(track.kf.x[3]);
+            track.hits += 1;
+            track.since_update = 0;
+        }
+        // Retire old tracks.
+        let max_age = self.config.max_age;
+        self.tracks.retain(|t| t.since_update <= max_age);
+        // Start tracks from unmatched detections.
+        for (c, &i) in picked.iter().enumerate() {
+            if used[c] {
+                continue;
+            }
+            if self.tracks.is_full() {
+                self.stats.dropped_tracks += 1;
+                let weakest = (0..self.tracks.len())
+                    .filter(|&t| self.tracks[t].since_update > 0)
+                    .min_by_key(|&t| self.tracks[t].hits);
+                match weakest {
+                    Some(t) => {
+                        self.tracks.swap_remove(t);
+                    }
+                    None => continue,
+                }
+            }
+            let d = &detections[i];
+            let mut x = SVector::<f64, 10>::zeros();
+            x.fixed_rows_mut::<7>(0).copy_from(&state_of(&d.bbox));
+            let mut p = SMatrix::<f64, 10, 10>::identity() * 10.0;
+            for k in 7..10 {
+                p[(k, k)] = 1e4;
+            }
+            let _ = self.tracks.push(Track {
+                id: self.next_id,
+                class: d.class,
+                kf: Kalman::new(x, p),
+                hits: 1,
+                since_update: 0,
+            });
+            self.next_id = self.next_id.wrapping_add(1).max(1);
+        }
+        let (min_hits, frame, static_speed) = (self.config.min_hits, self.frame, self.config.static_speed);
+        for t in
+            self.tracks.iter().filter(|t| t.since_update == 0 && (t.hits >= min_hits || frame <= u64::from(min_hits)))
+        {
+            let v = [t.kf.x[7], t.kf.x[8], t.kf.x[9]];
+            emit(Track3dOutput {
+                id: t.id,
+                class: t.class,
+                bbox: box_of(&t.kf.x),
+                velocity: v,
+                is_static: libm::hypot(v[0], v[1]) < static_speed,
+            });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CLASSES: [ClassConfig; 2] = [
+        // 0: car
+        ClassConfig {
+            association: Association::Giou(-0.2),
+            min_size: [2.5, 1.4, 1.2],
+            max_size: [6.5, 2.6, 2.5],
+            max_ground_offset: 0.5,
+        },
+        // 1: cone
+        ClassConfig {
+            association: Association::Distance(1.0),
+            min_size: [0.2, 0.2, 0.3],
+            max_size: [0.8, 0.8, 1.2],
+            max_ground_offset: 0.3,
+        },
+    ];
+
+    fn config() -> Config3d<'static> {
+        Config3d { classes: &CLASSES, min_hits: 3, max_age: 2, ground_z: 0.0, static_speed: 0.05 }
+    }
+
+    fn car(x: f64, yaw: f64) -> Detection3d {
+        Detection3d { class: 0, bbox: Box3d { x, y: 0.0, z: 0.8, yaw, l: 4.5, w: 1.9, h: 1.6 }, score: 0.9 }
+    }
+
+    fn cone(x: f64, y: f64) -> Detection3d {
+        Detection3d { class: 1, bbox: Box3d { x, y, z: 0.35, yaw: 0.0, l: 0.4, w: 0.4, h: 0.7 }, score: 0.8 }
+    }
+
+    fn frame<const N: usize>(t: &mut Tracker3d<'_, N>, dets: &[Detection3d]) -> heapless::Vec<Track3dOutput, 8> {
+        let mut out = heapless::Vec::new();
+        t.update(dets, |o| out.push(o).expect("room"));
+        out
+    }
+
+    #[test]
+    fn a_moving_car_and_a_cone_keep_their_ids_and_kinds() {
+        let mut tracker = Tracker3d::<8>::new(config());
+        let mut last = heapless::Vec::<Track3dOutput, 8>::new();
+        for k in 0..10 {
+            // The detector flips the car by π every third frame.
+            let yaw = if k % 3 == 2 { PI - 0.01 } else { -0.01 };
+            last = frame(&mut tracker, &[car(1.5 * f64::from(k), yaw), cone(20.0, 3.0 + 0.02 * f64::from(k % 2))]);
+            if let Some(car_track) = last.iter().find(|o| o.class == 0) {
+                // With the π correction the filter follows the flip instead of averaging
+                // the two headings (which would leave it ~90° off).
+                assert!(wrap_angle(car_track.bbox.yaw - yaw).abs() < 0.1, "frame {k}: {}", car_track.bbox.yaw);
+            }
+        }
+        assert_eq!(last.len(), 2);
+        let car_track = last.iter().find(|o| o.class == 0).expect("car");
+        let cone_track = last.iter().find(|o| o.class == 1).expect("cone");
+        assert_eq!((car_track.id, cone_track.id), (1, 2));
+        assert!((car_track.velocity[0] - 1.5).abs() < 0.1, "{:?}", car_track.velocity);
+        assert!(!car_track.is_static && cone_track.is_static);
+    }
+
+    #[test]
+    fn tracks_need_three_hits_after_the_start_and_die_after_two_misses() {
+        let mut tracker = Tracker3d::<8>::new(config());
+        for _ in 0..3 {
+            frame(&mut tracker, &[]);
+        }
+        assert!(frame(&mut tracker, &[cone(5.0, 0.0)]).is_empty());
+        assert!(frame(&mut tracker, &[cone(5.0, 0.0)]).is_empty());
+        assert_eq!(frame(&mut tracker, &[cone(5.0, 0.0)]).len(), 1);
+        frame(&mut tracker, &[]);
+        frame(&mut tracker, &[]);
+        // Two misses survived; the third kills it, so the cone comes back with a new id.
+        frame(&mut tracker, &[]);
+        let _ = frame(&mut tracker, &[cone(5.0, 0.0)]);
+        assert_eq!(tracker.tracks.first().map(|t| t.id), Some(2));
+    }
+
+    #[test]
+    fn impossible_detections_are_refused_and_counted() {
+        let mut tracker = Tracker3d::<2>::new(config());
+        let mut floating = cone(0.0, 0.0);
+        floating.bbox.z = 3.0;
+        let mut huge = car(0.0, 0.0);
+        huge.bbox.l = 12.0;
+        let mut nan = car(0.0, 0.0);
+        nan.bbox.x = f64::NAN;
+        let unknown = Detection3d { class: 7, ..car(0.0, 0.0) };
+        frame(&mut tracker, &[floating, huge, nan, unknown, Detection3d { score: 1.5, ..car(0.0, 0.0) }]);
+        assert_eq!(tracker.stats().rejected, 5);
+        assert!(tracker.tracks.is_empty());
+        // Three cones for two slots.
+        frame(&mut tracker, &[cone(0.0, 0.0), cone(5.0, 0.0), cone(10.0, 0.0)]);
+        assert_eq!(tracker.stats().dropped_detections, 1);
+    }
+
+    #[test]
+    fn angles_wrap() {
+        assert!((wrap_angle(3.0 * PI / 2.0) + PI / 2.0).abs() < 1e-12);
+        assert!((wrap_angle(-PI) + PI).abs() < 1e-12);
+        assert_eq!(wrap_angle(f64::NAN), 0.0);
+    }
+}
