@@ -4,6 +4,10 @@
 //! The linear form (`predict`, `update`) is filterpy's `KalmanFilter` step for step; the
 //! extended form takes the propagated state / innovation and the Jacobians from the
 //! caller, so the motion and measurement models stay with the trackers that own them.
+//!
+//! Offline finishing uses [`rts_smooth`]: the Rauch–Tung–Striebel backward pass over the
+//! filtered states of a whole track (filterpy's `rts_smoother`), in place, so a finished
+//! log gets the estimate that uses every measurement, past and future.
 
 use nalgebra::{SMatrix, SVector};
 
@@ -112,6 +116,50 @@ impl<const N: usize> Kalman<N> {
     }
 }
 
+/// One filtered step for [`rts_smooth`]: the posterior at this step and the model that
+/// led here from the previous step (`f`, `q`; ignored for the first step).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SmoothStep<const N: usize> {
+    /// Filtered state; smoothed in place.
+    pub x: SVector<f64, N>,
+    /// Filtered covariance; smoothed in place.
+    pub p: SMatrix<f64, N, N>,
+    /// Transition from the previous step to this one (F^k after k predictions without
+    /// an update).
+    pub f: SMatrix<f64, N, N>,
+    /// Process noise accumulated over that transition.
+    pub q: SMatrix<f64, N, N>,
+}
+
+/// Rauch–Tung–Striebel smoothing of filtered steps, in place (filterpy's
+/// `KalmanFilter.rts_smoother`): for k from the second last down,
+/// Pp = F P_k Fᵀ + Q, C = P_k Fᵀ Pp⁻¹, x_k += C (x_{k+1} − F x_k), P_k += C (P_{k+1} − Pp) Cᵀ
+/// (F, Q of step k + 1). Returns how many steps were left as filtered because their
+/// predicted covariance was singular or the result not finite. States with an angle must
+/// be unwrapped (continuous) before smoothing.
+pub fn rts_smooth<const N: usize>(steps: &mut [SmoothStep<N>]) -> usize {
+    let mut refused = 0;
+    for k in (0..steps.len().saturating_sub(1)).rev() {
+        let (head, tail) = steps.split_at_mut(k + 1);
+        let (Some(step), Some(next)) = (head.last_mut(), tail.first()) else { continue };
+        let predicted_p = next.f * step.p * next.f.transpose() + next.q;
+        let Some(predicted_p_inv) = predicted_p.try_inverse() else {
+            refused += 1;
+            continue;
+        };
+        let gain = step.p * next.f.transpose() * predicted_p_inv;
+        let x = step.x + gain * (next.x - next.f * step.x);
+        let p = step.p + gain * (next.p - predicted_p) * gain.transpose();
+        if !x.iter().chain(p.iter()).all(|v| v.is_finite()) {
+            refused += 1;
+            continue;
+        }
+        step.x = x;
+        step.p = (p + p.transpose()) * 0.5;
+    }
+    refused
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -142,6 +190,37 @@ mod tests {
         assert_eq!(kf.update(&Vector1::new(1.0), &h, &Matrix1::new(0.0)), Err(KalmanError::Singular));
         assert_eq!(kf.update(&Vector1::new(f64::NAN), &h, &Matrix1::new(1.0)), Err(KalmanError::NotFinite));
         assert_eq!(kf, before);
+    }
+
+    #[test]
+    fn smoothing_a_random_walk_by_hand() {
+        // Scalar random walk, Q = 1, measured twice with R = 1 from P0 = 1:
+        // filtered P = 1/2 then (3/2 · 1)/(5/2) = 3/5; x1 = 0 → smoothed x0 gains
+        // C = (1/2)/(3/2) = 1/3 of the difference x1 − x0.
+        let f = Matrix1::new(1.0);
+        let q = Matrix1::new(1.0);
+        let mut steps = [
+            SmoothStep { x: Vector1::new(1.0), p: Matrix1::new(0.5), f, q },
+            SmoothStep { x: Vector1::new(0.0), p: Matrix1::new(0.6), f, q },
+        ];
+        assert_eq!(rts_smooth(&mut steps), 0);
+        assert!((steps[0].x[0] - 2.0 / 3.0).abs() < 1e-15);
+        // P0 = 1/2 + (1/3)² (3/5 − 3/2) = 1/2 − 1/10.
+        assert!((steps[0].p[(0, 0)] - 0.4).abs() < 1e-15);
+        // The last step is its filtered self.
+        assert_eq!(steps[1].x[0], 0.0);
+    }
+
+    #[test]
+    fn smoothing_skips_singular_steps_and_handles_empty_input() {
+        assert_eq!(rts_smooth::<1>(&mut []), 0);
+        let zero = Matrix1::new(0.0);
+        let mut steps = [
+            SmoothStep { x: Vector1::new(1.0), p: zero, f: zero, q: zero },
+            SmoothStep { x: Vector1::new(5.0), p: zero, f: zero, q: zero },
+        ];
+        assert_eq!(rts_smooth(&mut steps), 1);
+        assert_eq!(steps[0].x[0], 1.0);
     }
 
     #[test]
