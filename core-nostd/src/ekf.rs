@@ -131,6 +131,14 @@ pub struct SmoothStep<const N: usize> {
     pub q: SMatrix<f64, N, N>,
 }
 
+impl<const N: usize> SmoothStep<N> {
+    /// A step from a filter's posterior; `f` and `q` start as I and 0 for the caller (or
+    /// the track smoother) to set.
+    pub fn filtered(kf: &Kalman<N>) -> Self {
+        SmoothStep { x: kf.x, p: kf.p, f: SMatrix::identity(), q: SMatrix::zeros() }
+    }
+}
+
 /// Rauch–Tung–Striebel smoothing of filtered steps, in place (filterpy's
 /// `KalmanFilter.rts_smoother`): for k from the second last down,
 /// Pp = F P_k Fᵀ + Q, C = P_k Fᵀ Pp⁻¹, x_k += C (x_{k+1} − F x_k), P_k += C (P_{k+1} − Pp) Cᵀ

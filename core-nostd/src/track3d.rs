@@ -48,6 +48,10 @@ pub struct ClassConfig {
     /// Measurement noise: the diagonal of R over [x y z θ l w h]
     /// ([`AB3DMOT_MEASUREMENT_NOISE`]; the detector's real variance is better).
     pub measurement_noise: [f64; 7],
+    /// Variance of a new track's velocity, (m/frame)² (AB3DMOT: 1e4, i.e. unknown). A
+    /// small value is the prior that objects of the class stand still; it still moves
+    /// if the measurements say so, but a few noisy detections no longer make a cone drive.
+    pub initial_velocity_variance: f64,
 }
 
 /// AB3DMOT's Q: 1 on the box, 0.01 on the velocity.
@@ -80,6 +84,17 @@ pub struct Detection3d {
     pub bbox: Box3d,
     /// Score in [0, 1].
     pub score: f64,
+    /// Covariance of the horizontal centre (xx, xy, yy), m², when the detector reports
+    /// it: it replaces the class's R for x and y. A monocular detector's depth error grows
+    /// with range and lies along the viewing ray, which one R per class cannot describe.
+    pub position_covariance: Option<[f64; 3]>,
+}
+
+impl Detection3d {
+    /// A detection without its own covariance (the class's R applies).
+    pub fn new(class: u16, bbox: Box3d, score: f64) -> Self {
+        Detection3d { class, bbox, score, position_covariance: None }
+    }
 }
 
 /// A reported track.
@@ -104,8 +119,8 @@ pub struct Track3dOutput {
 pub struct Stats3d {
     /// Frames processed.
     pub frames: u64,
-    /// Detections refused: non-finite, unknown class, score outside [0, 1], or outside
-    /// the class priors.
+    /// Detections refused: non-finite, unknown class, score outside [0, 1], a covariance
+    /// that is not positive definite, or outside the class priors.
     pub rejected: u64,
     /// Detections beyond capacity.
     pub dropped_detections: u64,
@@ -260,7 +275,10 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
             .zip(class.min_size.iter().zip(&class.max_size))
             .all(|(v, (lo, hi))| v >= lo && v <= hi);
         let ground_ok = (b.z - (self.config.ground_z + b.h / 2.0)).abs() <= class.max_ground_offset;
-        finite && (0.0..=1.0).contains(&d.score) && size_ok && ground_ok
+        let covariance_ok = d.position_covariance.is_none_or(|[xx, xy, yy]| {
+            [xx, xy, yy].iter().all(|v| v.is_finite()) && xx > 0.0 && yy > 0.0 && xx * yy > xy * xy
+        });
+        finite && (0.0..=1.0).contains(&d.score) && size_ok && ground_ok && covariance_ok
     }
 
     /// One frame: predict, associate, update, start and retire tracks; `emit` receives
@@ -315,7 +333,10 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
             let d = &detections[picked[c]];
             let track = &mut self.tracks[t];
             let Some(class) = classes.get(usize::from(d.class)) else { continue };
-            let (h, r) = measurement_model(&class.measurement_noise);
+            let (h, mut r) = measurement_model(&class.measurement_noise);
+            if let Some([xx, xy, yy]) = d.position_covariance {
+                (r[(0, 0)], r[(0, 1)], r[(1, 0)], r[(1, 1)]) = (xx, xy, xy, yy);
+            }
             // Turn the prediction by π when the detection points the other way.
             let mut z = state_of(&d.bbox);
             let diff = wrap_angle(z[3] - track.kf.x[3]);
@@ -354,8 +375,10 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
             let mut x = SVector::<f64, 10>::zeros();
             x.fixed_rows_mut::<7>(0).copy_from(&state_of(&d.bbox));
             let mut p = SMatrix::<f64, 10, 10>::identity() * 10.0;
+            let velocity_variance =
+                self.config.classes.get(usize::from(d.class)).map_or(1e4, |c| c.initial_velocity_variance);
             for k in 7..10 {
-                p[(k, k)] = 1e4;
+                p[(k, k)] = velocity_variance;
             }
             let _ = self.tracks.push(Track {
                 id: self.next_id,
@@ -396,6 +419,7 @@ mod tests {
             max_ground_offset: 0.5,
             process_noise: AB3DMOT_PROCESS_NOISE,
             measurement_noise: AB3DMOT_MEASUREMENT_NOISE,
+            initial_velocity_variance: 1e4,
         },
         // 1: cone
         ClassConfig {
@@ -405,6 +429,7 @@ mod tests {
             max_ground_offset: 0.3,
             process_noise: AB3DMOT_PROCESS_NOISE,
             measurement_noise: AB3DMOT_MEASUREMENT_NOISE,
+            initial_velocity_variance: 1e4,
         },
     ];
 
@@ -413,11 +438,11 @@ mod tests {
     }
 
     fn car(x: f64, yaw: f64) -> Detection3d {
-        Detection3d { class: 0, bbox: Box3d { x, y: 0.0, z: 0.8, yaw, l: 4.5, w: 1.9, h: 1.6 }, score: 0.9 }
+        Detection3d::new(0, Box3d { x, y: 0.0, z: 0.8, yaw, l: 4.5, w: 1.9, h: 1.6 }, 0.9)
     }
 
     fn cone(x: f64, y: f64) -> Detection3d {
-        Detection3d { class: 1, bbox: Box3d { x, y, z: 0.35, yaw: 0.0, l: 0.4, w: 0.4, h: 0.7 }, score: 0.8 }
+        Detection3d::new(1, Box3d { x, y, z: 0.35, yaw: 0.0, l: 0.4, w: 0.4, h: 0.7 }, 0.8)
     }
 
     fn frame<const N: usize>(t: &mut Tracker3d<'_, N>, dets: &[Detection3d]) -> heapless::Vec<Track3dOutput, 8> {
@@ -475,8 +500,10 @@ mod tests {
         let mut nan = car(0.0, 0.0);
         nan.bbox.x = f64::NAN;
         let unknown = Detection3d { class: 7, ..car(0.0, 0.0) };
-        frame(&mut tracker, &[floating, huge, nan, unknown, Detection3d { score: 1.5, ..car(0.0, 0.0) }]);
-        assert_eq!(tracker.stats().rejected, 5);
+        let indefinite = Detection3d { position_covariance: Some([1.0, 2.0, 1.0]), ..car(0.0, 0.0) };
+        let bad = [floating, huge, nan, unknown, Detection3d { score: 1.5, ..car(0.0, 0.0) }, indefinite];
+        frame(&mut tracker, &bad);
+        assert_eq!(tracker.stats().rejected, 6);
         assert!(tracker.tracks.is_empty());
         // Three cones for two slots.
         frame(&mut tracker, &[cone(0.0, 0.0), cone(5.0, 0.0), cone(10.0, 0.0)]);
@@ -504,7 +531,7 @@ mod tests {
             d.bbox.y += noise(&mut seed, 0.8);
             let detections: &[Detection3d] = if k == 20 || k == 21 { &[] } else { &[d] };
             tracker.update(detections, |o| {
-                let step = SmoothStep { x: o.state.x, p: o.state.p, f: o.state.p, q: o.state.p };
+                let step = SmoothStep::filtered(&o.state);
                 assert!(frames.push(u64::from(k) + 1).is_ok() && steps.push(step).is_ok() && truth.push(x).is_ok());
             });
         }
@@ -525,6 +552,21 @@ mod tests {
         assert_eq!(smooth_track(&frames[1..], &mut steps, &AB3DMOT_PROCESS_NOISE), Err(SmoothError::LengthMismatch));
         frames.swap(3, 4);
         assert_eq!(smooth_track(&frames, &mut steps, &AB3DMOT_PROCESS_NOISE), Err(SmoothError::NotIncreasing));
+    }
+
+    #[test]
+    fn a_detections_own_covariance_replaces_the_class_noise() {
+        let run = |covariance| {
+            let mut tracker = Tracker3d::<2>::new(config());
+            frame(&mut tracker, &[cone(5.0, 0.0)]);
+            let second = Detection3d { position_covariance: covariance, ..cone(6.0, 0.0) };
+            frame(&mut tracker, &[second])[0].state.p
+        };
+        // The predicted variance (~1e4, from the unknown velocity) meets R: the posterior
+        // variance is about R, whichever R was used.
+        assert!((run(None)[(0, 0)] - 1.0).abs() < 1e-3, "{}", run(None)[(0, 0)]);
+        let own = run(Some([1e-6, 0.0, 4e-6]));
+        assert!((own[(0, 0)] - 1e-6).abs() < 1e-9 && (own[(1, 1)] - 4e-6).abs() < 1e-9, "{own}");
     }
 
     #[test]

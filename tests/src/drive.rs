@@ -4,62 +4,10 @@
 use std::path::Path;
 
 use dash2sim_core::anchor::{AnchorConfig, Observability};
-use dash2sim_core::nalgebra::{Matrix3, Rotation3, Unit, Vector3};
-use dash2sim_core::sim3::{rotation_z, Pose};
+use dash2sim_core::nalgebra::Vector3;
 use dash2sim_linux::anchoring::{self, FrameEstimate};
+pub use dash2sim_linux::scenario::vo::VoModel;
 use dash2sim_linux::trajectory::{Format, Trajectory};
-
-/// How the VO track is made from the truth.
-#[derive(Clone, Copy, Debug)]
-pub struct VoModel {
-    /// Metres per VO unit at t = 0.
-    pub scale: f64,
-    /// VO → ENU rotation at t = 0.
-    pub rotation: Matrix3<f64>,
-    /// Relative scale drift per minute (0.01 = 1 %).
-    pub scale_drift_per_min: f64,
-    /// Yaw drift, degrees per minute.
-    pub yaw_drift_deg_per_min: f64,
-}
-
-impl VoModel {
-    /// An arbitrary 3D orientation and scale 3.7 with 1 %/min scale and 1°/min yaw drift.
-    pub fn arbitrary() -> Self {
-        let axis = Unit::new_normalize(Vector3::new(0.4, -0.7, 0.6));
-        VoModel {
-            scale: 3.7,
-            rotation: *Rotation3::from_axis_angle(&axis, 2.3).matrix(),
-            scale_drift_per_min: 0.01,
-            yaw_drift_deg_per_min: 1.0,
-        }
-    }
-
-    /// The true VO → ENU scale at `t` seconds from the start.
-    pub fn scale_at(&self, t: f64) -> f64 {
-        self.scale * (1.0 + self.scale_drift_per_min * t / 60.0)
-    }
-
-    fn rotation_at(&self, t: f64) -> Matrix3<f64> {
-        rotation_z((self.yaw_drift_deg_per_min * t / 60.0).to_radians()) * self.rotation
-    }
-
-    /// VO positions: truth increments mapped back through the drifting similarity.
-    pub fn make_vo(&self, truth: &Trajectory) -> Trajectory {
-        let t0 = truth.stamps[0];
-        let mut vo = Trajectory::default();
-        let mut x = Vector3::zeros();
-        for (k, (&t, pose)) in truth.stamps.iter().zip(&truth.poses).enumerate() {
-            if k > 0 {
-                let dp = pose.translation - truth.poses[k - 1].translation;
-                let tau = t - t0;
-                x += self.rotation_at(tau).transpose() * dp / self.scale_at(tau);
-            }
-            vo.stamps.push(t);
-            vo.poses.push(Pose { rotation: Matrix3::identity(), translation: x });
-        }
-        vo
-    }
-}
 
 /// The real inputs of the scenario.
 #[derive(Clone, Debug)]

@@ -11,6 +11,7 @@ pub mod cli;
 pub mod evaluate;
 pub mod mot;
 pub mod nmea_decode;
+pub mod scenario;
 pub mod sync;
 pub mod track2d;
 pub mod trajectory;

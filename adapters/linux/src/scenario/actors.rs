@@ -1,0 +1,314 @@
+//! What moves and what stands in a generated scenario: the object classes, the work zone
+//! laid out along a taper, the other vehicles, and the ego drive with its lane change
+//! through the closure.
+
+use dash2sim_core::box3d::Box3d;
+use rand::Rng;
+
+use super::gauss;
+use super::road::{lane_change, wrap, Road};
+
+/// Object classes of a work-zone scene; the discriminant is the class id used by the
+/// trackers and written to files.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u16)]
+pub enum Class {
+    /// Passenger car.
+    Car = 0,
+    /// Truck.
+    Truck = 1,
+    /// Traffic cone.
+    Cone = 2,
+    /// Channelizing drum (barrel).
+    Drum = 3,
+    /// Type III barricade across a closed lane.
+    Barricade = 4,
+    /// Trailer-mounted arrow board.
+    ArrowBoard = 5,
+    /// Work-zone sign on the shoulder.
+    Sign = 6,
+}
+
+impl Class {
+    /// Every class, by id.
+    pub const ALL: [Class; 7] =
+        [Class::Car, Class::Truck, Class::Cone, Class::Drum, Class::Barricade, Class::ArrowBoard, Class::Sign];
+
+    /// The class with this id.
+    pub fn from_id(id: u16) -> Option<Class> {
+        Class::ALL.get(usize::from(id)).copied()
+    }
+
+    /// Lower-case name as written to files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Class::Car => "car",
+            Class::Truck => "truck",
+            Class::Cone => "cone",
+            Class::Drum => "drum",
+            Class::Barricade => "barricade",
+            Class::ArrowBoard => "arrow_board",
+            Class::Sign => "sign",
+        }
+    }
+
+    /// Nominal size (length along the heading, width, height), metres.
+    pub fn size(self) -> [f64; 3] {
+        match self {
+            Class::Car => [4.6, 1.9, 1.5],
+            Class::Truck => [9.0, 2.5, 3.4],
+            Class::Cone => [0.36, 0.36, 0.71],
+            Class::Drum => [0.58, 0.58, 1.0],
+            Class::Barricade => [1.8, 0.4, 1.5],
+            Class::ArrowBoard => [3.6, 2.2, 3.2],
+            Class::Sign => [0.15, 1.2, 2.2],
+        }
+    }
+
+    /// Whether objects of this class are placed once and never move.
+    pub fn is_static(self) -> bool {
+        !matches!(self, Class::Car | Class::Truck)
+    }
+
+    /// Whether its heading can be told from its shape (cones and drums are round).
+    pub fn has_heading(self) -> bool {
+        !matches!(self, Class::Cone | Class::Drum)
+    }
+
+    /// Farthest range at which the detector sees it, metres.
+    pub fn max_range(self) -> f64 {
+        match self {
+            Class::Car => 80.0,
+            Class::Truck => 90.0,
+            Class::Cone => 45.0,
+            Class::Drum => 55.0,
+            Class::Barricade => 60.0,
+            Class::ArrowBoard => 90.0,
+            Class::Sign => 70.0,
+        }
+    }
+}
+
+/// Ground truth of one object at one frame (world ENU frame).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ObjectState {
+    /// Object id, from 1, stable over the scenario.
+    pub id: u32,
+    /// Class.
+    pub class: Class,
+    /// Box; `z` is the centre (ground at 0).
+    pub bbox: Box3d,
+    /// Horizontal velocity, m/s.
+    pub velocity: [f64; 2],
+}
+
+impl ObjectState {
+    /// Static ground truth: the object does not move.
+    pub fn is_static(&self) -> bool {
+        self.class.is_static()
+    }
+}
+
+/// Where the work zone lies along the road (s, metres).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorkZone {
+    /// Start of the taper that closes the right lane.
+    pub taper_start: f64,
+    /// Taper length.
+    pub taper_length: f64,
+    /// Length of the closure after the taper.
+    pub closure_length: f64,
+    /// Length of the taper that opens the lane again.
+    pub end_taper_length: f64,
+}
+
+impl WorkZone {
+    /// End of the closure (start of the end taper).
+    pub fn closure_end(&self) -> f64 {
+        self.taper_start + self.taper_length + self.closure_length
+    }
+
+    /// End of the whole zone.
+    pub fn end(&self) -> f64 {
+        self.closure_end() + self.end_taper_length
+    }
+}
+
+/// A box standing on the ground at road coordinates (s, d), turned `yaw_offset` from the
+/// road heading.
+fn standing_box(road: &Road, class: Class, s: f64, d: f64, yaw_offset: f64, scale: f64) -> Box3d {
+    let (x, y) = road.point(s, d);
+    let [l, w, h] = class.size().map(|v| v * scale);
+    Box3d { x, y, z: h / 2.0, yaw: wrap(road.pose(s).heading + yaw_offset), l, w, h }
+}
+
+/// The static objects of the zone: signs ahead of it on the shoulder, drums along the
+/// taper, cones along the closed lane's line and the end taper, barricades across the
+/// closed lane and an arrow board behind the taper. Positions jitter by a few centimetres.
+pub fn lay_out_work_zone(road: &Road, zone: &WorkZone, rng: &mut impl Rng, next_id: &mut u32) -> Vec<ObjectState> {
+    let edge = road.right_edge();
+    let line = edge + road.lane_width; // between the closed lane and the open one
+    let closed_lane = road.forward_lane(0);
+    let mut placements: Vec<(Class, f64, f64, f64)> = Vec::new();
+    for ahead in [200.0, 130.0, 60.0] {
+        placements.push((Class::Sign, zone.taper_start - ahead, edge - 1.5, 0.0));
+    }
+    let drums = 9;
+    for k in 0..=drums {
+        let u = f64::from(k) / f64::from(drums);
+        let s = zone.taper_start + u * zone.taper_length;
+        placements.push((Class::Drum, s, edge + 0.3 + u * (line - 0.1 - edge - 0.3), 0.0));
+    }
+    placements.push((Class::ArrowBoard, zone.taper_start + zone.taper_length - 5.0, closed_lane - 0.4, 0.0));
+    for d in [closed_lane + 0.9, closed_lane - 0.9] {
+        placements.push((Class::Barricade, zone.taper_start + zone.taper_length + 8.0, d, std::f64::consts::FRAC_PI_2));
+    }
+    let mut s = zone.taper_start + zone.taper_length + 12.0;
+    while s < zone.closure_end() {
+        placements.push((Class::Cone, s, line - 0.1, 0.0));
+        s += 12.0;
+    }
+    let end_cones = 4;
+    for k in 0..=end_cones {
+        let u = f64::from(k) / f64::from(end_cones);
+        placements.push((
+            Class::Cone,
+            zone.closure_end() + u * zone.end_taper_length,
+            line - 0.1 + u * (edge - line),
+            0.0,
+        ));
+    }
+    placements
+        .into_iter()
+        .map(|(class, s, d, yaw)| {
+            let (ds, dd) = (gauss(rng, 0.08), gauss(rng, 0.08));
+            let yaw = if class.has_heading() { yaw + gauss(rng, 0.04) } else { rng.random_range(-3.1..3.1) };
+            let scale = 1.0 + gauss(rng, 0.02);
+            let id = *next_id;
+            *next_id += 1;
+            ObjectState { id, class, bbox: standing_box(road, class, s + ds, d + dd, yaw, scale), velocity: [0.0; 2] }
+        })
+        .collect()
+}
+
+/// Another road user: drives its lane at constant speed, optionally changing lanes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Vehicle {
+    /// Object id.
+    pub id: u32,
+    /// Car or truck.
+    pub class: Class,
+    /// s at t = 0.
+    pub s0: f64,
+    /// Speed along s, m/s (negative in backward lanes).
+    pub speed: f64,
+    /// Lateral offset of its lane.
+    pub d: f64,
+    /// A lane change: (start s, end s, target d).
+    pub lane_change: Option<(f64, f64, f64)>,
+}
+
+impl Vehicle {
+    /// Road coordinates at time `t`: (s, d).
+    fn road_position(&self, t: f64) -> (f64, f64) {
+        let s = self.s0 + self.speed * t;
+        let d = match self.lane_change {
+            Some((s0, s1, to)) => lane_change(s, s0, s1, self.d, to),
+            None => self.d,
+        };
+        (s, d)
+    }
+
+    /// Ground truth at `t`, or `None` when it is off the road.
+    pub fn state(&self, road: &Road, t: f64) -> Option<ObjectState> {
+        let (s, d) = self.road_position(t);
+        if !(0.0..=road.length()).contains(&s) {
+            return None;
+        }
+        let dt = 0.05;
+        let (s_next, d_next) = self.road_position(t + dt);
+        let (x, y) = road.point(s, d);
+        let (xn, yn) = road.point(s_next, d_next);
+        let velocity = [(xn - x) / dt, (yn - y) / dt];
+        let [l, w, h] = self.class.size();
+        let yaw = velocity[1].atan2(velocity[0]);
+        Some(ObjectState { id: self.id, class: self.class, bbox: Box3d { x, y, z: h / 2.0, yaw, l, w, h }, velocity })
+    }
+}
+
+/// The ego vehicle at one instant (world frame, reference point at the rear axle on the ground).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EgoState {
+    /// Seconds from the start.
+    pub t: f64,
+    /// Road coordinates.
+    pub s: f64,
+    /// Lateral offset.
+    pub d: f64,
+    /// East.
+    pub x: f64,
+    /// North.
+    pub y: f64,
+    /// Heading, radians from east.
+    pub heading: f64,
+    /// Ground speed, m/s.
+    pub speed: f64,
+}
+
+/// How the ego drives: cruise, slow for the zone, change lanes around the closure and back.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EgoPlan {
+    /// Start s.
+    pub s0: f64,
+    /// Speed outside the zone, m/s.
+    pub cruise_speed: f64,
+    /// Speed through the zone, m/s.
+    pub zone_speed: f64,
+    /// Largest acceleration and deceleration, m/s².
+    pub max_accel: f64,
+    /// Lateral offsets of the open lane and the closed lane.
+    pub lanes: (f64, f64),
+    /// Lane change into the open lane: (start s, end s); and back: (start s, end s).
+    pub changes: [(f64, f64); 2],
+    /// Where the zone speed applies: (from s, to s).
+    pub slow: (f64, f64),
+}
+
+impl EgoPlan {
+    fn lateral(&self, s: f64) -> f64 {
+        let (open, closed) = self.lanes;
+        let [(a0, a1), (b0, b1)] = self.changes;
+        if s < b0 {
+            lane_change(s, a0, a1, closed, open)
+        } else {
+            lane_change(s, b0, b1, open, closed)
+        }
+    }
+
+    /// Integrate the plan at 100 Hz; one state every `1 / rate_hz` seconds for `duration_s`.
+    pub fn drive(&self, road: &Road, duration_s: f64, rate_hz: f64) -> Vec<EgoState> {
+        let dt = 0.01;
+        let per_frame = (1.0 / (rate_hz * dt)).round().max(1.0) as usize;
+        let steps = (duration_s / dt).round() as usize;
+        let (mut s, mut v) = (self.s0, self.cruise_speed);
+        let mut states = Vec::with_capacity(steps / per_frame + 1);
+        for k in 0..=steps {
+            // Brake for the zone early enough to be at zone speed when it starts.
+            let braking = (self.cruise_speed.powi(2) - self.zone_speed.powi(2)) / (2.0 * self.max_accel);
+            let target =
+                if s + braking >= self.slow.0 && s < self.slow.1 { self.zone_speed } else { self.cruise_speed };
+            let a = ((target - v) / 1.0).clamp(-self.max_accel, self.max_accel);
+            if k % per_frame == 0 {
+                let d = self.lateral(s);
+                let (x, y) = road.point(s, d);
+                let (xn, yn) = road.point(s + v * dt, self.lateral(s + v * dt));
+                let heading = (yn - y).atan2(xn - x);
+                let speed = (xn - x).hypot(yn - y) / dt;
+                states.push(EgoState { t: k as f64 * dt, s, d, x, y, heading, speed });
+            }
+            s += v * dt + 0.5 * a * dt * dt;
+            v += a * dt;
+        }
+        states
+    }
+}

@@ -1,0 +1,269 @@
+//! Writing a generated scenario to a folder, in the formats the rest of the tool reads:
+//! TUM trajectories, NMEA 0183, CSV, MOTChallenge text files and an OpenStreetMap file of
+//! the road. `docs/scenario.md` lists every file and column.
+
+use std::fmt::Write as _;
+use std::fs;
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use dash2sim_core::geo::{Geodetic, LocalFrame};
+use dash2sim_core::nalgebra::Vector3;
+use dash2sim_core::sim3::Pose;
+use serde_json::json;
+
+use super::actors::Class;
+use super::road::Segment;
+use super::Scenario;
+use crate::trajectory::{write_file, Format, Trajectory};
+
+/// UTC time of day of the first frame, seconds (08:00:00); the date is 2026-06-01.
+const START_SECONDS_OF_DAY: f64 = 8.0 * 3600.0;
+
+fn create(dir: &Path, name: &str, written: &mut Vec<PathBuf>) -> io::Result<BufWriter<fs::File>> {
+    let path = dir.join(name);
+    let file = fs::File::create(&path).map_err(|e| io::Error::new(e.kind(), format!("{}: {e}", path.display())))?;
+    written.push(path);
+    Ok(BufWriter::new(file))
+}
+
+/// Write every stream of `scenario` into `dir` (created if missing); returns the files written.
+pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf>> {
+    fs::create_dir_all(dir)?;
+    let mut written = Vec::new();
+    let frame = LocalFrame::new(origin(scenario)?);
+
+    for (name, traj) in [("ego.tum", scenario.ego_trajectory()), ("vo.tum", scenario.vo.clone())] {
+        let path = dir.join(name);
+        write_file(&traj, &path, Format::Tum)?;
+        written.push(path);
+    }
+    let mut gnss = Trajectory::default();
+    for fix in &scenario.gnss {
+        gnss.stamps.push(fix.t_receive);
+        gnss.poses.push(Pose { translation: Vector3::from(fix.enu), ..Pose::identity() });
+    }
+    let path = dir.join("gnss.tum");
+    write_file(&gnss, &path, Format::Tum)?;
+    written.push(path);
+
+    let mut out = create(dir, "gnss.nmea", &mut written)?;
+    for fix in &scenario.gnss {
+        let position = frame
+            .enu_to_geodetic(&Vector3::from(fix.enu))
+            .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, format!("fix at {}: {e}", fix.t_fix)))?;
+        let time = hhmmss(START_SECONDS_OF_DAY + fix.t_fix);
+        let (lat, ns) = nmea_angle(position.lat_deg, 2, ['N', 'S']);
+        let (lon, ew) = nmea_angle(position.lon_deg, 3, ['E', 'W']);
+        let hdop = fix.sigma / 3.0;
+        let gga = format!("GPGGA,{time},{lat},{ns},{lon},{ew},1,09,{hdop:.1},{:.1},M,0.0,M,,", position.height_m);
+        let knots = fix.speed * 3600.0 / 1852.0;
+        let rmc = format!("GPRMC,{time},A,{lat},{ns},{lon},{ew},{knots:.2},{:.1},010626,,,A", fix.course_deg);
+        writeln!(out, "{}\r\n{}\r", sentence(&gga), sentence(&rmc))?;
+    }
+    out.flush()?;
+
+    let mut out = create(dir, "speed.csv", &mut written)?;
+    writeln!(out, "t_s,speed_mps")?;
+    for (t, v) in &scenario.speed {
+        writeln!(out, "{t:.3},{v:.5}")?;
+    }
+    out.flush()?;
+
+    let mut out = create(dir, "objects.csv", &mut written)?;
+    writeln!(out, "frame,t_s,id,class,x,y,z,yaw,l,w,h,vx,vy,static,visible")?;
+    for f in &scenario.frames {
+        for o in &f.objects {
+            let b = &o.bbox;
+            writeln!(
+                out,
+                "{},{:.3},{},{},{:.4},{:.4},{:.4},{:.5},{:.3},{:.3},{:.3},{:.3},{:.3},{},{}",
+                f.index,
+                f.ego.t,
+                o.id,
+                o.class.name(),
+                b.x,
+                b.y,
+                b.z,
+                b.yaw,
+                b.l,
+                b.w,
+                b.h,
+                o.velocity[0],
+                o.velocity[1],
+                u8::from(o.is_static()),
+                u8::from(f.visible.contains(&o.id))
+            )?;
+        }
+    }
+    out.flush()?;
+
+    let mut out = create(dir, "detections3d.csv", &mut written)?;
+    writeln!(out, "frame,t_s,class,x,y,z,yaw,l,w,h,score")?;
+    for f in &scenario.frames {
+        for d in &f.detections_3d {
+            let b = &d.bbox;
+            let class = Class::from_id(d.class).map_or("unknown", Class::name);
+            writeln!(
+                out,
+                "{},{:.3},{class},{:.4},{:.4},{:.4},{:.5},{:.3},{:.3},{:.3},{:.3}",
+                f.index, f.ego.t, b.x, b.y, b.z, b.yaw, b.l, b.w, b.h, d.score
+            )?;
+        }
+    }
+    out.flush()?;
+
+    let mut out = create(dir, "gt2d.txt", &mut written)?;
+    for f in &scenario.frames {
+        for o in &f.objects_2d {
+            let b = &o.bbox;
+            let class = o.class as u16 + 1;
+            writeln!(
+                out,
+                "{},{},{:.2},{:.2},{:.2},{:.2},1,{class},{:.3}",
+                f.index, o.id, b.x, b.y, b.w, b.h, o.visibility
+            )?;
+        }
+    }
+    out.flush()?;
+    let mut out = create(dir, "det2d.txt", &mut written)?;
+    for f in &scenario.frames {
+        for d in &f.detections_2d {
+            let b = &d.bbox;
+            writeln!(out, "{},-1,{:.2},{:.2},{:.2},{:.2},{:.3},-1,-1,-1", f.index, b.x, b.y, b.w, b.h, d.score)?;
+        }
+    }
+    out.flush()?;
+
+    let mut out = create(dir, "road.osm", &mut written)?;
+    out.write_all(road_osm(scenario, &frame)?.as_bytes())?;
+    out.flush()?;
+
+    let mut out = create(dir, "scenario.json", &mut written)?;
+    serde_json::to_writer_pretty(&mut out, &summary(scenario, &written))?;
+    writeln!(out)?;
+    out.flush()?;
+    Ok(written)
+}
+
+fn origin(scenario: &Scenario) -> io::Result<Geodetic> {
+    let [lat, lon, h] = scenario.config.origin;
+    Geodetic::new(lat, lon, h).map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, format!("origin: {e}")))
+}
+
+/// `$BODY*CS` with the XOR checksum.
+fn sentence(body: &str) -> String {
+    let checksum = body.bytes().fold(0u8, |c, b| c ^ b);
+    format!("${body}*{checksum:02X}")
+}
+
+fn hhmmss(seconds_of_day: f64) -> String {
+    let centis = (seconds_of_day * 100.0).round() as u64;
+    let (h, m, s, cs) = (centis / 360_000 % 24, centis / 6000 % 60, centis / 100 % 60, centis % 100);
+    format!("{h:02}{m:02}{s:02}.{cs:02}")
+}
+
+/// Degrees as NMEA's `dddmm.mmmmmm` with `width` degree digits, and the hemisphere letter.
+fn nmea_angle(deg: f64, width: usize, hemispheres: [char; 2]) -> (String, char) {
+    let hemisphere = if deg < 0.0 { hemispheres[1] } else { hemispheres[0] };
+    let micro_minutes = (deg.abs() * 60.0 * 1e6).round() as u64;
+    let (whole, minutes) = (micro_minutes / 60_000_000, micro_minutes % 60_000_000);
+    (format!("{whole:0width$}{:02}.{:06}", minutes / 1_000_000, minutes % 1_000_000), hemisphere)
+}
+
+/// The road as one OpenStreetMap way (nodes every 10 m along the reference line).
+fn road_osm(scenario: &Scenario, frame: &LocalFrame) -> io::Result<String> {
+    let road = &scenario.road;
+    let mut xml = String::from(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<osm version=\"0.6\" generator=\"dash2sim scenario\">\n",
+    );
+    let count = (road.length() / 10.0).ceil() as u64;
+    for k in 0..=count {
+        let s = (k as f64 * 10.0).min(road.length());
+        let (x, y) = road.point(s, 0.0);
+        let g = frame
+            .enu_to_geodetic(&Vector3::new(x, y, 0.0))
+            .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, format!("road at s = {s}: {e}")))?;
+        let _ =
+            writeln!(xml, "  <node id=\"{}\" version=\"1\" lat=\"{:.8}\" lon=\"{:.8}\"/>", k + 1, g.lat_deg, g.lon_deg);
+    }
+    xml.push_str("  <way id=\"1\" version=\"1\">\n");
+    for k in 0..=count {
+        let _ = writeln!(xml, "    <nd ref=\"{}\"/>", k + 1);
+    }
+    let lanes = road.lanes_forward + road.lanes_backward;
+    let width = f64::from(lanes) * road.lane_width;
+    for (k, v) in [
+        ("highway", "trunk".to_owned()),
+        ("lanes", lanes.to_string()),
+        ("lanes:forward", road.lanes_forward.to_string()),
+        ("lanes:backward", road.lanes_backward.to_string()),
+        ("width", format!("{width}")),
+        ("maxspeed", format!("{:.0}", road.speed_limit * 3.6)),
+        ("name", "dash2sim scenario road".to_owned()),
+    ] {
+        let _ = writeln!(xml, "    <tag k=\"{k}\" v=\"{v}\"/>");
+    }
+    xml.push_str("  </way>\n</osm>\n");
+    Ok(xml)
+}
+
+fn summary(scenario: &Scenario, files: &[PathBuf]) -> serde_json::Value {
+    let c = &scenario.config;
+    let segments: Vec<_> = scenario
+        .road
+        .segments
+        .iter()
+        .map(|s| match s {
+            Segment::Straight(l) => json!({"straight_m": l}),
+            Segment::Arc(l, k) => json!({"arc_m": l, "curvature_per_m": k}),
+        })
+        .collect();
+    let z = &scenario.zone;
+    let count = |f: fn(&super::Frame) -> usize| scenario.frames.iter().map(f).sum::<usize>();
+    json!({
+        "seed": c.seed,
+        "duration_s": c.duration_s,
+        "frame_rate_hz": c.frame_rate_hz,
+        "gnss_rate_hz": c.gnss_rate_hz,
+        "speed_rate_hz": c.speed_rate_hz,
+        "origin": {"lat": c.origin[0], "lon": c.origin[1], "height_m": c.origin[2]},
+        "start_utc": "2026-06-01T08:00:00Z",
+        "classes": Class::ALL.iter().map(|k| k.name()).collect::<Vec<_>>(),
+        "camera": {"focal_px": c.camera.focal_px, "width": c.camera.width, "height": c.camera.height,
+                   "mount_height_m": c.camera.mount_height, "mount_forward_m": c.camera.mount_forward},
+        "road": {"start_heading_rad": scenario.road.start.heading, "segments": segments,
+                 "lane_width_m": scenario.road.lane_width, "lanes_forward": scenario.road.lanes_forward,
+                 "lanes_backward": scenario.road.lanes_backward, "speed_limit_mps": scenario.road.speed_limit},
+        "work_zone": {"taper_start_s": z.taper_start, "taper_length_m": z.taper_length,
+                      "closure_length_m": z.closure_length, "end_taper_length_m": z.end_taper_length},
+        "vo": {"scale": c.vo.scale, "scale_drift_per_min": c.vo.scale_drift_per_min,
+               "yaw_drift_deg_per_min": c.vo.yaw_drift_deg_per_min, "increment_noise": c.vo_noise},
+        "wheel": {"scale": c.wheel.0, "sigma_mps": c.wheel.1},
+        "counts": {
+            "frames": scenario.frames.len(),
+            "objects": scenario.frames.first().map_or(0, |f| f.objects.len()),
+            "visible_object_frames": count(|f| f.visible.len()),
+            "detections_3d": count(|f| f.detections_3d.len()),
+            "detections_2d": count(|f| f.detections_2d.len()),
+            "gnss_fixes": scenario.gnss.len(),
+            "gnss_multipath_fixes": scenario.gnss.iter().filter(|g| g.multipath).count(),
+            "speed_samples": scenario.speed.len(),
+        },
+        "files": files.iter().filter_map(|p| p.file_name()).map(|n| n.to_string_lossy().into_owned()).collect::<Vec<_>>(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nmea_fields_are_formatted_as_receivers_do() {
+        assert_eq!(nmea_angle(60.5, 2, ['N', 'S']), ("6030.000000".to_owned(), 'N'));
+        assert_eq!(nmea_angle(-4.25, 3, ['E', 'W']), ("00415.000000".to_owned(), 'W'));
+        assert_eq!(hhmmss(8.0 * 3600.0 + 61.25), "080101.25");
+        // The checksum of a well-known sentence.
+        assert_eq!(sentence("GPGLL,4916.45,N,12311.12,W,225444,A"), "$GPGLL,4916.45,N,12311.12,W,225444,A*31");
+    }
+}
