@@ -244,6 +244,10 @@ pub struct Tracker3d<'a, const N: usize> {
     next_id: u32,
     frame: u64,
     solver: Solver<N>,
+    /// Association costs of one frame (NaN: may not pair), computed once per pair: the
+    /// solver reads a pair many times and a 3D GIoU is not cheap. f32 is ample for
+    /// ranking GIoUs and distances and halves the buffer (16 KiB at N = 64).
+    costs: [[f32; N]; N],
     stats: Stats3d,
 }
 
@@ -256,6 +260,7 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
             next_id: 1,
             frame: 0,
             solver: Solver::default(),
+            costs: [[f32::NAN; N]; N],
             stats: Stats3d::default(),
         }
     }
@@ -322,8 +327,18 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
                 }
             }
         };
+        for (t, row) in self.costs.iter_mut().enumerate().take(self.tracks.len()) {
+            for (c, slot) in row.iter_mut().enumerate().take(picked.len()) {
+                *slot = cost(t, c).map_or(f32::NAN, |v| v as f32);
+            }
+        }
+        let costs = &self.costs;
+        let cached = |t: usize, c: usize| {
+            let v = costs[t][c];
+            (!v.is_nan()).then_some(f64::from(v))
+        };
         let mut out = [None; N];
-        if self.solver.solve_sparse(self.tracks.len(), picked.len(), cost, &mut out).is_err() {
+        if self.solver.solve_sparse(self.tracks.len(), picked.len(), cached, &mut out).is_err() {
             out = [None; N];
         }
         let mut used = [false; N];

@@ -49,6 +49,42 @@ enum Command {
     /// Multi-object tracking evaluation (MOTChallenge files).
     #[command(subcommand)]
     Mot(MotCommand),
+    /// Generated work-zone drives: ground truth and sensor streams (docs/scenario.md).
+    #[command(subcommand)]
+    Scenario(ScenarioCommand),
+}
+
+#[derive(Debug, Subcommand)]
+enum ScenarioCommand {
+    /// Generate a drive and write its truth and sensor streams to a folder (TUM, NMEA,
+    /// CSV, MOTChallenge, OSM).
+    Generate {
+        /// Output folder (created if missing).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// The seed that names the scenario.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Length of the drive, seconds.
+        #[arg(long, default_value_t = 40.0)]
+        duration: f64,
+    },
+    /// Run the 3D track manager over a generated drive and judge it: MOTA/IDF1 at 2 m,
+    /// position RMSE of detections, filtered and smoothed tracks, static/dynamic accuracy.
+    Eval {
+        /// The seed that names the scenario.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Length of the drive, seconds.
+        #[arg(long, default_value_t = 40.0)]
+        duration: f64,
+        /// Missed frames before a track is dropped (AB3DMOT: 2).
+        #[arg(long, default_value_t = 4)]
+        max_age: u32,
+        /// Print JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Debug, Subcommand)]
@@ -172,6 +208,12 @@ pub fn run() -> ExitCode {
         Command::Can(CanCommand::Decode { file, dbc, json }) => crate::can_decode::run(&file, &dbc, json),
         Command::Track2d { detections, output } => crate::track2d::run(&detections, &output),
         Command::Mot(MotCommand::Eval { gt, test, max_distance, json }) => mot_eval(&gt, &test, max_distance, json),
+        Command::Scenario(ScenarioCommand::Generate { output, seed, duration }) => {
+            crate::scenario::command::run_generate(seed, duration, &output)
+        }
+        Command::Scenario(ScenarioCommand::Eval { seed, duration, max_age, json }) => {
+            crate::scenario::command::run_eval(seed, duration, max_age, json)
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

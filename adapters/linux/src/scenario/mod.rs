@@ -1,8 +1,8 @@
 //! Deterministic work-zone drives: the ground truth the trackers, the anchoring, the demo
 //! and the benchmarks are judged against.
 //!
-//! A scenario is a two-lane-each-way road (a straight, a gentle left bend, a long
-//! straight) whose right lane is closed by a work zone: signs ahead on the shoulder, drums
+//! A scenario is a two-lane-each-way road (a straight, a 48° left bend of radius 300 m,
+//! a long straight) whose right lane is closed by a work zone: signs ahead on the shoulder, drums
 //! along a 50 m taper, an arrow board and barricades in the closed lane, cones along the
 //! closure and the end taper. The ego cruises, brakes to the zone speed, changes into the
 //! open lane before the taper, passes the closure and changes back; other vehicles follow
@@ -10,12 +10,13 @@
 //! choice comes from one seed (ChaCha8, one stream per sensor), so a seed names a scenario.
 //!
 //! Sensor streams: frames at 10 Hz with 3D detections in the ego frame and 2D detections
-//! in the image ([`sensors::DetectorModel`]), VO with unknown, drifting scale
-//! ([`vo::VoModel`]), GNSS at 5 Hz with σ 3–10 m and multipath jumps
+//! in the image ([`sensors::DetectorModel`]), gravity-aligned VO with unknown, drifting
+//! scale and heading ([`vo::VoModel`]), GNSS at 5 Hz with σ 3–10 m and multipath jumps
 //! ([`sensors::GnssModel`]), wheel speed at 50 Hz. Occlusion between objects is not
 //! modelled: everything in range and in the image may be detected.
 
 pub mod actors;
+pub mod command;
 pub mod evaluate;
 pub mod road;
 pub mod sensors;
@@ -81,7 +82,7 @@ impl Default for ScenarioConfig {
             camera: Camera::default(),
             detector: DetectorModel::default(),
             gnss: GnssModel::default(),
-            vo: VoModel::arbitrary(),
+            vo: VoModel::gravity_aligned(),
             vo_noise: 0.01,
             wheel: (0.99, 0.03),
         }
@@ -188,7 +189,7 @@ pub fn tracker_config(classes: &[ClassConfig]) -> Config3d<'_> {
 pub fn generate(config: &ScenarioConfig) -> Scenario {
     let mut layout = rng(config.seed, Stream::Layout);
     let road = Road {
-        segments: vec![Segment::Straight(250.0), Segment::Arc(200.0, 1.0 / 500.0), Segment::Straight(700.0)],
+        segments: vec![Segment::Straight(200.0), Segment::Arc(250.0, 1.0 / 300.0), Segment::Straight(700.0)],
         start: RoadPose { x: 0.0, y: 0.0, heading: layout.random_range(-3.1..3.1), curvature: 0.0 },
         lane_width: 3.5,
         lanes_forward: 2,

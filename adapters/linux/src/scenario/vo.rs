@@ -34,6 +34,13 @@ impl VoModel {
         }
     }
 
+    /// A gravity-aligned VO frame (visual-inertial odometry, or VO levelled by the
+    /// dashcam's accelerometer): z is up, the heading is arbitrary (2.3 rad), scale 3.7,
+    /// with 1 %/min scale and 1°/min yaw drift. Anchor it with `--mode gravity`.
+    pub fn gravity_aligned() -> Self {
+        VoModel { rotation: rotation_z(2.3), ..VoModel::arbitrary() }
+    }
+
     /// The true VO → ENU scale at `t` seconds from the start.
     pub fn scale_at(&self, t: f64) -> f64 {
         self.scale * (1.0 + self.scale_drift_per_min * t / 60.0)
