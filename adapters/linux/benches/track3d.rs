@@ -54,7 +54,7 @@ fn bench(c: &mut Criterion) {
     assert_eq!(reported, OBJECTS * TIMED, "every object tracked in every timed frame");
     eprintln!(
         "Tracker3d<64>: {} bytes of state (size_of), {} ids issued",
-        std::mem::size_of::<Tracker3d<'_, OBJECTS>>(),
+        size_of::<Tracker3d<'_, OBJECTS>>(),
         OBJECTS
     );
     c.bench_function("track3d 64x64, 50 frames", |b| {
