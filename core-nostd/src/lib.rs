@@ -17,7 +17,7 @@
 //! | [`track2d`] | ByteTrack-style 2D tracking-by-detection |
 //! | [`claim`] | claim-and-suppress with a video propagator (Algorithm 1) |
 //! | [`track3d`] | AB3DMOT-style 3D track manager with class priors |
-//! | [`ekf`] | fixed-size (extended) Kalman filter, Joseph form |
+//! | [`ekf`] | fixed-size (extended) Kalman filter, Joseph form, RTS smoother |
 //! | [`can`] | CAN: J1939/NMEA 2000 ids, fast packets, GNSS/speed decoders, DBC signals |
 //!
 //! Capacity is part of the types; nothing here allocates or panics on untrusted input.

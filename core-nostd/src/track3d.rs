@@ -584,6 +584,59 @@ mod tests {
         assert!((own[(0, 0)] - 1e-6).abs() < 1e-9 && (own[(1, 1)] - 4e-6).abs() < 1e-9, "{own}");
     }
 
+    fn any_value() -> impl proptest::strategy::Strategy<Value = f64> {
+        use proptest::prelude::*;
+        prop_oneof![
+            -50.0f64..50.0,
+            Just(f64::NAN),
+            Just(f64::INFINITY),
+            Just(-1e300),
+            Just(0.0),
+            proptest::num::f64::ANY,
+        ]
+    }
+
+    proptest::proptest! {
+        /// Whatever the detections — NaN, infinities, huge or zero sizes, any class or
+        /// score, any covariance — the tracker never panics, reports each id at most once
+        /// per frame and never more than N tracks, and every detection is used, refused or
+        /// dropped.
+        #[test]
+        fn hostile_detections_are_refused_or_tracked_never_a_panic(
+            frames in proptest::collection::vec(
+                proptest::collection::vec(
+                    (0u16..3, proptest::array::uniform7(any_value()), any_value(),
+                     proptest::option::of(proptest::array::uniform3(any_value()))),
+                    0..12),
+                1..12)
+        ) {
+            let mut tracker = Tracker3d::<4>::new(config());
+            let mut plausible = 0u64;
+            for frame_detections in &frames {
+                let dets: heapless::Vec<Detection3d, 12> = frame_detections
+                    .iter()
+                    .map(|&(class, [x, y, z, yaw, l, w, h], score, position_covariance)| Detection3d {
+                        class,
+                        bbox: Box3d { x, y, z, yaw, l, w, h },
+                        score,
+                        position_covariance,
+                    })
+                    .collect();
+                plausible += dets.iter().filter(|d| tracker.plausible(d)).count() as u64;
+                let mut ids = heapless::Vec::<u32, 8>::new();
+                tracker.update(&dets, |o| {
+                    assert!(!ids.contains(&o.id), "id {} twice", o.id);
+                    assert!(ids.push(o.id).is_ok(), "more than N tracks reported");
+                    assert!(o.state.x.iter().all(|v| v.is_finite()));
+                });
+            }
+            let stats = *tracker.stats();
+            let total: u64 = frames.iter().map(|f| f.len() as u64).sum();
+            proptest::prop_assert_eq!(stats.rejected + plausible, total);
+            proptest::prop_assert!(stats.dropped_detections <= plausible);
+        }
+    }
+
     #[test]
     fn angles_wrap() {
         assert!((wrap_angle(3.0 * PI / 2.0) + PI / 2.0).abs() < 1e-12);

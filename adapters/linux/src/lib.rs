@@ -1,7 +1,8 @@
 //! # dash2sim-linux
 //!
 //! std adapters around `dash2sim-core` and the `dash2sim` command line: trajectory files
-//! (TUM, KITTI, EuRoC), timestamp association, evaluation and offline anchoring.
+//! (TUM, KITTI, EuRoC), timestamp association, evaluation, offline anchoring, decoders for
+//! NMEA and CAN captures, MOT evaluation and the seeded work-zone scenario generator.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 

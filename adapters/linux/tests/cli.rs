@@ -360,3 +360,57 @@ fn track2d_keeps_one_id_along_a_moving_box_and_skips_rows_out_of_order() {
     let x: f64 = rows[4][2].parse().expect("x");
     assert!((x - 20.0).abs() < 0.5, "follows the box: {x}");
 }
+
+#[test]
+fn scenario_files_round_trip_through_the_other_commands() {
+    let dir = scratch("scenario");
+    let out = dash2sim(&["scenario", "generate", "-o", &dir.display().to_string(), "--seed", "3", "--duration", "12"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let path = |name: &str| dir.join(name).display().to_string();
+    for name in ["ego.tum", "vo.tum", "gnss.tum", "gnss.nmea", "speed.csv", "objects.csv", "detections3d.csv"] {
+        assert!(dir.join(name).is_file(), "{name} missing");
+    }
+    // Every GNSS fix (5 Hz for 12 s, both ends) decodes as NMEA with nothing rejected.
+    let out = dash2sim(&["nmea", "decode", &path("gnss.nmea"), "--json"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let summary: serde_json::Value = text.lines().last().and_then(|l| serde_json::from_str(l).ok()).expect("summary");
+    assert_eq!(summary["fixes"], 61, "{summary}");
+    assert!(summary["rejected"].as_object().expect("counts").values().all(|v| v == 0), "{summary}");
+    assert!(stderr(&out).is_empty(), "{}", stderr(&out));
+    // The GNSS track is metres (not kilometres) off the ego truth.
+    let out = dash2sim(&["traj", "ape", &path("ego.tum"), &path("gnss.tum"), "--max-diff", "0.1", "--json"]);
+    let ape: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let rmse = ape["stats"]["rmse"].as_f64().expect("rmse");
+    assert!((2.0..40.0).contains(&rmse) && ape["matched"] == 61, "{ape}");
+    // The 2D ground truth is a valid MOTChallenge file: against itself it scores perfectly.
+    let out = dash2sim(&["mot", "eval", &path("gt2d.txt"), &path("gt2d.txt"), "--json"]);
+    let m: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!((m["mota"].as_f64(), m["num_switches"].as_f64()), (Some(1.0), Some(0.0)), "{m}");
+    // The 2D detections feed track2d.
+    let tracks = path("tracks2d.txt");
+    assert!(dash2sim(&["track2d", &path("det2d.txt"), "-o", &tracks]).status.success());
+    let m: serde_json::Value =
+        serde_json::from_slice(&dash2sim(&["mot", "eval", &path("gt2d.txt"), &tracks, "--json"]).stdout).expect("json");
+    assert!(m["num_matches"].as_f64().is_some_and(|n| n > 50.0), "{m}");
+    // One node every 10 m of road and one way.
+    let osm = std::fs::read_to_string(dir.join("road.osm")).expect("osm");
+    assert_eq!(osm.matches("<node ").count(), 116, "1150 m of road");
+    assert!(osm.contains("<tag k=\"lanes:forward\" v=\"2\"/>"));
+    let info: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("scenario.json")).expect("json")).expect("json");
+    assert_eq!((info["seed"].as_u64(), info["counts"]["frames"].as_u64()), (Some(3), Some(121)));
+}
+
+#[test]
+fn scenario_eval_reports_the_figures_and_bad_durations_are_refused() {
+    let out = dash2sim(&["scenario", "eval", "--seed", "2", "--duration", "30", "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let get = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
+    assert!(get("rmse_filtered_m") < get("rmse_detections_m") && get("static_accuracy") > 0.9, "{r}");
+    assert!(r["metrics"]["idf1"].as_f64().is_some_and(|v| v > 0.5), "{r}");
+    for bad in ["0", "nan", "1000"] {
+        let out = dash2sim(&["scenario", "eval", "--duration", bad]);
+        assert!(!out.status.success() && stderr(&out).contains("--duration"), "{bad}: {}", stderr(&out));
+    }
+}

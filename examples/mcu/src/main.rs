@@ -1,7 +1,8 @@
 //! dash2sim on a microcontroller: anchor a synthetic VO track (scale 0.4, rotated) to
-//! GNSS fixes and wheel speed on a Cortex-M7, then report the estimate over semihosting.
-//! Exits with failure if the recovered scale or rotation is wrong, so CI can run it
-//! under QEMU as a test of the bare-metal build.
+//! GNSS fixes and wheel speed on a Cortex-M7, then track a car passing a row of cones
+//! with the 3D track manager, and report over semihosting. Exits with failure if the
+//! recovered scale or rotation is wrong or the tracks are, so CI can run it under QEMU as
+//! a test of the bare-metal build.
 #![no_std]
 #![no_main]
 
@@ -10,15 +11,89 @@ use core::panic::PanicInfo;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
 use dash2sim_core::anchor::{AnchorConfig, Anchorer, Observability};
+use dash2sim_core::box3d::Box3d;
 use dash2sim_core::nalgebra::Vector3;
 use dash2sim_core::sim3::{rotation_z, Sim3};
 use dash2sim_core::time::Timestamp;
+use dash2sim_core::track3d::{
+    Association, ClassConfig, Config3d, Detection3d, Tracker3d, AB3DMOT_MEASUREMENT_NOISE, AB3DMOT_PROCESS_NOISE,
+};
 
 /// A curving, accelerating drive in ENU (m) at `t` seconds.
 fn drive(t: f64) -> Vector3<f64> {
     let s = 10.0 * t + 0.25 * t * t;
     let heading = s / 400.0;
     Vector3::new(400.0 * libm::sin(heading), 400.0 * (1.0 - libm::cos(heading)), 0.0)
+}
+
+/// A car at 1.5 m/frame passing eight cones, 30 frames, the car's heading flipped by π
+/// every fourth frame: the car must keep one id, move at 1.5 m/frame and be dynamic; the
+/// cones must keep theirs and be static.
+fn track_cones_and_a_car() -> bool {
+    const CLASSES: [ClassConfig; 2] = [
+        ClassConfig {
+            association: Association::Giou(-0.2),
+            min_size: [3.0, 1.5, 1.2],
+            max_size: [6.0, 2.5, 2.2],
+            max_ground_offset: 0.3,
+            process_noise: AB3DMOT_PROCESS_NOISE,
+            measurement_noise: AB3DMOT_MEASUREMENT_NOISE,
+            initial_velocity_variance: 1e4,
+        },
+        ClassConfig {
+            association: Association::Distance(2.0),
+            min_size: [0.2, 0.2, 0.4],
+            max_size: [0.6, 0.6, 1.0],
+            max_ground_offset: 0.3,
+            process_noise: [1e-3, 1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4],
+            measurement_noise: [0.25, 0.25, 0.01, 1e4, 1e-3, 1e-3, 1e-3],
+            initial_velocity_variance: 0.01,
+        },
+    ];
+    let config = Config3d { classes: &CLASSES, min_hits: 3, max_age: 2, ground_z: 0.0, static_speed: 0.3 };
+    let mut tracker = Tracker3d::<16>::new(config);
+    let (mut car_ids, mut car_speed, mut cones_static, mut last_cone_ids) = (0u32, 0.0, true, [0u32; 8]);
+    for k in 0..30u32 {
+        let fk = f64::from(k);
+        let yaw = if k % 4 == 3 { core::f64::consts::PI } else { 0.0 };
+        let mut detections =
+            [Detection3d::new(0, Box3d { x: 1.5 * fk, y: 0.0, z: 0.75, yaw, l: 4.5, w: 1.9, h: 1.5 }, 0.9); 9];
+        for (i, d) in detections.iter_mut().skip(1).enumerate() {
+            let wobble = 0.1 * libm::sin(fk + i as f64);
+            *d = Detection3d::new(
+                1,
+                Box3d { x: 10.0 * i as f64 + wobble, y: 3.0, z: 0.35, yaw: 0.0, l: 0.36, w: 0.36, h: 0.7 },
+                0.8,
+            );
+        }
+        let mut cone_ids = [0u32; 8];
+        tracker.update(&detections, |o| {
+            if o.class == 0 {
+                car_ids |= 1 << o.id.min(31);
+                car_speed = libm::hypot(o.velocity[0], o.velocity[1]);
+            } else {
+                cones_static &= o.is_static;
+                let slot = libm::round(o.bbox.x / 10.0) as usize;
+                if let Some(id) = cone_ids.get_mut(slot) {
+                    *id = o.id;
+                }
+            }
+        });
+        if k > 3 && cone_ids != last_cone_ids {
+            hprintln!("cone ids changed at frame {}", k);
+            return false;
+        }
+        last_cone_ids = cone_ids;
+    }
+    hprintln!(
+        "Tracker3d<16> ({} bytes): car ids {:#b}, car speed {} m/frame, cones static {}, {:?}",
+        core::mem::size_of::<Tracker3d<'_, 16>>(),
+        car_ids,
+        car_speed,
+        cones_static,
+        tracker.stats()
+    );
+    car_ids.count_ones() == 1 && libm::fabs(car_speed - 1.5) < 0.05 && cones_static && tracker.stats().rejected == 0
 }
 
 #[entry]
@@ -61,7 +136,8 @@ fn main() -> ! {
             false
         }
     };
-    debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    let tracked = track_cones_and_a_car();
+    debug::exit(if ok && tracked { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
     loop {
         cortex_m::asm::wfi();
     }
