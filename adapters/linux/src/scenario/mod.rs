@@ -318,14 +318,15 @@ mod tests {
         for seed in 1..=4 {
             let s = generate(&ScenarioConfig { seed, ..ScenarioConfig::default() });
             let egos: Vec<EgoState> = s.frames.iter().map(|f| f.ego).collect();
-            // Longitudinal and lateral accelerations of a calm driver.
+            // Longitudinal and lateral accelerations of a calm driver (nuPlan's comfort
+            // bounds are 4.89 m/s² lateral, −4.05…2.40 m/s² longitudinal).
             for w in egos.windows(3) {
                 let dt = w[1].t - w[0].t;
                 let a_long = (w[2].speed - w[0].speed) / (2.0 * dt);
                 let yaw_rate = road::wrap(w[2].heading - w[0].heading) / (2.0 * dt);
                 assert!(a_long.abs() <= 1.6, "seed {seed} t {}: {a_long} m/s²", w[1].t);
                 assert!(
-                    (yaw_rate * w[1].speed).abs() < 2.0,
+                    (yaw_rate * w[1].speed).abs() < 3.0,
                     "seed {seed} t {}: lateral {}",
                     w[1].t,
                     yaw_rate * w[1].speed
