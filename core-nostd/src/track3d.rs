@@ -21,6 +21,7 @@ use nalgebra::{SMatrix, SVector};
 use crate::assign::Solver;
 use crate::box3d::Box3d;
 use crate::ekf::{rts_smooth, Kalman, SmoothStep};
+pub use crate::track2d::TrackError;
 
 /// How detections of a class are matched to tracks.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -128,6 +129,8 @@ pub struct Stats3d {
     pub dropped_tracks: u64,
     /// Updates the filter refused (numerically singular).
     pub refused_updates: u64,
+    /// Frames refused because their number was not after the previous one.
+    pub out_of_order_frames: u64,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -242,7 +245,8 @@ pub struct Tracker3d<'a, const N: usize> {
     config: Config3d<'a>,
     tracks: heapless::Vec<Track, N>,
     next_id: u32,
-    frame: u64,
+    /// The last frame number processed.
+    frame: Option<u64>,
     solver: Solver<N>,
     /// Association costs of one frame (NaN: may not pair), computed once per pair: the
     /// solver reads a pair many times and a 3D GIoU is not cheap. f32 is ample for
@@ -258,7 +262,7 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
             config,
             tracks: heapless::Vec::new(),
             next_id: 1,
-            frame: 0,
+            frame: None,
             solver: Solver::default(),
             costs: [[f32::NAN; N]; N],
             stats: Stats3d::default(),
@@ -286,19 +290,37 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
         finite && (0.0..=1.0).contains(&d.score) && size_ok && ground_ok && covariance_ok
     }
 
-    /// One frame: predict, associate, update, start and retire tracks; `emit` receives
-    /// the tracks to report.
-    pub fn update(&mut self, detections: &[Detection3d], mut emit: impl FnMut(Track3dOutput)) {
-        self.frame += 1;
+    /// One frame: predict (over any gap since the previous frame number), associate,
+    /// update, start and retire tracks; `emit` receives the tracks to report. A frame
+    /// number not after the previous one is refused and counted; nothing changes.
+    pub fn update(
+        &mut self,
+        frame: u64,
+        detections: &[Detection3d],
+        mut emit: impl FnMut(Track3dOutput),
+    ) -> Result<(), TrackError> {
+        let steps = match self.frame {
+            Some(previous) if frame <= previous => {
+                self.stats.out_of_order_frames += 1;
+                return Err(TrackError::OutOfOrder { previous, frame });
+            }
+            Some(previous) => frame - previous,
+            None => 1,
+        };
+        self.frame = Some(frame);
         self.stats.frames += 1;
         let classes = self.config.classes;
+        // Past max_age + 1 missed frames a track is retired anyway: no need to predict further.
+        let predictions = steps.min(u64::from(self.config.max_age) + 1) as u32;
         for t in self.tracks.iter_mut() {
             // A track's class was checked against the table when it started.
             let Some(class) = classes.get(usize::from(t.class)) else { continue };
             let (f, q) = motion_model(&class.process_noise);
-            t.kf.predict(&f, &q);
+            for _ in 0..predictions {
+                t.kf.predict(&f, &q);
+            }
             t.kf.x[3] = wrap_angle(t.kf.x[3]);
-            t.since_update += 1;
+            t.since_update = t.since_update.saturating_add(predictions);
         }
         // Plausible detections, at most N.
         let mut picked = heapless::Vec::<usize, N>::new();
@@ -404,9 +426,9 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
             });
             self.next_id = self.next_id.wrapping_add(1).max(1);
         }
-        let (min_hits, frame, static_speed) = (self.config.min_hits, self.frame, self.config.static_speed);
+        let (min_hits, frames, static_speed) = (self.config.min_hits, self.stats.frames, self.config.static_speed);
         for t in
-            self.tracks.iter().filter(|t| t.since_update == 0 && (t.hits >= min_hits || frame <= u64::from(min_hits)))
+            self.tracks.iter().filter(|t| t.since_update == 0 && (t.hits >= min_hits || frames <= u64::from(min_hits)))
         {
             let v = [t.kf.x[7], t.kf.x[8], t.kf.x[9]];
             emit(Track3dOutput {
@@ -418,6 +440,7 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
                 state: t.kf,
             });
         }
+        Ok(())
     }
 }
 
@@ -462,7 +485,8 @@ mod tests {
 
     fn frame<const N: usize>(t: &mut Tracker3d<'_, N>, dets: &[Detection3d]) -> heapless::Vec<Track3dOutput, 8> {
         let mut out = heapless::Vec::new();
-        t.update(dets, |o| out.push(o).expect("room"));
+        let next = t.stats().frames + 1;
+        t.update(next, dets, |o| out.push(o).expect("room")).expect("frames in order");
         out
     }
 
@@ -486,6 +510,19 @@ mod tests {
         assert_eq!((car_track.id, cone_track.id), (1, 2));
         assert!((car_track.velocity[0] - 1.5).abs() < 0.1, "{:?}", car_track.velocity);
         assert!(!car_track.is_static && cone_track.is_static);
+    }
+
+    #[test]
+    fn frames_out_of_order_are_refused_and_counted() {
+        let mut tracker = Tracker3d::<4>::new(config());
+        assert_eq!(tracker.update(5, &[cone(1.0, 0.0)], |_| {}), Ok(()));
+        assert_eq!(tracker.update(5, &[cone(1.0, 0.0)], |_| {}), Err(TrackError::OutOfOrder { previous: 5, frame: 5 }));
+        assert_eq!(tracker.update(3, &[], |_| {}), Err(TrackError::OutOfOrder { previous: 5, frame: 3 }));
+        assert_eq!((tracker.stats().out_of_order_frames, tracker.stats().frames), (2, 1));
+        assert_eq!(tracker.tracks[0].hits, 1, "refused frames change nothing");
+        // A gap longer than max_age retires the track without predicting frame by frame.
+        assert_eq!(tracker.update(u64::MAX, &[], |_| {}), Ok(()));
+        assert!(tracker.tracks.is_empty());
     }
 
     #[test]
@@ -544,11 +581,14 @@ mod tests {
             let yaw = if k >= 25 { PI - 0.02 } else { -0.02 };
             let mut d = car(x + noise(&mut seed, 0.8), yaw);
             d.bbox.y += noise(&mut seed, 0.8);
-            let detections: &[Detection3d] = if k == 20 || k == 21 { &[] } else { &[d] };
-            tracker.update(detections, |o| {
+            if k == 20 || k == 21 {
+                continue; // no frame at all: the tracker predicts over the gap
+            }
+            let reported = tracker.update(u64::from(k) + 1, &[d], |o| {
                 let step = SmoothStep::filtered(&o.state);
                 assert!(frames.push(u64::from(k) + 1).is_ok() && steps.push(step).is_ok() && truth.push(x).is_ok());
             });
+            assert_eq!(reported, Ok(()));
         }
         let error = |steps: &[SmoothStep<10>]| {
             let sse: f64 = steps.iter().zip(&truth).skip(3).map(|(s, x)| (s.x[0] - x).powi(2) + s.x[1].powi(2)).sum();
@@ -624,11 +664,13 @@ mod tests {
                     .collect();
                 plausible += dets.iter().filter(|d| tracker.plausible(d)).count() as u64;
                 let mut ids = heapless::Vec::<u32, 8>::new();
-                tracker.update(&dets, |o| {
+                let next = tracker.stats().frames + 1;
+                let result = tracker.update(next, &dets, |o| {
                     assert!(!ids.contains(&o.id), "id {} twice", o.id);
                     assert!(ids.push(o.id).is_ok(), "more than N tracks reported");
                     assert!(o.state.x.iter().all(|v| v.is_finite()));
                 });
+                proptest::prop_assert!(result.is_ok());
             }
             let stats = *tracker.stats();
             let total: u64 = frames.iter().map(|f| f.len() as u64).sum();

@@ -43,13 +43,13 @@ fn bench(c: &mut Criterion) {
     let config = Config3d { classes: &CAR, min_hits: 3, max_age: 2, ground_z: 0.0, static_speed: 0.05 };
     let frames: Vec<Vec<Detection3d>> = (0..WARM_UP + TIMED).map(detections).collect();
     let mut warm = Tracker3d::<OBJECTS>::new(config);
-    for f in &frames[..WARM_UP] {
-        warm.update(f, |_| {});
+    for (k, f) in frames.iter().enumerate().take(WARM_UP) {
+        warm.update(k as u64, f, |_| {}).expect("in order");
     }
     let mut check = warm.clone();
     let mut reported = 0;
-    for f in &frames[WARM_UP..] {
-        check.update(f, |_| reported += 1);
+    for (k, f) in frames.iter().enumerate().skip(WARM_UP) {
+        check.update(k as u64, f, |_| reported += 1).expect("in order");
     }
     assert_eq!(reported, OBJECTS * TIMED, "every object tracked in every timed frame");
     eprintln!(
@@ -61,8 +61,8 @@ fn bench(c: &mut Criterion) {
         b.iter_batched(
             || warm.clone(),
             |mut tracker| {
-                for f in &frames[WARM_UP..] {
-                    tracker.update(f, |o| {
+                for (k, f) in frames.iter().enumerate().skip(WARM_UP) {
+                    let _ = tracker.update(k as u64, f, |o| {
                         std::hint::black_box(o);
                     });
                 }

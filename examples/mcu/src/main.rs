@@ -67,7 +67,7 @@ fn track_cones_and_a_car() -> bool {
             );
         }
         let mut cone_ids = [0u32; 8];
-        tracker.update(&detections, |o| {
+        let result = tracker.update(u64::from(k), &detections, |o| {
             if o.class == 0 {
                 car_ids |= 1 << o.id.min(31);
                 car_speed = libm::hypot(o.velocity[0], o.velocity[1]);
@@ -79,6 +79,9 @@ fn track_cones_and_a_car() -> bool {
                 }
             }
         });
+        if result.is_err() {
+            return false;
+        }
         if k > 3 && cone_ids != last_cone_ids {
             hprintln!("cone ids changed at frame {}", k);
             return false;
