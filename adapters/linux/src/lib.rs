@@ -12,6 +12,7 @@ pub mod cli;
 pub mod evaluate;
 pub mod mot;
 pub mod nmea_decode;
+pub mod osm;
 pub mod scenario;
 pub mod sync;
 pub mod track2d;
