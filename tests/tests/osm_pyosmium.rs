@@ -53,6 +53,22 @@ fn counts_equal_pyosmium() {
         for (ours, theirs) in [lat0, lon0, lat1, lon1].iter().zip(&bbox) {
             assert!((ours - theirs).abs() <= 0.5e-7 + 1e-12, "{file}: bbox {ours} vs {theirs}");
         }
+        // Their driving interpretation: the lane counts tagged are the lane counts used.
+        let mut warnings = Vec::new();
+        let roads: Vec<_> =
+            highways.iter().filter_map(|w| Some((*w, osm::highway::interpret(w, &mut warnings)?))).collect();
+        for (way, road) in &roads {
+            let tagged = way.tag("lanes").and_then(|v| v.parse::<u8>().ok()).filter(|&n| n > 0);
+            if let Some(n) = tagged.filter(|&n| n > 1 || road.backward_lanes == 0) {
+                assert_eq!(road.lanes(), n, "{file}: way {}", way.id);
+            }
+        }
+        println!(
+            "{file}: {} drivable ways, {} tag warnings: {:?}",
+            roads.len(),
+            warnings.len(),
+            warnings.iter().take(3).collect::<Vec<_>>()
+        );
         println!(
             "{file}: {} nodes, {} ways ({} highway), {} relations, {} way refs — equal to pyosmium",
             data.node_count,

@@ -5,6 +5,7 @@
 //! are warnings naming the file and line (XML) or element id (PBF), and reading goes on;
 //! a file that cannot be parsed at all is an error saying where.
 
+pub mod highway;
 mod pbf;
 mod xml;
 
