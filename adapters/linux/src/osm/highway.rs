@@ -129,7 +129,7 @@ pub fn interpret(way: &Way, warnings: &mut Vec<String>) -> Option<RoadSpec> {
         .find_map(|key| way.tag(key).map(|v| (key, metres(v))))
         .and_then(|(key, parsed)| parsed.map_err(|why| warn(format!("{key}: {why}"))).ok());
     let lane_width = width.map_or(DEFAULT_LANE_WIDTH_M, |w| w / lanes);
-    let speed_limit = way.tag("maxspeed").and_then(|v| speed(v).map_err(|why| warn(why)).ok());
+    let speed_limit = way.tag("maxspeed").and_then(|v| speed(v).map_err(&mut warn).ok());
     Some(RoadSpec { class: class.to_owned(), forward_lanes, backward_lanes, lane_width, speed_limit, reversed })
 }
 
