@@ -18,6 +18,7 @@
 //! | [`claim`] | claim-and-suppress with a video propagator (Algorithm 1) |
 //! | [`track3d`] | AB3DMOT-style 3D track manager with class priors |
 //! | [`ekf`] | fixed-size (extended) Kalman filter, Joseph form, RTS smoother |
+//! | [`map`] | the compact map tile: zero-copy view, grid index, distance to the drivable area |
 //! | [`can`] | CAN: J1939/NMEA 2000 ids, fast packets, GNSS/speed decoders, DBC signals |
 //!
 //! Capacity is part of the types; nothing here allocates or panics on untrusted input.
@@ -37,6 +38,7 @@ pub mod can;
 pub mod claim;
 pub mod ekf;
 pub mod geo;
+pub mod map;
 pub mod nmea;
 pub mod sim3;
 pub mod time;

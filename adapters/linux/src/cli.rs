@@ -52,6 +52,36 @@ enum Command {
     /// Generated work-zone drives: ground truth and sensor streams (docs/scenario.md).
     #[command(subcommand)]
     Scenario(ScenarioCommand),
+    /// Map tiles from OpenStreetMap (docs/map-tile.md).
+    #[command(subcommand)]
+    Map(MapCommand),
+}
+
+#[derive(Debug, Subcommand)]
+enum MapCommand {
+    /// Build a map tile from an OSM file (.osm XML or .osm.pbf): drivable highway ways →
+    /// lanes in a local ENU frame, with a grid index.
+    Build {
+        /// The OpenStreetMap file.
+        osm: PathBuf,
+        /// Output tile.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// ENU origin `LAT,LON` (degrees); default: the centre of the roads.
+        #[arg(long, value_name = "LAT,LON")]
+        origin: Option<String>,
+        /// Grid cell size, metres.
+        #[arg(long, default_value_t = 50.0)]
+        cell: f64,
+    },
+    /// Describe a map tile: origin, source counts, lanes, lane-km, bytes.
+    Info {
+        /// The tile.
+        map: PathBuf,
+        /// Print JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Debug, Subcommand)]
@@ -214,6 +244,10 @@ pub fn run() -> ExitCode {
         Command::Scenario(ScenarioCommand::Eval { seed, duration, max_age, json }) => {
             crate::scenario::command::run_eval(seed, duration, max_age, json)
         }
+        Command::Map(MapCommand::Build { osm, output, origin, cell }) => {
+            crate::map_tile::run_build(&osm, &output, origin.as_deref(), cell)
+        }
+        Command::Map(MapCommand::Info { map, json }) => crate::map_tile::run_info(&map, json),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

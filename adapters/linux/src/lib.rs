@@ -10,6 +10,7 @@ pub mod anchoring;
 pub mod can_decode;
 pub mod cli;
 pub mod evaluate;
+pub mod map_tile;
 pub mod mot;
 pub mod nmea_decode;
 pub mod osm;

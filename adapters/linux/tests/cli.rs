@@ -414,3 +414,43 @@ fn scenario_eval_reports_the_figures_and_bad_durations_are_refused() {
         assert!(!out.status.success() && stderr(&out).contains("--duration"), "{bad}: {}", stderr(&out));
     }
 }
+
+#[test]
+fn map_build_and_info_describe_the_tile_and_refuse_a_corrupted_one() {
+    let dir = scratch("map");
+    let osm = write(
+        &dir,
+        "small.osm",
+        r#"<osm version="0.6">
+  <node id="1" lat="60.0000" lon="24.0000"/>
+  <node id="2" lat="60.0010" lon="24.0000"/>
+  <node id="3" lat="60.0010" lon="24.0020"/>
+  <way id="5"><nd ref="1"/><nd ref="2"/><nd ref="3"/><tag k="highway" v="primary"/><tag k="lanes" v="2"/><tag k="maxspeed" v="50"/></way>
+  <way id="6"><nd ref="2"/><nd ref="404"/><tag k="highway" v="residential"/><tag k="width" v="abc"/></way>
+  <way id="7"><nd ref="1"/><nd ref="3"/><tag k="highway" v="footway"/></way>
+</osm>"#,
+    );
+    let map = dir.join("small.map").display().to_string();
+    let out = dash2sim(&["map", "build", &osm, "-o", &map, "--origin", "60,24"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let err = stderr(&out);
+    assert!(err.contains("way 6 references missing node 404") && err.contains("way 6: width"), "{err}");
+    let out = dash2sim(&["map", "info", &map, "--json"]);
+    let info: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(info["osm"], serde_json::json!({"nodes": 3, "ways": 3, "highway_ways": 3, "relations": 0}));
+    assert_eq!((info["origin"]["lat"].as_f64(), info["lanes"].as_u64()), (Some(60.0), Some(2)));
+    // Two lanes along 111 m north then 111 m east.
+    let km = info["lane_km"].as_f64().expect("km");
+    assert!((km - 2.0 * 0.2225).abs() < 0.01, "{km}");
+    assert_eq!(info["bytes"].as_u64(), std::fs::metadata(&map).ok().map(|m| m.len()));
+    // One flipped byte: a clear error, not a crash.
+    let mut bytes = std::fs::read(&map).expect("tile");
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    let bad = write(&dir, "bad.map", "");
+    std::fs::write(&bad, &bytes).expect("write");
+    let out = dash2sim(&["map", "info", &bad]);
+    assert!(!out.status.success() && stderr(&out).contains("CRC-32C mismatch"), "{}", stderr(&out));
+    let out = dash2sim(&["map", "build", &osm, "-o", &map, "--origin", "91,0"]);
+    assert!(!out.status.success() && stderr(&out).contains("--origin"), "{}", stderr(&out));
+}

@@ -1,0 +1,473 @@
+//! Building map tiles (format v1, `docs/map-tile.md`): OpenStreetMap highway ways → lanes
+//! in a local ENU frame → the bytes the core's `map::MapView` reads.
+//!
+//! Every drivable way becomes `forward + backward` lanes laid side by side across its
+//! width (backward lanes on the left, as in right-hand traffic), each an offset copy of the
+//! way's centreline in its own driving order. Successors join lanes through shared OSM
+//! nodes: a lane ending at node n continues into every lane starting at n except the
+//! reverse of itself.
+
+use std::collections::HashMap;
+
+use dash2sim_core::geo::{Geodetic, LocalFrame};
+use dash2sim_core::map::{body_checksum, Header, CRC_AT, HEADER_LEN, NONE, POLYGON_BIT};
+
+use crate::osm::highway::{interpret, RoadSpec};
+use crate::osm::OsmData;
+
+/// Road classes as stored in the tile (`docs/map-tile.md`).
+pub const CLASSES: [&str; 11] = [
+    "other",
+    "motorway",
+    "trunk",
+    "primary",
+    "secondary",
+    "tertiary",
+    "unclassified",
+    "residential",
+    "service",
+    "living_street",
+    "link",
+];
+
+fn class_code(class: &str) -> u8 {
+    if class.ends_with("_link") {
+        return 10;
+    }
+    CLASSES.iter().position(|c| *c == class).map_or(0, |i| i as u8)
+}
+
+/// One lane before encoding.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TileLane {
+    /// Centreline in driving order, ENU metres.
+    pub points: Vec<(f64, f64)>,
+    /// Width, m.
+    pub width: f64,
+    /// Speed limit, m/s.
+    pub speed_limit: Option<f64>,
+    /// Road class code.
+    pub class: u8,
+    /// Neighbour lanes in the same direction (left, right).
+    pub neighbours: (Option<u32>, Option<u32>),
+    /// Lanes it continues into.
+    pub successors: Vec<u32>,
+}
+
+/// Everything a tile holds, before encoding.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TileContent {
+    /// ENU origin: latitude, longitude, height.
+    pub origin: [f64; 3],
+    /// Lanes.
+    pub lanes: Vec<TileLane>,
+    /// Drivable polygons (rings), ENU metres.
+    pub polygons: Vec<Vec<(f64, f64)>>,
+    /// Source counts: nodes, ways, highway ways, relations.
+    pub source_counts: [u32; 4],
+}
+
+impl TileContent {
+    /// Total centreline length of all lanes, km.
+    pub fn lane_km(&self) -> f64 {
+        self.lanes
+            .iter()
+            .map(|l| l.points.windows(2).map(|w| (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1)).sum::<f64>())
+            .sum::<f64>()
+            / 1000.0
+    }
+}
+
+/// The polyline `points` moved `offset` metres to its left (miter joins, limited to 4×).
+pub fn offset_polyline(points: &[(f64, f64)], offset: f64) -> Vec<(f64, f64)> {
+    let normal = |a: (f64, f64), b: (f64, f64)| {
+        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+        let len = dx.hypot(dy).max(1e-12);
+        (-dy / len, dx / len)
+    };
+    (0..points.len())
+        .map(|k| {
+            let before = k.checked_sub(1).map(|j| normal(points[j], points[k]));
+            let after = points.get(k + 1).map(|&n| normal(points[k], n));
+            let (nx, ny) = match (before, after) {
+                (Some(a), Some(b)) => {
+                    let (sx, sy) = (a.0 + b.0, a.1 + b.1);
+                    let len = sx.hypot(sy);
+                    if len < 1e-9 {
+                        a
+                    } else {
+                        // Scale so that both neighbouring segments sit at `offset`.
+                        let cos_half = (sx * a.0 + sy * a.1) / len;
+                        let scale = 1.0 / cos_half.max(0.25);
+                        (sx / len * scale, sy / len * scale)
+                    }
+                }
+                (Some(a), None) | (None, Some(a)) => a,
+                (None, None) => (0.0, 0.0),
+            };
+            (points[k].0 + nx * offset, points[k].1 + ny * offset)
+        })
+        .collect()
+}
+
+/// Lanes from the drivable highway ways of `data` around `origin` (default: the centre of
+/// the nodes those ways use). Problems go to `warnings`.
+pub fn from_osm(data: &OsmData, origin: Option<Geodetic>, warnings: &mut Vec<String>) -> TileContent {
+    let roads: Vec<(&crate::osm::Way, RoadSpec)> =
+        data.highway_ways().filter_map(|w| Some((w, interpret(w, warnings)?))).collect();
+    let origin = origin.unwrap_or_else(|| {
+        let (mut lat0, mut lon0, mut lat1, mut lon1) = (90.0f64, 180.0f64, -90.0f64, -180.0f64);
+        for (way, _) in &roads {
+            for (lat, lon) in way.refs.iter().filter_map(|r| data.nodes.get(r)) {
+                (lat0, lon0, lat1, lon1) = (lat0.min(*lat), lon0.min(*lon), lat1.max(*lat), lon1.max(*lon));
+            }
+        }
+        let centre = if lat0 <= lat1 { ((lat0 + lat1) / 2.0, (lon0 + lon1) / 2.0) } else { (0.0, 0.0) };
+        Geodetic::new(centre.0, centre.1, 0.0).unwrap_or(Geodetic { lat_deg: 0.0, lon_deg: 0.0, height_m: 0.0 })
+    });
+    let frame = LocalFrame::new(origin);
+    let mut content = TileContent {
+        origin: [origin.lat_deg, origin.lon_deg, origin.height_m],
+        source_counts: [
+            u32::try_from(data.node_count).unwrap_or(u32::MAX),
+            u32::try_from(data.ways.len()).unwrap_or(u32::MAX),
+            u32::try_from(data.highway_ways().count()).unwrap_or(u32::MAX),
+            u32::try_from(data.relations.len()).unwrap_or(u32::MAX),
+        ],
+        ..TileContent::default()
+    };
+    // (start node, end node, way id, reversed copy of lane?) per lane, for successors.
+    let mut ends: Vec<(i64, i64, i64)> = Vec::new();
+    for (way, road) in roads {
+        let mut nodes = Vec::with_capacity(way.refs.len());
+        for r in &way.refs {
+            match data.nodes.get(r) {
+                Some(&(lat, lon)) => {
+                    let Ok(g) = Geodetic::new(lat, lon, 0.0) else { continue };
+                    let p = frame.geodetic_to_enu(&g);
+                    if nodes.last().is_none_or(|&(_, q): &(i64, (f64, f64))| (q.0 - p.x).hypot(q.1 - p.y) > 0.01) {
+                        nodes.push((*r, (p.x, p.y)));
+                    }
+                }
+                None => warnings.push(format!("way {} references missing node {r}; node skipped", way.id)),
+            }
+        }
+        if nodes.len() < 2 {
+            warnings.push(format!("way {}: fewer than 2 usable nodes; way skipped", way.id));
+            continue;
+        }
+        if nodes.len() > usize::from(u16::MAX) {
+            warnings.push(format!("way {}: more than 65535 nodes; way skipped", way.id));
+            continue;
+        }
+        if road.reversed {
+            nodes.reverse();
+        }
+        let line: Vec<(f64, f64)> = nodes.iter().map(|(_, p)| *p).collect();
+        let (first_node, last_node) = (nodes[0].0, nodes[nodes.len() - 1].0);
+        let (f, b) = (usize::from(road.forward_lanes), usize::from(road.backward_lanes));
+        let total = f + b;
+        let width = road.lane_width * total as f64;
+        let base = content.lanes.len() as u32;
+        for j in 0..total {
+            let offset = width / 2.0 - (j as f64 + 0.5) * road.lane_width;
+            let mut points = offset_polyline(&line, offset);
+            let forward = j >= b;
+            let (start, end) = if forward { (first_node, last_node) } else { (last_node, first_node) };
+            let index = |k: usize| Some(base + k as u32);
+            let neighbours = if forward {
+                (if j > b { index(j - 1) } else { None }, if j + 1 < total { index(j + 1) } else { None })
+            } else {
+                points.reverse();
+                (if j + 1 < b { index(j + 1) } else { None }, if j > 0 { index(j - 1) } else { None })
+            };
+            content.lanes.push(TileLane {
+                points,
+                width: road.lane_width,
+                speed_limit: road.speed_limit,
+                class: class_code(&road.class),
+                neighbours,
+                successors: Vec::new(),
+            });
+            ends.push((start, end, way.id));
+        }
+    }
+    let mut starting: HashMap<i64, Vec<u32>> = HashMap::new();
+    for (i, (start, _, _)) in ends.iter().enumerate() {
+        starting.entry(*start).or_default().push(i as u32);
+    }
+    for (i, (start, end, way)) in ends.iter().enumerate() {
+        let next = starting.get(end).map_or(&[][..], Vec::as_slice);
+        content.lanes[i].successors =
+            next.iter().copied().filter(|&k| !(ends[k as usize].2 == *way && ends[k as usize].1 == *start)).collect();
+    }
+    content
+}
+
+/// Encode `content` with a grid of `cell_size` metres.
+pub fn encode(content: &TileContent, cell_size: f64) -> Vec<u8> {
+    let mut points: Vec<(f64, f64)> = Vec::new();
+    let mut successors: Vec<u32> = Vec::new();
+    let mut lane_records = Vec::with_capacity(content.lanes.len() * 28);
+    let (mut min, mut max) = ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN));
+    let mut grow = |p: (f64, f64), margin: f64| {
+        min = (min.0.min(p.0 - margin), min.1.min(p.1 - margin));
+        max = (max.0.max(p.0 + margin), max.1.max(p.1 + margin));
+    };
+    for lane in &content.lanes {
+        let first = points.len() as u32;
+        for &p in &lane.points {
+            grow(p, lane.width / 2.0);
+            points.push(p);
+        }
+        let succ_first = successors.len() as u32;
+        successors.extend(&lane.successors);
+        let mut r = [0u8; 28];
+        r[0..4].copy_from_slice(&first.to_le_bytes());
+        r[4..6].copy_from_slice(&(lane.points.len().min(usize::from(u16::MAX)) as u16).to_le_bytes());
+        r[6..8].copy_from_slice(&((lane.width * 100.0).round().clamp(1.0, 65535.0) as u16).to_le_bytes());
+        let speed = lane.speed_limit.map_or(0, |v| (v * 100.0).round().clamp(1.0, 65535.0) as u16);
+        r[8..10].copy_from_slice(&speed.to_le_bytes());
+        r[10] = lane.class;
+        r[12..16].copy_from_slice(&lane.neighbours.0.unwrap_or(NONE).to_le_bytes());
+        r[16..20].copy_from_slice(&lane.neighbours.1.unwrap_or(NONE).to_le_bytes());
+        r[20..24].copy_from_slice(&succ_first.to_le_bytes());
+        r[24..26].copy_from_slice(&(lane.successors.len().min(usize::from(u16::MAX)) as u16).to_le_bytes());
+        lane_records.extend_from_slice(&r);
+    }
+    let mut polygon_records = Vec::new();
+    for ring in &content.polygons {
+        polygon_records.extend_from_slice(&(points.len() as u32).to_le_bytes());
+        polygon_records.extend_from_slice(&(ring.len() as u32).to_le_bytes());
+        for &p in ring {
+            grow(p, 0.0);
+            points.push(p);
+        }
+    }
+    if min.0 > max.0 {
+        (min, max) = ((0.0, 0.0), (0.0, 0.0));
+    }
+    let cell_size = cell_size.max(1.0);
+    let cols = (((max.0 - min.0) / cell_size).ceil() as usize).clamp(1, usize::from(u16::MAX));
+    let rows = (((max.1 - min.1) / cell_size).ceil() as usize).clamp(1, usize::from(u16::MAX));
+    let mut cells: Vec<Vec<u32>> = vec![Vec::new(); cols * rows];
+    let cell_of = |v: f64, lo: f64, n: usize| (((v - lo) / cell_size).floor().max(0.0) as usize).min(n - 1);
+    let mut register = |a: (f64, f64), b: (f64, f64), margin: f64, item: u32| {
+        let (c0, c1) = (cell_of(a.0.min(b.0) - margin, min.0, cols), cell_of(a.0.max(b.0) + margin, min.0, cols));
+        let (r0, r1) = (cell_of(a.1.min(b.1) - margin, min.1, rows), cell_of(a.1.max(b.1) + margin, min.1, rows));
+        for row in r0..=r1 {
+            for col in c0..=c1 {
+                let cell = &mut cells[row * cols + col];
+                if cell.last() != Some(&item) {
+                    cell.push(item);
+                }
+            }
+        }
+    };
+    for (i, lane) in content.lanes.iter().enumerate() {
+        for w in lane.points.windows(2) {
+            register(w[0], w[1], lane.width / 2.0, i as u32);
+        }
+    }
+    for (i, ring) in content.polygons.iter().enumerate() {
+        let (mut lo, mut hi) = ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN));
+        for p in ring {
+            lo = (lo.0.min(p.0), lo.1.min(p.1));
+            hi = (hi.0.max(p.0), hi.1.max(p.1));
+        }
+        register(lo, hi, 0.0, i as u32 | POLYGON_BIT);
+    }
+    let entries: usize = cells.iter().map(Vec::len).sum();
+    let header = Header {
+        origin: content.origin,
+        points: points.len() as u32,
+        lanes: content.lanes.len() as u32,
+        successors: successors.len() as u32,
+        polygons: content.polygons.len() as u32,
+        grid_entries: entries as u32,
+        cell_size: cell_size as f32,
+        grid_min: [min.0 as f32, min.1 as f32],
+        grid_size: [cols as u16, rows as u16],
+        source_counts: content.source_counts,
+    };
+    let mut out = vec![0u8; HEADER_LEN];
+    header.write(&mut out);
+    for (x, y) in &points {
+        out.extend_from_slice(&(*x as f32).to_le_bytes());
+        out.extend_from_slice(&(*y as f32).to_le_bytes());
+    }
+    out.extend_from_slice(&lane_records);
+    for s in &successors {
+        out.extend_from_slice(&s.to_le_bytes());
+    }
+    out.extend_from_slice(&polygon_records);
+    let mut start = 0u32;
+    for cell in &cells {
+        out.extend_from_slice(&start.to_le_bytes());
+        start += cell.len() as u32;
+    }
+    out.extend_from_slice(&start.to_le_bytes());
+    for cell in &cells {
+        for e in cell {
+            out.extend_from_slice(&e.to_le_bytes());
+        }
+    }
+    let crc = body_checksum(&out);
+    out[CRC_AT..CRC_AT + 4].copy_from_slice(&crc.to_le_bytes());
+    out
+}
+
+fn parse_origin(text: &str) -> Result<Geodetic, String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let [lat, lon] = parts[..] else { return Err(format!("--origin {text:?}: expected LAT,LON")) };
+    let (Ok(lat), Ok(lon)) = (lat.parse::<f64>(), lon.parse::<f64>()) else {
+        return Err(format!("--origin {text:?}: LAT and LON must be numbers"));
+    };
+    Geodetic::new(lat, lon, 0.0).map_err(|e| format!("--origin {text:?}: {e}"))
+}
+
+/// `dash2sim map build`.
+pub fn run_build(
+    osm: &std::path::Path,
+    output: &std::path::Path,
+    origin: Option<&str>,
+    cell: f64,
+) -> Result<(), String> {
+    if !(cell.is_finite() && (1.0..=10_000.0).contains(&cell)) {
+        return Err(format!("--cell {cell} must be between 1 and 10000 metres"));
+    }
+    let origin = origin.map(parse_origin).transpose()?;
+    let data = crate::osm::read(osm).map_err(|e| e.to_string())?;
+    let mut warnings = data.warnings.clone();
+    let content = from_osm(&data, origin, &mut warnings);
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
+    if content.lanes.is_empty() {
+        return Err(format!("{}: no drivable highway ways", osm.display()));
+    }
+    let bytes = encode(&content, cell);
+    std::fs::write(output, &bytes).map_err(|e| format!("{}: {e}", output.display()))?;
+    println!(
+        "{}: {} lanes, {:.2} lane-km, {} bytes ({:.0} bytes per lane-km), {} warnings",
+        output.display(),
+        content.lanes.len(),
+        content.lane_km(),
+        bytes.len(),
+        bytes.len() as f64 / content.lane_km().max(1e-9),
+        warnings.len()
+    );
+    Ok(())
+}
+
+/// `dash2sim map info`.
+pub fn run_info(path: &std::path::Path, as_json: bool) -> Result<(), String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let view = dash2sim_core::map::MapView::parse(&bytes).map_err(|e| format!("{}: {e}", path.display()))?;
+    let h = view.header();
+    let lane_km: f64 = (0..h.lanes)
+        .filter_map(|i| view.lane(i))
+        .map(|l| {
+            let p: Vec<(f64, f64)> = l.points().collect();
+            p.windows(2).map(|w| (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1)).sum::<f64>()
+        })
+        .sum::<f64>()
+        / 1000.0;
+    let [nodes, ways, highway_ways, relations] = h.source_counts;
+    let info = serde_json::json!({
+        "origin": {"lat": h.origin[0], "lon": h.origin[1]},
+        "osm": {"nodes": nodes, "ways": ways, "highway_ways": highway_ways, "relations": relations},
+        "lanes": h.lanes,
+        "lane_km": lane_km,
+        "polygons": h.polygons,
+        "points": h.points,
+        "grid": {"cell_m": h.cell_size, "columns": h.grid_size[0], "rows": h.grid_size[1], "entries": h.grid_entries},
+        "bytes": bytes.len(),
+        "bytes_per_lane_km": bytes.len() as f64 / lane_km.max(1e-9),
+    });
+    if as_json {
+        println!("{info}");
+    } else {
+        println!("map tile {} (format v1)", path.display());
+        println!("  origin      {:.7}, {:.7}", h.origin[0], h.origin[1]);
+        println!("  source      {nodes} nodes, {ways} ways ({highway_ways} highway), {relations} relations");
+        println!("  lanes       {} ({lane_km:.2} lane-km), {} polygons, {} points", h.lanes, h.polygons, h.points);
+        println!(
+            "  grid        {} × {} cells of {} m, {} entries",
+            h.grid_size[0], h.grid_size[1], h.cell_size, h.grid_entries
+        );
+        println!("  size        {} bytes ({:.0} per lane-km)", bytes.len(), bytes.len() as f64 / lane_km.max(1e-9));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dash2sim_core::map::{Item, MapError, MapView};
+
+    fn square_road() -> TileContent {
+        let lane = |points: Vec<(f64, f64)>| TileLane {
+            points,
+            width: 3.5,
+            speed_limit: Some(50.0 / 3.6),
+            class: 7,
+            neighbours: (None, None),
+            successors: vec![1],
+        };
+        TileContent {
+            origin: [60.0, 24.0, 0.0],
+            lanes: vec![lane(vec![(0.0, 0.0), (100.0, 0.0)]), lane(vec![(100.0, 0.0), (100.0, 100.0)])],
+            polygons: vec![vec![(-20.0, -20.0), (-10.0, -20.0), (-10.0, -10.0), (-20.0, -10.0)]],
+            source_counts: [1, 2, 3, 4],
+        }
+    }
+
+    #[test]
+    fn a_tile_round_trips_and_answers_distance_queries() {
+        let bytes = encode(&square_road(), 25.0);
+        let view = MapView::parse(&bytes).expect("valid");
+        assert_eq!(view.header().source_counts, [1, 2, 3, 4]);
+        let lane = view.lane(0).expect("lane");
+        assert_eq!(lane.points().collect::<Vec<_>>(), vec![(0.0, 0.0), (100.0, 0.0)]);
+        assert_eq!((lane.width, lane.class, lane.successors().collect::<Vec<_>>()), (3.5, 7, vec![1]));
+        assert!((lane.speed_limit.expect("limit") - 13.89).abs() < 1e-9);
+        let all = |_: Item| true;
+        // On the first lane's centreline; 1 m outside its edge; at the corner's round join.
+        assert_eq!(view.distance_to_drivable(50.0, 0.0, 5.0, all), Some(-1.75));
+        assert!((view.distance_to_drivable(50.0, 2.75, 5.0, all).expect("near") - 1.0).abs() < 1e-6);
+        assert!((view.distance_to_drivable(102.0, -2.0, 5.0, all).expect("near") - (8f64.sqrt() - 1.75)).abs() < 1e-6);
+        // Inside the polygon, and far from everything.
+        assert!(view.distance_to_drivable(-15.0, -15.0, 5.0, all).expect("inside") < 0.0);
+        assert_eq!(view.distance_to_drivable(50.0, 60.0, 5.0, all), None);
+        // Channel-sensitive: only lane 1 counts.
+        let only_second = |i: Item| i == Item::Lane(1);
+        assert!(view.distance_to_drivable(50.0, 0.0, 5.0, only_second).is_none());
+    }
+
+    #[test]
+    fn corruption_and_truncation_are_refused() {
+        let bytes = encode(&square_road(), 25.0);
+        assert_eq!(MapView::parse(&bytes[..bytes.len() - 1]), Err(MapError::BadLength));
+        assert_eq!(MapView::parse(&bytes[..10]), Err(MapError::TooShort));
+        let mut flipped = bytes.clone();
+        flipped[HEADER_LEN + 3] ^= 0x10;
+        assert_eq!(MapView::parse(&flipped), Err(MapError::BadChecksum));
+        let mut version = bytes.clone();
+        version[6] = 2;
+        assert_eq!(MapView::parse(&version), Err(MapError::UnsupportedVersion(2)));
+        let mut magic = bytes;
+        magic[0] = b'X';
+        assert_eq!(MapView::parse(&magic), Err(MapError::BadMagic));
+    }
+
+    #[test]
+    fn offset_lines_keep_their_distance_around_a_bend() {
+        let line = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0)];
+        let left = offset_polyline(&line, 2.0);
+        assert_eq!(left[0], (0.0, 2.0));
+        // Inside of the left turn: the miter point sits 2 m from both segments.
+        assert!((left[1].0 - 8.0).abs() < 1e-9 && (left[1].1 - 2.0).abs() < 1e-9, "{left:?}");
+        assert_eq!(left[2], (8.0, 10.0));
+    }
+}

@@ -1,0 +1,497 @@
+//! The compact map tile (format v1, `docs/map-tile.md`) and a zero-copy view of it.
+//!
+//! A tile is a byte slice — from flash, a file or a `static` — holding an ENU origin,
+//! lanes (centreline in driving order, width, speed limit, road class, neighbours and
+//! successors), drivable polygons, and a uniform grid index so that a query touches only
+//! the lanes near it. [`MapView::parse`] checks the whole tile once (magic, version,
+//! CRC-32C, every length, index and float); after that every accessor is cheap and none
+//! can panic, so a truncated or corrupted tile is an error, never a crash.
+//!
+//! A lane's area is its centreline buffered by half its width with round caps and joins
+//! (the union of one capsule per segment): where ways meet, the round ends cover the
+//! junction, which is the lenient junction the verification wants.
+
+use crc::{Crc, CRC_32_ISCSI};
+
+/// The file's first six bytes.
+pub const MAGIC: [u8; 6] = *b"D2SMAP";
+/// Format major version this view reads.
+pub const VERSION_MAJOR: u8 = 1;
+/// Format minor version written by this crate (a reader accepts any minor of its major).
+pub const VERSION_MINOR: u8 = 0;
+/// Header length in bytes.
+pub const HEADER_LEN: usize = 88;
+/// Bytes per point (x, y as f32).
+pub const POINT_LEN: usize = 8;
+/// Bytes per lane record.
+pub const LANE_LEN: usize = 28;
+/// Bytes per polygon record.
+pub const POLYGON_LEN: usize = 8;
+/// "No neighbour".
+pub const NONE: u32 = u32::MAX;
+/// Grid entries with this bit set name a polygon, otherwise a lane.
+pub const POLYGON_BIT: u32 = 0x8000_0000;
+
+/// CRC-32C (Castagnoli), the checksum of the tile's body.
+pub const CRC32C: Crc<u32> = Crc::<u32>::new(&CRC_32_ISCSI);
+
+/// Why a tile was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum MapError {
+    /// Shorter than the header.
+    TooShort,
+    /// Not a dash2sim map tile.
+    BadMagic,
+    /// A major version this reader does not know.
+    UnsupportedVersion(u8),
+    /// The body does not match its CRC-32C.
+    BadChecksum,
+    /// The sections do not add up to the tile's length.
+    BadLength,
+    /// A record refers outside its section (section name, record index).
+    BadReference(&'static str, u32),
+    /// A coordinate, size or origin is not finite or out of range (section, index).
+    BadValue(&'static str, u32),
+}
+
+impl core::fmt::Display for MapError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            MapError::TooShort => write!(f, "shorter than the {HEADER_LEN}-byte header"),
+            MapError::BadMagic => write!(f, "not a dash2sim map tile (bad magic)"),
+            MapError::UnsupportedVersion(v) => write!(f, "format version {v} is not supported (this reader: 1)"),
+            MapError::BadChecksum => write!(f, "CRC-32C mismatch: the tile is corrupted"),
+            MapError::BadLength => write!(f, "section lengths do not match the tile length (truncated?)"),
+            MapError::BadReference(section, i) => write!(f, "{section} {i} refers outside the tile"),
+            MapError::BadValue(section, i) => write!(f, "{section} {i} has a value out of range"),
+        }
+    }
+}
+
+impl core::error::Error for MapError {}
+
+fn u16_at(b: &[u8], at: usize) -> u16 {
+    match b.get(at..at + 2) {
+        Some(&[x, y]) => u16::from_le_bytes([x, y]),
+        _ => 0,
+    }
+}
+
+fn u32_at(b: &[u8], at: usize) -> u32 {
+    match b.get(at..at + 4) {
+        Some(&[a, c, d, e]) => u32::from_le_bytes([a, c, d, e]),
+        _ => 0,
+    }
+}
+
+fn f32_at(b: &[u8], at: usize) -> f32 {
+    f32::from_bits(u32_at(b, at))
+}
+
+fn f64_at(b: &[u8], at: usize) -> f64 {
+    match b.get(at..at + 8) {
+        Some(s) => {
+            let mut a = [0u8; 8];
+            a.copy_from_slice(s);
+            f64::from_le_bytes(a)
+        }
+        None => f64::NAN,
+    }
+}
+
+/// The counts and grid geometry of a tile, from its header.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Header {
+    /// ENU origin: latitude, longitude (degrees), height (m).
+    pub origin: [f64; 3],
+    /// Points.
+    pub points: u32,
+    /// Lanes.
+    pub lanes: u32,
+    /// Successor entries.
+    pub successors: u32,
+    /// Drivable polygons.
+    pub polygons: u32,
+    /// Grid entries.
+    pub grid_entries: u32,
+    /// Grid cell size, m.
+    pub cell_size: f32,
+    /// Grid lower-left corner (x, y), m.
+    pub grid_min: [f32; 2],
+    /// Grid columns and rows.
+    pub grid_size: [u16; 2],
+    /// What the source file held: nodes, ways, highway ways, relations (for `map info`).
+    pub source_counts: [u32; 4],
+}
+
+impl Header {
+    fn read(b: &[u8]) -> Header {
+        Header {
+            origin: [f64_at(b, 8), f64_at(b, 16), f64_at(b, 24)],
+            points: u32_at(b, 32),
+            lanes: u32_at(b, 36),
+            successors: u32_at(b, 40),
+            polygons: u32_at(b, 44),
+            grid_entries: u32_at(b, 48),
+            cell_size: f32_at(b, 52),
+            grid_min: [f32_at(b, 56), f32_at(b, 60)],
+            grid_size: [u16_at(b, 64), u16_at(b, 66)],
+            source_counts: [u32_at(b, 68), u32_at(b, 72), u32_at(b, 76), u32_at(b, 80)],
+        }
+    }
+
+    /// Write the header (CRC left zero) into `out[..HEADER_LEN]`.
+    pub fn write(&self, out: &mut [u8]) {
+        let Some(h) = out.get_mut(..HEADER_LEN) else { return };
+        h.fill(0);
+        h[..6].copy_from_slice(&MAGIC);
+        h[6] = VERSION_MAJOR;
+        h[7] = VERSION_MINOR;
+        for (k, v) in self.origin.iter().enumerate() {
+            h[8 + 8 * k..16 + 8 * k].copy_from_slice(&v.to_le_bytes());
+        }
+        for (at, v) in
+            [(32, self.points), (36, self.lanes), (40, self.successors), (44, self.polygons), (48, self.grid_entries)]
+        {
+            h[at..at + 4].copy_from_slice(&v.to_le_bytes());
+        }
+        for (at, v) in [(52, self.cell_size), (56, self.grid_min[0]), (60, self.grid_min[1])] {
+            h[at..at + 4].copy_from_slice(&v.to_le_bytes());
+        }
+        h[64..66].copy_from_slice(&self.grid_size[0].to_le_bytes());
+        h[66..68].copy_from_slice(&self.grid_size[1].to_le_bytes());
+        for (k, v) in self.source_counts.iter().enumerate() {
+            h[68 + 4 * k..72 + 4 * k].copy_from_slice(&v.to_le_bytes());
+        }
+    }
+
+    fn cells(&self) -> usize {
+        usize::from(self.grid_size[0]) * usize::from(self.grid_size[1])
+    }
+
+    /// Byte offsets of the sections: points, lanes, successors, polygons, cell starts,
+    /// entries, end.
+    pub fn layout(&self) -> Option<[usize; 7]> {
+        let points = HEADER_LEN;
+        let lanes = points.checked_add((self.points as usize).checked_mul(POINT_LEN)?)?;
+        let successors = lanes.checked_add((self.lanes as usize).checked_mul(LANE_LEN)?)?;
+        let polygons = successors.checked_add((self.successors as usize).checked_mul(4)?)?;
+        let cells = polygons.checked_add((self.polygons as usize).checked_mul(POLYGON_LEN)?)?;
+        let entries = cells.checked_add(self.cells().checked_add(1)?.checked_mul(4)?)?;
+        let end = entries.checked_add((self.grid_entries as usize).checked_mul(4)?)?;
+        Some([points, lanes, successors, polygons, cells, entries, end])
+    }
+}
+
+/// Where the body's CRC-32C is stored.
+pub const CRC_AT: usize = 84;
+
+/// CRC-32C of a tile body, stored at bytes 84..88.
+pub fn body_checksum(tile: &[u8]) -> u32 {
+    CRC32C.checksum(tile.get(HEADER_LEN..).unwrap_or(&[]))
+}
+
+/// One lane of a tile.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lane<'a> {
+    view: MapView<'a>,
+    /// Index in the tile.
+    pub index: u32,
+    first_point: u32,
+    point_count: u16,
+    /// Width, m.
+    pub width: f64,
+    /// Speed limit, m/s, if known.
+    pub speed_limit: Option<f64>,
+    /// Road class (see `docs/map-tile.md`).
+    pub class: u8,
+    /// Lane to the left in the same direction.
+    pub left: Option<u32>,
+    /// Lane to the right in the same direction.
+    pub right: Option<u32>,
+    successor_first: u32,
+    successor_count: u16,
+}
+
+impl<'a> Lane<'a> {
+    /// Centreline points in driving order, ENU metres.
+    pub fn points(&self) -> impl Iterator<Item = (f64, f64)> + 'a {
+        let view = self.view;
+        (self.first_point..self.first_point + u32::from(self.point_count)).filter_map(move |i| view.point(i))
+    }
+
+    /// Lanes a vehicle may continue into at the end of this one.
+    pub fn successors(&self) -> impl Iterator<Item = u32> + 'a {
+        let view = self.view;
+        (self.successor_first..self.successor_first + u32::from(self.successor_count))
+            .filter_map(move |i| view.successor(i))
+    }
+
+    /// Distance from (x, y) to the centreline, and the heading of the nearest segment.
+    pub fn nearest(&self, x: f64, y: f64) -> (f64, f64) {
+        let mut best = (f64::INFINITY, 0.0);
+        let mut previous: Option<(f64, f64)> = None;
+        for p in self.points() {
+            if let Some(a) = previous {
+                let d = segment_distance((x, y), a, p);
+                if d < best.0 {
+                    best = (d, libm::atan2(p.1 - a.1, p.0 - a.0));
+                }
+            }
+            previous = Some(p);
+        }
+        best
+    }
+
+    /// Signed distance from (x, y) to the lane's area: ≤ 0 inside.
+    pub fn distance_outside(&self, x: f64, y: f64) -> f64 {
+        self.nearest(x, y).0 - self.width / 2.0
+    }
+}
+
+/// Distance from `p` to the segment `a`–`b`.
+pub fn segment_distance(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 { (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    libm::hypot(p.0 - (a.0 + t * dx), p.1 - (a.1 + t * dy))
+}
+
+/// What a grid entry names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Item {
+    /// A lane index.
+    Lane(u32),
+    /// A drivable polygon index.
+    Polygon(u32),
+}
+
+/// A validated tile.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapView<'a> {
+    bytes: &'a [u8],
+    header: Header,
+    layout: [usize; 7],
+}
+
+impl<'a> MapView<'a> {
+    /// Check `bytes` completely and view them.
+    pub fn parse(bytes: &'a [u8]) -> Result<Self, MapError> {
+        if bytes.len() < HEADER_LEN {
+            return Err(MapError::TooShort);
+        }
+        if bytes.get(..6) != Some(&MAGIC[..]) {
+            return Err(MapError::BadMagic);
+        }
+        let major = bytes.get(6).copied().unwrap_or(0);
+        if major != VERSION_MAJOR {
+            return Err(MapError::UnsupportedVersion(major));
+        }
+        let header = Header::read(bytes);
+        let layout = header.layout().ok_or(MapError::BadLength)?;
+        if layout[6] != bytes.len() {
+            return Err(MapError::BadLength);
+        }
+        if body_checksum(bytes) != u32_at(bytes, CRC_AT) {
+            return Err(MapError::BadChecksum);
+        }
+        let view = MapView { bytes, header, layout };
+        view.validate()?;
+        Ok(view)
+    }
+
+    fn validate(&self) -> Result<(), MapError> {
+        let h = &self.header;
+        let [lat, lon, height] = h.origin;
+        if !((-90.0..=90.0).contains(&lat) && (-180.0..=180.0).contains(&lon) && height.is_finite()) {
+            return Err(MapError::BadValue("origin", 0));
+        }
+        if !(h.cell_size.is_finite() && h.cell_size > 0.0 && h.grid_min.iter().all(|v| v.is_finite())) {
+            return Err(MapError::BadValue("grid", 0));
+        }
+        for i in 0..h.points {
+            let at = self.layout[0] + i as usize * POINT_LEN;
+            if !(f32_at(self.bytes, at).is_finite() && f32_at(self.bytes, at + 4).is_finite()) {
+                return Err(MapError::BadValue("point", i));
+            }
+        }
+        for i in 0..h.lanes {
+            let at = self.layout[1] + i as usize * LANE_LEN;
+            let (first, count) = (u32_at(self.bytes, at), u32::from(u16_at(self.bytes, at + 4)));
+            let neighbours = [u32_at(self.bytes, at + 12), u32_at(self.bytes, at + 16)];
+            let (succ_first, succ_count) = (u32_at(self.bytes, at + 20), u32::from(u16_at(self.bytes, at + 24)));
+            let points_ok = count >= 2 && first.checked_add(count).is_some_and(|end| end <= h.points);
+            let succ_ok = succ_first.checked_add(succ_count).is_some_and(|end| end <= h.successors);
+            let neighbours_ok = neighbours.iter().all(|&n| n == NONE || n < h.lanes);
+            if !(points_ok && succ_ok && neighbours_ok) {
+                return Err(MapError::BadReference("lane", i));
+            }
+            if u16_at(self.bytes, at + 6) == 0 {
+                return Err(MapError::BadValue("lane", i));
+            }
+        }
+        for i in 0..h.successors {
+            if u32_at(self.bytes, self.layout[2] + i as usize * 4) >= h.lanes {
+                return Err(MapError::BadReference("successor", i));
+            }
+        }
+        for i in 0..h.polygons {
+            let at = self.layout[3] + i as usize * POLYGON_LEN;
+            let (first, count) = (u32_at(self.bytes, at), u32_at(self.bytes, at + 4));
+            if !(count >= 3 && first.checked_add(count).is_some_and(|end| end <= h.points)) {
+                return Err(MapError::BadReference("polygon", i));
+            }
+        }
+        let mut previous = 0;
+        for c in 0..=h.cells() {
+            let start = u32_at(self.bytes, self.layout[4] + c * 4);
+            let last = c == h.cells();
+            if start < previous || start > h.grid_entries || (last && start != h.grid_entries) {
+                return Err(MapError::BadReference("grid cell", c as u32));
+            }
+            previous = start;
+        }
+        for i in 0..h.grid_entries {
+            let e = u32_at(self.bytes, self.layout[5] + i as usize * 4);
+            let ok = if e & POLYGON_BIT != 0 { (e & !POLYGON_BIT) < h.polygons } else { e < h.lanes };
+            if !ok {
+                return Err(MapError::BadReference("grid entry", i));
+            }
+        }
+        Ok(())
+    }
+
+    /// The header.
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    /// Tile length in bytes.
+    pub fn len(&self) -> usize {
+        self.bytes.len()
+    }
+
+    /// Always false: a valid tile has at least a header.
+    pub fn is_empty(&self) -> bool {
+        self.bytes.is_empty()
+    }
+
+    /// Point `i` (ENU metres).
+    pub fn point(&self, i: u32) -> Option<(f64, f64)> {
+        (i < self.header.points).then(|| {
+            let at = self.layout[0] + i as usize * POINT_LEN;
+            (f64::from(f32_at(self.bytes, at)), f64::from(f32_at(self.bytes, at + 4)))
+        })
+    }
+
+    fn successor(&self, i: u32) -> Option<u32> {
+        (i < self.header.successors).then(|| u32_at(self.bytes, self.layout[2] + i as usize * 4))
+    }
+
+    /// Lane `i`.
+    pub fn lane(&self, i: u32) -> Option<Lane<'a>> {
+        if i >= self.header.lanes {
+            return None;
+        }
+        let at = self.layout[1] + i as usize * LANE_LEN;
+        let b = self.bytes;
+        let speed = u16_at(b, at + 8);
+        let neighbour = |v: u32| (v != NONE).then_some(v);
+        Some(Lane {
+            view: *self,
+            index: i,
+            first_point: u32_at(b, at),
+            point_count: u16_at(b, at + 4),
+            width: f64::from(u16_at(b, at + 6)) / 100.0,
+            speed_limit: (speed != 0).then(|| f64::from(speed) / 100.0),
+            class: b.get(at + 10).copied().unwrap_or(0),
+            left: neighbour(u32_at(b, at + 12)),
+            right: neighbour(u32_at(b, at + 16)),
+            successor_first: u32_at(b, at + 20),
+            successor_count: u16_at(b, at + 24),
+        })
+    }
+
+    /// Points of polygon `i` (a ring, implicitly closed).
+    pub fn polygon(&self, i: u32) -> Option<impl Iterator<Item = (f64, f64)> + 'a> {
+        if i >= self.header.polygons {
+            return None;
+        }
+        let at = self.layout[3] + i as usize * POLYGON_LEN;
+        let (first, count) = (u32_at(self.bytes, at), u32_at(self.bytes, at + 4));
+        let view = *self;
+        Some((first..first + count).filter_map(move |k| view.point(k)))
+    }
+
+    /// Signed distance from (x, y) to polygon `i`: negative inside.
+    pub fn polygon_distance(&self, i: u32, x: f64, y: f64) -> Option<f64> {
+        if i >= self.header.polygons {
+            return None;
+        }
+        let at = self.layout[3] + i as usize * POLYGON_LEN;
+        let (first, count) = (u32_at(self.bytes, at), u32_at(self.bytes, at + 4));
+        let (mut inside, mut best) = (false, f64::INFINITY);
+        let mut a = self.point(first + count - 1)?;
+        for k in first..first + count {
+            let b = self.point(k)?;
+            best = best.min(segment_distance((x, y), a, b));
+            if (a.1 > y) != (b.1 > y) && x < a.0 + (y - a.1) * (b.0 - a.0) / (b.1 - a.1) {
+                inside = !inside;
+            }
+            a = b;
+        }
+        Some(if inside { -best } else { best })
+    }
+
+    /// Every grid entry in the cells that the square of half-side `radius` around
+    /// (x, y) touches (an item may come more than once).
+    pub fn for_each_near(&self, x: f64, y: f64, radius: f64, mut f: impl FnMut(Item)) {
+        let h = &self.header;
+        let size = f64::from(h.cell_size);
+        let cell = |v: f64, min: f32, n: u16| -> Option<i64> {
+            let c = libm::floor((v - f64::from(min)) / size);
+            c.is_finite().then(|| (c as i64).clamp(-1, i64::from(n)))
+        };
+        let (Some(c0), Some(c1), Some(r0), Some(r1)) = (
+            cell(x - radius, h.grid_min[0], h.grid_size[0]),
+            cell(x + radius, h.grid_min[0], h.grid_size[0]),
+            cell(y - radius, h.grid_min[1], h.grid_size[1]),
+            cell(y + radius, h.grid_min[1], h.grid_size[1]),
+        ) else {
+            return;
+        };
+        let cols = i64::from(h.grid_size[0]);
+        for row in r0.max(0)..=r1.min(i64::from(h.grid_size[1]) - 1) {
+            for col in c0.max(0)..=c1.min(cols - 1) {
+                let c = (row * cols + col) as usize;
+                let (start, end) =
+                    (u32_at(self.bytes, self.layout[4] + c * 4), u32_at(self.bytes, self.layout[4] + c * 4 + 4));
+                for i in start..end {
+                    let e = u32_at(self.bytes, self.layout[5] + i as usize * 4);
+                    f(if e & POLYGON_BIT != 0 { Item::Polygon(e & !POLYGON_BIT) } else { Item::Lane(e) });
+                }
+            }
+        }
+    }
+
+    /// Signed distance from (x, y) to the drivable area (the union of lane areas and
+    /// drivable polygons accepted by `drivable`): ≤ 0 inside. `None` when nothing
+    /// drivable lies within `radius`.
+    pub fn distance_to_drivable(&self, x: f64, y: f64, radius: f64, drivable: impl Fn(Item) -> bool) -> Option<f64> {
+        let mut best: Option<f64> = None;
+        self.for_each_near(x, y, radius, |item| {
+            if !drivable(item) {
+                return;
+            }
+            let d = match item {
+                Item::Lane(i) => self.lane(i).map(|l| l.distance_outside(x, y)),
+                Item::Polygon(i) => self.polygon_distance(i, x, y),
+            };
+            if let Some(d) = d.filter(|d| *d <= radius) {
+                best = Some(best.map_or(d, |b: f64| b.min(d)));
+            }
+        });
+        best
+    }
+}
