@@ -212,6 +212,9 @@ pub struct Lane<'a> {
     pub right: Option<u32>,
     successor_first: u32,
     successor_count: u16,
+    /// The polygon that is this lane's area (Lanelet2 lanes), instead of the buffered
+    /// centreline.
+    pub area: Option<u32>,
 }
 
 impl<'a> Lane<'a> {
@@ -246,7 +249,10 @@ impl<'a> Lane<'a> {
 
     /// Signed distance from (x, y) to the lane's area: ≤ 0 inside.
     pub fn distance_outside(&self, x: f64, y: f64) -> f64 {
-        self.nearest(x, y).0 - self.width / 2.0
+        match self.area.and_then(|polygon| self.view.polygon_distance(polygon, x, y)) {
+            Some(d) => d,
+            None => self.nearest(x, y).0 - self.width / 2.0,
+        }
     }
 }
 
@@ -330,6 +336,10 @@ impl<'a> MapView<'a> {
             if u16_at(self.bytes, at + 6) == 0 {
                 return Err(MapError::BadValue("lane", i));
             }
+            let area = u32::from(u16_at(self.bytes, at + 26));
+            if area > h.polygons {
+                return Err(MapError::BadReference("lane", i));
+            }
         }
         for i in 0..h.successors {
             if u32_at(self.bytes, self.layout[2] + i as usize * 4) >= h.lanes {
@@ -410,6 +420,7 @@ impl<'a> MapView<'a> {
             right: neighbour(u32_at(b, at + 16)),
             successor_first: u32_at(b, at + 20),
             successor_count: u16_at(b, at + 24),
+            area: u16_at(b, at + 26).checked_sub(1).map(u32::from),
         })
     }
 

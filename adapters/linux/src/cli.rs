@@ -70,6 +70,10 @@ enum MapCommand {
         /// ENU origin `LAT,LON` (degrees); default: the centre of the roads.
         #[arg(long, value_name = "LAT,LON")]
         origin: Option<String>,
+        /// Keep only the part inside `WEST,SOUTH,EAST,NORTH` (degrees, as osmium and the
+        /// OSM API order them); ways are cut at the box.
+        #[arg(long, value_name = "W,S,E,N")]
+        bbox: Option<String>,
         /// Grid cell size, metres.
         #[arg(long, default_value_t = 50.0)]
         cell: f64,
@@ -244,8 +248,8 @@ pub fn run() -> ExitCode {
         Command::Scenario(ScenarioCommand::Eval { seed, duration, max_age, json }) => {
             crate::scenario::command::run_eval(seed, duration, max_age, json)
         }
-        Command::Map(MapCommand::Build { osm, output, origin, cell }) => {
-            crate::map_tile::run_build(&osm, &output, origin.as_deref(), cell)
+        Command::Map(MapCommand::Build { osm, output, origin, bbox, cell }) => {
+            crate::map_tile::run_build(&osm, &output, origin.as_deref(), bbox.as_deref(), cell)
         }
         Command::Map(MapCommand::Info { map, json }) => crate::map_tile::run_info(&map, json),
     };

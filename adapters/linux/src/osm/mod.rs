@@ -96,6 +96,36 @@ impl OsmData {
     pub fn highway_ways(&self) -> impl Iterator<Item = &Way> {
         self.ways.iter().filter(|w| w.tag("highway").is_some())
     }
+
+    /// Keep only what lies inside `bbox` (west, south, east, north, degrees): nodes
+    /// outside are dropped and every way is cut into its runs of consecutive inside nodes
+    /// (each run keeps the way's id and tags), so a road leaving and re-entering the box
+    /// is not joined across the outside. A relation loses the members that are gone and
+    /// the ways that were cut: a Lanelet2 lanelet with a cut bound is no longer a lanelet.
+    pub fn clip(&mut self, bbox: [f64; 4]) {
+        let [west, south, east, north] = bbox;
+        self.nodes.retain(|_, &mut (lat, lon)| (south..=north).contains(&lat) && (west..=east).contains(&lon));
+        let mut ways = Vec::with_capacity(self.ways.len());
+        let mut whole = std::collections::HashSet::new();
+        for way in self.ways.drain(..) {
+            let runs: Vec<&[i64]> = way.refs.split(|r| !self.nodes.contains_key(r)).filter(|run| run.len() >= 2).collect();
+            if let [run] = runs[..] {
+                if run.len() == way.refs.len() {
+                    whole.insert(way.id);
+                }
+            }
+            ways.extend(runs.into_iter().map(|run| Way { id: way.id, refs: run.to_vec(), tags: way.tags.clone() }));
+        }
+        self.ways = ways;
+        for relation in &mut self.relations {
+            let nodes = &self.nodes;
+            relation.members.retain(|m| match m.kind {
+                MemberKind::Node => nodes.contains_key(&m.id),
+                MemberKind::Way => whole.contains(&m.id),
+                MemberKind::Relation => true,
+            });
+        }
+    }
 }
 
 /// Why a file could not be read.

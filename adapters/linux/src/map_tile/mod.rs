@@ -5,7 +5,10 @@
 //! width (backward lanes on the left, as in right-hand traffic), each an offset copy of the
 //! way's centreline in its own driving order. Successors join lanes through shared OSM
 //! nodes: a lane ending at node n continues into every lane starting at n except the
-//! reverse of itself.
+//! reverse of itself. Lanelet2 lanelets become lanes with exact polygon areas
+//! ([`lanelet2`]).
+
+pub mod lanelet2;
 
 use std::collections::HashMap;
 
@@ -16,7 +19,7 @@ use crate::osm::highway::{interpret, RoadSpec};
 use crate::osm::OsmData;
 
 /// Road classes as stored in the tile (`docs/map-tile.md`).
-pub const CLASSES: [&str; 11] = [
+pub const CLASSES: [&str; 12] = [
     "other",
     "motorway",
     "trunk",
@@ -28,6 +31,7 @@ pub const CLASSES: [&str; 11] = [
     "service",
     "living_street",
     "link",
+    "lanelet",
 ];
 
 fn class_code(class: &str) -> u8 {
@@ -52,6 +56,9 @@ pub struct TileLane {
     pub neighbours: (Option<u32>, Option<u32>),
     /// Lanes it continues into.
     pub successors: Vec<u32>,
+    /// Index in `TileContent::polygons` of the polygon that is this lane's area (Lanelet2),
+    /// or `None` for the centreline buffered by half the width.
+    pub area: Option<usize>,
 }
 
 /// Everything a tile holds, before encoding.
@@ -110,6 +117,12 @@ pub fn offset_polyline(points: &[(f64, f64)], offset: f64) -> Vec<(f64, f64)> {
         .collect()
 }
 
+/// What `data` holds: nodes, ways, highway ways, relations (the tile's source counts).
+pub fn source_counts(data: &OsmData) -> [u32; 4] {
+    let count = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+    [count(data.node_count), count(data.ways.len()), count(data.highway_ways().count()), count(data.relations.len())]
+}
+
 /// Lanes from the drivable highway ways of `data` around `origin` (default: the centre of
 /// the nodes those ways use). Problems go to `warnings`.
 pub fn from_osm(data: &OsmData, origin: Option<Geodetic>, warnings: &mut Vec<String>) -> TileContent {
@@ -117,10 +130,15 @@ pub fn from_osm(data: &OsmData, origin: Option<Geodetic>, warnings: &mut Vec<Str
         data.highway_ways().filter_map(|w| Some((w, interpret(w, warnings)?))).collect();
     let origin = origin.unwrap_or_else(|| {
         let (mut lat0, mut lon0, mut lat1, mut lon1) = (90.0f64, 180.0f64, -90.0f64, -180.0f64);
+        let mut grow = |(lat, lon): &(f64, f64)| {
+            (lat0, lon0, lat1, lon1) = (lat0.min(*lat), lon0.min(*lon), lat1.max(*lat), lon1.max(*lon));
+        };
+        if roads.is_empty() {
+            // A Lanelet2 map has no highway ways: centre on all its nodes.
+            data.nodes.values().for_each(&mut grow);
+        }
         for (way, _) in &roads {
-            for (lat, lon) in way.refs.iter().filter_map(|r| data.nodes.get(r)) {
-                (lat0, lon0, lat1, lon1) = (lat0.min(*lat), lon0.min(*lon), lat1.max(*lat), lon1.max(*lon));
-            }
+            way.refs.iter().filter_map(|r| data.nodes.get(r)).for_each(&mut grow);
         }
         let centre = if lat0 <= lat1 { ((lat0 + lat1) / 2.0, (lon0 + lon1) / 2.0) } else { (0.0, 0.0) };
         Geodetic::new(centre.0, centre.1, 0.0).unwrap_or(Geodetic { lat_deg: 0.0, lon_deg: 0.0, height_m: 0.0 })
@@ -128,12 +146,7 @@ pub fn from_osm(data: &OsmData, origin: Option<Geodetic>, warnings: &mut Vec<Str
     let frame = LocalFrame::new(origin);
     let mut content = TileContent {
         origin: [origin.lat_deg, origin.lon_deg, origin.height_m],
-        source_counts: [
-            u32::try_from(data.node_count).unwrap_or(u32::MAX),
-            u32::try_from(data.ways.len()).unwrap_or(u32::MAX),
-            u32::try_from(data.highway_ways().count()).unwrap_or(u32::MAX),
-            u32::try_from(data.relations.len()).unwrap_or(u32::MAX),
-        ],
+        source_counts: source_counts(data),
         ..TileContent::default()
     };
     // (start node, end node, way id, reversed copy of lane?) per lane, for successors.
@@ -188,6 +201,7 @@ pub fn from_osm(data: &OsmData, origin: Option<Geodetic>, warnings: &mut Vec<Str
                 class: class_code(&road.class),
                 neighbours,
                 successors: Vec::new(),
+                area: None,
             });
             ends.push((start, end, way.id));
         }
@@ -201,6 +215,7 @@ pub fn from_osm(data: &OsmData, origin: Option<Geodetic>, warnings: &mut Vec<Str
         content.lanes[i].successors =
             next.iter().copied().filter(|&k| !(ends[k as usize].2 == *way && ends[k as usize].1 == *start)).collect();
     }
+    lanelet2::add_lanelets(data, &frame, &mut content, warnings);
     content
 }
 
@@ -233,6 +248,8 @@ pub fn encode(content: &TileContent, cell_size: f64) -> Vec<u8> {
         r[16..20].copy_from_slice(&lane.neighbours.1.unwrap_or(NONE).to_le_bytes());
         r[20..24].copy_from_slice(&succ_first.to_le_bytes());
         r[24..26].copy_from_slice(&(lane.successors.len().min(usize::from(u16::MAX)) as u16).to_le_bytes());
+        let area = lane.area.and_then(|a| u16::try_from(a + 1).ok()).unwrap_or(0);
+        r[26..28].copy_from_slice(&area.to_le_bytes());
         lane_records.extend_from_slice(&r);
     }
     let mut polygon_records = Vec::new();
@@ -264,18 +281,33 @@ pub fn encode(content: &TileContent, cell_size: f64) -> Vec<u8> {
             }
         }
     };
-    for (i, lane) in content.lanes.iter().enumerate() {
-        for w in lane.points.windows(2) {
-            register(w[0], w[1], lane.width / 2.0, i as u32);
-        }
-    }
-    for (i, ring) in content.polygons.iter().enumerate() {
+    let bounds = |ring: &[(f64, f64)]| {
         let (mut lo, mut hi) = ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN));
         for p in ring {
             lo = (lo.0.min(p.0), lo.1.min(p.1));
             hi = (hi.0.max(p.0), hi.1.max(p.1));
         }
-        register(lo, hi, 0.0, i as u32 | POLYGON_BIT);
+        (lo, hi)
+    };
+    for (i, lane) in content.lanes.iter().enumerate() {
+        match lane.area.and_then(|a| content.polygons.get(a)) {
+            Some(ring) => {
+                let (lo, hi) = bounds(ring);
+                register(lo, hi, 0.0, i as u32);
+            }
+            None => {
+                for w in lane.points.windows(2) {
+                    register(w[0], w[1], lane.width / 2.0, i as u32);
+                }
+            }
+        }
+    }
+    // A polygon that is a lane's area is reached through the lane.
+    for (i, ring) in content.polygons.iter().enumerate() {
+        if !content.lanes.iter().any(|l| l.area == Some(i)) {
+            let (lo, hi) = bounds(ring);
+            register(lo, hi, 0.0, i as u32 | POLYGON_BIT);
+        }
     }
     let entries: usize = cells.iter().map(Vec::len).sum();
     let header = Header {
@@ -326,25 +358,53 @@ fn parse_origin(text: &str) -> Result<Geodetic, String> {
     Geodetic::new(lat, lon, 0.0).map_err(|e| format!("--origin {text:?}: {e}"))
 }
 
+fn parse_bbox(text: &str) -> Result<[f64; 4], String> {
+    let values: Vec<f64> = text.split(',').map(|v| v.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| {
+        format!("--bbox {text:?}: expected four numbers WEST,SOUTH,EAST,NORTH")
+    })?;
+    let [west, south, east, north] = values[..] else {
+        return Err(format!("--bbox {text:?}: expected four numbers WEST,SOUTH,EAST,NORTH"));
+    };
+    if !((-180.0..=180.0).contains(&west) && (-180.0..=180.0).contains(&east) && west < east) {
+        return Err(format!("--bbox {text:?}: WEST and EAST must be longitudes with WEST < EAST"));
+    }
+    if !((-90.0..=90.0).contains(&south) && (-90.0..=90.0).contains(&north) && south < north) {
+        return Err(format!("--bbox {text:?}: SOUTH and NORTH must be latitudes with SOUTH < NORTH"));
+    }
+    Ok([west, south, east, north])
+}
+
 /// `dash2sim map build`.
 pub fn run_build(
     osm: &std::path::Path,
     output: &std::path::Path,
     origin: Option<&str>,
+    bbox: Option<&str>,
     cell: f64,
 ) -> Result<(), String> {
     if !(cell.is_finite() && (1.0..=10_000.0).contains(&cell)) {
         return Err(format!("--cell {cell} must be between 1 and 10000 metres"));
     }
     let origin = origin.map(parse_origin).transpose()?;
-    let data = crate::osm::read(osm).map_err(|e| e.to_string())?;
+    let bbox = bbox.map(parse_bbox).transpose()?;
+    let mut data = crate::osm::read(osm).map_err(|e| e.to_string())?;
+    // The counts describe the source file, before any clipping.
+    let source_counts = source_counts(&data);
+    if let Some(bbox) = bbox {
+        data.clip(bbox);
+    }
     let mut warnings = data.warnings.clone();
-    let content = from_osm(&data, origin, &mut warnings);
-    for w in &warnings {
+    let mut content = from_osm(&data, origin, &mut warnings);
+    content.source_counts = source_counts;
+    const SHOWN: usize = 10;
+    for w in warnings.iter().take(SHOWN) {
         eprintln!("warning: {w}");
     }
+    if warnings.len() > SHOWN {
+        eprintln!("warning: … and {} more", warnings.len() - SHOWN);
+    }
     if content.lanes.is_empty() {
-        return Err(format!("{}: no drivable highway ways", osm.display()));
+        return Err(format!("{}: no drivable highway ways or Lanelet2 lanelets", osm.display()));
     }
     let bytes = encode(&content, cell);
     std::fs::write(output, &bytes).map_err(|e| format!("{}: {e}", output.display()))?;
@@ -414,6 +474,7 @@ mod tests {
             class: 7,
             neighbours: (None, None),
             successors: vec![1],
+            area: None,
         };
         TileContent {
             origin: [60.0, 24.0, 0.0],
@@ -443,6 +504,39 @@ mod tests {
         // Channel-sensitive: only lane 1 counts.
         let only_second = |i: Item| i == Item::Lane(1);
         assert!(view.distance_to_drivable(50.0, 0.0, 5.0, only_second).is_none());
+    }
+
+    #[test]
+    fn a_lane_whose_area_is_a_polygon_is_measured_against_the_polygon() {
+        let mut content = square_road();
+        content.lanes.push(TileLane {
+            points: vec![(-20.0, -15.0), (-10.0, -15.0)],
+            width: 10.0,
+            speed_limit: None,
+            class: 11,
+            neighbours: (None, None),
+            successors: vec![],
+            area: Some(0),
+        });
+        let bytes = encode(&content, 25.0);
+        let view = MapView::parse(&bytes).expect("valid");
+        let lane = view.lane(2).expect("lane");
+        assert_eq!(lane.area, Some(0));
+        // The polygon's corner region: inside the square, where a 10 m wide capsule would
+        // have rounded the corner off, and outside the square where the capsule reaches.
+        assert!((lane.distance_outside(-10.5, -10.5) - -0.5).abs() < 1e-6);
+        assert!((lane.distance_outside(-15.0, -21.0) - 1.0).abs() < 1e-6);
+        // The polygon is reached through its lane only.
+        let mut seen = Vec::new();
+        view.for_each_near(-15.0, -15.0, 1.0, |item| seen.push(item));
+        assert!(seen.contains(&Item::Lane(2)) && !seen.iter().any(|i| matches!(i, Item::Polygon(_))), "{seen:?}");
+        // A lane naming a polygon the tile lacks is refused.
+        let mut bad = bytes.clone();
+        let at = view.header().layout().expect("layout")[1] + 2 * 28 + 26;
+        bad[at] = 9;
+        let crc = body_checksum(&bad);
+        bad[CRC_AT..CRC_AT + 4].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(MapView::parse(&bad), Err(MapError::BadReference("lane", 2)));
     }
 
     #[test]
