@@ -19,6 +19,9 @@
 //! | [`track3d`] | AB3DMOT-style 3D track manager with class priors |
 //! | [`ekf`] | fixed-size (extended) Kalman filter, Joseph form, RTS smoother |
 //! | [`map`] | the compact map tile: zero-copy view, grid index, distance to the drivable area |
+//! | [`obb`] | oriented boxes in the plane: the ego footprint at its rear axle, overlap tests |
+//! | [`drivable`] | drivable-area compliance of a footprint, lane occupancy, channel modes |
+//! | [`score`] | the nuPlan-style closed-loop score, streaming |
 //! | [`can`] | CAN: J1939/NMEA 2000 ids, fast packets, GNSS/speed decoders, DBC signals |
 //!
 //! Capacity is part of the types; nothing here allocates or panics on untrusted input.
@@ -36,10 +39,13 @@ pub mod box2d;
 pub mod box3d;
 pub mod can;
 pub mod claim;
+pub mod drivable;
 pub mod ekf;
 pub mod geo;
 pub mod map;
 pub mod nmea;
+pub mod obb;
+pub mod score;
 pub mod sim3;
 pub mod time;
 pub mod track2d;

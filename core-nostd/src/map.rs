@@ -233,14 +233,25 @@ impl<'a> Lane<'a> {
 
     /// Distance from (x, y) to the centreline, and the heading of the nearest segment.
     pub fn nearest(&self, x: f64, y: f64) -> (f64, f64) {
-        let mut best = (f64::INFINITY, 0.0);
-        let mut previous: Option<(f64, f64)> = None;
+        let p = self.project(x, y);
+        (p.distance, p.heading)
+    }
+
+    /// The point of the centreline nearest to (x, y).
+    pub fn project(&self, x: f64, y: f64) -> Projection {
+        let mut best = Projection { distance: f64::INFINITY, heading: 0.0, along: 0.0 };
+        let (mut previous, mut start): (Option<(f64, f64)>, f64) = (None, 0.0);
         for p in self.points() {
             if let Some(a) = previous {
-                let d = segment_distance((x, y), a, p);
-                if d < best.0 {
-                    best = (d, libm::atan2(p.1 - a.1, p.0 - a.0));
+                let (dx, dy) = (p.0 - a.0, p.1 - a.1);
+                let len2 = dx * dx + dy * dy;
+                let t = if len2 > 0.0 { (((x - a.0) * dx + (y - a.1) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
+                let d = libm::hypot(x - (a.0 + t * dx), y - (a.1 + t * dy));
+                let len = libm::sqrt(len2);
+                if d < best.distance {
+                    best = Projection { distance: d, heading: libm::atan2(dy, dx), along: start + t * len };
                 }
+                start += len;
             }
             previous = Some(p);
         }
@@ -254,6 +265,17 @@ impl<'a> Lane<'a> {
             None => self.nearest(x, y).0 - self.width / 2.0,
         }
     }
+}
+
+/// Where a point lies relative to a lane's centreline.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Projection {
+    /// Distance to the centreline, m.
+    pub distance: f64,
+    /// Heading of the nearest segment (driving direction), rad.
+    pub heading: f64,
+    /// Arc length from the lane's start to the nearest point, m.
+    pub along: f64,
 }
 
 /// Distance from `p` to the segment `a`–`b`.

@@ -1,0 +1,232 @@
+//! Drivable-area compliance: where a vehicle footprint lies relative to the lanes of a map
+//! tile.
+//!
+//! For each pose (rear axle, as nuPlan) the check gives the signed distance of every
+//! footprint corner to the drivable area (≤ 0 inside), the lanes the footprint occupies and
+//! the lane its centre is in. A pose complies when no corner is outside by
+//! [`TOLERANCE`] or more — nuPlan's `drivable_area_compliance` with its 0.3 m.
+//!
+//! Two readings of "drivable", as in the Dash2Sim paper:
+//! * **channel-insensitive** — every mapped lane (and drivable polygon);
+//! * **channel-sensitive** — only the lanes near the route actually driven: a lane is on
+//!   the channel when the footprint centre comes within [`CHANNEL_RADIUS`] of its area
+//!   while heading its way (within 90°). Parallel lanes of the same direction stay
+//!   drivable; the opposing lanes and side roads do not, so swinging into the oncoming
+//!   lane to pass a closure is penalised here and not in the insensitive mode. The channel
+//!   is collected in a first pass over the drive ([`LaneSet::add_route_pose`]).
+
+use crate::map::{Item, MapView};
+use crate::obb::{Footprint, Pose2};
+
+/// A corner outside the drivable area by this much or more breaks compliance, m.
+pub const TOLERANCE: f64 = 0.3;
+/// How far from a corner the check looks for drivable area, m; farther is "none near".
+pub const SEARCH_RADIUS: f64 = 10.0;
+/// A lane is on the channel when the footprint centre passes this close to its area, m.
+pub const CHANNEL_RADIUS: f64 = 2.0;
+/// Lanes recorded per pose as occupied.
+pub const MAX_OCCUPIED: usize = 8;
+
+/// A set of lane indices in caller-sized storage (32 lanes per word).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LaneSet<const WORDS: usize> {
+    bits: [u32; WORDS],
+    overflowed: bool,
+}
+
+impl<const WORDS: usize> Default for LaneSet<WORDS> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const WORDS: usize> LaneSet<WORDS> {
+    /// An empty set.
+    pub const fn new() -> Self {
+        LaneSet { bits: [0; WORDS], overflowed: false }
+    }
+
+    /// Lanes it can hold: indices below `32 × WORDS`.
+    pub const fn capacity() -> usize {
+        32 * WORDS
+    }
+
+    /// Add lane `i`; false (and remembered) when `i` is beyond the capacity.
+    pub fn insert(&mut self, i: u32) -> bool {
+        match self.bits.get_mut((i / 32) as usize) {
+            Some(word) => {
+                *word |= 1 << (i % 32);
+                true
+            }
+            None => {
+                self.overflowed = true;
+                false
+            }
+        }
+    }
+
+    /// Whether lane `i` is in the set.
+    pub fn contains(&self, i: u32) -> bool {
+        self.bits.get((i / 32) as usize).is_some_and(|w| w & (1 << (i % 32)) != 0)
+    }
+
+    /// Number of lanes in the set.
+    pub fn len(&self) -> usize {
+        self.bits.iter().map(|w| w.count_ones() as usize).sum()
+    }
+
+    /// True when no lane is in the set.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Whether a lane beyond the capacity was ever inserted (the set is then incomplete).
+    pub fn overflowed(&self) -> bool {
+        self.overflowed
+    }
+
+    /// Record the lanes near one pose of the route actually driven (channel-sensitive
+    /// mode): lanes within [`CHANNEL_RADIUS`] of the footprint centre whose direction is
+    /// within 90° of the heading.
+    pub fn add_route_pose(&mut self, map: &MapView<'_>, footprint: &Footprint, pose: &Pose2) {
+        let centre = footprint.at(pose).centre;
+        map.for_each_near(centre.x, centre.y, CHANNEL_RADIUS, |item| {
+            let Item::Lane(i) = item else { return };
+            let Some(lane) = map.lane(i) else { return };
+            let heading = lane.project(centre.x, centre.y).heading;
+            if lane.distance_outside(centre.x, centre.y) <= CHANNEL_RADIUS
+                && libm::cos(heading - pose.heading) > 0.0
+            {
+                self.insert(i);
+            }
+        });
+    }
+}
+
+/// Which lanes count as drivable.
+#[derive(Clone, Copy, Debug)]
+pub enum Channel<'s, const WORDS: usize> {
+    /// Every lane and drivable polygon.
+    Insensitive,
+    /// Only these lanes (no free-standing polygons).
+    Sensitive(&'s LaneSet<WORDS>),
+}
+
+impl<const WORDS: usize> Channel<'_, WORDS> {
+    /// Whether `item` is drivable in this mode.
+    pub fn allows(&self, item: Item) -> bool {
+        match (self, item) {
+            (Channel::Insensitive, _) => true,
+            (Channel::Sensitive(set), Item::Lane(i)) => set.contains(i),
+            (Channel::Sensitive(_), Item::Polygon(_)) => false,
+        }
+    }
+}
+
+/// The lane the footprint centre is in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CentreLane {
+    /// Lane index.
+    pub lane: u32,
+    /// Arc length of the centre's projection along the lane, m.
+    pub along: f64,
+    /// Lane direction there, rad.
+    pub heading: f64,
+    /// Speed limit, m/s, if mapped.
+    pub speed_limit: Option<f64>,
+}
+
+/// What the check found for one pose.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PoseCheck {
+    /// Signed distance of each corner (front left, front right, rear right, rear left) to
+    /// the drivable area, m, ≤ 0 inside; `None` when nothing drivable lies within
+    /// [`SEARCH_RADIUS`].
+    pub corners: [Option<f64>; 4],
+    /// Lanes that contain the centre or a corner (any mode), up to [`MAX_OCCUPIED`].
+    pub occupied: heapless::Vec<u32, MAX_OCCUPIED>,
+    /// The lane the centre is in, if any.
+    pub centre_lane: Option<CentreLane>,
+}
+
+impl PoseCheck {
+    /// How far the worst corner is outside the drivable area, m (≤ 0: all inside;
+    /// infinite when a corner has nothing drivable near).
+    pub fn worst(&self) -> f64 {
+        self.corners.iter().map(|c| c.unwrap_or(f64::INFINITY)).fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    /// nuPlan's verdict: no corner outside by [`TOLERANCE`] or more.
+    pub fn compliant(&self) -> bool {
+        self.worst() < TOLERANCE
+    }
+}
+
+/// Checks footprints against one map tile.
+#[derive(Clone, Copy, Debug)]
+pub struct Checker<'a> {
+    map: MapView<'a>,
+    footprint: Footprint,
+}
+
+impl<'a> Checker<'a> {
+    /// A checker for vehicles of `footprint` on `map`.
+    pub fn new(map: MapView<'a>, footprint: Footprint) -> Self {
+        Checker { map, footprint }
+    }
+
+    /// The map.
+    pub fn map(&self) -> &MapView<'a> {
+        &self.map
+    }
+
+    /// The footprint.
+    pub fn footprint(&self) -> &Footprint {
+        &self.footprint
+    }
+
+    /// Check the footprint with its rear axle at `pose`. `previous` is the centre's lane at
+    /// the pose before: where lanes overlap (junctions) the centre stays in it, as nuPlan
+    /// keeps ego on the lane it is following.
+    pub fn check<const WORDS: usize>(&self, pose: &Pose2, channel: Channel<'_, WORDS>, previous: Option<u32>) -> PoseCheck {
+        let footprint = self.footprint.at(pose);
+        let corners = footprint.corners();
+        let mut check = PoseCheck {
+            corners: corners.map(|(x, y)| self.map.distance_to_drivable(x, y, SEARCH_RADIUS, |i| channel.allows(i))),
+            occupied: heapless::Vec::new(),
+            centre_lane: None,
+        };
+        let centre = (footprint.centre.x, footprint.centre.y);
+        let mut best: Option<(bool, f64, CentreLane)> = None;
+        for (k, &(x, y)) in core::iter::once(&centre).chain(corners.iter()).enumerate() {
+            self.map.for_each_near(x, y, 0.0, |item| {
+                let Item::Lane(i) = item else { return };
+                let Some(lane) = self.map.lane(i) else { return };
+                if lane.distance_outside(x, y) > 0.0 {
+                    return;
+                }
+                if !check.occupied.contains(&i) {
+                    // Full: the first MAX_OCCUPIED lanes are kept.
+                    let _ = check.occupied.push(i);
+                }
+                if k == 0 {
+                    let p = lane.project(x, y);
+                    let candidate =
+                        (previous == Some(i), p.distance, CentreLane { lane: i, along: p.along, heading: p.heading, speed_limit: lane.speed_limit });
+                    let better = match &best {
+                        None => true,
+                        Some((was_previous, distance, _)) => {
+                            (candidate.0 && !was_previous) || (candidate.0 == *was_previous && candidate.1 < *distance)
+                        }
+                    };
+                    if better {
+                        best = Some(candidate);
+                    }
+                }
+            });
+        }
+        check.centre_lane = best.map(|(_, _, lane)| lane);
+        check
+    }
+}

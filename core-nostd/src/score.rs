@@ -1,0 +1,599 @@
+//! The nuPlan-style closed-loop score of a replayed drive, computed streaming, one pose at
+//! a time (DESIGN §3; nuPlan `planning/metrics/`, PDM's aggregation).
+//!
+//! score = Π multipliers × Σ wᵢ sᵢ / Σ wᵢ × 100, with
+//! * multipliers: no at-fault collisions, drivable-area compliance, driving-direction
+//!   compliance, ego is making progress;
+//! * weighted: progress along the expert route (5), time to collision within bound (5),
+//!   speed-limit compliance (4), comfort (2).
+//!
+//! A log is *verified* when its recorded ego, replayed against the map with the recorded
+//! (non-reactive) agents, scores above [`VERIFIED_ABOVE`].
+//!
+//! Departures from nuPlan, all because a stream has no future and no map server:
+//! * velocities are backward differences of consecutive poses; accelerations, jerks and
+//!   yaw derivatives for comfort come from a quadratic Savitzky–Golay fit over a sliding
+//!   window of [`COMFORT_WINDOW`] poses (nuPlan filters the whole series at once);
+//! * progress is the length of the driven path, and the expert's is given to
+//!   [`Scorer::finish`] (replaying the recorded ego, the expert is the ego: ratio 1);
+//! * the lane the ego is in is the lane containing its footprint centre, kept while it
+//!   still contains it (nuPlan's `ego_driven_route`);
+//! * time to collision ignores agents whose centre is behind the ego's rear bumper.
+
+use heapless::Deque;
+
+use crate::drivable::{Channel, Checker, PoseCheck};
+use crate::obb::{OrientedBox, Pose2};
+
+/// A log is verified above this score.
+pub const VERIFIED_ABOVE: f64 = 90.0;
+/// Weights of progress, TTC, speed limit and comfort.
+pub const WEIGHTS: [f64; 4] = [5.0, 5.0, 4.0, 2.0];
+/// Poses in the comfort derivative window.
+pub const COMFORT_WINDOW: usize = 7;
+/// Poses kept for the driving-direction window (enough for 1 s at 100 Hz).
+pub const DIRECTION_CAPACITY: usize = 128;
+/// Agents remembered as already collided with (each collision counts once).
+pub const COLLISION_CAPACITY: usize = 64;
+
+/// What kind of road user or object an agent is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum AgentKind {
+    /// Cars, trucks, buses: a collision scores 0.
+    Vehicle,
+    /// Pedestrians and cyclists (vulnerable road users): a collision scores 0.
+    Vru,
+    /// Static objects (cones, barriers, signs): each collision halves the multiplier.
+    Object,
+}
+
+/// Another road user or object at the current time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Agent {
+    /// Track id, stable over time.
+    pub id: u32,
+    /// Kind.
+    pub kind: AgentKind,
+    /// Box in the map frame.
+    pub bbox: OrientedBox,
+    /// Velocity (east, north), m/s.
+    pub velocity: (f64, f64),
+}
+
+/// nuPlan's comfort bounds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ComfortBounds {
+    /// Longitudinal acceleration range, m/s².
+    pub lon_accel: (f64, f64),
+    /// |lateral acceleration| bound, m/s².
+    pub lat_accel: f64,
+    /// |jerk| bound, m/s³.
+    pub jerk: f64,
+    /// |longitudinal jerk| bound, m/s³.
+    pub lon_jerk: f64,
+    /// |yaw rate| bound, rad/s.
+    pub yaw_rate: f64,
+    /// |yaw acceleration| bound, rad/s².
+    pub yaw_accel: f64,
+}
+
+/// The settings of every metric; [`Default`] is nuPlan's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScoreConfig {
+    /// TTC projection horizon and step, s.
+    pub ttc_horizon: f64,
+    /// TTC projection step, s.
+    pub ttc_step: f64,
+    /// TTC at or below this fails the TTC metric, s.
+    pub ttc_threshold: f64,
+    /// Ego at or below this speed is not checked for TTC, m/s.
+    pub ttc_stopped_speed: f64,
+    /// At or below this speed a vehicle counts as stopped in collision classification, m/s.
+    pub stopped_speed: f64,
+    /// Driving-direction window, s.
+    pub direction_window: f64,
+    /// Backwards progress below this per window scores 1, m.
+    pub direction_compliant: f64,
+    /// … below this 0.5, else 0, m.
+    pub direction_violation: f64,
+    /// Overspeed normaliser of the speed-limit score, m/s.
+    pub overspeed_scale: f64,
+    /// Progress ratio below which the ego is not making progress.
+    pub min_progress_ratio: f64,
+    /// Progress below this (ego or expert) counts as this, m.
+    pub min_progress: f64,
+    /// Comfort bounds.
+    pub comfort: ComfortBounds,
+}
+
+impl Default for ScoreConfig {
+    fn default() -> Self {
+        ScoreConfig {
+            ttc_horizon: 3.0,
+            ttc_step: 0.1,
+            ttc_threshold: 0.95,
+            ttc_stopped_speed: 5e-3,
+            stopped_speed: 5e-2,
+            direction_window: 1.0,
+            direction_compliant: 2.0,
+            direction_violation: 6.0,
+            overspeed_scale: 2.23,
+            min_progress_ratio: 0.2,
+            min_progress: 2.0,
+            comfort: ComfortBounds {
+                lon_accel: (-4.05, 2.40),
+                lat_accel: 4.89,
+                jerk: 8.37,
+                lon_jerk: 4.13,
+                yaw_rate: 0.95,
+                yaw_accel: 1.93,
+            },
+        }
+    }
+}
+
+/// Why a pose was refused (the scorer's state is unchanged).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ScoreError {
+    /// A coordinate, heading or time is NaN or infinite.
+    NotFinite,
+    /// The time is not after the previous pose's.
+    TimeNotIncreasing,
+}
+
+impl core::fmt::Display for ScoreError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            ScoreError::NotFinite => "pose or time is not finite",
+            ScoreError::TimeNotIncreasing => "time does not increase",
+        })
+    }
+}
+
+impl core::error::Error for ScoreError {}
+
+/// A collision found at a step (each agent's first contact only).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Collision {
+    /// The agent.
+    pub id: u32,
+    /// Its kind.
+    pub kind: AgentKind,
+    /// Whether the ego is at fault (nuPlan's classification).
+    pub at_fault: bool,
+}
+
+/// What one step found.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StepReport {
+    /// The drivable-area check of the pose.
+    pub check: PoseCheck,
+    /// Ego speed (backward difference), m/s.
+    pub speed: f64,
+    /// Projected time to collision, s, if within the horizon.
+    pub ttc: Option<f64>,
+    /// Progress along the lane direction over the last window, m (negative: against it).
+    pub direction_progress: f64,
+    /// A new collision, if any (the first of the step).
+    pub collision: Option<Collision>,
+}
+
+/// Extremes of the comfort quantities seen so far.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ComfortExtremes {
+    /// Longitudinal acceleration min, max, m/s².
+    pub lon_accel: (f64, f64),
+    /// Max |lateral acceleration|, m/s².
+    pub lat_accel: f64,
+    /// Max |jerk|, m/s³.
+    pub jerk: f64,
+    /// Max |longitudinal jerk|, m/s³.
+    pub lon_jerk: f64,
+    /// Max |yaw rate|, rad/s.
+    pub yaw_rate: f64,
+    /// Max |yaw acceleration|, rad/s².
+    pub yaw_accel: f64,
+}
+
+impl ComfortExtremes {
+    const NONE: ComfortExtremes = ComfortExtremes {
+        lon_accel: (f64::INFINITY, f64::NEG_INFINITY),
+        lat_accel: 0.0,
+        jerk: 0.0,
+        lon_jerk: 0.0,
+        yaw_rate: 0.0,
+        yaw_accel: 0.0,
+    };
+
+    fn within(&self, b: &ComfortBounds) -> bool {
+        // No window filled yet: nothing measured, nothing out of bounds.
+        let measured = self.lon_accel.0 <= self.lon_accel.1;
+        let lon_ok = !measured || (self.lon_accel.0 > b.lon_accel.0 && self.lon_accel.1 < b.lon_accel.1);
+        lon_ok
+            && self.lat_accel < b.lat_accel
+            && self.jerk < b.jerk
+            && self.lon_jerk < b.lon_jerk
+            && self.yaw_rate < b.yaw_rate
+            && self.yaw_accel < b.yaw_accel
+    }
+}
+
+/// Savitzky–Golay (quadratic) first and second derivative at the centre of a window of
+/// equally spaced samples `dt` apart.
+fn savitzky_golay(values: impl Iterator<Item = f64>, dt: f64) -> (f64, f64) {
+    let m = (COMFORT_WINDOW / 2) as f64;
+    let (mut first, mut second, mut norm1, mut norm2) = (0.0, 0.0, 0.0, 0.0);
+    let mean_k2 = (1..=COMFORT_WINDOW / 2).map(|k| (k * k) as f64).sum::<f64>() * 2.0 / COMFORT_WINDOW as f64;
+    for (i, y) in values.enumerate() {
+        let k = i as f64 - m;
+        first += k * y;
+        norm1 += k * k;
+        second += (k * k - mean_k2) * y;
+        norm2 += (k * k - mean_k2) * (k * k - mean_k2);
+    }
+    (first / norm1 / dt, 2.0 * second / norm2 / (dt * dt))
+}
+
+/// Sliding-window comfort derivatives.
+#[derive(Clone, Debug)]
+struct Comfort {
+    /// (t, x, y, unwrapped heading).
+    poses: Deque<(f64, f64, f64, f64), COMFORT_WINDOW>,
+    /// (t, |a|, a_lon) at the centres of pose windows.
+    accels: Deque<(f64, f64, f64), COMFORT_WINDOW>,
+    extremes: ComfortExtremes,
+}
+
+impl Comfort {
+    fn new() -> Self {
+        Comfort { poses: Deque::new(), accels: Deque::new(), extremes: ComfortExtremes::NONE }
+    }
+
+    fn push(&mut self, t: f64, pose: &Pose2) {
+        let heading = match self.poses.back() {
+            Some(&(_, _, _, previous)) => previous + wrap(pose.heading - previous),
+            None => pose.heading,
+        };
+        if self.poses.is_full() {
+            self.poses.pop_front();
+        }
+        // Cannot fail: a slot was just freed.
+        let _ = self.poses.push_back((t, pose.x, pose.y, heading));
+        if !self.poses.is_full() {
+            return;
+        }
+        let (Some(first), Some(last)) = (self.poses.front(), self.poses.back()) else { return };
+        let dt = (last.0 - first.0) / (COMFORT_WINDOW - 1) as f64;
+        let Some(&(tc, _, _, hc)) = self.poses.iter().nth(COMFORT_WINDOW / 2) else { return };
+        let (_, ax) = savitzky_golay(self.poses.iter().map(|p| p.1), dt);
+        let (_, ay) = savitzky_golay(self.poses.iter().map(|p| p.2), dt);
+        let (yaw_rate, yaw_accel) = savitzky_golay(self.poses.iter().map(|p| p.3), dt);
+        let (s, c) = libm::sincos(hc);
+        let (lon, lat) = (ax * c + ay * s, -ax * s + ay * c);
+        let e = &mut self.extremes;
+        e.lon_accel = (e.lon_accel.0.min(lon), e.lon_accel.1.max(lon));
+        e.lat_accel = e.lat_accel.max(libm::fabs(lat));
+        e.yaw_rate = e.yaw_rate.max(libm::fabs(yaw_rate));
+        e.yaw_accel = e.yaw_accel.max(libm::fabs(yaw_accel));
+        if self.accels.is_full() {
+            self.accels.pop_front();
+        }
+        let _ = self.accels.push_back((tc, libm::hypot(ax, ay), lon));
+        if self.accels.is_full() {
+            let (Some(a0), Some(a1)) = (self.accels.front(), self.accels.back()) else { return };
+            let dt = (a1.0 - a0.0) / (COMFORT_WINDOW - 1) as f64;
+            let (jerk, _) = savitzky_golay(self.accels.iter().map(|a| a.1), dt);
+            let (lon_jerk, _) = savitzky_golay(self.accels.iter().map(|a| a.2), dt);
+            e.jerk = e.jerk.max(libm::fabs(jerk));
+            e.lon_jerk = e.lon_jerk.max(libm::fabs(lon_jerk));
+        }
+    }
+}
+
+fn wrap(angle: f64) -> f64 {
+    let a = libm::remainder(angle, core::f64::consts::TAU);
+    if a.is_finite() {
+        a
+    } else {
+        0.0
+    }
+}
+
+/// The final scores.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Scores {
+    /// No at-fault collisions: 1, 0.5 per static object hit (floored at 0), 0 after a
+    /// vehicle or VRU.
+    pub no_at_fault_collisions: f64,
+    /// Drivable-area compliance: 1 or 0.
+    pub drivable_area: f64,
+    /// Driving-direction compliance: 1, 0.5 or 0.
+    pub driving_direction: f64,
+    /// Ego is making progress: 1 or 0.
+    pub making_progress: f64,
+    /// Progress along the expert route, 0..1.
+    pub progress: f64,
+    /// TTC within bound: 1 or 0.
+    pub ttc: f64,
+    /// Speed-limit compliance, 0..1.
+    pub speed_limit: f64,
+    /// Comfort: 1 or 0.
+    pub comfort: f64,
+    /// The aggregate, 0..100.
+    pub score: f64,
+    /// Score above [`VERIFIED_ABOVE`].
+    pub verified: bool,
+    /// Poses scored.
+    pub poses: u32,
+    /// Poses whose footprint was not compliant.
+    pub noncompliant_poses: u32,
+    /// Worst corner distance outside the drivable area over the drive, m.
+    pub worst_corner: f64,
+    /// Most negative progress along the lane direction in one window, m.
+    pub min_direction_progress: f64,
+    /// Smallest projected time to collision, s (infinite if none within the horizon).
+    pub min_ttc: f64,
+    /// At-fault collisions with vehicles or VRUs, and with objects; all collisions.
+    pub collisions: (u32, u32, u32),
+    /// ∫ overspeed dt, m.
+    pub overspeed_integral: f64,
+    /// Ego path length, m.
+    pub ego_progress: f64,
+    /// Duration, s.
+    pub duration: f64,
+    /// Comfort extremes.
+    pub comfort_extremes: ComfortExtremes,
+}
+
+/// Scores a drive pose by pose.
+#[derive(Clone, Debug)]
+pub struct Scorer<'a, 's, const WORDS: usize> {
+    checker: Checker<'a>,
+    channel: Channel<'s, WORDS>,
+    config: ScoreConfig,
+    first_t: Option<f64>,
+    last: Option<(f64, Pose2)>,
+    lane: Option<(u32, f64)>,
+    direction: Deque<(f64, f64), DIRECTION_CAPACITY>,
+    collided: heapless::Vec<u32, COLLISION_CAPACITY>,
+    comfort: Comfort,
+    poses: u32,
+    noncompliant: u32,
+    worst_corner: f64,
+    min_direction: f64,
+    min_ttc: f64,
+    collisions: (u32, u32, u32),
+    overspeed: f64,
+    distance: f64,
+}
+
+impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
+    /// A scorer for drives on `checker`'s map with `channel` as the drivable lanes.
+    pub fn new(checker: Checker<'a>, channel: Channel<'s, WORDS>, config: ScoreConfig) -> Self {
+        Scorer {
+            checker,
+            channel,
+            config,
+            first_t: None,
+            last: None,
+            lane: None,
+            direction: Deque::new(),
+            collided: heapless::Vec::new(),
+            comfort: Comfort::new(),
+            poses: 0,
+            noncompliant: 0,
+            worst_corner: f64::NEG_INFINITY,
+            min_direction: 0.0,
+            min_ttc: f64::INFINITY,
+            collisions: (0, 0, 0),
+            overspeed: 0.0,
+            distance: 0.0,
+        }
+    }
+
+    /// Score the ego with its rear axle at `pose` at time `t` (s), among `agents`.
+    pub fn step(&mut self, t: f64, pose: &Pose2, agents: &[Agent]) -> Result<StepReport, ScoreError> {
+        if !(t.is_finite() && pose.is_finite()) {
+            return Err(ScoreError::NotFinite);
+        }
+        let (speed, dt) = match self.last {
+            Some((t0, _)) if t <= t0 => return Err(ScoreError::TimeNotIncreasing),
+            Some((t0, p0)) => {
+                let step = libm::hypot(pose.x - p0.x, pose.y - p0.y);
+                self.distance += step;
+                (step / (t - t0), t - t0)
+            }
+            None => (0.0, 0.0),
+        };
+        self.first_t.get_or_insert(t);
+        self.last = Some((t, *pose));
+        self.poses += 1;
+
+        let check = self.checker.check(pose, self.channel, self.lane.map(|(l, _)| l));
+        self.worst_corner = self.worst_corner.max(check.worst());
+        if !check.compliant() {
+            self.noncompliant += 1;
+        }
+
+        // Driving direction: progress along the lane the centre stays in.
+        let progress = match (check.centre_lane, self.lane) {
+            (Some(now), Some((lane, along))) if now.lane == lane => now.along - along,
+            _ => 0.0,
+        };
+        self.lane = check.centre_lane.map(|c| (c.lane, c.along));
+        if self.direction.is_full() {
+            self.direction.pop_front();
+        }
+        let _ = self.direction.push_back((t, progress));
+        let horizon = t - self.config.direction_window - 1e-6;
+        while self.direction.front().is_some_and(|&(t0, _)| t0 < horizon) {
+            self.direction.pop_front();
+        }
+        let direction_progress: f64 = self.direction.iter().map(|&(_, p)| p).sum();
+        self.min_direction = self.min_direction.min(direction_progress);
+
+        // Speed limit of the lane the centre is in.
+        if let Some(limit) = check.centre_lane.and_then(|c| c.speed_limit) {
+            self.overspeed += (speed - limit).max(0.0) * dt;
+        }
+
+        self.comfort.push(t, pose);
+        let collision = self.collide(pose, speed, agents, &check);
+        let ttc = if self.poses > 1 && speed > self.config.ttc_stopped_speed { self.ttc(pose, speed, agents) } else { None };
+        if let Some(ttc) = ttc {
+            self.min_ttc = self.min_ttc.min(ttc);
+        }
+        Ok(StepReport { check, speed, ttc, direction_progress, collision })
+    }
+
+    /// nuPlan's collision classification for each agent's first contact.
+    fn collide(&mut self, pose: &Pose2, speed: f64, agents: &[Agent], check: &PoseCheck) -> Option<Collision> {
+        let ego = self.checker.footprint().at(pose);
+        let mut first = None;
+        for agent in agents {
+            if self.collided.contains(&agent.id) || !ego.overlaps(&agent.bbox) {
+                continue;
+            }
+            // Full: later contacts with further agents count again, never fewer.
+            let _ = self.collided.push(agent.id);
+            let stopped = libm::hypot(agent.velocity.0, agent.velocity.1) <= self.config.stopped_speed;
+            let at_fault = if speed <= self.config.stopped_speed {
+                false
+            } else if agent.kind == AgentKind::Object || stopped || agent.bbox.touches_segment(ego.front_edge()) {
+                true
+            } else if agent.bbox.touches_segment(ego.rear_edge()) {
+                false
+            } else {
+                // Lateral: the ego's fault while changing lanes or off the drivable area.
+                check.occupied.len() > 1 || !check.compliant()
+            };
+            self.collisions.2 += 1;
+            if at_fault {
+                match agent.kind {
+                    AgentKind::Object => self.collisions.1 += 1,
+                    AgentKind::Vehicle | AgentKind::Vru => self.collisions.0 += 1,
+                }
+            }
+            first.get_or_insert(Collision { id: agent.id, kind: agent.kind, at_fault });
+        }
+        first
+    }
+
+    /// Constant-velocity projection of ego and agents: the first time their boxes meet.
+    fn ttc(&self, pose: &Pose2, speed: f64, agents: &[Agent]) -> Option<f64> {
+        let footprint = self.checker.footprint();
+        let ego = footprint.at(pose);
+        let (s, c) = libm::sincos(pose.heading);
+        let steps = libm::round(self.config.ttc_horizon / self.config.ttc_step).clamp(0.0, 1000.0) as u32;
+        let mut best: Option<f64> = None;
+        for agent in agents {
+            let ahead = (agent.bbox.centre.x - pose.x) * c + (agent.bbox.centre.y - pose.y) * s;
+            if self.collided.contains(&agent.id) || ahead < -footprint.rear || ego.overlaps(&agent.bbox) {
+                continue;
+            }
+            for k in 1..=steps {
+                let tk = f64::from(k) * self.config.ttc_step;
+                if best.is_some_and(|b| tk >= b) {
+                    break;
+                }
+                let e = ego.translated(speed * c * tk, speed * s * tk);
+                let a = agent.bbox.translated(agent.velocity.0 * tk, agent.velocity.1 * tk);
+                if e.overlaps(&a) {
+                    best = Some(tk);
+                    break;
+                }
+            }
+        }
+        best
+    }
+
+    /// The scores of the drive so far. `expert_progress` is the expert's path length
+    /// (m); `None` when the replayed ego is the expert.
+    pub fn finish(&self, expert_progress: Option<f64>) -> Scores {
+        let cfg = &self.config;
+        let duration = match (self.first_t, self.last) {
+            (Some(t0), Some((t1, _))) => t1 - t0,
+            _ => 0.0,
+        };
+        let no_at_fault_collisions =
+            if self.collisions.0 > 0 { 0.0 } else { (1.0 - 0.5 * f64::from(self.collisions.1)).max(0.0) };
+        let drivable_area = if self.noncompliant == 0 { 1.0 } else { 0.0 };
+        let backwards = -self.min_direction;
+        let driving_direction = if backwards < cfg.direction_compliant {
+            1.0
+        } else if backwards < cfg.direction_violation {
+            0.5
+        } else {
+            0.0
+        };
+        let expert = expert_progress.unwrap_or(self.distance);
+        let progress = (self.distance.max(cfg.min_progress) / expert.max(cfg.min_progress)).min(1.0);
+        let making_progress = if progress >= cfg.min_progress_ratio { 1.0 } else { 0.0 };
+        let ttc = if self.min_ttc > cfg.ttc_threshold { 1.0 } else { 0.0 };
+        let speed_limit =
+            if duration > 0.0 { (1.0 - self.overspeed / (cfg.overspeed_scale * duration)).max(0.0) } else { 1.0 };
+        let comfort = if self.comfort.extremes.within(&cfg.comfort) { 1.0 } else { 0.0 };
+        let weighted = (WEIGHTS[0] * progress + WEIGHTS[1] * ttc + WEIGHTS[2] * speed_limit + WEIGHTS[3] * comfort)
+            / WEIGHTS.iter().sum::<f64>();
+        let score = 100.0 * no_at_fault_collisions * drivable_area * driving_direction * making_progress * weighted;
+        Scores {
+            no_at_fault_collisions,
+            drivable_area,
+            driving_direction,
+            making_progress,
+            progress,
+            ttc,
+            speed_limit,
+            comfort,
+            score,
+            verified: score > VERIFIED_ABOVE,
+            poses: self.poses,
+            noncompliant_poses: self.noncompliant,
+            worst_corner: self.worst_corner,
+            min_direction_progress: self.min_direction,
+            min_ttc: self.min_ttc,
+            collisions: self.collisions,
+            overspeed_integral: self.overspeed,
+            ego_progress: self.distance,
+            duration,
+            comfort_extremes: self.comfort.extremes,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn savitzky_golay_is_exact_on_quadratics() {
+        // y = 3 + 2t + 1.5t², sampled 0.1 s apart around t = 0.
+        let dt = 0.1;
+        let values = (0..COMFORT_WINDOW).map(|i| {
+            let t = (i as f64 - 3.0) * dt;
+            3.0 + 2.0 * t + 1.5 * t * t
+        });
+        let (d1, d2) = savitzky_golay(values, dt);
+        assert!((d1 - 2.0).abs() < 1e-9 && (d2 - 3.0).abs() < 1e-9, "{d1} {d2}");
+    }
+
+    #[test]
+    fn comfort_sees_a_hard_brake_and_not_a_steady_cruise() {
+        let mut cruise = Comfort::new();
+        let mut brake = Comfort::new();
+        for i in 0..40 {
+            let t = f64::from(i) * 0.1;
+            cruise.push(t, &Pose2::new(15.0 * t, 0.0, 0.0));
+            // Brake at 6 m/s² from 20 m/s.
+            brake.push(t, &Pose2::new(20.0 * t - 3.0 * t * t, 0.0, 0.0));
+        }
+        let bounds = ScoreConfig::default().comfort;
+        assert!(cruise.extremes.within(&bounds), "{:?}", cruise.extremes);
+        assert!(!brake.extremes.within(&bounds));
+        assert!((brake.extremes.lon_accel.0 - -6.0).abs() < 1e-6, "{:?}", brake.extremes);
+    }
+}
