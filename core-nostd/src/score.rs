@@ -18,7 +18,9 @@
 //!   [`Scorer::finish`] (replaying the recorded ego, the expert is the ego: ratio 1);
 //! * the lane the ego is in is the lane containing its footprint centre, kept while it
 //!   still contains it (nuPlan's `ego_driven_route`);
-//! * time to collision ignores agents whose centre is behind the ego's rear bumper.
+//! * TTC projects both boxes step by step for every relevant agent, without nuPlan's
+//!   pre-filter by elongated boxes (which only saves time); an agent's "stopped" speed
+//!   and heading come from its recorded velocity and box.
 
 use heapless::Deque;
 
@@ -35,6 +37,10 @@ pub const COMFORT_WINDOW: usize = 7;
 pub const DIRECTION_CAPACITY: usize = 128;
 /// Agents remembered as already collided with (each collision counts once).
 pub const COLLISION_CAPACITY: usize = 64;
+/// An agent within this angle of the heading, seen from the rear axle, is ahead (rad).
+const AHEAD_ANGLE: f64 = 30.0 * core::f64::consts::PI / 180.0;
+/// An agent beyond this angle from the heading is behind (rad).
+const BEHIND_ANGLE: f64 = 150.0 * core::f64::consts::PI / 180.0;
 
 /// What kind of road user or object an agent is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -443,7 +449,14 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
 
         self.comfort.push(t, pose);
         let collision = self.collide(pose, speed, agents, &check);
-        let ttc = if self.poses > 1 && speed > self.config.ttc_stopped_speed { self.ttc(pose, speed, agents) } else { None };
+        let ttc = if collision.is_some_and(|c| c.at_fault) {
+            // nuPlan: an at-fault collision is a TTC of 0.
+            Some(0.0)
+        } else if self.poses > 1 && speed > self.config.ttc_stopped_speed {
+            self.ttc(pose, speed, agents, &check)
+        } else {
+            None
+        };
         if let Some(ttc) = ttc {
             self.min_ttc = self.min_ttc.min(ttc);
         }
@@ -484,24 +497,35 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
     }
 
     /// Constant-velocity projection of ego and agents: the first time their boxes meet.
-    fn ttc(&self, pose: &Pose2, speed: f64, agents: &[Agent]) -> Option<f64> {
-        let footprint = self.checker.footprint();
-        let ego = footprint.at(pose);
+    /// As nuPlan: agents ahead (within 30° of the heading, seen from the rear axle) count;
+    /// agents beside count too while the ego is between lanes or off the drivable area;
+    /// agents behind (beyond 150°) and agents already collided with never do. Each agent
+    /// moves along its heading at its speed.
+    fn ttc(&self, pose: &Pose2, speed: f64, agents: &[Agent], check: &PoseCheck) -> Option<f64> {
+        let ego = self.checker.footprint().at(pose);
         let (s, c) = libm::sincos(pose.heading);
-        let steps = libm::round(self.config.ttc_horizon / self.config.ttc_step).clamp(0.0, 1000.0) as u32;
+        let between_lanes = check.occupied.len() != 1 || !check.compliant();
+        // The horizon itself is excluded, as numpy's arange(step, horizon, step).
+        let steps = libm::ceil(self.config.ttc_horizon / self.config.ttc_step - 1e-9).clamp(1.0, 1000.0) as u32 - 1;
         let mut best: Option<f64> = None;
         for agent in agents {
-            let ahead = (agent.bbox.centre.x - pose.x) * c + (agent.bbox.centre.y - pose.y) * s;
-            if self.collided.contains(&agent.id) || ahead < -footprint.rear || ego.overlaps(&agent.bbox) {
+            let (dx, dy) = (agent.bbox.centre.x - pose.x, agent.bbox.centre.y - pose.y);
+            let distance = libm::hypot(dx, dy);
+            let cos_angle = if distance > 1e-9 { (dx * c + dy * s) / distance } else { 1.0 };
+            let ahead = cos_angle > libm::cos(AHEAD_ANGLE);
+            let behind = cos_angle < libm::cos(BEHIND_ANGLE);
+            if self.collided.contains(&agent.id) || !(ahead || (between_lanes && !behind)) {
                 continue;
             }
+            let agent_speed = libm::hypot(agent.velocity.0, agent.velocity.1);
+            let (sa, ca) = libm::sincos(agent.bbox.centre.heading);
             for k in 1..=steps {
                 let tk = f64::from(k) * self.config.ttc_step;
                 if best.is_some_and(|b| tk >= b) {
                     break;
                 }
                 let e = ego.translated(speed * c * tk, speed * s * tk);
-                let a = agent.bbox.translated(agent.velocity.0 * tk, agent.velocity.1 * tk);
+                let a = agent.bbox.translated(agent_speed * ca * tk, agent_speed * sa * tk);
                 if e.overlaps(&a) {
                     best = Some(tk);
                     break;

@@ -55,6 +55,43 @@ enum Command {
     /// Map tiles from OpenStreetMap (docs/map-tile.md).
     #[command(subcommand)]
     Map(MapCommand),
+    /// Replay a recorded ego trajectory against a map tile and score it as nuPlan would;
+    /// a log is verified above 90 (docs/verify.md).
+    Verify(VerifyArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct VerifyArgs {
+    /// The map tile (`dash2sim map build`).
+    #[arg(long)]
+    map: PathBuf,
+    /// Ego trajectory, TUM, in the map's ENU frame: x east, y north, the pose at the rear
+    /// axle, heading from the quaternion.
+    #[arg(long)]
+    ego: PathBuf,
+    /// Other road users and objects (the scenario `objects.csv` format), as non-reactive
+    /// agents.
+    #[arg(long)]
+    objects: Option<PathBuf>,
+    /// Only lanes near the route actually driven are drivable (not the opposing lanes or
+    /// side roads); default: every mapped lane.
+    #[arg(long)]
+    channel_sensitive: bool,
+    /// Ego width, m (default: nuPlan's Pacifica).
+    #[arg(long, default_value_t = dash2sim_core::obb::PACIFICA.width)]
+    width: f64,
+    /// Rear axle → front bumper, m.
+    #[arg(long, default_value_t = dash2sim_core::obb::PACIFICA.front)]
+    front: f64,
+    /// Rear axle → rear bumper, m.
+    #[arg(long, default_value_t = dash2sim_core::obb::PACIFICA.rear)]
+    rear: f64,
+    /// Write the per-pose checks (corner distances, lanes, speed, TTC) to this CSV.
+    #[arg(long)]
+    poses: Option<PathBuf>,
+    /// Print the report as JSON: each metric's score, the aggregate, `verified`.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Debug, Subcommand)]
@@ -252,6 +289,25 @@ pub fn run() -> ExitCode {
             crate::map_tile::run_build(&osm, &output, origin.as_deref(), bbox.as_deref(), cell)
         }
         Command::Map(MapCommand::Info { map, json }) => crate::map_tile::run_info(&map, json),
+        Command::Verify(a) => {
+            let footprint = dash2sim_core::obb::Footprint { width: a.width, front: a.front, rear: a.rear };
+            let valid = footprint.width > 0.0
+                && footprint.front + footprint.rear > 0.0
+                && [footprint.width, footprint.front, footprint.rear].iter().all(|v| v.is_finite());
+            let request = crate::verify::VerifyRequest {
+                map: &a.map,
+                ego: &a.ego,
+                objects: a.objects.as_deref(),
+                channel_sensitive: a.channel_sensitive,
+                footprint,
+                poses: a.poses.as_deref(),
+            };
+            if valid {
+                crate::verify::run(&request, a.json)
+            } else {
+                Err("--width and --front + --rear must be positive".to_owned())
+            }
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

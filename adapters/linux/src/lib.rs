@@ -18,3 +18,4 @@ pub mod scenario;
 pub mod sync;
 pub mod track2d;
 pub mod trajectory;
+pub mod verify;

@@ -1,0 +1,269 @@
+//! `dash2sim verify`: replay a recorded ego trajectory against a map tile, with the
+//! recorded objects as non-reactive agents, and score it as nuPlan would
+//! (`dash2sim_core::score`).
+//!
+//! Inputs: a TUM trajectory in the map's ENU frame (x east, y north, the pose at the rear
+//! axle, heading from the quaternion's body x axis) and optionally an objects CSV in the
+//! scenario format (`frame,t_s,id,class,x,y,z,yaw,l,w,h,vx,vy,static,visible`); the
+//! objects of the frame nearest each pose (within [`OBJECT_TIME_TOLERANCE`]) are its agents.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use dash2sim_core::drivable::{Channel, Checker, LaneSet};
+use dash2sim_core::map::MapView;
+use dash2sim_core::obb::{Footprint, OrientedBox, Pose2, CORNER_NAMES};
+use dash2sim_core::score::{Agent, AgentKind, ScoreConfig, Scorer, Scores, StepReport};
+
+use crate::trajectory::{Format, Trajectory};
+
+/// Objects farther in time than this from a pose are not its agents, s.
+pub const OBJECT_TIME_TOLERANCE: f64 = 0.05;
+/// Words of the channel lane set: maps of up to 32 × 8192 = 262 144 lanes.
+const CHANNEL_WORDS: usize = 8192;
+
+/// What `verify` was asked.
+#[derive(Clone, Debug)]
+pub struct VerifyRequest<'a> {
+    /// The map tile.
+    pub map: &'a Path,
+    /// TUM trajectory of the rear axle in the map's ENU frame.
+    pub ego: &'a Path,
+    /// Objects CSV.
+    pub objects: Option<&'a Path>,
+    /// Only lanes near the driven route are drivable.
+    pub channel_sensitive: bool,
+    /// The ego's outline.
+    pub footprint: Footprint,
+    /// Per-pose CSV to write.
+    pub poses: Option<&'a Path>,
+}
+
+/// Agent kind of a class name: vehicles, vulnerable road users, or static objects.
+pub fn agent_kind(class: &str) -> AgentKind {
+    match class {
+        "car" | "truck" | "bus" | "van" | "trailer" | "vehicle" | "motorcycle" | "construction_vehicle" => {
+            AgentKind::Vehicle
+        }
+        "pedestrian" | "cyclist" | "bicycle" | "person" | "flagger" | "worker" => AgentKind::Vru,
+        _ => AgentKind::Object,
+    }
+}
+
+/// Objects by time (ms), read from the scenario's `objects.csv` format.
+pub fn read_objects(path: &Path) -> Result<BTreeMap<i64, Vec<Agent>>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut lines = text.lines().enumerate();
+    let header = lines.next().map(|(_, l)| l.trim()).unwrap_or_default();
+    let columns: Vec<&str> = header.split(',').collect();
+    let col = |name: &str| {
+        columns.iter().position(|c| *c == name).ok_or_else(|| format!("{}:1: no column {name:?}", path.display()))
+    };
+    let [t, id, class, x, y, yaw, l, w, vx, vy] =
+        ["t_s", "id", "class", "x", "y", "yaw", "l", "w", "vx", "vy"].map(col);
+    let (t, id, class, x, y, yaw, l, w, vx, vy) = (t?, id?, class?, x?, y?, yaw?, l?, w?, vx?, vy?);
+    let mut by_time: BTreeMap<i64, Vec<Agent>> = BTreeMap::new();
+    for (n, line) in lines {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        let number = |k: usize, name: &str| -> Result<f64, String> {
+            fields
+                .get(k)
+                .and_then(|v| v.parse::<f64>().ok())
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| format!("{}:{}: {name} is not a finite number", path.display(), n + 1))
+        };
+        let agent_id = fields
+            .get(id)
+            .and_then(|v| v.parse::<u32>().ok())
+            .ok_or_else(|| format!("{}:{}: id is not a non-negative integer", path.display(), n + 1))?;
+        let (length, width) = (number(l, "l")?, number(w, "w")?);
+        if length < 0.0 || width < 0.0 {
+            return Err(format!("{}:{}: negative size", path.display(), n + 1));
+        }
+        let agent = Agent {
+            id: agent_id,
+            kind: agent_kind(fields.get(class).copied().unwrap_or_default()),
+            bbox: OrientedBox { centre: Pose2::new(number(x, "x")?, number(y, "y")?, number(yaw, "yaw")?), length, width },
+            velocity: (number(vx, "vx")?, number(vy, "vy")?),
+        };
+        by_time.entry((number(t, "t_s")? * 1000.0).round() as i64).or_default().push(agent);
+    }
+    Ok(by_time)
+}
+
+/// The agents of the object frame nearest `t`, if within [`OBJECT_TIME_TOLERANCE`].
+fn agents_at(objects: &BTreeMap<i64, Vec<Agent>>, t: f64) -> &[Agent] {
+    let ms = (t * 1000.0).round() as i64;
+    let tolerance = (OBJECT_TIME_TOLERANCE * 1000.0) as i64;
+    objects
+        .range(ms - tolerance..=ms + tolerance)
+        .min_by_key(|(k, _)| (**k - ms).abs())
+        .map_or(&[], |(_, agents)| agents.as_slice())
+}
+
+/// Heading of a pose: its body x axis in the ENU plane.
+fn heading(pose: &dash2sim_core::sim3::Pose) -> f64 {
+    pose.rotation[(1, 0)].atan2(pose.rotation[(0, 0)])
+}
+
+/// The outcome of a replay.
+#[derive(Debug)]
+pub struct Verification {
+    /// Final scores.
+    pub scores: Scores,
+    /// Per-pose reports, with the pose's time and rear-axle pose.
+    pub steps: Vec<(f64, Pose2, StepReport)>,
+    /// Lanes on the channel (channel-sensitive mode).
+    pub channel_lanes: Option<usize>,
+}
+
+/// Replay `poses` (time, rear-axle pose) on `map`.
+pub fn replay(
+    map: MapView<'_>,
+    poses: &[(f64, Pose2)],
+    objects: &BTreeMap<i64, Vec<Agent>>,
+    channel_sensitive: bool,
+    footprint: Footprint,
+) -> Result<Verification, String> {
+    let checker = Checker::new(map, footprint);
+    let mut channel_set: Box<LaneSet<CHANNEL_WORDS>> = Box::default();
+    if channel_sensitive {
+        if map.header().lanes as usize > LaneSet::<CHANNEL_WORDS>::capacity() {
+            return Err(format!("the map has more than {} lanes", LaneSet::<CHANNEL_WORDS>::capacity()));
+        }
+        for (_, pose) in poses {
+            channel_set.add_route_pose(&map, &footprint, pose);
+        }
+    }
+    let channel = if channel_sensitive { Channel::Sensitive(&*channel_set) } else { Channel::Insensitive };
+    let mut scorer = Scorer::new(checker, channel, ScoreConfig::default());
+    let mut steps = Vec::with_capacity(poses.len());
+    for (k, (t, pose)) in poses.iter().enumerate() {
+        let report = scorer.step(*t, pose, agents_at(objects, *t)).map_err(|e| format!("pose {}: {e}", k + 1))?;
+        steps.push((*t, *pose, report));
+    }
+    Ok(Verification { scores: scorer.finish(None), steps, channel_lanes: channel_sensitive.then(|| channel_set.len()) })
+}
+
+fn poses_csv(steps: &[(f64, Pose2, StepReport)]) -> String {
+    let mut out = String::from(
+        "t_s,x,y,heading,front_left_m,front_right_m,rear_right_m,rear_left_m,compliant,occupied_lanes,centre_lane,speed_mps,ttc_s,direction_progress_m\n",
+    );
+    for (t, p, r) in steps {
+        let corner = |c: Option<f64>| c.map_or_else(|| "inf".to_owned(), |d| format!("{d:.4}"));
+        let occupied: Vec<String> = r.check.occupied.iter().map(u32::to_string).collect();
+        let _ = writeln!(
+            out,
+            "{t:.3},{:.3},{:.3},{:.5},{},{},{},{},{},{},{},{:.3},{},{:.3}",
+            p.x,
+            p.y,
+            p.heading,
+            corner(r.check.corners[0]),
+            corner(r.check.corners[1]),
+            corner(r.check.corners[2]),
+            corner(r.check.corners[3]),
+            u8::from(r.check.compliant()),
+            occupied.join(" "),
+            r.check.centre_lane.map_or_else(String::new, |c| c.lane.to_string()),
+            r.speed,
+            r.ttc.map_or_else(String::new, |v| format!("{v:.1}")),
+            r.direction_progress
+        );
+    }
+    out
+}
+
+/// The JSON report of `dash2sim verify --json`.
+pub fn report_json(v: &Verification, channel_sensitive: bool) -> serde_json::Value {
+    let s = &v.scores;
+    let finite = |x: f64| if x.is_finite() { serde_json::json!(x) } else { serde_json::Value::Null };
+    let e = &s.comfort_extremes;
+    serde_json::json!({
+        "metrics": {
+            "no_at_fault_collisions": s.no_at_fault_collisions,
+            "drivable_area_compliance": s.drivable_area,
+            "driving_direction_compliance": s.driving_direction,
+            "ego_is_making_progress": s.making_progress,
+            "ego_progress_along_expert_route": s.progress,
+            "time_to_collision_within_bound": s.ttc,
+            "speed_limit_compliance": s.speed_limit,
+            "ego_is_comfortable": s.comfort,
+        },
+        "score": s.score,
+        "verified": s.verified,
+        "channel_sensitive": channel_sensitive,
+        "channel_lanes": v.channel_lanes,
+        "poses": s.poses,
+        "duration_s": s.duration,
+        "details": {
+            "noncompliant_poses": s.noncompliant_poses,
+            "worst_corner_outside_m": finite(s.worst_corner),
+            "min_progress_along_lane_direction_m": s.min_direction_progress,
+            "min_ttc_s": finite(s.min_ttc),
+            "collisions": {"at_fault_agents": s.collisions.0, "at_fault_objects": s.collisions.1, "all": s.collisions.2},
+            "overspeed_integral_m": s.overspeed_integral,
+            "ego_progress_m": s.ego_progress,
+            "comfort": {
+                "lon_accel_mps2": [finite(e.lon_accel.0), finite(e.lon_accel.1)],
+                "max_abs_lat_accel_mps2": e.lat_accel,
+                "max_abs_jerk_mps3": e.jerk,
+                "max_abs_lon_jerk_mps3": e.lon_jerk,
+                "max_abs_yaw_rate_radps": e.yaw_rate,
+                "max_abs_yaw_accel_radps2": e.yaw_accel,
+            },
+        },
+    })
+}
+
+/// `dash2sim verify`.
+pub fn run(request: &VerifyRequest<'_>, as_json: bool) -> Result<(), String> {
+    let bytes = std::fs::read(request.map).map_err(|e| format!("{}: {e}", request.map.display()))?;
+    let map = MapView::parse(&bytes).map_err(|e| format!("{}: {e}", request.map.display()))?;
+    let trajectory = Trajectory::read(request.ego, Format::Tum).map_err(|e| e.to_string())?;
+    let poses: Vec<(f64, Pose2)> = trajectory
+        .stamps
+        .iter()
+        .zip(&trajectory.poses)
+        .map(|(t, p)| (*t, Pose2::new(p.translation.x, p.translation.y, heading(p))))
+        .collect();
+    let objects = request.objects.map(read_objects).transpose()?.unwrap_or_default();
+    let v = replay(map, &poses, &objects, request.channel_sensitive, request.footprint)?;
+    if let Some(path) = request.poses {
+        std::fs::write(path, poses_csv(&v.steps)).map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    if as_json {
+        println!("{}", report_json(&v, request.channel_sensitive));
+        return Ok(());
+    }
+    let s = &v.scores;
+    let mode = if request.channel_sensitive { "channel-sensitive" } else { "channel-insensitive" };
+    println!("{}: {} poses over {:.1} s, {mode}", request.ego.display(), s.poses, s.duration);
+    let rows = [
+        ("no at-fault collisions", s.no_at_fault_collisions, "multiplier"),
+        ("drivable-area compliance", s.drivable_area, "multiplier"),
+        ("driving-direction compliance", s.driving_direction, "multiplier"),
+        ("ego is making progress", s.making_progress, "multiplier"),
+        ("progress along expert route", s.progress, "weight 5"),
+        ("time to collision within bound", s.ttc, "weight 5"),
+        ("speed-limit compliance", s.speed_limit, "weight 4"),
+        ("comfort", s.comfort, "weight 2"),
+    ];
+    for (name, value, role) in rows {
+        println!("  {name:<32} {value:>6.3}  ({role})");
+    }
+    if let Some((t, _, r)) = v.steps.iter().find(|(_, _, r)| !r.check.compliant()) {
+        let worst = r.check.corners.iter().enumerate().max_by(|a, b| {
+            a.1.unwrap_or(f64::INFINITY).total_cmp(&b.1.unwrap_or(f64::INFINITY))
+        });
+        if let Some((k, d)) = worst {
+            let d = d.map_or_else(|| "nothing drivable within 10 m".to_owned(), |d| format!("{d:.2} m outside"));
+            println!("  first off the drivable area at t = {t:.2} s: {} corner {d}", CORNER_NAMES[k]);
+        }
+    }
+    println!("score {:.2} → {}", s.score, if s.verified { "verified" } else { "NOT verified (needs > 90)" });
+    Ok(())
+}
