@@ -94,9 +94,7 @@ impl<const WORDS: usize> LaneSet<WORDS> {
             let Item::Lane(i) = item else { return };
             let Some(lane) = map.lane(i) else { return };
             let heading = lane.project(centre.x, centre.y).heading;
-            if lane.distance_outside(centre.x, centre.y) <= CHANNEL_RADIUS
-                && libm::cos(heading - pose.heading) > 0.0
-            {
+            if lane.distance_outside(centre.x, centre.y) <= CHANNEL_RADIUS && libm::cos(heading - pose.heading) > 0.0 {
                 self.insert(i);
             }
         });
@@ -189,7 +187,12 @@ impl<'a> Checker<'a> {
     /// Check the footprint with its rear axle at `pose`. `previous` is the centre's lane at
     /// the pose before: where lanes overlap (junctions) the centre stays in it, as nuPlan
     /// keeps ego on the lane it is following.
-    pub fn check<const WORDS: usize>(&self, pose: &Pose2, channel: Channel<'_, WORDS>, previous: Option<u32>) -> PoseCheck {
+    pub fn check<const WORDS: usize>(
+        &self,
+        pose: &Pose2,
+        channel: Channel<'_, WORDS>,
+        previous: Option<u32>,
+    ) -> PoseCheck {
         let footprint = self.footprint.at(pose);
         let corners = footprint.corners();
         let mut check = PoseCheck {
@@ -212,8 +215,11 @@ impl<'a> Checker<'a> {
                 }
                 if k == 0 {
                     let p = lane.project(x, y);
-                    let candidate =
-                        (previous == Some(i), p.distance, CentreLane { lane: i, along: p.along, heading: p.heading, speed_limit: lane.speed_limit });
+                    let candidate = (
+                        previous == Some(i),
+                        p.distance,
+                        CentreLane { lane: i, along: p.along, heading: p.heading, speed_limit: lane.speed_limit },
+                    );
                     let better = match &best {
                         None => true,
                         Some((was_previous, distance, _)) => {

@@ -107,8 +107,10 @@ impl OrientedBox {
         for angle in axes {
             let (s, c) = libm::sincos(angle);
             let project = |p: &(f64, f64)| p.0 * c + p.1 * s;
-            let (a_lo, a_hi) = a.iter().map(project).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
-            let (b_lo, b_hi) = b.iter().map(project).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
+            let (a_lo, a_hi) =
+                a.iter().map(project).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
+            let (b_lo, b_hi) =
+                b.iter().map(project).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
             if a_hi < b_lo || b_hi < a_lo {
                 return false;
             }
@@ -172,7 +174,8 @@ mod tests {
     fn overlap_needs_every_axis_to_overlap() {
         let a = OrientedBox { centre: Pose2::new(0.0, 0.0, 0.0), length: 4.0, width: 2.0 };
         // A diamond whose bounding box overlaps a's but which is separated on its own axis.
-        let diamond = OrientedBox { centre: Pose2::new(2.5, 1.5, core::f64::consts::FRAC_PI_4), length: 1.0, width: 1.0 };
+        let diamond =
+            OrientedBox { centre: Pose2::new(2.5, 1.5, core::f64::consts::FRAC_PI_4), length: 1.0, width: 1.0 };
         assert!(!a.overlaps(&diamond) && !diamond.overlaps(&a));
         assert!(a.overlaps(&diamond.translated(-0.5, -0.5)));
         assert!(a.overlaps(&a.translated(4.0, 0.0)), "touching counts");

@@ -268,10 +268,8 @@ fn collisions_are_classified_as_nuplan_does() {
     assert_eq!((stopped.no_at_fault_collisions, stopped.collisions.0, stopped.score), (0.0, 1, 0.0));
 
     // A faster car from behind runs into the ego's rear: not the ego's fault.
-    let agents: BTreeMap<i64, Vec<Agent>> = poses
-        .iter()
-        .map(|(t, _)| ((t * 1000.0).round() as i64, vec![car(3, 5.0 - 30.0 + 15.0 * t, 15.0)]))
-        .collect();
+    let agents: BTreeMap<i64, Vec<Agent>> =
+        poses.iter().map(|(t, _)| ((t * 1000.0).round() as i64, vec![car(3, 5.0 - 30.0 + 15.0 * t, 15.0)])).collect();
     let rear = verify(&map, &poses, &agents, false).scores;
     assert_eq!((rear.collisions, rear.no_at_fault_collisions), ((0, 0, 1), 1.0), "{rear:?}");
 

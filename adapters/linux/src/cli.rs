@@ -123,6 +123,12 @@ enum MapCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Print every lane of a tile as JSON in its ENU frame: centreline, width, speed
+    /// limit, neighbours, successors, area polygon (for inspection and cross-checks).
+    Lanes {
+        /// The tile.
+        map: PathBuf,
+    },
 }
 
 #[derive(Debug, Subcommand)]
@@ -289,6 +295,7 @@ pub fn run() -> ExitCode {
             crate::map_tile::run_build(&osm, &output, origin.as_deref(), bbox.as_deref(), cell)
         }
         Command::Map(MapCommand::Info { map, json }) => crate::map_tile::run_info(&map, json),
+        Command::Map(MapCommand::Lanes { map }) => crate::map_tile::run_lanes(&map),
         Command::Verify(a) => {
             let footprint = dash2sim_core::obb::Footprint { width: a.width, front: a.front, rear: a.rear };
             let valid = footprint.width > 0.0

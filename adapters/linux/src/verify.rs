@@ -87,7 +87,11 @@ pub fn read_objects(path: &Path) -> Result<BTreeMap<i64, Vec<Agent>>, String> {
         let agent = Agent {
             id: agent_id,
             kind: agent_kind(fields.get(class).copied().unwrap_or_default()),
-            bbox: OrientedBox { centre: Pose2::new(number(x, "x")?, number(y, "y")?, number(yaw, "yaw")?), length, width },
+            bbox: OrientedBox {
+                centre: Pose2::new(number(x, "x")?, number(y, "y")?, number(yaw, "yaw")?),
+                length,
+                width,
+            },
             velocity: (number(vx, "vx")?, number(vy, "vy")?),
         };
         by_time.entry((number(t, "t_s")? * 1000.0).round() as i64).or_default().push(agent);
@@ -256,9 +260,12 @@ pub fn run(request: &VerifyRequest<'_>, as_json: bool) -> Result<(), String> {
         println!("  {name:<32} {value:>6.3}  ({role})");
     }
     if let Some((t, _, r)) = v.steps.iter().find(|(_, _, r)| !r.check.compliant()) {
-        let worst = r.check.corners.iter().enumerate().max_by(|a, b| {
-            a.1.unwrap_or(f64::INFINITY).total_cmp(&b.1.unwrap_or(f64::INFINITY))
-        });
+        let worst = r
+            .check
+            .corners
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.unwrap_or(f64::INFINITY).total_cmp(&b.1.unwrap_or(f64::INFINITY)));
         if let Some((k, d)) = worst {
             let d = d.map_or_else(|| "nothing drivable within 10 m".to_owned(), |d| format!("{d:.2} m outside"));
             println!("  first off the drivable area at t = {t:.2} s: {} corner {d}", CORNER_NAMES[k]);

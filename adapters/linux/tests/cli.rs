@@ -454,3 +454,94 @@ fn map_build_and_info_describe_the_tile_and_refuse_a_corrupted_one() {
     let out = dash2sim(&["map", "build", &osm, "-o", &map, "--origin", "91,0"]);
     assert!(!out.status.success() && stderr(&out).contains("--origin"), "{}", stderr(&out));
 }
+
+#[test]
+fn verify_scores_a_generated_drive_and_names_bad_inputs() {
+    let dir = scratch("verify");
+    let drive = dir.join("drive");
+    let out =
+        dash2sim(&["scenario", "generate", "-o", &drive.display().to_string(), "--seed", "1", "--duration", "10"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let map = dir.join("road.map").display().to_string();
+    let road = drive.join("road.osm").display().to_string();
+    let out = dash2sim(&["map", "build", &road, "-o", &map, "--origin", "60.2711,24.8572"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let (ego, objects) = (drive.join("ego.tum").display().to_string(), drive.join("objects.csv").display().to_string());
+    let poses = dir.join("poses.csv").display().to_string();
+    for sensitive in [false, true] {
+        let mut args = vec!["verify", "--map", &map, "--ego", &ego, "--objects", &objects, "--json", "--poses", &poses];
+        if sensitive {
+            args.push("--channel-sensitive");
+        }
+        let out = dash2sim(&args);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+        // The first 10 s: lane keeping at 22 m/s behind traffic, before the work zone.
+        assert_eq!(report["verified"], true, "{report}");
+        assert!(report["score"].as_f64().is_some_and(|s| s > 90.0), "{report}");
+        let metrics = report["metrics"].as_object().expect("metrics");
+        assert_eq!(metrics.len(), 8);
+        assert_eq!(report["poses"], 101);
+        assert_eq!(report["channel_sensitive"], sensitive);
+    }
+    let csv = std::fs::read_to_string(&poses).expect("per-pose CSV");
+    assert_eq!(csv.lines().count(), 102, "header and one row per pose");
+    assert!(csv.lines().nth(1).is_some_and(|l| l.split(',').count() == 14));
+
+    // Bad inputs: a clear error naming the file and line, never a crash.
+    let bad_ego = write(&dir, "bad.tum", "0.0 1 2 0 0 0 0 1\n0.1 1 2 zero 0 0 0 1\n");
+    let out = dash2sim(&["verify", "--map", &map, "--ego", &bad_ego]);
+    assert!(!out.status.success() && stderr(&out).contains("bad.tum:2"), "{}", stderr(&out));
+    let bad_objects = write(&dir, "bad.csv", "frame,t_s,id,class,x,y,z,yaw,l,w,h,vx,vy,static,visible\n0,0.0,1,cone,1,2,0,0,0.4,0.4,1,0,0,1,1\n1,0.1,1,cone,x,2,0,0,0.4,0.4,1,0,0,1,1\n");
+    let out = dash2sim(&["verify", "--map", &map, "--ego", &ego, "--objects", &bad_objects]);
+    assert!(!out.status.success() && stderr(&out).contains("bad.csv:3: x is not a finite number"), "{}", stderr(&out));
+    let out = dash2sim(&["verify", "--map", &ego, "--ego", &ego]);
+    assert!(!out.status.success() && stderr(&out).contains("bad magic"), "{}", stderr(&out));
+    let out = dash2sim(&["verify", "--map", &map, "--ego", &ego, "--width", "0"]);
+    assert!(!out.status.success() && stderr(&out).contains("--width"), "{}", stderr(&out));
+}
+
+#[test]
+fn map_build_cuts_at_a_bbox_and_survives_odd_ways() {
+    let dir = scratch("map-odd");
+    // A self-intersecting figure-eight, lanes=0, a one-node way, a way with every node missing.
+    let osm = write(
+        &dir,
+        "odd.osm",
+        r#"<osm version="0.6">
+  <node id="1" lat="60.0000" lon="24.0000"/>
+  <node id="2" lat="60.0010" lon="24.0020"/>
+  <node id="3" lat="60.0010" lon="24.0000"/>
+  <node id="4" lat="60.0000" lon="24.0020"/>
+  <node id="5" lat="60.0030" lon="24.0030"/>
+  <way id="5"><nd ref="1"/><nd ref="2"/><nd ref="3"/><nd ref="4"/><nd ref="1"/><tag k="highway" v="primary"/><tag k="lanes" v="0"/></way>
+  <way id="6"><nd ref="3"/><tag k="highway" v="residential"/></way>
+  <way id="7"><nd ref="8"/><nd ref="9"/><tag k="highway" v="residential"/></way>
+  <way id="8"><nd ref="3"/><nd ref="5"/><tag k="highway" v="residential"/></way>
+</osm>"#,
+    );
+    let map = dir.join("odd.map").display().to_string();
+    let out = dash2sim(&["map", "build", &osm, "-o", &map]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let err = stderr(&out);
+    assert!(err.contains("way 5: lanes") && err.contains("way 6: fewer than 2") && err.contains("way 7"), "{err}");
+    let lanes: serde_json::Value = serde_json::from_slice(&dash2sim(&["map", "lanes", &map]).stdout).expect("json");
+    assert_eq!(
+        lanes["lanes"].as_array().map(Vec::len),
+        Some(4),
+        "2 for the figure-eight (lanes=0 → default), 2 for way 8"
+    );
+    // --bbox keeps way 5 (inside) and cuts way 8 at the box: node 5 is outside.
+    let cut = dir.join("cut.map").display().to_string();
+    let out = dash2sim(&["map", "build", &osm, "-o", &cut, "--bbox", "23.999,59.999,24.0025,60.0015"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let lanes: serde_json::Value = serde_json::from_slice(&dash2sim(&["map", "lanes", &cut]).stdout).expect("json");
+    assert_eq!(lanes["lanes"].as_array().map(Vec::len), Some(2));
+    let info: serde_json::Value =
+        serde_json::from_slice(&dash2sim(&["map", "info", &cut, "--json"]).stdout).expect("json");
+    assert_eq!(info["osm"]["ways"], 4, "source counts describe the file, not the cut");
+    for bad in ["1,2,3", "24.1,60,24.0,61", "a,b,c,d"] {
+        let out = dash2sim(&["map", "build", &osm, "-o", &cut, "--bbox", bad]);
+        assert!(!out.status.success() && stderr(&out).contains("--bbox"), "{bad}: {}", stderr(&out));
+    }
+}

@@ -34,6 +34,9 @@ struct Bounds {
     ends: [i64; 4],
 }
 
+/// A bound way in ENU with its first and last node id.
+type BoundLine = (Vec<(f64, f64)>, i64, i64);
+
 fn length(line: &[(f64, f64)]) -> f64 {
     line.windows(2).map(|w| (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1)).sum()
 }
@@ -66,10 +69,13 @@ fn bounds(
 ) -> Option<Bounds> {
     let bound = |role: &str| relation.members.iter().find(|m| m.kind == MemberKind::Way && m.role == role);
     let (Some(left), Some(right)) = (bound("left"), bound("right")) else {
-        warnings.push(format!("lanelet {}: needs a left and a right bound way (outside the extract?); skipped", relation.id));
+        warnings.push(format!(
+            "lanelet {}: needs a left and a right bound way (outside the extract?); skipped",
+            relation.id
+        ));
         return None;
     };
-    let line = |id: i64| -> Option<(Vec<(f64, f64)>, i64, i64)> {
+    let line = |id: i64| -> Option<BoundLine> {
         let way = ways.get(&id)?;
         let mut points = Vec::with_capacity(way.refs.len());
         for r in &way.refs {
@@ -81,7 +87,8 @@ fn bounds(
         (points.len() >= 2).then_some((points, first, last))
     };
     let (Some((mut l, mut l0, mut l1)), Some((mut r, mut r0, mut r1))) = (line(left.id), line(right.id)) else {
-        warnings.push(format!("lanelet {}: a bound way or node is missing (outside the extract?); skipped", relation.id));
+        warnings
+            .push(format!("lanelet {}: a bound way or node is missing (outside the extract?); skipped", relation.id));
         return None;
     };
     let (lf, ll, rf, rl) = (l[0], l[l.len() - 1], r[0], r[r.len() - 1]);
@@ -91,7 +98,8 @@ fn bounds(
     }
     // The left bound must lie to the left of the direction of travel.
     let (a, b) = (at_fraction(&l, 0.5), at_fraction(&r, 0.5));
-    let direction = (l[l.len() - 1].0 - l[0].0 + r[r.len() - 1].0 - r[0].0, l[l.len() - 1].1 - l[0].1 + r[r.len() - 1].1 - r[0].1);
+    let direction =
+        (l[l.len() - 1].0 - l[0].0 + r[r.len() - 1].0 - r[0].0, l[l.len() - 1].1 - l[0].1 + r[r.len() - 1].1 - r[0].1);
     if direction.0 * (a.1 - b.1) - direction.1 * (a.0 - b.0) < 0.0 {
         l.reverse();
         r.reverse();
@@ -101,7 +109,12 @@ fn bounds(
 }
 
 /// Add the lanes of every vehicle lanelet in `data` to `content`; returns how many.
-pub fn add_lanelets(data: &OsmData, frame: &LocalFrame, content: &mut TileContent, warnings: &mut Vec<String>) -> usize {
+pub fn add_lanelets(
+    data: &OsmData,
+    frame: &LocalFrame,
+    content: &mut TileContent,
+    warnings: &mut Vec<String>,
+) -> usize {
     let ways: HashMap<i64, &crate::osm::Way> = data.ways.iter().map(|w| (w.id, w)).collect();
     let first_lane = content.lanes.len();
     // Per lane: (start nodes, end nodes) of its bounds in its driving order, for successors.

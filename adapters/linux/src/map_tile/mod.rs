@@ -11,6 +11,7 @@
 pub mod lanelet2;
 
 use std::collections::HashMap;
+use std::io::Write as _;
 
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::map::{body_checksum, Header, CRC_AT, HEADER_LEN, NONE, POLYGON_BIT};
@@ -359,9 +360,11 @@ fn parse_origin(text: &str) -> Result<Geodetic, String> {
 }
 
 fn parse_bbox(text: &str) -> Result<[f64; 4], String> {
-    let values: Vec<f64> = text.split(',').map(|v| v.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| {
-        format!("--bbox {text:?}: expected four numbers WEST,SOUTH,EAST,NORTH")
-    })?;
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("--bbox {text:?}: expected four numbers WEST,SOUTH,EAST,NORTH"))?;
     let [west, south, east, north] = values[..] else {
         return Err(format!("--bbox {text:?}: expected four numbers WEST,SOUTH,EAST,NORTH"));
     };
@@ -418,6 +421,40 @@ pub fn run_build(
         warnings.len()
     );
     Ok(())
+}
+
+/// `dash2sim map lanes`: the lanes and free-standing polygons of a tile as JSON.
+pub fn run_lanes(path: &std::path::Path) -> Result<(), String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let view = dash2sim_core::map::MapView::parse(&bytes).map_err(|e| format!("{}: {e}", path.display()))?;
+    let ring = |i: u32| view.polygon(i).map(|p| p.map(|(x, y)| [x, y]).collect::<Vec<_>>());
+    let lanes: Vec<serde_json::Value> = (0..view.header().lanes)
+        .filter_map(|i| view.lane(i))
+        .map(|l| {
+            serde_json::json!({
+                "index": l.index,
+                "width": l.width,
+                "speed_limit": l.speed_limit,
+                "class": CLASSES.get(usize::from(l.class)).copied().unwrap_or("other"),
+                "left": l.left,
+                "right": l.right,
+                "successors": l.successors().collect::<Vec<_>>(),
+                "points": l.points().map(|(x, y)| [x, y]).collect::<Vec<_>>(),
+                "area": l.area.and_then(ring),
+            })
+        })
+        .collect();
+    let areas: std::collections::HashSet<u32> = (0..view.header().lanes).filter_map(|i| view.lane(i)?.area).collect();
+    let polygons: Vec<_> = (0..view.header().polygons).filter(|i| !areas.contains(i)).filter_map(ring).collect();
+    let h = view.header();
+    let json =
+        serde_json::json!({"origin": {"lat": h.origin[0], "lon": h.origin[1]}, "lanes": lanes, "polygons": polygons});
+    let mut out = std::io::stdout().lock();
+    match writeln!(out, "{json}") {
+        // A reader that stops early (`| head`) is not an error.
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(format!("stdout: {e}")),
+        _ => Ok(()),
+    }
 }
 
 /// `dash2sim map info`.

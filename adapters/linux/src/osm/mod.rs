@@ -108,7 +108,8 @@ impl OsmData {
         let mut ways = Vec::with_capacity(self.ways.len());
         let mut whole = std::collections::HashSet::new();
         for way in self.ways.drain(..) {
-            let runs: Vec<&[i64]> = way.refs.split(|r| !self.nodes.contains_key(r)).filter(|run| run.len() >= 2).collect();
+            let runs: Vec<&[i64]> =
+                way.refs.split(|r| !self.nodes.contains_key(r)).filter(|run| run.len() >= 2).collect();
             if let [run] = runs[..] {
                 if run.len() == way.refs.len() {
                     whole.insert(way.id);
