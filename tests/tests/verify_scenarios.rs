@@ -122,6 +122,7 @@ fn a_drive_that_stays_in_its_lane_is_verified() {
     for sensitive in [false, true] {
         let v = verify(&map, &poses, &no_agents(), sensitive);
         let s = &v.scores;
+        println!("in lane (sensitive={sensitive}): score {:.2}, worst corner {:.3} m", s.score, s.worst_corner);
         assert!(s.score > 90.0 && s.verified, "sensitive={sensitive}: {s:?}");
         assert_eq!(
             (s.drivable_area, s.driving_direction, s.no_at_fault_collisions, s.speed_limit, s.comfort),
@@ -145,6 +146,7 @@ fn a_metre_into_the_opposing_lane_for_three_seconds_breaks_driving_direction() {
     let poses = drive(&line, 20.0, |t| 10.0 + 12.0 * t, |t| 2.75 * plateau(t, 5.0, 10.0, 2.0));
     let v = verify(&map, &poses, &no_agents(), false);
     let s = &v.scores;
+    println!("opposing lane: direction {} (min progress {:.2} m per 1 s)", s.driving_direction, s.min_direction_progress);
     assert_eq!(s.driving_direction, 0.0, "{s:?}");
     assert!(s.min_direction_progress < -6.0, "{}", s.min_direction_progress);
     assert_eq!(s.drivable_area, 1.0, "the opposing lane is mapped: drivable, only the direction is wrong");
@@ -173,6 +175,7 @@ fn cutting_a_corner_off_road_scores_zero_drivable_area() {
     let poses = drive(&line, 30.0, |t| 5.0 + 12.0 * t, cut);
     let v = verify(&map, &poses, &no_agents(), false);
     let s = &v.scores;
+    println!("corner cut: drivable {}, worst corner {:.2} m outside", s.drivable_area, s.worst_corner);
     assert_eq!(s.drivable_area, 0.0, "{s:?}");
     assert!(s.worst_corner > 3.0, "left corners ≈ 8 + 1.15 − 3.5 − 1.75 m outside: {}", s.worst_corner);
     assert_eq!(s.score, 0.0);
@@ -238,6 +241,7 @@ fn speeding_20_kmh_over_maxspeed_lowers_speed_limit_compliance_by_the_nuplan_for
     let poses = drive(&line, 20.0, s, |_| 0.0);
     let scores = verify(&map, &poses, &no_agents(), false).scores;
     let expected = 1.0 - (fast - limit) * 3.0 / (2.23 * 20.0);
+    println!("speeding: {:.4} (expected {expected:.4})", scores.speed_limit);
     assert!((scores.speed_limit - expected).abs() < 1e-6, "{} vs {expected}", scores.speed_limit);
     assert!((0.6..0.65).contains(&scores.speed_limit));
     // Driving at the limit throughout scores 1.
