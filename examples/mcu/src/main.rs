@@ -1,8 +1,9 @@
 //! dash2sim on a microcontroller: anchor a synthetic VO track (scale 0.4, rotated) to
 //! GNSS fixes and wheel speed on a Cortex-M7, then track a car passing a row of cones
-//! with the 3D track manager, and report over semihosting. Exits with failure if the
-//! recovered scale or rotation is wrong or the tracks are, so CI can run it under QEMU as
-//! a test of the bare-metal build.
+//! with the 3D track manager, then verify two drives against an embedded map tile (the
+//! drivable-area check and the nuPlan-style score), and report over semihosting. Exits
+//! with failure if the recovered scale or rotation is wrong, the tracks are, or the
+//! verdicts are, so CI can run it under QEMU as a test of the bare-metal build.
 #![no_std]
 #![no_main]
 
@@ -12,7 +13,11 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
 use dash2sim_core::anchor::{AnchorConfig, Anchorer, Observability};
 use dash2sim_core::box3d::Box3d;
+use dash2sim_core::drivable::{Channel, Checker};
+use dash2sim_core::map::MapView;
 use dash2sim_core::nalgebra::Vector3;
+use dash2sim_core::obb::{Pose2, PACIFICA};
+use dash2sim_core::score::{ScoreConfig, Scorer, Scores};
 use dash2sim_core::sim3::{rotation_z, Sim3};
 use dash2sim_core::time::Timestamp;
 use dash2sim_core::track3d::{
@@ -99,6 +104,42 @@ fn track_cones_and_a_car() -> bool {
     car_ids.count_ones() == 1 && libm::fabs(car_speed - 1.5) < 0.05 && cones_static && tracker.stats().rejected == 0
 }
 
+/// A straight two-lane road, 300 m east (built from `road.osm`; tests/tests/mcu_tile.rs
+/// keeps it current).
+static TILE: &[u8] = include_bytes!("../road.d2smap");
+
+/// Drive the eastbound lane (centre 1.75 m south of the road's axis) at 12 m/s for 20 s,
+/// `offset(t)` metres to the left of the lane centre, and score it.
+fn score_drive(offset: impl Fn(f64) -> f64) -> Option<Scores> {
+    let map = MapView::parse(TILE).ok()?;
+    let mut scorer: Scorer<'_, '_, 1> =
+        Scorer::new(Checker::new(map, PACIFICA), Channel::Insensitive, ScoreConfig::default());
+    for k in 0..=200u32 {
+        let t = f64::from(k) * 0.1;
+        scorer.step(t, &Pose2::new(5.0 + 12.0 * t, -1.75 + offset(t), 0.0), &[]).ok()?;
+    }
+    Some(scorer.finish(None))
+}
+
+fn verify_drives() -> bool {
+    let (Some(in_lane), Some(off_road)) =
+        (score_drive(|_| 0.0), score_drive(|t| if (5.0..10.0).contains(&t) { -4.0 } else { 0.0 }))
+    else {
+        hprintln!("the embedded map tile was refused");
+        return false;
+    };
+    hprintln!(
+        "verify ({} B tile, Scorer {} B): in lane {} (verified {}), off the road for 5 s {} (drivable {})",
+        TILE.len(),
+        core::mem::size_of::<Scorer<'_, '_, 1>>(),
+        in_lane.score,
+        in_lane.verified,
+        off_road.score,
+        off_road.drivable_area
+    );
+    in_lane.verified && in_lane.score == 100.0 && off_road.drivable_area == 0.0 && !off_road.verified
+}
+
 #[entry]
 fn main() -> ! {
     let truth = Sim3 { rotation: rotation_z(2.0), translation: Vector3::new(5.0, -3.0, 1.0), scale: 0.4 };
@@ -140,7 +181,8 @@ fn main() -> ! {
         }
     };
     let tracked = track_cones_and_a_car();
-    debug::exit(if ok && tracked { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    let verified = verify_drives();
+    debug::exit(if ok && tracked && verified { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
     loop {
         cortex_m::asm::wfi();
     }
