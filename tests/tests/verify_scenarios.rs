@@ -257,3 +257,56 @@ fn collisions_are_classified_as_nuplan_does() {
     assert_eq!(close.collisions.2, 0, "{close:?}");
     assert!(close.min_ttc <= 0.95 && close.ttc == 0.0, "{close:?}");
 }
+
+#[test]
+fn junctions_are_lenient_a_turn_across_the_corner_of_two_ways_complies() {
+    // Two ways meet at a right angle at the origin: A comes from the west, B leaves north.
+    let origin = dash2sim_core::geo::Geodetic::new(dash2sim_tests::road::ORIGIN.0, dash2sim_tests::road::ORIGIN.1, 0.0)
+        .expect("origin");
+    let frame = dash2sim_core::geo::LocalFrame::new(origin);
+    let node = |id: u32, x: f64, y: f64| {
+        let g = frame.enu_to_geodetic(&dash2sim_core::nalgebra::Vector3::new(x, y, 0.0)).expect("geodetic");
+        format!("<node id=\"{id}\" lat=\"{:.9}\" lon=\"{:.9}\"/>", g.lat_deg, g.lon_deg)
+    };
+    let xml = format!(
+        "<osm version=\"0.6\">{}{}{}<way id=\"1\"><nd ref=\"1\"/><nd ref=\"2\"/><tag k=\"highway\" v=\"residential\"/></way>\
+         <way id=\"2\"><nd ref=\"2\"/><nd ref=\"3\"/><tag k=\"highway\" v=\"residential\"/></way></osm>",
+        node(1, -100.0, 0.0),
+        node(2, 0.0, 0.0),
+        node(3, 0.0, 100.0)
+    );
+    let data = dash2sim_linux::osm::parse_xml(&xml, "junction.osm").expect("valid");
+    let map = dash2sim_linux::map_tile::encode(
+        &dash2sim_linux::map_tile::from_osm(&data, Some(origin), &mut Vec::new()),
+        50.0,
+    );
+    // East in A's right lane (y = −1.75), a left turn of radius 8 m, north in B's right
+    // lane (x = +1.75).
+    let (r, cx, cy) = (8.0, 1.75 - 8.0, -1.75 + 8.0);
+    let mut poses = Vec::new();
+    let mut t = 0.0;
+    for k in 0..20 {
+        poses.push((t, Pose2::new(cx - 20.0 + f64::from(k), -1.75, 0.0)));
+        t += 0.2;
+    }
+    for k in 0..=30 {
+        let a = f64::from(k) / 30.0 * std::f64::consts::FRAC_PI_2;
+        poses.push((t, Pose2::new(cx + r * a.sin(), cy - r * a.cos(), a)));
+        t += 0.2;
+    }
+    for k in 1..20 {
+        poses.push((t, Pose2::new(1.75, cy + f64::from(k), std::f64::consts::FRAC_PI_2)));
+        t += 0.2;
+    }
+    let v = verify(&map, &poses, &no_agents(), false);
+    assert_eq!(v.scores.drivable_area, 1.0, "worst corner {} m", v.scores.worst_corner);
+    // Some corner passes where neither way's rectangle reaches (beyond A's flat end and
+    // short of B's): only the junction's round ends cover it.
+    let in_the_corner =
+        poses.iter().flat_map(|(_, p)| PACIFICA.at(p).corners()).filter(|&(x, y)| x > 0.1 && y < -0.1).count();
+    println!(
+        "junction turn: worst corner {:.2} m, {in_the_corner} corners in the junction wedge",
+        v.scores.worst_corner
+    );
+    assert!(in_the_corner > 0);
+}
