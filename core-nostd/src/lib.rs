@@ -22,6 +22,7 @@
 //! | [`obb`] | oriented boxes in the plane: the ego footprint at its rear axle, overlap tests |
 //! | [`drivable`] | drivable-area compliance of a footprint, lane occupancy, channel modes |
 //! | [`score`] | the nuPlan-style closed-loop score, streaming |
+//! | [`binlog`] | the compact, crash-safe 4D log: writer over `embedded-io`, push decoder |
 //! | [`can`] | CAN: J1939/NMEA 2000 ids, fast packets, GNSS/speed decoders, DBC signals |
 //!
 //! Capacity is part of the types; nothing here allocates or panics on untrusted input.
@@ -35,6 +36,7 @@ extern crate std;
 
 pub mod anchor;
 pub mod assign;
+pub mod binlog;
 pub mod box2d;
 pub mod box3d;
 pub mod can;

@@ -1,0 +1,487 @@
+//! The compact 4D log (format v1, `docs/binlog.md`): what leaves the dashcam.
+//!
+//! A log is a header and a sequence of **segments**. Each segment starts with a sync
+//! marker and a segment record (sequence number, start time) and ends with an index
+//! record (records per kind, time span, length); it is bounded in duration and record
+//! count. Every record is framed as `length · kind · payload · CRC-32C`.
+//!
+//! Values are quantised integers (mm, µs, 1e-7°, 1e-4 rad, …) and each field is coded as a
+//! zigzag varint of its difference to a prediction from the previous record of the same
+//! kind in the segment — nothing, the previous value, or the previous value plus the
+//! previous change — so a steady 20 Hz pose costs a byte per field. The first record of
+//! each kind in a segment predicts from nothing (a keyframe), which is what lets a reader
+//! start again after damage: at worst the rest of one segment is lost.
+//!
+//! [`Writer`] encodes onto any [`embedded_io::Write`] through a bounded buffer with an
+//! explicit flush policy; [`Decoder`] is push-based (sans-io): feed it bytes in any
+//! chunks and it reports every intact record, the damage, and where it resynchronised.
+
+mod codec;
+mod reader;
+pub mod varint;
+mod writer;
+
+pub use codec::{Streams, MAX_FIELDS};
+pub use reader::{Decoder, Event, Stats, DECODER_BUFFER};
+pub use writer::{FlushPolicy, WriteError, Writer, WriterConfig};
+
+use crc::{Crc, CRC_32_ISCSI};
+
+/// The file's first six bytes.
+pub const MAGIC: [u8; 6] = *b"D2SLOG";
+/// Format major version.
+pub const VERSION_MAJOR: u8 = 1;
+/// Format minor version written.
+pub const VERSION_MINOR: u8 = 0;
+/// Header length in bytes (v1.0).
+pub const HEADER_LEN: usize = 48;
+/// Marks the start of every segment; a reader looks for it after damage.
+pub const SYNC: [u8; 4] = [0xD2, 0x5C, 0x0F, 0xE1];
+/// Largest payload a record may have.
+pub const MAX_PAYLOAD: usize = 1024;
+/// Longest frame: length varint, kind, payload, CRC.
+pub const MAX_FRAME: usize = 2 + 1 + MAX_PAYLOAD + 4;
+/// Longest event text, bytes.
+pub const MAX_TEXT: usize = 255;
+/// Kind code of the segment start record.
+pub const SEGMENT: u8 = 0x01;
+/// Kind code of the segment index record.
+pub const INDEX: u8 = 0x02;
+
+/// CRC-32C (Castagnoli), as the map tile uses.
+pub const CRC32C: Crc<u32> = Crc::<u32>::new(&CRC_32_ISCSI);
+
+/// How a field is predicted from the previous record of its kind in the segment.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// No prediction: the value itself.
+    Absolute,
+    /// The previous value.
+    Delta,
+    /// The previous value plus the previous change (constant rate).
+    DeltaDelta,
+}
+
+/// The log header.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Header {
+    /// Who wrote the log.
+    pub device_id: [u8; 16],
+    /// Geodetic origin of the ENU frame: latitude, longitude (1e-7°), height (mm).
+    pub origin: [i32; 3],
+}
+
+impl Header {
+    /// The 48 header bytes.
+    pub fn encode(&self) -> [u8; HEADER_LEN] {
+        let mut h = [0u8; HEADER_LEN];
+        h[..6].copy_from_slice(&MAGIC);
+        h[6] = VERSION_MAJOR;
+        h[7] = VERSION_MINOR;
+        h[8..10].copy_from_slice(&(HEADER_LEN as u16).to_le_bytes());
+        h[12..28].copy_from_slice(&self.device_id);
+        for (k, v) in self.origin.iter().enumerate() {
+            h[28 + 4 * k..32 + 4 * k].copy_from_slice(&v.to_le_bytes());
+        }
+        // Units as powers of ten: position m, angle rad, time s.
+        h[40] = (-3i8) as u8;
+        h[41] = (-4i8) as u8;
+        h[42] = (-6i8) as u8;
+        let crc = CRC32C.checksum(&h[..44]);
+        h[44..48].copy_from_slice(&crc.to_le_bytes());
+        h
+    }
+
+    /// Parse a header; the error says why the bytes are not one.
+    pub fn decode(b: &[u8]) -> Result<(Header, usize), HeaderError> {
+        if b.len() >= 6 && b[..6] != MAGIC {
+            return Err(HeaderError::NotALog);
+        }
+        let Some(h) = b.get(..HEADER_LEN) else { return Err(HeaderError::TooShort) };
+        if h[6] != VERSION_MAJOR {
+            return Err(HeaderError::UnsupportedVersion(h[6]));
+        }
+        let len = usize::from(u16::from_le_bytes([h[8], h[9]]));
+        if len < HEADER_LEN {
+            return Err(HeaderError::BadChecksum);
+        }
+        if CRC32C.checksum(&h[..44]) != u32::from_le_bytes([h[44], h[45], h[46], h[47]]) {
+            return Err(HeaderError::BadChecksum);
+        }
+        if [h[40], h[41], h[42]] != [(-3i8) as u8, (-4i8) as u8, (-6i8) as u8] {
+            return Err(HeaderError::UnsupportedUnits);
+        }
+        let mut device_id = [0u8; 16];
+        device_id.copy_from_slice(&h[12..28]);
+        let i32_at = |at: usize| i32::from_le_bytes([h[at], h[at + 1], h[at + 2], h[at + 3]]);
+        Ok((Header { device_id, origin: [i32_at(28), i32_at(32), i32_at(36)] }, len))
+    }
+}
+
+/// Why a header was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum HeaderError {
+    /// The magic is not `D2SLOG`: not a dash2sim log at all.
+    NotALog,
+    /// Fewer bytes than a header.
+    TooShort,
+    /// A major version this reader does not know.
+    UnsupportedVersion(u8),
+    /// The header's CRC-32C does not match.
+    BadChecksum,
+    /// Units other than v1's (mm, 1e-4 rad, µs).
+    UnsupportedUnits,
+}
+
+impl core::fmt::Display for HeaderError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            HeaderError::NotALog => f.write_str("not a dash2sim log (bad magic)"),
+            HeaderError::TooShort => write!(f, "shorter than the {HEADER_LEN}-byte header"),
+            HeaderError::UnsupportedVersion(v) => write!(f, "log format version {v} is not supported (this reader: 1)"),
+            HeaderError::BadChecksum => f.write_str("the header's CRC-32C does not match"),
+            HeaderError::UnsupportedUnits => f.write_str("units other than mm, 1e-4 rad and µs"),
+        }
+    }
+}
+
+impl core::error::Error for HeaderError {}
+
+/// Declares the record kinds: a struct of quantised fields per kind (the first is always
+/// `t_us`), its code, each field's prediction mode, and the `Record` enum over them.
+macro_rules! records {
+    ($(
+        $(#[$doc:meta])*
+        $name:ident = $code:literal {
+            $( $(#[$fdoc:meta])* $field:ident : $mode:ident ),+ $(,)?
+        }
+    )+) => {
+        $(
+            $(#[$doc])*
+            #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+            #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+            pub struct $name {
+                $( $(#[$fdoc])* pub $field: i64, )+
+            }
+
+            impl $name {
+                const MODES: &'static [Mode] = &[$(Mode::$mode),+];
+
+                fn fields(&self, out: &mut [i64; MAX_FIELDS]) -> usize {
+                    let values = [$(self.$field),+];
+                    out[..values.len()].copy_from_slice(&values);
+                    values.len()
+                }
+
+                fn from_fields(v: &[i64]) -> Self {
+                    let mut it = v.iter().copied();
+                    $name { $( $field: it.next().unwrap_or(0), )+ }
+                }
+            }
+        )+
+
+        /// What kind of record.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+        pub enum Kind {
+            $( $(#[$doc])* $name, )+
+            /// A log message.
+            Event,
+        }
+
+        impl Kind {
+            /// Every kind, in code order.
+            pub const ALL: &'static [Kind] = &[$(Kind::$name,)+ Kind::Event];
+
+            /// The kind's code in the frame.
+            pub const fn code(self) -> u8 {
+                match self {
+                    $( Kind::$name => $code, )+
+                    Kind::Event => EVENT_CODE,
+                }
+            }
+
+            /// The kind with this code, if known.
+            pub const fn from_code(code: u8) -> Option<Kind> {
+                match code {
+                    $( $code => Some(Kind::$name), )+
+                    EVENT_CODE => Some(Kind::Event),
+                    _ => None,
+                }
+            }
+
+            /// The kind's name as `inspect` prints it.
+            pub const fn name(self) -> &'static str {
+                match self {
+                    $( Kind::$name => stringify!($name), )+
+                    Kind::Event => "Event",
+                }
+            }
+
+            /// Prediction modes of its fields.
+            pub const fn modes(self) -> &'static [Mode] {
+                match self {
+                    $( Kind::$name => $name::MODES, )+
+                    Kind::Event => EVENT_MODES,
+                }
+            }
+        }
+
+        /// One record.
+        #[derive(Clone, Debug, PartialEq, Eq)]
+        pub enum Record {
+            $( $(#[$doc])* $name($name), )+
+            /// A log message.
+            Event(EventRecord),
+        }
+
+        impl Record {
+            /// Its kind.
+            pub fn kind(&self) -> Kind {
+                match self {
+                    $( Record::$name(_) => Kind::$name, )+
+                    Record::Event(_) => Kind::Event,
+                }
+            }
+
+            /// Its time, µs.
+            pub fn t_us(&self) -> i64 {
+                match self {
+                    $( Record::$name(r) => r.t_us, )+
+                    Record::Event(e) => e.t_us,
+                }
+            }
+
+            /// The quantised fields in order; returns how many.
+            pub fn fields(&self, out: &mut [i64; MAX_FIELDS]) -> usize {
+                match self {
+                    $( Record::$name(r) => r.fields(out), )+
+                    Record::Event(e) => {
+                        out[0] = e.t_us;
+                        out[1] = i64::from(e.level);
+                        2
+                    }
+                }
+            }
+
+            fn from_fields(kind: Kind, v: &[i64], text: &[u8]) -> Option<Record> {
+                Some(match kind {
+                    $( Kind::$name => Record::$name($name::from_fields(v)), )+
+                    Kind::Event => Record::Event(EventRecord {
+                        t_us: v.first().copied().unwrap_or(0),
+                        level: u8::try_from(v.get(1).copied().unwrap_or(0)).ok()?,
+                        text: heapless::Vec::from_slice(text).ok()?,
+                    }),
+                })
+            }
+        }
+    };
+}
+
+const EVENT_CODE: u8 = 0x1A;
+const EVENT_MODES: &[Mode] = &[Mode::Delta, Mode::Absolute];
+
+records! {
+    /// A GNSS fix.
+    GnssFix = 0x10 {
+        /// Time, µs.
+        t_us: DeltaDelta,
+        /// Latitude, 1e-7°.
+        lat_e7: Delta,
+        /// Longitude, 1e-7°.
+        lon_e7: Delta,
+        /// Height above the ellipsoid, mm.
+        alt_mm: Delta,
+        /// Speed over ground, mm/s.
+        speed_mm_s: Delta,
+        /// Course over ground, 1e-4 rad.
+        track_e4: Delta,
+        /// Horizontal DOP × 100.
+        hdop_e2: Absolute,
+        /// Satellites used.
+        satellites: Absolute,
+        /// Fix mode: 0 none, 2 2D, 3 3D.
+        mode: Absolute,
+    }
+    /// Vehicle speed (wheel speed or CAN).
+    VehicleSpeed = 0x11 {
+        /// Time, µs.
+        t_us: DeltaDelta,
+        /// Speed, mm/s.
+        speed_mm_s: Delta,
+        /// Source: 0 wheel, 1 CCVS1, 2 OBD-II, 3 DBC signal, 4 N2K SOG.
+        source: Absolute,
+    }
+    /// A visual-odometry pose (VO units, unknown scale, ×1000).
+    VoPose = 0x12 {
+        /// Time, µs.
+        t_us: DeltaDelta,
+        /// x, VO units × 1000.
+        x: DeltaDelta,
+        /// y, VO units × 1000.
+        y: DeltaDelta,
+        /// z, VO units × 1000.
+        z: DeltaDelta,
+        /// Yaw, 1e-4 rad.
+        yaw_e4: DeltaDelta,
+        /// Pitch, 1e-4 rad.
+        pitch_e4: DeltaDelta,
+        /// Roll, 1e-4 rad.
+        roll_e4: DeltaDelta,
+    }
+    /// The anchored ego pose (rear axle) in the header's ENU frame.
+    EgoPose = 0x13 {
+        /// Time, µs.
+        t_us: DeltaDelta,
+        /// East, mm.
+        x_mm: DeltaDelta,
+        /// North, mm.
+        y_mm: DeltaDelta,
+        /// Up, mm.
+        z_mm: DeltaDelta,
+        /// Heading, 1e-4 rad counter-clockwise from east.
+        yaw_e4: DeltaDelta,
+    }
+    /// The current VO → ENU anchor (Sim(3)) and its quality.
+    AnchorEstimate = 0x14 {
+        /// Time, µs.
+        t_us: Delta,
+        /// Scale × 1e6.
+        scale_e6: Absolute,
+        /// Rotation yaw, 1e-6 rad.
+        yaw_e6: Absolute,
+        /// Rotation pitch, 1e-6 rad.
+        pitch_e6: Absolute,
+        /// Rotation roll, 1e-6 rad.
+        roll_e6: Absolute,
+        /// Translation east, mm.
+        tx_mm: Absolute,
+        /// Translation north, mm.
+        ty_mm: Absolute,
+        /// Translation up, mm.
+        tz_mm: Absolute,
+        /// Observability: 0 none, 1 collinear, 2 observable.
+        observability: Absolute,
+        /// Anchors in the solution.
+        anchors: Absolute,
+        /// RMS residual, mm.
+        rms_mm: Absolute,
+    }
+    /// A camera frame.
+    FrameMeta = 0x15 {
+        /// Time, µs.
+        t_us: DeltaDelta,
+        /// Frame number.
+        frame: DeltaDelta,
+        /// Flags (bit 0: keyframe of VO).
+        flags: Absolute,
+    }
+    /// A 2D detection.
+    Detection2d = 0x16 {
+        /// Time, µs.
+        t_us: Delta,
+        /// Frame number.
+        frame: Delta,
+        /// Class.
+        class: Absolute,
+        /// Score × 1000.
+        score_e3: Absolute,
+        /// Left, 0.1 px.
+        x_e1: Absolute,
+        /// Top, 0.1 px.
+        y_e1: Absolute,
+        /// Width, 0.1 px.
+        w_e1: Absolute,
+        /// Height, 0.1 px.
+        h_e1: Absolute,
+    }
+    /// A 2D track's box in one frame.
+    Track2d = 0x17 {
+        /// Time, µs.
+        t_us: Delta,
+        /// Track id.
+        id: Absolute,
+        /// Class.
+        class: Absolute,
+        /// Score × 1000.
+        score_e3: Absolute,
+        /// Left, 0.1 px.
+        x_e1: Absolute,
+        /// Top, 0.1 px.
+        y_e1: Absolute,
+        /// Width, 0.1 px.
+        w_e1: Absolute,
+        /// Height, 0.1 px.
+        h_e1: Absolute,
+    }
+    /// A 3D track in the ENU frame.
+    Track3d = 0x18 {
+        /// Time, µs.
+        t_us: Delta,
+        /// Track id.
+        id: Absolute,
+        /// Class.
+        class: Absolute,
+        /// Centre east, mm (predicted from the previous track of the frame).
+        x_mm: Delta,
+        /// Centre north, mm.
+        y_mm: Delta,
+        /// Centre up, mm.
+        z_mm: Delta,
+        /// Length, mm.
+        l_mm: Absolute,
+        /// Width, mm.
+        w_mm: Absolute,
+        /// Height, mm.
+        h_mm: Absolute,
+        /// Heading, 1e-4 rad.
+        yaw_e4: Absolute,
+        /// Velocity east, mm/s.
+        vx_mm_s: Absolute,
+        /// Velocity north, mm/s.
+        vy_mm_s: Absolute,
+        /// 1 when static.
+        is_static: Absolute,
+    }
+    /// A drivable-area / score result.
+    Verification = 0x19 {
+        /// Time, µs.
+        t_us: Delta,
+        /// No at-fault collisions × 1e4.
+        collisions_e4: Absolute,
+        /// Drivable-area compliance × 1e4.
+        drivable_e4: Absolute,
+        /// Driving-direction compliance × 1e4.
+        direction_e4: Absolute,
+        /// Making progress × 1e4.
+        making_progress_e4: Absolute,
+        /// Progress × 1e4.
+        progress_e4: Absolute,
+        /// TTC within bound × 1e4.
+        ttc_e4: Absolute,
+        /// Speed-limit compliance × 1e4.
+        speed_limit_e4: Absolute,
+        /// Comfort × 1e4.
+        comfort_e4: Absolute,
+        /// Score × 100 (0..10000).
+        score_e2: Absolute,
+        /// Worst corner outside the drivable area, mm.
+        worst_corner_mm: Absolute,
+    }
+}
+
+/// A log message: time, level (0 debug … 4 fatal, as `foxglove.Log`), UTF-8 text.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct EventRecord {
+    /// Time, µs.
+    pub t_us: i64,
+    /// Level: 0 unknown, 1 debug, 2 info, 3 warning, 4 error, 5 fatal.
+    pub level: u8,
+    /// Text, at most [`MAX_TEXT`] bytes.
+    pub text: heapless::Vec<u8, MAX_TEXT>,
+}
+
+#[cfg(test)]
+mod tests;

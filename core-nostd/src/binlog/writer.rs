@@ -1,0 +1,215 @@
+//! Writing a log onto any [`embedded_io::Write`] (an SD card file, flash, a UART, a `Vec`).
+//!
+//! Records are framed into a bounded buffer of `N` bytes and handed to the writer as the
+//! [`FlushPolicy`] says: what is flushed survives a power cut, what is still buffered
+//! does not — the policy is the trade between write amplification and what a crash may
+//! cost. Segments close after [`WriterConfig::segment_us`] or
+//! [`WriterConfig::segment_records`], whichever comes first.
+
+use embedded_io::Write;
+
+use super::codec::Streams;
+use super::varint::{put, zigzag};
+use super::{Header, Kind, Record, CRC32C, HEADER_LEN, INDEX, MAX_FRAME, MAX_PAYLOAD, SEGMENT, SYNC};
+
+/// When the buffer goes to the underlying writer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FlushPolicy {
+    /// After every record: nothing written is lost, many small writes.
+    EveryRecord,
+    /// When a segment closes (and when full): a crash loses at most the open segment.
+    EverySegment,
+    /// Only when the buffer is full: fewest writes, a crash loses up to a buffer.
+    WhenFull,
+}
+
+/// Segment bounds and flushing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WriterConfig {
+    /// A segment closes when a record is this much later than its start, µs.
+    pub segment_us: i64,
+    /// … or when it holds this many records.
+    pub segment_records: u32,
+    /// Flushing.
+    pub flush: FlushPolicy,
+}
+
+impl Default for WriterConfig {
+    fn default() -> Self {
+        WriterConfig { segment_us: 1_000_000, segment_records: 1024, flush: FlushPolicy::EverySegment }
+    }
+}
+
+/// Why a write failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum WriteError<E> {
+    /// The underlying writer failed; the buffer is kept for a retry with `flush`.
+    Io(E),
+    /// The record's payload exceeds [`MAX_PAYLOAD`] (only an event text can).
+    RecordTooLarge,
+    /// The buffer `N` is smaller than two frames.
+    BufferTooSmall,
+}
+
+impl<E: core::fmt::Debug> core::fmt::Display for WriteError<E> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            WriteError::Io(e) => write!(f, "write failed: {e:?}"),
+            WriteError::RecordTooLarge => write!(f, "record larger than {MAX_PAYLOAD} bytes"),
+            WriteError::BufferTooSmall => write!(f, "writer buffer smaller than {} bytes", 2 * MAX_FRAME),
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct OpenSegment {
+    seq: u32,
+    t0: i64,
+    t_last: i64,
+    records: u32,
+    bytes: u64,
+    counts: [u32; Kind::ALL.len()],
+}
+
+/// A log writer with an `N`-byte buffer.
+#[derive(Debug)]
+pub struct Writer<W: Write, const N: usize> {
+    io: W,
+    buffer: [u8; N],
+    len: usize,
+    streams: Streams,
+    config: WriterConfig,
+    segment: Option<OpenSegment>,
+    next_seq: u32,
+}
+
+impl<W: Write, const N: usize> Writer<W, N> {
+    /// Start a log: the header goes out at once.
+    pub fn new(io: W, header: &Header, config: WriterConfig) -> Result<Self, WriteError<W::Error>> {
+        if N < 2 * MAX_FRAME {
+            return Err(WriteError::BufferTooSmall);
+        }
+        let mut w =
+            Writer { io, buffer: [0; N], len: 0, streams: Streams::default(), config, segment: None, next_seq: 0 };
+        w.buffer[..HEADER_LEN].copy_from_slice(&header.encode());
+        w.len = HEADER_LEN;
+        w.flush()?;
+        Ok(w)
+    }
+
+    /// Append one record (records should come in time order; small reorderings cost a
+    /// few bytes, not correctness).
+    pub fn write(&mut self, record: &Record) -> Result<(), WriteError<W::Error>> {
+        let t = record.t_us();
+        let roll = match &self.segment {
+            None => true,
+            Some(s) => {
+                t.wrapping_sub(s.t0) >= self.config.segment_us || s.records >= self.config.segment_records
+            }
+        };
+        if roll {
+            self.close_segment()?;
+            self.open_segment(t)?;
+        }
+        let mut payload = [0u8; MAX_PAYLOAD];
+        let n = self.streams.encode(record, &mut payload).ok_or(WriteError::RecordTooLarge)?;
+        let frame = self.frame(record.kind().code(), &payload[..n])?;
+        if let Some(s) = &mut self.segment {
+            s.records += 1;
+            s.t_last = s.t_last.max(t);
+            s.bytes += frame as u64;
+            if let Some(c) = Kind::ALL.iter().position(|k| *k == record.kind()).and_then(|i| s.counts.get_mut(i)) {
+                *c += 1;
+            }
+        }
+        if self.config.flush == FlushPolicy::EveryRecord {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Hand everything buffered to the writer and flush it.
+    pub fn flush(&mut self) -> Result<(), WriteError<W::Error>> {
+        self.io.write_all(&self.buffer[..self.len]).map_err(WriteError::Io)?;
+        self.len = 0;
+        self.io.flush().map_err(WriteError::Io)
+    }
+
+    /// Close the open segment, flush, and give the writer back.
+    pub fn finish(mut self) -> Result<W, WriteError<W::Error>> {
+        self.close_segment()?;
+        self.flush()?;
+        Ok(self.io)
+    }
+
+    /// Frame `payload` as kind `code` into the buffer (flushing first if needed); returns
+    /// the frame's length.
+    fn frame(&mut self, code: u8, payload: &[u8]) -> Result<usize, WriteError<W::Error>> {
+        if payload.len() > MAX_PAYLOAD {
+            return Err(WriteError::RecordTooLarge);
+        }
+        if N - self.len < MAX_FRAME + SYNC.len() {
+            self.flush()?;
+        }
+        let start = self.len;
+        let mut at = start;
+        let ok = put(&mut self.buffer, &mut at, payload.len() as u64);
+        let end = at + 1 + payload.len();
+        let (Some(slot), true) = (self.buffer.get_mut(at..end + 4), ok) else { return Err(WriteError::BufferTooSmall) };
+        slot[0] = code;
+        slot[1..1 + payload.len()].copy_from_slice(payload);
+        let crc = CRC32C.checksum(&self.buffer[start..end]);
+        self.buffer[end..end + 4].copy_from_slice(&crc.to_le_bytes());
+        self.len = end + 4;
+        Ok(self.len - start)
+    }
+
+    fn open_segment(&mut self, t0: i64) -> Result<(), WriteError<W::Error>> {
+        if N - self.len < MAX_FRAME + SYNC.len() {
+            self.flush()?;
+        }
+        self.buffer[self.len..self.len + SYNC.len()].copy_from_slice(&SYNC);
+        self.len += SYNC.len();
+        let mut payload = [0u8; 24];
+        let mut at = 0;
+        put(&mut payload, &mut at, u64::from(self.next_seq));
+        put(&mut payload, &mut at, zigzag(t0));
+        let bytes = self.frame(SEGMENT, &payload[..at])? + SYNC.len();
+        self.segment = Some(OpenSegment {
+            seq: self.next_seq,
+            t0,
+            t_last: t0,
+            records: 0,
+            bytes: bytes as u64,
+            counts: [0; Kind::ALL.len()],
+        });
+        self.next_seq = self.next_seq.wrapping_add(1);
+        self.streams.start_segment(t0);
+        Ok(())
+    }
+
+    fn close_segment(&mut self) -> Result<(), WriteError<W::Error>> {
+        let Some(s) = self.segment.take() else { return Ok(()) };
+        // seq, records, time span, bytes before the index, then (kind, count) pairs.
+        let mut payload = [0u8; 4 * 10 + 2 * 10 * Kind::ALL.len()];
+        let mut at = 0;
+        put(&mut payload, &mut at, u64::from(s.seq));
+        put(&mut payload, &mut at, u64::from(s.records));
+        put(&mut payload, &mut at, zigzag(s.t_last.wrapping_sub(s.t0)));
+        put(&mut payload, &mut at, s.bytes);
+        for (kind, count) in Kind::ALL.iter().zip(s.counts) {
+            if count > 0 {
+                put(&mut payload, &mut at, u64::from(kind.code()));
+                put(&mut payload, &mut at, u64::from(count));
+            }
+        }
+        self.frame(INDEX, &payload[..at])?;
+        if self.config.flush != FlushPolicy::WhenFull {
+            self.flush()?;
+        }
+        Ok(())
+    }
+}
