@@ -55,9 +55,71 @@ enum Command {
     /// Map tiles from OpenStreetMap (docs/map-tile.md).
     #[command(subcommand)]
     Map(MapCommand),
+    /// Turn existing recordings (NMEA capture, candump log with DBC files, trajectory,
+    /// objects) into a 4D log, in time order (docs/binlog.md).
+    Import(ImportArgs),
+    /// What a 4D log holds: header, records per type, time span, gaps, damage, bytes.
+    Inspect {
+        /// The log.
+        log: PathBuf,
+        /// Print JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Export a 4D log: MCAP with Foxglove schemas, TUM (evo), GeoJSON (QGIS).
+    Export {
+        /// The log.
+        log: PathBuf,
+        /// MCAP output (zstd chunks, Foxglove JSON schemas).
+        #[arg(long)]
+        mcap: Option<PathBuf>,
+        /// TUM output: the ego poses.
+        #[arg(long)]
+        tum: Option<PathBuf>,
+        /// GeoJSON output: ego and GNSS tracks, objects as points.
+        #[arg(long)]
+        geojson: Option<PathBuf>,
+        /// A map tile whose lanes go into the MCAP as lines.
+        #[arg(long)]
+        map: Option<PathBuf>,
+    },
     /// Replay a recorded ego trajectory against a map tile and score it as nuPlan would;
     /// a log is verified above 90 (docs/verify.md).
     Verify(VerifyArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct ImportArgs {
+    /// Output log.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// NMEA 0183 capture → GNSS fixes.
+    #[arg(long)]
+    nmea: Option<PathBuf>,
+    /// Seconds added to NMEA (UTC) times to put them on the other sources' clock.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    nmea_offset: f64,
+    /// candump log → vehicle speeds (NMEA 2000 SOG, J1939 CCVS1, OBD-II 0x0D, DBC).
+    #[arg(long)]
+    can: Option<PathBuf>,
+    /// DBC files for the CAN log (repeatable).
+    #[arg(long)]
+    dbc: Vec<PathBuf>,
+    /// The DBC signal carrying vehicle speed, `MESSAGE.SIGNAL`.
+    #[arg(long, value_name = "MESSAGE.SIGNAL")]
+    speed_signal: Option<String>,
+    /// Unit of that signal: km/h, m/s or mph.
+    #[arg(long, default_value = "km/h")]
+    speed_unit: String,
+    /// TUM trajectory (ENU around --origin, rear axle) → ego poses.
+    #[arg(long)]
+    traj: Option<PathBuf>,
+    /// Objects CSV (the scenario format) → 3D tracks.
+    #[arg(long)]
+    objects: Option<PathBuf>,
+    /// ENU origin `LAT,LON[,H]` of the header; default: the first GNSS fix.
+    #[arg(long, value_name = "LAT,LON[,H]", allow_hyphen_values = true)]
+    origin: Option<String>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -296,6 +358,33 @@ pub fn run() -> ExitCode {
         }
         Command::Map(MapCommand::Info { map, json }) => crate::map_tile::run_info(&map, json),
         Command::Map(MapCommand::Lanes { map }) => crate::map_tile::run_lanes(&map),
+        Command::Import(a) => {
+            let speed_unit = match a.speed_unit.as_str() {
+                "km/h" | "kph" => Some(1.0 / 3.6),
+                "m/s" => Some(1.0),
+                "mph" => Some(0.44704),
+                _ => None,
+            };
+            match speed_unit {
+                Some(speed_unit) => crate::logfile::import::run(&crate::logfile::import::ImportRequest {
+                    output: a.output,
+                    nmea: a.nmea,
+                    nmea_offset_s: a.nmea_offset,
+                    can: a.can,
+                    dbc: a.dbc,
+                    speed_signal: a.speed_signal,
+                    speed_unit,
+                    traj: a.traj,
+                    objects: a.objects,
+                    origin: a.origin,
+                }),
+                None => Err(format!("--speed-unit {:?}: expected km/h, m/s or mph", a.speed_unit)),
+            }
+        }
+        Command::Inspect { log, json } => crate::logfile::inspect::run(&log, json),
+        Command::Export { log, mcap, tum, geojson, map } => {
+            crate::logfile::export::run(&crate::logfile::export::ExportRequest { log, mcap, tum, geojson, map })
+        }
         Command::Verify(a) => {
             let footprint = dash2sim_core::obb::Footprint { width: a.width, front: a.front, rear: a.rear };
             let valid = footprint.width > 0.0

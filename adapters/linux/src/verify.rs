@@ -51,50 +51,21 @@ pub fn agent_kind(class: &str) -> AgentKind {
     }
 }
 
-/// Objects by time (ms), read from the scenario's `objects.csv` format.
+/// Objects by time (ms), from an objects CSV (`crate::objects`).
 pub fn read_objects(path: &Path) -> Result<BTreeMap<i64, Vec<Agent>>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut lines = text.lines().enumerate();
-    let header = lines.next().map(|(_, l)| l.trim()).unwrap_or_default();
-    let columns: Vec<&str> = header.split(',').collect();
-    let col = |name: &str| {
-        columns.iter().position(|c| *c == name).ok_or_else(|| format!("{}:1: no column {name:?}", path.display()))
-    };
-    let [t, id, class, x, y, yaw, l, w, vx, vy] =
-        ["t_s", "id", "class", "x", "y", "yaw", "l", "w", "vx", "vy"].map(col);
-    let (t, id, class, x, y, yaw, l, w, vx, vy) = (t?, id?, class?, x?, y?, yaw?, l?, w?, vx?, vy?);
     let mut by_time: BTreeMap<i64, Vec<Agent>> = BTreeMap::new();
-    for (n, line) in lines {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        let number = |k: usize, name: &str| -> Result<f64, String> {
-            fields
-                .get(k)
-                .and_then(|v| v.parse::<f64>().ok())
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| format!("{}:{}: {name} is not a finite number", path.display(), n + 1))
-        };
-        let agent_id = fields
-            .get(id)
-            .and_then(|v| v.parse::<u32>().ok())
-            .ok_or_else(|| format!("{}:{}: id is not a non-negative integer", path.display(), n + 1))?;
-        let (length, width) = (number(l, "l")?, number(w, "w")?);
-        if length < 0.0 || width < 0.0 {
-            return Err(format!("{}:{}: negative size", path.display(), n + 1));
-        }
+    for row in crate::objects::read(path)? {
         let agent = Agent {
-            id: agent_id,
-            kind: agent_kind(fields.get(class).copied().unwrap_or_default()),
+            id: row.id,
+            kind: agent_kind(&row.class),
             bbox: OrientedBox {
-                centre: Pose2::new(number(x, "x")?, number(y, "y")?, number(yaw, "yaw")?),
-                length,
-                width,
+                centre: Pose2::new(row.centre[0], row.centre[1], row.yaw),
+                length: row.size[0],
+                width: row.size[1],
             },
-            velocity: (number(vx, "vx")?, number(vy, "vy")?),
+            velocity: (row.velocity[0], row.velocity[1]),
         };
-        by_time.entry((number(t, "t_s")? * 1000.0).round() as i64).or_default().push(agent);
+        by_time.entry((row.t * 1000.0).round() as i64).or_default().push(agent);
     }
     Ok(by_time)
 }

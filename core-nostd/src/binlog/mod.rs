@@ -187,18 +187,21 @@ macro_rules! records {
         #[cfg_attr(feature = "defmt", derive(defmt::Format))]
         pub enum Kind {
             $( $(#[$doc])* $name, )+
+            /// 3D tracks of one time (a batch).
+            Tracks3d,
             /// A log message.
             Event,
         }
 
         impl Kind {
             /// Every kind, in code order.
-            pub const ALL: &'static [Kind] = &[$(Kind::$name,)+ Kind::Event];
+            pub const ALL: &'static [Kind] = &[$(Kind::$name,)+ Kind::Tracks3d, Kind::Event];
 
             /// The kind's code in the frame.
             pub const fn code(self) -> u8 {
                 match self {
                     $( Kind::$name => $code, )+
+                    Kind::Tracks3d => TRACKS3D_CODE,
                     Kind::Event => EVENT_CODE,
                 }
             }
@@ -207,6 +210,7 @@ macro_rules! records {
             pub const fn from_code(code: u8) -> Option<Kind> {
                 match code {
                     $( $code => Some(Kind::$name), )+
+                    TRACKS3D_CODE => Some(Kind::Tracks3d),
                     EVENT_CODE => Some(Kind::Event),
                     _ => None,
                 }
@@ -216,6 +220,7 @@ macro_rules! records {
             pub const fn name(self) -> &'static str {
                 match self {
                     $( Kind::$name => stringify!($name), )+
+                    Kind::Tracks3d => "Tracks3d",
                     Kind::Event => "Event",
                 }
             }
@@ -224,15 +229,21 @@ macro_rules! records {
             pub const fn modes(self) -> &'static [Mode] {
                 match self {
                     $( Kind::$name => $name::MODES, )+
+                    Kind::Tracks3d => TRACKS3D_MODES,
                     Kind::Event => EVENT_MODES,
                 }
             }
         }
 
         /// One record.
+        // No allocator to box the track batch into: a record is a fixed ~0.8 KB value,
+        // which is what capacity in the type means here.
+        #[allow(clippy::large_enum_variant)]
         #[derive(Clone, Debug, PartialEq, Eq)]
         pub enum Record {
             $( $(#[$doc])* $name($name), )+
+            /// 3D tracks of one time.
+            Tracks3d(Tracks3d),
             /// A log message.
             Event(EventRecord),
         }
@@ -242,6 +253,7 @@ macro_rules! records {
             pub fn kind(&self) -> Kind {
                 match self {
                     $( Record::$name(_) => Kind::$name, )+
+                    Record::Tracks3d(_) => Kind::Tracks3d,
                     Record::Event(_) => Kind::Event,
                 }
             }
@@ -250,6 +262,7 @@ macro_rules! records {
             pub fn t_us(&self) -> i64 {
                 match self {
                     $( Record::$name(r) => r.t_us, )+
+                    Record::Tracks3d(b) => b.t_us,
                     Record::Event(e) => e.t_us,
                 }
             }
@@ -258,6 +271,10 @@ macro_rules! records {
             pub fn fields(&self, out: &mut [i64; MAX_FIELDS]) -> usize {
                 match self {
                     $( Record::$name(r) => r.fields(out), )+
+                    Record::Tracks3d(b) => {
+                        out[0] = b.t_us;
+                        1
+                    }
                     Record::Event(e) => {
                         out[0] = e.t_us;
                         out[1] = i64::from(e.level);
@@ -269,6 +286,8 @@ macro_rules! records {
             fn from_fields(kind: Kind, v: &[i64], text: &[u8]) -> Option<Record> {
                 Some(match kind {
                     $( Kind::$name => Record::$name($name::from_fields(v)), )+
+                    // Built by the codec, which reads the tracks.
+                    Kind::Tracks3d => return None,
                     Kind::Event => Record::Event(EventRecord {
                         t_us: v.first().copied().unwrap_or(0),
                         level: u8::try_from(v.get(1).copied().unwrap_or(0)).ok()?,
@@ -282,6 +301,53 @@ macro_rules! records {
 
 const EVENT_CODE: u8 = 0x1A;
 const EVENT_MODES: &[Mode] = &[Mode::Delta, Mode::Absolute];
+const TRACKS3D_CODE: u8 = 0x18;
+const TRACKS3D_MODES: &[Mode] = &[Mode::Delta];
+
+/// Tracks in one `Tracks3d` record.
+pub const MAX_TRACKS: usize = 8;
+
+/// A 3D track in the ENU frame, as one element of a [`Tracks3d`] record. Each is coded
+/// against the previous state of the same id in the segment (position advanced by its
+/// velocity), so a standing cone costs two bytes per frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Track3d {
+    /// Track id.
+    pub id: i64,
+    /// Class (see `docs/binlog.md`).
+    pub class: i64,
+    /// Centre east, mm.
+    pub x_mm: i64,
+    /// Centre north, mm.
+    pub y_mm: i64,
+    /// Centre up, mm.
+    pub z_mm: i64,
+    /// Length, mm.
+    pub l_mm: i64,
+    /// Width, mm.
+    pub w_mm: i64,
+    /// Height, mm.
+    pub h_mm: i64,
+    /// Heading, 1e-4 rad.
+    pub yaw_e4: i64,
+    /// Velocity east, mm/s.
+    pub vx_mm_s: i64,
+    /// Velocity north, mm/s.
+    pub vy_mm_s: i64,
+    /// 1 when static.
+    pub is_static: i64,
+}
+
+/// The 3D tracks of one time. A writer splits a batch that does not fit one frame into
+/// several records of the same time.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Tracks3d {
+    /// Time, µs.
+    pub t_us: i64,
+    /// The tracks, at most [`MAX_TRACKS`].
+    pub tracks: heapless::Vec<Track3d, MAX_TRACKS>,
+}
 
 records! {
     /// A GNSS fix.
@@ -415,35 +481,6 @@ records! {
         w_e1: Absolute,
         /// Height, 0.1 px.
         h_e1: Absolute,
-    }
-    /// A 3D track in the ENU frame.
-    Track3d = 0x18 {
-        /// Time, µs.
-        t_us: Delta,
-        /// Track id.
-        id: Absolute,
-        /// Class.
-        class: Absolute,
-        /// Centre east, mm (predicted from the previous track of the frame).
-        x_mm: Delta,
-        /// Centre north, mm.
-        y_mm: Delta,
-        /// Centre up, mm.
-        z_mm: Delta,
-        /// Length, mm.
-        l_mm: Absolute,
-        /// Width, mm.
-        w_mm: Absolute,
-        /// Height, mm.
-        h_mm: Absolute,
-        /// Heading, 1e-4 rad.
-        yaw_e4: Absolute,
-        /// Velocity east, mm/s.
-        vx_mm_s: Absolute,
-        /// Velocity north, mm/s.
-        vy_mm_s: Absolute,
-        /// 1 when static.
-        is_static: Absolute,
     }
     /// A drivable-area / score result.
     Verification = 0x19 {

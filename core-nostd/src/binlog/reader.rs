@@ -14,6 +14,8 @@ use super::{Header, HeaderError, Kind, Record, CRC32C, HEADER_LEN, INDEX, MAX_FR
 pub const DECODER_BUFFER: usize = 4096;
 
 /// What the decoder found.
+// Records are carried by value: there is no allocator to box them into.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Event {
     /// The header (first).
@@ -272,7 +274,6 @@ impl<const N: usize> Decoder<N> {
             }
         }
     }
-
 }
 
 /// One intact frame: update the state and report it.
@@ -310,6 +311,25 @@ fn handle(
             Some(kind) if !streams.intact() => {
                 stats.lost += 1;
                 on(Event::Lost(kind));
+            }
+            Some(Kind::Tracks3d) => {
+                let i = Kind::ALL.iter().position(|k| *k == Kind::Tracks3d).unwrap_or(0);
+                let mut first = true;
+                let ok = streams.decode_tracks(payload, |record| {
+                    stats.records[i] += 1;
+                    // The frame's bytes count once, with its first record.
+                    if core::mem::take(&mut first) {
+                        stats.bytes[i] += total as u64;
+                    }
+                    let t = record.t_us();
+                    stats.time_span = Some(stats.time_span.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
+                    on(Event::Record(record));
+                });
+                if !ok {
+                    streams.break_streams();
+                    stats.lost += 1;
+                    on(Event::Lost(Kind::Tracks3d));
+                }
             }
             Some(kind) => match streams.decode(kind, payload) {
                 Some(record) => {

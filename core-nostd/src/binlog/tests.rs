@@ -3,7 +3,7 @@ use super::*;
 const HEADER: Header = Header { device_id: *b"dashcam-0001\0\0\0\0", origin: [602_711_000, 248_572_000, 12_000] };
 
 /// A 20 Hz drive: ego poses, speeds at 50 Hz, a fix every 10 poses, an event.
-fn records(n: i64) -> heapless::Vec<Record, 512> {
+fn records(n: i64) -> heapless::Vec<Record, 224> {
     let mut out = heapless::Vec::new();
     for k in 0..n {
         let t = 1_700_000_000_000_000 + k * 50_000;
@@ -28,6 +28,57 @@ fn records(n: i64) -> heapless::Vec<Record, 512> {
                 mode: 3,
             }));
         }
+        if k % 4 == 0 {
+            // Ten tracks at once (more than one record holds): eight standing cones, a
+            // car at constant velocity, a truck that brakes.
+            let mut batch = Tracks3d { t_us: t, tracks: heapless::Vec::new() };
+            for id in 0..10 {
+                let track = match id {
+                    0..=7 => Track3d {
+                        id,
+                        class: 6,
+                        x_mm: 50_000 + 5000 * id,
+                        y_mm: -3500,
+                        l_mm: 400,
+                        w_mm: 400,
+                        h_mm: 700,
+                        is_static: 1,
+                        ..Track3d::default()
+                    },
+                    8 => Track3d {
+                        id: 40,
+                        class: 0,
+                        x_mm: 1500 * k,
+                        y_mm: 1750,
+                        l_mm: 4600,
+                        w_mm: 1900,
+                        h_mm: 1500,
+                        vx_mm_s: 15_000,
+                        ..Track3d::default()
+                    },
+                    _ => Track3d {
+                        id: 41,
+                        class: 1,
+                        x_mm: 1000 * k - 10 * k * k,
+                        y_mm: 1750,
+                        l_mm: 9000,
+                        w_mm: 2500,
+                        h_mm: 3500,
+                        yaw_e4: k,
+                        vx_mm_s: 10_000 - 200 * k,
+                        ..Track3d::default()
+                    },
+                };
+                if batch.tracks.is_full() {
+                    let _ = out.push(Record::Tracks3d(core::mem::replace(
+                        &mut batch,
+                        Tracks3d { t_us: t, tracks: heapless::Vec::new() },
+                    )));
+                }
+                let _ = batch.tracks.push(track);
+            }
+            let _ = out.push(Record::Tracks3d(batch));
+        }
         if k == 7 {
             let mut text = heapless::Vec::new();
             let _ = text.extend_from_slice(b"work zone ahead");
@@ -35,6 +86,11 @@ fn records(n: i64) -> heapless::Vec<Record, 512> {
         }
     }
     out
+}
+
+/// One-second segments, so that the short test drives span several.
+fn short_segments() -> WriterConfig {
+    WriterConfig { segment_us: 1_000_000, ..WriterConfig::default() }
 }
 
 fn write(records: &[Record], config: WriterConfig, out: &mut [u8]) -> usize {
@@ -48,7 +104,7 @@ fn write(records: &[Record], config: WriterConfig, out: &mut [u8]) -> usize {
     total - rest.len()
 }
 
-fn read(bytes: &[u8], chunk: usize) -> (heapless::Vec<Record, 512>, Stats, bool) {
+fn read(bytes: &[u8], chunk: usize) -> (heapless::Vec<Record, 224>, Stats, bool) {
     let mut d: Decoder = Decoder::new();
     let mut got = heapless::Vec::new();
     let mut header = false;
@@ -68,14 +124,14 @@ fn read(bytes: &[u8], chunk: usize) -> (heapless::Vec<Record, 512>, Stats, bool)
 
 #[test]
 fn records_round_trip_in_any_chunking() {
-    let input = records(100);
+    let input = records(80);
     let mut buf = [0u8; 16_384];
-    let n = write(&input, WriterConfig::default(), &mut buf);
+    let n = write(&input, short_segments(), &mut buf);
     for chunk in [1, 7, 100, 4096, n] {
         let (got, stats, header) = read(&buf[..n], chunk);
         assert!(header);
         assert_eq!(got, input, "chunk {chunk}");
-        assert_eq!((stats.damaged, stats.lost, stats.segments), (0, 0, 5), "100 poses at 20 Hz, 1 s segments");
+        assert_eq!((stats.damaged, stats.lost, stats.segments), (0, 0, 4), "80 poses at 20 Hz, 1 s segments");
     }
     // A steady pose stream costs a few bytes per record.
     let (_, stats, _) = read(&buf[..n], 4096);
@@ -88,7 +144,7 @@ fn records_round_trip_in_any_chunking() {
 fn a_log_cut_anywhere_gives_back_every_record_before_the_cut() {
     let input = records(40);
     let mut buf = [0u8; 8192];
-    let n = write(&input, WriterConfig { flush: FlushPolicy::EveryRecord, ..WriterConfig::default() }, &mut buf);
+    let n = write(&input, WriterConfig { flush: FlushPolicy::EveryRecord, ..short_segments() }, &mut buf);
     // Where each record's frame ends, from a clean read with offsets.
     let (full, _, _) = read(&buf[..n], n);
     assert_eq!(full, input);
@@ -112,7 +168,7 @@ fn is_subsequence(got: &[Record], of: &[Record]) -> bool {
 fn flipped_bits_lose_only_the_damaged_stretch_and_reading_resumes() {
     let input = records(80);
     let mut buf = [0u8; 16_384];
-    let n = write(&input, WriterConfig::default(), &mut buf);
+    let n = write(&input, short_segments(), &mut buf);
     let last_sync = (0..n - SYNC.len()).rev().find(|&i| buf[i..i + SYNC.len()] == SYNC).expect("segments");
     let mut seed: u64 = 0x2545_f491_4f6c_dd1d;
     let mut damaged_total = 0;

@@ -8,9 +8,9 @@
 
 use embedded_io::Write;
 
-use super::codec::Streams;
+use super::codec::{Streams, TracksFrame};
 use super::varint::{put, zigzag};
-use super::{Header, Kind, Record, CRC32C, HEADER_LEN, INDEX, MAX_FRAME, MAX_PAYLOAD, SEGMENT, SYNC};
+use super::{Header, Kind, Record, CRC32C, HEADER_LEN, INDEX, MAX_FRAME, MAX_PAYLOAD, MAX_TRACKS, SEGMENT, SYNC};
 
 /// When the buffer goes to the underlying writer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -38,7 +38,7 @@ pub struct WriterConfig {
 
 impl Default for WriterConfig {
     fn default() -> Self {
-        WriterConfig { segment_us: 1_000_000, segment_records: 1024, flush: FlushPolicy::EverySegment }
+        WriterConfig { segment_us: 5_000_000, segment_records: 4096, flush: FlushPolicy::EverySegment }
     }
 }
 
@@ -84,6 +84,8 @@ pub struct Writer<W: Write, const N: usize> {
     config: WriterConfig,
     segment: Option<OpenSegment>,
     next_seq: u32,
+    /// The `Tracks3d` frame being filled (all tracks of one time share a frame).
+    tracks: Option<TracksFrame>,
 }
 
 impl<W: Write, const N: usize> Writer<W, N> {
@@ -92,8 +94,16 @@ impl<W: Write, const N: usize> Writer<W, N> {
         if N < 2 * MAX_FRAME {
             return Err(WriteError::BufferTooSmall);
         }
-        let mut w =
-            Writer { io, buffer: [0; N], len: 0, streams: Streams::default(), config, segment: None, next_seq: 0 };
+        let mut w = Writer {
+            io,
+            buffer: [0; N],
+            len: 0,
+            streams: Streams::default(),
+            config,
+            segment: None,
+            next_seq: 0,
+            tracks: None,
+        };
         w.buffer[..HEADER_LEN].copy_from_slice(&header.encode());
         w.len = HEADER_LEN;
         w.flush()?;
@@ -106,24 +116,38 @@ impl<W: Write, const N: usize> Writer<W, N> {
         let t = record.t_us();
         let roll = match &self.segment {
             None => true,
-            Some(s) => {
-                t.wrapping_sub(s.t0) >= self.config.segment_us || s.records >= self.config.segment_records
-            }
+            Some(s) => t.wrapping_sub(s.t0) >= self.config.segment_us || s.records >= self.config.segment_records,
         };
-        if roll {
+        let same_frame = matches!((record, &self.tracks), (Record::Tracks3d(b), Some(f)) if f.t_us == b.t_us);
+        if !same_frame {
+            self.end_tracks_frame()?;
+        }
+        if roll && !same_frame {
             self.close_segment()?;
             self.open_segment(t)?;
         }
         let mut payload = [0u8; MAX_PAYLOAD];
-        let n = self.streams.encode(record, &mut payload).ok_or(WriteError::RecordTooLarge)?;
-        let frame = self.frame(record.kind().code(), &payload[..n])?;
-        if let Some(s) = &mut self.segment {
-            s.records += 1;
-            s.t_last = s.t_last.max(t);
-            s.bytes += frame as u64;
-            if let Some(c) = Kind::ALL.iter().position(|k| *k == record.kind()).and_then(|i| s.counts.get_mut(i)) {
-                *c += 1;
+        if let Record::Tracks3d(batch) = record {
+            // Tracks of one time fill one frame; a full frame goes out and another starts.
+            for track in &batch.tracks {
+                let mut frame = match self.tracks.take() {
+                    Some(f) => f,
+                    None => self.streams.tracks_begin(batch.t_us),
+                };
+                if !self.streams.tracks_append(&mut frame, track) {
+                    self.tracks = Some(frame);
+                    self.end_tracks_frame()?;
+                    frame = self.streams.tracks_begin(batch.t_us);
+                    if !self.streams.tracks_append(&mut frame, track) {
+                        return Err(WriteError::RecordTooLarge);
+                    }
+                }
+                self.tracks = Some(frame);
             }
+        } else {
+            let n = self.streams.encode(record, &mut payload).ok_or(WriteError::RecordTooLarge)?;
+            let frame = self.frame(record.kind().code(), &payload[..n])?;
+            self.count(record.kind(), t, frame);
         }
         if self.config.flush == FlushPolicy::EveryRecord {
             self.flush()?;
@@ -131,7 +155,38 @@ impl<W: Write, const N: usize> Writer<W, N> {
         Ok(())
     }
 
-    /// Hand everything buffered to the writer and flush it.
+    /// Send the `Tracks3d` frame being filled, if any.
+    fn end_tracks_frame(&mut self) -> Result<(), WriteError<W::Error>> {
+        let Some(mut f) = self.tracks.take() else { return Ok(()) };
+        let (t, records) = (f.t_us, f.count().div_ceil(MAX_TRACKS));
+        let payload = self.streams.tracks_finish(&mut f);
+        let mut copy = [0u8; MAX_PAYLOAD];
+        copy[..payload.len()].copy_from_slice(payload);
+        let len = payload.len();
+        let frame = self.frame(Kind::Tracks3d.code(), &copy[..len])?;
+        // Readers see the frame as records of at most MAX_TRACKS tracks; count those.
+        for k in 0..records {
+            self.count(Kind::Tracks3d, t, if k == 0 { frame } else { 0 });
+        }
+        if self.config.flush == FlushPolicy::EveryRecord {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    fn count(&mut self, kind: Kind, t: i64, frame: usize) {
+        if let Some(s) = &mut self.segment {
+            s.records += 1;
+            s.t_last = s.t_last.max(t);
+            s.bytes += frame as u64;
+            if let Some(c) = Kind::ALL.iter().position(|k| *k == kind).and_then(|i| s.counts.get_mut(i)) {
+                *c += 1;
+            }
+        }
+    }
+
+    /// Hand everything buffered to the writer and flush it (a `Tracks3d` frame still
+    /// being filled waits for the next record of another time, or [`Writer::finish`]).
     pub fn flush(&mut self) -> Result<(), WriteError<W::Error>> {
         self.io.write_all(&self.buffer[..self.len]).map_err(WriteError::Io)?;
         self.len = 0;
@@ -140,6 +195,7 @@ impl<W: Write, const N: usize> Writer<W, N> {
 
     /// Close the open segment, flush, and give the writer back.
     pub fn finish(mut self) -> Result<W, WriteError<W::Error>> {
+        self.end_tracks_frame()?;
         self.close_segment()?;
         self.flush()?;
         Ok(self.io)

@@ -1,0 +1,283 @@
+//! MCAP with Foxglove's JSON schemas, so a log opens in Foxglove with no plugin:
+//!
+//! | topic | schema | from |
+//! |---|---|---|
+//! | `/gnss` | `foxglove.LocationFix` | GNSS fixes |
+//! | `/ego/location` | `foxglove.LocationFix` | anchored ego poses, as latitude/longitude |
+//! | `/ego/pose` | `foxglove.PoseInFrame` | anchored ego poses in frame `enu` |
+//! | `/tf` | `foxglove.FrameTransform` | `enu` → `ego` |
+//! | `/vo/pose` | `foxglove.PoseInFrame` | VO poses in frame `vo` |
+//! | `/objects` | `foxglove.SceneUpdate` | 3D tracks as cubes, one update per time |
+//! | `/map` | `foxglove.SceneUpdate` | map lanes as line strips (with `--map`) |
+//! | `/events` | `foxglove.Log` | events |
+//! | `/speed` | `dash2sim.VehicleSpeed` | vehicle speed |
+//!
+//! Chunks are zstd-compressed; every record carries a CRC.
+
+use std::collections::BTreeMap;
+use std::io::BufWriter;
+use std::path::Path;
+
+use dash2sim_core::binlog::Record;
+use dash2sim_core::map::MapView;
+use mcap::records::MessageHeader;
+use serde_json::{json, Value};
+
+use super::export::{class_name, ego_enu};
+use super::{frame, LogContents};
+
+/// JSON schemas for the messages written (the fields used, typed as Foxglove defines them).
+const TIME: &str = r#"{"type":"object","properties":{"sec":{"type":"integer","minimum":0},"nsec":{"type":"integer","minimum":0,"maximum":999999999}}}"#;
+
+fn schema(title: &str, properties: &str) -> String {
+    format!(r#"{{"title":"{title}","type":"object","properties":{{{properties}}}}}"#)
+}
+
+fn vec3() -> String {
+    r#"{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}}}"#.to_owned()
+}
+
+fn pose() -> String {
+    let v = vec3();
+    format!(
+        r#"{{"type":"object","properties":{{"position":{v},"orientation":{{"type":"object","properties":{{"x":{{"type":"number"}},"y":{{"type":"number"}},"z":{{"type":"number"}},"w":{{"type":"number"}}}}}}}}}}"#
+    )
+}
+
+fn schemas() -> Vec<(&'static str, String)> {
+    let (p, v) = (pose(), vec3());
+    let quaternion = r#"{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"w":{"type":"number"}}}"#;
+    let color = r#"{"type":"object","properties":{"r":{"type":"number"},"g":{"type":"number"},"b":{"type":"number"},"a":{"type":"number"}}}"#;
+    vec![
+        (
+            "foxglove.LocationFix",
+            schema(
+                "foxglove.LocationFix",
+                &format!(
+                    r#""timestamp":{TIME},"frame_id":{{"type":"string"}},"latitude":{{"type":"number"}},"longitude":{{"type":"number"}},"altitude":{{"type":"number"}},"position_covariance":{{"type":"array","items":{{"type":"number"}},"minItems":9,"maxItems":9}},"position_covariance_type":{{"type":"integer"}}"#
+                ),
+            ),
+        ),
+        (
+            "foxglove.PoseInFrame",
+            schema("foxglove.PoseInFrame", &format!(r#""timestamp":{TIME},"frame_id":{{"type":"string"}},"pose":{p}"#)),
+        ),
+        (
+            "foxglove.FrameTransform",
+            schema(
+                "foxglove.FrameTransform",
+                &format!(
+                    r#""timestamp":{TIME},"parent_frame_id":{{"type":"string"}},"child_frame_id":{{"type":"string"}},"translation":{v},"rotation":{quaternion}"#
+                ),
+            ),
+        ),
+        (
+            "foxglove.SceneUpdate",
+            schema(
+                "foxglove.SceneUpdate",
+                &format!(
+                    r#""deletions":{{"type":"array","items":{{"type":"object"}}}},"entities":{{"type":"array","items":{{"type":"object","properties":{{"timestamp":{TIME},"frame_id":{{"type":"string"}},"id":{{"type":"string"}},"lifetime":{TIME},"frame_locked":{{"type":"boolean"}},"metadata":{{"type":"array"}},"cubes":{{"type":"array","items":{{"type":"object","properties":{{"pose":{p},"size":{v},"color":{color}}}}}}},"lines":{{"type":"array","items":{{"type":"object","properties":{{"type":{{"type":"integer"}},"pose":{p},"thickness":{{"type":"number"}},"scale_invariant":{{"type":"boolean"}},"points":{{"type":"array","items":{v}}},"color":{color},"colors":{{"type":"array"}},"indices":{{"type":"array"}}}}}}}}}}}}}}"#
+                ),
+            ),
+        ),
+        (
+            "foxglove.Log",
+            schema(
+                "foxglove.Log",
+                &format!(
+                    r#""timestamp":{TIME},"level":{{"type":"integer"}},"message":{{"type":"string"}},"name":{{"type":"string"}},"file":{{"type":"string"}},"line":{{"type":"integer","minimum":0}}"#
+                ),
+            ),
+        ),
+        (
+            "dash2sim.VehicleSpeed",
+            schema(
+                "dash2sim.VehicleSpeed",
+                &format!(r#""timestamp":{TIME},"speed_mps":{{"type":"number"}},"source":{{"type":"string"}}"#),
+            ),
+        ),
+    ]
+}
+
+fn time(t_us: i64) -> Value {
+    let t = t_us.max(0);
+    json!({"sec": t / 1_000_000, "nsec": (t % 1_000_000) * 1000})
+}
+
+fn quaternion_z(yaw: f64) -> Value {
+    let (s, c) = (yaw / 2.0).sin_cos();
+    json!({"x": 0.0, "y": 0.0, "z": s, "w": c})
+}
+
+fn location_fix(t_us: i64, frame_id: &str, lat: f64, lon: f64, alt: f64) -> Value {
+    json!({
+        "timestamp": time(t_us),
+        "frame_id": frame_id,
+        "latitude": lat,
+        "longitude": lon,
+        "altitude": alt,
+        "position_covariance": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        "position_covariance_type": 0,
+    })
+}
+
+fn entity(t_us: i64, id: String, lifetime_us: i64) -> serde_json::Map<String, Value> {
+    let mut e = serde_json::Map::new();
+    e.insert("timestamp".into(), time(t_us));
+    e.insert("frame_id".into(), json!("enu"));
+    e.insert("id".into(), json!(id));
+    e.insert("lifetime".into(), time(lifetime_us));
+    e.insert("frame_locked".into(), json!(false));
+    e.insert("metadata".into(), json!([]));
+    for k in ["arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts", "models"] {
+        e.insert(k.into(), json!([]));
+    }
+    e
+}
+
+const SPEED_SOURCES: [&str; 5] = ["wheel", "J1939 CCVS1", "OBD-II", "DBC", "NMEA 2000 SOG"];
+
+/// The messages of a log: (topic, schema, time µs, JSON), in time order per topic.
+pub fn messages(log: &LogContents, map: Option<&MapView<'_>>) -> Vec<(&'static str, &'static str, i64, Value)> {
+    let enu = log.header.as_ref().and_then(frame);
+    let mut out = Vec::new();
+    let mut scenes: BTreeMap<i64, Vec<Value>> = BTreeMap::new();
+    for r in &log.records {
+        match r {
+            Record::GnssFix(f) => out.push((
+                "/gnss",
+                "foxglove.LocationFix",
+                f.t_us,
+                location_fix(f.t_us, "gnss", f.lat_e7 as f64 * 1e-7, f.lon_e7 as f64 * 1e-7, f.alt_mm as f64 * 1e-3),
+            )),
+            Record::EgoPose(p) => {
+                let (v, yaw) = ego_enu(p);
+                let pose = json!({"position": {"x": v.x, "y": v.y, "z": v.z}, "orientation": quaternion_z(yaw)});
+                out.push(("/ego/pose", "foxglove.PoseInFrame", p.t_us, json!({"timestamp": time(p.t_us), "frame_id": "enu", "pose": pose})));
+                out.push((
+                    "/tf",
+                    "foxglove.FrameTransform",
+                    p.t_us,
+                    json!({"timestamp": time(p.t_us), "parent_frame_id": "enu", "child_frame_id": "ego",
+                           "translation": {"x": v.x, "y": v.y, "z": v.z}, "rotation": quaternion_z(yaw)}),
+                ));
+                if let Some(g) = enu.as_ref().and_then(|f| f.enu_to_geodetic(&v).ok()) {
+                    out.push(("/ego/location", "foxglove.LocationFix", p.t_us, location_fix(p.t_us, "ego", g.lat_deg, g.lon_deg, g.height_m)));
+                }
+            }
+            Record::VoPose(p) => {
+                let pose = json!({"position": {"x": p.x as f64 * 1e-3, "y": p.y as f64 * 1e-3, "z": p.z as f64 * 1e-3},
+                                  "orientation": quaternion_z(p.yaw_e4 as f64 * 1e-4)});
+                out.push(("/vo/pose", "foxglove.PoseInFrame", p.t_us, json!({"timestamp": time(p.t_us), "frame_id": "vo", "pose": pose})));
+            }
+            Record::Tracks3d(batch) => {
+                for t in &batch.tracks {
+                    let mut e = entity(batch.t_us, format!("track-{}", t.id), 200_000);
+                    e.insert(
+                        "metadata".into(),
+                        json!([{"key": "class", "value": class_name(t.class)}, {"key": "static", "value": (t.is_static != 0).to_string()}]),
+                    );
+                    let color = if t.is_static != 0 {
+                        json!({"r": 1.0, "g": 0.5, "b": 0.0, "a": 0.8})
+                    } else {
+                        json!({"r": 0.2, "g": 0.6, "b": 1.0, "a": 0.8})
+                    };
+                    e.insert(
+                        "cubes".into(),
+                        json!([{
+                            "pose": {"position": {"x": t.x_mm as f64 * 1e-3, "y": t.y_mm as f64 * 1e-3, "z": t.z_mm as f64 * 1e-3},
+                                     "orientation": quaternion_z(t.yaw_e4 as f64 * 1e-4)},
+                            "size": {"x": t.l_mm as f64 * 1e-3, "y": t.w_mm as f64 * 1e-3, "z": t.h_mm as f64 * 1e-3},
+                            "color": color,
+                        }]),
+                    );
+                    scenes.entry(batch.t_us).or_default().push(Value::Object(e));
+                }
+            }
+            Record::VehicleSpeed(s) => out.push((
+                "/speed",
+                "dash2sim.VehicleSpeed",
+                s.t_us,
+                json!({"timestamp": time(s.t_us), "speed_mps": s.speed_mm_s as f64 * 1e-3,
+                       "source": usize::try_from(s.source).ok().and_then(|i| SPEED_SOURCES.get(i)).copied().unwrap_or("other")}),
+            )),
+            Record::Event(e) => out.push((
+                "/events",
+                "foxglove.Log",
+                e.t_us,
+                json!({"timestamp": time(e.t_us), "level": e.level.min(5), "message": String::from_utf8_lossy(&e.text),
+                       "name": "dash2sim", "file": "", "line": 0}),
+            )),
+            _ => {}
+        }
+    }
+    for (t, entities) in scenes {
+        out.push(("/objects", "foxglove.SceneUpdate", t, json!({"deletions": [], "entities": entities})));
+    }
+    if let Some(map) = map {
+        let t0 = log.records.first().map_or(0, Record::t_us);
+        let mut e = entity(t0, "map-lanes".to_owned(), 0);
+        let lines: Vec<Value> = (0..map.header().lanes)
+            .filter_map(|i| map.lane(i))
+            .map(|lane| {
+                json!({
+                    "type": 0,
+                    "pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+                    "thickness": 0.15,
+                    "scale_invariant": false,
+                    "points": lane.points().map(|(x, y)| json!({"x": x, "y": y, "z": 0.0})).collect::<Vec<_>>(),
+                    "color": {"r": 0.8, "g": 0.8, "b": 0.8, "a": 1.0},
+                    "colors": [],
+                    "indices": [],
+                })
+            })
+            .collect();
+        e.insert("lines".into(), Value::Array(lines));
+        out.push(("/map", "foxglove.SceneUpdate", t0, json!({"deletions": [], "entities": [Value::Object(e)]})));
+    }
+    out.sort_by_key(|m| m.2);
+    out
+}
+
+/// One topic per record kind: the log's content once, for size comparisons.
+pub const ONE_TOPIC_PER_KIND: [&str; 5] = ["/gnss", "/ego/pose", "/speed", "/objects", "/events"];
+
+/// Write the MCAP (all topics, or only `topics`); returns messages per topic.
+pub fn write(
+    log: &LogContents,
+    map: Option<&MapView<'_>>,
+    path: &Path,
+    topics: Option<&[&str]>,
+) -> Result<BTreeMap<&'static str, u64>, String> {
+    let err = |e: mcap::McapError| format!("{}: {e}", path.display());
+    let file = std::fs::File::create(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let options = mcap::WriteOptions::new().compression(Some(mcap::Compression::Zstd)).profile("");
+    let mut writer = mcap::Writer::with_options(BufWriter::new(file), options).map_err(err)?;
+    let mut schema_ids = BTreeMap::new();
+    for (name, text) in schemas() {
+        schema_ids.insert(name, writer.add_schema(name, "jsonschema", text.as_bytes()).map_err(err)?);
+    }
+    let mut channels: BTreeMap<&'static str, u16> = BTreeMap::new();
+    let mut counts: BTreeMap<&'static str, u64> = BTreeMap::new();
+    for (topic, schema_name, t_us, message) in messages(log, map) {
+        if topics.is_some_and(|keep| !keep.contains(&topic)) {
+            continue;
+        }
+        let channel = match channels.get(topic) {
+            Some(&c) => c,
+            None => {
+                let schema = schema_ids.get(schema_name).copied().unwrap_or(0);
+                let c = writer.add_channel(schema, topic, "json", &BTreeMap::new()).map_err(err)?;
+                channels.insert(topic, c);
+                c
+            }
+        };
+        let count = counts.entry(topic).or_insert(0);
+        let ns = u64::try_from(t_us.max(0)).unwrap_or(0) * 1000;
+        let header = MessageHeader { channel_id: channel, sequence: *count as u32, log_time: ns, publish_time: ns };
+        writer.write_to_known_channel(&header, message.to_string().as_bytes()).map_err(err)?;
+        *count += 1;
+    }
+    writer.finish().map_err(err)?;
+    Ok(counts)
+}

@@ -1,0 +1,106 @@
+//! The 4D log on the desktop: reading a whole file through the core's push decoder,
+//! `dash2sim import` (existing recordings → log), `inspect` and `export` (MCAP with
+//! Foxglove schemas, TUM, GeoJSON). The format is the core's (`docs/binlog.md`).
+
+pub mod export;
+pub mod import;
+pub mod inspect;
+pub mod mcap_export;
+
+use std::path::Path;
+
+use dash2sim_core::binlog::{Decoder, Event, Header, HeaderError, Record, Stats};
+use dash2sim_core::geo::{Geodetic, LocalFrame};
+
+/// Everything a log file held, as far as it could be read.
+#[derive(Debug)]
+pub struct LogContents {
+    /// The header, if intact.
+    pub header: Option<Header>,
+    /// Intact records in file order.
+    pub records: Vec<Record>,
+    /// Damaged stretches: (offset, length).
+    pub damage: Vec<(u64, u64)>,
+    /// Index records: (segment, records, bytes).
+    pub indexes: Vec<(u64, u64, u64)>,
+    /// Decoder totals.
+    pub stats: Stats,
+    /// File length.
+    pub bytes: u64,
+}
+
+/// Why a file could not be read as a log at all.
+#[derive(Debug)]
+pub enum LogError {
+    /// It could not be read.
+    Io(String),
+    /// It is not a dash2sim log.
+    NotALog(String, HeaderError),
+}
+
+impl std::fmt::Display for LogError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LogError::Io(e) => f.write_str(e),
+            LogError::NotALog(path, e) => write!(f, "{path}: {e}"),
+        }
+    }
+}
+
+/// Decode `bytes` completely.
+pub fn decode(bytes: &[u8], name: &str) -> Result<LogContents, LogError> {
+    let mut decoder: Box<Decoder> = Box::default();
+    let mut contents = LogContents {
+        header: None,
+        records: Vec::new(),
+        damage: Vec::new(),
+        indexes: Vec::new(),
+        stats: Stats::default(),
+        bytes: bytes.len() as u64,
+    };
+    let mut fatal = None;
+    let mut on = |event: Event| match event {
+        Event::Header(h) => contents.header = Some(h),
+        Event::NotALog(e) => fatal = Some(e),
+        Event::Record(r) => contents.records.push(r),
+        Event::Damaged { offset, len } => contents.damage.push((offset, len)),
+        Event::Index { seq, records, bytes } => contents.indexes.push((seq, records, bytes)),
+        Event::Segment { .. } | Event::Unknown { .. } | Event::Lost(_) => {}
+    };
+    for chunk in bytes.chunks(64 * 1024) {
+        decoder.push(chunk, &mut on);
+    }
+    decoder.finish(&mut on);
+    if let Some(e) = fatal {
+        return Err(LogError::NotALog(name.to_owned(), e));
+    }
+    contents.stats = *decoder.stats();
+    Ok(contents)
+}
+
+/// Read and decode a log file.
+pub fn read(path: &Path) -> Result<LogContents, LogError> {
+    let bytes = std::fs::read(path).map_err(|e| LogError::Io(format!("{}: {e}", path.display())))?;
+    decode(&bytes, &path.display().to_string())
+}
+
+/// The header's ENU frame.
+pub fn frame(header: &Header) -> Option<LocalFrame> {
+    let [lat, lon, h] = header.origin;
+    Geodetic::new(f64::from(lat) * 1e-7, f64::from(lon) * 1e-7, f64::from(h) * 1e-3).ok().map(LocalFrame::new)
+}
+
+/// Seconds from µs.
+pub fn seconds(t_us: i64) -> f64 {
+    t_us as f64 * 1e-6
+}
+
+/// Quantise to an integer number of `unit`s (saturating; NaN → 0).
+pub fn quantise(value: f64, unit: f64) -> i64 {
+    let q = (value / unit).round();
+    if q.is_nan() {
+        0
+    } else {
+        q.clamp(i64::MIN as f64, i64::MAX as f64) as i64
+    }
+}
