@@ -545,3 +545,78 @@ fn map_build_cuts_at_a_bbox_and_survives_odd_ways() {
         assert!(!out.status.success() && stderr(&out).contains("--bbox"), "{bad}: {}", stderr(&out));
     }
 }
+
+#[test]
+fn import_inspect_export_a_drive_and_report_damage_without_failing() {
+    let dir = scratch("binlog");
+    let drive = dir.join("drive");
+    let out =
+        dash2sim(&["scenario", "generate", "-o", &drive.display().to_string(), "--seed", "2", "--duration", "12"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let file = |name: &str| drive.join(name).display().to_string();
+    let log = dir.join("drive.d2slog").display().to_string();
+    let out = dash2sim(&[
+        "import",
+        "-o",
+        &log,
+        "--nmea",
+        &file("gnss.nmea"),
+        "--nmea-offset",
+        "-1780300800",
+        "--traj",
+        &file("ego.tum"),
+        "--objects",
+        &file("objects.csv"),
+        "--origin",
+        "60.2711,24.8572",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let out = dash2sim(&["inspect", &log, "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(report["by_type"]["EgoPose"], 121, "{report}");
+    assert_eq!(report["by_type"]["GnssFix"], 61, "{report}");
+    assert_eq!(report["damaged"], 0);
+    assert!(report["t_start"].as_f64().is_some_and(|t| t.abs() < 0.2), "{report}");
+    assert!(report["records"].as_u64().is_some_and(|n| n > 121 + 61));
+
+    let (tum, geojson, mcap) = (
+        dir.join("ego.tum").display().to_string(),
+        dir.join("drive.geojson").display().to_string(),
+        dir.join("drive.mcap").display().to_string(),
+    );
+    let map = dir.join("road.map").display().to_string();
+    let out = dash2sim(&["map", "build", &file("road.osm"), "-o", &map, "--origin", "60.2711,24.8572"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let out = dash2sim(&["export", &log, "--tum", &tum, "--geojson", &geojson, "--mcap", &mcap, "--map", &map]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    // The exported TUM is the imported one, to the millimetre.
+    let out = dash2sim(&["traj", "ape", &file("ego.tum"), &tum, "--json"]);
+    let ape: serde_json::Value = serde_json::from_slice(&out.stdout).expect("ape json");
+    assert!(ape["stats"]["max"].as_f64().is_some_and(|m| m < 1e-3), "{ape}");
+    let g: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&geojson).expect("geojson")).expect("json");
+    let features = g["features"].as_array().expect("features");
+    assert_eq!(features[0]["geometry"]["type"], "LineString");
+    assert!(features.iter().filter(|f| f["geometry"]["type"] == "Point").count() > 20, "the work zone's objects");
+    let mcap_bytes = std::fs::read(&mcap).expect("mcap");
+    assert!(mcap_bytes.starts_with(b"\x89MCAP0\r\n") && mcap_bytes.ends_with(b"\x89MCAP0\r\n"));
+
+    // Damage: cut the tail and flip a byte in the middle — reported, exit status 0.
+    let mut bytes = std::fs::read(&log).expect("log");
+    bytes.truncate(bytes.len() - 7);
+    let middle = bytes.len() / 2;
+    bytes[middle] ^= 0x40;
+    let damaged = write(&dir, "damaged.d2slog", "");
+    std::fs::write(&damaged, &bytes).expect("write");
+    let out = dash2sim(&["inspect", &damaged, "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert!(r["damaged"].as_u64().is_some_and(|d| d >= 2), "{r}");
+    assert!(r["records"].as_u64() < report["records"].as_u64() && r["records"].as_u64() > Some(100), "{r}");
+    // Not a log at all: an error.
+    let out = dash2sim(&["inspect", &file("ego.tum")]);
+    assert!(!out.status.success() && stderr(&out).contains("not a dash2sim log"), "{}", stderr(&out));
+    let out = dash2sim(&["import", "-o", &log]);
+    assert!(!out.status.success() && stderr(&out).contains("nothing to import"), "{}", stderr(&out));
+}

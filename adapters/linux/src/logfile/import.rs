@@ -14,7 +14,8 @@
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::binlog::{
-    EgoPose, GnssFix, Header, Record, Track3d, Tracks3d, VehicleSpeed, Writer, WriterConfig, MAX_TRACKS,
+    EgoPose, EventRecord, GnssFix, Header, Record, Track3d, Tracks3d, VehicleSpeed, Writer, WriterConfig, MAX_TEXT,
+    MAX_TRACKS,
 };
 use dash2sim_core::nmea::{Event as NmeaEvent, Stream, StreamEvent};
 
@@ -256,6 +257,18 @@ pub fn run(request: &ImportRequest) -> Result<(), String> {
     if records.is_empty() {
         return Err("nothing to import: give --nmea, --can, --traj or --objects (with records in them)".to_owned());
     }
+    // Say where the log came from, as its first event.
+    let sources: Vec<String> =
+        [("nmea", &request.nmea), ("can", &request.can), ("traj", &request.traj), ("objects", &request.objects)]
+            .iter()
+            .filter_map(|(name, path)| path.as_ref().map(|p| format!("{name}={}", p.display())))
+            .collect();
+    let mut event =
+        EventRecord { t_us: records.iter().map(Record::t_us).min().unwrap_or(0), level: 2, ..EventRecord::default() };
+    for b in format!("dash2sim import: {}", sources.join(" ")).bytes().take(MAX_TEXT) {
+        let _ = event.text.push(b);
+    }
+    records.push(Record::Event(event));
     let [lat, lon, h] = origin.unwrap_or([0.0; 3]);
     let header = Header {
         device_id: *b"dash2sim-import\0",
