@@ -224,7 +224,7 @@ proptest! {
 
 #[test]
 fn physical_values_come_back_within_half_a_step() {
-    let (x, lat, t) = (1234.567_891_2_f64, 37.721_000_009_f64, 46_408.547_498_3_f64);
+    let (x, lat, t) = (1_234.567_891_2_f64, 37.721_000_009_f64, 46_408.547_498_3_f64);
     let record = Record::GnssFix(GnssFix {
         t_us: quantise(t, 1e-6),
         lat_e7: quantise(lat, 1e-7),
