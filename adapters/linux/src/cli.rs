@@ -124,15 +124,18 @@ struct ImportArgs {
 
 #[derive(Debug, clap::Args)]
 struct VerifyArgs {
+    /// A 4D log: its ego poses are replayed, its 3D tracks are the agents.
+    #[arg(required_unless_present = "ego", conflicts_with = "ego")]
+    log: Option<PathBuf>,
     /// The map tile (`dash2sim map build`).
     #[arg(long)]
     map: PathBuf,
-    /// Ego trajectory, TUM, in the map's ENU frame: x east, y north, the pose at the rear
-    /// axle, heading from the quaternion.
+    /// Instead of a log: an ego trajectory, TUM, in the map's ENU frame (x east, y north,
+    /// the pose at the rear axle, heading from the quaternion).
     #[arg(long)]
-    ego: PathBuf,
+    ego: Option<PathBuf>,
     /// Other road users and objects (the scenario `objects.csv` format), as non-reactive
-    /// agents.
+    /// agents (replaces a log's tracks).
     #[arg(long)]
     objects: Option<PathBuf>,
     /// Only lanes near the route actually driven are drivable (not the opposing lanes or
@@ -385,25 +388,7 @@ pub fn run() -> ExitCode {
         Command::Export { log, mcap, tum, geojson, map } => {
             crate::logfile::export::run(&crate::logfile::export::ExportRequest { log, mcap, tum, geojson, map })
         }
-        Command::Verify(a) => {
-            let footprint = dash2sim_core::obb::Footprint { width: a.width, front: a.front, rear: a.rear };
-            let valid = footprint.width > 0.0
-                && footprint.front + footprint.rear > 0.0
-                && [footprint.width, footprint.front, footprint.rear].iter().all(|v| v.is_finite());
-            let request = crate::verify::VerifyRequest {
-                map: &a.map,
-                ego: &a.ego,
-                objects: a.objects.as_deref(),
-                channel_sensitive: a.channel_sensitive,
-                footprint,
-                poses: a.poses.as_deref(),
-            };
-            if valid {
-                crate::verify::run(&request, a.json)
-            } else {
-                Err("--width and --front + --rear must be positive".to_owned())
-            }
-        }
+        Command::Verify(a) => verify(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -411,6 +396,31 @@ pub fn run() -> ExitCode {
             eprintln!("dash2sim: error: {message}");
             ExitCode::FAILURE
         }
+    }
+}
+
+fn verify(a: &VerifyArgs) -> Result<(), String> {
+    let footprint = dash2sim_core::obb::Footprint { width: a.width, front: a.front, rear: a.rear };
+    let valid = footprint.width > 0.0
+        && footprint.front + footprint.rear > 0.0
+        && [footprint.width, footprint.front, footprint.rear].iter().all(|v| v.is_finite());
+    let ego = match (&a.log, &a.ego) {
+        (Some(log), _) => crate::verify::EgoSource::Log(log),
+        (None, Some(tum)) => crate::verify::EgoSource::Tum(tum),
+        (None, None) => return Err("give a LOG or --ego TRAJ.tum".to_owned()),
+    };
+    let request = crate::verify::VerifyRequest {
+        map: &a.map,
+        ego,
+        objects: a.objects.as_deref(),
+        channel_sensitive: a.channel_sensitive,
+        footprint,
+        poses: a.poses.as_deref(),
+    };
+    if valid {
+        crate::verify::run(&request, a.json)
+    } else {
+        Err("--width and --front + --rear must be positive".to_owned())
     }
 }
 

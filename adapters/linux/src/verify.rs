@@ -28,8 +28,8 @@ const CHANNEL_WORDS: usize = 8192;
 pub struct VerifyRequest<'a> {
     /// The map tile.
     pub map: &'a Path,
-    /// TUM trajectory of the rear axle in the map's ENU frame.
-    pub ego: &'a Path,
+    /// Where the ego comes from.
+    pub ego: EgoSource<'a>,
     /// Objects CSV.
     pub objects: Option<&'a Path>,
     /// Only lanes near the driven route are drivable.
@@ -38,6 +38,71 @@ pub struct VerifyRequest<'a> {
     pub footprint: Footprint,
     /// Per-pose CSV to write.
     pub poses: Option<&'a Path>,
+}
+
+/// The recorded drive to replay.
+#[derive(Clone, Copy, Debug)]
+pub enum EgoSource<'a> {
+    /// A TUM trajectory of the rear axle in the map's ENU frame.
+    Tum(&'a Path),
+    /// A 4D log: its ego poses, and its 3D tracks as agents.
+    Log(&'a Path),
+}
+
+/// Ego poses and agents from a 4D log, moved from the log's ENU frame into the map's
+/// (through geodetic coordinates when the origins differ; headings are kept — the frames
+/// of nearby origins differ by well under a milliradian per kilometre).
+pub fn from_log(path: &Path, map: &MapView<'_>) -> Result<(Vec<(f64, Pose2)>, BTreeMap<i64, Vec<Agent>>), String> {
+    use crate::logfile::export::{class_name, ego_enu, ego_poses, tracks};
+    use dash2sim_core::geo::{Geodetic, LocalFrame};
+    use dash2sim_core::nalgebra::Vector3;
+    let log = crate::logfile::read(path).map_err(|e| e.to_string())?;
+    if log.stats.damaged > 0 {
+        eprintln!("warning: {}: {} damaged stretches skipped", path.display(), log.stats.damaged);
+    }
+    let header = log.header.ok_or_else(|| format!("{}: the header is damaged (no origin)", path.display()))?;
+    let log_frame = crate::logfile::frame(&header).ok_or_else(|| format!("{}: invalid origin", path.display()))?;
+    let [lat, lon, h] = map.header().origin;
+    let map_frame = LocalFrame::new(Geodetic::new(lat, lon, h).map_err(|e| format!("map origin: {e}"))?);
+    let same = (f64::from(header.origin[0]) * 1e-7 - lat).abs() < 1e-7
+        && (f64::from(header.origin[1]) * 1e-7 - lon).abs() < 1e-7;
+    let to_map = |v: Vector3<f64>| -> (f64, f64) {
+        if same {
+            return (v.x, v.y);
+        }
+        match log_frame.enu_to_geodetic(&v) {
+            Ok(g) => {
+                let m = map_frame.geodetic_to_enu(&g);
+                (m.x, m.y)
+            }
+            Err(_) => (f64::NAN, f64::NAN),
+        }
+    };
+    let poses: Vec<(f64, Pose2)> = ego_poses(&log)
+        .map(|p| {
+            let (v, yaw) = ego_enu(p);
+            let (x, y) = to_map(v);
+            (p.t_us as f64 * 1e-6, Pose2::new(x, y, yaw))
+        })
+        .collect();
+    if poses.is_empty() {
+        return Err(format!("{}: no ego poses to verify", path.display()));
+    }
+    let mut agents: BTreeMap<i64, Vec<Agent>> = BTreeMap::new();
+    for (t_us, t) in tracks(&log) {
+        let (x, y) = to_map(Vector3::new(t.x_mm as f64, t.y_mm as f64, t.z_mm as f64) * 1e-3);
+        agents.entry((t_us as f64 / 1000.0).round() as i64).or_default().push(Agent {
+            id: u32::try_from(t.id).unwrap_or(u32::MAX),
+            kind: agent_kind(class_name(t.class)),
+            bbox: OrientedBox {
+                centre: Pose2::new(x, y, t.yaw_e4 as f64 * 1e-4),
+                length: t.l_mm as f64 * 1e-3,
+                width: t.w_mm as f64 * 1e-3,
+            },
+            velocity: (t.vx_mm_s as f64 * 1e-3, t.vy_mm_s as f64 * 1e-3),
+        });
+    }
+    Ok((poses, agents))
 }
 
 /// Agent kind of a class name: vehicles, vulnerable road users, or static objects.
@@ -198,14 +263,25 @@ pub fn report_json(v: &Verification, channel_sensitive: bool) -> serde_json::Val
 pub fn run(request: &VerifyRequest<'_>, as_json: bool) -> Result<(), String> {
     let bytes = std::fs::read(request.map).map_err(|e| format!("{}: {e}", request.map.display()))?;
     let map = MapView::parse(&bytes).map_err(|e| format!("{}: {e}", request.map.display()))?;
-    let trajectory = Trajectory::read(request.ego, Format::Tum).map_err(|e| e.to_string())?;
-    let poses: Vec<(f64, Pose2)> = trajectory
-        .stamps
-        .iter()
-        .zip(&trajectory.poses)
-        .map(|(t, p)| (*t, Pose2::new(p.translation.x, p.translation.y, heading(p))))
-        .collect();
-    let objects = request.objects.map(read_objects).transpose()?.unwrap_or_default();
+    let (poses, mut objects, name) = match request.ego {
+        EgoSource::Tum(path) => {
+            let trajectory = Trajectory::read(path, Format::Tum).map_err(|e| e.to_string())?;
+            let poses: Vec<(f64, Pose2)> = trajectory
+                .stamps
+                .iter()
+                .zip(&trajectory.poses)
+                .map(|(t, p)| (*t, Pose2::new(p.translation.x, p.translation.y, heading(p))))
+                .collect();
+            (poses, BTreeMap::new(), path)
+        }
+        EgoSource::Log(path) => {
+            let (poses, agents) = from_log(path, &map)?;
+            (poses, agents, path)
+        }
+    };
+    if let Some(path) = request.objects {
+        objects = read_objects(path)?;
+    }
     let v = replay(map, &poses, &objects, request.channel_sensitive, request.footprint)?;
     if let Some(path) = request.poses {
         std::fs::write(path, poses_csv(&v.steps)).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -216,7 +292,7 @@ pub fn run(request: &VerifyRequest<'_>, as_json: bool) -> Result<(), String> {
     }
     let s = &v.scores;
     let mode = if request.channel_sensitive { "channel-sensitive" } else { "channel-insensitive" };
-    println!("{}: {} poses over {:.1} s, {mode}", request.ego.display(), s.poses, s.duration);
+    println!("{}: {} poses over {:.1} s, {mode}", name.display(), s.poses, s.duration);
     let rows = [
         ("no at-fault collisions", s.no_at_fault_collisions, "multiplier"),
         ("drivable-area compliance", s.drivable_area, "multiplier"),

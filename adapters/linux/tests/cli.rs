@@ -599,6 +599,17 @@ fn import_inspect_export_a_drive_and_report_damage_without_failing() {
     let features = g["features"].as_array().expect("features");
     assert_eq!(features[0]["geometry"]["type"], "LineString");
     assert!(features.iter().filter(|f| f["geometry"]["type"] == "Point").count() > 20, "the work zone's objects");
+    // verify LOG replays the log's ego poses with its tracks as agents: the same verdict
+    // as the trajectory and objects it was imported from.
+    let score = |args: &[&str]| -> serde_json::Value {
+        let out = dash2sim(args);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+        v["metrics"].clone()
+    };
+    let from_log = score(&["verify", &log, "--map", &map, "--json"]);
+    let from_files = score(&["verify", "--map", &map, "--ego", &file("ego.tum"), "--objects", &file("objects.csv"), "--json"]);
+    assert_eq!(from_log, from_files);
     let mcap_bytes = std::fs::read(&mcap).expect("mcap");
     assert!(mcap_bytes.starts_with(b"\x89MCAP0\r\n") && mcap_bytes.ends_with(b"\x89MCAP0\r\n"));
 
