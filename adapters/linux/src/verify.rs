@@ -40,6 +40,9 @@ pub struct VerifyRequest<'a> {
     pub poses: Option<&'a Path>,
 }
 
+/// Agents by time (ms).
+pub type AgentsByTime = BTreeMap<i64, Vec<Agent>>;
+
 /// The recorded drive to replay.
 #[derive(Clone, Copy, Debug)]
 pub enum EgoSource<'a> {
@@ -52,7 +55,7 @@ pub enum EgoSource<'a> {
 /// Ego poses and agents from a 4D log, moved from the log's ENU frame into the map's
 /// (through geodetic coordinates when the origins differ; headings are kept — the frames
 /// of nearby origins differ by well under a milliradian per kilometre).
-pub fn from_log(path: &Path, map: &MapView<'_>) -> Result<(Vec<(f64, Pose2)>, BTreeMap<i64, Vec<Agent>>), String> {
+pub fn from_log(path: &Path, map: &MapView<'_>) -> Result<(Vec<(f64, Pose2)>, AgentsByTime), String> {
     use crate::logfile::export::{class_name, ego_enu, ego_poses, tracks};
     use dash2sim_core::geo::{Geodetic, LocalFrame};
     use dash2sim_core::nalgebra::Vector3;
