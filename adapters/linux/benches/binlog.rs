@@ -1,0 +1,56 @@
+//! 4D log throughput: encoding (framing, prediction, CRC-32C) and push decoding of a
+//! generated 40 s work-zone drive (ego poses 10 Hz, GNSS 5 Hz, 3D tracks ~40 per frame)
+//! imported through `dash2sim import`. Criterion reports records/s; bytes/s follow from
+//! the log size printed. Figures in docs/benchmarks.md.
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use dash2sim_core::binlog::{Decoder, Event};
+use dash2sim_linux::logfile::{self, import::ImportRequest};
+
+fn throughput(c: &mut Criterion) {
+    let dir = std::env::temp_dir().join(format!("d2s-bench-binlog-{}", std::process::id()));
+    dash2sim_linux::scenario::command::run_generate(1, 40.0, &dir.join("drive")).expect("scenario");
+    let output = dir.join("drive.d2slog");
+    let request = ImportRequest {
+        output: output.clone(),
+        nmea: Some(dir.join("drive/gnss.nmea")),
+        nmea_offset_s: -1_780_300_800.0,
+        speed_unit: 1.0,
+        traj: Some(dir.join("drive/ego.tum")),
+        objects: Some(dir.join("drive/objects.csv")),
+        origin: Some("60.2711,24.8572".to_owned()),
+        ..ImportRequest::default()
+    };
+    logfile::import::run(&request).expect("import");
+    let bytes = std::fs::read(&output).expect("log");
+    let log = logfile::decode(&bytes, "bench").expect("log");
+    let header = log.header.expect("header");
+    let records = log.records.len() as u64;
+    eprintln!("{records} records, {} bytes", bytes.len());
+
+    let mut group = c.benchmark_group("binlog");
+    group.throughput(Throughput::Elements(records));
+    group.bench_function("encode (records)", |b| {
+        b.iter(|| {
+            let mut copy = log.records.clone();
+            logfile::import::encode(&header, &mut copy).expect("encodes").len()
+        })
+    });
+    group.bench_function("decode (records)", |b| {
+        b.iter(|| {
+            let mut decoder: Box<Decoder> = Box::default();
+            let mut n = 0u64;
+            let mut on = |e: Event| n += u64::from(matches!(e, Event::Record(_)));
+            for chunk in bytes.chunks(4096) {
+                decoder.push(chunk, &mut on);
+            }
+            decoder.finish(&mut on);
+            n
+        })
+    });
+    group.finish();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+criterion_group!(benches, throughput);
+criterion_main!(benches);
