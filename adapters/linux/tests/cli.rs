@@ -608,7 +608,8 @@ fn import_inspect_export_a_drive_and_report_damage_without_failing() {
         v["metrics"].clone()
     };
     let from_log = score(&["verify", &log, "--map", &map, "--json"]);
-    let from_files = score(&["verify", "--map", &map, "--ego", &file("ego.tum"), "--objects", &file("objects.csv"), "--json"]);
+    let from_files =
+        score(&["verify", "--map", &map, "--ego", &file("ego.tum"), "--objects", &file("objects.csv"), "--json"]);
     assert_eq!(from_log, from_files);
     let mcap_bytes = std::fs::read(&mcap).expect("mcap");
     assert!(mcap_bytes.starts_with(b"\x89MCAP0\r\n") && mcap_bytes.ends_with(b"\x89MCAP0\r\n"));
