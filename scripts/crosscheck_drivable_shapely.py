@@ -66,7 +66,8 @@ def main():
     areas = []
     for lane in lanes["lanes"]:
         if lane["area"]:
-            areas.append(Polygon(lane["area"]))
+            # A lanelet whose bounds cross is read with the even-odd rule; make_valid agrees.
+            areas.append(shapely.make_valid(Polygon(lane["area"])))
         else:
             areas.append(LineString(lane["points"]).buffer(lane["width"] / 2, quad_segs=128))
     areas += [Polygon(p) for p in lanes["polygons"]]
