@@ -55,6 +55,22 @@ enum Command {
     /// Map tiles from OpenStreetMap (docs/map-tile.md).
     #[command(subcommand)]
     Map(MapCommand),
+    /// The whole pipeline on a generated work-zone drive: anchor VO to GNSS, track 3D
+    /// objects, verify against the road's map, write the 4D log, export it.
+    Demo {
+        /// Output folder.
+        #[arg(short, long, default_value = "demo-output")]
+        output: PathBuf,
+        /// Seed of the generated drive.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Length of the drive, s (10–50).
+        #[arg(long, default_value_t = 40.0)]
+        duration: f64,
+        /// Print the summary as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Turn existing recordings (NMEA capture, candump log with DBC files, trajectory,
     /// objects) into a 4D log, in time order (docs/binlog.md).
     Import(ImportArgs),
@@ -384,6 +400,7 @@ pub fn run() -> ExitCode {
                 None => Err(format!("--speed-unit {:?}: expected km/h, m/s or mph", a.speed_unit)),
             }
         }
+        Command::Demo { output, seed, duration, json } => crate::demo::run(&output, seed, duration, json),
         Command::Inspect { log, json } => crate::logfile::inspect::run(&log, json),
         Command::Export { log, mcap, tum, geojson, map } => {
             crate::logfile::export::run(&crate::logfile::export::ExportRequest { log, mcap, tum, geojson, map })

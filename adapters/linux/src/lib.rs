@@ -9,6 +9,7 @@
 pub mod anchoring;
 pub mod can_decode;
 pub mod cli;
+pub mod demo;
 pub mod evaluate;
 pub mod logfile;
 pub mod map_tile;

@@ -4,6 +4,25 @@
 
 use std::path::Path;
 
+use dash2sim_core::box3d::Box3d;
+
+/// The header line the writers use.
+pub const HEADER: &str = "frame,t_s,id,class,x,y,z,yaw,l,w,h,vx,vy,static,visible";
+
+/// One CSV line (with its newline) of `row` at `frame`.
+pub fn line(frame: u64, row: &ObjectRow, visible: bool) -> String {
+    let ([x, y, z], [l, w, h], [vx, vy]) = (row.centre, row.size, row.velocity);
+    format!(
+        "{frame},{:.3},{},{},{x:.4},{y:.4},{z:.4},{:.5},{l:.3},{w:.3},{h:.3},{vx:.3},{vy:.3},{},{}\n",
+        row.t,
+        row.id,
+        row.class,
+        row.yaw,
+        u8::from(row.is_static),
+        u8::from(visible)
+    )
+}
+
 /// One object at one time.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ObjectRow {
@@ -23,6 +42,22 @@ pub struct ObjectRow {
     pub velocity: [f64; 2],
     /// Static flag (false when absent).
     pub is_static: bool,
+}
+
+impl ObjectRow {
+    /// A row for a 3D box at time `t`.
+    pub fn from_box(t: f64, id: u32, class: &str, b: &Box3d, velocity: [f64; 2], is_static: bool) -> Self {
+        ObjectRow {
+            t,
+            id,
+            class: class.to_owned(),
+            centre: [b.x, b.y, b.z],
+            yaw: b.yaw,
+            size: [b.l, b.w, b.h],
+            velocity,
+            is_static,
+        }
+    }
 }
 
 /// Read every row; the error names the file, line and column.

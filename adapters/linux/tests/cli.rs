@@ -632,3 +632,44 @@ fn import_inspect_export_a_drive_and_report_damage_without_failing() {
     let out = dash2sim(&["import", "-o", &log]);
     assert!(!out.status.success() && stderr(&out).contains("nothing to import"), "{}", stderr(&out));
 }
+
+#[test]
+fn demo_runs_the_pipeline_and_leaves_every_product_behind() {
+    let dir = scratch("demo");
+    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "20", "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert!(stderr(&out).contains("[6/6]"), "progress on stderr");
+    // Anchoring becomes observable and lands within a few metres of the truth.
+    assert!(s["anchoring"]["observable_after_s"].as_f64().is_some_and(|t| t < 15.0), "{s}");
+    assert!(s["anchoring"]["ape_rmse_m"].as_f64().is_some_and(|e| e < 4.0), "{s}");
+    assert!(s["tracking"]["mota"].as_f64().is_some_and(|m| m > 0.5), "{s}");
+    assert_eq!(s["log"]["damaged"], 0);
+    for name in [
+        "drive.d2slog",
+        "drive.mcap",
+        "ego.tum",
+        "drive.geojson",
+        "road.map",
+        "anchored.tum",
+        "tracks.csv",
+        "summary.json",
+    ] {
+        assert!(dir.join(name).is_file(), "{name} written");
+    }
+    // The log is what inspect and verify read.
+    let log = dir.join("drive.d2slog").display().to_string();
+    let inspect: serde_json::Value =
+        serde_json::from_slice(&dash2sim(&["inspect", &log, "--json"]).stdout).expect("json");
+    for kind in ["GnssFix", "VehicleSpeed", "VoPose", "EgoPose", "AnchorEstimate", "Tracks3d", "Verification", "Event"]
+    {
+        assert!(inspect["by_type"][kind].as_u64().is_some_and(|n| n > 0), "{kind}: {inspect}");
+    }
+    let map = dir.join("road.map").display().to_string();
+    let verify: serde_json::Value =
+        serde_json::from_slice(&dash2sim(&["verify", &log, "--map", &map, "--json"]).stdout).expect("json");
+    let score = verify["score"].as_f64().expect("score");
+    assert!((score - s["verification"]["recovered"]["score"].as_f64().expect("score")).abs() < 1e-9, "{verify} {s}");
+    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "5"]);
+    assert!(!out.status.success() && stderr(&out).contains("--duration"));
+}

@@ -82,7 +82,8 @@ fn parse_origin(text: &str) -> Result<[f64; 3], String> {
     }
 }
 
-fn nmea_records(path: &Path, offset_s: f64, out: &mut Vec<Record>) -> Result<Option<[f64; 3]>, String> {
+/// Records from one source (as `import` reads it).
+pub fn nmea_records(path: &Path, offset_s: f64, out: &mut Vec<Record>) -> Result<Option<[f64; 3]>, String> {
     let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut stream: Stream = Stream::new();
     let mut first = None;
@@ -177,7 +178,8 @@ fn can_records(request: &ImportRequest, path: &Path, out: &mut Vec<Record>) -> R
     Ok(())
 }
 
-fn traj_records(path: &Path, out: &mut Vec<Record>) -> Result<(), String> {
+/// Records from one source (as `import` reads it).
+pub fn traj_records(path: &Path, out: &mut Vec<Record>) -> Result<(), String> {
     let traj = Trajectory::read(path, Format::Tum).map_err(|e| e.to_string())?;
     for (t, p) in traj.stamps.iter().zip(&traj.poses) {
         out.push(Record::EgoPose(EgoPose {
@@ -191,7 +193,8 @@ fn traj_records(path: &Path, out: &mut Vec<Record>) -> Result<(), String> {
     Ok(())
 }
 
-fn object_records(path: &Path, out: &mut Vec<Record>) -> Result<(), String> {
+/// Records from one source (as `import` reads it).
+pub fn object_records(path: &Path, out: &mut Vec<Record>) -> Result<(), String> {
     // One batch per time (split into records of at most MAX_TRACKS).
     let mut by_time: std::collections::BTreeMap<i64, Vec<Track3d>> = std::collections::BTreeMap::new();
     for row in crate::objects::read(path)? {

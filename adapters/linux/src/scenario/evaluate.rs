@@ -46,6 +46,8 @@ pub struct TrackingReport {
     pub static_judged: usize,
     /// The tracker's counters.
     pub stats: Stats3d,
+    /// Every track report, with its frame number.
+    pub tracks: Vec<(u64, Track3dOutput)>,
 }
 
 impl TrackingReport {
@@ -151,6 +153,7 @@ pub fn evaluate_tracking<const N: usize>(scenario: &Scenario, config: Config3d<'
         static_correct,
         static_judged,
         stats: *tracker.stats(),
+        tracks: outputs,
     }
 }
 

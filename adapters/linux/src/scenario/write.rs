@@ -2,6 +2,7 @@
 //! TUM trajectories, NMEA 0183, CSV, MOTChallenge text files and an OpenStreetMap file of
 //! the road. `docs/scenario.md` lists every file and column.
 
+use crate::objects::ObjectRow;
 use std::fmt::Write as _;
 use std::fs;
 use std::io::{self, BufWriter, Write};
@@ -71,29 +72,14 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
     out.flush()?;
 
     let mut out = create(dir, "objects.csv", &mut written)?;
-    writeln!(out, "frame,t_s,id,class,x,y,z,yaw,l,w,h,vx,vy,static,visible")?;
+    writeln!(out, "{}", crate::objects::HEADER)?;
     for f in &scenario.frames {
         for o in &f.objects {
-            let b = &o.bbox;
-            writeln!(
-                out,
-                "{},{:.3},{},{},{:.4},{:.4},{:.4},{:.5},{:.3},{:.3},{:.3},{:.3},{:.3},{},{}",
-                f.index,
-                f.ego.t,
-                o.id,
-                o.class.name(),
-                b.x,
-                b.y,
-                b.z,
-                b.yaw,
-                b.l,
-                b.w,
-                b.h,
-                o.velocity[0],
-                o.velocity[1],
-                u8::from(o.is_static()),
-                u8::from(f.visible.contains(&o.id))
-            )?;
+            let visible = f.visible.contains(&o.id);
+            let v = [o.velocity[0], o.velocity[1]];
+            let row = ObjectRow::from_box(f.ego.t, o.id, o.class.name(), &o.bbox, v, o.is_static());
+            let text = crate::objects::line(u64::from(f.index), &row, visible);
+            out.write_all(text.as_bytes())?;
         }
     }
     out.flush()?;
