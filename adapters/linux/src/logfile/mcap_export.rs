@@ -11,6 +11,8 @@
 //! | `/map` | `foxglove.SceneUpdate` | map lanes as line strips (with `--map`) |
 //! | `/events` | `foxglove.Log` | events |
 //! | `/speed` | `dash2sim.VehicleSpeed` | vehicle speed |
+//! | `/anchor` | `dash2sim.AnchorEstimate` | the VO → ENU anchor and its quality |
+//! | `/verification` | `dash2sim.Verification` | nuPlan-style metrics, score, verdict |
 //!
 //! Chunks are zstd-compressed; every record carries a CRC.
 
@@ -96,7 +98,33 @@ fn schemas() -> Vec<(&'static str, String)> {
                 &format!(r#""timestamp":{TIME},"speed_mps":{{"type":"number"}},"source":{{"type":"string"}}"#),
             ),
         ),
+        (
+            "dash2sim.AnchorEstimate",
+            schema(
+                "dash2sim.AnchorEstimate",
+                &format!(
+                    r#""timestamp":{TIME},"scale":{{"type":"number"}},"yaw_rad":{{"type":"number"}},"pitch_rad":{{"type":"number"}},"roll_rad":{{"type":"number"}},"translation":{v},"observability":{{"type":"string"}},"anchors":{{"type":"integer","minimum":0}},"rms_residual_m":{{"type":"number","minimum":0}}"#
+                ),
+            ),
+        ),
+        (
+            "dash2sim.Verification",
+            schema(
+                "dash2sim.Verification",
+                &format!(
+                    r#""timestamp":{TIME},"metrics":{{"type":"object","additionalProperties":{{"type":"number","minimum":0,"maximum":1}}}},"score":{{"type":"number","minimum":0,"maximum":100}},"verified":{{"type":"boolean"}},"worst_corner_outside_m":{{"type":"number"}}"#
+                ),
+            ),
+        ),
     ]
+}
+
+fn observability_name(code: i64) -> &'static str {
+    match code {
+        2 => "observable",
+        1 => "collinear",
+        _ => "none",
+    }
 }
 
 fn time(t_us: i64) -> Value {
@@ -194,6 +222,47 @@ pub fn messages(log: &LogContents, map: Option<&MapView<'_>>) -> Vec<(&'static s
                     scenes.entry(batch.t_us).or_default().push(Value::Object(e));
                 }
             }
+            Record::AnchorEstimate(a) => out.push((
+                "/anchor",
+                "dash2sim.AnchorEstimate",
+                a.t_us,
+                json!({
+                    "timestamp": time(a.t_us),
+                    "scale": a.scale_e6 as f64 * 1e-6,
+                    "yaw_rad": a.yaw_e6 as f64 * 1e-6,
+                    "pitch_rad": a.pitch_e6 as f64 * 1e-6,
+                    "roll_rad": a.roll_e6 as f64 * 1e-6,
+                    "translation": {"x": a.tx_mm as f64 * 1e-3, "y": a.ty_mm as f64 * 1e-3, "z": a.tz_mm as f64 * 1e-3},
+                    "observability": observability_name(a.observability),
+                    "anchors": a.anchors.max(0),
+                    "rms_residual_m": a.rms_mm.max(0) as f64 * 1e-3,
+                }),
+            )),
+            Record::Verification(v) => {
+                let m = |x: i64| (x as f64 * 1e-4).clamp(0.0, 1.0);
+                let score = (v.score_e2 as f64 * 1e-2).clamp(0.0, 100.0);
+                out.push((
+                    "/verification",
+                    "dash2sim.Verification",
+                    v.t_us,
+                    json!({
+                        "timestamp": time(v.t_us),
+                        "metrics": {
+                            "no_at_fault_collisions": m(v.collisions_e4),
+                            "drivable_area_compliance": m(v.drivable_e4),
+                            "driving_direction_compliance": m(v.direction_e4),
+                            "ego_is_making_progress": m(v.making_progress_e4),
+                            "ego_progress_along_expert_route": m(v.progress_e4),
+                            "time_to_collision_within_bound": m(v.ttc_e4),
+                            "speed_limit_compliance": m(v.speed_limit_e4),
+                            "ego_is_comfortable": m(v.comfort_e4),
+                        },
+                        "score": score,
+                        "verified": score > dash2sim_core::score::VERIFIED_ABOVE,
+                        "worst_corner_outside_m": v.worst_corner_mm as f64 * 1e-3,
+                    }),
+                ));
+            }
             Record::VehicleSpeed(s) => out.push((
                 "/speed",
                 "dash2sim.VehicleSpeed",
@@ -240,7 +309,8 @@ pub fn messages(log: &LogContents, map: Option<&MapView<'_>>) -> Vec<(&'static s
 }
 
 /// One topic per record kind: the log's content once, for size comparisons.
-pub const ONE_TOPIC_PER_KIND: [&str; 5] = ["/gnss", "/ego/pose", "/speed", "/objects", "/events"];
+pub const ONE_TOPIC_PER_KIND: [&str; 7] =
+    ["/gnss", "/ego/pose", "/speed", "/objects", "/events", "/anchor", "/verification"];
 
 /// Write the MCAP (all topics, or only `topics`); returns messages per topic.
 pub fn write(
