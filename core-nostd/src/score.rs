@@ -68,21 +68,48 @@ pub struct Agent {
     pub velocity: (f64, f64),
 }
 
-/// nuPlan's comfort bounds.
+/// The six quantities nuPlan's comfort metric bounds — as bounds in [`ScoreConfig`], as
+/// the extremes a drive reached in [`Scores`].
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ComfortBounds {
-    /// Longitudinal acceleration range, m/s².
+pub struct Comfort {
+    /// Longitudinal acceleration range (bounds) or min and max (extremes), m/s².
     pub lon_accel: (f64, f64),
-    /// |lateral acceleration| bound, m/s².
+    /// |Lateral acceleration|, m/s².
     pub lat_accel: f64,
-    /// |jerk| bound, m/s³.
+    /// |Jerk|, m/s³.
     pub jerk: f64,
-    /// |longitudinal jerk| bound, m/s³.
+    /// |Longitudinal jerk|, m/s³.
     pub lon_jerk: f64,
-    /// |yaw rate| bound, rad/s.
+    /// |Yaw rate|, rad/s.
     pub yaw_rate: f64,
-    /// |yaw acceleration| bound, rad/s².
+    /// |Yaw acceleration|, rad/s².
     pub yaw_accel: f64,
+}
+
+impl Comfort {
+    /// Extremes before anything was measured.
+    const NONE: Comfort = Comfort {
+        lon_accel: (f64::INFINITY, f64::NEG_INFINITY),
+        lat_accel: 0.0,
+        jerk: 0.0,
+        lon_jerk: 0.0,
+        yaw_rate: 0.0,
+        yaw_accel: 0.0,
+    };
+
+    /// Whether these extremes stay strictly inside `bounds`.
+    fn within(&self, bounds: &Comfort) -> bool {
+        let b = bounds;
+        // No window filled yet: nothing measured, nothing out of bounds.
+        let measured = self.lon_accel.0 <= self.lon_accel.1;
+        let lon_ok = !measured || (self.lon_accel.0 > b.lon_accel.0 && self.lon_accel.1 < b.lon_accel.1);
+        lon_ok
+            && self.lat_accel < b.lat_accel
+            && self.jerk < b.jerk
+            && self.lon_jerk < b.lon_jerk
+            && self.yaw_rate < b.yaw_rate
+            && self.yaw_accel < b.yaw_accel
+    }
 }
 
 /// The settings of every metric; [`Default`] is nuPlan's.
@@ -111,7 +138,7 @@ pub struct ScoreConfig {
     /// Progress below this (ego or expert) counts as this, m.
     pub min_progress: f64,
     /// Comfort bounds.
-    pub comfort: ComfortBounds,
+    pub comfort: Comfort,
 }
 
 impl Default for ScoreConfig {
@@ -128,7 +155,7 @@ impl Default for ScoreConfig {
             overspeed_scale: 2.23,
             min_progress_ratio: 0.2,
             min_progress: 2.0,
-            comfort: ComfortBounds {
+            comfort: Comfort {
                 lon_accel: (-4.05, 2.40),
                 lat_accel: 4.89,
                 jerk: 8.37,
@@ -188,46 +215,6 @@ pub struct StepReport {
     pub collision: Option<Collision>,
 }
 
-/// Extremes of the comfort quantities seen so far.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ComfortExtremes {
-    /// Longitudinal acceleration min, max, m/s².
-    pub lon_accel: (f64, f64),
-    /// Max |lateral acceleration|, m/s².
-    pub lat_accel: f64,
-    /// Max |jerk|, m/s³.
-    pub jerk: f64,
-    /// Max |longitudinal jerk|, m/s³.
-    pub lon_jerk: f64,
-    /// Max |yaw rate|, rad/s.
-    pub yaw_rate: f64,
-    /// Max |yaw acceleration|, rad/s².
-    pub yaw_accel: f64,
-}
-
-impl ComfortExtremes {
-    const NONE: ComfortExtremes = ComfortExtremes {
-        lon_accel: (f64::INFINITY, f64::NEG_INFINITY),
-        lat_accel: 0.0,
-        jerk: 0.0,
-        lon_jerk: 0.0,
-        yaw_rate: 0.0,
-        yaw_accel: 0.0,
-    };
-
-    fn within(&self, b: &ComfortBounds) -> bool {
-        // No window filled yet: nothing measured, nothing out of bounds.
-        let measured = self.lon_accel.0 <= self.lon_accel.1;
-        let lon_ok = !measured || (self.lon_accel.0 > b.lon_accel.0 && self.lon_accel.1 < b.lon_accel.1);
-        lon_ok
-            && self.lat_accel < b.lat_accel
-            && self.jerk < b.jerk
-            && self.lon_jerk < b.lon_jerk
-            && self.yaw_rate < b.yaw_rate
-            && self.yaw_accel < b.yaw_accel
-    }
-}
-
 /// Savitzky–Golay (quadratic) first and second derivative at the centre of a window of
 /// equally spaced samples `dt` apart.
 fn savitzky_golay(values: impl Iterator<Item = f64>, dt: f64) -> (f64, f64) {
@@ -246,17 +233,17 @@ fn savitzky_golay(values: impl Iterator<Item = f64>, dt: f64) -> (f64, f64) {
 
 /// Sliding-window comfort derivatives.
 #[derive(Clone, Debug)]
-struct Comfort {
+struct ComfortWindow {
     /// (t, x, y, unwrapped heading).
     poses: Deque<(f64, f64, f64, f64), COMFORT_WINDOW>,
     /// (t, |a|, a_lon) at the centres of pose windows.
     accels: Deque<(f64, f64, f64), COMFORT_WINDOW>,
-    extremes: ComfortExtremes,
+    extremes: Comfort,
 }
 
-impl Comfort {
+impl ComfortWindow {
     fn new() -> Self {
-        Comfort { poses: Deque::new(), accels: Deque::new(), extremes: ComfortExtremes::NONE }
+        ComfortWindow { poses: Deque::new(), accels: Deque::new(), extremes: Comfort::NONE }
     }
 
     fn push(&mut self, t: f64, pose: &Pose2) {
@@ -352,7 +339,7 @@ pub struct Scores {
     /// Duration, s.
     pub duration: f64,
     /// Comfort extremes.
-    pub comfort_extremes: ComfortExtremes,
+    pub comfort_extremes: Comfort,
 }
 
 /// Scores a drive pose by pose.
@@ -366,7 +353,7 @@ pub struct Scorer<'a, 's, const WORDS: usize> {
     lane: Option<(u32, f64)>,
     direction: Deque<(f64, f64), DIRECTION_CAPACITY>,
     collided: heapless::Vec<u32, COLLISION_CAPACITY>,
-    comfort: Comfort,
+    comfort: ComfortWindow,
     poses: u32,
     noncompliant: u32,
     worst_corner: f64,
@@ -389,7 +376,7 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
             lane: None,
             direction: Deque::new(),
             collided: heapless::Vec::new(),
-            comfort: Comfort::new(),
+            comfort: ComfortWindow::new(),
             poses: 0,
             noncompliant: 0,
             worst_corner: f64::NEG_INFINITY,
@@ -607,8 +594,8 @@ mod tests {
 
     #[test]
     fn comfort_sees_a_hard_brake_and_not_a_steady_cruise() {
-        let mut cruise = Comfort::new();
-        let mut brake = Comfort::new();
+        let mut cruise = ComfortWindow::new();
+        let mut brake = ComfortWindow::new();
         for i in 0..40 {
             let t = f64::from(i) * 0.1;
             cruise.push(t, &Pose2::new(15.0 * t, 0.0, 0.0));

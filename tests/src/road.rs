@@ -11,22 +11,43 @@ pub const ORIGIN: (f64, f64) = (60.2, 24.9);
 
 /// A tile holding one `highway=primary` way through `points` (ENU metres) with `tags`.
 pub fn tile(points: &[(f64, f64)], tags: &[(&str, &str)]) -> Vec<u8> {
+    tile_of_ways(&[(points, "primary", tags)])
+}
+
+/// One way of a constructed road: ENU points, highway class, other tags.
+pub type WaySpec<'a> = (&'a [(f64, f64)], &'a str, &'a [(&'a str, &'a str)]);
+
+/// A tile of several ways. Ways meet where they share a point exactly (one OSM node).
+pub fn tile_of_ways(ways: &[WaySpec<'_>]) -> Vec<u8> {
     let origin = Geodetic::new(ORIGIN.0, ORIGIN.1, 0.0).expect("origin");
     let frame = LocalFrame::new(origin);
+    let mut nodes: Vec<(f64, f64)> = Vec::new();
+    let mut node_id = |p: (f64, f64)| match nodes.iter().position(|q| *q == p) {
+        Some(i) => i + 1,
+        None => {
+            nodes.push(p);
+            nodes.len()
+        }
+    };
+    let mut way_xml = String::new();
+    for (k, (points, class, tags)) in ways.iter().enumerate() {
+        way_xml += &format!("  <way id=\"{}\">\n", k + 1);
+        for p in points.iter() {
+            way_xml += &format!("    <nd ref=\"{}\"/>\n", node_id(*p));
+        }
+        way_xml += &format!("    <tag k=\"highway\" v=\"{class}\"/>\n");
+        for (key, v) in tags.iter() {
+            way_xml += &format!("    <tag k=\"{key}\" v=\"{v}\"/>\n");
+        }
+        way_xml += "  </way>\n";
+    }
     let mut xml = String::from("<?xml version=\"1.0\"?>\n<osm version=\"0.6\">\n");
-    for (k, (x, y)) in points.iter().enumerate() {
+    for (k, (x, y)) in nodes.iter().enumerate() {
         let g = frame.enu_to_geodetic(&Vector3::new(*x, *y, 0.0)).expect("geodetic");
         xml += &format!("  <node id=\"{}\" lat=\"{:.9}\" lon=\"{:.9}\"/>\n", k + 1, g.lat_deg, g.lon_deg);
     }
-    xml += "  <way id=\"1\">\n";
-    for k in 0..points.len() {
-        xml += &format!("    <nd ref=\"{}\"/>\n", k + 1);
-    }
-    xml += "    <tag k=\"highway\" v=\"primary\"/>\n";
-    for (k, v) in tags {
-        xml += &format!("    <tag k=\"{k}\" v=\"{v}\"/>\n");
-    }
-    xml += "  </way>\n</osm>\n";
+    xml += &way_xml;
+    xml += "</osm>\n";
     let data = dash2sim_linux::osm::parse_xml(&xml, "test.osm").expect("valid OSM");
     let mut warnings = Vec::new();
     let content = from_osm(&data, Some(origin), &mut warnings);

@@ -8,11 +8,12 @@
 //!
 //! Targets (issue #6): the log ≤ 1/3 of the MCAP; ego poses ≤ 12 bytes on average.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::binlog::Kind;
 use dash2sim_linux::logfile::{self, import::ImportRequest, mcap_export};
+use dash2sim_linux::scenario::write::{import_request, write_scenario};
+use dash2sim_linux::scenario::{generate, ScenarioConfig};
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("dash2sim-binlog-size-{}-{name}", std::process::id()));
@@ -55,7 +56,9 @@ fn ublox_nmea(csv: &Path) -> (String, f64) {
     (out, offset.expect("rows"))
 }
 
-fn sizes(log_path: &Path, mcap_path: &Path) -> (u64, u64, f64, f64) {
+/// Measure the log at `log_path` against the same content as MCAP (written to
+/// `mcap_path`), print the figures and assert the targets.
+fn check_size(name: &str, log_path: &Path, mcap_path: &Path) {
     let log = logfile::read(log_path).expect("a log");
     assert_eq!(log.stats.damaged, 0);
     mcap_export::write(&log, None, mcap_path, Some(&mcap_export::ONE_TOPIC_PER_KIND)).expect("mcap");
@@ -64,7 +67,15 @@ fn sizes(log_path: &Path, mcap_path: &Path) -> (u64, u64, f64, f64) {
     let i = Kind::ALL.iter().position(|k| *k == Kind::EgoPose).expect("kind");
     let pose_bytes = log.stats.bytes[i] as f64 / log.stats.records[i].max(1) as f64;
     let (log_bytes, mcap_bytes) = (log.bytes, std::fs::metadata(mcap_path).expect("mcap").len());
-    (log_bytes, mcap_bytes, minutes, pose_bytes)
+    let report = format!(
+        "{name}: {minutes:.2} min, log {log_bytes} B ({:.0} B/min), MCAP zstd {mcap_bytes} B ({:.0} B/min), ratio {:.3}, ego pose {pose_bytes:.2} B",
+        log_bytes as f64 / minutes,
+        mcap_bytes as f64 / minutes,
+        log_bytes as f64 / mcap_bytes as f64
+    );
+    println!("{report}");
+    assert!(log_bytes * 3 <= mcap_bytes, "{report}");
+    assert!(pose_bytes <= 12.0, "{report}");
 }
 
 #[test]
@@ -91,51 +102,20 @@ fn the_comma2k19_minute_is_a_third_of_its_mcap() {
     let log = logfile::read(&output).expect("log");
     let count = |kind: Kind| log.records.iter().filter(|r| r.kind() == kind).count();
     assert_eq!((count(Kind::GnssFix), count(Kind::VehicleSpeed), count(Kind::EgoPose)), (579, 2487, 1200));
-    let (log_bytes, mcap_bytes, minutes, pose_bytes) = sizes(&output, &work.join("same.mcap"));
-    let mut report = String::new();
-    let _ = write!(
-        report,
-        "comma2k19: {:.2} min, log {log_bytes} B ({:.0} B/min), MCAP zstd {mcap_bytes} B ({:.0} B/min), ratio {:.3}, ego pose {pose_bytes:.2} B",
-        minutes,
-        log_bytes as f64 / minutes,
-        mcap_bytes as f64 / minutes,
-        log_bytes as f64 / mcap_bytes as f64
-    );
-    println!("{report}");
-    assert!(log_bytes * 3 <= mcap_bytes, "{report}");
-    assert!(pose_bytes <= 12.0, "{report}");
+    check_size("comma2k19", &output, &work.join("same.mcap"));
 }
 
 #[test]
 fn a_work_zone_drive_with_3d_tracks_is_a_third_of_its_mcap() {
     let work = scratch("scenario");
     let drive = work.join("drive");
-    dash2sim_linux::scenario::command::run_generate(1, 40.0, &drive).expect("scenario");
+    let scenario = generate(&ScenarioConfig { seed: 1, duration_s: 40.0, ..ScenarioConfig::default() });
+    write_scenario(&scenario, &drive).expect("scenario");
     let output = work.join("drive.d2slog");
-    let request = ImportRequest {
-        output: output.clone(),
-        nmea: Some(drive.join("gnss.nmea")),
-        // The scenario's clock starts at 2026-06-01T08:00:00Z.
-        nmea_offset_s: -1_780_300_800.0,
-        speed_unit: 1.0,
-        traj: Some(drive.join("ego.tum")),
-        objects: Some(drive.join("objects.csv")),
-        origin: Some("60.2711,24.8572".to_owned()),
-        ..ImportRequest::default()
-    };
+    let request = import_request(&scenario, &drive, output.clone());
     logfile::import::run(&request).expect("import");
     let log = logfile::read(&output).expect("log");
     let tracks = logfile::export::tracks(&log).count();
     assert!(tracks > 10_000, "{tracks} 3D track records");
-    let (log_bytes, mcap_bytes, minutes, pose_bytes) = sizes(&output, &work.join("same.mcap"));
-    let report = format!(
-        "work zone: {:.2} min, {tracks} tracks, log {log_bytes} B ({:.0} B/min), MCAP zstd {mcap_bytes} B ({:.0} B/min), ratio {:.3}, ego pose {pose_bytes:.2} B",
-        minutes,
-        log_bytes as f64 / minutes,
-        mcap_bytes as f64 / minutes,
-        log_bytes as f64 / mcap_bytes as f64
-    );
-    println!("{report}");
-    assert!(log_bytes * 3 <= mcap_bytes, "{report}");
-    assert!(pose_bytes <= 12.0, "{report}");
+    check_size(&format!("work zone ({tracks} tracks)"), &output, &work.join("same.mcap"));
 }

@@ -8,7 +8,7 @@ use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{OrientedBox, Pose2, PACIFICA};
 use dash2sim_core::score::{Agent, AgentKind};
 use dash2sim_linux::verify::{replay, Verification};
-use dash2sim_tests::road::{straight_road, tile};
+use dash2sim_tests::road::{straight_road, tile, tile_of_ways};
 
 const DT: f64 = 0.1;
 
@@ -261,25 +261,9 @@ fn collisions_are_classified_as_nuplan_does() {
 #[test]
 fn junctions_are_lenient_a_turn_across_the_corner_of_two_ways_complies() {
     // Two ways meet at a right angle at the origin: A comes from the west, B leaves north.
-    let origin = dash2sim_core::geo::Geodetic::new(dash2sim_tests::road::ORIGIN.0, dash2sim_tests::road::ORIGIN.1, 0.0)
-        .expect("origin");
-    let frame = dash2sim_core::geo::LocalFrame::new(origin);
-    let node = |id: u32, x: f64, y: f64| {
-        let g = frame.enu_to_geodetic(&dash2sim_core::nalgebra::Vector3::new(x, y, 0.0)).expect("geodetic");
-        format!("<node id=\"{id}\" lat=\"{:.9}\" lon=\"{:.9}\"/>", g.lat_deg, g.lon_deg)
-    };
-    let xml = format!(
-        "<osm version=\"0.6\">{}{}{}<way id=\"1\"><nd ref=\"1\"/><nd ref=\"2\"/><tag k=\"highway\" v=\"residential\"/></way>\
-         <way id=\"2\"><nd ref=\"2\"/><nd ref=\"3\"/><tag k=\"highway\" v=\"residential\"/></way></osm>",
-        node(1, -100.0, 0.0),
-        node(2, 0.0, 0.0),
-        node(3, 0.0, 100.0)
-    );
-    let data = dash2sim_linux::osm::parse_xml(&xml, "junction.osm").expect("valid");
-    let map = dash2sim_linux::map_tile::encode(
-        &dash2sim_linux::map_tile::from_osm(&data, Some(origin), &mut Vec::new()),
-        50.0,
-    );
+    let (a, b) = ([(-100.0, 0.0), (0.0, 0.0)], [(0.0, 0.0), (0.0, 100.0)]);
+    let map = tile_of_ways(&[(&a, "residential", &[]), (&b, "residential", &[])]);
+    assert_eq!(MapView::parse(&map).expect("valid").header().lanes, 4, "two lanes per way");
     // East in A's right lane (y = −1.75), a left turn of radius 8 m, north in B's right
     // lane (x = +1.75).
     let (r, cx, cy) = (8.0, 1.75 - 8.0, -1.75 + 8.0);

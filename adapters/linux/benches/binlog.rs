@@ -5,23 +5,16 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use dash2sim_core::binlog::{Decoder, Event};
-use dash2sim_linux::logfile::{self, import::ImportRequest};
+use dash2sim_linux::logfile;
+use dash2sim_linux::scenario::write::{import_request, write_scenario};
+use dash2sim_linux::scenario::{generate, ScenarioConfig};
 
 fn throughput(c: &mut Criterion) {
     let dir = std::env::temp_dir().join(format!("d2s-bench-binlog-{}", std::process::id()));
-    dash2sim_linux::scenario::command::run_generate(1, 40.0, &dir.join("drive")).expect("scenario");
+    let scenario = generate(&ScenarioConfig { duration_s: 40.0, ..ScenarioConfig::default() });
+    write_scenario(&scenario, &dir.join("drive")).expect("scenario");
     let output = dir.join("drive.d2slog");
-    let request = ImportRequest {
-        output: output.clone(),
-        nmea: Some(dir.join("drive/gnss.nmea")),
-        nmea_offset_s: -1_780_300_800.0,
-        speed_unit: 1.0,
-        traj: Some(dir.join("drive/ego.tum")),
-        objects: Some(dir.join("drive/objects.csv")),
-        origin: Some("60.2711,24.8572".to_owned()),
-        ..ImportRequest::default()
-    };
-    logfile::import::run(&request).expect("import");
+    logfile::import::run(&import_request(&scenario, &dir.join("drive"), output.clone())).expect("import");
     let bytes = std::fs::read(&output).expect("log");
     let log = logfile::decode(&bytes, "bench").expect("log");
     let header = log.header.expect("header");

@@ -39,8 +39,6 @@ pub fn receiver() -> GnssModel {
 }
 /// The GNSS σ the anchorer is told, m.
 const SIGMA_M: f64 = 2.0;
-/// Seconds from the Unix epoch to the scenario's start (2026-06-01T08:00:00Z).
-const SCENARIO_EPOCH_S: f64 = 1_780_300_800.0;
 
 fn step(n: u32, text: &str) {
     eprintln!("[{n}/6] {text}");
@@ -139,7 +137,7 @@ pub fn run(out: &Path, seed: u64, duration_s: f64, as_json: bool) -> Result<(), 
 
     step(5, "writing the compact 4D log");
     let mut records = Vec::new();
-    logfile::import::nmea_records(&drive.join("gnss.nmea"), -SCENARIO_EPOCH_S, &mut records)?;
+    logfile::import::nmea_records(&drive.join("gnss.nmea"), -crate::scenario::write::START_UNIX_S, &mut records)?;
     logfile::import::traj_records(&anchored_path, &mut records)?;
     logfile::import::object_records(&tracks_path, &mut records)?;
     for (t, v) in &speed {

@@ -361,20 +361,14 @@ impl Streams {
         s.seen = s.seen.saturating_add(1).min(2);
     }
 
-    /// Encode `record`'s payload into `out`; its length, or `None` if it does not fit.
-    /// The state advances only on success.
+    /// Encode `record`'s payload into `out`; its length, or `None` if it does not fit (or
+    /// is a `Tracks3d` batch, see [`Streams::tracks_begin`]). The state advances only on
+    /// success.
     pub fn encode(&mut self, record: &Record, out: &mut [u8]) -> Option<usize> {
-        if let Record::Tracks3d(batch) = record {
-            // All or nothing: encode on a copy, keep it only if every track fitted.
-            let mut state = self.clone();
-            let mut frame = state.tracks_begin(batch.t_us);
-            if !batch.tracks.iter().all(|t| state.tracks_append(&mut frame, t)) {
-                return None;
-            }
-            let payload = state.tracks_finish(&mut frame);
-            out.get_mut(..payload.len())?.copy_from_slice(payload);
-            *self = state;
-            return Some(payload.len());
+        if let Record::Tracks3d(_) = record {
+            // Batches go through `tracks_begin` / `tracks_append` / `tracks_finish`, which
+            // join the batches of one time into a frame.
+            return None;
         }
         let kind = record.kind();
         let mut values = [0i64; MAX_FIELDS];

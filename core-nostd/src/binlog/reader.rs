@@ -85,23 +85,16 @@ impl Stats {
     }
 }
 
-enum Frame<'a> {
+enum Frame {
     /// Need more bytes to decide.
     Incomplete,
     /// Not a frame here.
     Invalid,
-    /// A frame: kind code, payload, total length.
-    Valid(u8, &'a [u8], usize),
+    /// A frame: kind code, where its payload lies in the frame, total length.
+    Valid(u8, core::ops::Range<usize>, usize),
 }
 
-impl Frame<'_> {
-    /// Where the payload lies within the frame.
-    fn payload_range(payload_len: usize, total: usize) -> core::ops::Range<usize> {
-        total - 4 - payload_len..total - 4
-    }
-}
-
-fn frame_at(b: &[u8]) -> Frame<'_> {
+fn frame_at(b: &[u8]) -> Frame {
     let mut at = 0;
     let Some(len) = get(b, &mut at) else {
         // Up to 2 length bytes are legal; a longer run of continuation bytes is garbage.
@@ -114,7 +107,7 @@ fn frame_at(b: &[u8]) -> Frame<'_> {
     if CRC32C.checksum(body) != u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]) {
         return Frame::Invalid;
     }
-    Frame::Valid(body[at], &body[at + 1..], total)
+    Frame::Valid(body[at], at + 1..total - 4, total)
 }
 
 /// The push decoder with an `N`-byte buffer (at least two frames).
@@ -264,8 +257,7 @@ impl<const N: usize> Decoder<N> {
                     }
                     self.skip(1);
                 }
-                Frame::Valid(code, payload, total) => {
-                    let range = Frame::payload_range(payload.len(), total);
+                Frame::Valid(code, range, total) => {
                     self.end_damage(on);
                     let payload = &self.buffer[self.start + range.start..self.start + range.end];
                     handle(&mut self.streams, &mut self.stats, code, payload, total, on);

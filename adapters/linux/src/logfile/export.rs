@@ -58,10 +58,13 @@ pub fn class_name(code: i64) -> &'static str {
 
 /// Every 3D track with its time, in log order.
 pub fn tracks(log: &LogContents) -> impl Iterator<Item = (i64, &Track3d)> {
-    log.records.iter().flat_map(|r| match r {
-        Record::Tracks3d(b) => b.tracks.iter().map(move |t| (b.t_us, t)).collect::<Vec<_>>(),
-        _ => Vec::new(),
-    })
+    log.records
+        .iter()
+        .filter_map(|r| match r {
+            Record::Tracks3d(b) => Some(b),
+            _ => None,
+        })
+        .flat_map(|b| b.tracks.iter().map(move |t| (b.t_us, t)))
 }
 
 /// The last state of every 3D track, by id, with its time.

@@ -101,3 +101,23 @@ pub fn run(path: &Path, as_json: bool) -> Result<(), String> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dash2sim_core::binlog::{EgoPose, Header, Record, VehicleSpeed};
+
+    #[test]
+    fn gaps_are_per_kind_and_longer_than_a_second() {
+        let pose = |t_us| Record::EgoPose(EgoPose { t_us, ..EgoPose::default() });
+        let speed = |t_us| Record::VehicleSpeed(VehicleSpeed { t_us, ..VehicleSpeed::default() });
+        // Poses stop for 1.5 s while speeds go on: a pose gap only.
+        let mut records = vec![pose(0), speed(0), pose(100_000), speed(800_000), speed(1_500_000), pose(1_600_000)];
+        let header = Header { device_id: [0; 16], origin: [0; 3] };
+        let bytes = crate::logfile::import::encode(&header, &mut records).expect("encodes");
+        let log = crate::logfile::decode(&bytes, "test").expect("a log");
+        assert_eq!(gaps(&log), vec![(Kind::EgoPose, 0.1, 1.6)]);
+        let r = report(&log);
+        assert_eq!((r["records"].as_u64(), r["by_type"]["EgoPose"].as_u64()), (Some(6), Some(3)), "{r}");
+    }
+}

@@ -21,8 +21,6 @@ pub struct LogContents {
     pub records: Vec<Record>,
     /// Damaged stretches: (offset, length).
     pub damage: Vec<(u64, u64)>,
-    /// Index records: (segment, records, bytes).
-    pub indexes: Vec<(u64, u64, u64)>,
     /// Decoder totals.
     pub stats: Stats,
     /// File length.
@@ -54,7 +52,6 @@ pub fn decode(bytes: &[u8], name: &str) -> Result<LogContents, LogError> {
         header: None,
         records: Vec::new(),
         damage: Vec::new(),
-        indexes: Vec::new(),
         stats: Stats::default(),
         bytes: bytes.len() as u64,
     };
@@ -64,8 +61,7 @@ pub fn decode(bytes: &[u8], name: &str) -> Result<LogContents, LogError> {
         Event::NotALog(e) => fatal = Some(e),
         Event::Record(r) => contents.records.push(r),
         Event::Damaged { offset, len } => contents.damage.push((offset, len)),
-        Event::Index { seq, records, bytes } => contents.indexes.push((seq, records, bytes)),
-        Event::Segment { .. } | Event::Unknown { .. } | Event::Lost(_) => {}
+        Event::Segment { .. } | Event::Index { .. } | Event::Unknown { .. } | Event::Lost(_) => {}
     };
     for chunk in bytes.chunks(64 * 1024) {
         decoder.push(chunk, &mut on);
@@ -92,7 +88,7 @@ pub fn frame(header: &Header) -> Option<LocalFrame> {
 
 /// Seconds from µs.
 pub fn seconds(t_us: i64) -> f64 {
-    t_us as f64 * 1e-6
+    t_us as f64 / 1e6
 }
 
 /// Quantise to an integer number of `unit`s (saturating; NaN → 0).

@@ -20,6 +20,25 @@ use crate::trajectory::{write_file, Format, Trajectory};
 
 /// UTC time of day of the first frame, seconds (08:00:00); the date is 2026-06-01.
 const START_SECONDS_OF_DAY: f64 = 8.0 * 3600.0;
+/// The scenario clock's zero as Unix time, s (2026-06-01T08:00:00Z): NMEA fixes carry
+/// UTC, every other file the scenario clock.
+pub const START_UNIX_S: f64 = 1_780_300_800.0;
+
+/// How `dash2sim import` reads a scenario written to `dir` into a 4D log at `output`:
+/// GNSS from the NMEA capture (moved onto the scenario clock), ego truth, objects.
+pub fn import_request(scenario: &Scenario, dir: &Path, output: PathBuf) -> crate::logfile::import::ImportRequest {
+    let [lat, lon, height] = scenario.config.origin;
+    crate::logfile::import::ImportRequest {
+        output,
+        nmea: Some(dir.join("gnss.nmea")),
+        nmea_offset_s: -START_UNIX_S,
+        speed_unit: 1.0,
+        traj: Some(dir.join("ego.tum")),
+        objects: Some(dir.join("objects.csv")),
+        origin: Some(format!("{lat},{lon},{height}")),
+        ..Default::default()
+    }
+}
 
 fn create(dir: &Path, name: &str, written: &mut Vec<PathBuf>) -> io::Result<BufWriter<fs::File>> {
     let path = dir.join(name);
