@@ -24,6 +24,7 @@
 //! | [`score`] | the nuPlan-style closed-loop score, streaming |
 //! | [`binlog`] | the compact, crash-safe 4D log: writer over `embedded-io`, push decoder |
 //! | [`can`] | CAN: J1939/NMEA 2000 ids, fast packets, GNSS/speed decoders, DBC signals |
+//! | [`pipeline`] | the on-device pipeline: raw inputs in, the 4D log out; input streams for replay |
 //!
 //! Capacity is part of the types; nothing here allocates or panics on untrusted input.
 #![no_std]
@@ -47,6 +48,7 @@ pub mod geo;
 pub mod map;
 pub mod nmea;
 pub mod obb;
+pub mod pipeline;
 pub mod score;
 pub mod sim3;
 pub mod time;

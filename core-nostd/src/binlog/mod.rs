@@ -51,6 +51,18 @@ pub const INDEX: u8 = 0x02;
 /// CRC-32C (Castagnoli), as the map tile uses.
 pub const CRC32C: Crc<u32> = Crc::<u32>::new(&CRC_32_ISCSI);
 
+/// A physical value as an integer number of `unit`s, rounded to the nearest (saturating;
+/// NaN → 0). Every quantised field of the log is made this way.
+pub fn quantise(value: f64, unit: f64) -> i64 {
+    let q = libm::round(value / unit);
+    if q.is_nan() {
+        0
+    } else {
+        // `as` saturates at the ends of i64.
+        q as i64
+    }
+}
+
 /// How a field is predicted from the previous record of its kind in the segment.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
@@ -506,6 +518,50 @@ records! {
         score_e2: Absolute,
         /// Worst corner outside the drivable area, mm.
         worst_corner_mm: Absolute,
+    }
+    /// A 3D detection in the camera frame (x forward, y left, z up, metres from the
+    /// camera), written for frames the device could not yet place in the world (no
+    /// anchored pose), so that offline finishing can place them later.
+    Detection3d = 0x1B {
+        /// Time, µs.
+        t_us: Delta,
+        /// Frame number.
+        frame: Delta,
+        /// Class.
+        class: Absolute,
+        /// Score × 1000.
+        score_e3: Absolute,
+        /// Centre forward, mm.
+        x_mm: Absolute,
+        /// Centre left, mm.
+        y_mm: Absolute,
+        /// Centre up, mm.
+        z_mm: Absolute,
+        /// Heading in the camera frame, 1e-4 rad.
+        yaw_e4: Absolute,
+        /// Length, mm.
+        l_mm: Absolute,
+        /// Width, mm.
+        w_mm: Absolute,
+        /// Height, mm.
+        h_mm: Absolute,
+        /// Covariance of the horizontal centre: xx, mm² (0: not given).
+        cov_xx_mm2: Absolute,
+        /// Covariance xy, mm².
+        cov_xy_mm2: Absolute,
+        /// Covariance yy, mm².
+        cov_yy_mm2: Absolute,
+    }
+    /// The device clock → UTC offset from here on: `t_us` is UTC and the device's
+    /// monotonic time is `t_us − offset_us`. Records before the first one carry device
+    /// time (no fix yet); readers re-time them with the first offset.
+    ClockOffset = 0x1C {
+        /// Time (UTC), µs.
+        t_us: Delta,
+        /// UTC − device monotonic time, µs.
+        offset_us: Delta,
+        /// Why: 0 first fix, 1 drift, 2 GNSS time step, 3 device clock reset.
+        reason: Absolute,
     }
 }
 
