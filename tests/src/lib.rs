@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 pub mod can;
 pub mod drive;
+pub mod recorded;
 pub mod road;
 
 /// The workspace root.

@@ -102,6 +102,20 @@ pub fn replay(
     sigma_m: f64,
     config: AnchorConfig,
 ) -> Result<Vec<FrameEstimate>, String> {
+    replay_with_sigmas(vo, gnss, &vec![sigma_m; gnss.len()], speed, config)
+}
+
+/// [`replay`] with a σ per fix (as receivers report it, e.g. HDOP × UERE).
+pub fn replay_with_sigmas(
+    vo: &Trajectory,
+    gnss: &Trajectory,
+    sigmas: &[f64],
+    speed: &[(f64, f64)],
+    config: AnchorConfig,
+) -> Result<Vec<FrameEstimate>, String> {
+    if sigmas.len() != gnss.len() {
+        return Err(format!("{} σ for {} fixes", sigmas.len(), gnss.len()));
+    }
     if vo.stamps.is_empty() || gnss.stamps.is_empty() {
         return Err("VO and GNSS trajectories need timestamps (TUM format)".into());
     }
@@ -116,7 +130,7 @@ pub fn replay(
         }
         while let Some(&t) = gnss.stamps.get(i_gnss).filter(|&&t| t <= t_vo) {
             let p = gnss.poses[i_gnss].translation;
-            anchorer.push_gnss(stamp(t)?, p, sigma_m).map_err(|e| format!("GNSS at {t}: {e}"))?;
+            anchorer.push_gnss(stamp(t)?, p, sigmas[i_gnss]).map_err(|e| format!("GNSS at {t}: {e}"))?;
             i_gnss += 1;
         }
         anchorer.push_vo(stamp(t_vo)?, pose.translation).map_err(|e| format!("VO at {t_vo}: {e}"))?;

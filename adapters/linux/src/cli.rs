@@ -74,6 +74,9 @@ enum Command {
     /// Turn existing recordings (NMEA capture, candump log with DBC files, trajectory,
     /// objects) into a 4D log, in time order (docs/binlog.md).
     Import(ImportArgs),
+    /// Run the on-device pipeline over recorded inputs (VO, the GNSS serial capture, the
+    /// vehicle bus, 3D and 2D detections) and write the 4D log (docs/pipeline.md).
+    Record(crate::record::RecordArgs),
     /// What a 4D log holds: header, records per type, time span, gaps, damage, bytes.
     Inspect {
         /// The log.
@@ -226,6 +229,9 @@ enum ScenarioCommand {
         /// Length of the drive, seconds.
         #[arg(long, default_value_t = 40.0)]
         duration: f64,
+        /// The GNSS receiver: `phone` (σ 3–10 m, multipath) or `good` (σ 1–2 m, the demo's).
+        #[arg(long, value_enum, default_value = "phone")]
+        receiver: crate::scenario::command::Receiver,
     },
     /// Run the 3D track manager over a generated drive and judge it: MOTA/IDF1 at 2 m,
     /// position RMSE of detections, filtered and smoothed tracks, static/dynamic accuracy.
@@ -366,8 +372,8 @@ pub fn run() -> ExitCode {
         Command::Can(CanCommand::Decode { file, dbc, json }) => crate::can_decode::run(&file, &dbc, json),
         Command::Track2d { detections, output } => crate::track2d::run(&detections, &output),
         Command::Mot(MotCommand::Eval { gt, test, max_distance, json }) => mot_eval(&gt, &test, max_distance, json),
-        Command::Scenario(ScenarioCommand::Generate { output, seed, duration }) => {
-            crate::scenario::command::run_generate(seed, duration, &output)
+        Command::Scenario(ScenarioCommand::Generate { output, seed, duration, receiver }) => {
+            crate::scenario::command::run_generate(seed, duration, receiver, &output)
         }
         Command::Scenario(ScenarioCommand::Eval { seed, duration, max_age, json }) => {
             crate::scenario::command::run_eval(seed, duration, max_age, json)
@@ -401,6 +407,7 @@ pub fn run() -> ExitCode {
             }
         }
         Command::Demo { output, seed, duration, json } => crate::demo::run(&output, seed, duration, json),
+        Command::Record(args) => crate::record::run(&args),
         Command::Inspect { log, json } => crate::logfile::inspect::run(&log, json),
         Command::Export { log, mcap, tum, geojson, map } => {
             crate::logfile::export::run(&crate::logfile::export::ExportRequest { log, mcap, tum, geojson, map })

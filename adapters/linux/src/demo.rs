@@ -33,10 +33,6 @@ use crate::scenario::write::write_scenario;
 use crate::scenario::{generate, tracker_classes, tracker_config, ScenarioConfig};
 use crate::trajectory::{self, Format, Trajectory};
 
-/// The demo's GNSS receiver: σ 1–2 m, errors correlated over 2 s, no multipath.
-pub fn receiver() -> GnssModel {
-    GnssModel { sigma_range: (1.0, 2.0), correlation_s: 2.0, multipath_rate: 0.0, ..GnssModel::default() }
-}
 /// The GNSS σ the anchorer is told, m.
 const SIGMA_M: f64 = 2.0;
 
@@ -63,7 +59,7 @@ pub fn run(out: &Path, seed: u64, duration_s: f64, as_json: bool) -> Result<(), 
     }
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let drive = out.join("drive");
-    let config = ScenarioConfig { seed, duration_s, gnss: receiver(), ..ScenarioConfig::default() };
+    let config = ScenarioConfig { seed, duration_s, gnss: GnssModel::good(), ..ScenarioConfig::default() };
     let [lat, lon, height] = config.origin;
 
     step(1, &format!("generating a {duration_s:.0} s work-zone drive (seed {seed}) into {}", drive.display()));

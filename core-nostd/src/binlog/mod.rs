@@ -279,6 +279,16 @@ macro_rules! records {
                 }
             }
 
+            /// Move it to another time, µs (a reader re-timing records written before
+            /// the first [`ClockOffset`]).
+            pub fn set_t_us(&mut self, t_us: i64) {
+                match self {
+                    $( Record::$name(r) => r.t_us = t_us, )+
+                    Record::Tracks3d(b) => b.t_us = t_us,
+                    Record::Event(e) => e.t_us = t_us,
+                }
+            }
+
             /// The quantised fields in order; returns how many.
             pub fn fields(&self, out: &mut [i64; MAX_FIELDS]) -> usize {
                 match self {

@@ -129,9 +129,9 @@ pub struct PipelineConfig<'a> {
     pub gnss: GnssErrorModel,
     /// 3D tracker, with its classes and priors.
     pub tracker: Config3d<'a>,
-    /// What kind of road user each 3D class is, for the score (index = class id;
-    /// classes beyond the table are objects).
-    pub agent_kinds: &'a [AgentKind],
+    /// Per tracker class id: its code in the log and what kind of road user it is for
+    /// the score (classes beyond the table: code 255, an object).
+    pub classes: &'a [ClassMeta],
     /// 2D tracker.
     pub tracker2d: TrackerConfig,
     /// Which CAN message is the vehicle speed (none: speed is not read from CAN).
@@ -155,7 +155,7 @@ pub struct PipelineConfig<'a> {
 impl<'a> PipelineConfig<'a> {
     /// Defaults around a tracker configuration: the default mount, anchoring and σ model,
     /// nuPlan's Pacifica and score, 15 s windows, no CAN speed, no map.
-    pub fn new(origin: Geodetic, tracker: Config3d<'a>, agent_kinds: &'a [AgentKind]) -> Self {
+    pub fn new(origin: Geodetic, tracker: Config3d<'a>, classes: &'a [ClassMeta]) -> Self {
         PipelineConfig {
             origin,
             device_id: *b"dash2sim\0\0\0\0\0\0\0\0",
@@ -163,7 +163,7 @@ impl<'a> PipelineConfig<'a> {
             anchor: AnchorConfig::default(),
             gnss: GnssErrorModel::default(),
             tracker,
-            agent_kinds,
+            classes,
             tracker2d: TrackerConfig::default(),
             speed: None,
             writer: WriterConfig::default(),
@@ -175,6 +175,15 @@ impl<'a> PipelineConfig<'a> {
             anchor_interval: Duration::from_millis(1000),
         }
     }
+}
+
+/// What a tracker class is outside the tracker.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ClassMeta {
+    /// The class code of `Track3d` records (`docs/binlog.md`).
+    pub code: i64,
+    /// The kind of road user, for the score.
+    pub kind: AgentKind,
 }
 
 /// A 2D detection of a frame.
@@ -809,7 +818,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             self.write(&Record::Detection3d(DetectionRecord {
                 t_us,
                 frame: i64::try_from(frame).unwrap_or(i64::MAX),
-                class: i64::from(d.class),
+                class: self.config.classes.get(usize::from(d.class)).map_or(255, |m| m.code),
                 score_e3: quantise(d.score, 1e-3),
                 x_mm: quantise(b.x, 1e-3),
                 y_mm: quantise(b.y, 1e-3),
@@ -837,10 +846,11 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             for o in chunk {
                 let b = &o.bbox;
                 let (vx, vy) = (o.velocity[0] * per_second, o.velocity[1] * per_second);
+                let meta = self.config.classes.get(usize::from(o.class)).copied();
                 // At most MAX_TRACKS per chunk.
                 let _ = batch.tracks.push(Track3d {
                     id: i64::from(o.id),
-                    class: i64::from(o.class),
+                    class: meta.map_or(255, |m| m.code),
                     x_mm: quantise(b.x, 1e-3),
                     y_mm: quantise(b.y, 1e-3),
                     z_mm: quantise(ego.z + b.z, 1e-3),
@@ -852,7 +862,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
                     vy_mm_s: quantise(vy, 1e-3),
                     is_static: i64::from(o.is_static),
                 });
-                let kind = self.config.agent_kinds.get(usize::from(o.class)).copied().unwrap_or(AgentKind::Object);
+                let kind = meta.map_or(AgentKind::Object, |m| m.kind);
                 let _ = self.agents.push(Agent {
                     id: o.id,
                     kind,

@@ -71,7 +71,24 @@ pub fn decode(bytes: &[u8], name: &str) -> Result<LogContents, LogError> {
         return Err(LogError::NotALog(name.to_owned(), e));
     }
     contents.stats = *decoder.stats();
+    retime_before_utc(&mut contents.records);
+    if let Some((first, last)) = contents.stats.time_span.as_mut() {
+        let times = contents.records.iter().map(Record::t_us);
+        (*first, *last) = (times.clone().min().unwrap_or(*first), times.max().unwrap_or(*last));
+    }
     Ok(contents)
+}
+
+/// A device writes records in its own clock until a GNSS fix tells it UTC; the first
+/// [`ClockOffset`](dash2sim_core::binlog::ClockOffset) record says by how much they are
+/// off. Move those early records onto UTC, so that the whole log has one time base.
+fn retime_before_utc(records: &mut [Record]) {
+    let Some(first) = records.iter().position(|r| matches!(r, Record::ClockOffset(_))) else { return };
+    let Record::ClockOffset(c) = &records[first] else { return };
+    let offset = c.offset_us;
+    for r in &mut records[..first] {
+        r.set_t_us(r.t_us().saturating_add(offset));
+    }
 }
 
 /// Read and decode a log file.
@@ -91,12 +108,4 @@ pub fn seconds(t_us: i64) -> f64 {
     t_us as f64 / 1e6
 }
 
-/// Quantise to an integer number of `unit`s (saturating; NaN → 0).
-pub fn quantise(value: f64, unit: f64) -> i64 {
-    let q = (value / unit).round();
-    if q.is_nan() {
-        0
-    } else {
-        q.clamp(i64::MIN as f64, i64::MAX as f64) as i64
-    }
-}
+pub use dash2sim_core::binlog::quantise;

@@ -7,6 +7,7 @@ use serde_json::json;
 
 use super::evaluate::evaluate_tracking;
 use super::write::write_scenario;
+use super::sensors::GnssModel;
 use super::{generate, tracker_classes, tracker_config, ScenarioConfig};
 
 /// Longest drive, seconds: the road is about 1.15 km and the ego cruises at 22 m/s.
@@ -19,9 +20,22 @@ fn config(seed: u64, duration_s: f64) -> Result<ScenarioConfig, String> {
     Ok(ScenarioConfig { seed, duration_s, ..ScenarioConfig::default() })
 }
 
+/// Which GNSS receiver the generated drive has.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Receiver {
+    /// A phone-grade receiver: σ 3–10 m wandering, multipath jumps ([`GnssModel::default`]).
+    Phone,
+    /// A good receiver: σ 1–2 m, no multipath ([`GnssModel::good`]).
+    Good,
+}
+
 /// Generate scenario `seed` and write it to `dir`.
-pub fn run_generate(seed: u64, duration_s: f64, dir: &Path) -> Result<(), String> {
-    let scenario = generate(&config(seed, duration_s)?);
+pub fn run_generate(seed: u64, duration_s: f64, receiver: Receiver, dir: &Path) -> Result<(), String> {
+    let gnss = match receiver {
+        Receiver::Phone => GnssModel::default(),
+        Receiver::Good => GnssModel::good(),
+    };
+    let scenario = generate(&ScenarioConfig { gnss, ..config(seed, duration_s)? });
     let files = write_scenario(&scenario, dir).map_err(|e| format!("writing {}: {e}", dir.display()))?;
     let count = |f: fn(&super::Frame) -> usize| scenario.frames.iter().map(f).sum::<usize>();
     println!(

@@ -104,12 +104,8 @@ pub fn evaluate_tracking<const N: usize>(scenario: &Scenario, config: Config3d<'
             }
         }
         // Tracks: motmetrics' accumulator (carried-forward matches, switches).
-        let reported = &outputs[first..];
-        let object_ids: Vec<i64> = truth.iter().map(|o| i64::from(o.id)).collect();
-        let track_ids: Vec<i64> = reported.iter().map(|(_, o)| i64::from(o.id)).collect();
-        accumulator.update(i64::from(frame.index), &object_ids, &track_ids, |i, j| {
-            gate(&truth[i].bbox, truth[i].class as u16, reported[j].1.class, &reported[j].1.bbox)
-        });
+        let reported: Vec<_> = outputs[first..].iter().map(|(_, o)| (o.id, o.class, o.bbox)).collect();
+        accumulate_frame(&mut accumulator, frame, &reported);
     }
     let smoothed = smooth_all(&outputs, config);
     let track_at: HashMap<(u64, u32), &Track3dOutput> = outputs.iter().map(|(f, o)| ((*f, o.id), o)).collect();
@@ -155,6 +151,29 @@ pub fn evaluate_tracking<const N: usize>(scenario: &Scenario, config: Config3d<'
         stats: *tracker.stats(),
         tracks: outputs,
     }
+}
+
+/// Add one frame's reported tracks `(id, class, box)` to a MOT accumulator: the visible
+/// objects are the truth, matched by class within [`MATCH_DISTANCE_M`] (horizontal).
+pub fn accumulate_frame(accumulator: &mut Accumulator, frame: &super::Frame, reported: &[(u32, u16, Box3d)]) {
+    let truth: Vec<_> = frame.visible.iter().filter_map(|&id| frame.object(id)).collect();
+    let object_ids: Vec<i64> = truth.iter().map(|o| i64::from(o.id)).collect();
+    let track_ids: Vec<i64> = reported.iter().map(|(id, _, _)| i64::from(*id)).collect();
+    accumulator.update(i64::from(frame.index), &object_ids, &track_ids, |i, j| {
+        let (_, class, b) = &reported[j];
+        let d = horizontal_distance(&truth[i].bbox, b);
+        (truth[i].class as u16 == *class && d <= MATCH_DISTANCE_M).then_some(d)
+    });
+}
+
+/// MOT metrics of tracks reported per frame (`frame index → (id, class, box)`), e.g. the
+/// 3D tracks of a 4D log, against the scenario's truth.
+pub fn score_tracks(scenario: &Scenario, reported: &HashMap<u32, Vec<(u32, u16, Box3d)>>) -> mot::Summary {
+    let mut accumulator = Accumulator::default();
+    for frame in &scenario.frames {
+        accumulate_frame(&mut accumulator, frame, reported.get(&frame.index).map_or(&[], Vec::as_slice));
+    }
+    mot::summarize(&accumulator)
 }
 
 /// RTS-smooth every track's reports; the smoothed box per (frame, track id).

@@ -126,7 +126,7 @@ pub struct Scenario {
     pub zone: WorkZone,
     /// Camera frames.
     pub frames: Vec<Frame>,
-    /// VO positions (unknown scale, drifting), one per frame.
+    /// VO poses of the camera (unknown scale, drifting), one per frame.
     pub vo: Trajectory,
     /// GNSS fixes.
     pub gnss: Vec<GnssSample>,
@@ -266,16 +266,38 @@ pub fn generate(config: &ScenarioConfig) -> Scenario {
         })
         .collect();
 
-    let truth = ego_trajectory(&egos);
-    let mut vo = config.vo.make_vo(&truth);
+    // The dashcam (camera and GNSS receiver in one housing) rides ahead of and above the
+    // rear axle: VO follows the camera, the fixes describe the camera's position.
+    let camera_truth = camera_trajectory(&egos, camera);
+    let mut vo = config.vo.make_vo(&camera_truth);
     vo::add_increment_noise(&mut vo, &mut rng(config.seed, Stream::Vo), config.vo_noise);
     let frames_per_fix = (config.frame_rate_hz / config.gnss_rate_hz).round().max(1.0) as usize;
-    let fix_states: Vec<EgoState> = egos.iter().step_by(frames_per_fix).copied().collect();
-    let gnss = config.gnss.fixes(&mut rng(config.seed, Stream::Gnss), &fix_states);
+    let fix_states: Vec<EgoState> = egos
+        .iter()
+        .step_by(frames_per_fix)
+        .map(|e| EgoState {
+            x: e.x + camera.mount_forward * e.heading.cos(),
+            y: e.y + camera.mount_forward * e.heading.sin(),
+            ..*e
+        })
+        .collect();
+    let mut gnss = config.gnss.fixes(&mut rng(config.seed, Stream::Gnss), &fix_states);
+    for fix in &mut gnss {
+        fix.enu[2] += camera.mount_height;
+    }
     let wheel_states = plan.drive(&road, config.duration_s, config.speed_rate_hz);
     let speed =
         sensors::wheel_speed(&mut rng(config.seed, Stream::Wheel), &wheel_states, config.wheel.0, config.wheel.1);
     Scenario { config: *config, road, zone, frames, vo, gnss, speed }
+}
+
+/// The camera's poses (ENU; levelled camera axes: x forward, y left, z up).
+pub fn camera_trajectory(egos: &[EgoState], camera: &Camera) -> Trajectory {
+    let mut out = ego_trajectory(egos);
+    for pose in &mut out.poses {
+        pose.translation += pose.rotation * dash2sim_core::nalgebra::Vector3::new(camera.mount_forward, 0.0, camera.mount_height);
+    }
+    out
 }
 
 /// The ego poses as a trajectory (ENU, heading about the vertical).

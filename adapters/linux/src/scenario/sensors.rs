@@ -358,6 +358,11 @@ impl Default for GnssModel {
 }
 
 impl GnssModel {
+    /// A good receiver: σ 1–2 m, errors correlated over 2 s, no multipath.
+    pub fn good() -> Self {
+        GnssModel { sigma_range: (1.0, 2.0), correlation_s: 2.0, multipath_rate: 0.0, ..GnssModel::default() }
+    }
+
     /// Fixes at the given ego states (in time order).
     pub fn fixes(&self, rng: &mut impl Rng, truth: &[EgoState]) -> Vec<GnssSample> {
         let (lo, hi) = self.sigma_range;

@@ -50,7 +50,8 @@ impl VoModel {
         rotation_z((self.yaw_drift_deg_per_min * t / 60.0).to_radians()) * self.rotation
     }
 
-    /// VO positions: truth increments mapped back through the drifting similarity.
+    /// VO poses: truth increments mapped back through the drifting similarity, and the
+    /// truth orientations seen from the drifting VO frame.
     pub fn make_vo(&self, truth: &Trajectory) -> Trajectory {
         let t0 = truth.stamps[0];
         let mut vo = Trajectory::default();
@@ -62,7 +63,8 @@ impl VoModel {
                 x += self.rotation_at(tau).transpose() * dp / self.scale_at(tau);
             }
             vo.stamps.push(t);
-            vo.poses.push(Pose { rotation: Matrix3::identity(), translation: x });
+            let rotation = self.rotation_at(t - t0).transpose() * pose.rotation;
+            vo.poses.push(Pose { rotation, translation: x });
         }
         vo
     }

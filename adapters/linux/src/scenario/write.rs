@@ -68,6 +68,7 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
     written.push(path);
 
     let mut out = create(dir, "gnss.nmea", &mut written)?;
+    let mut serial = create(dir, "gnss.serial.log", &mut written)?;
     for fix in &scenario.gnss {
         let position = frame
             .enu_to_geodetic(&Vector3::from(fix.enu))
@@ -75,18 +76,31 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
         let time = hhmmss(START_SECONDS_OF_DAY + fix.t_fix);
         let (lat, ns) = nmea_angle(position.lat_deg, 2, ['N', 'S']);
         let (lon, ew) = nmea_angle(position.lon_deg, 3, ['E', 'W']);
-        let hdop = fix.sigma / 3.0;
+        // The receiver reports its σ as HDOP × 2.5 m (the pipeline's default UERE).
+        let hdop = fix.sigma / 2.5;
         let gga = format!("GPGGA,{time},{lat},{ns},{lon},{ew},1,09,{hdop:.1},{:.1},M,0.0,M,,", position.height_m);
         let knots = fix.speed * 3600.0 / 1852.0;
         let rmc = format!("GPRMC,{time},A,{lat},{ns},{lon},{ew},{knots:.2},{:.1},010626,,,A", fix.course_deg);
         writeln!(out, "{}\r\n{}\r", sentence(&gga), sentence(&rmc))?;
+        for body in [&gga, &rmc] {
+            writeln!(serial, "({:.6}) {}", fix.t_receive, sentence(body))?;
+        }
     }
     out.flush()?;
+    serial.flush()?;
 
     let mut out = create(dir, "speed.csv", &mut written)?;
     writeln!(out, "t_s,speed_mps")?;
     for (t, v) in &scenario.speed {
         writeln!(out, "{t:.3},{v:.5}")?;
+    }
+    out.flush()?;
+
+    let mut out = create(dir, "speed.can.log", &mut written)?;
+    for (t, v) in &scenario.speed {
+        let frame = ccvs1_frame(*v).ok_or_else(|| io::Error::other(format!("speed {v} at {t}: no CCVS1 frame")))?;
+        let time = dash2sim_core::time::Timestamp::from_micros((t * 1e6).round() as i64);
+        dash2sim_can::candump::write_log_line(&mut out, time, "can0", &frame)?;
     }
     out.flush()?;
 
@@ -104,16 +118,14 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
     out.flush()?;
 
     let mut out = create(dir, "detections3d.csv", &mut written)?;
-    writeln!(out, "frame,t_s,class,x,y,z,yaw,l,w,h,score")?;
+    writeln!(out, "{}", crate::detections::HEADER)?;
+    let camera = &scenario.config.camera;
     for f in &scenario.frames {
         for d in &f.detections_3d {
-            let b = &d.bbox;
+            // Detections are generated in the ego frame; the camera reports them in its own.
+            let b = dash2sim_core::box3d::Box3d { x: d.bbox.x - camera.mount_forward, z: d.bbox.z - camera.mount_height, ..d.bbox };
             let class = Class::from_id(d.class).map_or("unknown", Class::name);
-            writeln!(
-                out,
-                "{},{:.3},{class},{:.4},{:.4},{:.4},{:.5},{:.3},{:.3},{:.3},{:.3}",
-                f.index, f.ego.t, b.x, b.y, b.z, b.yaw, b.l, b.w, b.h, d.score
-            )?;
+            out.write_all(crate::detections::line(u64::from(f.index), f.ego.t, class, &b, d.score, d.position_covariance).as_bytes())?;
         }
     }
     out.flush()?;
@@ -154,6 +166,14 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
 fn origin(scenario: &Scenario) -> io::Result<Geodetic> {
     let [lat, lon, h] = scenario.config.origin;
     Geodetic::new(lat, lon, h).map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, format!("origin: {e}")))
+}
+
+/// A J1939 CCVS1 frame (PGN 65265, priority 6, source 0) carrying a wheel-based speed.
+fn ccvs1_frame(mps: f64) -> Option<dash2sim_core::can::CanFrame> {
+    let raw = (mps * 3.6 * 256.0).round().clamp(0.0, 64_255.0) as u16;
+    let [lo, hi] = raw.to_le_bytes();
+    let id = dash2sim_core::can::frame::id_from_raw(0x18FE_F100, true)?;
+    dash2sim_core::can::CanFrame::data_frame(id, &[0xFF, lo, hi, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF])
 }
 
 /// `$BODY*CS` with the XOR checksum.

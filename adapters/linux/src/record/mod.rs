@@ -1,0 +1,378 @@
+//! `dash2sim record`: the core [`Pipeline`] on the host, fed from recorded files merged by
+//! receive time ([`sources`]), writing the 4D log. The files go through the same input
+//! stream format a microcontroller replays (`--save-inputs` writes it), so the host and the
+//! device run the very same code on the very same bytes.
+
+pub mod sources;
+
+use std::path::{Path, PathBuf};
+
+use clap::{Args, ValueEnum};
+use dash2sim_core::anchor::{AnchorConfig, AnchorMode};
+use dash2sim_core::geo::Geodetic;
+use dash2sim_core::map::MapView;
+use dash2sim_core::pipeline::replay::{feed, Reader};
+use dash2sim_core::pipeline::{
+    CameraMount, ClassMeta, GnssErrorModel, Issue, Issues, Pipeline, PipelineConfig, PipelineStats, SpeedSource,
+};
+use dash2sim_core::track3d::ClassConfig;
+use serde_json::json;
+
+use crate::scenario::actors::Class;
+use crate::scenario::{tracker_classes, tracker_config};
+
+/// Arguments of `dash2sim record` (file sources).
+#[derive(Debug, Args)]
+pub struct RecordArgs {
+    /// Output 4D log.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// VO poses of the camera, TUM (device-clock stamps; frame k is the k-th pose).
+    #[arg(long)]
+    pub vo: Option<PathBuf>,
+    /// The GNSS serial capture: `(device seconds) $SENTENCE*CS` per line.
+    #[arg(long)]
+    pub nmea: Option<PathBuf>,
+    /// candump capture of the vehicle bus (device-clock stamps).
+    #[arg(long)]
+    pub can: Option<PathBuf>,
+    /// DBC files for `--speed-signal`.
+    #[arg(long)]
+    pub dbc: Vec<PathBuf>,
+    /// `MESSAGE.SIGNAL` of a DBC carrying the vehicle speed (else `--speed-source`).
+    #[arg(long)]
+    pub speed_signal: Option<String>,
+    /// Unit of `--speed-signal`: km/h, m/s or mph.
+    #[arg(long, default_value = "km/h")]
+    pub speed_unit: String,
+    /// Built-in speed message when no `--speed-signal` is given.
+    #[arg(long, value_enum, default_value = "ccvs1")]
+    pub speed_source: SpeedArg,
+    /// 3D detections in the camera frame (the detections CSV).
+    #[arg(long)]
+    pub detections: Option<PathBuf>,
+    /// 2D detections, MOTChallenge CSV (frames numbered as the VO poses).
+    #[arg(long)]
+    pub detections2d: Option<PathBuf>,
+    /// Map tile to verify against on the way (windows of 15 s); its origin is the log's.
+    #[arg(long)]
+    pub map: Option<PathBuf>,
+    /// ENU origin `LAT,LON[,H]` (default: the map's, else the first GNSS fix).
+    #[arg(long)]
+    pub origin: Option<String>,
+    /// Camera position on the vehicle: `FORWARD,LEFT,UP` from the rear axle on the
+    /// ground (m), optionally `,ROLL,PITCH,YAW` (rad, camera → body).
+    #[arg(long, default_value = "1.8,0,1.3")]
+    pub mount: String,
+    /// `gravity`: the VO frame's z is vertical (VIO, levelled VO); `full`: any orientation.
+    #[arg(long, value_enum, default_value = "gravity")]
+    pub mode: ModeArg,
+    /// 1-σ GNSS error model: UERE, m (σ = HDOP × UERE unless the receiver sends GST).
+    #[arg(long, default_value_t = 2.5)]
+    pub uere: f64,
+    /// Also write the merged input stream (the core's replay format) here.
+    #[arg(long)]
+    pub save_inputs: Option<PathBuf>,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `--speed-source`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SpeedArg {
+    /// J1939 CCVS1 wheel-based speed.
+    Ccvs1,
+    /// OBD-II PID 0x0D responses.
+    Obd,
+}
+
+/// `--mode`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ModeArg {
+    /// 7-DoF Sim(3).
+    Full,
+    /// Yaw, scale, translation.
+    Gravity,
+}
+
+/// The 3D classes the pipeline tracks (the work-zone classes of `docs/tracking.md`), with
+/// their log codes and road-user kinds.
+pub fn class_meta() -> [ClassMeta; 7] {
+    Class::ALL.map(|c| ClassMeta {
+        code: crate::logfile::import::class_code(c.name()),
+        kind: crate::verify::agent_kind(c.name()),
+    })
+}
+
+/// The tracker class id of a class name.
+pub fn class_id(name: &str) -> Option<u16> {
+    Class::ALL.iter().find(|c| c.name() == name).map(|c| *c as u16)
+}
+
+/// Parse `LAT,LON[,H]`.
+pub fn parse_origin(text: &str) -> Result<Geodetic, String> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("--origin {text:?}: expected LAT,LON[,H] numbers"))?;
+    match v[..] {
+        [lat, lon] => Geodetic::new(lat, lon, 0.0),
+        [lat, lon, h] => Geodetic::new(lat, lon, h),
+        _ => return Err(format!("--origin {text:?}: expected LAT,LON[,H]")),
+    }
+    .map_err(|e| format!("--origin {text:?}: {e}"))
+}
+
+fn parse_mount(text: &str) -> Result<CameraMount, String> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("--mount {text:?}: expected FORWARD,LEFT,UP[,ROLL,PITCH,YAW] numbers"))?;
+    match v[..] {
+        [f, l, u] => Ok(CameraMount { position: [f, l, u], roll_pitch_yaw: [0.0; 3] }),
+        [f, l, u, r, p, y] => Ok(CameraMount { position: [f, l, u], roll_pitch_yaw: [r, p, y] }),
+        _ => Err(format!("--mount {text:?}: expected 3 or 6 numbers")),
+    }
+}
+
+/// The first fix of a serial capture, for the origin when none is given.
+fn first_fix(stream: &[u8]) -> Option<Geodetic> {
+    let mut reader = Reader::new(stream).ok()?;
+    let mut nmea: dash2sim_core::nmea::Stream = dash2sim_core::nmea::Stream::new();
+    let mut found = None;
+    while let Some(Ok((_, input))) = reader.next_input() {
+        if let dash2sim_core::pipeline::replay::Input::Serial(bytes) = input {
+            nmea.feed(bytes, |_| {});
+            let f = nmea.decoder.current();
+            if found.is_none() && f.has_position() {
+                found = Geodetic::new(f.lat?, f.lon?, f.alt_hae().or(f.alt_msl).unwrap_or(0.0)).ok();
+            }
+        }
+        if found.is_some() {
+            break;
+        }
+    }
+    found
+}
+
+/// What a run of the pipeline over an input stream produced.
+#[derive(Debug)]
+pub struct Recording {
+    /// The log.
+    pub log: Vec<u8>,
+    /// Totals.
+    pub stats: PipelineStats,
+    /// Refused inputs.
+    pub issues: Issues,
+    /// Inputs the stream held.
+    pub inputs: u64,
+}
+
+/// Everything the pipeline is configured from, besides the stream.
+#[derive(Clone, Debug)]
+pub struct Setup {
+    /// ENU origin.
+    pub origin: Geodetic,
+    /// The camera on the car.
+    pub mount: CameraMount,
+    /// Anchoring mode.
+    pub mode: AnchorMode,
+    /// GNSS σ.
+    pub gnss: GnssErrorModel,
+    /// Vehicle speed on the bus.
+    pub speed: Option<SpeedSource>,
+    /// Map tile bytes.
+    pub map: Option<Vec<u8>>,
+    /// Device id of the header.
+    pub device_id: [u8; 16],
+}
+
+/// Run the pipeline over an input stream (the core's replay format).
+pub fn run_stream(stream: &[u8], setup: &Setup) -> Result<Recording, String> {
+    let classes: [ClassConfig; 7] = tracker_classes();
+    let meta = class_meta();
+    let map = setup.map.as_deref().map(MapView::parse).transpose().map_err(|e| format!("map: {e}"))?;
+    let config = PipelineConfig {
+        device_id: setup.device_id,
+        mount: setup.mount,
+        anchor: AnchorConfig { mode: setup.mode, ..AnchorConfig::default() },
+        gnss: setup.gnss,
+        speed: setup.speed,
+        map,
+        ..PipelineConfig::new(setup.origin, tracker_config(&classes), &meta)
+    };
+    let mut pipeline: Box<Pipeline<'_, Vec<u8>>> =
+        Box::new(Pipeline::new(Vec::new(), config).map_err(|e| format!("log: {e}"))?);
+    let mut reader = Reader::new(stream).map_err(|e| e.to_string())?;
+    let mut inputs = 0u64;
+    while let Some(entry) = reader.next_input() {
+        let (t, input) = entry.map_err(|e| format!("input stream: {e}"))?;
+        feed(&mut pipeline, t, &input).map_err(|e| format!("log: {e}"))?;
+        inputs += 1;
+    }
+    let (log, stats, issues) = pipeline.finish().map_err(|e| format!("log: {e}"))?;
+    Ok(Recording { log, stats, issues, inputs })
+}
+
+/// The speed source the arguments name.
+fn speed_source(args: &RecordArgs) -> Result<Option<SpeedSource>, String> {
+    let Some(name) = &args.speed_signal else {
+        return Ok(args.can.as_ref().map(|_| match args.speed_source {
+            SpeedArg::Ccvs1 => SpeedSource::Ccvs1,
+            SpeedArg::Obd => SpeedSource::Obd,
+        }));
+    };
+    let (message, signal) =
+        name.split_once('.').ok_or_else(|| format!("--speed-signal {name:?}: expected MESSAGE.SIGNAL"))?;
+    let to_mps = match args.speed_unit.as_str() {
+        "km/h" | "kph" => 1.0 / 3.6,
+        "m/s" => 1.0,
+        "mph" => 0.44704,
+        other => return Err(format!("--speed-unit {other:?}: expected km/h, m/s or mph")),
+    };
+    let table = crate::can_decode::load_tables(&args.dbc)?;
+    let m = table.message_by_name(message).ok_or_else(|| format!("--speed-signal: no message {message:?} in the DBC files"))?;
+    let i = m.signal_index(signal).ok_or_else(|| format!("--speed-signal: message {message} has no signal {signal:?}"))?;
+    let (id, extended) = match m.id {
+        embedded_can::Id::Standard(s) => (u32::from(s.as_raw()), false),
+        embedded_can::Id::Extended(e) => (e.as_raw(), true),
+    };
+    Ok(Some(SpeedSource::Signal { id, extended, signal: m.signals[i], to_mps }))
+}
+
+/// Read the file sources into one input stream.
+pub fn read_sources(args: &RecordArgs) -> Result<(Vec<u8>, sources::SourceCounts), String> {
+    let mut inputs = sources::Inputs::default();
+    if let Some(p) = &args.vo {
+        inputs.vo(p)?;
+    }
+    if let Some(p) = &args.nmea {
+        inputs.serial(p)?;
+    }
+    if let Some(p) = &args.can {
+        inputs.can(p)?;
+    }
+    if let Some(p) = &args.detections {
+        inputs.detections(p, class_id)?;
+    }
+    if let Some(p) = &args.detections2d {
+        if args.vo.is_none() {
+            return Err("--detections2d needs --vo: 2D detections are stamped with their frame's VO time".to_owned());
+        }
+        inputs.detections2d(p)?;
+    }
+    if inputs.is_empty() {
+        return Err("nothing to record: give --vo, --nmea, --can or --detections (with inputs in them)".to_owned());
+    }
+    Ok((inputs.stream()?, inputs.counts))
+}
+
+/// `dash2sim record` from files.
+pub fn run(args: &RecordArgs) -> Result<(), String> {
+    let (stream, counts) = read_sources(args)?;
+    if let Some(path) = &args.save_inputs {
+        std::fs::write(path, &stream).map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    let map = args.map.as_ref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
+    let map_origin = match &map {
+        Some(bytes) => {
+            let h = MapView::parse(bytes).map_err(|e| format!("{}: {e}", display(&args.map)))?.header().origin;
+            Some(Geodetic::new(h[0], h[1], h[2]).map_err(|e| format!("map origin: {e}"))?)
+        }
+        None => None,
+    };
+    let origin = match (&args.origin, map_origin) {
+        (Some(text), _) => parse_origin(text)?,
+        (None, Some(o)) => o,
+        (None, None) => first_fix(&stream)
+            .ok_or("no ENU origin: give --origin LAT,LON[,H], a --map, or an --nmea capture with a fix")?,
+    };
+    if !(args.uere.is_finite() && args.uere > 0.0) {
+        return Err(format!("--uere {} must be a positive number of metres", args.uere));
+    }
+    let setup = Setup {
+        origin,
+        mount: parse_mount(&args.mount)?,
+        mode: match args.mode {
+            ModeArg::Full => AnchorMode::Full,
+            ModeArg::Gravity => AnchorMode::GravityAligned,
+        },
+        gnss: GnssErrorModel { uere_m: args.uere, ..GnssErrorModel::default() },
+        speed: speed_source(args)?,
+        map,
+        device_id: *b"dash2sim-record\0",
+    };
+    let recording = run_stream(&stream, &setup)?;
+    std::fs::write(&args.output, &recording.log).map_err(|e| format!("{}: {e}", args.output.display()))?;
+    report(&args.output, &recording, &counts, args.json);
+    Ok(())
+}
+
+fn display(p: &Option<PathBuf>) -> String {
+    p.as_deref().map_or_else(String::new, |p: &Path| p.display().to_string())
+}
+
+/// The summary of a recording.
+pub fn summary(recording: &Recording) -> serde_json::Value {
+    let s = &recording.stats;
+    let issues: serde_json::Map<String, serde_json::Value> = Issue::ALL
+        .iter()
+        .filter(|i| recording.issues.get(**i) > 0)
+        .map(|i| (format!("{i:?}"), json!(recording.issues.get(*i))))
+        .collect();
+    json!({
+        "inputs": recording.inputs,
+        "log_bytes": recording.log.len(),
+        "records": s.records,
+        "vo_poses": s.vo_poses,
+        "anchored_frames": s.anchored_frames,
+        "fixes": s.fixes,
+        "speeds": s.speeds,
+        "can_frames": s.can_frames,
+        "serial_bytes": s.serial_bytes,
+        "detections_placed": s.detections_placed,
+        "detections_raw": s.detections_raw,
+        "track_states": s.track_states,
+        "track2d_states": s.track2d_states,
+        "windows": s.windows,
+        "windows_verified": s.windows_verified,
+        "issues": issues,
+    })
+}
+
+fn report(output: &Path, recording: &Recording, counts: &sources::SourceCounts, as_json: bool) {
+    let mut summary = summary(recording);
+    summary["sources"] = json!({
+        "vo_poses": counts.vo, "serial_lines": counts.serial_lines, "can_frames": counts.can_frames,
+        "detection_frames": counts.detection_frames, "detections": counts.detections,
+        "detection2d_frames": counts.detection2d_frames,
+    });
+    if as_json {
+        println!("{summary}");
+        return;
+    }
+    let s = &recording.stats;
+    println!(
+        "{}: {} bytes, {} records from {} inputs",
+        output.display(),
+        recording.log.len(),
+        s.records,
+        recording.inputs
+    );
+    println!(
+        "  {} VO poses ({} anchored), {} fixes, {} speeds, {} 3D detections placed ({} logged raw), {} 3D track states, {} 2D track states",
+        s.vo_poses, s.anchored_frames, s.fixes, s.speeds, s.detections_placed, s.detections_raw, s.track_states, s.track2d_states
+    );
+    if s.windows > 0 {
+        println!("  verification: {} of {} windows verified", s.windows_verified, s.windows);
+    }
+    for issue in Issue::ALL {
+        let n = recording.issues.get(issue);
+        if n > 0 {
+            println!("  {n} × {}", issue.text());
+        }
+    }
+}
