@@ -10,6 +10,7 @@
 use std::path::{Path, PathBuf};
 
 pub mod can;
+pub mod comma;
 pub mod drive;
 pub mod recorded;
 pub mod road;

@@ -14,7 +14,7 @@ use dash2sim_core::obb::Pose2;
 use dash2sim_core::pipeline::mount::camera_in_world;
 use dash2sim_core::pipeline::{CameraMount, GnssErrorModel, SpeedSource};
 use dash2sim_linux::logfile::{self, LogContents};
-use dash2sim_linux::record::{self, Recording, RecordArgs, Setup};
+use dash2sim_linux::record::{self, RecordArgs, Recording, Setup};
 use dash2sim_linux::scenario::actors::Class;
 use dash2sim_linux::scenario::evaluate::{evaluate_tracking, score_tracks};
 use dash2sim_linux::scenario::sensors::GnssModel;
@@ -182,7 +182,8 @@ pub fn record_drive(seed: u64, duration_s: f64) -> Outcome {
         };
         reported.entry(frame).or_default().push((u32::try_from(t.id).unwrap_or(u32::MAX), class, bbox));
     }
-    let figures = |s: &dash2sim_linux::mot::Summary| (s.get("mota").unwrap_or(f64::NAN), s.get("idf1").unwrap_or(f64::NAN));
+    let figures =
+        |s: &dash2sim_linux::mot::Summary| (s.get("mota").unwrap_or(f64::NAN), s.get("idf1").unwrap_or(f64::NAN));
     let tracks = figures(&score_tracks(&scenario, &reported));
     // The same on the frames the pipeline had an anchored pose for.
     let mut anchored_only = scenario.clone();
@@ -211,5 +212,16 @@ pub fn record_drive(seed: u64, duration_s: f64) -> Outcome {
     let truth = evaluate_tracking::<64>(&scenario, tracker_config(&classes));
     let tracks_truth_pose = (truth.metric("mota"), truth.metric("idf1"));
     let _ = std::fs::remove_dir_all(&work);
-    Outcome { scenario, recording, log, ape, anchored, ape_offline, tracks, tracks_anchored, tracks_relative, tracks_truth_pose }
+    Outcome {
+        scenario,
+        recording,
+        log,
+        ape,
+        anchored,
+        ape_offline,
+        tracks,
+        tracks_anchored,
+        tracks_relative,
+        tracks_truth_pose,
+    }
 }

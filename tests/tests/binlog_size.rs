@@ -14,46 +14,12 @@ use dash2sim_core::binlog::Kind;
 use dash2sim_linux::logfile::{self, import::ImportRequest, mcap_export};
 use dash2sim_linux::scenario::write::{import_request, write_scenario};
 use dash2sim_linux::scenario::{generate, ScenarioConfig};
+use dash2sim_tests::comma::ublox_nmea;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("dash2sim-binlog-size-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     dir
-}
-
-fn nmea_line(body: &str) -> String {
-    let checksum = body.bytes().fold(0u8, |a, b| a ^ b);
-    format!("${body}*{checksum:02X}\r\n")
-}
-
-fn angle(deg: f64, width: usize, hemispheres: [char; 2]) -> (String, char) {
-    let a = deg.abs();
-    let whole = a.floor();
-    let minutes = (a - whole) * 60.0;
-    (format!("{:0width$}{minutes:09.6}", whole as u32), if deg >= 0.0 { hemispheres[0] } else { hemispheres[1] })
-}
-
-/// comma's u-blox CSV as GGA + RMC sentences (UTC from its millisecond stamps).
-fn ublox_nmea(csv: &Path) -> (String, f64) {
-    let text = std::fs::read_to_string(csv).expect("live_gnss_ublox.csv");
-    let mut out = String::new();
-    let mut offset = None;
-    for line in text.lines().skip(1) {
-        let v: Vec<f64> = line.split(',').map(|x| x.parse().expect("number")).collect();
-        let [t_boot, lat, lon, speed, utc_ms, alt, bearing] = v[..] else { panic!("7 columns") };
-        offset.get_or_insert(t_boot - utc_ms / 1000.0);
-        let secs = utc_ms / 1000.0;
-        let day = (secs / 86_400.0).floor();
-        let tod = secs - day * 86_400.0;
-        let hms = format!("{:02}{:02}{:05.2}", (tod / 3600.0) as u32, ((tod % 3600.0) / 60.0) as u32, tod % 60.0);
-        // 2018-08-02 (the drive's date), as ddmmyy.
-        let (la, ns) = angle(lat, 2, ['N', 'S']);
-        let (lo, ew) = angle(lon, 3, ['E', 'W']);
-        out += &nmea_line(&format!("GPGGA,{hms},{la},{ns},{lo},{ew},1,10,0.9,{alt:.2},M,0.0,M,,"));
-        out +=
-            &nmea_line(&format!("GPRMC,{hms},A,{la},{ns},{lo},{ew},{:.3},{bearing:.2},020818,,,A", speed / 0.514_444));
-    }
-    (out, offset.expect("rows"))
 }
 
 /// Measure the log at `log_path` against the same content as MCAP (written to
@@ -82,7 +48,7 @@ fn check_size(name: &str, log_path: &Path, mcap_path: &Path) {
 fn the_comma2k19_minute_is_a_third_of_its_mcap() {
     let Some(dir) = dash2sim_tests::data_dir("comma2k19") else { return };
     let work = scratch("comma");
-    let (nmea, offset) = ublox_nmea(&dir.join("expected/live_gnss_ublox.csv"));
+    let (nmea, _, offset) = ublox_nmea(&dir.join("expected/live_gnss_ublox.csv"));
     let nmea_path = work.join("ublox.nmea");
     std::fs::write(&nmea_path, nmea).expect("write");
     let output = work.join("drive.d2slog");

@@ -10,8 +10,12 @@ use dash2sim_tests::recorded::record_drive;
 fn recorded_work_zones_anchor_as_well_as_the_offline_anchorer_and_track_and_verify() {
     for seed in 1..=3 {
         let o = record_drive(seed, 40.0);
-        let verification: Vec<_> =
-            o.log.records.iter().filter_map(|r| if let Record::Verification(v) = r { Some(*v) } else { None }).collect();
+        let verification: Vec<_> = o
+            .log
+            .records
+            .iter()
+            .filter_map(|r| if let Record::Verification(v) = r { Some(*v) } else { None })
+            .collect();
         let s = &o.recording.stats;
         println!(
             "seed {seed}: ego APE {:.3} m (offline anchorer {:.3} m) over the {} frames both anchored ({} by the pipeline, {} offline); 3D tracks MOTA {:.3} IDF1 {:.3} (anchored frames: {:.3} / {:.3}; seen from the ego: {:.3} / {:.3}; true ego pose: MOTA {:.3} IDF1 {:.3}); {} windows, scores {:?}; {} bytes",

@@ -52,7 +52,10 @@ pub fn read(path: &Path) -> Result<Vec<DetectionRow>, String> {
             return Err(at(&format!("expected 11 or 14 columns ({HEADER}), found {}", f.len())));
         }
         let number = |k: usize, name: &str| -> Result<f64, String> {
-            f[k].parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| at(&format!("{name} is not a finite number")))
+            f[k].parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| at(&format!("{name} is not a finite number")))
         };
         let frame = f[0].parse::<u64>().map_err(|_| at("frame is not a non-negative integer"))?;
         let covariance = if f.len() == 14 && f[11..].iter().any(|v| !v.is_empty()) {

@@ -32,8 +32,8 @@ pub const STEP_CONFIRMATIONS: usize = 3;
 const STEP_AGREEMENT_US: i64 = 100_000;
 /// Samples the offset estimate is the maximum of.
 pub const WINDOW: usize = 16;
-/// A change of the estimate smaller than this is not reported, µs.
-const REPORT_CHANGE_US: i64 = 1_000;
+/// A change of the estimate smaller than this is neither reported nor applied, µs.
+pub const REPORT_CHANGE_US: i64 = 1_000;
 
 /// What a UTC sample did to the offset.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -108,14 +108,16 @@ impl Clock {
         self.resets
     }
 
-    /// UTC − monotonic, once a fix has told it.
+    /// UTC − monotonic in force: the offset last reported (a change smaller than
+    /// [`REPORT_CHANGE_US`] is not applied until it grows), so that a reader that knows
+    /// the reported offsets recovers every device time exactly.
     pub fn offset(&self) -> Option<i64> {
-        self.offset
+        self.offset.map(|_| self.reported)
     }
 
     /// The log's time for a monotonic time: UTC once known, the monotonic time before.
     pub fn log_time(&self, monotonic: Timestamp) -> i64 {
-        monotonic.micros().saturating_add(self.offset.unwrap_or(0))
+        monotonic.micros().saturating_add(self.offset().unwrap_or(0))
     }
 
     /// A fix stamped `utc` was received at monotonic time `received`.
@@ -185,6 +187,9 @@ mod tests {
         assert!(matches!(c.utc_sample(t(utc0 + 200_000), t(260_000)), OffsetChange::Drift(_)));
         assert_eq!(c.offset(), Some(utc0 - 60_000));
         assert_eq!(c.utc_sample(t(utc0 + 400_000), t(490_000)), OffsetChange::None);
+        assert_eq!(c.offset(), Some(utc0 - 60_000));
+        // Less latency by half a millisecond: not applied (nor reported) until it grows.
+        assert_eq!(c.utc_sample(t(utc0 + 600_000), t(659_500)), OffsetChange::None);
         assert_eq!(c.offset(), Some(utc0 - 60_000));
         assert_eq!(c.log_time(t(1_000_000)), utc0 - 60_000 + 1_000_000);
     }

@@ -101,7 +101,8 @@ impl Issues {
         if let Some(c) = self.counts.get_mut(i) {
             *c = total;
         }
-        let due = self.reported.get(i).copied().flatten().is_none_or(|(t, _)| now_us.saturating_sub(t) >= EVENT_INTERVAL_US);
+        let due =
+            self.reported.get(i).copied().flatten().is_none_or(|(t, _)| now_us.saturating_sub(t) >= EVENT_INTERVAL_US);
         if due {
             if let Some(r) = self.reported.get_mut(i) {
                 *r = Some((now_us, total));

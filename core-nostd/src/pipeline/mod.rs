@@ -518,7 +518,12 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         self.clock.log_time(t)
     }
 
-    fn event(&mut self, t: Timestamp, level: u8, args: core::fmt::Arguments<'_>) -> Result<(), PipelineError<W::Error>> {
+    fn event(
+        &mut self,
+        t: Timestamp,
+        level: u8,
+        args: core::fmt::Arguments<'_>,
+    ) -> Result<(), PipelineError<W::Error>> {
         let mut text: heapless::String<MAX_TEXT> = heapless::String::new();
         // A text longer than an event holds is cut where it no longer fits.
         let _ = text.write_fmt(args);
@@ -587,9 +592,10 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
                 None => Ok(()),
             },
             Message::GnssPosition(p) => {
-                let utc = p.date.zip(p.time).map(|(d, s)| {
-                    Timestamp::from_micros(i64::from(d) * 86_400_000_000 + i64::from(s) * 100)
-                });
+                let utc = p
+                    .date
+                    .zip(p.time)
+                    .map(|(d, s)| Timestamp::from_micros(i64::from(d) * 86_400_000_000 + i64::from(s) * 100));
                 if p.hdop.is_some() {
                     self.hdop = p.hdop;
                 }
@@ -600,7 +606,13 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
                     alt: p.altitude,
                     hdop: p.hdop,
                     satellites: p.satellites.map(u32::from),
-                    mode: if p.method == 0 { 0 } else if p.altitude.is_some() { 3 } else { 2 },
+                    mode: if p.method == 0 {
+                        0
+                    } else if p.altitude.is_some() {
+                        3
+                    } else {
+                        2
+                    },
                     ..Fix::default()
                 };
                 self.on_fix(t, &fix)
@@ -633,7 +645,11 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
                 OffsetChange::None => utc_trusted = true,
                 OffsetChange::Ignored(by) => {
                     self.issue(rx, Issue::GnssTimeIgnored, 1)?;
-                    self.event(rx, 3, format_args!("GNSS time {:+.3} s off the clock: not used as time", by as f64 * 1e-6))?;
+                    self.event(
+                        rx,
+                        3,
+                        format_args!("GNSS time {:+.3} s off the clock: not used as time", by as f64 * 1e-6),
+                    )?;
                 }
                 change => {
                     utc_trusted = true;
@@ -652,7 +668,9 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             }
         }
         let position = match (fix.lat, fix.lon, fix.mode >= 2) {
-            (Some(lat), Some(lon), true) => Geodetic::new(lat, lon, fix.alt.unwrap_or(self.config.origin.height_m)).ok(),
+            (Some(lat), Some(lon), true) => {
+                Geodetic::new(lat, lon, fix.alt.unwrap_or(self.config.origin.height_m)).ok()
+            }
             _ => None,
         };
         let Some(position) = position else {
@@ -767,12 +785,19 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
 
     /// The VO pose a detection of `frame` at `t` belongs with: the anchored ego, or none.
     fn pose_for(&self, t: Timestamp, frame: u64) -> (bool, Option<Ego>) {
-        let near = |ft: Timestamp, f: u64| f == frame || (t - ft).micros().saturating_abs() <= self.config.max_pose_age.micros();
+        let near = |ft: Timestamp, f: u64| {
+            f == frame || (t - ft).micros().saturating_abs() <= self.config.max_pose_age.micros()
+        };
         let has_vo = self.vo.is_some_and(|v| near(v.t, v.frame));
         (has_vo, self.ego.filter(|e| near(e.t, e.frame)))
     }
 
-    fn on_detections(&mut self, t: Timestamp, frame: u64, detections: &[Detection3d]) -> Result<(), PipelineError<W::Error>> {
+    fn on_detections(
+        &mut self,
+        t: Timestamp,
+        frame: u64,
+        detections: &[Detection3d],
+    ) -> Result<(), PipelineError<W::Error>> {
         if self.last_frame3d.is_some_and(|f| frame <= f) {
             return self.issue(t, Issue::DetectionsOutOfOrder, 1);
         }
@@ -795,11 +820,13 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         self.stats.detections_placed = self.stats.detections_placed.saturating_add(placed.len() as u64);
         let rejected_before = self.tracker3d.stats().rejected;
         let mut outputs: heapless::Vec<Track3dOutput, T3> = heapless::Vec::new();
-        if self.tracker3d.update(frame, &placed, |o| {
-            // At most T3 tracks exist.
-            let _ = outputs.push(o);
-        })
-        .is_err()
+        if self
+            .tracker3d
+            .update(frame, &placed, |o| {
+                // At most T3 tracks exist.
+                let _ = outputs.push(o);
+            })
+            .is_err()
         {
             return self.issue(t, Issue::DetectionsOutOfOrder, 1);
         }
@@ -810,7 +837,12 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         self.write_tracks(t, &ego, &outputs)
     }
 
-    fn write_raw(&mut self, t: Timestamp, frame: u64, detections: &[Detection3d]) -> Result<(), PipelineError<W::Error>> {
+    fn write_raw(
+        &mut self,
+        t: Timestamp,
+        frame: u64,
+        detections: &[Detection3d],
+    ) -> Result<(), PipelineError<W::Error>> {
         let t_us = self.log_time(t);
         for d in detections.iter().take(T3) {
             let b = &d.bbox;
@@ -836,7 +868,12 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         Ok(())
     }
 
-    fn write_tracks(&mut self, t: Timestamp, ego: &Ego, outputs: &[Track3dOutput]) -> Result<(), PipelineError<W::Error>> {
+    fn write_tracks(
+        &mut self,
+        t: Timestamp,
+        ego: &Ego,
+        outputs: &[Track3dOutput],
+    ) -> Result<(), PipelineError<W::Error>> {
         let t_us = self.log_time(t);
         let per_second = 1.0 / self.frame_interval;
         self.agents.clear();
@@ -897,10 +934,12 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             self.issue(t, Issue::DetectionsRefused, excess)?;
         }
         let mut outputs: heapless::Vec<crate::track2d::TrackOutput, T2> = heapless::Vec::new();
-        if self.tracker2d.update(frame, &boxes, |o| {
-            let _ = outputs.push(o);
-        })
-        .is_err()
+        if self
+            .tracker2d
+            .update(frame, &boxes, |o| {
+                let _ = outputs.push(o);
+            })
+            .is_err()
         {
             return self.issue(t, Issue::DetectionsOutOfOrder, 1);
         }
@@ -937,7 +976,8 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         let ts = t.as_secs_f64();
         if self.window.is_none() {
             let checker = Checker::new(map, self.config.footprint);
-            self.window = Some(Window { start: ts, scorer: Scorer::new(checker, Channel::Insensitive, self.config.score) });
+            self.window =
+                Some(Window { start: ts, scorer: Scorer::new(checker, Channel::Insensitive, self.config.score) });
         }
         let dt = ts - self.agents_t;
         let mut agents: heapless::Vec<Agent, T3> = heapless::Vec::new();
@@ -980,11 +1020,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             worst_corner_mm: quantise(s.worst_corner.clamp(-1e6, 1e6), 1e-3),
         }))?;
         let verdict = if s.verified { "verified" } else { "not verified" };
-        self.event(
-            t,
-            2,
-            format_args!("verification window of {:.1} s: score {:.2}, {verdict}", s.duration, s.score),
-        )
+        self.event(t, 2, format_args!("verification window of {:.1} s: score {:.2}, {verdict}", s.duration, s.score))
     }
 }
 

@@ -151,7 +151,8 @@ mod tests {
     #[test]
     fn the_rear_axle_is_behind_and_below_the_camera() {
         let mount = CameraMount::default();
-        let camera = Pose { rotation: rotation_z(core::f64::consts::FRAC_PI_2), translation: Vector3::new(5.0, 5.0, 1.3) };
+        let camera =
+            Pose { rotation: rotation_z(core::f64::consts::FRAC_PI_2), translation: Vector3::new(5.0, 5.0, 1.3) };
         let body = mount.body_pose(&camera);
         assert!(close(body.translation.x, 5.0) && close(body.translation.y, 3.2) && close(body.translation.z, 0.0));
         assert!(close(heading(&body.rotation), core::f64::consts::FRAC_PI_2));

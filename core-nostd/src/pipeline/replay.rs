@@ -226,7 +226,10 @@ pub fn detections2d<const N: usize>(bytes: &[u8], out: &mut heapless::Vec<ImageD
         let f = |k: usize| f32_at(d, 6 + 4 * k).unwrap_or(f64::NAN);
         let detection = ImageDetection {
             class: u16_at(d, 0).unwrap_or(u16::MAX),
-            detection: Detection { bbox: Box2d { x: f(0), y: f(1), w: f(2), h: f(3) }, score: f32_at(d, 2).unwrap_or(f64::NAN) },
+            detection: Detection {
+                bbox: Box2d { x: f(0), y: f(1), w: f(2), h: f(3) },
+                score: f32_at(d, 2).unwrap_or(f64::NAN),
+            },
         };
         if out.push(detection).is_err() {
             excess += 1;

@@ -234,8 +234,11 @@ fn speed_source(args: &RecordArgs) -> Result<Option<SpeedSource>, String> {
         other => return Err(format!("--speed-unit {other:?}: expected km/h, m/s or mph")),
     };
     let table = crate::can_decode::load_tables(&args.dbc)?;
-    let m = table.message_by_name(message).ok_or_else(|| format!("--speed-signal: no message {message:?} in the DBC files"))?;
-    let i = m.signal_index(signal).ok_or_else(|| format!("--speed-signal: message {message} has no signal {signal:?}"))?;
+    let m = table
+        .message_by_name(message)
+        .ok_or_else(|| format!("--speed-signal: no message {message:?} in the DBC files"))?;
+    let i =
+        m.signal_index(signal).ok_or_else(|| format!("--speed-signal: message {message} has no signal {signal:?}"))?;
     let (id, extended) = match m.id {
         embedded_can::Id::Standard(s) => (u32::from(s.as_raw()), false),
         embedded_can::Id::Extended(e) => (e.as_raw(), true),

@@ -119,10 +119,9 @@ impl Inputs {
                     at()
                 ));
             };
-            let t: f64 = std::str::from_utf8(stamp)
-                .ok()
-                .and_then(|s| s.trim().parse().ok())
-                .ok_or_else(|| format!("{}: receive time {:?} is not a number", at(), String::from_utf8_lossy(stamp)))?;
+            let t: f64 = std::str::from_utf8(stamp).ok().and_then(|s| s.trim().parse().ok()).ok_or_else(|| {
+                format!("{}: receive time {:?} is not a number", at(), String::from_utf8_lossy(stamp))
+            })?;
             let mut bytes = sentence.trim_ascii_start().to_vec();
             bytes.extend_from_slice(b"\r\n");
             self.push(micros(t, &at())?, Input::Serial(bytes));
@@ -144,7 +143,11 @@ impl Inputs {
                         self.counts.can_frames += 1;
                     }
                     None => {
-                        return Err(format!("{}:{}: a candump line without a timestamp", path.display(), reader.line_number()))
+                        return Err(format!(
+                            "{}:{}: a candump line without a timestamp",
+                            path.display(),
+                            reader.line_number()
+                        ))
                     }
                 },
                 Err(e) => {
@@ -211,7 +214,10 @@ impl Inputs {
         }
         for (frame, detections) in frames {
             let Some(&t_us) = self.frame_times.get(&frame) else {
-                return Err(format!("{}: frame {frame} has no VO pose (give --vo with one pose per frame)", path.display()));
+                return Err(format!(
+                    "{}: frame {frame} has no VO pose (give --vo with one pose per frame)",
+                    path.display()
+                ));
             };
             self.counts.detection2d_frames += 1;
             self.push(t_us, Input::Detections2d(frame, detections));

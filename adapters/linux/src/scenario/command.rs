@@ -6,8 +6,8 @@ use dash2sim_core::track3d::Config3d;
 use serde_json::json;
 
 use super::evaluate::evaluate_tracking;
-use super::write::write_scenario;
 use super::sensors::GnssModel;
+use super::write::write_scenario;
 use super::{generate, tracker_classes, tracker_config, ScenarioConfig};
 
 /// Longest drive, seconds: the road is about 1.15 km and the ego cruises at 22 m/s.

@@ -295,7 +295,8 @@ pub fn generate(config: &ScenarioConfig) -> Scenario {
 pub fn camera_trajectory(egos: &[EgoState], camera: &Camera) -> Trajectory {
     let mut out = ego_trajectory(egos);
     for pose in &mut out.poses {
-        pose.translation += pose.rotation * dash2sim_core::nalgebra::Vector3::new(camera.mount_forward, 0.0, camera.mount_height);
+        pose.translation +=
+            pose.rotation * dash2sim_core::nalgebra::Vector3::new(camera.mount_forward, 0.0, camera.mount_height);
     }
     out
 }

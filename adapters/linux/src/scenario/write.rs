@@ -123,9 +123,16 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
     for f in &scenario.frames {
         for d in &f.detections_3d {
             // Detections are generated in the ego frame; the camera reports them in its own.
-            let b = dash2sim_core::box3d::Box3d { x: d.bbox.x - camera.mount_forward, z: d.bbox.z - camera.mount_height, ..d.bbox };
+            let b = dash2sim_core::box3d::Box3d {
+                x: d.bbox.x - camera.mount_forward,
+                z: d.bbox.z - camera.mount_height,
+                ..d.bbox
+            };
             let class = Class::from_id(d.class).map_or("unknown", Class::name);
-            out.write_all(crate::detections::line(u64::from(f.index), f.ego.t, class, &b, d.score, d.position_covariance).as_bytes())?;
+            out.write_all(
+                crate::detections::line(u64::from(f.index), f.ego.t, class, &b, d.score, d.position_covariance)
+                    .as_bytes(),
+            )?;
         }
     }
     out.flush()?;
