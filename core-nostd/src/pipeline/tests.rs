@@ -1,1 +1,356 @@
-//! Pipeline tests: see below.
+//! The pipeline on a small synthetic drive: a straight road east at 10 m/s, VO in a frame
+//! turned by 1 rad and scaled by 0.5, a receiver sending GGA + RMC at 5 Hz (80 ms late),
+//! CCVS1 wheel speed at 50 Hz, a cone ahead seen by the camera.
+
+use core::fmt::Write as _;
+
+use embedded_can::{ExtendedId, Id};
+use nalgebra::{Matrix3, Vector3};
+use proptest::prelude::*;
+
+use super::*;
+use crate::binlog::{Decoder, Event as LogEvent, Kind};
+use crate::box3d::Box3d;
+use crate::can::CanFrame;
+use crate::score::AgentKind;
+use crate::sim3::rotation_z;
+use crate::track3d::{Association, ClassConfig};
+
+const ORIGIN_LAT: f64 = 60.0;
+const ORIGIN_LON: f64 = 25.0;
+/// UTC of device time 0 (2026-06-01T08:00:00Z), µs.
+const UTC0: i64 = 1_780_300_800_000_000;
+const LATENCY_US: i64 = 80_000;
+
+fn cone_class() -> [ClassConfig; 1] {
+    [ClassConfig {
+        association: Association::Distance(2.0),
+        min_size: [0.2; 3],
+        max_size: [1.0; 3],
+        max_ground_offset: 0.3,
+        process_noise: [1e-3; 10],
+        measurement_noise: [0.1; 7],
+        initial_velocity_variance: 0.01,
+    }]
+}
+
+const META: [ClassMeta; 1] = [ClassMeta { code: 6, kind: AgentKind::Object }];
+
+fn config<'a>(classes: &'a [ClassConfig]) -> PipelineConfig<'a> {
+    let origin = Geodetic::new(ORIGIN_LAT, ORIGIN_LON, 0.0).unwrap_or_else(|_| unreachable!());
+    let tracker = Config3d { classes, min_hits: 2, max_age: 3, ground_z: 0.0, static_speed: 0.3 };
+    PipelineConfig {
+        anchor: AnchorConfig { mode: crate::anchor::AnchorMode::GravityAligned, ..AnchorConfig::default() },
+        speed: Some(SpeedSource::Ccvs1),
+        ..PipelineConfig::new(origin, tracker, &META)
+    }
+}
+
+fn us(t: i64) -> Timestamp {
+    Timestamp::from_micros(t)
+}
+
+/// Where the camera is at device time `t_us` (ENU).
+fn camera_at(t_us: i64) -> Vector3<f64> {
+    Vector3::new(10.0 * t_us as f64 * 1e-6 + 1.8, 100.0, 1.3)
+}
+
+fn vo_pose(t_us: i64) -> Pose {
+    // ENU = 0.5⁻¹… the VO frame is the world turned by −1 rad and scaled by 2.
+    let to_vo = rotation_z(-1.0);
+    Pose { rotation: to_vo, translation: to_vo * camera_at(t_us) * 2.0 }
+}
+
+fn sentence(body: &str) -> heapless::String<128> {
+    let checksum = body.bytes().fold(0u8, |c, b| c ^ b);
+    let mut s = heapless::String::new();
+    let _ = write!(s, "${body}*{checksum:02X}\r\n");
+    s
+}
+
+/// GGA + RMC of the fix at device time `t_us` whose UTC is `utc_us`.
+fn nmea(t_us: i64, utc_us: i64) -> heapless::String<256> {
+    let p = camera_at(t_us);
+    let frame = LocalFrame::new(Geodetic::new(ORIGIN_LAT, ORIGIN_LON, 0.0).unwrap_or_else(|_| unreachable!()));
+    let g = frame.enu_to_geodetic(&p).unwrap_or_else(|_| unreachable!());
+    let tod = utc_us.rem_euclid(86_400_000_000) / 10_000; // centiseconds
+    let (h, m, s, cs) = (tod / 360_000, tod / 6000 % 60, tod / 100 % 60, tod % 100);
+    let lat_min = (g.lat_deg - 60.0) * 60.0;
+    let lon_min = (g.lon_deg - 25.0) * 60.0;
+    let mut gga: heapless::String<128> = heapless::String::new();
+    let _ = write!(gga, "GPGGA,{h:02}{m:02}{s:02}.{cs:02},60{lat_min:09.6},N,025{lon_min:09.6},E,1,09,0.8,{:.2},M,0.0,M,,", g.height_m);
+    let mut rmc: heapless::String<128> = heapless::String::new();
+    let _ = write!(rmc, "GPRMC,{h:02}{m:02}{s:02}.{cs:02},A,60{lat_min:09.6},N,025{lon_min:09.6},E,19.44,90.0,010626,,,A");
+    let mut out = heapless::String::new();
+    let _ = out.push_str(&sentence(&gga));
+    let _ = out.push_str(&sentence(&rmc));
+    out
+}
+
+fn ccvs1(mps: f64) -> CanFrame {
+    let raw = ((mps * 3.6 * 256.0) as u16).to_le_bytes();
+    let id = Id::Extended(ExtendedId::new(0x18FE_F100).unwrap_or(ExtendedId::ZERO));
+    CanFrame::data_frame(id, &[0xFF, raw[0], raw[1], 0xFF, 0xFF, 0xFF, 0xFF, 0xFF]).unwrap_or_else(|| unreachable!())
+}
+
+/// A cone 30 m ahead of the start, on the road's edge, in the camera frame at `t_us`.
+fn cone(t_us: i64) -> Detection3d {
+    let ahead = 30.0 - camera_at(t_us).x;
+    Detection3d::new(0, Box3d { x: ahead, y: -3.0, z: -1.3 + 0.35, yaw: 0.0, l: 0.36, w: 0.36, h: 0.7 }, 0.9)
+}
+
+/// What a log holds.
+#[derive(Default)]
+struct Decoded {
+    counts: [u64; Kind::ALL.len()],
+    damaged: u64,
+    events: heapless::Vec<heapless::String<255>, 64>,
+    clock_reasons: heapless::Vec<i64, 16>,
+    last_ego: Option<EgoPose>,
+}
+
+fn decode(log: &[u8]) -> Decoded {
+    let mut out = Decoded::default();
+    let mut decoder: Decoder = Decoder::default();
+    let mut on = |e: LogEvent| match e {
+        LogEvent::Record(r) => {
+            if let Some(i) = Kind::ALL.iter().position(|k| *k == r.kind()) {
+                out.counts[i] += 1;
+            }
+            match r {
+                Record::Event(e) => {
+                    let _ = out.events.push(heapless::String::try_from(core::str::from_utf8(&e.text).unwrap_or("?")).unwrap_or_default());
+                }
+                Record::ClockOffset(c) => {
+                    let _ = out.clock_reasons.push(c.reason);
+                }
+                Record::EgoPose(p) => out.last_ego = Some(p),
+                _ => {}
+            }
+        }
+        LogEvent::Damaged { .. } | LogEvent::NotALog(_) => out.damaged += 1,
+        _ => {}
+    };
+    for chunk in log.chunks(97) {
+        decoder.push(chunk, &mut on);
+    }
+    decoder.finish(&mut on);
+    out
+}
+
+fn count(d: &Decoded, kind: Kind) -> u64 {
+    Kind::ALL.iter().position(|k| *k == kind).map_or(0, |i| d.counts[i])
+}
+
+/// Drive for `seconds`, calling `tamper(t_us, pipeline)` before each 20 ms step.
+fn drive<'a>(
+    buffer: &'a mut [u8],
+    seconds: i64,
+    mut tamper: impl FnMut(i64, &mut Pipeline<'_, &mut [u8], 8, 4, 4096>),
+) -> (usize, PipelineStats, Issues) {
+    let classes = cone_class();
+    let total = buffer.len();
+    let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> =
+        Pipeline::new(buffer, config(&classes)).unwrap_or_else(|_| unreachable!());
+    let mut frame = 0;
+    for step in 0..seconds * 50 {
+        let t = step * 20_000;
+        tamper(t, &mut p);
+        let _ = p.push_can(us(t), &ccvs1(10.0));
+        if step % 10 == 0 {
+            let bytes = nmea(t, UTC0 + t);
+            let _ = p.push_serial(us(t + LATENCY_US), bytes.as_bytes());
+        }
+        if step % 5 == 0 {
+            frame += 1;
+            let _ = p.push_vo(us(t), frame, &vo_pose(t));
+            let _ = p.push_detections(us(t), frame, &[cone(t)]);
+        }
+    }
+    let (rest, stats, issues) = p.finish().unwrap_or_else(|_| unreachable!());
+    (total - rest.len(), stats, issues)
+}
+
+#[test]
+fn a_clean_drive_is_anchored_tracked_and_timed_in_utc() {
+    let mut buffer = [0u8; 65_536];
+    let (len, stats, issues) = drive(&mut buffer, 20, |_, _| {});
+    let log = decode(&buffer[..len]);
+    assert_eq!(log.damaged, 0);
+    assert_eq!(issues.total(), 0, "{issues:?} {:?} {:?}", log.events, nmea(0, UTC0));
+    assert!(stats.anchored_frames > 150, "{stats:?}");
+    assert_eq!(count(&log, Kind::EgoPose), stats.anchored_frames);
+    assert_eq!(count(&log, Kind::VoPose), 200);
+    assert_eq!(count(&log, Kind::GnssFix), 100);
+    assert_eq!(count(&log, Kind::VehicleSpeed), 1000);
+    assert!(count(&log, Kind::Tracks3d) > 100);
+    assert!(count(&log, Kind::Detection3d) > 0, "detections before the anchor are logged raw");
+    assert_eq!(log.clock_reasons.first(), Some(&0));
+    // The last ego pose: the rear axle at 10 m/s × 19.9 s, heading east, in UTC. At a
+    // constant speed the receiver's latency is unobservable (docs/anchoring.md): the anchor
+    // may sit along the road by up to v × the largest latency hypothesis (0.2 s).
+    let ego = log.last_ego.unwrap_or_default();
+    assert!((ego.x_mm as f64 * 1e-3 - 199.0).abs() < 2.1, "{ego:?}");
+    assert!((ego.y_mm - 100_000).abs() < 500 && ego.yaw_e4.abs() < 100, "{ego:?}");
+    assert!((ego.t_us - (UTC0 + 19_900_000 - LATENCY_US)).abs() < 1_000, "{ego:?}");
+}
+
+#[test]
+fn bad_inputs_are_counted_written_as_events_and_lose_nothing_else() {
+    let mut buffer = [0u8; 262_144];
+    let nan = Pose { rotation: Matrix3::identity(), translation: Vector3::new(f64::NAN, 0.0, 0.0) };
+    let (len, stats, issues) = drive(&mut buffer, 20, |t, p| {
+        match t {
+            // Detections before the first VO pose.
+            0 => {
+                let _ = p.push_detections(us(0), 0, &[cone(0)]);
+            }
+            // NaN VO, and a VO pose out of order.
+            2_000_000 => {
+                let _ = p.push_vo(us(t + 1), 1_000, &nan);
+                let _ = p.push_vo(us(t - 500_000), 1, &vo_pose(t));
+            }
+            // 10 000 CAN frames in one burst: bad fast packets of PGN 129029.
+            4_000_000 => {
+                let id = Id::Extended(ExtendedId::new(0x09F8_0501).unwrap_or(ExtendedId::ZERO));
+                let junk = CanFrame::data_frame(id, &[0x21, 1, 2, 3, 4, 5, 6, 7]).unwrap_or_else(|| unreachable!());
+                for _ in 0..10_000 {
+                    let _ = p.push_can(us(t), &junk);
+                }
+            }
+            // A GNSS time stepped back by a second, for good.
+            6_000_000 => {
+                for k in 0..5 {
+                    let tk = t + 200_000 * k;
+                    let _ = p.push_serial(us(tk + LATENCY_US + 10_000), nmea(tk, UTC0 + tk - 1_000_000).as_bytes());
+                }
+            }
+            // A sentence with a bad checksum, binary garbage.
+            8_000_000 => {
+                let _ = p.push_serial(us(t), b"$GPGGA,1,2,3*00\r\n\x00\xff\xfe garbage\r\n");
+            }
+            _ => {}
+        }
+    });
+    let log = decode(&buffer[..len]);
+    assert_eq!(log.damaged, 0, "the log always decodes");
+    assert!(issues.get(Issue::DetectionsWithoutPose) >= 1);
+    assert_eq!(issues.get(Issue::VoNotFinite), 1);
+    assert_eq!(issues.get(Issue::VoOutOfOrder), 1);
+    assert!(issues.get(Issue::CanBadFrame) >= 10_000, "{issues:?}");
+    assert!(issues.get(Issue::NmeaBadSentence) + issues.get(Issue::NmeaDropped) >= 1);
+    assert!(log.clock_reasons.contains(&2), "the lasting step is followed: {:?}", log.clock_reasons);
+    assert!(issues.get(Issue::GnssTimeIgnored) >= 2);
+    // Every reason is in the log as an event; the burst did not flood it.
+    for issue in [Issue::DetectionsWithoutPose, Issue::VoNotFinite, Issue::CanBadFrame, Issue::GnssTimeIgnored] {
+        assert!(log.events.iter().any(|e| e.starts_with(issue.text())), "{issue:?}: {:?}", log.events);
+    }
+    assert!(log.events.len() < 60, "{} events", log.events.len());
+    // Everything good still went in.
+    assert_eq!(count(&log, Kind::VoPose), 200);
+    assert!(stats.anchored_frames > 150);
+}
+
+#[test]
+fn a_device_clock_reset_keeps_the_log_going_in_utc() {
+    let mut buffer = [0u8; 131_072];
+    let classes = cone_class();
+    let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> =
+        Pipeline::new(&mut buffer[..], config(&classes)).unwrap_or_else(|_| unreachable!());
+    // 10 s, then the device clock restarts at 0 while the car drives on (2 s lost).
+    let reset_at = 10_000_000;
+    let lost = 2_000_000;
+    let mut frame = 0;
+    for step in 0..20 * 50 {
+        let t = step * 20_000;
+        let device = if t < reset_at { t } else { t - reset_at - lost + 1 };
+        if t >= reset_at && t < reset_at + lost {
+            continue;
+        }
+        let _ = p.push_can(us(device), &ccvs1(10.0));
+        if step % 10 == 0 {
+            let _ = p.push_serial(us(device + LATENCY_US), nmea(t, UTC0 + t).as_bytes());
+        }
+        if step % 5 == 0 {
+            frame += 1;
+            let _ = p.push_vo(us(device), frame, &vo_pose(t));
+        }
+    }
+    assert_eq!(p.issues().get(Issue::ClockReset), 1);
+    let (rest, stats, _) = p.finish().unwrap_or_else(|_| unreachable!());
+    let len = 131_072 - rest.len();
+    let log = decode(&buffer[..len]);
+    assert_eq!(log.damaged, 0);
+    assert!(log.clock_reasons.contains(&3), "UTC taken again after the reset: {:?}", log.clock_reasons);
+    let ego = log.last_ego.unwrap_or_default();
+    assert!((ego.t_us - (UTC0 + 19_900_000 - LATENCY_US)).abs() < 1_000, "the last pose in UTC: {ego:?}");
+    assert!(stats.anchored_frames > 130);
+}
+
+/// One input of any kind, with any time and content.
+#[derive(Clone, Debug)]
+enum AnyInput {
+    Serial(i64, std::vec::Vec<u8>),
+    Can(i64, u32, std::vec::Vec<u8>),
+    Vo(i64, u64, [f64; 3], f64),
+    Detections(i64, u64, std::vec::Vec<[f64; 8]>),
+}
+
+extern crate std;
+
+fn any_input() -> impl Strategy<Value = AnyInput> {
+    let t = -2_000_000i64..60_000_000;
+    let value = prop_oneof![-1e3f64..1e3, Just(f64::NAN), Just(f64::INFINITY), Just(1e300)];
+    prop_oneof![
+        (t.clone(), prop::collection::vec(any::<u8>(), 0..200)).prop_map(|(t, b)| AnyInput::Serial(t, b)),
+        (t.clone(), any::<u32>(), prop::collection::vec(any::<u8>(), 0..=8)).prop_map(|(t, id, d)| AnyInput::Can(t, id, d)),
+        (t.clone(), 0u64..50, prop::array::uniform3(value.clone()), value.clone())
+            .prop_map(|(t, f, p, yaw)| AnyInput::Vo(t, f, p, yaw)),
+        (t, 0u64..50, prop::collection::vec(prop::array::uniform8(value), 0..12))
+            .prop_map(|(t, f, d)| AnyInput::Detections(t, f, d)),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+    #[test]
+    fn any_interleaving_of_any_inputs_never_panics_and_always_decodes(
+        inputs in prop::collection::vec(any_input(), 0..300),
+    ) {
+        let mut buffer = std::vec![0u8; 1 << 20];
+        let classes = cone_class();
+        let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> =
+            Pipeline::new(&mut buffer[..], config(&classes)).unwrap_or_else(|_| unreachable!());
+        for input in &inputs {
+            let _ = match input {
+                AnyInput::Serial(t, b) => p.push_serial(us(*t), b),
+                AnyInput::Can(t, id, d) => {
+                    let id = crate::can::frame::id_from_raw(id & 0x1FFF_FFFF, id & 0x8000_0000 != 0);
+                    match id.and_then(|id| CanFrame::data_frame(id, d)) {
+                        Some(f) => p.push_can(us(*t), &f),
+                        None => Ok(()),
+                    }
+                }
+                AnyInput::Vo(t, f, [x, y, z], yaw) => {
+                    let pose = Pose { rotation: rotation_z(*yaw), translation: Vector3::new(*x, *y, *z) };
+                    p.push_vo(us(*t), *f, &pose)
+                }
+                AnyInput::Detections(t, f, boxes) => {
+                    let dets: std::vec::Vec<Detection3d> = boxes
+                        .iter()
+                        .map(|b| Detection3d {
+                            position_covariance: Some([b[7].abs(), 0.0, b[7].abs()]),
+                            ..Detection3d::new(0, Box3d { x: b[0], y: b[1], z: b[2], yaw: b[3], l: b[4], w: b[5], h: b[6] }, 0.5)
+                        })
+                        .collect();
+                    p.push_detections(us(*t), *f, &dets)
+                }
+            };
+        }
+        let (rest, _, _) = p.finish().unwrap_or_else(|_| unreachable!());
+        let len = (1 << 20) - rest.len();
+        let log = decode(&buffer[..len]);
+        prop_assert_eq!(log.damaged, 0);
+    }
+}
