@@ -78,9 +78,14 @@ fn nmea(t_us: i64, utc_us: i64) -> heapless::String<256> {
     let lat_min = (g.lat_deg - 60.0) * 60.0;
     let lon_min = (g.lon_deg - 25.0) * 60.0;
     let mut gga: heapless::String<128> = heapless::String::new();
-    let _ = write!(gga, "GPGGA,{h:02}{m:02}{s:02}.{cs:02},60{lat_min:09.6},N,025{lon_min:09.6},E,1,09,0.8,{:.2},M,0.0,M,,", g.height_m);
+    let _ = write!(
+        gga,
+        "GPGGA,{h:02}{m:02}{s:02}.{cs:02},60{lat_min:09.6},N,025{lon_min:09.6},E,1,09,0.8,{:.2},M,0.0,M,,",
+        g.height_m
+    );
     let mut rmc: heapless::String<128> = heapless::String::new();
-    let _ = write!(rmc, "GPRMC,{h:02}{m:02}{s:02}.{cs:02},A,60{lat_min:09.6},N,025{lon_min:09.6},E,19.44,90.0,010626,,,A");
+    let _ =
+        write!(rmc, "GPRMC,{h:02}{m:02}{s:02}.{cs:02},A,60{lat_min:09.6},N,025{lon_min:09.6},E,19.44,90.0,010626,,,A");
     let mut out = heapless::String::new();
     let _ = out.push_str(&sentence(&gga));
     let _ = out.push_str(&sentence(&rmc));
@@ -119,7 +124,9 @@ fn decode(log: &[u8]) -> Decoded {
             }
             match r {
                 Record::Event(e) => {
-                    let _ = out.events.push(heapless::String::try_from(core::str::from_utf8(&e.text).unwrap_or("?")).unwrap_or_default());
+                    let _ = out.events.push(
+                        heapless::String::try_from(core::str::from_utf8(&e.text).unwrap_or("?")).unwrap_or_default(),
+                    );
                 }
                 Record::ClockOffset(c) => {
                     let _ = out.clock_reasons.push(c.reason);
@@ -303,7 +310,8 @@ fn any_input() -> impl Strategy<Value = AnyInput> {
     let value = prop_oneof![-1e3f64..1e3, Just(f64::NAN), Just(f64::INFINITY), Just(1e300)];
     prop_oneof![
         (t.clone(), prop::collection::vec(any::<u8>(), 0..200)).prop_map(|(t, b)| AnyInput::Serial(t, b)),
-        (t.clone(), any::<u32>(), prop::collection::vec(any::<u8>(), 0..=8)).prop_map(|(t, id, d)| AnyInput::Can(t, id, d)),
+        (t.clone(), any::<u32>(), prop::collection::vec(any::<u8>(), 0..=8))
+            .prop_map(|(t, id, d)| AnyInput::Can(t, id, d)),
         (t.clone(), 0u64..50, prop::array::uniform3(value.clone()), value.clone())
             .prop_map(|(t, f, p, yaw)| AnyInput::Vo(t, f, p, yaw)),
         (t, 0u64..50, prop::collection::vec(prop::array::uniform8(value), 0..12))

@@ -18,6 +18,7 @@
 pub mod actors;
 pub mod command;
 pub mod evaluate;
+pub mod judge;
 pub mod road;
 pub mod sensors;
 pub mod vo;
