@@ -11,7 +11,7 @@ use dash2sim_core::geo::Geodetic;
 use dash2sim_core::pipeline::mount::camera_in_world;
 use dash2sim_core::pipeline::{CameraMount, GnssErrorModel, SpeedSource};
 use dash2sim_linux::logfile::{self, LogContents};
-use dash2sim_linux::record::{self, RecordArgs, Recording, Setup};
+use dash2sim_linux::record::{self, Recording, Setup};
 use dash2sim_linux::scenario::evaluate::evaluate_tracking;
 use dash2sim_linux::scenario::judge::{judge_log, truth_at, LogJudgement};
 use dash2sim_linux::scenario::sensors::GnssModel;
@@ -33,29 +33,6 @@ pub fn road_tile(scenario: &Scenario, drive: &Path) -> Vec<u8> {
     let osm = dash2sim_linux::osm::read(&drive.join("road.osm")).expect("road.osm");
     let origin = Geodetic::new(lat, lon, h).expect("origin");
     dash2sim_linux::map_tile::encode(&dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()), 50.0)
-}
-
-/// `dash2sim record`'s arguments for a drive written to `drive`.
-pub fn record_args(drive: &Path, output: PathBuf) -> RecordArgs {
-    RecordArgs {
-        output,
-        vo: Some(drive.join("vo.tum")),
-        nmea: Some(drive.join("gnss.serial.log")),
-        can: Some(drive.join("speed.can.log")),
-        dbc: Vec::new(),
-        speed_signal: None,
-        speed_unit: "km/h".to_owned(),
-        speed_source: record::SpeedArg::Ccvs1,
-        detections: Some(drive.join("detections3d.csv")),
-        detections2d: Some(drive.join("det2d.txt")),
-        map: None,
-        origin: None,
-        mount: "1.8,0,1.3".to_owned(),
-        mode: record::ModeArg::Gravity,
-        uere: 2.5,
-        save_inputs: None,
-        json: false,
-    }
 }
 
 /// What recording one generated drive measured.
@@ -91,7 +68,7 @@ pub fn record_drive(seed: u64, duration_s: f64) -> Outcome {
     let drive = work.join("drive");
     write_scenario(&scenario, &drive).expect("write scenario");
     let [lat, lon, h] = scenario.config.origin;
-    let (stream, _) = record::read_sources(&record_args(&drive, work.join("drive.d2slog"))).expect("sources");
+    let (stream, _) = record::read_sources(&record::Sources::scenario(&drive)).expect("sources");
     let setup = Setup {
         origin: Geodetic::new(lat, lon, h).expect("origin"),
         mount: CameraMount::default(),

@@ -25,15 +25,16 @@ fn the_comma2k19_minute_anchors_through_the_pipeline_as_in_the_anchoring_test() 
     std::fs::write(&nmea_path, stamped).expect("write");
     let args = RecordArgs {
         output: work.join("comma.d2slog"),
-        vo: Some(vo_path),
-        nmea: Some(nmea_path),
-        can: Some(dir.join("raw_can.candump.log")),
+        sources: record::Sources {
+            vo: Some(vo_path),
+            nmea: Some(nmea_path),
+            can: Some(dir.join("raw_can.candump.log")),
+            ..record::Sources::default()
+        },
         dbc: vec![dir.join("opendbc-toyota/_toyota_2017.dbc")],
         speed_signal: Some("SPEED.SPEED".to_owned()),
         speed_unit: "km/h".to_owned(),
         speed_source: record::SpeedArg::Ccvs1,
-        detections: None,
-        detections2d: None,
         map: None,
         origin: Some("37.721000009,-122.472299089,31.6392".to_owned()),
         // The poses are the camera's (x forward, y right, z down); the ego is taken at the

@@ -21,12 +21,9 @@ use serde_json::json;
 use crate::scenario::actors::Class;
 use crate::scenario::{tracker_classes, tracker_config};
 
-/// Arguments of `dash2sim record` (file sources).
-#[derive(Debug, Args)]
-pub struct RecordArgs {
-    /// Output 4D log.
-    #[arg(short, long)]
-    pub output: PathBuf,
+/// The recorded files `dash2sim record` reads (see [`sources`] for their forms).
+#[derive(Clone, Debug, Default, Args)]
+pub struct Sources {
     /// VO poses of the camera, TUM (device-clock stamps; frame k is the k-th pose).
     #[arg(long)]
     pub vo: Option<PathBuf>,
@@ -36,6 +33,36 @@ pub struct RecordArgs {
     /// candump capture of the vehicle bus (device-clock stamps).
     #[arg(long)]
     pub can: Option<PathBuf>,
+    /// 3D detections in the camera frame (the detections CSV).
+    #[arg(long)]
+    pub detections: Option<PathBuf>,
+    /// 2D detections, MOTChallenge CSV (frames numbered as the VO poses).
+    #[arg(long)]
+    pub detections2d: Option<PathBuf>,
+}
+
+impl Sources {
+    /// The files `dash2sim scenario generate` writes into `dir`.
+    pub fn scenario(dir: &Path) -> Self {
+        Sources {
+            vo: Some(dir.join("vo.tum")),
+            nmea: Some(dir.join("gnss.serial.log")),
+            can: Some(dir.join("speed.can.log")),
+            detections: Some(dir.join("detections3d.csv")),
+            detections2d: Some(dir.join("det2d.txt")),
+        }
+    }
+}
+
+/// Arguments of `dash2sim record` (file sources).
+#[derive(Debug, Args)]
+pub struct RecordArgs {
+    /// Output 4D log.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// The recorded inputs.
+    #[command(flatten)]
+    pub sources: Sources,
     /// DBC files for `--speed-signal`.
     #[arg(long)]
     pub dbc: Vec<PathBuf>,
@@ -48,12 +75,6 @@ pub struct RecordArgs {
     /// Built-in speed message when no `--speed-signal` is given.
     #[arg(long, value_enum, default_value = "ccvs1")]
     pub speed_source: SpeedArg,
-    /// 3D detections in the camera frame (the detections CSV).
-    #[arg(long)]
-    pub detections: Option<PathBuf>,
-    /// 2D detections, MOTChallenge CSV (frames numbered as the VO poses).
-    #[arg(long)]
-    pub detections2d: Option<PathBuf>,
     /// Map tile to verify against on the way (windows of 15 s); its origin is the log's.
     #[arg(long)]
     pub map: Option<PathBuf>,
@@ -220,7 +241,7 @@ pub fn run_stream(stream: &[u8], setup: &Setup) -> Result<Recording, String> {
 /// The speed source the arguments name.
 fn speed_source(args: &RecordArgs) -> Result<Option<SpeedSource>, String> {
     let Some(name) = &args.speed_signal else {
-        return Ok(args.can.as_ref().map(|_| match args.speed_source {
+        return Ok(args.sources.can.as_ref().map(|_| match args.speed_source {
             SpeedArg::Ccvs1 => SpeedSource::Ccvs1,
             SpeedArg::Obd => SpeedSource::Obd,
         }));
@@ -247,7 +268,7 @@ fn speed_source(args: &RecordArgs) -> Result<Option<SpeedSource>, String> {
 }
 
 /// Read the file sources into one input stream.
-pub fn read_sources(args: &RecordArgs) -> Result<(Vec<u8>, sources::SourceCounts), String> {
+pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts), String> {
     let mut inputs = sources::Inputs::default();
     if let Some(p) = &args.vo {
         inputs.vo(p)?;
@@ -275,7 +296,7 @@ pub fn read_sources(args: &RecordArgs) -> Result<(Vec<u8>, sources::SourceCounts
 
 /// `dash2sim record` from files.
 pub fn run(args: &RecordArgs) -> Result<(), String> {
-    let (stream, counts) = read_sources(args)?;
+    let (stream, counts) = read_sources(&args.sources)?;
     if let Some(path) = &args.save_inputs {
         std::fs::write(path, &stream).map_err(|e| format!("{}: {e}", path.display()))?;
     }
