@@ -44,6 +44,8 @@ fn the_comma2k19_minute_anchors_through_the_pipeline_as_in_the_anchoring_test() 
         // HDOP 0.9 × 2.78 m = the anchoring test's σ of 2.5 m.
         uere: 2.5 / 0.9,
         save_inputs: None,
+        replay: None,
+        device_id: "dash2sim-record".to_owned(),
         json: true,
     };
     record::run(&args).expect("record");

@@ -33,6 +33,7 @@
 pub mod clock;
 pub mod issues;
 pub mod mount;
+pub mod profile;
 pub mod replay;
 
 use core::fmt::Write as _;

@@ -1,4 +1,10 @@
-//! dash2sim on a microcontroller: anchor a synthetic VO track (scale 0.4, rotated) to
+//! dash2sim on a microcontroller. First the whole on-device pipeline: a 20 s generated
+//! work-zone drive embedded in the binary (`drive.d2sin`: VO poses, the GNSS receiver's NMEA
+//! bytes, CAN frames, 3D and 2D detections) is replayed by a board behind the traits a
+//! real one gives ([`board`]) into `Pipeline<64 3D tracks, 32 2D tracks>` with the drive's
+//! map tile, and the 4D log goes to `target/drive-mcu.d2slog` on the host (CI compares it
+//! byte for byte with the host's `dash2sim record --replay`); the RAM it took is measured by
+//! stack painting. Then the parts on their own: anchor a synthetic VO track (scale 0.4, rotated) to
 //! GNSS fixes and wheel speed on a Cortex-M7, then track a car passing a row of cones
 //! with the 3D track manager, verify two drives against an embedded map tile (the
 //! drivable-area check and the nuPlan-style score), write a drive as a 4D log into RAM and
@@ -8,7 +14,16 @@
 #![no_std]
 #![no_main]
 
+mod board;
+
 use core::panic::PanicInfo;
+
+use board::{CameraMessage, HostFile, ReplayBoard};
+use dash2sim_core::geo::Geodetic;
+use dash2sim_core::pipeline::profile::{work_zone_classes, work_zone_meta, work_zone_pipeline};
+use dash2sim_core::pipeline::{replay, ImageDetection, Pipeline, PipelineConfig};
+use embedded_can::nb::Can as _;
+use embedded_io::{Read as _, ReadReady as _};
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
@@ -191,8 +206,123 @@ fn log_round_trip() -> bool {
     good && k == 400 && decoder.stats().damaged == 0
 }
 
+/// A 20 s generated work-zone drive as the device saw it (tests/tests/mcu_drive.rs keeps
+/// it equal to a fresh `dash2sim record --save-inputs` of `dash2sim scenario generate --seed 1
+/// --duration 20 --receiver good`), and its road's map tile.
+static DRIVE: &[u8] = include_bytes!("../drive.d2sin");
+static DRIVE_TILE: &[u8] = include_bytes!("../drive.d2smap");
+
+/// The pipeline over the replayed drive, the log to the host.
+fn record_drive() -> bool {
+    let Ok(map) = MapView::parse(DRIVE_TILE) else {
+        hprintln!("the drive's map tile was refused");
+        return false;
+    };
+    let [lat, lon, height] = map.header().origin;
+    let Ok(origin) = Geodetic::new(lat, lon, height) else { return false };
+    let (classes, meta) = (work_zone_classes(), work_zone_meta());
+    let config = PipelineConfig {
+        device_id: *b"dash2sim-mcu\0\0\0\0",
+        map: Some(map),
+        ..work_zone_pipeline(origin, &classes, &meta)
+    };
+    let (Some(sink), Some(mut board)) = (HostFile::create("target/drive-mcu.d2slog\0"), ReplayBoard::new(DRIVE)) else {
+        hprintln!("no host file or no input stream");
+        return false;
+    };
+    let Ok(mut pipeline) = Pipeline::<'_, HostFile, 64, 32, 4096>::new(sink, config) else { return false };
+    let mut serial = [0u8; 128];
+    let mut detections3d: heapless::Vec<_, 64> = heapless::Vec::new();
+    let mut detections2d: heapless::Vec<ImageDetection, 32> = heapless::Vec::new();
+    let mut inputs = 0u32;
+    while let Some(t) = board.now() {
+        inputs += 1;
+        let result = if board.uart().read_ready() == Ok(true) {
+            let n = board.uart().read(&mut serial).unwrap_or(0);
+            pipeline.push_serial(t, &serial[..n])
+        } else if let Ok(frame) = board.can().receive() {
+            pipeline.push_can(t, &frame)
+        } else {
+            match board.camera() {
+                Some(CameraMessage::Vo(frame, pose)) => pipeline.push_vo(t, frame, &pose),
+                Some(CameraMessage::Detections3d(frame, bytes)) => {
+                    replay::detections3d(bytes, &mut detections3d);
+                    pipeline.push_detections(t, frame, &detections3d)
+                }
+                Some(CameraMessage::Detections2d(frame, bytes)) => {
+                    replay::detections2d(bytes, &mut detections2d);
+                    pipeline.push_detections2d(t, frame, &detections2d)
+                }
+                None => break,
+            }
+        };
+        if result.is_err() {
+            hprintln!("the log sink failed");
+            return false;
+        }
+    }
+    let Ok((_, s, issues)) = pipeline.finish() else { return false };
+    hprintln!(
+        "pipeline (Pipeline<64, 32> = {} bytes): {} inputs, {} VO poses ({} anchored), {} fixes, {} speeds, {} 3D track states, {} windows ({} verified), {} records, {} issues",
+        core::mem::size_of::<Pipeline<'_, HostFile, 64, 32, 4096>>(),
+        inputs,
+        s.vo_poses,
+        s.anchored_frames,
+        s.fixes,
+        s.speeds,
+        s.track_states,
+        s.windows,
+        s.windows_verified,
+        s.records,
+        issues.total()
+    );
+    !board.malformed && s.anchored_frames > 100 && s.track_states > 100 && s.windows >= 1 && issues.total() == 0
+}
+
+const PAINT: u32 = 0x5AA5_C33C;
+
+extern "C" {
+    /// End of the statics (cortex-m-rt's link.x): the stack may grow down to here.
+    static __sheap: u8;
+    /// Top of the stack.
+    static _stack_start: u8;
+}
+
+/// Fill the unused stack with a pattern (everything below the current frame).
+fn paint_stack() {
+    let bottom = core::ptr::addr_of!(__sheap) as usize;
+    let here = cortex_m::register::msp::read() as usize - 256;
+    let mut at = (bottom + 3) & !3;
+    while at < here {
+        // SAFETY: words between the statics and the live stack frame are unused memory.
+        unsafe { (at as *mut u32).write_volatile(PAINT) };
+        at += 4;
+    }
+}
+
+/// The deepest the stack has been since [`paint_stack`], bytes.
+fn stack_high_water() -> usize {
+    let bottom = (core::ptr::addr_of!(__sheap) as usize + 3) & !3;
+    let top = core::ptr::addr_of!(_stack_start) as usize;
+    let mut at = bottom;
+    // SAFETY: reads words of RAM between the statics and the top of the stack.
+    while at < top && unsafe { (at as *const u32).read_volatile() } == PAINT {
+        at += 4;
+    }
+    top - at
+}
+
 #[entry]
 fn main() -> ! {
+    paint_stack();
+    let recorded = record_drive();
+    let statics = core::ptr::addr_of!(__sheap) as usize - 0x2000_0000;
+    hprintln!(
+        "RAM: statics {} bytes + stack high-water {} bytes = {} bytes (pipeline run)",
+        statics,
+        stack_high_water(),
+        statics + stack_high_water()
+    );
     let truth = Sim3 { rotation: rotation_z(2.0), translation: Vector3::new(5.0, -3.0, 1.0), scale: 0.4 };
     let to_vo = truth.inverse();
     let mut anchorer: Anchorer = Anchorer::new(AnchorConfig::default());
@@ -234,7 +364,11 @@ fn main() -> ! {
     let tracked = track_cones_and_a_car();
     let verified = verify_drives();
     let logged = log_round_trip();
-    debug::exit(if ok && tracked && verified && logged { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    debug::exit(if recorded && ok && tracked && verified && logged {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
     loop {
         cortex_m::asm::wfi();
     }

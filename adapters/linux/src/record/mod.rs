@@ -13,13 +13,12 @@ use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use dash2sim_core::pipeline::replay::{feed, Reader};
 use dash2sim_core::pipeline::{
-    CameraMount, ClassMeta, GnssErrorModel, Issue, Issues, Pipeline, PipelineConfig, PipelineStats, SpeedSource,
+    CameraMount, GnssErrorModel, Issue, Issues, Pipeline, PipelineConfig, PipelineStats, SpeedSource,
 };
 use dash2sim_core::track3d::ClassConfig;
 use serde_json::json;
 
-use crate::scenario::actors::Class;
-use crate::scenario::{tracker_classes, tracker_config};
+use dash2sim_core::pipeline::profile::{self, work_zone_classes, work_zone_meta, work_zone_pipeline};
 
 /// The recorded files `dash2sim record` reads (see [`sources`] for their forms).
 #[derive(Clone, Debug, Default, Args)]
@@ -94,6 +93,13 @@ pub struct RecordArgs {
     /// Also write the merged input stream (the core's replay format) here.
     #[arg(long)]
     pub save_inputs: Option<PathBuf>,
+    /// Read a saved input stream instead of the file sources (`--save-inputs`; the MCU
+    /// example replays the same bytes).
+    #[arg(long, conflicts_with_all = ["vo", "nmea", "can", "detections", "detections2d"])]
+    pub replay: Option<PathBuf>,
+    /// The device id written into the log's header (at most 16 bytes).
+    #[arg(long, default_value = "dash2sim-record")]
+    pub device_id: String,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
@@ -115,20 +121,6 @@ pub enum ModeArg {
     Full,
     /// Yaw, scale, translation.
     Gravity,
-}
-
-/// The 3D classes the pipeline tracks (the work-zone classes of `docs/tracking.md`), with
-/// their log codes and road-user kinds.
-pub fn class_meta() -> [ClassMeta; 7] {
-    Class::ALL.map(|c| ClassMeta {
-        code: crate::logfile::import::class_code(c.name()),
-        kind: crate::verify::agent_kind(c.name()),
-    })
-}
-
-/// The tracker class id of a class name.
-pub fn class_id(name: &str) -> Option<u16> {
-    Class::ALL.iter().find(|c| c.name() == name).map(|c| *c as u16)
 }
 
 /// Parse `LAT,LON[,H]`.
@@ -213,17 +205,18 @@ pub struct Setup {
 
 /// Run the pipeline over an input stream (the core's replay format).
 pub fn run_stream(stream: &[u8], setup: &Setup) -> Result<Recording, String> {
-    let classes: [ClassConfig; 7] = tracker_classes();
-    let meta = class_meta();
+    let classes: [ClassConfig; 7] = work_zone_classes();
+    let meta = work_zone_meta();
     let map = setup.map.as_deref().map(MapView::parse).transpose().map_err(|e| format!("map: {e}"))?;
+    let base = work_zone_pipeline(setup.origin, &classes, &meta);
     let config = PipelineConfig {
         device_id: setup.device_id,
         mount: setup.mount,
-        anchor: AnchorConfig { mode: setup.mode, ..AnchorConfig::default() },
+        anchor: AnchorConfig { mode: setup.mode, ..base.anchor },
         gnss: setup.gnss,
         speed: setup.speed,
         map,
-        ..PipelineConfig::new(setup.origin, tracker_config(&classes), &meta)
+        ..base
     };
     let mut pipeline: Box<Pipeline<'_, Vec<u8>>> =
         Box::new(Pipeline::new(Vec::new(), config).map_err(|e| format!("log: {e}"))?);
@@ -241,7 +234,8 @@ pub fn run_stream(stream: &[u8], setup: &Setup) -> Result<Recording, String> {
 /// The speed source the arguments name.
 fn speed_source(args: &RecordArgs) -> Result<Option<SpeedSource>, String> {
     let Some(name) = &args.speed_signal else {
-        return Ok(args.sources.can.as_ref().map(|_| match args.speed_source {
+        let bus = args.sources.can.is_some() || args.replay.is_some();
+        return Ok(bus.then_some(match args.speed_source {
             SpeedArg::Ccvs1 => SpeedSource::Ccvs1,
             SpeedArg::Obd => SpeedSource::Obd,
         }));
@@ -280,7 +274,7 @@ pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts), 
         inputs.can(p)?;
     }
     if let Some(p) = &args.detections {
-        inputs.detections(p, class_id)?;
+        inputs.detections(p, profile::class_id)?;
     }
     if let Some(p) = &args.detections2d {
         if args.vo.is_none() {
@@ -296,7 +290,15 @@ pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts), 
 
 /// `dash2sim record` from files.
 pub fn run(args: &RecordArgs) -> Result<(), String> {
-    let (stream, counts) = read_sources(&args.sources)?;
+    let (stream, counts) = match &args.replay {
+        Some(path) => (std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?, Default::default()),
+        None => read_sources(&args.sources)?,
+    };
+    if args.device_id.len() > 16 {
+        return Err(format!("--device-id {:?} is longer than 16 bytes", args.device_id));
+    }
+    let mut device_id = [0u8; 16];
+    device_id[..args.device_id.len()].copy_from_slice(args.device_id.as_bytes());
     if let Some(path) = &args.save_inputs {
         std::fs::write(path, &stream).map_err(|e| format!("{}: {e}", path.display()))?;
     }
@@ -327,7 +329,7 @@ pub fn run(args: &RecordArgs) -> Result<(), String> {
         gnss: GnssErrorModel { uere_m: args.uere, ..GnssErrorModel::default() },
         speed: speed_source(args)?,
         map,
-        device_id: *b"dash2sim-record\0",
+        device_id,
     };
     let recording = run_stream(&stream, &setup)?;
     std::fs::write(&args.output, &recording.log).map_err(|e| format!("{}: {e}", args.output.display()))?;

@@ -3,13 +3,14 @@
 //! through the closure.
 
 use dash2sim_core::box3d::Box3d;
+use dash2sim_core::pipeline::profile::{ClassProfile, WORK_ZONE};
 use rand::Rng;
 
 use super::gauss;
 use super::road::{lane_change, wrap, Road};
 
 /// Object classes of a work-zone scene; the discriminant is the class id used by the
-/// trackers and written to files.
+/// trackers (the index into the core's work-zone profile).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[repr(u16)]
 pub enum Class {
@@ -39,40 +40,29 @@ impl Class {
         Class::ALL.get(usize::from(id)).copied()
     }
 
+    /// This class in the work-zone profile (name, size, priors) the trackers share.
+    pub fn profile(self) -> &'static ClassProfile {
+        &WORK_ZONE[self as usize]
+    }
+
     /// Lower-case name as written to files.
     pub fn name(self) -> &'static str {
-        match self {
-            Class::Car => "car",
-            Class::Truck => "truck",
-            Class::Cone => "cone",
-            Class::Drum => "drum",
-            Class::Barricade => "barricade",
-            Class::ArrowBoard => "arrow_board",
-            Class::Sign => "sign",
-        }
+        self.profile().name
     }
 
     /// Nominal size (length along the heading, width, height), metres.
     pub fn size(self) -> [f64; 3] {
-        match self {
-            Class::Car => [4.6, 1.9, 1.5],
-            Class::Truck => [9.0, 2.5, 3.4],
-            Class::Cone => [0.36, 0.36, 0.71],
-            Class::Drum => [0.58, 0.58, 1.0],
-            Class::Barricade => [1.8, 0.4, 1.5],
-            Class::ArrowBoard => [3.6, 2.2, 3.2],
-            Class::Sign => [0.15, 1.2, 2.2],
-        }
+        self.profile().size
     }
 
     /// Whether objects of this class are placed once and never move.
     pub fn is_static(self) -> bool {
-        !matches!(self, Class::Car | Class::Truck)
+        self.profile().is_static
     }
 
     /// Whether its heading can be told from its shape (cones and drums are round).
     pub fn has_heading(self) -> bool {
-        !matches!(self, Class::Cone | Class::Drum)
+        self.profile().has_heading
     }
 
     /// Farthest range at which the detector sees it, metres.

@@ -24,7 +24,7 @@ pub mod sensors;
 pub mod vo;
 pub mod write;
 
-use dash2sim_core::track3d::{Association, ClassConfig, Config3d, Detection3d};
+use dash2sim_core::track3d::{ClassConfig, Config3d, Detection3d};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -151,39 +151,17 @@ fn rng(seed: u64, stream: Stream) -> ChaCha8Rng {
     rng
 }
 
-/// The tracker settings for these classes: the priors allow ±30 % on the nominal sizes and
-/// 0.3 m off the ground; R is the detector model's error at about 25 m (detections carry
-/// their own position covariance, which replaces it for x and y); static classes get a
-/// process noise near zero and a prior that they stand still (velocity σ 0.1 m/frame),
-/// vehicles AB3DMOT's velocity noise and an unknown initial velocity.
+/// The tracker settings for these classes: the core's work-zone profile
+/// ([`dash2sim_core::pipeline::profile::work_zone_classes`]).
 pub fn tracker_classes() -> [ClassConfig; 7] {
-    Class::ALL.map(|class| {
-        let [l, w, h] = class.size();
-        let size_var = |v: f64| (0.04 * v).powi(2);
-        let yaw_var = if class.has_heading() { 0.01 } else { 1e4 };
-        let (association, process_noise, initial_velocity_variance) = if class.is_static() {
-            (Association::Distance(2.0), [1e-3, 1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4], 0.01)
-        } else {
-            (Association::Giou(-0.2), [0.05, 0.05, 0.01, 0.01, 1e-3, 1e-3, 1e-3, 0.01, 0.01, 1e-4], 1e4)
-        };
-        ClassConfig {
-            association,
-            min_size: [0.7 * l, 0.7 * w, 0.7 * h],
-            max_size: [1.3 * l, 1.3 * w, 1.3 * h],
-            max_ground_offset: 0.3,
-            process_noise,
-            measurement_noise: [0.25, 0.25, 0.0025, yaw_var, size_var(l), size_var(w), size_var(h)],
-            initial_velocity_variance,
-        }
-    })
+    dash2sim_core::pipeline::profile::work_zone_classes()
 }
 
-/// The tracker settings used on these scenarios: `classes` from [`tracker_classes`],
-/// AB3DMOT's min_hits 3, max_age 4 frames (AB3DMOT: 2; at 10 Hz and 60 % detection
-/// probability at range, 2 fragments tracks — docs/tracking.md has both), ground at z = 0,
+/// The tracker settings used on these scenarios: the core's work-zone profile — AB3DMOT's
+/// min_hits 3, max_age 4 frames (AB3DMOT: 2; docs/tracking.md has both), ground at z = 0,
 /// static below 0.3 m/frame (3 m/s).
 pub fn tracker_config(classes: &[ClassConfig]) -> Config3d<'_> {
-    Config3d { classes, min_hits: 3, max_age: 4, ground_z: 0.0, static_speed: 0.3 }
+    dash2sim_core::pipeline::profile::work_zone_tracker(classes)
 }
 
 /// Generate the scenario named by `config`.

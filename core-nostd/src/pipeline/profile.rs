@@ -1,0 +1,101 @@
+//! The work-zone profile: the object classes a dashcam meets in a work zone, their sizes,
+//! and the tracker settings measured on generated work zones (`docs/tracking.md`). One
+//! table, used on the device (the MCU example), by `dash2sim record` and by the scenario
+//! generator, so that every side tracks with the same priors.
+
+use super::{ClassMeta, PipelineConfig, SpeedSource};
+use crate::anchor::{AnchorConfig, AnchorMode};
+use crate::geo::Geodetic;
+use crate::score::AgentKind;
+use crate::track3d::{Association, ClassConfig, Config3d};
+
+/// A class of the profile.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClassProfile {
+    /// Lower-case name as files and logs write it.
+    pub name: &'static str,
+    /// Its code in `Track3d` records (`docs/binlog.md`).
+    pub code: i64,
+    /// What kind of road user it is for the score.
+    pub kind: AgentKind,
+    /// Nominal size (length along the heading, width, height), m.
+    pub size: [f64; 3],
+    /// Placed once, never moves.
+    pub is_static: bool,
+    /// Its heading can be told from its shape (cones and drums are round).
+    pub has_heading: bool,
+}
+
+const fn class(name: &'static str, code: i64, size: [f64; 3], is_static: bool, has_heading: bool) -> ClassProfile {
+    let kind = if is_static { AgentKind::Object } else { AgentKind::Vehicle };
+    ClassProfile { name, code, kind, size, is_static, has_heading }
+}
+
+/// The classes, by tracker class id.
+pub const WORK_ZONE: [ClassProfile; 7] = [
+    class("car", 0, [4.6, 1.9, 1.5], false, true),
+    class("truck", 1, [9.0, 2.5, 3.4], false, true),
+    class("cone", 6, [0.36, 0.36, 0.71], true, false),
+    class("drum", 7, [0.58, 0.58, 1.0], true, false),
+    class("barricade", 8, [1.8, 0.4, 1.5], true, true),
+    class("arrow_board", 10, [3.6, 2.2, 3.2], true, true),
+    class("sign", 11, [0.15, 1.2, 2.2], true, true),
+];
+
+/// The tracker class id of a class name.
+pub fn class_id(name: &str) -> Option<u16> {
+    WORK_ZONE.iter().position(|c| c.name == name).and_then(|i| u16::try_from(i).ok())
+}
+
+/// Log codes and road-user kinds of the classes.
+pub fn work_zone_meta() -> [ClassMeta; 7] {
+    WORK_ZONE.map(|c| ClassMeta { code: c.code, kind: c.kind })
+}
+
+/// The tracker's per-class settings: the priors allow ±30 % on the nominal sizes and 0.3 m
+/// off the ground; R is the detector's error at about 25 m (detections carry their own
+/// position covariance, which replaces it for x and y); static classes get a process
+/// noise near zero and a prior that they stand still (velocity σ 0.1 m/frame), vehicles
+/// AB3DMOT's velocity noise and an unknown initial velocity.
+pub fn work_zone_classes() -> [ClassConfig; 7] {
+    WORK_ZONE.map(|c| {
+        let [l, w, h] = c.size;
+        let size_var = |v: f64| (0.04 * v) * (0.04 * v);
+        let yaw_var = if c.has_heading { 0.01 } else { 1e4 };
+        let (association, process_noise, initial_velocity_variance) = if c.is_static {
+            (Association::Distance(2.0), [1e-3, 1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4], 0.01)
+        } else {
+            (Association::Giou(-0.2), [0.05, 0.05, 0.01, 0.01, 1e-3, 1e-3, 1e-3, 0.01, 0.01, 1e-4], 1e4)
+        };
+        ClassConfig {
+            association,
+            min_size: [0.7 * l, 0.7 * w, 0.7 * h],
+            max_size: [1.3 * l, 1.3 * w, 1.3 * h],
+            max_ground_offset: 0.3,
+            process_noise,
+            measurement_noise: [0.25, 0.25, 0.0025, yaw_var, size_var(l), size_var(w), size_var(h)],
+            initial_velocity_variance,
+        }
+    })
+}
+
+/// AB3DMOT's min_hits 3, max_age 4 frames (AB3DMOT: 2; at 10 Hz and 60 % detection
+/// probability at range, 2 fragments tracks), ground at z = 0, static below 0.3 m/frame.
+pub fn work_zone_tracker(classes: &[ClassConfig]) -> Config3d<'_> {
+    Config3d { classes, min_hits: 3, max_age: 4, ground_z: 0.0, static_speed: 0.3 }
+}
+
+/// A dashcam in work zones: the profile's tracker and classes, anchoring with a
+/// gravity-aligned VO frame (VIO or a levelled VO), wheel speed from J1939 CCVS1, the rest
+/// [`PipelineConfig::new`]'s defaults. `dash2sim record` and the MCU example start here.
+pub fn work_zone_pipeline<'a>(
+    origin: Geodetic,
+    classes: &'a [ClassConfig],
+    meta: &'a [ClassMeta],
+) -> PipelineConfig<'a> {
+    PipelineConfig {
+        anchor: AnchorConfig { mode: AnchorMode::GravityAligned, ..AnchorConfig::default() },
+        speed: Some(SpeedSource::Ccvs1),
+        ..PipelineConfig::new(origin, work_zone_tracker(classes), meta)
+    }
+}
