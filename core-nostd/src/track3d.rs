@@ -257,6 +257,7 @@ pub struct Tracker3d<'a, const N: usize> {
 
 impl<'a, const N: usize> Tracker3d<'a, N> {
     /// An empty tracker.
+    #[inline(always)]
     pub fn new(config: Config3d<'a>) -> Self {
         Tracker3d {
             config,

@@ -195,10 +195,17 @@ impl<W: Write, const N: usize> Writer<W, N> {
 
     /// Close the open segment, flush, and give the writer back.
     pub fn finish(mut self) -> Result<W, WriteError<W::Error>> {
+        self.close()?;
+        Ok(self.io)
+    }
+
+    /// Close the open segment and flush, keeping the writer (a later record opens a new
+    /// segment). [`Writer::finish`] without giving the sink back — for a large writer
+    /// that should not be moved.
+    pub fn close(&mut self) -> Result<(), WriteError<W::Error>> {
         self.end_tracks_frame()?;
         self.close_segment()?;
-        self.flush()?;
-        Ok(self.io)
+        self.flush()
     }
 
     /// Frame `payload` as kind `code` into the buffer (flushing first if needed); returns

@@ -60,7 +60,7 @@ use crate::score::{Agent, AgentKind, ScoreConfig, Scorer, Scores};
 use crate::sim3::{Pose, Sim3};
 use crate::time::{Duration, Timestamp};
 use crate::track2d::{Detection, Tracker2d, TrackerConfig};
-use crate::track3d::{Config3d, Detection3d, Track3dOutput, Tracker3d};
+use crate::track3d::{Config3d, Detection3d, Tracker3d};
 pub use clock::{Clock, OffsetChange};
 pub use issues::{Issue, Issues};
 pub use mount::CameraMount;
@@ -252,6 +252,17 @@ struct Window<'a> {
     scorer: Scorer<'a, 'static, 1>,
 }
 
+/// A reported 3D track, as the log and the score use it.
+#[derive(Clone, Copy, Debug)]
+struct TrackState {
+    id: u32,
+    class: u16,
+    bbox: crate::box3d::Box3d,
+    /// Velocity (x, y) per frame.
+    velocity: [f64; 2],
+    is_static: bool,
+}
+
 /// A GNSS fix from NMEA or NMEA 2000, in the form the pipeline uses.
 #[derive(Clone, Copy, Debug, Default)]
 struct Fix {
@@ -312,6 +323,7 @@ const FAST_PACKET_TIMEOUT: Duration = Duration::from_millis(750);
 
 impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<'a, W, T3, T2, BUF> {
     /// Start a log on `io`: the header goes out at once.
+    #[inline(always)]
     pub fn new(io: W, config: PipelineConfig<'a>) -> Result<Self, PipelineError<W::Error>> {
         let o = config.origin;
         let header = Header {
@@ -447,6 +459,14 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
     /// End of input: the last GNSS epoch, the open verification window, the counts not yet
     /// written, then the log is closed and flushed. Returns the sink and the totals.
     pub fn finish(mut self) -> Result<(W, PipelineStats, Issues), PipelineError<W::Error>> {
+        self.close()?;
+        let State { writer, stats, issues, .. } = self.state;
+        Ok((writer.finish()?, stats, issues))
+    }
+
+    /// [`Pipeline::finish`] in place: everything but giving the sink back. A pipeline is
+    /// large (130 KB with 64 tracks); on a microcontroller it should not be moved.
+    pub fn close(&mut self) -> Result<(), PipelineError<W::Error>> {
         let state = &mut self.state;
         if let Some(fix) = self.nmea.decoder.finish() {
             let rx = state.last_sentence.unwrap_or(state.now);
@@ -474,8 +494,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
                 state.issues.total()
             ),
         )?;
-        let State { writer, stats, issues, .. } = self.state;
-        Ok((writer.finish()?, stats, issues))
+        state.writer.close()
     }
 }
 
@@ -820,12 +839,20 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         }
         self.stats.detections_placed = self.stats.detections_placed.saturating_add(placed.len() as u64);
         let rejected_before = self.tracker3d.stats().rejected;
-        let mut outputs: heapless::Vec<Track3dOutput, T3> = heapless::Vec::new();
+        // Only what the log needs of each track: the filter's posterior is 0.9 KB a track,
+        // too much to keep 64 of on a microcontroller's stack.
+        let mut outputs: heapless::Vec<TrackState, T3> = heapless::Vec::new();
         if self
             .tracker3d
             .update(frame, &placed, |o| {
                 // At most T3 tracks exist.
-                let _ = outputs.push(o);
+                let _ = outputs.push(TrackState {
+                    id: o.id,
+                    class: o.class,
+                    bbox: o.bbox,
+                    velocity: [o.velocity[0], o.velocity[1]],
+                    is_static: o.is_static,
+                });
             })
             .is_err()
         {
@@ -869,12 +896,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         Ok(())
     }
 
-    fn write_tracks(
-        &mut self,
-        t: Timestamp,
-        ego: &Ego,
-        outputs: &[Track3dOutput],
-    ) -> Result<(), PipelineError<W::Error>> {
+    fn write_tracks(&mut self, t: Timestamp, ego: &Ego, outputs: &[TrackState]) -> Result<(), PipelineError<W::Error>> {
         let t_us = self.log_time(t);
         let per_second = 1.0 / self.frame_interval;
         self.agents.clear();

@@ -212,8 +212,44 @@ fn log_round_trip() -> bool {
 static DRIVE: &[u8] = include_bytes!("../drive.d2sin");
 static DRIVE_TILE: &[u8] = include_bytes!("../drive.d2smap");
 
+/// Instructions counted with SysTick under QEMU's `-icount` (virtual time advances by
+/// one step per instruction, so ticks are proportional to instructions; the ratio is
+/// calibrated on a loop of known length).
+struct Cost {
+    instructions_per_tick: f64,
+    /// Per input kind (serial, CAN, VO, 3D detections, 2D detections): inputs, total and
+    /// largest instructions.
+    kinds: [(u32, f64, f64); 5],
+}
+
+const KINDS: [&str; 5] = ["serial chunk", "CAN frame", "VO pose", "3D detections", "2D detections"];
+
+fn ticks_since(start: u32) -> u32 {
+    start.wrapping_sub(cortex_m::peripheral::SYST::get_current()) & 0x00FF_FFFF
+}
+
+impl Cost {
+    fn calibrate() -> Self {
+        let n: u32 = 200_000;
+        let start = cortex_m::peripheral::SYST::get_current();
+        // SAFETY: a register-only countdown loop: `subs` and `bne`, 2 instructions a turn.
+        unsafe { core::arch::asm!("1:", "subs {0}, #1", "bne 1b", inout(reg) n => _) };
+        let ticks = f64::from(ticks_since(start).max(1));
+        Cost { instructions_per_tick: 2.0 * f64::from(n) / ticks, kinds: [(0, 0.0, 0.0); 5] }
+    }
+
+    fn add(&mut self, kind: usize, start: u32) {
+        let instructions = f64::from(ticks_since(start)) * self.instructions_per_tick;
+        if let Some((n, total, max)) = self.kinds.get_mut(kind) {
+            *n += 1;
+            *total += instructions;
+            *max = f64::max(*max, instructions);
+        }
+    }
+}
+
 /// The pipeline over the replayed drive, the log to the host.
-fn record_drive() -> bool {
+fn record_drive(cost: &mut Cost) -> bool {
     let Ok(map) = MapView::parse(DRIVE_TILE) else {
         hprintln!("the drive's map tile was refused");
         return false;
@@ -230,41 +266,55 @@ fn record_drive() -> bool {
         hprintln!("no host file or no input stream");
         return false;
     };
-    let Ok(mut pipeline) = Pipeline::<'_, HostFile, 64, 32, 4096>::new(sink, config) else { return false };
+    // Used where it was made (a pipeline is too large to move around a microcontroller's stack).
+    let mut made = Pipeline::<'_, HostFile, 64, 24, 2304>::new(sink, config);
+    let Ok(pipeline) = made.as_mut() else { return false };
     let mut serial = [0u8; 128];
     let mut detections3d: heapless::Vec<_, 64> = heapless::Vec::new();
-    let mut detections2d: heapless::Vec<ImageDetection, 32> = heapless::Vec::new();
+    let mut detections2d: heapless::Vec<ImageDetection, 24> = heapless::Vec::new();
     let mut inputs = 0u32;
     while let Some(t) = board.now() {
         inputs += 1;
-        let result = if board.uart().read_ready() == Ok(true) {
+        let (kind, result) = if board.uart().read_ready() == Ok(true) {
             let n = board.uart().read(&mut serial).unwrap_or(0);
-            pipeline.push_serial(t, &serial[..n])
+            let start = cortex_m::peripheral::SYST::get_current();
+            (0, (pipeline.push_serial(t, &serial[..n]), start))
         } else if let Ok(frame) = board.can().receive() {
-            pipeline.push_can(t, &frame)
+            let start = cortex_m::peripheral::SYST::get_current();
+            (1, (pipeline.push_can(t, &frame), start))
         } else {
             match board.camera() {
-                Some(CameraMessage::Vo(frame, pose)) => pipeline.push_vo(t, frame, &pose),
+                Some(CameraMessage::Vo(frame, pose)) => {
+                    let start = cortex_m::peripheral::SYST::get_current();
+                    (2, (pipeline.push_vo(t, frame, &pose), start))
+                }
                 Some(CameraMessage::Detections3d(frame, bytes)) => {
                     replay::detections3d(bytes, &mut detections3d);
-                    pipeline.push_detections(t, frame, &detections3d)
+                    let start = cortex_m::peripheral::SYST::get_current();
+                    (3, (pipeline.push_detections(t, frame, &detections3d), start))
                 }
                 Some(CameraMessage::Detections2d(frame, bytes)) => {
                     replay::detections2d(bytes, &mut detections2d);
-                    pipeline.push_detections2d(t, frame, &detections2d)
+                    let start = cortex_m::peripheral::SYST::get_current();
+                    (4, (pipeline.push_detections2d(t, frame, &detections2d), start))
                 }
                 None => break,
             }
         };
+        let (result, start) = result;
+        cost.add(kind, start);
         if result.is_err() {
             hprintln!("the log sink failed");
             return false;
         }
     }
-    let Ok((_, s, issues)) = pipeline.finish() else { return false };
+    if pipeline.close().is_err() {
+        return false;
+    }
+    let (s, issues) = (*pipeline.stats(), *pipeline.issues());
     hprintln!(
         "pipeline (Pipeline<64, 32> = {} bytes): {} inputs, {} VO poses ({} anchored), {} fixes, {} speeds, {} 3D track states, {} windows ({} verified), {} records, {} issues",
-        core::mem::size_of::<Pipeline<'_, HostFile, 64, 32, 4096>>(),
+        core::mem::size_of::<Pipeline<'_, HostFile, 64, 24, 2304>>(),
         inputs,
         s.vo_poses,
         s.anchored_frames,
@@ -315,7 +365,26 @@ fn stack_high_water() -> usize {
 #[entry]
 fn main() -> ! {
     paint_stack();
-    let recorded = record_drive();
+    let Some(mut peripherals) = cortex_m::Peripherals::take() else { loop {} };
+    let syst = &mut peripherals.SYST;
+    syst.set_clock_source(cortex_m::peripheral::syst::SystClkSource::Core);
+    syst.set_reload(0x00FF_FFFF);
+    syst.clear_current();
+    syst.enable_counter();
+    let mut cost = Cost::calibrate();
+    let recorded = record_drive(&mut cost);
+    let frames = f64::from(cost.kinds[2].0.max(1));
+    let all: f64 = cost.kinds.iter().map(|k| k.1).sum();
+    hprintln!("instructions per frame (10 Hz; under QEMU -icount): {} on average", libm::round(all / frames));
+    for (name, (n, total, max)) in KINDS.iter().zip(cost.kinds) {
+        hprintln!(
+            "  {}: {} inputs, {} instructions on average, {} at most",
+            name,
+            n,
+            libm::round(total / f64::from(n.max(1))),
+            libm::round(max)
+        );
+    }
     let statics = core::ptr::addr_of!(__sheap) as usize - 0x2000_0000;
     hprintln!(
         "RAM: statics {} bytes + stack high-water {} bytes = {} bytes (pipeline run)",
