@@ -150,8 +150,8 @@ fn count(d: &Decoded, kind: Kind) -> u64 {
 }
 
 /// Drive for `seconds`, calling `tamper(t_us, pipeline)` before each 20 ms step.
-fn drive<'a>(
-    buffer: &'a mut [u8],
+fn drive(
+    buffer: &mut [u8],
     seconds: i64,
     mut tamper: impl FnMut(i64, &mut Pipeline<'_, &mut [u8], 8, 4, 4096>),
 ) -> (usize, PipelineStats, Issues) {

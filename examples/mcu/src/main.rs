@@ -233,7 +233,10 @@ impl Cost {
         let n: u32 = 200_000;
         let start = cortex_m::peripheral::SYST::get_current();
         // SAFETY: a register-only countdown loop: `subs` and `bne`, 2 instructions a turn.
-        unsafe { core::arch::asm!("1:", "subs {0}, #1", "bne 1b", inout(reg) n => _) };
+        #[cfg(target_arch = "arm")]
+        unsafe {
+            core::arch::asm!("2:", "subs {0}, #1", "bne 2b", inout(reg) n => _)
+        };
         let ticks = f64::from(ticks_since(start).max(1));
         Cost { instructions_per_tick: 2.0 * f64::from(n) / ticks, kinds: [(0, 0.0, 0.0); 5] }
     }
@@ -365,7 +368,7 @@ fn stack_high_water() -> usize {
 #[entry]
 fn main() -> ! {
     paint_stack();
-    let Some(mut peripherals) = cortex_m::Peripherals::take() else { loop {} };
+    let Some(mut peripherals) = cortex_m::Peripherals::take() else { exit(false) };
     let syst = &mut peripherals.SYST;
     syst.set_clock_source(cortex_m::peripheral::syst::SystClkSource::Core);
     syst.set_reload(0x00FF_FFFF);
@@ -433,11 +436,12 @@ fn main() -> ! {
     let tracked = track_cones_and_a_car();
     let verified = verify_drives();
     let logged = log_round_trip();
-    debug::exit(if recorded && ok && tracked && verified && logged {
-        debug::EXIT_SUCCESS
-    } else {
-        debug::EXIT_FAILURE
-    });
+    exit(recorded && ok && tracked && verified && logged)
+}
+
+/// End the QEMU run with the status.
+fn exit(success: bool) -> ! {
+    debug::exit(if success { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
     loop {
         cortex_m::asm::wfi();
     }
@@ -446,8 +450,5 @@ fn main() -> ! {
 #[panic_handler]
 fn panic(info: &PanicInfo<'_>) -> ! {
     hprintln!("panic: {}", info);
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
-    }
+    exit(false)
 }
