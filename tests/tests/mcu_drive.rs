@@ -20,14 +20,18 @@ dash2sim record -o /tmp/x.d2slog --vo D/vo.tum --nmea D/gnss.serial.log --can D/
 fn the_mcu_example_drive_is_todays_and_records_on_the_host() {
     let root = dash2sim_tests::workspace_root().join("examples/mcu");
     let work = scratch("mcu-drive");
-    let scenario = generate(&ScenarioConfig { seed: 1, duration_s: 20.0, gnss: GnssModel::good(), ..ScenarioConfig::default() });
+    let scenario =
+        generate(&ScenarioConfig { seed: 1, duration_s: 20.0, gnss: GnssModel::good(), ..ScenarioConfig::default() });
     write_scenario(&scenario, &work).expect("scenario");
     let (stream, _) = record::read_sources(&Sources::scenario(&work)).expect("sources");
     let committed = std::fs::read(root.join("drive.d2sin")).expect("drive.d2sin");
     assert!(stream == committed, "examples/mcu/drive.d2sin is stale; {REBUILD}");
     let osm = dash2sim_linux::osm::read(&work.join("road.osm")).expect("osm");
     let origin = Geodetic::new(60.2711, 24.8572, 0.0).expect("origin");
-    let tile = dash2sim_linux::map_tile::encode(&dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()), 50.0);
+    let tile = dash2sim_linux::map_tile::encode(
+        &dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
+        50.0,
+    );
     let committed_tile = std::fs::read(root.join("drive.d2smap")).expect("drive.d2smap");
     assert!(tile == committed_tile, "examples/mcu/drive.d2smap is stale; {REBUILD}");
 
