@@ -31,8 +31,8 @@ use crc::{Crc, CRC_32_ISCSI};
 pub const MAGIC: [u8; 6] = *b"D2SLOG";
 /// Format major version.
 pub const VERSION_MAJOR: u8 = 1;
-/// Format minor version written.
-pub const VERSION_MINOR: u8 = 0;
+/// Format minor version written (1.1 added `Detection3d` and `ClockOffset`).
+pub const VERSION_MINOR: u8 = 1;
 /// Header length in bytes (v1.0).
 pub const HEADER_LEN: usize = 48;
 /// Marks the start of every segment; a reader looks for it after damage.
