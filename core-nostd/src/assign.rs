@@ -248,6 +248,13 @@ pub struct Solver<const N: usize> {
 
 impl<const N: usize> Default for Solver<N> {
     fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> Solver<N> {
+    /// A solver with its workspace (const, so that a large one can live in a `static`).
+    pub const fn new() -> Self {
         Solver {
             u: [0.0; N],
             v: [0.0; N],

@@ -42,17 +42,22 @@ pub struct TrackerConfig {
     pub max_lost_frames: u64,
 }
 
+impl TrackerConfig {
+    /// ByteTrack's defaults for MOT17 (what [`Default`] gives).
+    pub const BYTETRACK: TrackerConfig = TrackerConfig {
+        high_score: 0.6,
+        low_score: 0.1,
+        new_track_score: 0.7,
+        first_min_iou: 0.2,
+        second_min_iou: 0.5,
+        unconfirmed_min_iou: 0.3,
+        max_lost_frames: 30,
+    };
+}
+
 impl Default for TrackerConfig {
     fn default() -> Self {
-        TrackerConfig {
-            high_score: 0.6,
-            low_score: 0.1,
-            new_track_score: 0.7,
-            first_min_iou: 0.2,
-            second_min_iou: 0.5,
-            unconfirmed_min_iou: 0.3,
-            max_lost_frames: 30,
-        }
+        TrackerConfig::BYTETRACK
     }
 }
 
@@ -202,14 +207,20 @@ type Picked<const N: usize> = heapless::Vec<usize, N>;
 
 impl<const N: usize> Tracker2d<N> {
     /// An empty tracker.
-    pub fn new(config: TrackerConfig) -> Self {
+    pub const fn new(config: TrackerConfig) -> Self {
         Tracker2d {
             config,
             tracks: heapless::Vec::new(),
             next_id: 1,
             frame: None,
-            solver: Solver::default(),
-            stats: Stats::default(),
+            solver: Solver::new(),
+            stats: Stats {
+                frames: 0,
+                rejected_detections: 0,
+                dropped_detections: 0,
+                out_of_order_frames: 0,
+                dropped_tracks: 0,
+            },
         }
     }
 

@@ -256,17 +256,25 @@ pub struct Tracker3d<'a, const N: usize> {
 }
 
 impl<'a, const N: usize> Tracker3d<'a, N> {
-    /// An empty tracker.
-    #[inline(always)]
-    pub fn new(config: Config3d<'a>) -> Self {
+    /// An empty tracker (const, so that a large one can live in a `static` and never be
+    /// moved across a microcontroller's stack).
+    pub const fn new(config: Config3d<'a>) -> Self {
         Tracker3d {
             config,
             tracks: heapless::Vec::new(),
             next_id: 1,
             frame: None,
-            solver: Solver::default(),
-            costs: [[f32::NAN; N]; N],
-            stats: Stats3d::default(),
+            solver: Solver::new(),
+            // Every entry a frame reads is written first in that frame.
+            costs: [[0.0; N]; N],
+            stats: Stats3d {
+                frames: 0,
+                rejected: 0,
+                dropped_detections: 0,
+                dropped_tracks: 0,
+                refused_updates: 0,
+                out_of_order_frames: 0,
+            },
         }
     }
 

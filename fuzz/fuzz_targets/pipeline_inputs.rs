@@ -7,8 +7,9 @@
 use dash2sim_core::binlog::{Decoder, Event};
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::pipeline::replay::{feed, Reader, MAGIC};
-use dash2sim_core::pipeline::{ClassMeta, Pipeline, PipelineConfig, SpeedSource};
+use dash2sim_core::pipeline::{ClassMeta, Pipeline, PipelineConfig, SpeedSource, Trackers};
 use dash2sim_core::score::AgentKind;
+use dash2sim_core::track2d::TrackerConfig;
 use dash2sim_core::track3d::{Association, ClassConfig, Config3d};
 use libfuzzer_sys::fuzz_target;
 
@@ -31,9 +32,10 @@ fuzz_target!(|data: &[u8]| {
     let classes = [CLASS, CLASS];
     let Ok(origin) = Geodetic::new(60.0, 25.0, 0.0) else { return };
     let tracker = Config3d { classes: &classes, min_hits: 1, max_age: 2, ground_z: 0.0, static_speed: 0.3 };
-    let config = PipelineConfig { speed: Some(SpeedSource::Ccvs1), ..PipelineConfig::new(origin, tracker, &META) };
+    let config = PipelineConfig { speed: Some(SpeedSource::Ccvs1), ..PipelineConfig::new(origin, &META) };
+    let mut trackers: Box<Trackers<'_, 8, 4>> = Box::new(Trackers::new(tracker, TrackerConfig::default()));
     let mut pipeline: Box<Pipeline<'_, Vec<u8>, 8, 4, 4096>> =
-        Box::new(Pipeline::new(Vec::new(), config).expect("a Vec never fails"));
+        Box::new(Pipeline::new(Vec::new(), config, &mut trackers));
     while let Some(Ok((t, input))) = reader.next_input() {
         feed(&mut pipeline, t, &input).expect("a Vec never fails");
     }

@@ -9,10 +9,10 @@ use std::time::Instant;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use dash2sim_core::geo::Geodetic;
-use dash2sim_core::pipeline::profile::{work_zone_classes, work_zone_meta, work_zone_pipeline};
-use dash2sim_core::pipeline::replay::{feed, Input, Reader};
-use dash2sim_core::pipeline::{Pipeline, PipelineConfig};
 use dash2sim_core::map::MapView;
+use dash2sim_core::pipeline::profile::{work_zone_meta, work_zone_pipeline, work_zone_trackers};
+use dash2sim_core::pipeline::replay::{feed, Input, Reader};
+use dash2sim_core::pipeline::{Pipeline, PipelineConfig, Trackers};
 use dash2sim_linux::record::{self, Setup, Sources};
 use dash2sim_linux::scenario::sensors::GnssModel;
 use dash2sim_linux::scenario::write::write_scenario;
@@ -32,7 +32,8 @@ fn kind(input: &Input<'_>) -> usize {
 
 /// Every input's time (ns) in one replay.
 fn timed_replay(stream: &[u8], config: PipelineConfig<'_>) -> Vec<(usize, f64)> {
-    let mut pipeline: Box<Pipeline<'_, Vec<u8>>> = Box::new(Pipeline::new(Vec::new(), config).expect("vec"));
+    let mut trackers: Box<Trackers<'_, 64, 32>> = Box::new(work_zone_trackers());
+    let mut pipeline: Box<Pipeline<'_, Vec<u8>>> = Box::new(Pipeline::new(Vec::new(), config, &mut trackers));
     let mut reader = Reader::new(stream).expect("stream");
     let mut times = Vec::new();
     while let Some(Ok((t, input))) = reader.next_input() {
@@ -45,18 +46,19 @@ fn timed_replay(stream: &[u8], config: PipelineConfig<'_>) -> Vec<(usize, f64)> 
 
 fn pipeline(c: &mut Criterion) {
     let dir = std::env::temp_dir().join(format!("d2s-bench-pipeline-{}", std::process::id()));
-    let scenario =
-        generate(&ScenarioConfig { duration_s: 40.0, gnss: GnssModel::good(), ..ScenarioConfig::default() });
+    let scenario = generate(&ScenarioConfig { duration_s: 40.0, gnss: GnssModel::good(), ..ScenarioConfig::default() });
     write_scenario(&scenario, &dir).expect("scenario");
     let (stream, _) = record::read_sources(&Sources::scenario(&dir)).expect("sources");
     let [lat, lon, h] = scenario.config.origin;
     let origin = Geodetic::new(lat, lon, h).expect("origin");
     let osm = dash2sim_linux::osm::read(&dir.join("road.osm")).expect("osm");
-    let tile =
-        dash2sim_linux::map_tile::encode(&dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()), 50.0);
-    let (classes, meta) = (work_zone_classes(), work_zone_meta());
+    let tile = dash2sim_linux::map_tile::encode(
+        &dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
+        50.0,
+    );
+    let meta = work_zone_meta();
     let map = MapView::parse(&tile).expect("tile");
-    let config = PipelineConfig { map: Some(map), ..work_zone_pipeline(origin, &classes, &meta) };
+    let config = PipelineConfig { map: Some(map), ..work_zone_pipeline(origin, &meta) };
 
     // Per input: the fastest of 20 replays; then median and worst case per kind.
     let mut best: Vec<(usize, f64)> = timed_replay(&stream, config);
@@ -74,8 +76,9 @@ fn pipeline(c: &mut Criterion) {
         }
     }
     eprintln!(
-        "size_of Pipeline<64, 32, 4096> = {} bytes",
-        std::mem::size_of::<Pipeline<'_, Vec<u8>, 64, 32, 4096>>()
+        "size_of Pipeline<64, 32, 4096> = {} bytes + Trackers<64, 32> = {} bytes",
+        size_of::<Pipeline<'_, Vec<u8>, 64, 32, 4096>>(),
+        size_of::<Trackers<'_, 64, 32>>()
     );
 
     let inputs = best.len() as u64;

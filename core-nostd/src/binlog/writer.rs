@@ -94,6 +94,17 @@ impl<W: Write, const N: usize> Writer<W, N> {
         if N < 2 * MAX_FRAME {
             return Err(WriteError::BufferTooSmall);
         }
+        let mut w = Self::buffered(io, header, config);
+        w.flush()?;
+        Ok(w)
+    }
+
+    /// Start a log whose header waits in the buffer for the first flush. Infallible (a
+    /// buffer smaller than two frames does not compile), so that a large writer can be built
+    /// in place rather than moved out of a `Result`.
+    #[inline(always)]
+    pub fn buffered(io: W, header: &Header, config: WriterConfig) -> Self {
+        const { assert!(N >= 2 * MAX_FRAME, "a Writer's buffer must hold two frames") };
         let mut w = Writer {
             io,
             buffer: [0; N],
@@ -106,8 +117,7 @@ impl<W: Write, const N: usize> Writer<W, N> {
         };
         w.buffer[..HEADER_LEN].copy_from_slice(&header.encode());
         w.len = HEADER_LEN;
-        w.flush()?;
-        Ok(w)
+        w
     }
 
     /// Append one record (records should come in time order; small reorderings cost a

@@ -128,13 +128,9 @@ pub struct PipelineConfig<'a> {
     pub anchor: AnchorConfig,
     /// GNSS σ model.
     pub gnss: GnssErrorModel,
-    /// 3D tracker, with its classes and priors.
-    pub tracker: Config3d<'a>,
     /// Per tracker class id: its code in the log and what kind of road user it is for
     /// the score (classes beyond the table: code 255, an object).
     pub classes: &'a [ClassMeta],
-    /// 2D tracker.
-    pub tracker2d: TrackerConfig,
     /// Which CAN message is the vehicle speed (none: speed is not read from CAN).
     pub speed: Option<SpeedSource>,
     /// Segments and flushing of the log.
@@ -154,18 +150,16 @@ pub struct PipelineConfig<'a> {
 }
 
 impl<'a> PipelineConfig<'a> {
-    /// Defaults around a tracker configuration: the default mount, anchoring and σ model,
-    /// nuPlan's Pacifica and score, 15 s windows, no CAN speed, no map.
-    pub fn new(origin: Geodetic, tracker: Config3d<'a>, classes: &'a [ClassMeta]) -> Self {
+    /// Defaults: the default mount, anchoring and σ model, nuPlan's Pacifica and score,
+    /// 15 s windows, no CAN speed, no map; `classes` says what the trackers' classes are.
+    pub fn new(origin: Geodetic, classes: &'a [ClassMeta]) -> Self {
         PipelineConfig {
             origin,
             device_id: *b"dash2sim\0\0\0\0\0\0\0\0",
             mount: CameraMount::default(),
             anchor: AnchorConfig::default(),
             gnss: GnssErrorModel::default(),
-            tracker,
             classes,
-            tracker2d: TrackerConfig::default(),
             speed: None,
             writer: WriterConfig::default(),
             map: None,
@@ -185,6 +179,27 @@ pub struct ClassMeta {
     pub code: i64,
     /// The kind of road user, for the score.
     pub kind: AgentKind,
+}
+
+/// The pipeline's two trackers, its largest parts (98 KB with 64 3D and 32 2D tracks),
+/// kept where the caller puts them: in a `static` on a microcontroller (their constructor
+/// is const, so they are never built on the stack and moved), in a `Box` on the host.
+#[derive(Clone, Debug)]
+pub struct Trackers<'a, const T3: usize, const T2: usize> {
+    tracker3d: Tracker3d<'a, T3>,
+    tracker2d: Tracker2d<T2>,
+}
+
+impl<'a, const T3: usize, const T2: usize> Trackers<'a, T3, T2> {
+    /// Empty trackers with these settings.
+    pub const fn new(tracker: Config3d<'a>, tracker2d: TrackerConfig) -> Self {
+        Trackers { tracker3d: Tracker3d::new(tracker), tracker2d: Tracker2d::new(tracker2d) }
+    }
+
+    /// The 3D tracker's counters.
+    pub fn stats3d(&self) -> &crate::track3d::Stats3d {
+        self.tracker3d.stats()
+    }
 }
 
 /// A 2D detection of a frame.
@@ -288,8 +303,7 @@ struct State<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> {
     anchorer: Anchorer,
     observability: Observability,
     last_anchor_record: Option<Timestamp>,
-    tracker3d: Tracker3d<'a, T3>,
-    tracker2d: Tracker2d<T2>,
+    trackers: &'a mut Trackers<'a, T3, T2>,
     vo: Option<LastVo>,
     ego: Option<Ego>,
     /// Seconds per frame number (for track velocities in m/s).
@@ -310,7 +324,7 @@ struct State<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> {
 }
 
 /// The pipeline: `T3` 3D tracks (and 3D detections per frame), `T2` 2D tracks (and 2D
-/// detections per frame), a `BUF`-byte log buffer.
+/// detections per frame) in caller-kept [`Trackers`], a `BUF`-byte log buffer.
 #[derive(Debug)]
 pub struct Pipeline<'a, W: Write, const T3: usize = 64, const T2: usize = 32, const BUF: usize = 4096> {
     nmea: crate::nmea::Stream<128>,
@@ -322,9 +336,10 @@ pub struct Pipeline<'a, W: Write, const T3: usize = 64, const T2: usize = 32, co
 const FAST_PACKET_TIMEOUT: Duration = Duration::from_millis(750);
 
 impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<'a, W, T3, T2, BUF> {
-    /// Start a log on `io`: the header goes out at once.
-    #[inline(always)]
-    pub fn new(io: W, config: PipelineConfig<'a>) -> Result<Self, PipelineError<W::Error>> {
+    /// Start a log on `io`; its header goes out with the first flush (the first segment's
+    /// close). Infallible, so that it is built where it is kept rather than moved out of a
+    /// `Result`.
+    pub fn new(io: W, config: PipelineConfig<'a>, trackers: &'a mut Trackers<'a, T3, T2>) -> Self {
         let o = config.origin;
         let header = Header {
             device_id: config.device_id,
@@ -334,20 +349,18 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
                 quantise(o.height_m, 1e-3).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32,
             ],
         };
-        let writer = Writer::new(io, &header, config.writer)?;
-        Ok(Pipeline {
+        Pipeline {
             nmea: crate::nmea::Stream::new(),
             can: crate::can::Decoder::new(FAST_PACKET_TIMEOUT),
             state: State {
                 config,
-                writer,
+                writer: Writer::buffered(io, &header, config.writer),
                 local: LocalFrame::new(config.origin),
                 clock: Clock::new(),
                 anchorer: Anchorer::new(config.anchor),
                 observability: Observability::TooFewAnchors,
                 last_anchor_record: None,
-                tracker3d: Tracker3d::new(config.tracker),
-                tracker2d: Tracker2d::new(config.tracker2d),
+                trackers,
                 vo: None,
                 ego: None,
                 frame_interval: 0.1,
@@ -362,7 +375,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
                 issues: Issues::default(),
                 stats: PipelineStats::default(),
             },
-        })
+        }
     }
 
     /// What the pipeline has done so far.
@@ -838,11 +851,12 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             }
         }
         self.stats.detections_placed = self.stats.detections_placed.saturating_add(placed.len() as u64);
-        let rejected_before = self.tracker3d.stats().rejected;
+        let rejected_before = self.trackers.tracker3d.stats().rejected;
         // Only what the log needs of each track: the filter's posterior is 0.9 KB a track,
         // too much to keep 64 of on a microcontroller's stack.
         let mut outputs: heapless::Vec<TrackState, T3> = heapless::Vec::new();
         if self
+            .trackers
             .tracker3d
             .update(frame, &placed, |o| {
                 // At most T3 tracks exist.
@@ -858,7 +872,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         {
             return self.issue(t, Issue::DetectionsOutOfOrder, 1);
         }
-        let refused = self.tracker3d.stats().rejected.saturating_sub(rejected_before).saturating_add(excess);
+        let refused = self.trackers.tracker3d.stats().rejected.saturating_sub(rejected_before).saturating_add(excess);
         if refused > 0 {
             self.issue(t, Issue::DetectionsRefused, refused)?;
         }
@@ -958,6 +972,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         }
         let mut outputs: heapless::Vec<crate::track2d::TrackOutput, T2> = heapless::Vec::new();
         if self
+            .trackers
             .tracker2d
             .update(frame, &boxes, |o| {
                 let _ = outputs.push(o);
@@ -1002,17 +1017,17 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             self.window =
                 Some(Window { start: ts, scorer: Scorer::new(checker, Channel::Insensitive, self.config.score) });
         }
+        // The latest tracks, moved on by their velocity to this pose's time (in place: a
+        // copy of 64 agents is 4.6 KB of a microcontroller's stack).
         let dt = ts - self.agents_t;
-        let mut agents: heapless::Vec<Agent, T3> = heapless::Vec::new();
-        for a in &self.agents {
-            let mut moved = *a;
-            moved.bbox.centre.x += a.velocity.0 * dt;
-            moved.bbox.centre.y += a.velocity.1 * dt;
-            let _ = agents.push(moved);
+        for a in self.agents.iter_mut() {
+            a.bbox.centre.x += a.velocity.0 * dt;
+            a.bbox.centre.y += a.velocity.1 * dt;
         }
+        self.agents_t = ts;
         let Some(window) = self.window.as_mut() else { return Ok(()) };
         // A refused pose (not finite, time not increasing) leaves the window as it was.
-        let _ = window.scorer.step(ts, ego, &agents);
+        let _ = window.scorer.step(ts, ego, &self.agents);
         if ts - window.start >= self.config.window_s {
             self.close_window(t)?;
         }

@@ -14,6 +14,7 @@ use crate::box3d::Box3d;
 use crate::can::CanFrame;
 use crate::score::AgentKind;
 use crate::sim3::rotation_z;
+use crate::track2d::TrackerConfig;
 use crate::track3d::{Association, ClassConfig};
 
 const ORIGIN_LAT: f64 = 60.0;
@@ -36,14 +37,18 @@ fn cone_class() -> [ClassConfig; 1] {
 
 const META: [ClassMeta; 1] = [ClassMeta { code: 6, kind: AgentKind::Object }];
 
-fn config<'a>(classes: &'a [ClassConfig]) -> PipelineConfig<'a> {
+fn config() -> PipelineConfig<'static> {
     let origin = Geodetic::new(ORIGIN_LAT, ORIGIN_LON, 0.0).unwrap_or_else(|_| unreachable!());
-    let tracker = Config3d { classes, min_hits: 2, max_age: 3, ground_z: 0.0, static_speed: 0.3 };
     PipelineConfig {
         anchor: AnchorConfig { mode: crate::anchor::AnchorMode::GravityAligned, ..AnchorConfig::default() },
         speed: Some(SpeedSource::Ccvs1),
-        ..PipelineConfig::new(origin, tracker, &META)
+        ..PipelineConfig::new(origin, &META)
     }
+}
+
+fn trackers(classes: &[ClassConfig]) -> Trackers<'_, 8, 4> {
+    let tracker = Config3d { classes, min_hits: 2, max_age: 3, ground_z: 0.0, static_speed: 0.3 };
+    Trackers::new(tracker, TrackerConfig::default())
 }
 
 fn us(t: i64) -> Timestamp {
@@ -156,9 +161,9 @@ fn drive(
     mut tamper: impl FnMut(i64, &mut Pipeline<'_, &mut [u8], 8, 4, 4096>),
 ) -> (usize, PipelineStats, Issues) {
     let classes = cone_class();
+    let mut trackers = trackers(&classes);
     let total = buffer.len();
-    let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> =
-        Pipeline::new(buffer, config(&classes)).unwrap_or_else(|_| unreachable!());
+    let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> = Pipeline::new(buffer, config(), &mut trackers);
     let mut frame = 0;
     for step in 0..seconds * 50 {
         let t = step * 20_000;
@@ -262,8 +267,8 @@ fn bad_inputs_are_counted_written_as_events_and_lose_nothing_else() {
 fn a_device_clock_reset_keeps_the_log_going_in_utc() {
     let mut buffer = [0u8; 131_072];
     let classes = cone_class();
-    let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> =
-        Pipeline::new(&mut buffer[..], config(&classes)).unwrap_or_else(|_| unreachable!());
+    let mut trackers = trackers(&classes);
+    let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> = Pipeline::new(&mut buffer[..], config(), &mut trackers);
     // 10 s, then the device clock restarts at 0 while the car drives on (2 s lost).
     let reset_at = 10_000_000;
     let lost = 2_000_000;
@@ -328,8 +333,9 @@ proptest! {
     ) {
         let mut buffer = std::vec![0u8; 1 << 20];
         let classes = cone_class();
+        let mut trackers = trackers(&classes);
         let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> =
-            Pipeline::new(&mut buffer[..], config(&classes)).unwrap_or_else(|_| unreachable!());
+            Pipeline::new(&mut buffer[..], config(), &mut trackers);
         for input in &inputs {
             let _ = match input {
                 AnyInput::Serial(t, b) => p.push_serial(us(*t), b),

@@ -20,10 +20,11 @@ use core::panic::PanicInfo;
 
 use board::{CameraMessage, HostFile, ReplayBoard};
 use dash2sim_core::geo::Geodetic;
-use dash2sim_core::pipeline::profile::{work_zone_classes, work_zone_meta, work_zone_pipeline};
-use dash2sim_core::pipeline::{replay, ImageDetection, Pipeline, PipelineConfig};
+use dash2sim_core::pipeline::profile::{work_zone_pipeline, work_zone_trackers, WORK_ZONE_META};
+use dash2sim_core::pipeline::{replay, ImageDetection, Pipeline, PipelineConfig, Trackers};
 use embedded_can::nb::Can as _;
 use embedded_io::{Read as _, ReadReady as _};
+use static_cell::ConstStaticCell;
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
@@ -259,19 +260,19 @@ fn record_drive(cost: &mut Cost) -> bool {
     };
     let [lat, lon, height] = map.header().origin;
     let Ok(origin) = Geodetic::new(lat, lon, height) else { return false };
-    let (classes, meta) = (work_zone_classes(), work_zone_meta());
+    // The trackers (96 KB) are const-constructed in their static place: never on the stack.
+    static TRACKERS: ConstStaticCell<Trackers<'static, 64, 24>> = ConstStaticCell::new(work_zone_trackers());
+    let trackers = TRACKERS.take();
     let config = PipelineConfig {
         device_id: *b"dash2sim-mcu\0\0\0\0",
         map: Some(map),
-        ..work_zone_pipeline(origin, &classes, &meta)
+        ..work_zone_pipeline(origin, &WORK_ZONE_META)
     };
     let (Some(sink), Some(mut board)) = (HostFile::create("target/drive-mcu.d2slog\0"), ReplayBoard::new(DRIVE)) else {
         hprintln!("no host file or no input stream");
         return false;
     };
-    // Used where it was made (a pipeline is too large to move around a microcontroller's stack).
-    let mut made = Pipeline::<'_, HostFile, 64, 24, 2304>::new(sink, config);
-    let Ok(pipeline) = made.as_mut() else { return false };
+    let mut pipeline = Pipeline::<'_, HostFile, 64, 24, 2304>::new(sink, config, trackers);
     let mut serial = [0u8; 128];
     let mut detections3d: heapless::Vec<_, 64> = heapless::Vec::new();
     let mut detections2d: heapless::Vec<ImageDetection, 24> = heapless::Vec::new();
@@ -316,8 +317,8 @@ fn record_drive(cost: &mut Cost) -> bool {
     }
     let (s, issues) = (*pipeline.stats(), *pipeline.issues());
     hprintln!(
-        "pipeline (Pipeline<64, 32> = {} bytes): {} inputs, {} VO poses ({} anchored), {} fixes, {} speeds, {} 3D track states, {} windows ({} verified), {} records, {} issues",
-        core::mem::size_of::<Pipeline<'_, HostFile, 64, 24, 2304>>(),
+        "pipeline (Pipeline<64, 24> with its Trackers = {} bytes): {} inputs, {} VO poses ({} anchored), {} fixes, {} speeds, {} 3D track states, {} windows ({} verified), {} records, {} issues",
+        core::mem::size_of::<Pipeline<'_, HostFile, 64, 24, 2304>>() + core::mem::size_of::<Trackers<'_, 64, 24>>(),
         inputs,
         s.vo_poses,
         s.anchored_frames,

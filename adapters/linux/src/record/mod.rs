@@ -13,12 +13,11 @@ use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use dash2sim_core::pipeline::replay::{feed, Reader};
 use dash2sim_core::pipeline::{
-    CameraMount, GnssErrorModel, Issue, Issues, Pipeline, PipelineConfig, PipelineStats, SpeedSource,
+    CameraMount, GnssErrorModel, Issue, Issues, Pipeline, PipelineConfig, PipelineStats, SpeedSource, Trackers,
 };
-use dash2sim_core::track3d::ClassConfig;
 use serde_json::json;
 
-use dash2sim_core::pipeline::profile::{self, work_zone_classes, work_zone_meta, work_zone_pipeline};
+use dash2sim_core::pipeline::profile::{self, work_zone_meta, work_zone_pipeline, work_zone_trackers};
 
 /// The recorded files `dash2sim record` reads (see [`sources`] for their forms).
 #[derive(Clone, Debug, Default, Args)]
@@ -205,10 +204,9 @@ pub struct Setup {
 
 /// Run the pipeline over an input stream (the core's replay format).
 pub fn run_stream(stream: &[u8], setup: &Setup) -> Result<Recording, String> {
-    let classes: [ClassConfig; 7] = work_zone_classes();
     let meta = work_zone_meta();
     let map = setup.map.as_deref().map(MapView::parse).transpose().map_err(|e| format!("map: {e}"))?;
-    let base = work_zone_pipeline(setup.origin, &classes, &meta);
+    let base = work_zone_pipeline(setup.origin, &meta);
     let config = PipelineConfig {
         device_id: setup.device_id,
         mount: setup.mount,
@@ -218,8 +216,8 @@ pub fn run_stream(stream: &[u8], setup: &Setup) -> Result<Recording, String> {
         map,
         ..base
     };
-    let mut pipeline: Box<Pipeline<'_, Vec<u8>>> =
-        Box::new(Pipeline::new(Vec::new(), config).map_err(|e| format!("log: {e}"))?);
+    let mut trackers: Box<Trackers<'_, 64, 32>> = Box::new(work_zone_trackers());
+    let mut pipeline: Box<Pipeline<'_, Vec<u8>>> = Box::new(Pipeline::new(Vec::new(), config, &mut trackers));
     let mut reader = Reader::new(stream).map_err(|e| e.to_string())?;
     let mut inputs = 0u64;
     while let Some(entry) = reader.next_input() {
