@@ -9,7 +9,6 @@ use std::path::{Path, PathBuf};
 use dash2sim_core::anchor::{AnchorConfig, AnchorMode};
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::pipeline::mount::camera_in_world;
-use dash2sim_core::pipeline::{CameraMount, GnssErrorModel, SpeedSource};
 use dash2sim_linux::logfile::{self, LogContents};
 use dash2sim_linux::record::{self, Recording, Setup};
 use dash2sim_linux::scenario::evaluate::evaluate_tracking;
@@ -69,15 +68,11 @@ pub fn record_drive(seed: u64, duration_s: f64) -> Outcome {
     write_scenario(&scenario, &drive).expect("write scenario");
     let [lat, lon, h] = scenario.config.origin;
     let (stream, _) = record::read_sources(&record::Sources::scenario(&drive)).expect("sources");
-    let setup = Setup {
-        origin: Geodetic::new(lat, lon, h).expect("origin"),
-        mount: CameraMount::default(),
-        mode: AnchorMode::GravityAligned,
-        gnss: GnssErrorModel::default(),
-        speed: Some(SpeedSource::Ccvs1),
-        map: Some(road_tile(&scenario, &drive)),
-        device_id: *b"dash2sim-test\0\0\0",
-    };
+    let setup = Setup::work_zone(
+        Geodetic::new(lat, lon, h).expect("origin"),
+        Some(road_tile(&scenario, &drive)),
+        *b"dash2sim-test\0\0\0",
+    );
     let recording = record::run_stream(&stream, &setup).expect("record");
     let log = logfile::decode(&recording.log, "recorded").expect("log");
     let judged = judge_log(&scenario, &log);

@@ -35,19 +35,9 @@ fn the_mcu_example_drive_is_todays_and_records_on_the_host() {
     let committed_tile = std::fs::read(root.join("drive.d2smap")).expect("drive.d2smap");
     assert!(tile == committed_tile, "examples/mcu/drive.d2smap is stale; {REBUILD}");
 
-    let recording = record::run_stream(
-        &committed,
-        &Setup {
-            origin,
-            mount: Default::default(),
-            mode: dash2sim_core::anchor::AnchorMode::GravityAligned,
-            gnss: Default::default(),
-            speed: Some(dash2sim_core::pipeline::SpeedSource::Ccvs1),
-            map: Some(committed_tile),
-            device_id: *b"dash2sim-mcu\0\0\0\0",
-        },
-    )
-    .expect("record");
+    let recording =
+        record::run_stream(&committed, &Setup::work_zone(origin, Some(committed_tile), *b"dash2sim-mcu\0\0\0\0"))
+            .expect("record");
     let s = recording.stats;
     println!("host replay of the MCU drive: {s:?}, {} bytes", recording.log.len());
     assert_eq!(recording.issues.total(), 0);

@@ -86,21 +86,10 @@ fn pipeline(c: &mut Criterion) {
     group.throughput(Throughput::Elements(inputs));
     group.bench_function("record 40 s work zone (inputs)", |b| {
         b.iter(|| {
-            record::run_stream(
-                &stream,
-                &Setup {
-                    origin,
-                    mount: Default::default(),
-                    mode: dash2sim_core::anchor::AnchorMode::GravityAligned,
-                    gnss: Default::default(),
-                    speed: Some(dash2sim_core::pipeline::SpeedSource::Ccvs1),
-                    map: Some(tile.clone()),
-                    device_id: [0; 16],
-                },
-            )
-            .expect("record")
-            .log
-            .len()
+            record::run_stream(&stream, &Setup::work_zone(origin, Some(tile.clone()), [0; 16]))
+                .expect("record")
+                .log
+                .len()
         })
     });
     group.finish();

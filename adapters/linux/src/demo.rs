@@ -17,12 +17,10 @@
 
 use std::path::Path;
 
-use dash2sim_core::anchor::AnchorMode;
 use dash2sim_core::binlog::Record;
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::PACIFICA;
-use dash2sim_core::pipeline::{CameraMount, GnssErrorModel, SpeedSource};
 use serde_json::json;
 
 use crate::logfile;
@@ -76,15 +74,7 @@ pub fn run(out: &Path, seed: u64, duration_s: f64, as_json: bool) -> Result<(), 
     step(3, "recording: the on-device pipeline over VO, the GNSS serial capture, CAN and the detections");
     let log_path = out.join("drive.d2slog");
     let (stream, _) = record::read_sources(&record::Sources::scenario(&drive))?;
-    let setup = Setup {
-        origin,
-        mount: CameraMount::default(),
-        mode: AnchorMode::GravityAligned,
-        gnss: GnssErrorModel::default(),
-        speed: Some(SpeedSource::Ccvs1),
-        map: Some(tile.clone()),
-        device_id: *b"dash2sim-demo\0\0\0",
-    };
+    let setup = Setup::work_zone(origin, Some(tile.clone()), *b"dash2sim-demo\0\0\0");
     let recording = record::run_stream(&stream, &setup)?;
     std::fs::write(&log_path, &recording.log).map_err(|e| format!("{}: {e}", log_path.display()))?;
 

@@ -242,6 +242,23 @@ pub struct PipelineStats {
     pub records: u64,
 }
 
+impl core::fmt::Display for PipelineStats {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(
+            f,
+            "{} VO poses ({} anchored), {} fixes, {} speeds, {} 3D track states, {} windows ({} verified), {} records",
+            self.vo_poses,
+            self.anchored_frames,
+            self.fixes,
+            self.speeds,
+            self.track_states,
+            self.windows,
+            self.windows_verified,
+            self.records
+        )
+    }
+}
+
 /// Errors of the log sink; inputs themselves never fail (they are counted as issues).
 pub type PipelineError<E> = WriteError<E>;
 
@@ -492,21 +509,8 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
             state.event(now, 3, format_args!("{} ({count} in all)", issue.text()))?;
         }
         let s = state.stats;
-        state.event(
-            now,
-            2,
-            format_args!(
-                "pipeline finished: {} VO poses ({} anchored), {} fixes, {} speeds, {} 3D track states, {} windows ({} verified), {} issues",
-                s.vo_poses,
-                s.anchored_frames,
-                s.fixes,
-                s.speeds,
-                s.track_states,
-                s.windows,
-                s.windows_verified,
-                state.issues.total()
-            ),
-        )?;
+        let issues = state.issues.total();
+        state.event(now, 2, format_args!("pipeline finished: {s}, {issues} issues"))?;
         state.writer.close()
     }
 }

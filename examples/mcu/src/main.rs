@@ -317,17 +317,10 @@ fn record_drive(cost: &mut Cost) -> bool {
     }
     let (s, issues) = (*pipeline.stats(), *pipeline.issues());
     hprintln!(
-        "pipeline (Pipeline<64, 24> with its Trackers = {} bytes): {} inputs, {} VO poses ({} anchored), {} fixes, {} speeds, {} 3D track states, {} windows ({} verified), {} records, {} issues",
+        "pipeline (Pipeline<64, 24> with its Trackers = {} bytes): {} inputs, {}, {} issues",
         core::mem::size_of::<Pipeline<'_, HostFile, 64, 24, 2304>>() + core::mem::size_of::<Trackers<'_, 64, 24>>(),
         inputs,
-        s.vo_poses,
-        s.anchored_frames,
-        s.fixes,
-        s.speeds,
-        s.track_states,
-        s.windows,
-        s.windows_verified,
-        s.records,
+        s,
         issues.total()
     );
     !board.malformed && s.anchored_frames > 100 && s.track_states > 100 && s.windows >= 1 && issues.total() == 0

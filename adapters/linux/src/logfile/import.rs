@@ -68,7 +68,8 @@ pub struct ImportRequest {
     pub origin: Option<String>,
 }
 
-fn parse_origin(text: &str) -> Result<[f64; 3], String> {
+/// Parse `--origin LAT,LON[,H]` (height 0 when absent).
+pub fn parse_origin(text: &str) -> Result<[f64; 3], String> {
     let values: Vec<f64> = text
         .split(',')
         .map(|v| v.trim().parse::<f64>())

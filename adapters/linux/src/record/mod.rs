@@ -124,17 +124,8 @@ pub enum ModeArg {
 
 /// Parse `LAT,LON[,H]`.
 pub fn parse_origin(text: &str) -> Result<Geodetic, String> {
-    let v: Vec<f64> = text
-        .split(',')
-        .map(|x| x.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("--origin {text:?}: expected LAT,LON[,H] numbers"))?;
-    match v[..] {
-        [lat, lon] => Geodetic::new(lat, lon, 0.0),
-        [lat, lon, h] => Geodetic::new(lat, lon, h),
-        _ => return Err(format!("--origin {text:?}: expected LAT,LON[,H]")),
-    }
-    .map_err(|e| format!("--origin {text:?}: {e}"))
+    let [lat, lon, h] = crate::logfile::import::parse_origin(text)?;
+    Geodetic::new(lat, lon, h).map_err(|e| format!("--origin {text:?}: {e}"))
 }
 
 fn parse_mount(text: &str) -> Result<CameraMount, String> {
@@ -200,6 +191,22 @@ pub struct Setup {
     pub map: Option<Vec<u8>>,
     /// Device id of the header.
     pub device_id: [u8; 16],
+}
+
+impl Setup {
+    /// The work-zone dashcam of `dash2sim scenario generate`: the default mount, a
+    /// gravity-aligned VO frame, σ = HDOP × 2.5 m, wheel speed from CCVS1.
+    pub fn work_zone(origin: Geodetic, map: Option<Vec<u8>>, device_id: [u8; 16]) -> Self {
+        Setup {
+            origin,
+            mount: CameraMount::default(),
+            mode: AnchorMode::GravityAligned,
+            gnss: GnssErrorModel::default(),
+            speed: Some(SpeedSource::Ccvs1),
+            map,
+            device_id,
+        }
+    }
 }
 
 /// Run the pipeline over an input stream (the core's replay format).
