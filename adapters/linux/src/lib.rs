@@ -7,6 +7,7 @@
 #![deny(missing_docs)]
 
 pub mod anchoring;
+pub mod bridge;
 pub mod can_decode;
 pub mod cli;
 pub mod demo;
