@@ -35,11 +35,18 @@ pub enum Issue {
     ClockReset,
     /// The log could not take a record (an event text too long).
     RecordRefused,
+    /// Frame numbers skipped between consecutive VO poses (counted per missing frame): the
+    /// camera process dropped frames, or was restarted.
+    FramesMissing,
+    /// Inputs the host dropped before the pipeline (a logger slower than its inputs).
+    InputsDropped,
+    /// The camera's frame numbers started again (its process restarted).
+    CameraRestarted,
 }
 
 impl Issue {
     /// Every reason, in counter order.
-    pub const ALL: [Issue; 14] = [
+    pub const ALL: [Issue; 17] = [
         Issue::VoNotFinite,
         Issue::VoOutOfOrder,
         Issue::SpeedRefused,
@@ -54,6 +61,9 @@ impl Issue {
         Issue::DetectionsRefused,
         Issue::ClockReset,
         Issue::RecordRefused,
+        Issue::FramesMissing,
+        Issue::InputsDropped,
+        Issue::CameraRestarted,
     ];
 
     /// How the event names it.
@@ -73,6 +83,9 @@ impl Issue {
             Issue::DetectionsRefused => "detections refused by the tracker (implausible or over capacity)",
             Issue::ClockReset => "device clock reset",
             Issue::RecordRefused => "record refused by the log writer",
+            Issue::FramesMissing => "camera frames missing (frame numbers skipped)",
+            Issue::InputsDropped => "inputs dropped before the pipeline (logger behind)",
+            Issue::CameraRestarted => "camera process restarted (frame numbers started again)",
         }
     }
 

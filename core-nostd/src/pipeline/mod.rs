@@ -314,13 +314,19 @@ struct Fix {
 #[derive(Debug)]
 struct State<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> {
     config: PipelineConfig<'a>,
+    header: Header,
     writer: Writer<W, BUF>,
+    /// Logs started on new sinks ([`Pipeline::rotate`]).
+    rotations: u32,
     local: LocalFrame,
     clock: Clock,
     anchorer: Anchorer,
     observability: Observability,
     last_anchor_record: Option<Timestamp>,
     trackers: &'a mut Trackers<'a, T3, T2>,
+    /// Internal frame number = the camera's + this (raised when the camera restarts).
+    frame_offset: u64,
+    /// The latest VO pose, with its internal frame number.
     vo: Option<LastVo>,
     ego: Option<Ego>,
     /// Seconds per frame number (for track velocities in m/s).
@@ -371,13 +377,16 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
             can: crate::can::Decoder::new(FAST_PACKET_TIMEOUT),
             state: State {
                 config,
+                header,
                 writer: Writer::buffered(io, &header, config.writer),
+                rotations: 0,
                 local: LocalFrame::new(config.origin),
                 clock: Clock::new(),
                 anchorer: Anchorer::new(config.anchor),
                 observability: Observability::TooFewAnchors,
                 last_anchor_record: None,
                 trackers,
+                frame_offset: 0,
                 vo: None,
                 ego: None,
                 frame_interval: 0.1,
@@ -492,6 +501,34 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
         self.close()?;
         let State { writer, stats, issues, .. } = self.state;
         Ok((writer.finish()?, stats, issues))
+    }
+
+    /// Close the log on the current sink and go on on `io` (a new file every few minutes,
+    /// so that a crash or a full disk costs at most the file being written): the new log
+    /// starts with its own header, the clock offset in force and an event naming the
+    /// rotation; anchoring, tracking and verification go on undisturbed. Returns the old
+    /// sink, flushed.
+    pub fn rotate(&mut self, io: W) -> Result<W, PipelineError<W::Error>> {
+        let state = &mut self.state;
+        state.writer.close()?;
+        let next = Writer::buffered(io, &state.header, state.config.writer);
+        let old = core::mem::replace(&mut state.writer, next).finish()?;
+        state.rotations = state.rotations.saturating_add(1);
+        let now = state.now;
+        if let Some(offset) = state.clock.offset() {
+            let record = ClockOffset { t_us: state.log_time(now), offset_us: offset, reason: 1 };
+            state.write(&Record::ClockOffset(record))?;
+        }
+        let rotations = state.rotations;
+        state.event(now, 2, format_args!("log continued on a new file (rotation {rotations})"))?;
+        Ok(old)
+    }
+
+    /// `n` inputs were dropped before they reached the pipeline (the host's queue was
+    /// full); counted and written as an event like every refused input.
+    pub fn note_dropped(&mut self, t: Timestamp, n: u64) -> Result<(), PipelineError<W::Error>> {
+        let t = self.state.monotonic(t)?;
+        self.state.issue(t, Issue::InputsDropped, n)
     }
 
     /// [`Pipeline::finish`] in place: everything but giving the sink back. A pipeline is
@@ -743,13 +780,27 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         if !pose.is_finite() {
             return self.issue(t, Issue::VoNotFinite, 1);
         }
-        if self.vo.is_some_and(|v| t <= v.t || frame <= v.frame) {
+        if self.vo.is_some_and(|v| t <= v.t) {
             return self.issue(t, Issue::VoOutOfOrder, 1);
         }
+        let raw_frame = frame;
+        let mut frame = raw_frame.saturating_add(self.frame_offset);
+        let restarted = self.vo.is_some_and(|v| frame <= v.frame);
         if self.anchorer.push_vo(t, pose.translation).is_err() {
             return self.issue(t, Issue::VoOutOfOrder, 1);
         }
         if let Some(v) = self.vo {
+            if restarted {
+                // Frame numbers went back while time went on: the camera process restarted.
+                // Internally frames go on counting, so that the trackers keep their tracks.
+                self.frame_offset = v.frame.saturating_add(1).saturating_sub(raw_frame);
+                frame = raw_frame.saturating_add(self.frame_offset);
+                self.issue(t, Issue::CameraRestarted, 1)?;
+            }
+            let skipped = frame - v.frame - 1;
+            if skipped > 0 {
+                self.issue(t, Issue::FramesMissing, skipped)?;
+            }
             let per_frame = (t - v.t).as_secs_f64() / (frame - v.frame) as f64;
             if per_frame.is_finite() && per_frame > 0.0 {
                 self.frame_interval = per_frame;
@@ -758,7 +809,8 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         self.vo = Some(LastVo { t, frame });
         self.stats.vo_poses = self.stats.vo_poses.saturating_add(1);
         let t_us = self.log_time(t);
-        let frame_i64 = i64::try_from(frame).unwrap_or(i64::MAX);
+        // The log keeps the camera's own numbers (sequence gaps and restarts show there).
+        let frame_i64 = i64::try_from(raw_frame).unwrap_or(i64::MAX);
         self.write(&Record::FrameMeta(FrameMeta { t_us, frame: frame_i64, flags: 0 }))?;
         let [yaw, pitch, roll] = euler(&pose.rotation);
         let p = &pose.translation;
@@ -835,6 +887,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         frame: u64,
         detections: &[Detection3d],
     ) -> Result<(), PipelineError<W::Error>> {
+        let frame = frame.saturating_add(self.frame_offset);
         if self.last_frame3d.is_some_and(|f| frame <= f) {
             return self.issue(t, Issue::DetectionsOutOfOrder, 1);
         }
@@ -960,6 +1013,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         frame: u64,
         detections: &[ImageDetection],
     ) -> Result<(), PipelineError<W::Error>> {
+        let frame = frame.saturating_add(self.frame_offset);
         if self.last_frame2d.is_some_and(|f| frame <= f) {
             return self.issue(t, Issue::DetectionsOutOfOrder, 1);
         }

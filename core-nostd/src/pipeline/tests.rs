@@ -368,3 +368,53 @@ proptest! {
         prop_assert_eq!(log.damaged, 0);
     }
 }
+
+#[test]
+fn a_camera_restart_and_skipped_frames_are_events_and_tracking_goes_on_across_a_rotation() {
+    let mut first = [0u8; 131_072];
+    let mut second = [0u8; 131_072];
+    let classes = cone_class();
+    let mut trackers = trackers(&classes);
+    let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> = Pipeline::new(&mut first[..], config(), &mut trackers);
+    let mut frame = 0;
+    let mut second_sink = Some(&mut second[..]);
+    let mut tracks_before = 0;
+    let mut first_len = 0;
+    for step in 0..20 * 50 {
+        let t = step * 20_000;
+        let _ = p.push_can(us(t), &ccvs1(10.0));
+        if step % 10 == 0 {
+            let _ = p.push_serial(us(t + LATENCY_US), nmea(t, UTC0 + t).as_bytes());
+        }
+        if step % 5 == 0 {
+            frame += 1;
+            if t == 8_000_000 {
+                frame += 3; // three frames lost
+            }
+            if t == 10_000_000 {
+                frame = 1; // the camera process restarted
+                tracks_before = p.stats().track_states;
+            }
+            let _ = p.push_vo(us(t), frame, &vo_pose(t));
+            let _ = p.push_detections(us(t), frame, &[cone(t)]);
+        }
+        if t == 12_000_000 {
+            if let Some(sink) = second_sink.take() {
+                let old = p.rotate(sink).unwrap_or_else(|_| unreachable!());
+                first_len = 131_072 - old.len();
+            }
+        }
+    }
+    assert_eq!(p.issues().get(Issue::CameraRestarted), 1);
+    assert_eq!(p.issues().get(Issue::FramesMissing), 3);
+    assert!(p.stats().track_states > tracks_before + 20, "tracking went on after the restart");
+    let (rest, _, _) = p.finish().unwrap_or_else(|_| unreachable!());
+    let len = 131_072 - rest.len();
+    let later = decode(&second[..len]);
+    let earlier = decode(&first[..first_len]);
+    assert_eq!((earlier.damaged, later.damaged), (0, 0));
+    assert!(earlier.events.iter().any(|e| e.starts_with(Issue::CameraRestarted.text())), "{:?}", earlier.events);
+    assert_eq!(later.clock_reasons.first(), Some(&1), "the new file starts with the clock offset");
+    assert!(later.events.iter().any(|e| e.starts_with("log continued on a new file (rotation 1)")));
+    assert!(count(&later, Kind::EgoPose) > 60 && count(&later, Kind::Tracks3d) > 0);
+}
