@@ -46,6 +46,14 @@ fn the_comma2k19_minute_anchors_through_the_pipeline_as_in_the_anchoring_test() 
         save_inputs: None,
         replay: None,
         device_id: "dash2sim-record".to_owned(),
+        camera: None,
+        serial: None,
+        baud: 115_200,
+        can_iface: None,
+        can_replay: None,
+        realtime: false,
+        segment_minutes: 10.0,
+        seconds: None,
         json: true,
     };
     record::run(&args).expect("record");

@@ -76,7 +76,7 @@ enum Command {
     Import(ImportArgs),
     /// Run the on-device pipeline over recorded inputs (VO, the GNSS serial capture, the
     /// vehicle bus, 3D and 2D detections) and write the 4D log (docs/pipeline.md).
-    Record(crate::record::RecordArgs),
+    Record(Box<crate::record::RecordArgs>),
     /// What a 4D log holds: header, records per type, time span, gaps, damage, bytes.
     Inspect {
         /// The log.

@@ -108,7 +108,7 @@ pub fn run(out: &Path, seed: u64, duration_s: f64, as_json: bool) -> Result<(), 
     write_file(&out.join("drive.geojson"), &logfile::export::geojson(&log)?.to_string())?;
 
     let minutes = duration_s / 60.0;
-    let observable_after = judged.first_anchored_s.map(|t| t - scenario.frames.first().map_or(0.0, |f| f.ego.t));
+    let observable_after = judged.first_anchored_s;
     let s = &recording.stats;
     let summary = json!({
         "seed": seed,

@@ -3,6 +3,7 @@
 //! stream format a microcontroller replays (`--save-inputs` writes it), so the host and the
 //! device run the very same code on the very same bytes.
 
+pub mod live;
 pub mod sources;
 
 use std::path::{Path, PathBuf};
@@ -99,6 +100,30 @@ pub struct RecordArgs {
     /// The device id written into the log's header (at most 16 bytes).
     #[arg(long, default_value = "dash2sim-record")]
     pub device_id: String,
+    /// Live: subscribe to the camera process's services (shared memory) under this prefix.
+    #[arg(long, num_args = 0..=1, default_missing_value = crate::bridge::DEFAULT_PREFIX)]
+    pub camera: Option<String>,
+    /// Live: the GNSS receiver's serial device (raw mode), or a file of raw NMEA bytes.
+    #[arg(long)]
+    pub serial: Option<PathBuf>,
+    /// Live: the serial device's baud rate.
+    #[arg(long, default_value_t = 115_200)]
+    pub baud: u32,
+    /// Live: a SocketCAN interface.
+    #[arg(long, conflicts_with = "can_replay")]
+    pub can_iface: Option<String>,
+    /// Live: replay a candump capture as the vehicle bus.
+    #[arg(long)]
+    pub can_replay: Option<PathBuf>,
+    /// Live: replay the capture at its own pace.
+    #[arg(long)]
+    pub realtime: bool,
+    /// Live: start a new log file every N minutes (`-o` is then a folder).
+    #[arg(long, default_value_t = 10.0)]
+    pub segment_minutes: f64,
+    /// Live: stop after S seconds (else on SIGINT / SIGTERM).
+    #[arg(long)]
+    pub seconds: Option<f64>,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
@@ -239,7 +264,10 @@ pub fn run_stream(stream: &[u8], setup: &Setup) -> Result<Recording, String> {
 /// The speed source the arguments name.
 fn speed_source(args: &RecordArgs) -> Result<Option<SpeedSource>, String> {
     let Some(name) = &args.speed_signal else {
-        let bus = args.sources.can.is_some() || args.replay.is_some();
+        let bus = args.sources.can.is_some()
+            || args.replay.is_some()
+            || args.can_iface.is_some()
+            || args.can_replay.is_some();
         return Ok(bus.then_some(match args.speed_source {
             SpeedArg::Ccvs1 => SpeedSource::Ccvs1,
             SpeedArg::Obd => SpeedSource::Obd,
@@ -293,17 +321,50 @@ pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts), 
     Ok((inputs.stream()?, inputs.counts))
 }
 
-/// `dash2sim record` from files.
+/// The live sources the arguments name, if any.
+fn live_request(args: &RecordArgs) -> Result<Option<live::LiveRequest>, String> {
+    let live = args.camera.is_some() || args.serial.is_some() || args.can_iface.is_some() || args.can_replay.is_some();
+    if !live {
+        return Ok(None);
+    }
+    let s = &args.sources;
+    if s.vo.is_some() || s.nmea.is_some() || s.can.is_some() || s.detections.is_some() || args.replay.is_some() {
+        return Err(
+            "live sources (--camera, --serial, --can-iface, --can-replay) and file sources do not mix".to_owned()
+        );
+    }
+    if !(args.segment_minutes.is_finite() && args.segment_minutes > 0.0) {
+        return Err(format!("--segment-minutes {} must be positive", args.segment_minutes));
+    }
+    let duration = match args.seconds {
+        Some(s) if s.is_finite() && s > 0.0 => Some(std::time::Duration::from_secs_f64(s)),
+        Some(s) => return Err(format!("--seconds {s} must be positive")),
+        None => None,
+    };
+    Ok(Some(live::LiveRequest {
+        dir: args.output.clone(),
+        camera_prefix: args.camera.clone(),
+        serial: args.serial.clone(),
+        baud: args.baud,
+        can_interface: args.can_iface.clone(),
+        can_replay: args.can_replay.clone(),
+        realtime: args.realtime,
+        segment: std::time::Duration::from_secs_f64(args.segment_minutes * 60.0),
+        duration,
+        status: live::on_terminal(),
+    }))
+}
+
+/// `dash2sim record`: from files, or live.
 pub fn run(args: &RecordArgs) -> Result<(), String> {
+    if let Some(request) = live_request(args)? {
+        return run_live(args, &request);
+    }
     let (stream, counts) = match &args.replay {
         Some(path) => (std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?, Default::default()),
         None => read_sources(&args.sources)?,
     };
-    if args.device_id.len() > 16 {
-        return Err(format!("--device-id {:?} is longer than 16 bytes", args.device_id));
-    }
-    let mut device_id = [0u8; 16];
-    device_id[..args.device_id.len()].copy_from_slice(args.device_id.as_bytes());
+    let device_id = device_id(&args.device_id)?;
     if let Some(path) = &args.save_inputs {
         std::fs::write(path, &stream).map_err(|e| format!("{}: {e}", path.display()))?;
     }
@@ -339,6 +400,63 @@ pub fn run(args: &RecordArgs) -> Result<(), String> {
     let recording = run_stream(&stream, &setup)?;
     std::fs::write(&args.output, &recording.log).map_err(|e| format!("{}: {e}", args.output.display()))?;
     report(&args.output, &recording, &counts, args.json);
+    Ok(())
+}
+
+fn device_id(text: &str) -> Result<[u8; 16], String> {
+    if text.len() > 16 {
+        return Err(format!("--device-id {text:?} is longer than 16 bytes"));
+    }
+    let mut id = [0u8; 16];
+    id[..text.len()].copy_from_slice(text.as_bytes());
+    Ok(id)
+}
+
+/// The live logger.
+fn run_live(args: &RecordArgs, request: &live::LiveRequest) -> Result<(), String> {
+    let map = args.map.as_ref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
+    let origin = match (&args.origin, &map) {
+        (Some(text), _) => parse_origin(text)?,
+        (None, Some(bytes)) => {
+            let h = MapView::parse(bytes).map_err(|e| format!("{}: {e}", display(&args.map)))?.header().origin;
+            Geodetic::new(h[0], h[1], h[2]).map_err(|e| format!("map origin: {e}"))?
+        }
+        (None, None) => {
+            return Err("a live recording needs its ENU origin: give --origin LAT,LON[,H] or a --map".to_owned())
+        }
+    };
+    let setup = Setup {
+        origin,
+        mount: parse_mount(&args.mount)?,
+        mode: match args.mode {
+            ModeArg::Full => AnchorMode::Full,
+            ModeArg::Gravity => AnchorMode::GravityAligned,
+        },
+        gnss: GnssErrorModel { uere_m: args.uere, ..GnssErrorModel::default() },
+        speed: speed_source(args)?,
+        map,
+        device_id: device_id(&args.device_id)?,
+    };
+    let stop = live::stop_on_signals()?;
+    let report = live::run(request, &setup, &stop)?;
+    let s = &report.stats;
+    if args.json {
+        println!(
+            "{}",
+            json!({"files": report.files, "frames": report.frames, "dropped": report.dropped, "issues": report.issues,
+                   "vo_poses": s.vo_poses, "anchored_frames": s.anchored_frames, "fixes": s.fixes, "speeds": s.speeds,
+                   "track_states": s.track_states, "windows": s.windows, "records": s.records})
+        );
+    } else {
+        println!(
+            "{}: {} files; {} camera frames, {s}; {} inputs dropped, {} issues",
+            args.output.display(),
+            report.files,
+            report.frames,
+            report.dropped,
+            report.issues
+        );
+    }
     Ok(())
 }
 

@@ -13,22 +13,6 @@ use super::evaluate::score_tracks;
 use super::Scenario;
 use crate::logfile::{self, LogContents};
 
-/// Device time of every record of a log, s: its UTC minus the clock offset in force when it
-/// was written (records before the first offset were moved onto UTC with it by the reader).
-pub fn device_times(log: &LogContents) -> Vec<f64> {
-    let mut offset =
-        log.records.iter().find_map(|r| if let Record::ClockOffset(c) = r { Some(c.offset_us) } else { None });
-    log.records
-        .iter()
-        .map(|r| {
-            if let Record::ClockOffset(c) = r {
-                offset = Some(c.offset_us);
-            }
-            (r.t_us() - offset.unwrap_or(0)) as f64 * 1e-6
-        })
-        .collect()
-}
-
 /// What the log's ego and tracks measure against the truth.
 #[derive(Clone, Debug, Default)]
 pub struct LogJudgement {
@@ -38,7 +22,7 @@ pub struct LogJudgement {
     pub ego_rmse: f64,
     /// Largest of `ego_errors`, m.
     pub ego_max: f64,
-    /// Device time of the first anchored pose, s.
+    /// Seconds from the drive's first frame to the first anchored pose.
     pub first_anchored_s: Option<f64>,
     /// MOTA and IDF1 of the log's 3D tracks over every frame.
     pub tracks: (f64, f64),
@@ -61,22 +45,35 @@ fn figures(s: &crate::mot::Summary) -> (f64, f64) {
     (s.get("mota").unwrap_or(f64::NAN), s.get("idf1").unwrap_or(f64::NAN))
 }
 
-/// Judge a log recorded from `scenario`.
+/// Judge a log recorded from `scenario`: records are matched to the drive's frames through
+/// the frame numbers of the log's `FrameMeta` records (same time, same frame), so that a
+/// live recording on any device clock is judged as one from files.
 pub fn judge_log(scenario: &Scenario, log: &LogContents) -> LogJudgement {
-    let device = device_times(log);
-    let rate = scenario.config.frame_rate_hz;
+    let frame_at: HashMap<i64, u32> = log
+        .records
+        .iter()
+        .filter_map(|r| match r {
+            Record::FrameMeta(f) => Some((f.t_us, u32::try_from(f.frame).ok()?)),
+            _ => None,
+        })
+        .collect();
+    let truth = |frame: u32| {
+        let f = scenario.frames.get(usize::try_from(frame).ok()?.checked_sub(1)?)?;
+        Some(Pose2::new(f.ego.x, f.ego.y, f.ego.heading))
+    };
     let mut j = LogJudgement::default();
     let mut ego_poses = HashMap::new();
     let mut reported: HashMap<u32, Vec<(u32, u16, Box3d)>> = HashMap::new();
-    for (r, &t) in log.records.iter().zip(&device) {
-        let frame = (t * rate).round() as usize;
+    let t0 = scenario.frames.first().map_or(0.0, |f| f.ego.t);
+    for r in &log.records {
+        let Some(&frame) = frame_at.get(&r.t_us()) else { continue };
         match r {
             Record::EgoPose(p) => {
-                let Some(truth) = truth_at(scenario, t) else { continue };
+                let Some(truth) = truth(frame) else { continue };
                 let (x, y) = (p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3);
-                j.ego_errors.insert(frame, (x - truth.x).hypot(y - truth.y));
-                j.first_anchored_s.get_or_insert(t);
-                ego_poses.insert(frame as u32 + 1, (Pose2::new(x, y, p.yaw_e4 as f64 * 1e-4), truth));
+                j.ego_errors.insert(frame as usize - 1, (x - truth.x).hypot(y - truth.y));
+                j.first_anchored_s.get_or_insert(scenario.frames[frame as usize - 1].ego.t - t0);
+                ego_poses.insert(frame, (Pose2::new(x, y, p.yaw_e4 as f64 * 1e-4), truth));
             }
             Record::Tracks3d(batch) => {
                 for track in &batch.tracks {
@@ -93,7 +90,7 @@ pub fn judge_log(scenario: &Scenario, log: &LogContents) -> LogJudgement {
                         h: track.h_mm as f64 * 1e-3,
                     };
                     let id = u32::try_from(track.id).unwrap_or(u32::MAX);
-                    reported.entry(frame as u32 + 1).or_default().push((id, class, bbox));
+                    reported.entry(frame).or_default().push((id, class, bbox));
                 }
             }
             _ => {}

@@ -1,0 +1,322 @@
+//! `dash2sim record` live: the logger process of a dashcam. It subscribes to the camera
+//! process over the shared-memory bridge, reads the GNSS receiver's serial port (raw mode)
+//! and the vehicle bus (SocketCAN, or a candump replay), stamps everything with the shared
+//! device clock, feeds the on-device pipeline and writes the 4D log as files that rotate
+//! every few minutes, until told to stop (SIGINT / SIGTERM, or `--seconds`).
+//!
+//! Serial and CAN are read by one thread each into a bounded queue; when the logger falls
+//! behind, the queue is full and inputs are dropped, counted and written to the log as
+//! events (never unbounded memory). The camera's services keep their own bounded buffers
+//! (iceoryx2's safe overflow): what they lose shows as skipped frame numbers.
+
+use std::fs::File;
+use std::io::{IsTerminal, Read, Write as _};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use dash2sim_can::source::FrameSource;
+use dash2sim_core::can::CanFrame;
+use dash2sim_core::pipeline::profile::{work_zone_meta, work_zone_pipeline, work_zone_trackers};
+use dash2sim_core::pipeline::{Pipeline, PipelineConfig, PipelineStats, Trackers};
+use dash2sim_core::time::Timestamp;
+
+use super::Setup;
+use crate::bridge::{device_now, CameraInput, CameraSubscriber};
+
+/// Inputs waiting between the reader threads and the pipeline.
+pub const QUEUE: usize = 4096;
+
+/// The log files' sink: a file written directly (no user-space buffer beyond the log
+/// writer's own), so that what the writer flushed survives the process being killed.
+#[derive(Debug)]
+pub struct FileSink(File);
+
+/// A file write failed.
+#[derive(Debug)]
+pub struct FileError(std::io::Error);
+
+impl std::fmt::Display for FileError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
+impl std::error::Error for FileError {}
+
+impl embedded_io::Error for FileError {
+    fn kind(&self) -> embedded_io::ErrorKind {
+        embedded_io::ErrorKind::Other
+    }
+}
+
+impl embedded_io::ErrorType for FileSink {
+    type Error = FileError;
+}
+
+impl embedded_io::Write for FileSink {
+    fn write(&mut self, buf: &[u8]) -> Result<usize, FileError> {
+        self.0.write(buf).map_err(FileError)
+    }
+
+    fn flush(&mut self) -> Result<(), FileError> {
+        self.0.flush().map_err(FileError)
+    }
+}
+
+/// What the live logger reads and where it writes.
+#[derive(Clone, Debug)]
+pub struct LiveRequest {
+    /// Folder of the rotating log files.
+    pub dir: PathBuf,
+    /// The camera's services, when subscribing.
+    pub camera_prefix: Option<String>,
+    /// The GNSS receiver's serial device (or a file of raw NMEA bytes).
+    pub serial: Option<PathBuf>,
+    /// Its baud rate (set when the device is a terminal).
+    pub baud: u32,
+    /// A SocketCAN interface.
+    pub can_interface: Option<String>,
+    /// A candump capture to replay as the bus.
+    pub can_replay: Option<PathBuf>,
+    /// Replay the capture at its own pace (else as fast as the queue takes it).
+    pub realtime: bool,
+    /// Start a new file after this long.
+    pub segment: Duration,
+    /// Stop after this long (else only on a signal).
+    pub duration: Option<Duration>,
+    /// Print a status line (stderr) twice a second.
+    pub status: bool,
+}
+
+enum BusInput {
+    Serial(Vec<u8>),
+    Can(CanFrame),
+}
+
+/// Counters of a live run.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LiveReport {
+    /// What the pipeline did.
+    pub stats: PipelineStats,
+    /// Camera frames received (frame metadata messages).
+    pub frames: u64,
+    /// Inputs dropped because the queue was full.
+    pub dropped: u64,
+    /// Log files written.
+    pub files: u32,
+    /// Refused inputs (all reasons).
+    pub issues: u64,
+}
+
+fn send(queue: &SyncSender<(Timestamp, BusInput)>, dropped: &AtomicU64, input: BusInput) -> bool {
+    match queue.try_send((device_now(), input)) {
+        Ok(()) => true,
+        Err(TrySendError::Full(_)) => {
+            dropped.fetch_add(1, Ordering::Relaxed);
+            true
+        }
+        Err(TrySendError::Disconnected(_)) => false,
+    }
+}
+
+/// Raw mode and the baud rate, when `file` is a terminal.
+fn raw_mode(file: &File, baud: u32) -> Result<(), String> {
+    if !rustix::termios::isatty(file) {
+        return Ok(());
+    }
+    let mut termios = rustix::termios::tcgetattr(file).map_err(|e| format!("tcgetattr: {e}"))?;
+    termios.make_raw();
+    termios.set_speed(baud).map_err(|e| format!("baud {baud}: {e}"))?;
+    rustix::termios::tcsetattr(file, rustix::termios::OptionalActions::Now, &termios)
+        .map_err(|e| format!("tcsetattr: {e}"))
+}
+
+fn serial_reader(
+    path: &Path,
+    baud: u32,
+    queue: SyncSender<(Timestamp, BusInput)>,
+    dropped: Arc<AtomicU64>,
+) -> Result<std::thread::JoinHandle<()>, String> {
+    let mut file = File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    raw_mode(&file, baud).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(std::thread::spawn(move || {
+        let mut buffer = [0u8; 1024];
+        // A pty whose writer closed reads as an error (EIO), a file as its end: both end input.
+        while let Ok(n) = file.read(&mut buffer) {
+            if n == 0 || !send(&queue, &dropped, BusInput::Serial(buffer[..n].to_vec())) {
+                break;
+            }
+        }
+    }))
+}
+
+fn can_reader(
+    request: &LiveRequest,
+    queue: SyncSender<(Timestamp, BusInput)>,
+    dropped: Arc<AtomicU64>,
+) -> Result<Option<std::thread::JoinHandle<()>>, String> {
+    if let Some(interface) = &request.can_interface {
+        let mut source = dash2sim_can::source::SocketCanSource::open(interface).map_err(|e| {
+            format!("CAN interface {interface}: {e} (no such interface, or a kernel without SocketCAN)")
+        })?;
+        return Ok(Some(std::thread::spawn(move || {
+            while let Some(Ok(record)) = source.next_frame() {
+                if !send(&queue, &dropped, BusInput::Can(record.frame)) {
+                    break;
+                }
+            }
+        })));
+    }
+    let Some(path) = request.can_replay.clone() else { return Ok(None) };
+    let file = File::open(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let realtime = request.realtime;
+    Ok(Some(std::thread::spawn(move || {
+        let mut source = dash2sim_can::candump::CandumpReader::new(std::io::BufReader::new(file));
+        let start = Instant::now();
+        let mut first: Option<Timestamp> = None;
+        while let Some(record) = source.next_frame() {
+            let Ok(record) = record else { continue };
+            if let (true, Some(t)) = (realtime, record.time) {
+                let t0 = *first.get_or_insert(t);
+                let due = start + Duration::from_micros(u64::try_from((t - t0).micros()).unwrap_or(0));
+                if let Some(wait) = due.checked_duration_since(Instant::now()) {
+                    std::thread::sleep(wait);
+                }
+            }
+            if !send(&queue, &dropped, BusInput::Can(record.frame)) {
+                break;
+            }
+        }
+    })))
+}
+
+fn new_file(dir: &Path, started: u64, index: u32) -> Result<FileSink, String> {
+    let path = dir.join(format!("dash2sim-{started}-{index:04}.d2slog"));
+    File::create(&path).map(FileSink).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+fn status_line(stats: &PipelineStats, frames: u64, dropped: u64, anchored: bool) {
+    let mut err = std::io::stderr();
+    let _ = write!(
+        err,
+        "\r{frames} frames, {} fixes, {} speeds, {} 3D track states, {}, {dropped} dropped   ",
+        stats.fixes,
+        stats.speeds,
+        stats.track_states,
+        if anchored { "anchored" } else { "not anchored yet" }
+    );
+    let _ = err.flush();
+}
+
+/// Run until `stop` is set (a signal) or the duration is over; then close the log cleanly.
+pub fn run(request: &LiveRequest, setup: &Setup, stop: &AtomicBool) -> Result<LiveReport, String> {
+    std::fs::create_dir_all(&request.dir).map_err(|e| format!("{}: {e}", request.dir.display()))?;
+    let started = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    let camera = request.camera_prefix.as_deref().map(CameraSubscriber::new).transpose().map_err(|e| e.to_string())?;
+    let (queue, inputs): (SyncSender<_>, Receiver<_>) = sync_channel(QUEUE);
+    let dropped = Arc::new(AtomicU64::new(0));
+    let mut readers = Vec::new();
+    if let Some(path) = &request.serial {
+        readers.push(serial_reader(path, request.baud, queue.clone(), dropped.clone())?);
+    }
+    readers.extend(can_reader(request, queue.clone(), dropped.clone())?);
+    drop(queue);
+
+    let meta = work_zone_meta();
+    let map =
+        setup.map.as_deref().map(dash2sim_core::map::MapView::parse).transpose().map_err(|e| format!("map: {e}"))?;
+    let base = work_zone_pipeline(setup.origin, &meta);
+    let config = PipelineConfig {
+        device_id: setup.device_id,
+        mount: setup.mount,
+        anchor: dash2sim_core::anchor::AnchorConfig { mode: setup.mode, ..base.anchor },
+        gnss: setup.gnss,
+        speed: setup.speed,
+        map,
+        ..base
+    };
+    let mut trackers: Box<Trackers<'_, 64, 32>> = Box::new(work_zone_trackers());
+    let mut index = 0;
+    let mut pipeline: Box<Pipeline<'_, FileSink>> =
+        Box::new(Pipeline::new(new_file(&request.dir, started, index)?, config, &mut trackers));
+    let (begun, mut file_started, mut last_status) = (Instant::now(), Instant::now(), Instant::now());
+    let (mut frames, mut dropped_noted) = (0u64, 0u64);
+    let log_error = |e: dash2sim_core::binlog::WriteError<FileError>| format!("log: {e}");
+    loop {
+        let mut busy = false;
+        if let Some(camera) = &camera {
+            let mut result = Ok(());
+            camera
+                .receive(|input| {
+                    busy = true;
+                    if result.is_err() {
+                        return;
+                    }
+                    result = match input {
+                        CameraInput::Frame { .. } => {
+                            frames += 1;
+                            Ok(())
+                        }
+                        CameraInput::Vo(t, frame, pose) => pipeline.push_vo(t, frame, &pose),
+                        CameraInput::Detections3d(t, frame, d) => pipeline.push_detections(t, frame, &d),
+                        CameraInput::Detections2d(t, frame, d) => pipeline.push_detections2d(t, frame, &d),
+                    };
+                })
+                .map_err(|e| e.to_string())?;
+            result.map_err(log_error)?;
+        }
+        while let Ok((t, input)) = inputs.try_recv() {
+            busy = true;
+            match input {
+                BusInput::Serial(bytes) => pipeline.push_serial(t, &bytes),
+                BusInput::Can(frame) => pipeline.push_can(t, &frame),
+            }
+            .map_err(log_error)?;
+        }
+        let lost = dropped.load(Ordering::Relaxed);
+        if lost > dropped_noted {
+            pipeline.note_dropped(device_now(), lost - dropped_noted).map_err(log_error)?;
+            dropped_noted = lost;
+        }
+        if file_started.elapsed() >= request.segment {
+            index += 1;
+            pipeline.rotate(new_file(&request.dir, started, index)?).map_err(log_error)?;
+            file_started = Instant::now();
+        }
+        if request.status && last_status.elapsed() >= Duration::from_millis(500) {
+            status_line(pipeline.stats(), frames, lost, pipeline.anchorer().estimate().is_some());
+            last_status = Instant::now();
+        }
+        let over = request.duration.is_some_and(|d| begun.elapsed() >= d);
+        if stop.load(Ordering::Relaxed) || over {
+            break;
+        }
+        if !busy {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+    if request.status {
+        eprintln!();
+    }
+    let issues = pipeline.issues().total();
+    let (_, stats, _) = pipeline.finish().map_err(log_error)?;
+    drop(inputs);
+    Ok(LiveReport { stats, frames, dropped: dropped.load(Ordering::Relaxed), files: index + 1, issues })
+}
+
+/// Stop on SIGINT and SIGTERM: the flag the loop checks.
+pub fn stop_on_signals() -> Result<Arc<AtomicBool>, String> {
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, stop.clone()).map_err(|e| format!("signal handler: {e}"))?;
+    }
+    Ok(stop)
+}
+
+/// Whether stderr is a terminal (for the status line).
+pub fn on_terminal() -> bool {
+    std::io::stderr().is_terminal()
+}

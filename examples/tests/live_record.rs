@@ -1,0 +1,124 @@
+//! `dash2sim record` live, with real processes and real shared memory: `camera_sim`
+//! publishes a generated drive at its frame rate while the logger (this process, through
+//! the library) subscribes, reads the drive's NMEA from a pseudo-terminal written at the
+//! receiver's rate, and replays the wheel-speed candump in real time.
+
+use std::io::Write;
+use std::process::Command;
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+use dash2sim_core::binlog::Record;
+use dash2sim_linux::logfile;
+use dash2sim_linux::record::live::{self, LiveRequest};
+use dash2sim_linux::record::{self, Setup, Sources};
+use dash2sim_linux::scenario::judge::judge_log;
+use dash2sim_linux::scenario::sensors::GnssModel;
+use dash2sim_linux::scenario::write::write_scenario;
+use dash2sim_linux::scenario::{generate, ScenarioConfig};
+
+const SECONDS: f64 = 8.0;
+
+/// A pseudo-terminal pair: the master to write to, the slave's path for the logger.
+fn pty() -> (std::fs::File, String) {
+    use rustix::pty::{grantpt, openpt, ptsname, unlockpt, OpenptFlags};
+    let master = openpt(OpenptFlags::RDWR | OpenptFlags::NOCTTY).expect("openpt");
+    grantpt(&master).expect("grantpt");
+    unlockpt(&master).expect("unlockpt");
+    let name = ptsname(&master, Vec::new()).expect("ptsname").into_string().expect("utf-8");
+    (std::fs::File::from(master), name)
+}
+
+#[test]
+fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() {
+    let dir = std::env::temp_dir().join(format!("dash2sim-live-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let drive = dir.join("drive");
+    let scenario = generate(&ScenarioConfig {
+        seed: 1,
+        duration_s: SECONDS,
+        gnss: GnssModel::good(),
+        ..ScenarioConfig::default()
+    });
+    write_scenario(&scenario, &drive).expect("scenario");
+    let [lat, lon, h] = scenario.config.origin;
+    let origin = dash2sim_core::geo::Geodetic::new(lat, lon, h).expect("origin");
+    let osm = dash2sim_linux::osm::read(&drive.join("road.osm")).expect("osm");
+    let tile = dash2sim_linux::map_tile::encode(
+        &dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
+        50.0,
+    );
+    let setup = Setup::work_zone(origin, Some(tile), *b"dash2sim-live\0\0\0");
+
+    // The same drive recorded from its files, for comparison.
+    let (stream, _) = record::read_sources(&Sources::scenario(&drive)).expect("sources");
+    let from_files = record::run_stream(&stream, &setup).expect("file record");
+    let from_files = judge_log(&scenario, &logfile::decode(&from_files.log, "files").expect("log"));
+
+    // The receiver: NMEA lines written to a pty at their receive times (from when the camera starts).
+    let (mut master, slave) = pty();
+    let serial = std::fs::read_to_string(drive.join("gnss.serial.log")).expect("serial");
+    let prefix = format!("dash2sim-test/live/{}", std::process::id());
+    let request = LiveRequest {
+        dir: dir.join("log"),
+        camera_prefix: Some(prefix.clone()),
+        serial: Some(slave.into()),
+        baud: 115_200,
+        can_interface: None,
+        can_replay: Some(drive.join("speed.can.log")),
+        realtime: true,
+        segment: Duration::from_secs(600),
+        duration: Some(Duration::from_secs_f64(SECONDS + 2.5)),
+        status: false,
+    };
+    let logger = std::thread::spawn(move || live::run(&request, &setup, &AtomicBool::new(false)));
+    std::thread::sleep(Duration::from_millis(300));
+    let camera = Command::new(env!("CARGO_BIN_EXE_camera_sim"))
+        .args(["--seconds", &SECONDS.to_string(), "--prefix", &prefix])
+        .spawn()
+        .expect("camera_sim");
+    let start = Instant::now();
+    for line in serial.lines() {
+        let (stamp, sentence) = line.trim_start_matches('(').split_once(") ").expect("stamped line");
+        let due = start + Duration::from_secs_f64(stamp.parse::<f64>().expect("time"));
+        if let Some(wait) = due.checked_duration_since(Instant::now()) {
+            std::thread::sleep(wait);
+        }
+        master.write_all(format!("{sentence}\r\n").as_bytes()).expect("pty");
+    }
+    let camera = camera.wait_with_output().expect("camera_sim");
+    assert!(camera.status.success());
+    let report = logger.join().expect("logger thread").expect("live record");
+    let frames = (SECONDS * 10.0) as u64 + 1;
+    println!("live: {report:?}");
+    assert_eq!(report.frames, frames);
+    assert_eq!(report.dropped, 0);
+
+    let files: Vec<_> =
+        std::fs::read_dir(dir.join("log")).expect("log dir").map(|e| e.expect("entry").path()).collect();
+    assert_eq!(files.len(), 1);
+    let log = logfile::read(&files[0]).expect("log");
+    assert_eq!(log.stats.damaged, 0);
+    let logged: Vec<i64> =
+        log.records.iter().filter_map(|r| if let Record::FrameMeta(f) = r { Some(f.frame) } else { None }).collect();
+    assert_eq!(logged, (1..=frames as i64).collect::<Vec<_>>(), "every published frame is in the log");
+    let fixes = log.records.iter().filter(|r| matches!(r, Record::GnssFix(_))).count();
+    let speeds = log.records.iter().filter(|r| matches!(r, Record::VehicleSpeed(_))).count();
+    assert_eq!((fixes, speeds), (scenario.gnss.len(), scenario.speed.len()), "every fix and speed sample");
+
+    let live = judge_log(&scenario, &log);
+    println!(
+        "live: {} anchored frames, ego RMSE {:.3} m, track IDF1 seen from the ego {:.3}; from files: {}, {:.3} m, {:.3}",
+        live.ego_errors.len(),
+        live.ego_rmse,
+        live.tracks_relative.1,
+        from_files.ego_errors.len(),
+        from_files.ego_rmse,
+        from_files.tracks_relative.1
+    );
+    // Real processes stamp with a real clock: the times jitter, the results must not move much.
+    assert!(live.ego_errors.len().abs_diff(from_files.ego_errors.len()) <= 8);
+    assert!((live.ego_rmse - from_files.ego_rmse).abs() < 0.25 * from_files.ego_rmse + 0.1);
+    assert!((live.tracks_relative.1 - from_files.tracks_relative.1).abs() < 0.15);
+    let _ = std::fs::remove_dir_all(&dir);
+}
