@@ -122,3 +122,53 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
     assert!((live.tracks_relative.1 - from_files.tracks_relative.1).abs() < 0.15);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn the_camera_process_killed_and_restarted_is_a_gap_in_the_log_not_the_end_of_it() {
+    let dir = std::env::temp_dir().join(format!("dash2sim-live-restart-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let prefix = format!("dash2sim-test/restart/{}", std::process::id());
+    let origin = dash2sim_core::geo::Geodetic::new(60.2711, 24.8572, 20.0).expect("origin");
+    let setup = Setup::work_zone(origin, None, *b"dash2sim-live\0\0\0");
+    let request = LiveRequest {
+        dir: dir.clone(),
+        camera_prefix: Some(prefix.clone()),
+        serial: None,
+        baud: 115_200,
+        can_interface: None,
+        can_replay: None,
+        realtime: false,
+        segment: Duration::from_secs(600),
+        duration: Some(Duration::from_secs(6)),
+        status: false,
+    };
+    let logger = std::thread::spawn(move || live::run(&request, &setup, &AtomicBool::new(false)));
+    std::thread::sleep(Duration::from_millis(300));
+    let camera = |seconds: &str| {
+        Command::new(env!("CARGO_BIN_EXE_camera_sim"))
+            .args(["--seconds", seconds, "--speedup", "2", "--prefix", &prefix])
+            .stdout(std::process::Stdio::null())
+            .spawn()
+            .expect("camera_sim")
+    };
+    let mut first = camera("10");
+    std::thread::sleep(Duration::from_millis(1500));
+    first.kill().expect("SIGKILL");
+    let _ = first.wait();
+    std::thread::sleep(Duration::from_millis(300));
+    let second = camera("3").wait().expect("second camera_sim");
+    assert!(second.success());
+    let report = logger.join().expect("logger thread").expect("the logger kept running");
+    let files: Vec<_> = std::fs::read_dir(&dir).expect("log dir").map(|e| e.expect("entry").path()).collect();
+    let log = logfile::read(&files[0]).expect("log");
+    let frames = logfile::inspect::frames(&log);
+    println!("{report:?}; {frames:?}");
+    assert_eq!(frames.restarts, 1, "the restart is in the frame numbers");
+    assert!(frames.logged > 31 + 10, "frames of both runs: {frames:?}");
+    let restarted = dash2sim_core::pipeline::Issue::CameraRestarted.text().as_bytes();
+    assert!(
+        log.records.iter().any(|r| matches!(r, Record::Event(e) if e.text.starts_with(restarted))),
+        "the restart is an event"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

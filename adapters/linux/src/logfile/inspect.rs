@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use dash2sim_core::binlog::Kind;
+use dash2sim_core::binlog::{Kind, Record};
 use serde_json::{json, Value};
 
 use super::{read, seconds, LogContents};
@@ -29,6 +29,58 @@ pub fn gaps(log: &LogContents) -> Vec<(Kind, f64, f64)> {
     out
 }
 
+/// Camera frames in a log: how many were logged, the gaps in their sequence numbers and how
+/// many frames those skipped, and how often the numbering started again (a camera restart).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Frames {
+    /// `FrameMeta` records.
+    pub logged: u64,
+    /// Places where the frame number jumped by more than one.
+    pub gaps: u64,
+    /// Frames those jumps skipped.
+    pub missing: u64,
+    /// Places where the frame number went back.
+    pub restarts: u64,
+}
+
+/// The camera frames of a log.
+pub fn frames(log: &LogContents) -> Frames {
+    let mut f = Frames::default();
+    let mut last: Option<i64> = None;
+    for r in &log.records {
+        let Record::FrameMeta(m) = r else { continue };
+        f.logged += 1;
+        match last {
+            Some(previous) if m.frame <= previous => f.restarts += 1,
+            Some(previous) if m.frame > previous + 1 => {
+                f.gaps += 1;
+                f.missing += u64::try_from(m.frame - previous - 1).unwrap_or(0);
+            }
+            _ => {}
+        }
+        last = Some(m.frame);
+    }
+    f
+}
+
+/// Inputs the recorder dropped before its pipeline, as its events counted them (the largest
+/// running count in "inputs dropped …" events).
+pub fn dropped_inputs(log: &LogContents) -> u64 {
+    let prefix = dash2sim_core::pipeline::Issue::InputsDropped.text().as_bytes();
+    log.records
+        .iter()
+        .filter_map(|r| match r {
+            Record::Event(e) if e.text.starts_with(prefix) => {
+                let text = std::str::from_utf8(&e.text).ok()?;
+                let count = text.rsplit('(').next()?.split_whitespace().next()?;
+                count.parse::<u64>().ok()
+            }
+            _ => None,
+        })
+        .max()
+        .unwrap_or(0)
+}
+
 /// The JSON report.
 pub fn report(log: &LogContents) -> Value {
     let s = &log.stats;
@@ -42,6 +94,7 @@ pub fn report(log: &LogContents) -> Value {
         .collect();
     let (t_start, t_end) =
         s.time_span.map_or((Value::Null, Value::Null), |(a, b)| (json!(seconds(a)), json!(seconds(b))));
+    let f = frames(log);
     let header = log.header.map(|h| {
         json!({
             "device_id": String::from_utf8_lossy(&h.device_id).trim_end_matches('\0'),
@@ -64,6 +117,8 @@ pub fn report(log: &LogContents) -> Value {
         "t_start": t_start,
         "t_end": t_end,
         "gaps": gaps(log).iter().map(|(k, a, b)| json!({"type": k.name(), "from": a, "to": b})).collect::<Vec<_>>(),
+        "frames": {"logged": f.logged, "sequence_gaps": f.gaps, "missing": f.missing, "restarts": f.restarts},
+        "dropped_inputs": dropped_inputs(log),
     })
 }
 
@@ -93,6 +148,17 @@ pub fn run(path: &Path, as_json: bool) -> Result<(), String> {
         "  damage      {} stretches, {} bytes; {} records lost with them; {} of unknown kinds",
         log.stats.damaged, log.stats.damaged_bytes, log.stats.lost, log.stats.unknown
     );
+    let f = frames(&log);
+    if f.logged > 0 {
+        println!(
+            "  frames      {} logged, {} sequence gaps ({} frames missing), {} restarts; {} inputs dropped",
+            f.logged,
+            f.gaps,
+            f.missing,
+            f.restarts,
+            dropped_inputs(&log)
+        );
+    }
     for (offset, len) in log.damage.iter().take(10) {
         println!("    {len} bytes at offset {offset}");
     }
@@ -105,7 +171,7 @@ pub fn run(path: &Path, as_json: bool) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dash2sim_core::binlog::{EgoPose, Header, Record, VehicleSpeed};
+    use dash2sim_core::binlog::{EgoPose, EventRecord, FrameMeta, Header, VehicleSpeed};
 
     #[test]
     fn gaps_are_per_kind_and_longer_than_a_second() {
@@ -119,5 +185,29 @@ mod tests {
         assert_eq!(gaps(&log), vec![(Kind::EgoPose, 0.1, 1.6)]);
         let r = report(&log);
         assert_eq!((r["records"].as_u64(), r["by_type"]["EgoPose"].as_u64()), (Some(6), Some(3)), "{r}");
+    }
+
+    #[test]
+    fn frames_gaps_restarts_and_drops_are_counted() {
+        let frame = |t_us, frame| Record::FrameMeta(FrameMeta { t_us, frame, flags: 0 });
+        let mut dropped = EventRecord { t_us: 700, level: 3, ..EventRecord::default() };
+        let text = format!("{} (17 so far)", dash2sim_core::pipeline::Issue::InputsDropped.text());
+        dropped.text.extend_from_slice(text.as_bytes()).expect("fits");
+        // 1 2 3, then 6 (two missing), 7, then the camera restarts at 1.
+        let mut records = vec![
+            frame(100, 1),
+            frame(200, 2),
+            frame(300, 3),
+            frame(600, 6),
+            frame(700, 7),
+            Record::Event(dropped),
+            frame(900, 1),
+        ];
+        let header = Header { device_id: [0; 16], origin: [0; 3] };
+        let bytes = crate::logfile::import::encode(&header, &mut records).expect("encodes");
+        let log = crate::logfile::decode(&bytes, "test").expect("a log");
+        assert_eq!(frames(&log), Frames { logged: 6, gaps: 1, missing: 2, restarts: 1 });
+        assert_eq!(dropped_inputs(&log), 17);
+        assert_eq!(report(&log)["frames"]["missing"], 2);
     }
 }
