@@ -19,8 +19,8 @@ use std::time::{Duration, Instant};
 
 use dash2sim_can::source::FrameSource;
 use dash2sim_core::can::CanFrame;
-use dash2sim_core::pipeline::profile::{work_zone_meta, work_zone_pipeline, work_zone_trackers};
-use dash2sim_core::pipeline::{Pipeline, PipelineConfig, PipelineStats, Trackers};
+use dash2sim_core::pipeline::profile::{work_zone_meta, work_zone_trackers};
+use dash2sim_core::pipeline::{Pipeline, PipelineStats, Trackers};
 use dash2sim_core::time::Timestamp;
 
 use super::Setup;
@@ -226,18 +226,7 @@ pub fn run(request: &LiveRequest, setup: &Setup, stop: &AtomicBool) -> Result<Li
     drop(queue);
 
     let meta = work_zone_meta();
-    let map =
-        setup.map.as_deref().map(dash2sim_core::map::MapView::parse).transpose().map_err(|e| format!("map: {e}"))?;
-    let base = work_zone_pipeline(setup.origin, &meta);
-    let config = PipelineConfig {
-        device_id: setup.device_id,
-        mount: setup.mount,
-        anchor: dash2sim_core::anchor::AnchorConfig { mode: setup.mode, ..base.anchor },
-        gnss: setup.gnss,
-        speed: setup.speed,
-        map,
-        ..base
-    };
+    let config = setup.config(&meta)?;
     let mut trackers: Box<Trackers<'_, 64, 32>> = Box::new(work_zone_trackers());
     let mut index = 0;
     let mut pipeline: Box<Pipeline<'_, FileSink>> =

@@ -14,7 +14,8 @@ use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use dash2sim_core::pipeline::replay::{feed, Reader};
 use dash2sim_core::pipeline::{
-    CameraMount, GnssErrorModel, Issue, Issues, Pipeline, PipelineConfig, PipelineStats, SpeedSource, Trackers,
+    CameraMount, ClassMeta, GnssErrorModel, Issue, Issues, Pipeline, PipelineConfig, PipelineStats, SpeedSource,
+    Trackers,
 };
 use serde_json::json;
 
@@ -219,6 +220,22 @@ pub struct Setup {
 }
 
 impl Setup {
+    /// The pipeline's configuration: the work-zone profile with this setup's mount,
+    /// anchoring mode, GNSS σ model, speed source, map and device id.
+    pub fn config<'a>(&'a self, meta: &'a [ClassMeta]) -> Result<PipelineConfig<'a>, String> {
+        let map = self.map.as_deref().map(MapView::parse).transpose().map_err(|e| format!("map: {e}"))?;
+        let base = work_zone_pipeline(self.origin, meta);
+        Ok(PipelineConfig {
+            device_id: self.device_id,
+            mount: self.mount,
+            anchor: AnchorConfig { mode: self.mode, ..base.anchor },
+            gnss: self.gnss,
+            speed: self.speed,
+            map,
+            ..base
+        })
+    }
+
     /// The work-zone dashcam of `dash2sim scenario generate`: the default mount, a
     /// gravity-aligned VO frame, σ = HDOP × 2.5 m, wheel speed from CCVS1.
     pub fn work_zone(origin: Geodetic, map: Option<Vec<u8>>, device_id: [u8; 16]) -> Self {
@@ -237,17 +254,7 @@ impl Setup {
 /// Run the pipeline over an input stream (the core's replay format).
 pub fn run_stream(stream: &[u8], setup: &Setup) -> Result<Recording, String> {
     let meta = work_zone_meta();
-    let map = setup.map.as_deref().map(MapView::parse).transpose().map_err(|e| format!("map: {e}"))?;
-    let base = work_zone_pipeline(setup.origin, &meta);
-    let config = PipelineConfig {
-        device_id: setup.device_id,
-        mount: setup.mount,
-        anchor: AnchorConfig { mode: setup.mode, ..base.anchor },
-        gnss: setup.gnss,
-        speed: setup.speed,
-        map,
-        ..base
-    };
+    let config = setup.config(&meta)?;
     let mut trackers: Box<Trackers<'_, 64, 32>> = Box::new(work_zone_trackers());
     let mut pipeline: Box<Pipeline<'_, Vec<u8>>> = Box::new(Pipeline::new(Vec::new(), config, &mut trackers));
     let mut reader = Reader::new(stream).map_err(|e| e.to_string())?;
