@@ -371,28 +371,36 @@ pub fn run(args: &RecordArgs) -> Result<(), String> {
         Some(path) => (std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?, Default::default()),
         None => read_sources(&args.sources)?,
     };
-    let device_id = device_id(&args.device_id)?;
     if let Some(path) = &args.save_inputs {
         std::fs::write(path, &stream).map_err(|e| format!("{}: {e}", path.display()))?;
     }
+    let setup = setup_from_args(args, || {
+        first_fix(&stream).ok_or_else(|| {
+            "no ENU origin: give --origin LAT,LON[,H], a --map, or an --nmea capture with a fix".to_owned()
+        })
+    })?;
+    let recording = run_stream(&stream, &setup)?;
+    std::fs::write(&args.output, &recording.log).map_err(|e| format!("{}: {e}", args.output.display()))?;
+    report(&args.output, &recording, &counts, args.json);
+    Ok(())
+}
+
+/// The recorder's setup from its arguments (both recorders): the origin is `--origin`, else
+/// the map's, else what `fallback` finds.
+fn setup_from_args(args: &RecordArgs, fallback: impl FnOnce() -> Result<Geodetic, String>) -> Result<Setup, String> {
     let map = args.map.as_ref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
-    let map_origin = match &map {
-        Some(bytes) => {
-            let h = MapView::parse(bytes).map_err(|e| format!("{}: {e}", display(&args.map)))?.header().origin;
-            Some(Geodetic::new(h[0], h[1], h[2]).map_err(|e| format!("map origin: {e}"))?)
-        }
-        None => None,
-    };
-    let origin = match (&args.origin, map_origin) {
+    let origin = match (&args.origin, &map) {
         (Some(text), _) => parse_origin(text)?,
-        (None, Some(o)) => o,
-        (None, None) => first_fix(&stream)
-            .ok_or("no ENU origin: give --origin LAT,LON[,H], a --map, or an --nmea capture with a fix")?,
+        (None, Some(bytes)) => {
+            let h = MapView::parse(bytes).map_err(|e| format!("{}: {e}", display(&args.map)))?.header().origin;
+            Geodetic::new(h[0], h[1], h[2]).map_err(|e| format!("map origin: {e}"))?
+        }
+        (None, None) => fallback()?,
     };
     if !(args.uere.is_finite() && args.uere > 0.0) {
         return Err(format!("--uere {} must be a positive number of metres", args.uere));
     }
-    let setup = Setup {
+    Ok(Setup {
         origin,
         mount: parse_mount(&args.mount)?,
         mode: match args.mode {
@@ -402,12 +410,8 @@ pub fn run(args: &RecordArgs) -> Result<(), String> {
         gnss: GnssErrorModel { uere_m: args.uere, ..GnssErrorModel::default() },
         speed: speed_source(args)?,
         map,
-        device_id,
-    };
-    let recording = run_stream(&stream, &setup)?;
-    std::fs::write(&args.output, &recording.log).map_err(|e| format!("{}: {e}", args.output.display()))?;
-    report(&args.output, &recording, &counts, args.json);
-    Ok(())
+        device_id: device_id(&args.device_id)?,
+    })
 }
 
 fn device_id(text: &str) -> Result<[u8; 16], String> {
@@ -421,29 +425,9 @@ fn device_id(text: &str) -> Result<[u8; 16], String> {
 
 /// The live logger.
 fn run_live(args: &RecordArgs, request: &live::LiveRequest) -> Result<(), String> {
-    let map = args.map.as_ref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
-    let origin = match (&args.origin, &map) {
-        (Some(text), _) => parse_origin(text)?,
-        (None, Some(bytes)) => {
-            let h = MapView::parse(bytes).map_err(|e| format!("{}: {e}", display(&args.map)))?.header().origin;
-            Geodetic::new(h[0], h[1], h[2]).map_err(|e| format!("map origin: {e}"))?
-        }
-        (None, None) => {
-            return Err("a live recording needs its ENU origin: give --origin LAT,LON[,H] or a --map".to_owned())
-        }
-    };
-    let setup = Setup {
-        origin,
-        mount: parse_mount(&args.mount)?,
-        mode: match args.mode {
-            ModeArg::Full => AnchorMode::Full,
-            ModeArg::Gravity => AnchorMode::GravityAligned,
-        },
-        gnss: GnssErrorModel { uere_m: args.uere, ..GnssErrorModel::default() },
-        speed: speed_source(args)?,
-        map,
-        device_id: device_id(&args.device_id)?,
-    };
+    let setup = setup_from_args(args, || {
+        Err("a live recording needs its ENU origin: give --origin LAT,LON[,H] or a --map".to_owned())
+    })?;
     let stop = live::stop_on_signals()?;
     let report = live::run(request, &setup, &stop)?;
     let s = &report.stats;
