@@ -193,9 +193,17 @@ fn can_reader(
     })))
 }
 
-fn new_file(dir: &Path, started: u64, index: u32) -> Result<FileSink, String> {
+/// The `index`th file of a run started at `started` (Unix milliseconds): names sort by
+/// time, and an existing file is never overwritten (a logger restarted at once gets a new
+/// start time).
+fn new_file(dir: &Path, started: u128, index: u32) -> Result<FileSink, String> {
     let path = dir.join(format!("dash2sim-{started}-{index:04}.d2slog"));
-    File::create(&path).map(FileSink).map_err(|e| format!("{}: {e}", path.display()))
+    File::options()
+        .write(true)
+        .create_new(true)
+        .open(&path)
+        .map(FileSink)
+        .map_err(|e| format!("{}: {e}", path.display()))
 }
 
 fn status_line(stats: &PipelineStats, frames: u64, dropped: u64, anchored: bool) {
@@ -212,9 +220,21 @@ fn status_line(stats: &PipelineStats, frames: u64, dropped: u64, anchored: bool)
 }
 
 /// Run until `stop` is set (a signal) or the duration is over; then close the log cleanly.
+/// The log goes to rotating files in `request.dir`.
 pub fn run(request: &LiveRequest, setup: &Setup, stop: &AtomicBool) -> Result<LiveReport, String> {
     std::fs::create_dir_all(&request.dir).map_err(|e| format!("{}: {e}", request.dir.display()))?;
-    let started = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    let started = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_millis());
+    run_into(request, setup, stop, |index| new_file(&request.dir, started, index))
+}
+
+/// [`run`] into the sinks `open` gives: the first file is `open(0)`, each rotation opens
+/// the next (tests give a slow sink here).
+pub fn run_into<S: embedded_io::Write>(
+    request: &LiveRequest,
+    setup: &Setup,
+    stop: &AtomicBool,
+    mut open: impl FnMut(u32) -> Result<S, String>,
+) -> Result<LiveReport, String> {
     let camera = request.camera_prefix.as_deref().map(CameraSubscriber::new).transpose().map_err(|e| e.to_string())?;
     let (queue, inputs): (SyncSender<_>, Receiver<_>) = sync_channel(QUEUE);
     let dropped = Arc::new(AtomicU64::new(0));
@@ -229,11 +249,10 @@ pub fn run(request: &LiveRequest, setup: &Setup, stop: &AtomicBool) -> Result<Li
     let config = setup.config(&meta)?;
     let mut trackers: Box<Trackers<'_, 64, 32>> = Box::new(work_zone_trackers());
     let mut index = 0;
-    let mut pipeline: Box<Pipeline<'_, FileSink>> =
-        Box::new(Pipeline::new(new_file(&request.dir, started, index)?, config, &mut trackers));
+    let mut pipeline: Box<Pipeline<'_, S>> = Box::new(Pipeline::new(open(index)?, config, &mut trackers));
     let (begun, mut file_started, mut last_status) = (Instant::now(), Instant::now(), Instant::now());
     let (mut frames, mut dropped_noted) = (0u64, 0u64);
-    let log_error = |e: dash2sim_core::binlog::WriteError<FileError>| format!("log: {e}");
+    let log_error = |e: dash2sim_core::binlog::WriteError<S::Error>| format!("log: {e}");
     loop {
         let mut busy = false;
         if let Some(camera) = &camera {
@@ -272,7 +291,7 @@ pub fn run(request: &LiveRequest, setup: &Setup, stop: &AtomicBool) -> Result<Li
         }
         if file_started.elapsed() >= request.segment {
             index += 1;
-            pipeline.rotate(new_file(&request.dir, started, index)?).map_err(log_error)?;
+            pipeline.rotate(open(index)?).map_err(log_error)?;
             file_started = Instant::now();
         }
         if request.status && last_status.elapsed() >= Duration::from_millis(500) {
