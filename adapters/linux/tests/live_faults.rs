@@ -41,7 +41,7 @@ fn a_logger_killed_and_restarted_leaves_its_flushed_log_and_the_camera_unaffecte
     let prefix = format!("dash2sim-test/logger-kill/{}", std::process::id());
     let scenario = generate(&ScenarioConfig { seed: 2, duration_s: 13.0, ..ScenarioConfig::default() });
 
-    let mut first = logger(&dir, &prefix);
+    let mut first = Some(logger(&dir, &prefix));
     std::thread::sleep(Duration::from_millis(500));
     let camera = CameraPublisher::new(&prefix, false).expect("publisher");
     let start = Instant::now();
@@ -56,9 +56,9 @@ fn a_logger_killed_and_restarted_leaves_its_flushed_log_and_the_camera_unaffecte
         camera.frame(sequence, t, 8_000, None).expect("frame published");
         camera.vo(sequence, t, pose).expect("pose published");
         camera.detections3d(sequence, t, &frame.detections_3d).expect("detections published");
-        if frame.ego.t >= 8.0 && killed_at.is_none() {
-            first.kill().expect("SIGKILL");
-            let _ = first.wait();
+        if let Some(mut running) = first.take_if(|_| frame.ego.t >= 8.0) {
+            running.kill().expect("SIGKILL");
+            let _ = running.wait();
             killed_at = Some(sequence);
         }
         if frame.ego.t >= 8.5 && second.is_none() {
