@@ -95,3 +95,65 @@ fn a_message_of_another_layout_version_is_refused_with_a_message() {
     let error = subscriber.receive(|_| {}).expect_err("refused").to_string();
     assert!(error.contains("layout 2") && error.contains("rebuild the camera process"), "{error}");
 }
+
+#[test]
+fn a_load_run_publishes_laps_at_30_fps_with_64_objects_and_the_receiver_and_bus_beside_it() {
+    let prefix = prefix("load");
+    let dir = std::env::temp_dir().join(format!("dash2sim-camera-load-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let (nmea, can) = (dir.join("gnss.nmea"), dir.join("bus.log"));
+    let subscriber = CameraSubscriber::new(&prefix).expect("subscriber");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_camera_sim"))
+        .args([
+            "--seconds",
+            "2",
+            "--fps",
+            "30",
+            "--objects",
+            "64",
+            "--laps",
+            "2",
+            "--speedup",
+            "4",
+            "--prefix",
+            &prefix,
+        ])
+        .args(["--nmea-out", &nmea.display().to_string(), "--can-out", &can.display().to_string()])
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("camera_sim");
+    let (mut frames, mut detections) = (Vec::new(), Vec::new());
+    let mut collect = |input: CameraInput| match input {
+        CameraInput::Frame { sequence, .. } => frames.push(sequence),
+        CameraInput::Detections3d(_, _, d) => detections.push(d.len()),
+        _ => {}
+    };
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while child.try_wait().expect("child").is_none() && Instant::now() < deadline {
+        subscriber.receive(&mut collect).expect("receive");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    subscriber.receive(&mut collect).expect("receive");
+    let output = child.wait_with_output().expect("camera_sim output");
+    assert!(output.status.success());
+    assert_eq!(String::from_utf8_lossy(&output.stdout).trim(), "122 frames published");
+    assert_eq!(frames, (1..=122).collect::<Vec<u64>>(), "frame numbers go on across laps");
+    assert!(detections.iter().all(|&n| n == 64), "64 objects in every frame: {detections:?}");
+
+    // The receiver: 2 laps × 11 fixes × (GGA, RMC), its clock going on in the second lap.
+    let text = std::fs::read_to_string(&nmea).expect("nmea");
+    let gga: Vec<&str> = text.lines().filter(|l| l.starts_with("$GPGGA")).collect();
+    assert_eq!((text.lines().count(), gga.len()), (44, 22));
+    let utc = |line: &str| line.split(',').nth(1).expect("time").parse::<f64>().expect("hhmmss");
+    assert!(gga.windows(2).all(|w| utc(w[0]) < utc(w[1])), "UTC increases across laps");
+    // The bus: 2 laps × 101 CCVS1 frames in candump form, stamps increasing.
+    let mut reader =
+        dash2sim_can::candump::CandumpReader::new(std::io::BufReader::new(std::fs::File::open(&can).expect("can")));
+    let mut stamps = Vec::new();
+    while let Some(record) = dash2sim_can::source::FrameSource::next_frame(&mut reader) {
+        stamps.push(record.expect("a candump line").time.expect("stamped").micros());
+    }
+    assert_eq!(stamps.len(), 202);
+    assert!(stamps.windows(2).all(|w| w[0] < w[1]));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -212,7 +212,13 @@ impl ImageZeroCopy {
             }
         });
         ready_rx.recv().expect("echo ready");
-        ImageZeroCopy { _node: node, publisher, acks: ack_subscriber, image: vec![0x80; MAX_IMAGE_BYTES], echo: Some(echo) }
+        ImageZeroCopy {
+            _node: node,
+            publisher,
+            acks: ack_subscriber,
+            image: vec![0x80; MAX_IMAGE_BYTES],
+            echo: Some(echo),
+        }
     }
 }
 

@@ -275,10 +275,11 @@ impl EgoPlan {
         }
     }
 
-    /// Integrate the plan at 100 Hz; one state every `1 / rate_hz` seconds for `duration_s`.
+    /// Integrate the plan at 100 Hz or a little faster (a whole number of steps per state);
+    /// one state every `1 / rate_hz` seconds for `duration_s`.
     pub fn drive(&self, road: &Road, duration_s: f64, rate_hz: f64) -> Vec<EgoState> {
-        let dt = 0.01;
-        let per_frame = (1.0 / (rate_hz * dt)).round().max(1.0) as usize;
+        let per_frame = (100.0 / rate_hz).ceil().max(1.0) as usize;
+        let dt = 1.0 / (rate_hz * per_frame as f64);
         let steps = (duration_s / dt).round() as usize;
         let (mut s, mut v) = (self.s0, self.cruise_speed);
         let mut states = Vec::with_capacity(steps / per_frame + 1);

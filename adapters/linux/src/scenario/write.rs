@@ -69,21 +69,10 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
 
     let mut out = create(dir, "gnss.nmea", &mut written)?;
     let mut serial = create(dir, "gnss.serial.log", &mut written)?;
-    for fix in &scenario.gnss {
-        let position = frame
-            .enu_to_geodetic(&Vector3::from(fix.enu))
-            .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, format!("fix at {}: {e}", fix.t_fix)))?;
-        let time = hhmmss(START_SECONDS_OF_DAY + fix.t_fix);
-        let (lat, ns) = nmea_angle(position.lat_deg, 2, ['N', 'S']);
-        let (lon, ew) = nmea_angle(position.lon_deg, 3, ['E', 'W']);
-        // The receiver reports its σ as HDOP × 2.5 m (the pipeline's default UERE).
-        let hdop = fix.sigma / 2.5;
-        let gga = format!("GPGGA,{time},{lat},{ns},{lon},{ew},1,09,{hdop:.1},{:.1},M,0.0,M,,", position.height_m);
-        let knots = fix.speed * 3600.0 / 1852.0;
-        let rmc = format!("GPRMC,{time},A,{lat},{ns},{lon},{ew},{knots:.2},{:.1},010626,,,A", fix.course_deg);
-        writeln!(out, "{}\r\n{}\r", sentence(&gga), sentence(&rmc))?;
-        for body in [&gga, &rmc] {
-            writeln!(serial, "({:.6}) {}", fix.t_receive, sentence(body))?;
+    for (t_receive, sentences) in receiver_output(scenario, 0.0)? {
+        writeln!(out, "{}\r\n{}\r", sentences[0], sentences[1])?;
+        for sentence in &sentences {
+            writeln!(serial, "({t_receive:.6}) {sentence}")?;
         }
     }
     out.flush()?;
@@ -97,8 +86,7 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
     out.flush()?;
 
     let mut out = create(dir, "speed.can.log", &mut written)?;
-    for (t, v) in &scenario.speed {
-        let frame = ccvs1_frame(*v).ok_or_else(|| io::Error::other(format!("speed {v} at {t}: no CCVS1 frame")))?;
+    for (t, frame) in wheel_speed_frames(scenario)? {
         let time = dash2sim_core::time::Timestamp::from_micros((t * 1e6).round() as i64);
         dash2sim_can::candump::write_log_line(&mut out, time, "can0", &frame)?;
     }
@@ -168,6 +156,42 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
     writeln!(out)?;
     out.flush()?;
     Ok(written)
+}
+
+/// What the GNSS receiver sends: per fix its receive time (s) and its GGA and RMC sentences,
+/// the receiver's clock `shift_s` later than the drive's (a drive replayed again).
+pub fn receiver_output(scenario: &Scenario, shift_s: f64) -> io::Result<Vec<(f64, [String; 2])>> {
+    let frame = LocalFrame::new(origin(scenario)?);
+    scenario
+        .gnss
+        .iter()
+        .map(|fix| {
+            let position = frame
+                .enu_to_geodetic(&Vector3::from(fix.enu))
+                .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, format!("fix at {}: {e}", fix.t_fix)))?;
+            let time = hhmmss(START_SECONDS_OF_DAY + shift_s + fix.t_fix);
+            let (lat, ns) = nmea_angle(position.lat_deg, 2, ['N', 'S']);
+            let (lon, ew) = nmea_angle(position.lon_deg, 3, ['E', 'W']);
+            // The receiver reports its σ as HDOP × 2.5 m (the pipeline's default UERE).
+            let hdop = fix.sigma / 2.5;
+            let gga = format!("GPGGA,{time},{lat},{ns},{lon},{ew},1,09,{hdop:.1},{:.1},M,0.0,M,,", position.height_m);
+            let knots = fix.speed * 3600.0 / 1852.0;
+            let rmc = format!("GPRMC,{time},A,{lat},{ns},{lon},{ew},{knots:.2},{:.1},010626,,,A", fix.course_deg);
+            Ok((fix.t_receive, [sentence(&gga), sentence(&rmc)]))
+        })
+        .collect()
+}
+
+/// The vehicle bus: the wheel speed as J1939 CCVS1 frames with their times (s).
+pub fn wheel_speed_frames(scenario: &Scenario) -> io::Result<Vec<(f64, dash2sim_core::can::CanFrame)>> {
+    scenario
+        .speed
+        .iter()
+        .map(|&(t, v)| {
+            let frame = ccvs1_frame(v).ok_or_else(|| io::Error::other(format!("speed {v} at {t}: no CCVS1 frame")))?;
+            Ok((t, frame))
+        })
+        .collect()
 }
 
 fn origin(scenario: &Scenario) -> io::Result<Geodetic> {
