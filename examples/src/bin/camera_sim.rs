@@ -162,7 +162,7 @@ fn run(args: &Args) -> Result<u64, String> {
     if !(args.speedup.is_finite() && args.speedup > 0.0) {
         return Err(format!("--speedup {} must be positive", args.speedup));
     }
-    if args.fps == 0 || args.fps % 5 != 0 || args.fps > 60 {
+    if args.fps == 0 || !args.fps.is_multiple_of(5) || args.fps > 60 {
         return Err(format!("--fps {} must be a multiple of 5 (the receiver's rate), at most 60", args.fps));
     }
     if args.laps == 0 {
