@@ -239,30 +239,125 @@ impl<'a> Lane<'a> {
 
     /// The point of the centreline nearest to (x, y).
     pub fn project(&self, x: f64, y: f64) -> Projection {
-        let mut best = Projection { distance: f64::INFINITY, heading: 0.0, along: 0.0 };
-        let (mut previous, mut start): (Option<(f64, f64)>, f64) = (None, 0.0);
-        for p in self.points() {
+        let mut nearest = [Nearest::NONE];
+        self.nearest_segments(&[(x, y)], &mut nearest);
+        let [n] = nearest;
+        if n.segment == u32::MAX {
+            return Projection { distance: f64::INFINITY, heading: 0.0, along: 0.0 };
+        }
+        // The arc length to the nearest segment, summed in driving order.
+        let mut start = 0.0;
+        let mut previous: Option<(f64, f64)> = None;
+        for (k, p) in self.points().enumerate().take(n.segment as usize + 1) {
             if let Some(a) = previous {
-                let (dx, dy) = (p.0 - a.0, p.1 - a.1);
-                let len2 = dx * dx + dy * dy;
-                let t = if len2 > 0.0 { (((x - a.0) * dx + (y - a.1) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
-                let d = libm::hypot(x - (a.0 + t * dx), y - (a.1 + t * dy));
-                let len = libm::sqrt(len2);
-                if d < best.distance {
-                    best = Projection { distance: d, heading: libm::atan2(dy, dx), along: start + t * len };
-                }
-                start += len;
+                start += libm::sqrt((p.0 - a.0) * (p.0 - a.0) + (p.1 - a.1) * (p.1 - a.1));
+            }
+            if k == n.segment as usize {
+                break;
             }
             previous = Some(p);
         }
-        best
+        Projection {
+            distance: n.distance(),
+            heading: libm::atan2(n.direction.1, n.direction.0),
+            along: start + n.t * n.length,
+        }
+    }
+
+    /// For each point, the nearest segment of the centreline, in one pass over it.
+    /// Segments are compared by squared distance; only the winner's distance is taken
+    /// (`Nearest::distance`), so a long lane costs a few multiplications per segment.
+    pub fn nearest_segments(&self, points: &[(f64, f64)], nearest: &mut [Nearest]) {
+        let mut previous: Option<(f64, f64)> = None;
+        for (k, p) in self.points().enumerate() {
+            if let Some(a) = previous {
+                let (dx, dy) = (p.0 - a.0, p.1 - a.1);
+                let len2 = dx * dx + dy * dy;
+                for (&(x, y), best) in points.iter().zip(nearest.iter_mut()) {
+                    let t = if len2 > 0.0 { (((x - a.0) * dx + (y - a.1) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
+                    let residual = (x - (a.0 + t * dx), y - (a.1 + t * dy));
+                    let d2 = residual.0 * residual.0 + residual.1 * residual.1;
+                    if d2 < best.squared {
+                        *best = Nearest {
+                            squared: d2,
+                            residual,
+                            direction: (dx, dy),
+                            t,
+                            length: 0.0,
+                            segment: k as u32 - 1,
+                        };
+                    }
+                }
+            }
+            previous = Some(p);
+        }
+        for best in nearest.iter_mut().filter(|b| b.segment != u32::MAX) {
+            best.length = libm::sqrt(best.direction.0 * best.direction.0 + best.direction.1 * best.direction.1);
+        }
     }
 
     /// Signed distance from (x, y) to the lane's area: ≤ 0 inside.
     pub fn distance_outside(&self, x: f64, y: f64) -> f64 {
-        match self.area.and_then(|polygon| self.view.polygon_distance(polygon, x, y)) {
-            Some(d) => d,
-            None => self.nearest(x, y).0 - self.width / 2.0,
+        let mut d = [0.0];
+        self.distances_outside(&[(x, y)], &mut d);
+        d[0]
+    }
+
+    /// [`Lane::distance_outside`] of several points at once (one pass over the lane).
+    pub fn distances_outside(&self, points: &[(f64, f64)], out: &mut [f64]) {
+        if let Some(polygon) = self.area {
+            for (&(x, y), d) in points.iter().zip(out.iter_mut()) {
+                *d = match self.view.polygon_distance(polygon, x, y) {
+                    Some(d) => d,
+                    None => {
+                        let mut nearest = [Nearest::NONE];
+                        self.nearest_segments(&[(x, y)], &mut nearest);
+                        nearest[0].distance() - self.width / 2.0
+                    }
+                };
+            }
+            return;
+        }
+        let mut nearest = [Nearest::NONE; MAX_POINTS];
+        let n = points.len().min(MAX_POINTS);
+        self.nearest_segments(&points[..n], &mut nearest[..n]);
+        for (d, best) in out.iter_mut().zip(&nearest[..n]) {
+            *d = best.distance() - self.width / 2.0;
+        }
+    }
+}
+
+/// Points [`Lane::distances_outside`] takes at once.
+pub const MAX_POINTS: usize = 8;
+
+/// The segment of a centreline nearest to a point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Nearest {
+    squared: f64,
+    residual: (f64, f64),
+    direction: (f64, f64),
+    t: f64,
+    length: f64,
+    segment: u32,
+}
+
+impl Nearest {
+    /// No segment yet.
+    pub const NONE: Nearest = Nearest {
+        squared: f64::INFINITY,
+        residual: (0.0, 0.0),
+        direction: (0.0, 0.0),
+        t: 0.0,
+        length: 0.0,
+        segment: u32::MAX,
+    };
+
+    /// Distance from the point to the segment, m (infinite when there is none).
+    pub fn distance(&self) -> f64 {
+        if self.segment == u32::MAX {
+            f64::INFINITY
+        } else {
+            libm::hypot(self.residual.0, self.residual.1)
         }
     }
 }

@@ -287,6 +287,34 @@ impl ComfortWindow {
     }
 }
 
+/// Slack on the bounding discs of the TTC broad phase, m: far above the rounding of box
+/// corners, far below anything that matters.
+const DISC_MARGIN: f64 = 1e-6;
+
+/// Half the diagonal of a box: the radius of its bounding disc.
+fn half_diagonal(b: &OrientedBox) -> f64 {
+    0.5 * libm::hypot(b.length, b.width)
+}
+
+/// When two discs `reach` apart at most (sum of radii) touch, their centres `relative`
+/// apart and closing at `closing` (the second's velocity minus the first's): the interval
+/// of times (s, may start in the past), or `None` when they never do.
+fn disc_contact(relative: (f64, f64), closing: (f64, f64), reach: f64) -> Option<(f64, f64)> {
+    let a = closing.0 * closing.0 + closing.1 * closing.1;
+    let b = 2.0 * (relative.0 * closing.0 + relative.1 * closing.1);
+    let c = relative.0 * relative.0 + relative.1 * relative.1 - reach * reach;
+    if a <= f64::EPSILON {
+        // No relative motion: touching now means touching throughout.
+        return (c <= 0.0).then_some((f64::NEG_INFINITY, f64::INFINITY));
+    }
+    let discriminant = b * b - 4.0 * a * c;
+    if !(discriminant >= 0.0) {
+        return None;
+    }
+    let root = libm::sqrt(discriminant);
+    Some(((-b - root) / (2.0 * a), (-b + root) / (2.0 * a)))
+}
+
 fn wrap(angle: f64) -> f64 {
     let a = libm::remainder(angle, core::f64::consts::TAU);
     if a.is_finite() {
@@ -506,7 +534,16 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
             }
             let agent_speed = libm::hypot(agent.velocity.0, agent.velocity.1);
             let (sa, ca) = libm::sincos(agent.bbox.centre.heading);
-            for k in 1..=steps {
+            // Broad phase: the boxes can only meet while their bounding discs do; the exact
+            // test runs on those steps alone, in the same order, so the result is the same.
+            let relative = (agent.bbox.centre.x - ego.centre.x, agent.bbox.centre.y - ego.centre.y);
+            let closing = (agent_speed * ca - speed * c, agent_speed * sa - speed * s);
+            let reach = half_diagonal(&ego) + half_diagonal(&agent.bbox) + DISC_MARGIN;
+            let Some((enter, leave)) = disc_contact(relative, closing, reach) else { continue };
+            let step = self.config.ttc_step;
+            let first = (libm::floor(enter / step).clamp(1.0, f64::from(steps.max(1))) as u32).max(1);
+            let last = libm::ceil(leave / step).clamp(0.0, f64::from(steps)) as u32;
+            for k in first..=last {
                 let tk = f64::from(k) * self.config.ttc_step;
                 if best.is_some_and(|b| tk >= b) {
                     break;
