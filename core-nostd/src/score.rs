@@ -308,7 +308,8 @@ fn disc_contact(relative: (f64, f64), closing: (f64, f64), reach: f64) -> Option
         return (c <= 0.0).then_some((f64::NEG_INFINITY, f64::INFINITY));
     }
     let discriminant = b * b - 4.0 * a * c;
-    if !(discriminant >= 0.0) {
+    // Negative (or NaN from non-finite agents): the discs never touch.
+    if discriminant.is_nan() || discriminant < 0.0 {
         return None;
     }
     let root = libm::sqrt(discriminant);
