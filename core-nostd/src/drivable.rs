@@ -187,6 +187,10 @@ impl<'a> Checker<'a> {
     /// Check the footprint with its rear axle at `pose`. `previous` is the centre's lane at
     /// the pose before: where lanes overlap (junctions) the centre stays in it, as nuPlan
     /// keeps ego on the lane it is following.
+    ///
+    /// One grid query gathers every lane and polygon near the footprint, each is measured
+    /// once for the centre and the four corners together (one pass over its centreline),
+    /// and the per-point lookups that follow reuse what that pass found.
     pub fn check<const WORDS: usize>(
         &self,
         pose: &Pose2,
@@ -195,18 +199,71 @@ impl<'a> Checker<'a> {
     ) -> PoseCheck {
         let footprint = self.footprint.at(pose);
         let corners = footprint.corners();
-        let mut check = PoseCheck {
-            corners: corners.map(|(x, y)| self.map.distance_to_drivable(x, y, SEARCH_RADIUS, |i| channel.allows(i))),
-            occupied: heapless::Vec::new(),
-            centre_lane: None,
-        };
         let centre = (footprint.centre.x, footprint.centre.y);
+        let points = [centre, corners[0], corners[1], corners[2], corners[3]];
+        let mut check = PoseCheck { corners: [None; 4], occupied: heapless::Vec::new(), centre_lane: None };
+
+        // Every item within SEARCH_RADIUS of a corner lies in a cell of this square.
+        let (lo, hi) = points
+            .iter()
+            .fold(((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY)), |(lo, hi), p| {
+                ((lo.0.min(p.0), lo.1.min(p.1)), (hi.0.max(p.0), hi.1.max(p.1)))
+            });
+        let half = 0.5 * (hi.0 - lo.0).max(hi.1 - lo.1) + SEARCH_RADIUS;
+        let mut candidates: heapless::Vec<u32, CANDIDATES> = heapless::Vec::new();
+        let mut measured: heapless::Vec<(u32, u8), CANDIDATES> = heapless::Vec::new();
+        let measure = |check: &mut PoseCheck, item: Item| -> u8 {
+            let mut d = [f64::INFINITY; 5];
+            match item {
+                Item::Lane(i) => {
+                    if let Some(lane) = self.map.lane(i) {
+                        lane.distances_outside(&points, &mut d);
+                    }
+                }
+                Item::Polygon(i) => {
+                    for (d, &(x, y)) in d.iter_mut().zip(&points) {
+                        *d = self.map.polygon_distance(i, x, y).unwrap_or(f64::INFINITY);
+                    }
+                }
+            }
+            if channel.allows(item) {
+                for (corner, &d) in check.corners.iter_mut().zip(&d[1..]) {
+                    if d <= SEARCH_RADIUS {
+                        *corner = Some(corner.map_or(d, |c: f64| c.min(d)));
+                    }
+                }
+            }
+            d.iter().enumerate().fold(0u8, |inside, (k, &d)| if d <= 0.0 { inside | 1 << k } else { inside })
+        };
+        self.map.for_each_near((lo.0 + hi.0) / 2.0, (lo.1 + hi.1) / 2.0, half, |item| {
+            if candidates.push(key(item)).is_err() {
+                // More than the list holds: measured at once (duplicates then cost twice).
+                measure(&mut check, item);
+            }
+        });
+        candidates.sort_unstable();
+        let mut last = None;
+        for &k in &candidates {
+            if last != Some(k) {
+                last = Some(k);
+                let inside = measure(&mut check, item(k));
+                // Cannot fail: no more entries than candidates.
+                let _ = measured.push((k, inside));
+            }
+        }
+
+        // The lanes each point is in, in the grid's order (the occupied list keeps that
+        // order), and the centre's lane.
         let mut best: Option<(bool, f64, CentreLane)> = None;
-        for (k, &(x, y)) in core::iter::once(&centre).chain(corners.iter()).enumerate() {
+        for (k, &(x, y)) in points.iter().enumerate() {
             self.map.for_each_near(x, y, 0.0, |item| {
                 let Item::Lane(i) = item else { return };
                 let Some(lane) = self.map.lane(i) else { return };
-                if lane.distance_outside(x, y) > 0.0 {
+                let inside = match measured.binary_search_by_key(&key(item), |&(k, _)| k) {
+                    Ok(at) => measured.get(at).is_some_and(|&(_, mask)| mask & (1 << k) != 0),
+                    Err(_) => lane.distance_outside(x, y) <= 0.0,
+                };
+                if !inside {
                     return;
                 }
                 if !check.occupied.contains(&i) {
@@ -234,5 +291,25 @@ impl<'a> Checker<'a> {
         }
         check.centre_lane = best.map(|(_, _, lane)| lane);
         check
+    }
+}
+
+/// Items one check remembers (grid entries near a footprint, duplicates included); more
+/// are measured without being remembered. 1.5 KiB of stack.
+const CANDIDATES: usize = 128;
+
+/// An item as one sortable number (the grid's own encoding).
+fn key(item: Item) -> u32 {
+    match item {
+        Item::Lane(i) => i,
+        Item::Polygon(i) => i | crate::map::POLYGON_BIT,
+    }
+}
+
+fn item(key: u32) -> Item {
+    if key & crate::map::POLYGON_BIT != 0 {
+        Item::Polygon(key & !crate::map::POLYGON_BIT)
+    } else {
+        Item::Lane(key)
     }
 }
