@@ -235,9 +235,11 @@ impl<'a> Checker<'a> {
             }
             d.iter().enumerate().fold(0u8, |inside, (k, &d)| if d <= 0.0 { inside | 1 << k } else { inside })
         };
+        let mut complete = true;
         self.map.for_each_near((lo.0 + hi.0) / 2.0, (lo.1 + hi.1) / 2.0, half, |item| {
             if candidates.push(key(item)).is_err() {
                 // More than the list holds: measured at once (duplicates then cost twice).
+                complete = false;
                 measure(&mut check, item);
             }
         });
@@ -252,42 +254,51 @@ impl<'a> Checker<'a> {
             }
         }
 
-        // The lanes each point is in, in the grid's order (the occupied list keeps that
-        // order), and the centre's lane.
+        // The lanes each point is in, in the grid's order (lanes by index: the occupied list
+        // keeps that order), and the centre's lane.
         let mut best: Option<(bool, f64, CentreLane)> = None;
-        for (k, &(x, y)) in points.iter().enumerate() {
-            self.map.for_each_near(x, y, 0.0, |item| {
-                let Item::Lane(i) = item else { return };
-                let Some(lane) = self.map.lane(i) else { return };
-                let inside = match measured.binary_search_by_key(&key(item), |&(k, _)| k) {
-                    Ok(at) => measured.get(at).is_some_and(|&(_, mask)| mask & (1 << k) != 0),
-                    Err(_) => lane.distance_outside(x, y) <= 0.0,
+        let mut occupy = |k: usize, i: u32, lane: &crate::map::Lane<'_>| {
+            if !check.occupied.contains(&i) {
+                // Full: the first MAX_OCCUPIED lanes are kept.
+                let _ = check.occupied.push(i);
+            }
+            if k == 0 {
+                let p = lane.project(centre.0, centre.1);
+                let candidate = (
+                    previous == Some(i),
+                    p.distance,
+                    CentreLane { lane: i, along: p.along, heading: p.heading, speed_limit: lane.speed_limit },
+                );
+                let better = match &best {
+                    None => true,
+                    Some((was_previous, distance, _)) => {
+                        (candidate.0 && !was_previous) || (candidate.0 == *was_previous && candidate.1 < *distance)
+                    }
                 };
-                if !inside {
-                    return;
+                if better {
+                    best = Some(candidate);
                 }
-                if !check.occupied.contains(&i) {
-                    // Full: the first MAX_OCCUPIED lanes are kept.
-                    let _ = check.occupied.push(i);
-                }
-                if k == 0 {
-                    let p = lane.project(x, y);
-                    let candidate = (
-                        previous == Some(i),
-                        p.distance,
-                        CentreLane { lane: i, along: p.along, heading: p.heading, speed_limit: lane.speed_limit },
-                    );
-                    let better = match &best {
-                        None => true,
-                        Some((was_previous, distance, _)) => {
-                            (candidate.0 && !was_previous) || (candidate.0 == *was_previous && candidate.1 < *distance)
+            }
+        };
+        for (k, &(x, y)) in points.iter().enumerate() {
+            if complete {
+                // Every lane containing the point was measured: its bit says so.
+                for &(key, inside) in &measured {
+                    if let (Item::Lane(i), true) = (item(key), inside & (1 << k) != 0) {
+                        if let Some(lane) = self.map.lane(i) {
+                            occupy(k, i, &lane);
                         }
-                    };
-                    if better {
-                        best = Some(candidate);
                     }
                 }
-            });
+            } else {
+                self.map.for_each_near(x, y, 0.0, |item| {
+                    let Item::Lane(i) = item else { return };
+                    let Some(lane) = self.map.lane(i) else { return };
+                    if lane.distance_outside(x, y) <= 0.0 {
+                        occupy(k, i, &lane);
+                    }
+                });
+            }
         }
         check.centre_lane = best.map(|(_, _, lane)| lane);
         check

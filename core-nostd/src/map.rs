@@ -220,8 +220,10 @@ pub struct Lane<'a> {
 impl<'a> Lane<'a> {
     /// Centreline points in driving order, ENU metres.
     pub fn points(&self) -> impl Iterator<Item = (f64, f64)> + 'a {
-        let view = self.view;
-        (self.first_point..self.first_point + u32::from(self.point_count)).filter_map(move |i| view.point(i))
+        // The range was checked against the points section when the tile was parsed.
+        let start = self.view.layout[0] + self.first_point as usize * POINT_LEN;
+        let bytes = self.view.bytes.get(start..start + usize::from(self.point_count) * POINT_LEN).unwrap_or(&[]);
+        bytes.chunks_exact(POINT_LEN).map(|p| (f64::from(f32_at(p, 0)), f64::from(f32_at(p, 4))))
     }
 
     /// Lanes a vehicle may continue into at the end of this one.
