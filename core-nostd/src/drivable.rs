@@ -217,7 +217,7 @@ impl<'a> Checker<'a> {
             match item {
                 Item::Lane(i) => {
                     if let Some(lane) = self.map.lane(i) {
-                        lane.distances_outside(&points, &mut d);
+                        lane.distances_outside(&points, SEARCH_RADIUS, &mut d);
                     }
                 }
                 Item::Polygon(i) => {

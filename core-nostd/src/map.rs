@@ -220,10 +220,7 @@ pub struct Lane<'a> {
 impl<'a> Lane<'a> {
     /// Centreline points in driving order, ENU metres.
     pub fn points(&self) -> impl Iterator<Item = (f64, f64)> + 'a {
-        // The range was checked against the points section when the tile was parsed.
-        let start = self.view.layout[0] + self.first_point as usize * POINT_LEN;
-        let bytes = self.view.bytes.get(start..start + usize::from(self.point_count) * POINT_LEN).unwrap_or(&[]);
-        bytes.chunks_exact(POINT_LEN).map(|p| (f64::from(f32_at(p, 0)), f64::from(f32_at(p, 4))))
+        self.point_bytes().chunks_exact(POINT_LEN).map(|p| (f64::from(f32_at(p, 0)), f64::from(f32_at(p, 4))))
     }
 
     /// Lanes a vehicle may continue into at the end of this one.
@@ -267,46 +264,79 @@ impl<'a> Lane<'a> {
     }
 
     /// For each point, the nearest segment of the centreline, in one pass over it.
-    /// Segments are compared by squared distance; only the winner's distance is taken
-    /// (`Nearest::distance`), so a long lane costs a few multiplications per segment.
+    ///
+    /// Segments are compared by squared distance and only the winner's distance is taken
+    /// ([`Nearest::distance`]). The centreline is read in chunks of [`CHUNK`] segments;
+    /// a chunk whose bounding box is farther from every point than that point's nearest
+    /// segment so far (or than its [`Nearest::within`] cut-off) is skipped whole — exactly,
+    /// since no segment in it could be nearer.
     pub fn nearest_segments(&self, points: &[(f64, f64)], nearest: &mut [Nearest]) {
-        let mut previous: Option<(f64, f64)> = None;
-        for (k, p) in self.points().enumerate() {
-            if let Some(a) = previous {
-                let (dx, dy) = (p.0 - a.0, p.1 - a.1);
-                let len2 = dx * dx + dy * dy;
-                for (&(x, y), best) in points.iter().zip(nearest.iter_mut()) {
-                    let t = if len2 > 0.0 { (((x - a.0) * dx + (y - a.1) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
-                    let residual = (x - (a.0 + t * dx), y - (a.1 + t * dy));
-                    let d2 = residual.0 * residual.0 + residual.1 * residual.1;
-                    if d2 < best.squared {
-                        *best = Nearest {
-                            squared: d2,
-                            residual,
-                            direction: (dx, dy),
-                            t,
-                            length: 0.0,
-                            segment: k as u32 - 1,
-                        };
+        let bytes = self.point_bytes();
+        let count = usize::from(self.point_count);
+        let mut chunk = [(0.0, 0.0); CHUNK + 1];
+        let mut first = 0usize;
+        // Chunks overlap by one point: the last point of one is the first of the next.
+        while first + 1 < count {
+            let n = (count - first).min(CHUNK + 1);
+            let (mut lo, mut hi) = ((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY));
+            for (slot, p) in chunk.iter_mut().zip(bytes.chunks_exact(POINT_LEN).skip(first).take(n)) {
+                *slot = (f64::from(f32_at(p, 0)), f64::from(f32_at(p, 4)));
+                lo = (lo.0.min(slot.0), lo.1.min(slot.1));
+                hi = (hi.0.max(slot.0), hi.1.max(slot.1));
+            }
+            let reachable = points.iter().zip(nearest.iter()).any(|(&(x, y), best)| {
+                let dx = (lo.0 - x).max(x - hi.0).max(0.0);
+                let dy = (lo.1 - y).max(y - hi.1).max(0.0);
+                dx * dx + dy * dy <= best.squared * (1.0 + 1e-9)
+            });
+            if reachable {
+                for (j, w) in chunk[..n].windows(2).enumerate() {
+                    let (a, p) = (w[0], w[1]);
+                    let (dx, dy) = (p.0 - a.0, p.1 - a.1);
+                    let len2 = dx * dx + dy * dy;
+                    for (&(x, y), best) in points.iter().zip(nearest.iter_mut()) {
+                        let t =
+                            if len2 > 0.0 { (((x - a.0) * dx + (y - a.1) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
+                        let residual = (x - (a.0 + t * dx), y - (a.1 + t * dy));
+                        let d2 = residual.0 * residual.0 + residual.1 * residual.1;
+                        if d2 < best.squared {
+                            *best = Nearest {
+                                squared: d2,
+                                residual,
+                                direction: (dx, dy),
+                                t,
+                                length: 0.0,
+                                segment: (first + j) as u32,
+                            };
+                        }
                     }
                 }
             }
-            previous = Some(p);
+            first += n - 1;
         }
         for best in nearest.iter_mut().filter(|b| b.segment != u32::MAX) {
             best.length = libm::sqrt(best.direction.0 * best.direction.0 + best.direction.1 * best.direction.1);
         }
     }
 
+    /// The centreline's points as stored (x, y f32 pairs); the range was checked against
+    /// the points section when the tile was parsed.
+    fn point_bytes(&self) -> &'a [u8] {
+        let start = self.view.layout[0] + self.first_point as usize * POINT_LEN;
+        self.view.bytes.get(start..start + usize::from(self.point_count) * POINT_LEN).unwrap_or(&[])
+    }
+
     /// Signed distance from (x, y) to the lane's area: ≤ 0 inside.
     pub fn distance_outside(&self, x: f64, y: f64) -> f64 {
         let mut d = [0.0];
-        self.distances_outside(&[(x, y)], &mut d);
+        self.distances_outside(&[(x, y)], f64::INFINITY, &mut d);
         d[0]
     }
 
-    /// [`Lane::distance_outside`] of several points at once (one pass over the lane).
-    pub fn distances_outside(&self, points: &[(f64, f64)], out: &mut [f64]) {
+    /// [`Lane::distance_outside`] of several points at once (one pass over the lane). A
+    /// point farther than `limit` from a centreline lane's area gets an infinite distance,
+    /// which is cheaper to find.
+    pub fn distances_outside(&self, points: &[(f64, f64)], limit: f64, out: &mut [f64]) {
         if let Some(polygon) = self.area {
             for (&(x, y), d) in points.iter().zip(out.iter_mut()) {
                 *d = match self.view.polygon_distance(polygon, x, y) {
@@ -320,7 +350,7 @@ impl<'a> Lane<'a> {
             }
             return;
         }
-        let mut nearest = [Nearest::NONE; MAX_POINTS];
+        let mut nearest = [Nearest::within(limit + self.width / 2.0); MAX_POINTS];
         let n = points.len().min(MAX_POINTS);
         self.nearest_segments(&points[..n], &mut nearest[..n]);
         for (d, best) in out.iter_mut().zip(&nearest[..n]) {
@@ -328,6 +358,9 @@ impl<'a> Lane<'a> {
         }
     }
 }
+
+/// Segments [`Lane::nearest_segments`] reads at a time (and may skip at once).
+pub const CHUNK: usize = 16;
 
 /// Points [`Lane::distances_outside`] takes at once.
 pub const MAX_POINTS: usize = 8;
@@ -353,6 +386,13 @@ impl Nearest {
         length: 0.0,
         segment: u32::MAX,
     };
+
+    /// No segment yet, and none farther than `distance` wanted (with a little slack, so
+    /// that rounding never drops one at the limit).
+    pub fn within(distance: f64) -> Nearest {
+        let d = distance * (1.0 + 1e-9) + 1e-9;
+        Nearest { squared: d * d, ..Nearest::NONE }
+    }
 
     /// Distance from the point to the segment, m (infinite when there is none).
     pub fn distance(&self) -> f64 {
