@@ -216,7 +216,9 @@ impl<'a> Checker<'a> {
             let mut d = [f64::INFINITY; 5];
             match item {
                 Item::Lane(i) => {
-                    if let Some(lane) = self.map.lane(i) {
+                    if let Some(centreline) = self.map.lane_centreline(i) {
+                        centreline.distances_outside(&points, SEARCH_RADIUS, &mut d);
+                    } else if let Some(lane) = self.map.lane(i) {
                         lane.distances_outside(&points, SEARCH_RADIUS, &mut d);
                     }
                 }
