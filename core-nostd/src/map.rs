@@ -346,17 +346,24 @@ impl<'a> Centreline<'a> {
                 lo = (lo.0.min(p.0), lo.1.min(p.1));
                 hi = (hi.0.max(p.0), hi.1.max(p.1));
             }
-            let reachable = points.iter().zip(nearest.iter()).any(|(&(x, y), best)| {
+            // The points this chunk could bring nearer (one bit each).
+            let reachable = points.iter().zip(nearest.iter()).enumerate().fold(0u64, |mask, (k, (&(x, y), best))| {
                 let dx = (lo.0 - x).max(x - hi.0).max(0.0);
                 let dy = (lo.1 - y).max(y - hi.1).max(0.0);
-                dx * dx + dy * dy <= best.squared * (1.0 + 1e-9)
+                if k < 64 && dx * dx + dy * dy <= best.squared * (1.0 + 1e-9) {
+                    mask | 1 << k
+                } else {
+                    mask
+                }
             });
-            if reachable {
+            if reachable != 0 {
                 let mut a = chunk.get(..POINT_LEN).map_or((0.0, 0.0), point);
                 for (j, p) in chunk.chunks_exact(POINT_LEN).skip(1).map(point).enumerate() {
                     let (dx, dy) = (p.0 - a.0, p.1 - a.1);
                     let len2 = dx * dx + dy * dy;
-                    for (&(x, y), best) in points.iter().zip(nearest.iter_mut()) {
+                    let active =
+                        points.iter().zip(nearest.iter_mut()).enumerate().filter(|(k, _)| reachable & 1 << k != 0);
+                    for (_, (&(x, y), best)) in active {
                         let t =
                             if len2 > 0.0 { (((x - a.0) * dx + (y - a.1) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
                         let residual = (x - (a.0 + t * dx), y - (a.1 + t * dy));
