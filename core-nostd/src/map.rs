@@ -361,8 +361,11 @@ impl<'a> Centreline<'a> {
                 for (j, p) in chunk.chunks_exact(POINT_LEN).skip(1).map(point).enumerate() {
                     let (dx, dy) = (p.0 - a.0, p.1 - a.1);
                     let len2 = dx * dx + dy * dy;
-                    let active =
-                        points.iter().zip(nearest.iter_mut()).enumerate().filter(|(k, _)| reachable & 1 << k != 0);
+                    let active = points
+                        .iter()
+                        .zip(nearest.iter_mut())
+                        .enumerate()
+                        .filter(|(k, _)| *k < 64 && reachable & 1 << k != 0);
                     for (_, (&(x, y), best)) in active {
                         let t =
                             if len2 > 0.0 { (((x - a.0) * dx + (y - a.1) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
