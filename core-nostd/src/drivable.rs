@@ -15,7 +15,7 @@
 //!   lane to pass a closure is penalised here and not in the insensitive mode. The channel
 //!   is collected in a first pass over the drive ([`LaneSet::add_route_pose`]).
 
-use crate::map::{Item, MapView};
+use crate::map::{Item, MapView, Projection};
 use crate::obb::{Footprint, Pose2};
 
 /// A corner outside the drivable area by this much or more breaks compliance, m.
@@ -211,13 +211,22 @@ impl<'a> Checker<'a> {
             });
         let half = 0.5 * (hi.0 - lo.0).max(hi.1 - lo.1) + SEARCH_RADIUS;
         let mut candidates: heapless::Vec<u32, CANDIDATES> = heapless::Vec::new();
+        // Lanes containing the centre, with its projection on each (more are projected again).
+        let mut centre_lanes: heapless::Vec<(u32, Projection), 4> = heapless::Vec::new();
         let mut measured: heapless::Vec<(u32, u8), CANDIDATES> = heapless::Vec::new();
-        let measure = |check: &mut PoseCheck, item: Item| -> u8 {
+        let mut measure = |check: &mut PoseCheck, item: Item| -> u8 {
             let mut d = [f64::INFINITY; 5];
             match item {
                 Item::Lane(i) => {
                     if let Some(centreline) = self.map.lane_centreline(i) {
-                        centreline.distances_outside(&points, SEARCH_RADIUS, &mut d);
+                        let nearest = centreline.nearest_within(&points, SEARCH_RADIUS);
+                        for (d, n) in d.iter_mut().zip(&nearest) {
+                            *d = centreline.outside(n);
+                        }
+                        if d[0] <= 0.0 {
+                            // The centre's lane is among these: its projection is at hand.
+                            let _ = centre_lanes.push((i, centreline.projection(&nearest[0])));
+                        }
                     } else if let Some(lane) = self.map.lane(i) {
                         lane.distances_outside(&points, SEARCH_RADIUS, &mut d);
                     }
@@ -265,7 +274,8 @@ impl<'a> Checker<'a> {
                 let _ = check.occupied.push(i);
             }
             if k == 0 {
-                let p = lane.project(centre.0, centre.1);
+                let known = centre_lanes.iter().find(|(lane, _)| *lane == i).map(|&(_, p)| p);
+                let p = known.unwrap_or_else(|| lane.project(centre.0, centre.1));
                 let candidate = (
                     previous == Some(i),
                     p.distance,

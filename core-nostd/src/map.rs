@@ -294,7 +294,12 @@ impl<'a> Centreline<'a> {
     pub fn project(&self, x: f64, y: f64) -> Projection {
         let mut nearest = [Nearest::NONE];
         self.nearest_segments(&[(x, y)], &mut nearest);
-        let [n] = nearest;
+        self.projection(&nearest[0])
+    }
+
+    /// The projection a [`Centreline::nearest_segments`] result stands for (the same as
+    /// [`Centreline::project`] of its point when nothing cut the search short).
+    pub fn projection(&self, n: &Nearest) -> Projection {
         if n.segment == u32::MAX {
             return Projection { distance: f64::INFINITY, heading: 0.0, along: 0.0 };
         }
@@ -319,11 +324,22 @@ impl<'a> Centreline<'a> {
 
     /// Signed distances of `points` to the area (≤ 0 inside); infinite beyond `limit`.
     pub fn distances_outside<const N: usize>(&self, points: &[(f64, f64); N], limit: f64, out: &mut [f64; N]) {
+        let nearest = self.nearest_within(points, limit);
+        for (d, best) in out.iter_mut().zip(&nearest) {
+            *d = self.outside(best);
+        }
+    }
+
+    /// The nearest segment to each point, not looking beyond `limit` from the area.
+    pub fn nearest_within<const N: usize>(&self, points: &[(f64, f64); N], limit: f64) -> [Nearest; N] {
         let mut nearest = [Nearest::within(limit + self.width / 2.0); N];
         self.nearest_segments(points, &mut nearest);
-        for (d, best) in out.iter_mut().zip(&nearest) {
-            *d = best.distance() - self.width / 2.0;
-        }
+        nearest
+    }
+
+    /// The signed distance to the area (≤ 0 inside) of a point whose nearest segment is `n`.
+    pub fn outside(&self, n: &Nearest) -> f64 {
+        n.distance() - self.width / 2.0
     }
 
     /// For each point, the nearest segment, in one pass over the centreline.

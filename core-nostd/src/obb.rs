@@ -78,7 +78,11 @@ impl OrientedBox {
     /// Corners: front left, front right, rear right, rear left.
     pub fn corners(&self) -> [(f64, f64); 4] {
         let (l, w) = (self.length / 2.0, self.width / 2.0);
-        [self.centre.offset(l, w), self.centre.offset(l, -w), self.centre.offset(-l, -w), self.centre.offset(-l, w)]
+        // `Pose2::offset` four times, with the heading's sine and cosine taken once.
+        let (s, c) = libm::sincos(self.centre.heading);
+        let at =
+            |forward: f64, left: f64| (self.centre.x + forward * c - left * s, self.centre.y + forward * s + left * c);
+        [at(l, w), at(l, -w), at(-l, -w), at(-l, w)]
     }
 
     /// The front edge (front left → front right), nuPlan's "front bumper".
