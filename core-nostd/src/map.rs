@@ -357,11 +357,19 @@ impl<'a> Centreline<'a> {
         while first + 1 < count {
             let n = (count - first).min(CHUNK + 1);
             let chunk = self.points.get(first * POINT_LEN..(first + n) * POINT_LEN).unwrap_or(&[]);
-            let (mut lo, mut hi) = ((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY));
-            for p in chunk.chunks_exact(POINT_LEN).map(point) {
-                lo = (lo.0.min(p.0), lo.1.min(p.1));
-                hi = (hi.0.max(p.0), hi.1.max(p.1));
+            // The chunk's box, in the stored f32 (finite, checked at parse: plain compares).
+            let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+            for p in chunk.chunks_exact(POINT_LEN) {
+                for (axis, v) in [f32_at(p, 0), f32_at(p, 4)].into_iter().enumerate() {
+                    if v < lo[axis] {
+                        lo[axis] = v;
+                    }
+                    if v > hi[axis] {
+                        hi[axis] = v;
+                    }
+                }
             }
+            let (lo, hi) = ((f64::from(lo[0]), f64::from(lo[1])), (f64::from(hi[0]), f64::from(hi[1])));
             // The points this chunk could bring nearer (one bit each).
             let reachable = points.iter().zip(nearest.iter()).enumerate().fold(0u64, |mask, (k, (&(x, y), best))| {
                 let dx = (lo.0 - x).max(x - hi.0).max(0.0);
