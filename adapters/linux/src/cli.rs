@@ -213,6 +213,21 @@ enum MapCommand {
         /// The tile.
         map: PathBuf,
     },
+    /// Check the ego footprint (nuPlan's Pacifica) at each pose of a TUM file against the
+    /// drivable area, and time the check per pose (the fastest of several passes).
+    Check {
+        /// The tile.
+        map: PathBuf,
+        /// Rear-axle poses, TUM, in the tile's ENU frame.
+        #[arg(long)]
+        poses: PathBuf,
+        /// Passes over the poses; the fastest is reported.
+        #[arg(long, default_value_t = 5)]
+        passes: u32,
+        /// Print JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Debug, Subcommand)]
@@ -383,6 +398,9 @@ pub fn run() -> ExitCode {
         }
         Command::Map(MapCommand::Info { map, json }) => crate::map_tile::run_info(&map, json),
         Command::Map(MapCommand::Lanes { map }) => crate::map_tile::run_lanes(&map),
+        Command::Map(MapCommand::Check { map, poses, passes, json }) => {
+            crate::map_tile::check::run_check(&map, &poses, passes, json)
+        }
         Command::Import(a) => {
             let speed_unit = match a.speed_unit.as_str() {
                 "km/h" | "kph" => Some(1.0 / 3.6),

@@ -153,6 +153,17 @@ fn heading(pose: &dash2sim_core::sim3::Pose) -> f64 {
     pose.rotation[(1, 0)].atan2(pose.rotation[(0, 0)])
 }
 
+/// Rear-axle poses from a TUM file in a map's ENU frame (heading from the body x axis).
+pub fn read_ego(path: &Path) -> Result<Vec<(f64, Pose2)>, String> {
+    let trajectory = Trajectory::read(path, Format::Tum).map_err(|e| e.to_string())?;
+    Ok(trajectory
+        .stamps
+        .iter()
+        .zip(&trajectory.poses)
+        .map(|(t, p)| (*t, Pose2::new(p.translation.x, p.translation.y, heading(p))))
+        .collect())
+}
+
 /// The outcome of a replay.
 #[derive(Debug)]
 pub struct Verification {
@@ -267,16 +278,7 @@ pub fn run(request: &VerifyRequest<'_>, as_json: bool) -> Result<(), String> {
     let bytes = std::fs::read(request.map).map_err(|e| format!("{}: {e}", request.map.display()))?;
     let map = MapView::parse(&bytes).map_err(|e| format!("{}: {e}", request.map.display()))?;
     let (poses, mut objects, name) = match request.ego {
-        EgoSource::Tum(path) => {
-            let trajectory = Trajectory::read(path, Format::Tum).map_err(|e| e.to_string())?;
-            let poses: Vec<(f64, Pose2)> = trajectory
-                .stamps
-                .iter()
-                .zip(&trajectory.poses)
-                .map(|(t, p)| (*t, Pose2::new(p.translation.x, p.translation.y, heading(p))))
-                .collect();
-            (poses, BTreeMap::new(), path)
-        }
+        EgoSource::Tum(path) => (read_ego(path)?, BTreeMap::new(), path),
         EgoSource::Log(path) => {
             let (poses, agents) = from_log(path, &map)?;
             (poses, agents, path)

@@ -8,6 +8,7 @@
 //! reverse of itself. Lanelet2 lanelets become lanes with exact polygon areas
 //! ([`lanelet2`]).
 
+pub mod check;
 pub mod lanelet2;
 
 use std::collections::HashMap;

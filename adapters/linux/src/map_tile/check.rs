@@ -1,0 +1,53 @@
+//! `dash2sim map check`: the drivable-area check alone, on the footprints at a file of
+//! poses — what a tile says about each, and how long the check takes per pose (timed in
+//! process, the fastest of several passes, so that other processes' noise drops out). The
+//! shapely comparison (`scripts/crosscheck_drivable_shapely.py`) times it this way.
+
+use std::path::Path;
+use std::time::Instant;
+
+use dash2sim_core::drivable::{Channel, Checker};
+use dash2sim_core::map::MapView;
+use dash2sim_core::obb::PACIFICA;
+
+/// Check every pose of `poses` (TUM, rear axle, the tile's ENU frame) `passes` times.
+pub fn run_check(map: &Path, poses: &Path, passes: u32, as_json: bool) -> Result<(), String> {
+    if passes == 0 {
+        return Err("--passes must be at least 1".to_owned());
+    }
+    let bytes = std::fs::read(map).map_err(|e| format!("{}: {e}", map.display()))?;
+    let view = MapView::parse(&bytes).map_err(|e| format!("{}: {e}", map.display()))?;
+    let poses = crate::verify::read_ego(poses)?;
+    if poses.is_empty() {
+        return Err("no poses to check".to_owned());
+    }
+    let checker = Checker::new(view, PACIFICA);
+    let mut fastest = f64::INFINITY;
+    let (mut compliant, mut outside, mut nothing_near) = (0usize, 0usize, 0usize);
+    for _ in 0..passes {
+        let (mut c, mut o, mut n) = (0, 0, 0);
+        let start = Instant::now();
+        for (_, pose) in &poses {
+            let check = checker.check::<1>(pose, Channel::Insensitive, None);
+            c += usize::from(check.compliant());
+            o += check.corners.iter().filter(|d| d.is_some_and(|d| d > 0.0)).count();
+            n += check.corners.iter().filter(|d| d.is_none()).count();
+        }
+        fastest = fastest.min(start.elapsed().as_secs_f64());
+        (compliant, outside, nothing_near) = (c, o, n);
+    }
+    let us_per_pose = fastest / poses.len() as f64 * 1e6;
+    if as_json {
+        println!(
+            "{}",
+            serde_json::json!({"poses": poses.len(), "compliant": compliant, "corners_outside": outside,
+                               "corners_nothing_near": nothing_near, "us_per_pose": us_per_pose, "passes": passes})
+        );
+    } else {
+        println!(
+            "{} poses: {compliant} compliant, {outside} corners outside, {nothing_near} with nothing drivable within 10 m; {us_per_pose:.2} µs per pose (fastest of {passes} passes)",
+            poses.len()
+        );
+    }
+    Ok(())
+}
