@@ -350,7 +350,6 @@ impl<'a> Centreline<'a> {
     /// segment so far (or than its [`Nearest::within`] cut-off) is skipped whole — exactly,
     /// since no segment in it could be nearer.
     pub fn nearest_segments(&self, points: &[(f64, f64)], nearest: &mut [Nearest]) {
-        let point = |p: &[u8]| (f64::from(f32_at(p, 0)), f64::from(f32_at(p, 4)));
         let count = self.points.len() / POINT_LEN;
         let mut first = 0usize;
         // Chunks overlap by one point: the last point of one is the first of the next.
@@ -369,27 +368,31 @@ impl<'a> Centreline<'a> {
                     }
                 }
             }
-            let (lo, hi) = ((f64::from(lo[0]), f64::from(lo[1])), (f64::from(hi[0]), f64::from(hi[1])));
             // The points this chunk could bring nearer (one bit each).
-            let reachable = points.iter().zip(nearest.iter()).enumerate().fold(0u64, |mask, (k, (&(x, y), best))| {
-                let dx = (lo.0 - x).max(x - hi.0).max(0.0);
-                let dy = (lo.1 - y).max(y - hi.1).max(0.0);
-                if k < 64 && dx * dx + dy * dy <= best.squared * (1.0 + 1e-9) {
+            let reachable = points.iter().zip(nearest.iter()).enumerate().fold(0u64, |mask, (k, (&point, best))| {
+                if k < 64 && box_reaches(lo, hi, point, best.squared) {
                     mask | 1 << k
                 } else {
                     mask
                 }
             });
             if reachable != 0 {
-                let mut a = chunk.get(..POINT_LEN).map_or((0.0, 0.0), point);
-                for (j, p) in chunk.chunks_exact(POINT_LEN).skip(1).map(point).enumerate() {
+                let stored = |p: &[u8]| [f32_at(p, 0), f32_at(p, 4)];
+                let mut a32 = chunk.get(..POINT_LEN).map_or([0.0; 2], stored);
+                let mut a = (f64::from(a32[0]), f64::from(a32[1]));
+                for (j, p32) in chunk.chunks_exact(POINT_LEN).skip(1).map(stored).enumerate() {
+                    let p = (f64::from(p32[0]), f64::from(p32[1]));
                     let (dx, dy) = (p.0 - a.0, p.1 - a.1);
                     let len2 = dx * dx + dy * dy;
+                    // The segment's own box: where f64 is software, culling each segment in
+                    // f32 saves most of the f64 work; elsewhere it costs more than it saves.
+                    let (lo, hi) = ([a32[0].min(p32[0]), a32[1].min(p32[1])], [a32[0].max(p32[0]), a32[1].max(p32[1])]);
                     let active = points
                         .iter()
                         .zip(nearest.iter_mut())
                         .enumerate()
-                        .filter(|(k, _)| *k < 64 && reachable & 1 << k != 0);
+                        .filter(|(k, _)| *k < 64 && reachable & 1 << k != 0)
+                        .filter(|(_, (&point, best))| !SOFT_F64 || box_reaches(lo, hi, point, best.squared));
                     for (_, (&(x, y), best)) in active {
                         let t =
                             if len2 > 0.0 { (((x - a.0) * dx + (y - a.1) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
@@ -406,7 +409,7 @@ impl<'a> Centreline<'a> {
                             };
                         }
                     }
-                    a = p;
+                    (a, a32) = (p, p32);
                 }
             }
             first += n - 1;
@@ -416,6 +419,31 @@ impl<'a> Centreline<'a> {
         }
     }
 }
+
+/// Whether f64 arithmetic is done in software here (Cortex-M: a single-precision FPU at
+/// most): the box culls then run in f32 and reach down to single segments.
+const SOFT_F64: bool = cfg!(all(target_arch = "arm", not(target_feature = "fp64")));
+
+/// The precision of the box culls (see [`SOFT_F64`]).
+#[cfg(all(target_arch = "arm", not(target_feature = "fp64")))]
+type Cull = f32;
+#[cfg(not(all(target_arch = "arm", not(target_feature = "fp64"))))]
+type Cull = f64;
+
+/// Whether a point may lie within `squared` (a squared distance) of the box `lo`–`hi` (the
+/// stored f32 coordinates). The box is grown by [`CULL_SLACK`], far more than f32's rounding
+/// at map distances, so that `false` is certain.
+fn box_reaches(lo: [f32; 2], hi: [f32; 2], point: (f64, f64), squared: f64) -> bool {
+    let (x, y) = (point.0 as Cull, point.1 as Cull);
+    let slack = CULL_SLACK as Cull;
+    let dx = (lo[0] as Cull - x).max(x - hi[0] as Cull).max(slack) - slack;
+    let dy = (lo[1] as Cull - y).max(y - hi[1] as Cull).max(slack) - slack;
+    dx * dx + dy * dy <= squared as Cull * 1.001
+}
+
+/// Margin on a box in the culls, m: f32 rounding of map coordinates (tiles span a few km)
+/// is below a millimetre.
+const CULL_SLACK: f32 = 0.01;
 
 /// Segments [`Centreline::nearest_segments`] reads at a time (and may skip at once).
 pub const CHUNK: usize = 16;
