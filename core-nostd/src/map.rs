@@ -700,11 +700,21 @@ impl<'a> MapView<'a> {
         }
         let at = self.layout[3] + i as usize * POLYGON_LEN;
         let (first, count) = (u32_at(self.bytes, at), u32_at(self.bytes, at + 4));
-        let (mut inside, mut best) = (false, f64::INFINITY);
+        let (mut inside, mut best, mut best_squared) = (false, f64::INFINITY, f64::INFINITY);
         let mut a = self.point(first + count - 1)?;
         for k in first..first + count {
             let b = self.point(k)?;
-            best = best.min(segment_distance((x, y), a, b));
+            // `segment_distance` (a hypot) only for edges about as near as the nearest so
+            // far: the others are farther by far more than rounding, so the minimum is the same.
+            let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+            let len2 = dx * dx + dy * dy;
+            let t = if len2 > 0.0 { (((x - a.0) * dx + (y - a.1) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
+            let (rx, ry) = (x - (a.0 + t * dx), y - (a.1 + t * dy));
+            let squared = rx * rx + ry * ry;
+            if squared <= best_squared * (1.0 + 1e-9) {
+                best = best.min(libm::hypot(rx, ry));
+                best_squared = best_squared.min(squared);
+            }
             if (a.1 > y) != (b.1 > y) && x < a.0 + (y - a.1) * (b.0 - a.0) / (b.1 - a.1) {
                 inside = !inside;
             }
