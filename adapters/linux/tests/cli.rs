@@ -730,3 +730,40 @@ fn live_socketcan_records_or_says_why_it_was_skipped() {
     }
     assert!(out.status.success(), "{err}");
 }
+
+#[test]
+fn map_check_counts_compliant_poses_and_times_them() {
+    let dir = scratch("map-check");
+    let drive = dir.join("drive");
+    let out = dash2sim(&["scenario", "generate", "--seed", "2", "--duration", "5", "-o", &drive.display().to_string()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let map = dir.join("road.map").display().to_string();
+    let osm = drive.join("road.osm").display().to_string();
+    assert!(dash2sim(&["map", "build", &osm, "-o", &map, "--origin", "60.2711,24.8572"]).status.success());
+    let ego = drive.join("ego.tum").display().to_string();
+    let out = dash2sim(&["map", "check", &map, "--poses", &ego, "--passes", "2", "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    // The generated drive stays on its road: every pose complies.
+    assert_eq!(v["poses"], 51);
+    assert_eq!(v["compliant"], 51, "{v}");
+    assert!(v["us_per_pose"].as_f64().is_some_and(|t| t > 0.0));
+    // The same poses 40 m to the side are off the road.
+    let text = std::fs::read_to_string(drive.join("ego.tum")).expect("tum");
+    let shifted: String = text
+        .lines()
+        .map(|l| {
+            let mut f: Vec<String> = l.split(' ').map(str::to_owned).collect();
+            f[2] = (f[2].parse::<f64>().expect("y") + 40.0).to_string();
+            f.join(" ") + "\n"
+        })
+        .collect();
+    let off = write(&dir, "off.tum", &shifted);
+    let out = dash2sim(&["map", "check", &map, "--poses", &off, "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(v["compliant"], 0, "{v}");
+    let out = dash2sim(&["map", "check", &map, "--poses", &write(&dir, "empty.tum", "")]);
+    assert!(!out.status.success() && stderr(&out).contains("no poses"), "{}", stderr(&out));
+    let out = dash2sim(&["map", "check", &map, "--poses", &ego, "--passes", "0"]);
+    assert!(!out.status.success() && stderr(&out).contains("--passes"));
+}
