@@ -13,15 +13,26 @@ fn prefix(name: &str) -> String {
     format!("dash2sim-test/{name}/{}", std::process::id())
 }
 
+/// Run `camera_sim` with `args` while `subscriber` hands what arrives to `collect`; its
+/// summary line once it exited successfully.
+fn run_camera(subscriber: &CameraSubscriber, args: &[&str], mut collect: impl FnMut(CameraInput)) -> String {
+    let mut child =
+        Command::new(env!("CARGO_BIN_EXE_camera_sim")).args(args).stdout(Stdio::piped()).spawn().expect("camera_sim");
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while child.try_wait().expect("child").is_none() && Instant::now() < deadline {
+        subscriber.receive(&mut collect).expect("receive");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    subscriber.receive(&mut collect).expect("receive");
+    let output = child.wait_with_output().expect("camera_sim output");
+    assert!(output.status.success());
+    String::from_utf8_lossy(&output.stdout).trim().to_owned()
+}
+
 #[test]
 fn every_published_frame_arrives_with_its_pose_and_detections() {
     let prefix = prefix("frames");
     let subscriber = CameraSubscriber::new(&prefix).expect("subscriber");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_camera_sim"))
-        .args(["--seconds", "5", "--speedup", "5", "--prefix", &prefix])
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("camera_sim");
     let (mut frames, mut poses, mut det3, mut det2) = (Vec::new(), BTreeMap::new(), BTreeMap::new(), BTreeMap::new());
     let mut collect = |input: CameraInput| match input {
         CameraInput::Frame { sequence, .. } => frames.push(sequence),
@@ -35,15 +46,8 @@ fn every_published_frame_arrives_with_its_pose_and_detections() {
             det2.insert(sequence, d.len());
         }
     };
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while child.try_wait().expect("child").is_none() && Instant::now() < deadline {
-        subscriber.receive(&mut collect).expect("receive");
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    subscriber.receive(&mut collect).expect("receive");
-    let output = child.wait_with_output().expect("camera_sim output");
-    assert!(output.status.success());
-    assert_eq!(String::from_utf8_lossy(&output.stdout).trim(), "51 frames published");
+    let published = run_camera(&subscriber, &["--seconds", "5", "--speedup", "5", "--prefix", &prefix], &mut collect);
+    assert_eq!(published, "51 frames published");
 
     let scenario =
         generate(&ScenarioConfig { seed: 1, duration_s: 5.0, gnss: GnssModel::good(), ..ScenarioConfig::default() });
@@ -103,40 +107,18 @@ fn a_load_run_publishes_laps_at_30_fps_with_64_objects_and_the_receiver_and_bus_
     std::fs::create_dir_all(&dir).expect("dir");
     let (nmea, can) = (dir.join("gnss.nmea"), dir.join("bus.log"));
     let subscriber = CameraSubscriber::new(&prefix).expect("subscriber");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_camera_sim"))
-        .args([
-            "--seconds",
-            "2",
-            "--fps",
-            "30",
-            "--objects",
-            "64",
-            "--laps",
-            "2",
-            "--speedup",
-            "4",
-            "--prefix",
-            &prefix,
-        ])
-        .args(["--nmea-out", &nmea.display().to_string(), "--can-out", &can.display().to_string()])
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("camera_sim");
     let (mut frames, mut detections) = (Vec::new(), Vec::new());
     let mut collect = |input: CameraInput| match input {
         CameraInput::Frame { sequence, .. } => frames.push(sequence),
         CameraInput::Detections3d(_, _, d) => detections.push(d.len()),
         _ => {}
     };
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while child.try_wait().expect("child").is_none() && Instant::now() < deadline {
-        subscriber.receive(&mut collect).expect("receive");
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    subscriber.receive(&mut collect).expect("receive");
-    let output = child.wait_with_output().expect("camera_sim output");
-    assert!(output.status.success());
-    assert_eq!(String::from_utf8_lossy(&output.stdout).trim(), "122 frames published");
+    let (nmea_out, can_out) = (nmea.display().to_string(), can.display().to_string());
+    let args =
+        ["--seconds", "2", "--fps", "30", "--objects", "64", "--laps", "2", "--speedup", "4", "--prefix", &prefix];
+    let args = [&args[..], &["--nmea-out", &nmea_out, "--can-out", &can_out]].concat();
+    let published = run_camera(&subscriber, &args, &mut collect);
+    assert_eq!(published, "122 frames published");
     assert_eq!(frames, (1..=122).collect::<Vec<u64>>(), "frame numbers go on across laps");
     assert!(detections.iter().all(|&n| n == 64), "64 objects in every frame: {detections:?}");
 
