@@ -238,9 +238,7 @@ impl<'a> Lane<'a> {
 
     /// The centreline and width (what the distance queries read).
     pub fn centreline(&self) -> Centreline<'a> {
-        let start = self.view.layout[0] + self.first_point as usize * POINT_LEN;
-        let points = self.view.bytes.get(start..start + usize::from(self.point_count) * POINT_LEN).unwrap_or(&[]);
-        Centreline { points, width: self.width }
+        Centreline { points: self.view.point_bytes(self.first_point, self.point_count), width: self.width }
     }
 
     /// The point of the centreline nearest to (x, y).
@@ -315,10 +313,11 @@ impl<'a> Centreline<'a> {
             }
             previous = Some(p);
         }
+        let (dx, dy) = n.direction;
         Projection {
             distance: n.distance(),
-            heading: libm::atan2(n.direction.1, n.direction.0),
-            along: start + n.t * n.length,
+            heading: libm::atan2(dy, dx),
+            along: start + n.t * libm::sqrt(dx * dx + dy * dy),
         }
     }
 
@@ -382,8 +381,7 @@ impl<'a> Centreline<'a> {
                 let mut a = (f64::from(a32[0]), f64::from(a32[1]));
                 for (j, p32) in chunk.chunks_exact(POINT_LEN).skip(1).map(stored).enumerate() {
                     let p = (f64::from(p32[0]), f64::from(p32[1]));
-                    let (dx, dy) = (p.0 - a.0, p.1 - a.1);
-                    let len2 = dx * dx + dy * dy;
+                    let direction = (p.0 - a.0, p.1 - a.1);
                     // The segment's own box: where f64 is software, culling each segment in
                     // f32 saves most of the f64 work; elsewhere it costs more than it saves.
                     let (lo, hi) = ([a32[0].min(p32[0]), a32[1].min(p32[1])], [a32[0].max(p32[0]), a32[1].max(p32[1])]);
@@ -393,29 +391,17 @@ impl<'a> Centreline<'a> {
                         .enumerate()
                         .filter(|(k, _)| *k < 64 && reachable & 1 << k != 0)
                         .filter(|(_, (&point, best))| !SOFT_F64 || box_reaches(lo, hi, point, best.squared));
-                    for (_, (&(x, y), best)) in active {
-                        let t =
-                            if len2 > 0.0 { (((x - a.0) * dx + (y - a.1) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
-                        let residual = (x - (a.0 + t * dx), y - (a.1 + t * dy));
-                        let d2 = residual.0 * residual.0 + residual.1 * residual.1;
-                        if d2 < best.squared {
-                            *best = Nearest {
-                                squared: d2,
-                                residual,
-                                direction: (dx, dy),
-                                t,
-                                length: 0.0,
-                                segment: (first + j) as u32,
-                            };
+                    for (_, (&point, best)) in active {
+                        let (t, residual) = closest_on_segment(point, a, direction);
+                        let squared = residual.0 * residual.0 + residual.1 * residual.1;
+                        if squared < best.squared {
+                            *best = Nearest { squared, residual, direction, t, segment: (first + j) as u32 };
                         }
                     }
                     (a, a32) = (p, p32);
                 }
             }
             first += n - 1;
-        }
-        for best in nearest.iter_mut().filter(|b| b.segment != u32::MAX) {
-            best.length = libm::sqrt(best.direction.0 * best.direction.0 + best.direction.1 * best.direction.1);
         }
     }
 }
@@ -455,20 +441,13 @@ pub struct Nearest {
     residual: (f64, f64),
     direction: (f64, f64),
     t: f64,
-    length: f64,
     segment: u32,
 }
 
 impl Nearest {
     /// No segment yet.
-    pub const NONE: Nearest = Nearest {
-        squared: f64::INFINITY,
-        residual: (0.0, 0.0),
-        direction: (0.0, 0.0),
-        t: 0.0,
-        length: 0.0,
-        segment: u32::MAX,
-    };
+    pub const NONE: Nearest =
+        Nearest { squared: f64::INFINITY, residual: (0.0, 0.0), direction: (0.0, 0.0), t: 0.0, segment: u32::MAX };
 
     /// No segment yet, and none farther than `distance` wanted (with a little slack, so
     /// that rounding never drops one at the limit).
@@ -500,10 +479,17 @@ pub struct Projection {
 
 /// Distance from `p` to the segment `a`–`b`.
 pub fn segment_distance(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
-    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let (_, (rx, ry)) = closest_on_segment(p, a, (b.0 - a.0, b.1 - a.1));
+    libm::hypot(rx, ry)
+}
+
+/// The point of the segment from `a` along `direction` nearest to `p`: its parameter t
+/// (0 at `a`, 1 at the end) and the residual `p` − that point.
+fn closest_on_segment(p: (f64, f64), a: (f64, f64), direction: (f64, f64)) -> (f64, (f64, f64)) {
+    let (dx, dy) = direction;
     let len2 = dx * dx + dy * dy;
     let t = if len2 > 0.0 { (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
-    libm::hypot(p.0 - (a.0 + t * dx), p.1 - (a.1 + t * dy))
+    (t, (p.0 - (a.0 + t * dx), p.1 - (a.1 + t * dy)))
 }
 
 /// What a grid entry names.
@@ -677,9 +663,15 @@ impl<'a> MapView<'a> {
         if u16_at(self.bytes, at + 26) != 0 {
             return None;
         }
-        let start = self.layout[0] + u32_at(self.bytes, at) as usize * POINT_LEN;
-        let end = start + usize::from(u16_at(self.bytes, at + 4)) * POINT_LEN;
-        Some(Centreline { points: self.bytes.get(start..end)?, width: f64::from(u16_at(self.bytes, at + 6)) / 100.0 })
+        let points = self.point_bytes(u32_at(self.bytes, at), u16_at(self.bytes, at + 4));
+        Some(Centreline { points, width: f64::from(u16_at(self.bytes, at + 6)) / 100.0 })
+    }
+
+    /// `count` points from point `first` as stored (x, y f32 pairs; lane ranges were checked
+    /// when the tile was parsed, anything else reads as no points).
+    fn point_bytes(&self, first: u32, count: u16) -> &'a [u8] {
+        let start = self.layout[0] + first as usize * POINT_LEN;
+        self.bytes.get(start..start + usize::from(count) * POINT_LEN).unwrap_or(&[])
     }
 
     /// Points of polygon `i` (a ring, implicitly closed).
@@ -706,10 +698,7 @@ impl<'a> MapView<'a> {
             let b = self.point(k)?;
             // `segment_distance` (a hypot) only for edges about as near as the nearest so
             // far: the others are farther by far more than rounding, so the minimum is the same.
-            let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-            let len2 = dx * dx + dy * dy;
-            let t = if len2 > 0.0 { (((x - a.0) * dx + (y - a.1) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
-            let (rx, ry) = (x - (a.0 + t * dx), y - (a.1 + t * dy));
+            let (_, (rx, ry)) = closest_on_segment((x, y), a, (b.0 - a.0, b.1 - a.1));
             let squared = rx * rx + ry * ry;
             if squared <= best_squared * (1.0 + 1e-9) {
                 best = best.min(libm::hypot(rx, ry));
