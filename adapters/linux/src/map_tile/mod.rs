@@ -503,6 +503,7 @@ pub fn run_info(path: &std::path::Path, as_json: bool) -> Result<(), String> {
 mod tests {
     use super::*;
     use dash2sim_core::map::{Item, MapError, MapView};
+    use dash2sim_core::obb::{Pose2, PACIFICA};
 
     fn square_road() -> TileContent {
         let lane = |points: Vec<(f64, f64)>| TileLane {
@@ -519,6 +520,75 @@ mod tests {
             lanes: vec![lane(vec![(0.0, 0.0), (100.0, 0.0)]), lane(vec![(100.0, 0.0), (100.0, 100.0)])],
             polygons: vec![vec![(-20.0, -20.0), (-10.0, -20.0), (-10.0, -10.0), (-20.0, -10.0)]],
             source_counts: [1, 2, 3, 4],
+        }
+    }
+
+    /// `n` parallel lanes 100 m long, `spacing` apart, 3 m wide, plus the square road's polygon.
+    fn parallel_lanes(n: usize, spacing: f64) -> TileContent {
+        let mut content = square_road();
+        content.lanes = (0..n)
+            .map(|k| TileLane {
+                points: vec![(0.0, k as f64 * spacing), (50.0, k as f64 * spacing + 1.0), (100.0, k as f64 * spacing)],
+                width: 3.0,
+                successors: Vec::new(),
+                ..content.lanes[0].clone()
+            })
+            .collect();
+        content
+    }
+
+    /// The check of one pose, as the one-point queries answer it: each corner's distance
+    /// to the drivable area, the lanes holding the centre or a corner (in point order, then
+    /// lane order), and the centre's lane (nearest centreline among those holding it).
+    fn reference(view: &MapView<'_>, pose: &Pose2) -> ([Option<f64>; 4], Vec<u32>, Option<u32>) {
+        use dash2sim_core::drivable::SEARCH_RADIUS;
+        let footprint = PACIFICA.at(pose);
+        let corners = footprint.corners();
+        let points = [(footprint.centre.x, footprint.centre.y), corners[0], corners[1], corners[2], corners[3]];
+        let distances = corners.map(|(x, y)| view.distance_to_drivable(x, y, SEARCH_RADIUS, |_| true));
+        let lanes: Vec<_> = (0..view.header().lanes).filter_map(|i| view.lane(i)).collect();
+        let mut occupied = Vec::new();
+        for &(x, y) in &points {
+            for lane in lanes.iter().filter(|l| l.distance_outside(x, y) <= 0.0) {
+                if !occupied.contains(&lane.index) {
+                    occupied.push(lane.index);
+                }
+            }
+        }
+        let (cx, cy) = points[0];
+        let centre = lanes
+            .iter()
+            .filter(|l| l.distance_outside(cx, cy) <= 0.0)
+            .min_by(|a, b| a.project(cx, cy).distance.total_cmp(&b.project(cx, cy).distance))
+            .map(|l| l.index);
+        occupied.truncate(dash2sim_core::drivable::MAX_OCCUPIED);
+        (distances, occupied, centre)
+    }
+
+    #[test]
+    fn the_check_agrees_with_one_point_queries_on_sparse_and_crowded_tiles() {
+        use dash2sim_core::drivable::{Channel, Checker};
+        // 10 lanes 7 m apart: every item near a footprint is remembered. 300 lanes 0.3 m
+        // apart: more grid entries near a footprint than the check remembers, so the rest
+        // are measured as they come and occupancy is looked up point by point.
+        for (n, spacing) in [(10, 7.0), (300, 0.3)] {
+            let bytes = encode(&parallel_lanes(n, spacing), 50.0);
+            let view = MapView::parse(&bytes).expect("tile");
+            let checker = Checker::new(view, PACIFICA);
+            let mut compared = 0;
+            for i in 0..40 {
+                for j in 0..12 {
+                    let pose =
+                        Pose2::new(-8.0 + 3.1 * f64::from(i), -12.0 + 9.7 * f64::from(j), 0.3 * f64::from(i + j));
+                    let check = checker.check::<1>(&pose, Channel::Insensitive, None);
+                    let (corners, occupied, centre) = reference(&view, &pose);
+                    assert_eq!(check.corners, corners, "{n} lanes, pose {pose:?}");
+                    assert_eq!(check.occupied.as_slice(), occupied.as_slice(), "{n} lanes, pose {pose:?}");
+                    assert_eq!(check.centre_lane.map(|c| c.lane), centre, "{n} lanes, pose {pose:?}");
+                    compared += usize::from(!occupied.is_empty());
+                }
+            }
+            assert!(compared > 100, "{n} lanes: only {compared} poses on a lane");
         }
     }
 
