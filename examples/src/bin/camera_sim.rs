@@ -94,7 +94,7 @@ fn write_paced(
         let mut out = std::fs::OpenOptions::new()
             .write(true)
             .create(true)
-            .truncate(false)
+            .truncate(true)
             .open(&path)
             .map_err(|e| format!("{}: {e}", path.display()))?;
         for lap in 0..laps {
@@ -139,10 +139,10 @@ fn camera_detections(scenario: &Scenario, frame: usize, cones: &[[f64; 2]], obje
         .iter()
         .map(|[x, y]| {
             let (dx, dy) = (x - f.ego.x, y - f.ego.y);
-            (cos * dx + sin * dy - camera.mount_forward, -sin * dx + cos * dy, 0.0)
+            (cos * dx + sin * dy - camera.mount_forward, -sin * dx + cos * dy)
         })
-        .filter(|(x, y, _)| *x > 2.0 && *x < 60.0 && y.abs() < 12.0)
-        .map(|(x, y, _)| (x, y, x.hypot(y)))
+        .filter(|(x, y)| *x > 2.0 && *x < 60.0 && y.abs() < 12.0)
+        .map(|(x, y)| (x, y, x.hypot(y)))
         .collect();
     seen.sort_by(|a, b| a.2.total_cmp(&b.2));
     let wanted = objects.min(MAX_DETECTIONS).saturating_sub(detections.len());
