@@ -5,74 +5,17 @@
 
 use dash2sim_core::binlog::Record;
 use dash2sim_core::nalgebra::Vector3;
-use dash2sim_linux::logfile;
-use dash2sim_linux::record::{self, ModeArg, RecordArgs};
 use dash2sim_linux::scenario::vo::VoModel;
-use dash2sim_linux::trajectory::{self, Format, Trajectory};
-use dash2sim_tests::comma::ublox_nmea;
+use dash2sim_tests::comma::record_minute;
 use dash2sim_tests::recorded::scratch;
 
 #[test]
 fn the_comma2k19_minute_anchors_through_the_pipeline_as_in_the_anchoring_test() {
     let Some(dir) = dash2sim_tests::data_dir("comma2k19") else { return };
     let work = scratch("comma-record");
-    let truth = Trajectory::read(&dir.join("expected/global_pose_camera_enu.tum"), Format::Tum).expect("poses");
     let model = VoModel::arbitrary();
-    let vo_path = work.join("vo.tum");
-    trajectory::write_file(&model.make_vo(&truth), &vo_path, Format::Tum).expect("vo");
-    let (_, stamped, _) = ublox_nmea(&dir.join("expected/live_gnss_ublox.csv"));
-    let nmea_path = work.join("ublox.serial.log");
-    std::fs::write(&nmea_path, stamped).expect("write");
-    let args = RecordArgs {
-        output: work.join("comma.d2slog"),
-        sources: record::Sources {
-            vo: Some(vo_path),
-            nmea: Some(nmea_path),
-            can: Some(dir.join("raw_can.candump.log")),
-            ..record::Sources::default()
-        },
-        dbc: vec![dir.join("opendbc-toyota/_toyota_2017.dbc")],
-        speed_signal: Some("SPEED.SPEED".to_owned()),
-        speed_unit: "km/h".to_owned(),
-        speed_source: record::SpeedArg::Ccvs1,
-        map: None,
-        origin: Some("37.721000009,-122.472299089,31.6392".to_owned()),
-        // The poses are the camera's (x forward, y right, z down); the ego is taken at the
-        // camera so that positions compare with the anchoring test's.
-        mount: format!("0,0,0,{},0,0", std::f64::consts::PI),
-        mode: ModeArg::Full,
-        // HDOP 0.9 × 2.78 m = the anchoring test's σ of 2.5 m.
-        uere: 2.5 / 0.9,
-        save_inputs: None,
-        replay: None,
-        device_id: "dash2sim-record".to_owned(),
-        camera: None,
-        serial: None,
-        baud: 115_200,
-        can_iface: None,
-        can_replay: None,
-        realtime: false,
-        segment_minutes: 10.0,
-        seconds: None,
-        json: true,
-    };
-    record::run(&args).expect("record");
-    let log = logfile::read(&args.output).expect("log");
-    // Device time of every record: UTC minus the clock offset in force when it was written
-    // (records before the first offset were moved onto UTC with it by the reader).
-    let mut offset =
-        log.records.iter().find_map(|r| if let Record::ClockOffset(c) = r { Some(c.offset_us) } else { None });
-    let device: Vec<f64> = log
-        .records
-        .iter()
-        .map(|r| {
-            if let Record::ClockOffset(c) = r {
-                offset = Some(c.offset_us);
-            }
-            (r.t_us() - offset.unwrap_or(0)) as f64 * 1e-6
-        })
-        .collect();
-    assert!(offset.is_some(), "UTC from the fixes");
+    let recorded = record_minute(&dir, &work, &model);
+    let (truth, log, device) = (&recorded.truth, &recorded.log, &recorded.device);
     let t0 = truth.stamps[0];
     let truth_at = |t: f64| {
         let k = truth.stamps.iter().position(|s| (s - t).abs() < 1e-4).unwrap_or_else(|| {
@@ -84,7 +27,7 @@ fn the_comma2k19_minute_anchors_through_the_pipeline_as_in_the_anchoring_test() 
         truth.poses[k].translation
     };
     let (mut sse, mut n, mut first) = (0.0, 0, None);
-    for (r, &t) in log.records.iter().zip(&device) {
+    for (r, &t) in log.records.iter().zip(device) {
         if let Record::EgoPose(p) = r {
             first.get_or_insert(t - t0);
             let e = Vector3::new(p.x_mm as f64, p.y_mm as f64, p.z_mm as f64) * 1e-3 - truth_at(t);
@@ -96,7 +39,7 @@ fn the_comma2k19_minute_anchors_through_the_pipeline_as_in_the_anchoring_test() 
     let (t, scale) = log
         .records
         .iter()
-        .zip(&device)
+        .zip(device)
         .rev()
         .find_map(|(r, t)| if let Record::AnchorEstimate(a) = r { Some((*t, a.scale_e6 as f64 * 1e-6)) } else { None })
         .expect("an anchor estimate");

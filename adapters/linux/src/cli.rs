@@ -77,6 +77,10 @@ enum Command {
     /// Run the on-device pipeline over recorded inputs (VO, the GNSS serial capture, the
     /// vehicle bus, 3D and 2D detections) and write the 4D log (docs/pipeline.md).
     Record(Box<crate::record::RecordArgs>),
+    /// Finish a device's log offline: re-anchor the whole drive at once from VO, GNSS,
+    /// wheel speed and optional external anchors, smooth the 3D tracks, verify per window
+    /// (docs/finishing.md).
+    Finish(Box<crate::finish::FinishArgs>),
     /// What a 4D log holds: header, records per type, time span, gaps, damage, bytes.
     Inspect {
         /// The log.
@@ -426,6 +430,7 @@ pub fn run() -> ExitCode {
         }
         Command::Demo { output, seed, duration, json } => crate::demo::run(&output, seed, duration, json),
         Command::Record(args) => crate::record::run(&args),
+        Command::Finish(args) => crate::finish::run(&args),
         Command::Inspect { log, json } => crate::logfile::inspect::run(&log, json),
         Command::Export { log, mcap, tum, geojson, map } => {
             crate::logfile::export::run(&crate::logfile::export::ExportRequest { log, mcap, tum, geojson, map })

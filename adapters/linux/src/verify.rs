@@ -56,15 +56,24 @@ pub enum EgoSource<'a> {
 /// (through geodetic coordinates when the origins differ; headings are kept — the frames
 /// of nearby origins differ by well under a milliradian per kilometre).
 pub fn from_log(path: &Path, map: &MapView<'_>) -> Result<(Vec<(f64, Pose2)>, AgentsByTime), String> {
-    use crate::logfile::export::{class_name, ego_enu, ego_poses, tracks};
-    use dash2sim_core::geo::{Geodetic, LocalFrame};
-    use dash2sim_core::nalgebra::Vector3;
     let log = crate::logfile::read(path).map_err(|e| e.to_string())?;
     if log.stats.damaged > 0 {
         eprintln!("warning: {}: {} damaged stretches skipped", path.display(), log.stats.damaged);
     }
-    let header = log.header.ok_or_else(|| format!("{}: the header is damaged (no origin)", path.display()))?;
-    let log_frame = crate::logfile::frame(&header).ok_or_else(|| format!("{}: invalid origin", path.display()))?;
+    from_contents(&log, &path.display().to_string(), map)
+}
+
+/// [`from_log`] on a log already read (`name` for messages).
+pub fn from_contents(
+    log: &crate::logfile::LogContents,
+    name: &str,
+    map: &MapView<'_>,
+) -> Result<(Vec<(f64, Pose2)>, AgentsByTime), String> {
+    use crate::logfile::export::{class_name, ego_enu, ego_poses, tracks};
+    use dash2sim_core::geo::{Geodetic, LocalFrame};
+    use dash2sim_core::nalgebra::Vector3;
+    let header = log.header.ok_or_else(|| format!("{name}: the header is damaged (no origin)"))?;
+    let log_frame = crate::logfile::frame(&header).ok_or_else(|| format!("{name}: invalid origin"))?;
     let [lat, lon, h] = map.header().origin;
     let map_frame = LocalFrame::new(Geodetic::new(lat, lon, h).map_err(|e| format!("map origin: {e}"))?);
     let same = (f64::from(header.origin[0]) * 1e-7 - lat).abs() < 1e-7
@@ -81,7 +90,7 @@ pub fn from_log(path: &Path, map: &MapView<'_>) -> Result<(Vec<(f64, Pose2)>, Ag
             Err(_) => (f64::NAN, f64::NAN),
         }
     };
-    let poses: Vec<(f64, Pose2)> = ego_poses(&log)
+    let poses: Vec<(f64, Pose2)> = ego_poses(log)
         .map(|p| {
             let (v, yaw) = ego_enu(p);
             let (x, y) = to_map(v);
@@ -89,10 +98,10 @@ pub fn from_log(path: &Path, map: &MapView<'_>) -> Result<(Vec<(f64, Pose2)>, Ag
         })
         .collect();
     if poses.is_empty() {
-        return Err(format!("{}: no ego poses to verify", path.display()));
+        return Err(format!("{name}: no ego poses to verify"));
     }
     let mut agents: BTreeMap<i64, Vec<Agent>> = BTreeMap::new();
-    for (t_us, t) in tracks(&log) {
+    for (t_us, t) in tracks(log) {
         let (x, y) = to_map(Vector3::new(t.x_mm as f64, t.y_mm as f64, t.z_mm as f64) * 1e-3);
         agents.entry((t_us as f64 / 1000.0).round() as i64).or_default().push(Agent {
             id: u32::try_from(t.id).unwrap_or(u32::MAX),

@@ -1102,21 +1102,26 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         if s.verified {
             self.stats.windows_verified = self.stats.windows_verified.saturating_add(1);
         }
-        self.write(&Record::Verification(Verification {
-            t_us: self.log_time(t),
-            collisions_e4: quantise(s.no_at_fault_collisions, 1e-4),
-            drivable_e4: quantise(s.drivable_area, 1e-4),
-            direction_e4: quantise(s.driving_direction, 1e-4),
-            making_progress_e4: quantise(s.making_progress, 1e-4),
-            progress_e4: quantise(s.progress, 1e-4),
-            ttc_e4: quantise(s.ttc, 1e-4),
-            speed_limit_e4: quantise(s.speed_limit, 1e-4),
-            comfort_e4: quantise(s.comfort, 1e-4),
-            score_e2: quantise(s.score, 1e-2),
-            worst_corner_mm: quantise(s.worst_corner.clamp(-1e6, 1e6), 1e-3),
-        }))?;
+        self.write(&Record::Verification(verification_record(self.log_time(t), &s)))?;
         let verdict = if s.verified { "verified" } else { "not verified" };
         self.event(t, 2, format_args!("verification window of {:.1} s: score {:.2}, {verdict}", s.duration, s.score))
+    }
+}
+
+/// A window's scores as a record (the device's and `dash2sim finish`'s).
+pub fn verification_record(t_us: i64, s: &Scores) -> Verification {
+    Verification {
+        t_us,
+        collisions_e4: quantise(s.no_at_fault_collisions, 1e-4),
+        drivable_e4: quantise(s.drivable_area, 1e-4),
+        direction_e4: quantise(s.driving_direction, 1e-4),
+        making_progress_e4: quantise(s.making_progress, 1e-4),
+        progress_e4: quantise(s.progress, 1e-4),
+        ttc_e4: quantise(s.ttc, 1e-4),
+        speed_limit_e4: quantise(s.speed_limit, 1e-4),
+        comfort_e4: quantise(s.comfort, 1e-4),
+        score_e2: quantise(s.score, 1e-2),
+        worst_corner_mm: quantise(s.worst_corner.clamp(-1e6, 1e6), 1e-3),
     }
 }
 

@@ -230,6 +230,11 @@ pub fn object_records(path: &Path, out: &mut Vec<Record>) -> Result<(), String> 
 /// Encode `records` (sorted by time here) as a log with `header`.
 pub fn encode(header: &Header, records: &mut [Record]) -> Result<Vec<u8>, String> {
     records.sort_by_key(Record::t_us);
+    encode_in_order(header, records)
+}
+
+/// Encode `records` as a log with `header`, in the order given.
+pub fn encode_in_order(header: &Header, records: &[Record]) -> Result<Vec<u8>, String> {
     let mut writer: Box<Writer<Vec<u8>, 65_536>> =
         Box::new(Writer::new(Vec::new(), header, WriterConfig::default()).map_err(|e| e.to_string())?);
     for r in records.iter() {

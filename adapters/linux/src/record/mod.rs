@@ -154,7 +154,8 @@ pub fn parse_origin(text: &str) -> Result<Geodetic, String> {
     Geodetic::new(lat, lon, h).map_err(|e| format!("--origin {text:?}: {e}"))
 }
 
-fn parse_mount(text: &str) -> Result<CameraMount, String> {
+/// Parse `--mount`: `FORWARD,LEFT,UP[,ROLL,PITCH,YAW]`.
+pub fn parse_mount(text: &str) -> Result<CameraMount, String> {
     let v: Vec<f64> = text
         .split(',')
         .map(|x| x.trim().parse::<f64>())

@@ -1,0 +1,456 @@
+//! `dash2sim finish`: a device's log finished offline (`docs/finishing.md`).
+//!
+//! The device anchors causally, from what it has seen so far. Finishing re-estimates the
+//! whole drive at once from everything the log holds — VO poses, GNSS fixes, wheel speed —
+//! and optional external anchors ([`anchors`]), as one sparse least-squares problem
+//! ([`solve`]); re-expresses and smooths the 3D tracks ([`tracks`]); verifies the finished
+//! drive per window of nuPlan scenario length and as a whole ([`windows`]); and writes a
+//! finished log in the same format, whose first event says what it was finished from.
+
+pub mod anchors;
+pub mod solve;
+pub mod tracks;
+pub mod windows;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+use dash2sim_core::binlog::{quantise, AnchorEstimate, EgoPose, EventRecord, Header, Record, MAX_TEXT};
+use dash2sim_core::geo::{Geodetic, LocalFrame};
+use dash2sim_core::nalgebra::{Rotation3, Vector3};
+use dash2sim_core::pipeline::CameraMount;
+use dash2sim_core::sim3::Pose;
+use serde_json::{json, Value};
+
+use crate::logfile::{self, LogContents};
+use crate::record::{parse_mount, ModeArg};
+use anchors::AnchorForm;
+use solve::{Anchor, AnchorAt, Fix, Inputs, Settings, Solution, VoSample};
+
+/// `dash2sim finish`.
+#[derive(Debug, Args)]
+pub struct FinishArgs {
+    /// The device's log.
+    pub log: PathBuf,
+    /// The finished log.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Geo-referenced anchors: CSV with the header `t,lat,lon,alt,sigma_m` (rear axle at log
+    /// time t, UTC s) or `x,y,z,lat,lon,alt,sigma_m` (a VO-frame point).
+    #[arg(long)]
+    pub anchors: Option<PathBuf>,
+    /// A map tile: verify the finished drive per 15 s window and as a whole.
+    #[arg(long)]
+    pub map: Option<PathBuf>,
+    /// The camera's mount, as given to `record`: `FORWARD,LEFT,UP[,ROLL,PITCH,YAW]`.
+    #[arg(long, default_value = "1.8,0,1.3")]
+    pub mount: String,
+    /// `gravity`: the VO frame's z is vertical (only yaw drifts); `full`: any orientation.
+    #[arg(long, value_enum, default_value = "gravity")]
+    pub mode: ModeArg,
+    /// GNSS 1-σ error model as given to `record`: σ = HDOP × UERE, m.
+    #[arg(long, default_value_t = 2.5)]
+    pub uere: f64,
+    /// Keyframe spacing of the re-anchoring, s.
+    #[arg(long, default_value_t = 0.5)]
+    pub keyframe: f64,
+    /// Print the report as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// What finishing produced, for the report and the tests.
+#[derive(Debug)]
+pub struct Finished {
+    /// The finished log's records, in file order.
+    pub records: Vec<Record>,
+    /// The re-anchoring.
+    pub solution: Solution,
+    /// The report (`--json`).
+    pub report: Value,
+}
+
+/// A log's drive as the solver reads it, in the log's ENU frame.
+struct Drive {
+    vo: Vec<VoSample>,
+    fixes: Vec<Fix>,
+    speeds: Vec<(f64, f64)>,
+}
+
+fn drive(log: &LogContents, frame: &LocalFrame, uere: f64) -> Drive {
+    let (mut vo, mut fixes, mut speeds) = (Vec::new(), Vec::new(), Vec::new());
+    for r in &log.records {
+        match r {
+            Record::VoPose(p) => vo.push(VoSample {
+                t: logfile::seconds(p.t_us),
+                position: Vector3::new(p.x as f64, p.y as f64, p.z as f64) * 1e-3,
+                rotation: Rotation3::from_euler_angles(
+                    p.roll_e4 as f64 * 1e-4,
+                    p.pitch_e4 as f64 * 1e-4,
+                    p.yaw_e4 as f64 * 1e-4,
+                )
+                .into_inner(),
+            }),
+            Record::GnssFix(f) if f.mode >= 2 => {
+                let Ok(g) = Geodetic::new(f.lat_e7 as f64 * 1e-7, f.lon_e7 as f64 * 1e-7, f.alt_mm as f64 * 1e-3)
+                else {
+                    continue;
+                };
+                let hdop = if f.hdop_e2 > 0 { f.hdop_e2 as f64 * 0.01 } else { 1.0 };
+                let sigma_h = hdop * uere;
+                // A 2D fix's height is a guess.
+                let sigma_v = if f.mode >= 3 { 1.5 * sigma_h } else { 1e3 };
+                fixes.push(Fix { t: logfile::seconds(f.t_us), enu: frame.geodetic_to_enu(&g), sigma_h, sigma_v });
+            }
+            Record::VehicleSpeed(s) => speeds.push((logfile::seconds(s.t_us), s.speed_mm_s as f64 * 1e-3)),
+            _ => {}
+        }
+    }
+    let by_time = |a: &f64, b: &f64| a.total_cmp(b);
+    vo.sort_by(|a, b| by_time(&a.t, &b.t));
+    vo.dedup_by(|a, b| a.t <= b.t);
+    fixes.sort_by(|a, b| by_time(&a.t, &b.t));
+    speeds.sort_by(|a, b| by_time(&a.0, &b.0));
+    speeds.dedup_by(|a, b| a.0 <= b.0);
+    Drive { vo, fixes, speeds }
+}
+
+fn event(t_us: i64, level: u8, text: &str) -> Record {
+    let mut e = EventRecord { t_us, level, ..EventRecord::default() };
+    // Cut at a character boundary within the record's limit.
+    let mut end = text.len().min(MAX_TEXT);
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    let _ = e.text.extend_from_slice(&text.as_bytes()[..end]);
+    Record::Event(e)
+}
+
+/// The anchors of a file in the log's frame, with those refused while reading.
+fn anchors_in(file: &anchors::AnchorFile, frame: &LocalFrame) -> Vec<Anchor> {
+    file.anchors
+        .iter()
+        .map(|a| Anchor {
+            at: match a.at {
+                AnchorForm::Time(t) => AnchorAt::Time(t),
+                AnchorForm::VoPoint(x) => AnchorAt::VoPoint(x),
+            },
+            enu: frame.geodetic_to_enu(&a.position),
+            sigma: a.sigma,
+        })
+        .collect()
+}
+
+/// Finish a log that has been read. `anchor_file` and `map` are optional inputs.
+pub fn finish(
+    log: &LogContents,
+    name: &str,
+    anchor_file: Option<(&str, &anchors::AnchorFile)>,
+    map: Option<&[u8]>,
+    mount: CameraMount,
+    settings: Settings,
+    uere: f64,
+) -> Result<Finished, String> {
+    let header = log.header.ok_or_else(|| format!("{name}: the header is damaged: no ENU origin to finish in"))?;
+    let frame = logfile::frame(&header).ok_or_else(|| format!("{name}: the header's origin is not a position"))?;
+    let drive = drive(log, &frame, uere);
+    let anchors = anchor_file.map(|(_, f)| anchors_in(f, &frame)).unwrap_or_default();
+    let lever = mount.rotation().transpose() * Vector3::from(mount.position);
+    let inputs = Inputs { vo: &drive.vo, fixes: &drive.fixes, speeds: &drive.speeds, anchors: &anchors, lever };
+    // Anchors are first checked against the drive anchored without them: one that is far
+    // from it (a wrong place-recognition match) is refused before it can pull.
+    let mut refused: Vec<(usize, String)> = anchor_file.map(|(_, f)| f.refused.clone()).unwrap_or_default();
+    let mut enabled = vec![true; anchors.len()];
+    if !drive.fixes.is_empty() && !anchors.is_empty() {
+        let without =
+            solve::solve(inputs, settings, &vec![false; anchors.len()]).map_err(|e| format!("{name}: {e}"))?;
+        let median_sigma = median(drive.fixes.iter().map(|f| f.sigma_h).collect());
+        let position_sigma = without.position_sigma_m.max(median_sigma);
+        for (k, a) in anchors.iter().enumerate() {
+            let limit = settings.gate * (a.sigma * a.sigma + position_sigma * position_sigma).sqrt();
+            match without.anchor_residual(&inputs, a) {
+                Some(r) if r > limit => {
+                    enabled[k] = false;
+                    refused.push((
+                        line_of(anchor_file, k),
+                        format!("{r:.1} m from the drive anchored by GNSS (limit {limit:.1} m)"),
+                    ));
+                }
+                None => {
+                    enabled[k] = false;
+                    refused.push((line_of(anchor_file, k), "outside the VO poses' time span".to_owned()));
+                }
+                Some(_) => {}
+            }
+        }
+    }
+    let solution = solve::solve(inputs, settings, &enabled).map_err(|e| format!("{name}: {e}"))?;
+    for (k, (&on, &used)) in enabled.iter().zip(&solution.anchor_used).enumerate() {
+        if on && !used {
+            refused.push((line_of(anchor_file, k), format!("residual beyond {}σ in the solution", settings.gate)));
+        }
+    }
+    refused.sort();
+
+    // The finished ego: every VO pose's camera through the solution and the mount.
+    let mut ego: BTreeMap<i64, EgoPose> = BTreeMap::new();
+    for s in &drive.vo {
+        let Some((c, rotation)) = solution.camera_at(&drive.vo, s.t) else { continue };
+        let body = mount.body_pose(&Pose { rotation, translation: c });
+        let b = &body.translation;
+        let t_us = quantise(s.t, 1e-6);
+        ego.insert(
+            t_us,
+            EgoPose {
+                t_us,
+                x_mm: quantise(b.x, 1e-3),
+                y_mm: quantise(b.y, 1e-3),
+                z_mm: quantise(b.z, 1e-3),
+                yaw_e4: quantise(dash2sim_core::pipeline::mount::heading(&body.rotation), 1e-4),
+            },
+        );
+    }
+    let online: BTreeMap<i64, EgoPose> =
+        log.records.iter().filter_map(|r| if let Record::EgoPose(p) = r { Some((p.t_us, *p)) } else { None }).collect();
+    let batches: Vec<_> =
+        log.records.iter().filter_map(|r| if let Record::Tracks3d(b) = r { Some(b.clone()) } else { None }).collect();
+    let ego_at = |poses: &BTreeMap<i64, EgoPose>, t: i64| {
+        poses
+            .get(&t)
+            .map(|p| [p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3, p.z_mm as f64 * 1e-3, p.yaw_e4 as f64 * 1e-4])
+    };
+    let (tracks, track_stats) = tracks::finish_tracks(&batches, &|t| ego_at(&online, t), &|t| ego_at(&ego, t));
+
+    let mut records: Vec<Record> = log
+        .records
+        .iter()
+        .filter(|r| {
+            !matches!(r, Record::EgoPose(_) | Record::AnchorEstimate(_) | Record::Tracks3d(_) | Record::Verification(_))
+        })
+        .cloned()
+        .collect();
+    records.extend(ego.values().map(|p| Record::EgoPose(*p)));
+    records.extend(tracks.into_iter().map(Record::Tracks3d));
+    let used_anchors = solution.anchor_used.iter().filter(|&&u| u).count();
+    let mut last_estimate = f64::NEG_INFINITY;
+    for k in 0..solution.keyframe_t.len().saturating_sub(1) {
+        let t = solution.keyframe_t[k];
+        if t - last_estimate < 1.0 {
+            continue;
+        }
+        last_estimate = t;
+        let sim3 = solution.sim3(&drive.vo, k);
+        let (roll, pitch, yaw) = Rotation3::from_matrix_unchecked(sim3.rotation).euler_angles();
+        records.push(Record::AnchorEstimate(AnchorEstimate {
+            t_us: quantise(t, 1e-6),
+            scale_e6: quantise(sim3.scale, 1e-6),
+            yaw_e6: quantise(yaw, 1e-6),
+            pitch_e6: quantise(pitch, 1e-6),
+            roll_e6: quantise(roll, 1e-6),
+            tx_mm: quantise(sim3.translation.x, 1e-3),
+            ty_mm: quantise(sim3.translation.y, 1e-3),
+            tz_mm: quantise(sim3.translation.z, 1e-3),
+            observability: 2,
+            anchors: (solution.fix_used.iter().filter(|&&u| u).count() + used_anchors) as i64,
+            rms_mm: quantise(solution.gnss_rms_m, 1e-3),
+        }));
+    }
+    records.sort_by_key(Record::t_us);
+
+    let verification = match map {
+        Some(bytes) => Some(windows::verify_finished(log, &records, name, bytes)?),
+        None => None,
+    };
+    if let Some(v) = &verification {
+        records.extend(v.records.iter().cloned());
+        records.sort_by_key(Record::t_us);
+    }
+
+    let fixes_used = solution.fix_used.iter().filter(|&&u| u).count();
+    let anchor_text = match anchor_file {
+        Some((path, _)) => format!("anchors {path} ({used_anchors} used, {} refused)", refused.len()),
+        None => "no external anchors".to_owned(),
+    };
+    let damage = if log.stats.damaged > 0 {
+        format!(
+            "; {} damaged stretches ({} bytes) of the source were lost",
+            log.damage.len(),
+            log.damage.iter().map(|d| d.1).sum::<u64>()
+        )
+    } else {
+        String::new()
+    };
+    let first_t = records.first().map_or(0, Record::t_us);
+    let summary = format!(
+        "dash2sim finish: from {name} ({} records) with {} VO poses, GNSS {fixes_used} of {} fixes, {} speed samples, {anchor_text}; scale {:.6} ± {:.4} %, latency {:.0} ms, wheel factor {:.4}{damage}",
+        log.records.len(),
+        drive.vo.len(),
+        drive.fixes.len(),
+        drive.speeds.len(),
+        mean_scale(&solution),
+        100.0 * solution.scale_sigma,
+        1000.0 * solution.latency_s,
+        solution.wheel_factor,
+    );
+    // A log is in UTC from its first clock offset on; a finished log is in UTC throughout,
+    // so that record goes first (nothing before it to move) and the event next.
+    if let Some(k) = records.iter().position(|r| matches!(r, Record::ClockOffset(_))) {
+        let offset = records.remove(k);
+        records.insert(0, offset);
+        records.insert(1, event(first_t, 2, &summary));
+    } else {
+        records.insert(0, event(first_t, 2, &summary));
+    }
+
+    let anchors_report: Vec<Value> = refused.iter().map(|(line, why)| json!({"line": line, "reason": why})).collect();
+    let report = json!({
+        "log": name,
+        "records": records.len(),
+        "vo_poses": drive.vo.len(),
+        "ego_poses": ego.len(),
+        "anchoring": {
+            "keyframes": solution.keyframe_t.len(),
+            "iterations": solution.iterations,
+            "scale": mean_scale(&solution),
+            "scale_sigma_relative": solution.scale_sigma,
+            "position_sigma_m": solution.position_sigma_m,
+            "sigma0_squared": solution.sigma0_sq,
+            "gnss_latency_s": solution.latency_s,
+            "wheel_factor": solution.wheel_factor,
+            "gnss_rms_m": finite(solution.gnss_rms_m),
+        },
+        "gnss": {"fixes": drive.fixes.len(), "used": fixes_used, "rejected": drive.fixes.len() - fixes_used},
+        "speed_samples": drive.speeds.len(),
+        "anchors": {
+            "file": anchor_file.map(|(p, _)| p),
+            "used": used_anchors,
+            "refused": anchors_report,
+        },
+        "tracks": {
+            "states": track_stats.states,
+            "unplaced": track_stats.unplaced,
+            "smoothed": track_stats.smoothed,
+            "static_merged": track_stats.merged_static,
+        },
+        "damage": {"stretches": log.damage.len(), "bytes": log.damage.iter().map(|d| d.1).sum::<u64>()},
+        "verification": verification.as_ref().map(|v| v.report.clone()),
+    });
+    Ok(Finished { records, solution, report })
+}
+
+fn finite(x: f64) -> Value {
+    if x.is_finite() {
+        json!(x)
+    } else {
+        Value::Null
+    }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+fn line_of(file: Option<(&str, &anchors::AnchorFile)>, k: usize) -> usize {
+    file.and_then(|(_, f)| f.anchors.get(k)).map_or(0, |a| a.line)
+}
+
+/// The drive's scale (segments weighted by duration).
+pub fn mean_scale(s: &Solution) -> f64 {
+    let mut sum = 0.0;
+    let mut total = 0.0;
+    for (k, w) in s.keyframe_t.windows(2).enumerate() {
+        sum += (w[1] - w[0]) * s.log_scale[k];
+        total += w[1] - w[0];
+    }
+    if total > 0.0 {
+        (sum / total).exp()
+    } else {
+        f64::NAN
+    }
+}
+
+/// `dash2sim finish`.
+pub fn run(args: &FinishArgs) -> Result<(), String> {
+    if !(args.uere.is_finite() && args.uere > 0.0) {
+        return Err(format!("--uere {} must be a positive number of metres", args.uere));
+    }
+    if !(args.keyframe.is_finite() && (0.05..=10.0).contains(&args.keyframe)) {
+        return Err(format!("--keyframe {} must be between 0.05 and 10 s", args.keyframe));
+    }
+    let mount = parse_mount(&args.mount)?;
+    let log = logfile::read(&args.log).map_err(|e| e.to_string())?;
+    let name = args.log.display().to_string();
+    let anchor_file = args.anchors.as_deref().map(anchors::read).transpose()?;
+    let anchor_name = args.anchors.as_deref().map(Path::display).map(|d| d.to_string());
+    for (line, why) in anchor_file.iter().flat_map(|f| &f.refused) {
+        eprintln!("{}:{line}: {why}", anchor_name.as_deref().unwrap_or_default());
+    }
+    let map = args.map.as_deref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
+    let settings =
+        Settings { keyframe_s: args.keyframe, gravity_aligned: args.mode == ModeArg::Gravity, ..Settings::default() };
+    let finished = finish(
+        &log,
+        &name,
+        anchor_name.as_deref().zip(anchor_file.as_ref()),
+        map.as_deref(),
+        mount,
+        settings,
+        args.uere,
+    )?;
+    let header = log.header.unwrap_or(Header { device_id: [0; 16], origin: [0; 3] });
+    let bytes = logfile::import::encode_in_order(&header, &finished.records)?;
+    std::fs::write(&args.output, &bytes).map_err(|e| format!("{}: {e}", args.output.display()))?;
+    if args.json {
+        let mut report = finished.report;
+        report["output"] = json!(args.output.display().to_string());
+        report["bytes"] = json!(bytes.len());
+        println!("{report}");
+        return Ok(());
+    }
+    print_report(&finished.report, &args.output, bytes.len());
+    Ok(())
+}
+
+fn print_report(r: &Value, output: &Path, bytes: usize) {
+    let a = &r["anchoring"];
+    println!(
+        "{} → {} ({} records, {bytes} bytes)",
+        r["log"].as_str().unwrap_or_default(),
+        output.display(),
+        r["records"]
+    );
+    println!(
+        "  anchoring     {} keyframes, {} iterations: scale {:.6} ± {:.4} %, positions ± {:.2} m, GNSS latency {:.0} ms, wheel factor {:.4}",
+        a["keyframes"],
+        a["iterations"],
+        a["scale"].as_f64().unwrap_or(f64::NAN),
+        100.0 * a["scale_sigma_relative"].as_f64().unwrap_or(f64::NAN),
+        a["position_sigma_m"].as_f64().unwrap_or(f64::NAN),
+        1000.0 * a["gnss_latency_s"].as_f64().unwrap_or(f64::NAN),
+        a["wheel_factor"].as_f64().unwrap_or(f64::NAN),
+    );
+    println!(
+        "  inputs        GNSS {} of {} fixes used, {} speed samples, anchors {} used, {} refused",
+        r["gnss"]["used"],
+        r["gnss"]["fixes"],
+        r["speed_samples"],
+        r["anchors"]["used"],
+        r["anchors"]["refused"].as_array().map_or(0, Vec::len)
+    );
+    let t = &r["tracks"];
+    println!(
+        "  tracks        {} states: {} moving tracks smoothed, {} static objects merged, {} states without an ego pose dropped",
+        t["states"], t["smoothed"], t["static_merged"], t["unplaced"]
+    );
+    if let Some(v) = r["verification"].as_object() {
+        windows::print(v);
+    }
+    if r["damage"]["stretches"].as_u64().unwrap_or(0) > 0 {
+        println!(
+            "  damage        {} stretches ({} bytes) of the source log were lost",
+            r["damage"]["stretches"], r["damage"]["bytes"]
+        );
+    }
+}

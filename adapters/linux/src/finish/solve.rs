@@ -1,0 +1,970 @@
+//! Batch re-anchoring: the VO-to-world similarity of a whole drive as one sparse
+//! least-squares problem (`docs/finishing.md`).
+//!
+//! **Model.** Keyframes are VO samples about [`Settings::keyframe_s`] apart. Keyframe `k`
+//! has the camera's world position `p_k`; the segment from `k` to `k + 1` has a similarity
+//! `S_k = e^{ρ_k} R_k` (log-scale and rotation; the translation is implied by `p_k`). Inside
+//! a segment the camera is where the VO path, mapped by `S_k`, puts it between the two
+//! keyframes: `c(t) = (1−α)·p_k + α·p_{k+1} + S_k·w(t)` with `w` the VO path's deviation from
+//! its chord — so positions are continuous and linear in `p`. The similarity varies slowly:
+//! `ρ` and `R` of neighbouring segments differ by random walks (VO scale and yaw drift).
+//!
+//! **Residuals.** VO: `p_{k+1} − p_k = S_k·(x_{k+1} − x_k)`. GNSS: `c(t_fix − τ)` at the fix,
+//! with one latency `τ` for the drive, σ inflated by the errors' correlation time (n fixes
+//! within it carry about one fix's information), Cauchy-weighted and gated at 6σ. Wheel
+//! speed: `ρ_k + ln|x_{k+1} − x_k| = ω + ln D_k`, the odometer distance `D_k` over the
+//! segment times one wheel factor `e^ω` (a weak prior near 1). Anchors: the rear axle at a
+//! time, or a VO point, at a geodetic position.
+//!
+//! **Solver.** Gauss–Newton with iteratively reweighted residuals; the normal equations are
+//! block-tridiagonal (7×7 blocks) plus two dense columns (τ, ω), assembled blockwise and
+//! factored by faer's sparse Cholesky — linear in the drive's length.
+
+use dash2sim_core::nalgebra::{Matrix3, Rotation3, Vector3};
+use dash2sim_core::sim3::{AlignMode, Moments, Sim3};
+use faer::linalg::solvers::Solve;
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Mat, Side};
+
+/// Unknowns per keyframe: position (3), log-scale (1), rotation increment (3).
+const BLOCK: usize = 7;
+/// The global unknowns after the blocks: GNSS latency τ, log wheel factor ω.
+const GLOBALS: usize = 2;
+const TAU: usize = 0;
+const OMEGA: usize = 1;
+
+/// A VO sample: the camera in the VO frame.
+#[derive(Clone, Copy, Debug)]
+pub struct VoSample {
+    /// Time, s (log time).
+    pub t: f64,
+    /// Camera position, VO units.
+    pub position: Vector3<f64>,
+    /// Camera → VO rotation.
+    pub rotation: Matrix3<f64>,
+}
+
+/// A GNSS fix in the log's ENU frame.
+#[derive(Clone, Copy, Debug)]
+pub struct Fix {
+    /// Time of the fix, s.
+    pub t: f64,
+    /// Antenna (taken at the camera) position, m.
+    pub enu: Vector3<f64>,
+    /// 1-σ horizontal error, m.
+    pub sigma_h: f64,
+    /// 1-σ vertical error, m.
+    pub sigma_v: f64,
+}
+
+/// Where an external anchor is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AnchorAt {
+    /// The rear axle at this time, s.
+    Time(f64),
+    /// This point of the VO frame.
+    VoPoint(Vector3<f64>),
+}
+
+/// An external anchor in the log's ENU frame.
+#[derive(Clone, Copy, Debug)]
+pub struct Anchor {
+    /// What is anchored.
+    pub at: AnchorAt,
+    /// Where it is, m.
+    pub enu: Vector3<f64>,
+    /// 1-σ, m (every axis).
+    pub sigma: f64,
+}
+
+/// Everything the solve reads.
+#[derive(Clone, Copy, Debug)]
+pub struct Inputs<'a> {
+    /// VO samples in time order.
+    pub vo: &'a [VoSample],
+    /// GNSS fixes in time order.
+    pub fixes: &'a [Fix],
+    /// Vehicle speed samples (time s, m/s) in time order.
+    pub speeds: &'a [(f64, f64)],
+    /// External anchors.
+    pub anchors: &'a [Anchor],
+    /// Rear axle in the camera frame (the mount's lever arm).
+    pub lever: Vector3<f64>,
+}
+
+/// Model and solver constants.
+#[derive(Clone, Copy, Debug)]
+pub struct Settings {
+    /// Spacing of keyframes, s.
+    pub keyframe_s: f64,
+    /// The VO frame's z axis is vertical: only yaw varies.
+    pub gravity_aligned: bool,
+    /// GNSS error correlation time, s.
+    pub gnss_correlation_s: f64,
+    /// Random walk of the log-scale, per √s.
+    pub scale_walk: f64,
+    /// Random walk of the rotation, rad per √s.
+    pub rotation_walk: f64,
+    /// VO chord error: metres plus a fraction of the chord.
+    pub vo_sigma: (f64, f64),
+    /// Odometer distance error over a segment: a fraction plus metres.
+    pub wheel_sigma: (f64, f64),
+    /// Prior σ of the log wheel factor.
+    pub wheel_factor_sigma: f64,
+    /// Prior mean and σ of the GNSS latency, s.
+    pub latency_prior: (f64, f64),
+    /// Cauchy scale, σ.
+    pub robust: f64,
+    /// A residual beyond this many σ is rejected.
+    pub gate: f64,
+    /// Gauss–Newton iterations at most.
+    pub max_iterations: usize,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            keyframe_s: 0.5,
+            gravity_aligned: false,
+            gnss_correlation_s: 2.0,
+            scale_walk: 0.001,
+            rotation_walk: 0.002,
+            vo_sigma: (0.02, 0.002),
+            wheel_sigma: (0.01, 0.05),
+            wheel_factor_sigma: 0.02,
+            latency_prior: (0.05, 0.1),
+            robust: 3.0,
+            gate: 6.0,
+            max_iterations: 50,
+        }
+    }
+}
+
+/// Why a drive could not be re-anchored.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SolveError {
+    /// Fewer than two VO samples.
+    NoVo,
+    /// Neither GNSS fixes nor anchors within the VO's time span.
+    NothingToAnchorTo,
+    /// The fixes and anchors do not determine a first alignment.
+    Degenerate(String),
+    /// The normal equations could not be factored.
+    Singular,
+}
+
+impl std::fmt::Display for SolveError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SolveError::NoVo => f.write_str("fewer than two VO poses: there is no trajectory to re-anchor"),
+            SolveError::NothingToAnchorTo => f.write_str(
+                "nothing to anchor to: no GNSS fix and no anchor falls within the VO poses' time span (give --anchors)",
+            ),
+            SolveError::Degenerate(why) => write!(f, "the fixes and anchors do not determine an alignment: {why}"),
+            SolveError::Singular => f.write_str("the least-squares problem is singular"),
+        }
+    }
+}
+
+/// The re-anchored drive.
+#[derive(Clone, Debug)]
+pub struct Solution {
+    /// Keyframe times, s.
+    pub keyframe_t: Vec<f64>,
+    /// VO index of each keyframe.
+    keyframe_vo: Vec<usize>,
+    /// Camera positions at the keyframes, m.
+    pub positions: Vec<Vector3<f64>>,
+    /// Log-scale of each segment (the last repeats the one before).
+    pub log_scale: Vec<f64>,
+    /// Rotation of each segment.
+    pub rotation: Vec<Matrix3<f64>>,
+    /// GNSS latency, s.
+    pub latency_s: f64,
+    /// Wheel factor (true distance / odometer distance).
+    pub wheel_factor: f64,
+    /// Per fix: used (within the VO span and the gate).
+    pub fix_used: Vec<bool>,
+    /// Per anchor: used.
+    pub anchor_used: Vec<bool>,
+    /// Gauss–Newton iterations run.
+    pub iterations: usize,
+    /// A-posteriori variance factor (χ² / redundancy).
+    pub sigma0_sq: f64,
+    /// 1-σ of the drive's mean scale, relative.
+    pub scale_sigma: f64,
+    /// RMS 1-σ of the camera positions, m (from keyframes sampled along the drive).
+    pub position_sigma_m: f64,
+    /// RMS horizontal residual of the used fixes, m.
+    pub gnss_rms_m: f64,
+}
+
+/// Where a time falls: its segment, the fraction through it, the VO path's deviation
+/// from the segment's chord, and the VO velocity's deviation from the chord's.
+struct Place {
+    k: usize,
+    alpha: f64,
+    w: Vector3<f64>,
+    w_dot: Vector3<f64>,
+    vo_rotation: Matrix3<f64>,
+}
+
+fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
+    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+}
+
+/// One scalar residual, whitened: value and its Jacobian's non-zeros.
+#[derive(Clone, Copy)]
+struct Row {
+    value: f64,
+    index: [usize; 16],
+    coeff: [f64; 16],
+    len: usize,
+}
+
+impl Row {
+    fn new(value: f64) -> Self {
+        Row { value, index: [0; 16], coeff: [0.0; 16], len: 0 }
+    }
+    fn with(mut self, index: usize, coeff: f64) -> Self {
+        if coeff != 0.0 && self.len < 16 {
+            self.index[self.len] = index;
+            self.coeff[self.len] = coeff;
+            self.len += 1;
+        }
+        self
+    }
+}
+
+/// The normal equations `H δ = −g`, stored by block: diagonal blocks, the blocks coupling
+/// keyframe k and k + 1, each block's coupling with the globals, and the globals'.
+struct Normal {
+    blocks: usize,
+    diagonal: Vec<[[f64; BLOCK]; BLOCK]>,
+    next: Vec<[[f64; BLOCK]; BLOCK]>,
+    global: Vec<[[f64; GLOBALS]; BLOCK]>,
+    globals: [[f64; GLOBALS]; GLOBALS],
+    g: Vec<f64>,
+    chi2: f64,
+    rows: usize,
+}
+
+impl Normal {
+    fn new(blocks: usize) -> Self {
+        Normal {
+            blocks,
+            diagonal: vec![[[0.0; BLOCK]; BLOCK]; blocks],
+            next: vec![[[0.0; BLOCK]; BLOCK]; blocks],
+            global: vec![[[0.0; GLOBALS]; BLOCK]; blocks],
+            globals: [[0.0; GLOBALS]; GLOBALS],
+            g: vec![0.0; blocks * BLOCK + GLOBALS],
+            chi2: 0.0,
+            rows: 0,
+        }
+    }
+
+    fn size(&self) -> usize {
+        self.blocks * BLOCK + GLOBALS
+    }
+
+    /// H[i][j] += v for i ≤ j (the upper triangle).
+    fn add(&mut self, i: usize, j: usize, v: f64) {
+        let (i, j) = if i <= j { (i, j) } else { (j, i) };
+        let first_global = self.blocks * BLOCK;
+        match (i < first_global, j < first_global) {
+            (true, true) => {
+                let (bi, bj) = (i / BLOCK, j / BLOCK);
+                if bi == bj {
+                    self.diagonal[bi][i % BLOCK][j % BLOCK] += v;
+                } else if bj == bi + 1 {
+                    self.next[bi][i % BLOCK][j % BLOCK] += v;
+                }
+                // No residual couples keyframes further apart (see `place`).
+            }
+            (true, false) => self.global[i / BLOCK][i % BLOCK][j - first_global] += v,
+            _ => self.globals[i - first_global][j - first_global] += v,
+        }
+    }
+
+    fn push(&mut self, row: &Row, weight: f64) {
+        if weight <= 0.0 || !row.value.is_finite() {
+            return;
+        }
+        self.chi2 += weight * row.value * row.value;
+        self.rows += 1;
+        for a in 0..row.len {
+            self.g[row.index[a]] += weight * row.coeff[a] * row.value;
+            for b in 0..row.len {
+                if row.index[a] <= row.index[b] {
+                    self.add(row.index[a], row.index[b], weight * row.coeff[a] * row.coeff[b]);
+                }
+            }
+        }
+    }
+
+    /// The three rows of a 3-vector residual `r / σ` with Jacobian blocks `(first
+    /// unknown, 3×m matrix)`.
+    fn push3(&mut self, r: &Vector3<f64>, sigma: &Vector3<f64>, jac: &[(usize, &[Vector3<f64>])], weight: f64) {
+        for axis in 0..3 {
+            let mut row = Row::new(r[axis] / sigma[axis]);
+            for (first, columns) in jac {
+                for (c, column) in columns.iter().enumerate() {
+                    row = row.with(first + c, column[axis] / sigma[axis]);
+                }
+            }
+            self.push(&row, weight);
+        }
+    }
+
+    /// The upper triangle as a sparse matrix, the diagonal scaled by `1 + lambda` (and a
+    /// tiny absolute term, so that an unobserved unknown does not make it singular).
+    fn matrix(&self, lambda: f64) -> Result<SparseColMat<usize, f64>, SolveError> {
+        let mut triplets = Vec::with_capacity(self.blocks * (BLOCK * BLOCK * 2 + BLOCK * GLOBALS) + 4);
+        let first_global = self.blocks * BLOCK;
+        for b in 0..self.blocks {
+            for i in 0..BLOCK {
+                for j in i..BLOCK {
+                    let v = self.diagonal[b][i][j] * if i == j { 1.0 + lambda } else { 1.0 }
+                        + if i == j { 1e-9 } else { 0.0 };
+                    triplets.push(Triplet::new(b * BLOCK + i, b * BLOCK + j, v));
+                }
+                if b + 1 < self.blocks {
+                    for j in 0..BLOCK {
+                        let v = self.next[b][i][j];
+                        if v != 0.0 {
+                            triplets.push(Triplet::new(b * BLOCK + i, (b + 1) * BLOCK + j, v));
+                        }
+                    }
+                }
+                for j in 0..GLOBALS {
+                    let v = self.global[b][i][j];
+                    if v != 0.0 {
+                        triplets.push(Triplet::new(b * BLOCK + i, first_global + j, v));
+                    }
+                }
+            }
+        }
+        for i in 0..GLOBALS {
+            for j in i..GLOBALS {
+                let v = self.globals[i][j] * if i == j { 1.0 + lambda } else { 1.0 } + if i == j { 1e-9 } else { 0.0 };
+                triplets.push(Triplet::new(first_global + i, first_global + j, v));
+            }
+        }
+        SparseColMat::try_new_from_triplets(self.size(), self.size(), &triplets).map_err(|_| SolveError::Singular)
+    }
+}
+
+/// The problem's state during the iterations.
+#[derive(Clone)]
+struct State<'a> {
+    inputs: Inputs<'a>,
+    settings: Settings,
+    keyframe_vo: Vec<usize>,
+    keyframe_t: Vec<f64>,
+    p: Vec<Vector3<f64>>,
+    rho: Vec<f64>,
+    rotation: Vec<Matrix3<f64>>,
+    tau: f64,
+    omega: f64,
+    fix_weight: Vec<f64>,
+    anchor_weight: Vec<f64>,
+    /// Segment and offset of each VO-point anchor.
+    anchor_keyframe: Vec<usize>,
+    /// Odometer distance over each segment, m (NaN: no speed there).
+    odometer: Vec<f64>,
+}
+
+/// Interpolated VO position and velocity at `t` (the samples are in time order).
+fn vo_at(vo: &[VoSample], t: f64) -> Option<(Vector3<f64>, Vector3<f64>, Matrix3<f64>)> {
+    let j = vo.partition_point(|s| s.t <= t);
+    let (a, b) = (vo.get(j.checked_sub(1)?)?, vo.get(j).or_else(|| vo.get(j - 1).filter(|s| s.t == t))?);
+    if b.t == a.t {
+        let before = vo.get(j.checked_sub(2)?)?;
+        let v = (a.position - before.position) / (a.t - before.t);
+        return Some((a.position, v, a.rotation));
+    }
+    let f = (t - a.t) / (b.t - a.t);
+    let v = (b.position - a.position) / (b.t - a.t);
+    let rotation = if f < 0.5 { a.rotation } else { b.rotation };
+    Some((a.position + (b.position - a.position) * f, v, rotation))
+}
+
+/// A position residual, its σ per axis and its weight.
+#[derive(Clone, Copy)]
+struct Measured {
+    residual: Vector3<f64>,
+    sigma: Vector3<f64>,
+    weight: f64,
+}
+
+/// The trajectory an estimate describes: keyframes, their positions and the segments'
+/// similarities over the VO path.
+#[derive(Clone, Copy)]
+struct Geometry<'a> {
+    vo: &'a [VoSample],
+    keyframe_vo: &'a [usize],
+    keyframe_t: &'a [f64],
+    p: &'a [Vector3<f64>],
+    rho: &'a [f64],
+    rotation: &'a [Matrix3<f64>],
+}
+
+impl Geometry<'_> {
+    fn scale_rotation(&self, k: usize) -> Matrix3<f64> {
+        self.rotation[k] * self.rho[k].exp()
+    }
+
+    fn place(&self, t: f64) -> Option<Place> {
+        let last = *self.keyframe_t.last()?;
+        if !(t >= self.keyframe_t[0] && t <= last) || self.keyframe_t.len() < 2 {
+            return None;
+        }
+        let k = self.keyframe_t.partition_point(|&kt| kt <= t).saturating_sub(1).min(self.keyframe_t.len() - 2);
+        let (t0, t1) = (self.keyframe_t[k], self.keyframe_t[k + 1]);
+        let alpha = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+        let x0 = self.vo[self.keyframe_vo[k]].position;
+        let x1 = self.vo[self.keyframe_vo[k + 1]].position;
+        let (x, x_dot, vo_rotation) = vo_at(self.vo, t)?;
+        let chord = x1 - x0;
+        Some(Place { k, alpha, w: x - x0 - chord * alpha, w_dot: x_dot - chord / (t1 - t0), vo_rotation })
+    }
+
+    fn camera(&self, at: &Place) -> Vector3<f64> {
+        self.p[at.k] * (1.0 - at.alpha) + self.p[at.k + 1] * at.alpha + self.scale_rotation(at.k) * at.w
+    }
+
+    fn velocity(&self, at: &Place) -> Vector3<f64> {
+        let dt = self.keyframe_t[at.k + 1] - self.keyframe_t[at.k];
+        (self.p[at.k + 1] - self.p[at.k]) / dt + self.scale_rotation(at.k) * at.w_dot
+    }
+
+    /// The rear axle's offset from the camera in the world, for the camera-frame `lever`.
+    fn lever(&self, at: &Place, lever: &Vector3<f64>) -> Vector3<f64> {
+        self.rotation[at.k] * at.vo_rotation * lever
+    }
+
+    /// Jacobian columns of the camera position at `at`: p_k (3), p_{k+1} (3), ρ_k, φ_k (3).
+    fn camera_jacobian(&self, at: &Place) -> [Vector3<f64>; 10] {
+        let sw = self.scale_rotation(at.k) * at.w;
+        let minus_skew = -skew(&sw);
+        let (a, b) = (1.0 - at.alpha, at.alpha);
+        [
+            Vector3::new(a, 0.0, 0.0),
+            Vector3::new(0.0, a, 0.0),
+            Vector3::new(0.0, 0.0, a),
+            Vector3::new(b, 0.0, 0.0),
+            Vector3::new(0.0, b, 0.0),
+            Vector3::new(0.0, 0.0, b),
+            sw,
+            minus_skew.column(0).into(),
+            minus_skew.column(1).into(),
+            minus_skew.column(2).into(),
+        ]
+    }
+
+    /// The three rows of a position residual at `at` (with the rear axle's lever when the
+    /// rear axle is what is measured) and any further Jacobian blocks.
+    fn add_position_rows(
+        &self,
+        normal: &mut Normal,
+        at: &Place,
+        measured: Measured,
+        extra: &[(usize, &[Vector3<f64>])],
+        lever: Option<Vector3<f64>>,
+    ) {
+        let mut j = self.camera_jacobian(at);
+        if let Some(l) = lever {
+            // b = c − R·l: ∂/∂φ of −Exp(φ)·R̂·l is +[R̂·l]×.
+            let s = skew(&l);
+            for c in 0..3 {
+                j[7 + c] += Vector3::from(s.column(c));
+            }
+        }
+        let k = at.k * BLOCK;
+        let mut blocks: Vec<(usize, &[Vector3<f64>])> =
+            vec![(k, &j[0..3]), (k + BLOCK, &j[3..6]), (k + 3, &j[6..7]), (k + 4, &j[7..10])];
+        blocks.extend_from_slice(extra);
+        normal.push3(&measured.residual, &measured.sigma, &blocks, measured.weight);
+    }
+}
+
+impl State<'_> {
+    fn geometry(&self) -> Geometry<'_> {
+        Geometry {
+            vo: self.inputs.vo,
+            keyframe_vo: &self.keyframe_vo,
+            keyframe_t: &self.keyframe_t,
+            p: &self.p,
+            rho: &self.rho,
+            rotation: &self.rotation,
+        }
+    }
+
+    fn scale_rotation(&self, k: usize) -> Matrix3<f64> {
+        self.geometry().scale_rotation(k)
+    }
+
+    fn assemble(&self, robust: bool, gate: bool) -> (Normal, Vec<f64>, Vec<f64>) {
+        let s = &self.settings;
+        let blocks = self.keyframe_t.len();
+        let mut normal = Normal::new(blocks);
+        let global = blocks * BLOCK;
+        // Motion priors between neighbouring segments and the VO chords.
+        for k in 0..blocks - 1 {
+            let dt = (self.keyframe_t[k + 1] - self.keyframe_t[k]).max(1e-3);
+            let (b0, b1) = (k * BLOCK, (k + 1) * BLOCK);
+            if k + 2 < blocks {
+                let sigma = s.scale_walk * dt.sqrt();
+                normal.push(
+                    &Row::new((self.rho[k + 1] - self.rho[k]) / sigma)
+                        .with(b1 + 3, 1.0 / sigma)
+                        .with(b0 + 3, -1.0 / sigma),
+                    1.0,
+                );
+            }
+            let relative =
+                Rotation3::from_matrix_unchecked(self.rotation[k + 1] * self.rotation[k].transpose()).scaled_axis();
+            let sigma = if k + 2 < blocks { s.rotation_walk * dt.sqrt() } else { 1e-3 };
+            for axis in 0..3 {
+                normal.push(
+                    &Row::new(relative[axis] / sigma)
+                        .with(b1 + 4 + axis, 1.0 / sigma)
+                        .with(b0 + 4 + axis, -1.0 / sigma),
+                    1.0,
+                );
+            }
+            if k + 2 >= blocks {
+                // The last keyframe's segment is unused: tie its scale to the one before.
+                normal
+                    .push(&Row::new((self.rho[k + 1] - self.rho[k]) / 1e-3).with(b1 + 3, 1e3).with(b0 + 3, -1e3), 1.0);
+            }
+            let chord = self.inputs.vo[self.keyframe_vo[k + 1]].position - self.inputs.vo[self.keyframe_vo[k]].position;
+            let sd = self.scale_rotation(k) * chord;
+            let r = self.p[k + 1] - self.p[k] - sd;
+            let sigma = Vector3::repeat(s.vo_sigma.0 + s.vo_sigma.1 * sd.norm());
+            let plus_skew = skew(&sd);
+            let identity = [Vector3::x(), Vector3::y(), Vector3::z()];
+            let minus_identity = [-Vector3::x(), -Vector3::y(), -Vector3::z()];
+            let rotation_columns: [Vector3<f64>; 3] =
+                [plus_skew.column(0).into(), plus_skew.column(1).into(), plus_skew.column(2).into()];
+            normal.push3(
+                &r,
+                &sigma,
+                &[(b1, &identity), (b0, &minus_identity), (b0 + 3, &[-sd]), (b0 + 4, &rotation_columns)],
+                1.0,
+            );
+            // Wheel speed: the segment's metric length against the odometer.
+            let d = self.odometer[k];
+            if d.is_finite() && d >= 1.0 && chord.norm() > 0.0 {
+                let sigma = s.wheel_sigma.0 + s.wheel_sigma.1 / d;
+                let r = self.rho[k] + chord.norm().ln() - self.omega - d.ln();
+                let u = (r / sigma).abs();
+                let w = if robust { cauchy(u, s.robust) } else { 1.0 };
+                normal.push(&Row::new(r / sigma).with(b0 + 3, 1.0 / sigma).with(global + OMEGA, -1.0 / sigma), w);
+            }
+        }
+        if s.gravity_aligned {
+            // Only yaw varies: roll and pitch increments are held at zero.
+            for b in 0..blocks {
+                for axis in 0..2 {
+                    normal.push(&Row::new(0.0).with(b * BLOCK + 4 + axis, 1e4), 1.0);
+                }
+            }
+        }
+        // Priors on the globals.
+        let (mean, sigma) = s.latency_prior;
+        normal.push(&Row::new((self.tau - mean) / sigma).with(global + TAU, 1.0 / sigma), 1.0);
+        normal.push(&Row::new(self.omega / s.wheel_factor_sigma).with(global + OMEGA, 1.0 / s.wheel_factor_sigma), 1.0);
+        let geometry = self.geometry();
+        // GNSS.
+        let inflation = self.fix_inflation();
+        let mut fix_u = vec![f64::NAN; self.inputs.fixes.len()];
+        for (i, fix) in self.inputs.fixes.iter().enumerate() {
+            let Some(at) = geometry.place(fix.t - self.tau) else { continue };
+            let r = geometry.camera(&at) - fix.enu;
+            let raw = Vector3::new(fix.sigma_h, fix.sigma_h, fix.sigma_v);
+            let u = r.component_div(&raw).norm() / 3f64.sqrt();
+            fix_u[i] = u;
+            let mut w = self.fix_weight[i];
+            if robust {
+                w = cauchy(u, s.robust);
+            }
+            if gate && u > s.gate {
+                w = 0.0;
+            }
+            let v = -geometry.velocity(&at);
+            geometry.add_position_rows(
+                &mut normal,
+                &at,
+                Measured { residual: r, sigma: raw * inflation, weight: w },
+                &[(global + TAU, &[v])],
+                None,
+            );
+        }
+        // Anchors.
+        let mut anchor_u = vec![f64::NAN; self.inputs.anchors.len()];
+        for (i, anchor) in self.inputs.anchors.iter().enumerate() {
+            let w0 = self.anchor_weight[i];
+            if w0 <= 0.0 {
+                continue;
+            }
+            let sigma = Vector3::repeat(anchor.sigma);
+            let (r, u) = match anchor.at {
+                AnchorAt::Time(t) => {
+                    let Some(at) = geometry.place(t) else { continue };
+                    let lever = geometry.lever(&at, &self.inputs.lever);
+                    let r = geometry.camera(&at) - lever - anchor.enu;
+                    let u = r.norm() / anchor.sigma / 3f64.sqrt();
+                    let w = weight(w0, u, robust, gate, s);
+                    geometry.add_position_rows(
+                        &mut normal,
+                        &at,
+                        Measured { residual: r, sigma, weight: w },
+                        &[],
+                        Some(lever),
+                    );
+                    (r, u)
+                }
+                AnchorAt::VoPoint(x) => {
+                    let k = self.anchor_keyframe[i];
+                    let offset = x - self.inputs.vo[self.keyframe_vo[k]].position;
+                    let su = self.scale_rotation(k) * offset;
+                    let r = self.p[k] + su - anchor.enu;
+                    let u = r.norm() / anchor.sigma / 3f64.sqrt();
+                    let w = weight(w0, u, robust, gate, s);
+                    let m = -skew(&su);
+                    let identity = [Vector3::x(), Vector3::y(), Vector3::z()];
+                    let rotation_columns: [Vector3<f64>; 3] =
+                        [m.column(0).into(), m.column(1).into(), m.column(2).into()];
+                    let b = k * BLOCK;
+                    normal.push3(&r, &sigma, &[(b, &identity), (b + 3, &[su]), (b + 4, &rotation_columns)], w);
+                    (r, u)
+                }
+            };
+            let _ = r;
+            anchor_u[i] = u;
+        }
+        (normal, fix_u, anchor_u)
+    }
+
+    /// GNSS errors are correlated over `gnss_correlation_s`: fixes closer than that carry
+    /// together about the information of one, so each counts √(τc / interval) less.
+    fn fix_inflation(&self) -> f64 {
+        let fixes = self.inputs.fixes;
+        let (Some(first), Some(last)) = (fixes.first(), fixes.last()) else { return 1.0 };
+        if fixes.len() < 2 {
+            return 1.0;
+        }
+        let interval = (last.t - first.t) / (fixes.len() - 1) as f64;
+        (self.settings.gnss_correlation_s / interval.max(1e-3)).max(1.0).sqrt()
+    }
+
+    fn apply(&mut self, delta: &[f64]) -> f64 {
+        let mut largest: f64 = 0.0;
+        for k in 0..self.p.len() {
+            let b = k * BLOCK;
+            let dp = Vector3::new(delta[b], delta[b + 1], delta[b + 2]);
+            largest = largest.max(dp.norm());
+            self.p[k] += dp;
+            self.rho[k] += delta[b + 3];
+            let dphi = Vector3::new(delta[b + 4], delta[b + 5], delta[b + 6]);
+            largest = largest.max(dphi.norm() * 10.0);
+            self.rotation[k] = Rotation3::new(dphi).into_inner() * self.rotation[k];
+        }
+        let global = self.p.len() * BLOCK;
+        self.tau = (self.tau + delta[global + TAU]).clamp(-0.5, 1.0);
+        self.omega += delta[global + OMEGA];
+        largest
+    }
+}
+
+fn cauchy(u: f64, c: f64) -> f64 {
+    1.0 / (1.0 + (u / c) * (u / c))
+}
+
+fn weight(w0: f64, u: f64, robust: bool, gate: bool, s: &Settings) -> f64 {
+    if gate && u > s.gate {
+        0.0
+    } else if robust {
+        w0 * cauchy(u, s.robust)
+    } else {
+        w0
+    }
+}
+
+/// Keyframes: the first VO sample, then each at least `spacing` after the previous, and
+/// the last.
+fn keyframes(vo: &[VoSample], spacing: f64) -> Vec<usize> {
+    let mut out = vec![0];
+    for (j, s) in vo.iter().enumerate().skip(1) {
+        if s.t - vo[out[out.len() - 1]].t >= spacing {
+            out.push(j);
+        }
+    }
+    if out.last() != Some(&(vo.len() - 1)) {
+        if vo.len() >= 2 && out.len() >= 2 && vo[vo.len() - 1].t - vo[out[out.len() - 1]].t < 0.5 * spacing {
+            out.pop();
+        }
+        out.push(vo.len() - 1);
+    }
+    out
+}
+
+/// Distance the wheels covered between keyframes (trapezoids; NaN where a gap of more
+/// than 1 s leaves it unknown).
+fn odometer(speeds: &[(f64, f64)], keyframe_t: &[f64]) -> Vec<f64> {
+    let mut out = vec![f64::NAN; keyframe_t.len()];
+    for (k, w) in keyframe_t.windows(2).enumerate() {
+        let (t0, t1) = (w[0], w[1]);
+        let start = speeds.partition_point(|s| s.0 < t0).saturating_sub(1);
+        let mut distance = 0.0;
+        let mut covered = 0.0;
+        for pair in speeds[start..].windows(2) {
+            let ((ta, va), (tb, vb)) = (pair[0], pair[1]);
+            if ta >= t1 {
+                break;
+            }
+            let (a, b) = (ta.max(t0), tb.min(t1));
+            if b <= a || tb - ta > 1.0 {
+                continue;
+            }
+            let speed = |t: f64| va + (vb - va) * (t - ta) / (tb - ta);
+            distance += 0.5 * (speed(a) + speed(b)) * (b - a);
+            covered += b - a;
+        }
+        if covered >= 0.9 * (t1 - t0) {
+            out[k] = distance * (t1 - t0) / covered;
+        }
+    }
+    out
+}
+
+/// A first alignment of the whole VO path: Umeyama on the fixes (or, without fixes, the
+/// anchors) paired with the VO positions at their times.
+fn initial_alignment(inputs: &Inputs<'_>, gravity: bool) -> Result<Sim3, SolveError> {
+    let mut moments = Moments::default();
+    for fix in inputs.fixes {
+        if let Some((x, _, _)) = vo_at(inputs.vo, fix.t) {
+            let _ = moments.push(&x, &fix.enu, 1.0 / (fix.sigma_h * fix.sigma_h));
+        }
+    }
+    if moments.count() < 3 {
+        for anchor in inputs.anchors {
+            let x = match anchor.at {
+                AnchorAt::Time(t) => vo_at(inputs.vo, t).map(|(x, _, _)| x),
+                AnchorAt::VoPoint(x) => Some(x),
+            };
+            if let Some(x) = x {
+                let _ = moments.push(&x, &anchor.enu, 1.0 / (anchor.sigma * anchor.sigma));
+            }
+        }
+    }
+    if moments.count() == 0 {
+        return Err(SolveError::NothingToAnchorTo);
+    }
+    let mode = if gravity { AlignMode::YawScale } else { AlignMode::Sim3 };
+    moments.align(mode).map_err(|e| SolveError::Degenerate(format!("{e:?} ({} positions)", moments.count())))
+}
+
+/// One damped Gauss–Newton step: `(H + λ·diag H) δ = −g`.
+fn solve_normal(normal: &Normal, lambda: f64) -> Result<Vec<f64>, SolveError> {
+    let llt = normal.matrix(lambda)?.sp_cholesky(Side::Upper).map_err(|_| SolveError::Singular)?;
+    let rhs = Mat::from_fn(normal.size(), 1, |i, _| -normal.g[i]);
+    let delta = llt.solve(&rhs);
+    let delta: Vec<f64> = (0..normal.size()).map(|i| delta[(i, 0)]).collect();
+    if delta.iter().any(|v| !v.is_finite()) {
+        return Err(SolveError::Singular);
+    }
+    Ok(delta)
+}
+
+/// Re-anchor the drive. `anchor_enabled` says which anchors take part (the caller gates
+/// them against a solution without them).
+pub fn solve(inputs: Inputs<'_>, settings: Settings, anchor_enabled: &[bool]) -> Result<Solution, SolveError> {
+    if inputs.vo.len() < 2 {
+        return Err(SolveError::NoVo);
+    }
+    let (t_first, t_last) = (inputs.vo[0].t, inputs.vo[inputs.vo.len() - 1].t);
+    let within = |t: f64| t >= t_first && t <= t_last;
+    let has_fix = inputs.fixes.iter().any(|f| within(f.t));
+    let has_anchor = inputs.anchors.iter().zip(anchor_enabled).any(|(a, &on)| {
+        on && match a.at {
+            AnchorAt::Time(t) => within(t),
+            AnchorAt::VoPoint(_) => true,
+        }
+    });
+    if !has_fix && !has_anchor {
+        return Err(SolveError::NothingToAnchorTo);
+    }
+    let initial = initial_alignment(&inputs, settings.gravity_aligned)?;
+    let keyframe_vo = keyframes(inputs.vo, settings.keyframe_s);
+    let keyframe_t: Vec<f64> = keyframe_vo.iter().map(|&j| inputs.vo[j].t).collect();
+    let anchor_keyframe = inputs
+        .anchors
+        .iter()
+        .map(|a| match a.at {
+            AnchorAt::VoPoint(x) => nearest_keyframe(inputs.vo, &keyframe_vo, &x),
+            AnchorAt::Time(_) => 0,
+        })
+        .collect();
+    let blocks = keyframe_vo.len();
+    let mut state = State {
+        inputs,
+        settings,
+        p: keyframe_vo.iter().map(|&j| initial.transform_point(&inputs.vo[j].position)).collect(),
+        rho: vec![initial.scale.ln(); blocks],
+        rotation: vec![initial.rotation; blocks],
+        tau: settings.latency_prior.0,
+        omega: 0.0,
+        fix_weight: vec![1.0; inputs.fixes.len()],
+        anchor_weight: anchor_enabled.iter().map(|&on| if on { 1.0 } else { 0.0 }).collect(),
+        anchor_keyframe,
+        odometer: odometer(inputs.speeds, &keyframe_t),
+        keyframe_vo,
+        keyframe_t,
+    };
+    // Levenberg–Marquardt on the reweighted problem: robust weights from the second
+    // iteration on, the gate from the fourth (a first alignment far from the truth must not
+    // reject what is right); a step that does not lower the cost is retried with more damping.
+    let flags = |iteration: usize| (iteration >= 2, iteration >= 4);
+    let mut iterations = 0;
+    let mut lambda = 1e-4;
+    let mut current_flags = (false, false);
+    let mut current = state.assemble(false, false);
+    while iterations < settings.max_iterations {
+        iterations += 1;
+        let f = flags(iterations);
+        if f != current_flags {
+            current = state.assemble(f.0, f.1);
+            current_flags = f;
+        }
+        let delta = solve_normal(&current.0, lambda)?;
+        let mut trial = state.clone();
+        let step = trial.apply(&delta);
+        let assembled = trial.assemble(f.0, f.1);
+        if assembled.0.chi2 <= current.0.chi2 * (1.0 + 1e-12) + 1e-12 {
+            state = trial;
+            current = assembled;
+            lambda = (lambda * 0.1).max(1e-9);
+            if iterations >= 5 && step < 1e-4 {
+                break;
+            }
+        } else {
+            lambda *= 10.0;
+            if lambda > 1e8 {
+                break;
+            }
+        }
+    }
+    let (normal, fix_u, anchor_u) = current;
+    let (chi2, rows) = (normal.chi2, normal.rows);
+    let llt = normal.matrix(0.0)?.sp_cholesky(Side::Upper).map_err(|_| SolveError::Singular)?;
+    let unknowns = blocks * BLOCK + GLOBALS;
+    let sigma0_sq = chi2 / (rows.saturating_sub(unknowns).max(1)) as f64;
+    let gate = settings.gate;
+    let fix_used: Vec<bool> = fix_u.iter().map(|u| u.is_finite() && *u <= gate).collect();
+    let anchor_used: Vec<bool> =
+        anchor_u.iter().zip(anchor_enabled).map(|(u, &on)| on && u.is_finite() && *u <= gate).collect();
+    let inflation_factor = sigma0_sq.max(1.0).sqrt();
+    // The drive's mean log-scale (segments weighted by duration): aᵀ H⁻¹ a.
+    let n = unknowns;
+    let total: f64 = state.keyframe_t.windows(2).map(|w| w[1] - w[0]).sum();
+    let mean_scale = Mat::from_fn(n, 1, |i, _| {
+        let k = i / BLOCK;
+        if i < blocks * BLOCK && i % BLOCK == 3 && k + 1 < blocks {
+            (state.keyframe_t[k + 1] - state.keyframe_t[k]) / total
+        } else {
+            0.0
+        }
+    });
+    let solved = llt.solve(&mean_scale);
+    let scale_var: f64 = (0..n).map(|i| mean_scale[(i, 0)] * solved[(i, 0)]).sum();
+    // Position σ at up to 32 keyframes along the drive.
+    let count = blocks.min(32);
+    let samples: Vec<usize> = (0..count).map(|i| if count > 1 { i * (blocks - 1) / (count - 1) } else { 0 }).collect();
+    let rhs = Mat::from_fn(n, samples.len() * 3, |i, c| if i == samples[c / 3] * BLOCK + c % 3 { 1.0 } else { 0.0 });
+    let cov = llt.solve(&rhs);
+    let trace: f64 = (0..samples.len() * 3).map(|c| cov[(samples[c / 3] * BLOCK + c % 3, c)]).sum();
+    let position_var = trace / samples.len().max(1) as f64;
+    let mut sse = 0.0;
+    let mut used = 0;
+    for (fix, &ok) in inputs.fixes.iter().zip(&fix_used) {
+        if let (true, Some(at)) = (ok, state.geometry().place(fix.t - state.tau)) {
+            let r = state.geometry().camera(&at) - fix.enu;
+            sse += r.x * r.x + r.y * r.y;
+            used += 1;
+        }
+    }
+    let last_rho = state.rho[blocks.saturating_sub(2)];
+    if let Some(r) = state.rho.last_mut() {
+        *r = last_rho;
+    }
+    Ok(Solution {
+        positions: state.p,
+        log_scale: state.rho,
+        rotation: state.rotation,
+        latency_s: state.tau,
+        wheel_factor: state.omega.exp(),
+        fix_used,
+        anchor_used,
+        iterations,
+        sigma0_sq,
+        scale_sigma: scale_var.max(0.0).sqrt() * inflation_factor,
+        position_sigma_m: position_var.max(0.0).sqrt() * inflation_factor,
+        gnss_rms_m: if used > 0 { (sse / used as f64).sqrt() } else { f64::NAN },
+        keyframe_t: state.keyframe_t,
+        keyframe_vo: state.keyframe_vo,
+    })
+}
+
+fn nearest_keyframe(vo: &[VoSample], keyframe_vo: &[usize], x: &Vector3<f64>) -> usize {
+    keyframe_vo
+        .iter()
+        .enumerate()
+        .take(keyframe_vo.len().saturating_sub(1).max(1))
+        .min_by(|a, b| (vo[*a.1].position - x).norm_squared().total_cmp(&(vo[*b.1].position - x).norm_squared()))
+        .map_or(0, |(k, _)| k)
+}
+
+impl Solution {
+    /// The camera's world pose at `t` (None outside the VO's time span).
+    pub fn camera_at(&self, vo: &[VoSample], t: f64) -> Option<(Vector3<f64>, Matrix3<f64>)> {
+        let geometry = self.geometry(vo);
+        let at = geometry.place(t)?;
+        Some((geometry.camera(&at), self.rotation[at.k] * at.vo_rotation))
+    }
+
+    /// The VO → world similarity of segment `k` (translation from the keyframe's position).
+    pub fn sim3(&self, vo: &[VoSample], k: usize) -> Sim3 {
+        let scale = self.log_scale[k].exp();
+        let x = vo[self.keyframe_vo[k]].position;
+        Sim3 { rotation: self.rotation[k], scale, translation: self.positions[k] - self.rotation[k] * x * scale }
+    }
+
+    fn geometry<'a>(&'a self, vo: &'a [VoSample]) -> Geometry<'a> {
+        Geometry {
+            vo,
+            keyframe_vo: &self.keyframe_vo,
+            keyframe_t: &self.keyframe_t,
+            p: &self.positions,
+            rho: &self.log_scale,
+            rotation: &self.rotation,
+        }
+    }
+
+    /// Residual of an anchor under this solution, m (None when it falls outside the drive).
+    pub fn anchor_residual(&self, inputs: &Inputs<'_>, anchor: &Anchor) -> Option<f64> {
+        let geometry = self.geometry(inputs.vo);
+        match anchor.at {
+            AnchorAt::Time(t) => {
+                let at = geometry.place(t)?;
+                let lever = geometry.lever(&at, &inputs.lever);
+                Some((geometry.camera(&at) - lever - anchor.enu).norm())
+            }
+            AnchorAt::VoPoint(x) => {
+                let k = nearest_keyframe(inputs.vo, &self.keyframe_vo, &x);
+                Some((self.sim3(inputs.vo, k).transform_point(&x) - anchor.enu).norm())
+            }
+        }
+    }
+}

@@ -1,0 +1,228 @@
+//! 3D tracks under the finished anchoring: each state re-expressed through the finished
+//! ego pose of its frame, each moving track smoothed (RTS, constant velocity), each static
+//! object merged to one pose.
+//!
+//! The device placed a detection through its online ego pose; what it saw relative to the
+//! car is right, where the car was is what finishing corrects. So a state is taken back
+//! into the ego's frame with the online pose and out again with the finished one (planar:
+//! x, y, heading; the height above the ego's ground is kept).
+
+use std::collections::BTreeMap;
+
+use dash2sim_core::binlog::{quantise, Track3d, Tracks3d, MAX_TRACKS};
+use dash2sim_core::ekf::{rts_smooth, Kalman, SmoothStep};
+use dash2sim_core::nalgebra::{Matrix2, Matrix2x4, Matrix4, Vector2, Vector4};
+use dash2sim_core::track3d::wrap_angle;
+
+/// A planar ego pose with its height: x, y, z (m), heading (rad).
+pub type EgoAt = [f64; 4];
+
+/// Position noise of a re-expressed state for the smoother, m.
+const MEASUREMENT_SIGMA_M: f64 = 0.3;
+/// Acceleration noise of the constant-velocity model, m/s².
+const ACCELERATION_SIGMA: f64 = 2.0;
+
+/// What happened to the tracks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TrackStats {
+    /// Track states in.
+    pub states: usize,
+    /// States whose frame had no online or no finished ego pose (dropped).
+    pub unplaced: usize,
+    /// Moving tracks smoothed.
+    pub smoothed: usize,
+    /// Static objects merged to one pose.
+    pub merged_static: usize,
+}
+
+/// Re-express, smooth and merge. `online` and `finished` give the ego at a time (µs).
+pub fn finish_tracks(
+    batches: &[Tracks3d],
+    online: &impl Fn(i64) -> Option<EgoAt>,
+    finished: &impl Fn(i64) -> Option<EgoAt>,
+) -> (Vec<Tracks3d>, TrackStats) {
+    let mut stats = TrackStats::default();
+    let mut by_id: BTreeMap<i64, Vec<(i64, Track3d)>> = BTreeMap::new();
+    for batch in batches {
+        for track in &batch.tracks {
+            stats.states += 1;
+            match (online(batch.t_us), finished(batch.t_us)) {
+                (Some(a), Some(b)) => by_id.entry(track.id).or_default().push((batch.t_us, reexpress(track, &a, &b))),
+                _ => stats.unplaced += 1,
+            }
+        }
+    }
+    let mut by_time: BTreeMap<i64, Vec<Track3d>> = BTreeMap::new();
+    for states in by_id.values_mut() {
+        states.sort_by_key(|s| s.0);
+        let statics = states.iter().filter(|(_, s)| s.is_static == 1).count();
+        if 2 * statics > states.len() {
+            merge_static(states);
+            stats.merged_static += 1;
+        } else if states.len() >= 2 {
+            smooth(states);
+            stats.smoothed += 1;
+        }
+        for (t, s) in states.iter() {
+            by_time.entry(*t).or_default().push(*s);
+        }
+    }
+    let mut out = Vec::new();
+    for (t_us, tracks) in by_time {
+        for chunk in tracks.chunks(MAX_TRACKS) {
+            let mut batch = Tracks3d { t_us, ..Tracks3d::default() };
+            for t in chunk {
+                let _ = batch.tracks.push(*t);
+            }
+            out.push(batch);
+        }
+    }
+    (out, stats)
+}
+
+/// A state placed through the online ego `a`, placed again through the finished ego `b`.
+fn reexpress(t: &Track3d, a: &EgoAt, b: &EgoAt) -> Track3d {
+    let (x, y) = (t.x_mm as f64 * 1e-3, t.y_mm as f64 * 1e-3);
+    let (sa, ca) = a[3].sin_cos();
+    let (dx, dy) = (x - a[0], y - a[1]);
+    let (fx, fy) = (ca * dx + sa * dy, -sa * dx + ca * dy);
+    let turn = b[3] - a[3];
+    let (sb, cb) = b[3].sin_cos();
+    let (st, ct) = turn.sin_cos();
+    let (vx, vy) = (t.vx_mm_s as f64 * 1e-3, t.vy_mm_s as f64 * 1e-3);
+    Track3d {
+        x_mm: quantise(b[0] + cb * fx - sb * fy, 1e-3),
+        y_mm: quantise(b[1] + sb * fx + cb * fy, 1e-3),
+        z_mm: quantise(t.z_mm as f64 * 1e-3 - a[2] + b[2], 1e-3),
+        yaw_e4: quantise(wrap_angle(t.yaw_e4 as f64 * 1e-4 + turn), 1e-4),
+        vx_mm_s: quantise(ct * vx - st * vy, 1e-3),
+        vy_mm_s: quantise(st * vx + ct * vy, 1e-3),
+        ..*t
+    }
+}
+
+fn median(mut v: Vec<i64>) -> i64 {
+    v.sort_unstable();
+    v.get(v.len() / 2).copied().unwrap_or(0)
+}
+
+/// One pose for the whole track: the median position and size, the circular mean heading.
+fn merge_static(states: &mut [(i64, Track3d)]) {
+    let pick = |f: fn(&Track3d) -> i64| median(states.iter().map(|(_, s)| f(s)).collect());
+    let (sin, cos) = states.iter().fold((0.0, 0.0), |(s, c), (_, t)| {
+        let (a, b) = (t.yaw_e4 as f64 * 1e-4).sin_cos();
+        (s + a, c + b)
+    });
+    let merged = Track3d {
+        x_mm: pick(|s| s.x_mm),
+        y_mm: pick(|s| s.y_mm),
+        z_mm: pick(|s| s.z_mm),
+        l_mm: pick(|s| s.l_mm),
+        w_mm: pick(|s| s.w_mm),
+        h_mm: pick(|s| s.h_mm),
+        yaw_e4: quantise(f64::atan2(sin, cos), 1e-4),
+        vx_mm_s: 0,
+        vy_mm_s: 0,
+        is_static: 1,
+        ..states[0].1
+    };
+    for (_, s) in states.iter_mut() {
+        *s = Track3d { class: s.class, ..merged };
+    }
+}
+
+/// Constant-velocity Kalman filter over the positions, then Rauch–Tung–Striebel.
+fn smooth(states: &mut [(i64, Track3d)]) {
+    let h = Matrix2x4::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0);
+    let r = Matrix2::identity() * MEASUREMENT_SIGMA_M * MEASUREMENT_SIGMA_M;
+    let first = &states[0].1;
+    let x0 = Vector4::new(
+        first.x_mm as f64 * 1e-3,
+        first.y_mm as f64 * 1e-3,
+        first.vx_mm_s as f64 * 1e-3,
+        first.vy_mm_s as f64 * 1e-3,
+    );
+    let mut kf = Kalman::new(x0, Matrix4::from_diagonal(&Vector4::new(0.09, 0.09, 4.0, 4.0)));
+    let mut steps = Vec::with_capacity(states.len());
+    let mut previous = states[0].0;
+    for (k, (t, s)) in states.iter().enumerate() {
+        let dt = (*t - previous) as f64 * 1e-6;
+        previous = *t;
+        let mut f = Matrix4::identity();
+        f[(0, 2)] = dt;
+        f[(1, 3)] = dt;
+        let q2 = ACCELERATION_SIGMA * ACCELERATION_SIGMA;
+        let (a, b, c) = (dt.powi(3) / 3.0 * q2, dt * dt / 2.0 * q2, dt * q2);
+        let q = Matrix4::new(a, 0.0, b, 0.0, 0.0, a, 0.0, b, b, 0.0, c, 0.0, 0.0, b, 0.0, c);
+        if k > 0 {
+            kf.predict(&f, &q);
+        }
+        let z = Vector2::new(s.x_mm as f64 * 1e-3, s.y_mm as f64 * 1e-3);
+        // A refused update (not finite) leaves the prediction: the smoother bridges it.
+        let _ = kf.update(&z, &h, &r);
+        steps.push(SmoothStep { f, q, ..SmoothStep::filtered(&kf) });
+    }
+    rts_smooth(&mut steps);
+    for ((_, s), step) in states.iter_mut().zip(&steps) {
+        s.x_mm = quantise(step.x[0], 1e-3);
+        s.y_mm = quantise(step.x[1], 1e-3);
+        s.vx_mm_s = quantise(step.x[2], 1e-3);
+        s.vy_mm_s = quantise(step.x[3], 1e-3);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn track(id: i64, x: f64, y: f64, is_static: i64) -> Track3d {
+        Track3d {
+            id,
+            class: 3,
+            x_mm: quantise(x, 1e-3),
+            y_mm: quantise(y, 1e-3),
+            l_mm: 500,
+            w_mm: 500,
+            h_mm: 700,
+            is_static,
+            ..Track3d::default()
+        }
+    }
+
+    #[test]
+    fn a_state_follows_the_ego_from_the_online_to_the_finished_pose() {
+        // Online ego at the origin heading east sees a cone 10 m ahead; the finished ego is
+        // at (5, 5) heading north: the cone is 10 m north of it.
+        let t = track(1, 10.0, 0.0, 1);
+        let moved = reexpress(&t, &[0.0, 0.0, 0.0, 0.0], &[5.0, 5.0, 1.0, std::f64::consts::FRAC_PI_2]);
+        assert_eq!((moved.x_mm, moved.y_mm, moved.z_mm), (5000, 15000, 1000));
+        assert_eq!(moved.yaw_e4, quantise(std::f64::consts::FRAC_PI_2, 1e-4));
+    }
+
+    #[test]
+    fn a_static_object_becomes_one_pose_and_a_moving_one_is_smoothed() {
+        let mut batches = Vec::new();
+        for k in 0..50 {
+            let jitter = if k % 2 == 0 { 0.2 } else { -0.2 };
+            let mut b = Tracks3d { t_us: k * 100_000, ..Tracks3d::default() };
+            let _ = b.tracks.push(track(1, 20.0 + jitter, 3.0, 1));
+            let _ = b.tracks.push(track(2, k as f64 + jitter, 0.0, 0));
+            batches.push(b);
+        }
+        let same = |_t: i64| Some([0.0; 4]);
+        let none_late = |t: i64| if t < 4_900_000 { Some([0.0; 4]) } else { None };
+        let (out, stats) = finish_tracks(&batches, &same, &none_late);
+        assert_eq!(stats, TrackStats { states: 100, unplaced: 2, smoothed: 1, merged_static: 1 });
+        let cones: Vec<&Track3d> = out.iter().flat_map(|b| b.tracks.iter()).filter(|t| t.id == 1).collect();
+        assert_eq!(cones.len(), 49);
+        assert!(cones.iter().all(|c| c == &cones[0]), "one pose");
+        assert_eq!(cones[0].x_mm, 19_800, "the median of ±0.2 m jitter");
+        let moving: Vec<f64> =
+            out.iter().flat_map(|b| b.tracks.iter()).filter(|t| t.id == 2).map(|t| t.x_mm as f64 * 1e-3).collect();
+        let error = |xs: &[f64]| {
+            (xs.iter().enumerate().map(|(k, x)| (x - k as f64).powi(2)).sum::<f64>() / xs.len() as f64).sqrt()
+        };
+        let raw: Vec<f64> = (0..49).map(|k| k as f64 + if k % 2 == 0 { 0.2 } else { -0.2 }).collect();
+        assert!(error(&moving) < 0.5 * error(&raw), "smoothed {} raw {}", error(&moving), error(&raw));
+    }
+}

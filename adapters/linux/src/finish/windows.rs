@@ -1,0 +1,150 @@
+//! Verification of a finished drive: per window of nuPlan scenario length and for the
+//! whole drive, channel-insensitive (every lane is drivable, as the device verifies) and
+//! channel-sensitive (only lanes along the driven route, which needs the whole route and
+//! so is offline work; `docs/verify.md`).
+
+use dash2sim_core::binlog::Record;
+use dash2sim_core::map::MapView;
+use dash2sim_core::obb::{Pose2, PACIFICA};
+use dash2sim_core::pipeline::verification_record;
+use dash2sim_core::score::Scores;
+use serde_json::{json, Map, Value};
+
+use super::event;
+use crate::logfile::LogContents;
+use crate::verify::{replay, AgentsByTime};
+
+/// nuPlan's scenario length, s.
+pub const WINDOW_S: f64 = 15.0;
+
+/// What verification adds to the finished log and the report.
+#[derive(Debug)]
+pub struct Verified {
+    /// `Verification` records (channel-insensitive, one per window, as the device writes
+    /// them) and an event per window and for the drive with both modes.
+    pub records: Vec<Record>,
+    /// The `verification` object of the report.
+    pub report: Value,
+}
+
+fn scores_json(s: &Scores) -> Value {
+    json!({
+        "score": s.score,
+        "verified": s.verified,
+        "no_at_fault_collisions": s.no_at_fault_collisions,
+        "drivable_area_compliance": s.drivable_area,
+        "driving_direction_compliance": s.driving_direction,
+        "ego_is_making_progress": s.making_progress,
+        "ego_progress_along_expert_route": s.progress,
+        "time_to_collision_within_bound": s.ttc,
+        "speed_limit_compliance": s.speed_limit,
+        "ego_is_comfortable": s.comfort,
+    })
+}
+
+fn both(map: MapView<'_>, poses: &[(f64, Pose2)], agents: &AgentsByTime) -> Result<(Scores, Scores), String> {
+    Ok((replay(map, poses, agents, false, PACIFICA)?.scores, replay(map, poses, agents, true, PACIFICA)?.scores))
+}
+
+fn verdict(s: &Scores) -> &'static str {
+    if s.verified {
+        "verified"
+    } else {
+        "not verified"
+    }
+}
+
+/// Verify the finished `records` (ego poses and tracks; `source` gives the header) on the
+/// map tile `map`.
+pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map: &[u8]) -> Result<Verified, String> {
+    let view = MapView::parse(map).map_err(|e| format!("map: {e}"))?;
+    let contents = LogContents {
+        header: source.header,
+        records: records.to_vec(),
+        damage: Vec::new(),
+        stats: source.stats,
+        bytes: 0,
+    };
+    let (poses, agents) = crate::verify::from_contents(&contents, name, &view)?;
+    let mut out = Vec::new();
+    let mut windows = Vec::new();
+    let mut start = 0;
+    while start < poses.len() {
+        let t0 = poses[start].0;
+        let end = start + poses[start..].partition_point(|(t, _)| *t < t0 + WINDOW_S);
+        // A last window shorter than half a scenario is not one.
+        if poses[end - 1].0 - t0 >= 0.5 * WINDOW_S || windows.is_empty() {
+            let (insensitive, sensitive) = both(view, &poses[start..end], &agents)?;
+            let t_us = (poses[end - 1].0 * 1e6).round() as i64;
+            out.push(Record::Verification(verification_record(t_us, &insensitive)));
+            out.push(event(
+                t_us,
+                2,
+                &format!(
+                    "finished window {:.1}–{:.1} s: score {:.2} channel-insensitive ({}), {:.2} channel-sensitive ({})",
+                    t0 - poses[0].0,
+                    poses[end - 1].0 - poses[0].0,
+                    insensitive.score,
+                    verdict(&insensitive),
+                    sensitive.score,
+                    verdict(&sensitive)
+                ),
+            ));
+            windows.push(json!({
+                "start_s": t0 - poses[0].0,
+                "end_s": poses[end - 1].0 - poses[0].0,
+                "channel_insensitive": scores_json(&insensitive),
+                "channel_sensitive": scores_json(&sensitive),
+            }));
+        }
+        start = end;
+    }
+    let (insensitive, sensitive) = both(view, &poses, &agents)?;
+    if let Some((t, _)) = poses.last() {
+        out.push(event(
+            (t * 1e6).round() as i64,
+            2,
+            &format!(
+                "finished drive: score {:.2} channel-insensitive ({}), {:.2} channel-sensitive ({})",
+                insensitive.score,
+                verdict(&insensitive),
+                sensitive.score,
+                verdict(&sensitive)
+            ),
+        ));
+    }
+    Ok(Verified {
+        records: out,
+        report: json!({
+            "window_s": WINDOW_S,
+            "windows": windows,
+            "drive": {"channel_insensitive": scores_json(&insensitive), "channel_sensitive": scores_json(&sensitive)},
+        }),
+    })
+}
+
+/// The verification lines of the human report.
+pub fn print(v: &Map<String, Value>) {
+    let line = |s: &Value| {
+        format!(
+            "{:.2} ({})",
+            s["score"].as_f64().unwrap_or(f64::NAN),
+            if s["verified"].as_bool().unwrap_or(false) { "verified" } else { "not verified" }
+        )
+    };
+    let drive = &v["drive"];
+    println!(
+        "  verification  drive {} channel-insensitive, {} channel-sensitive",
+        line(&drive["channel_insensitive"]),
+        line(&drive["channel_sensitive"])
+    );
+    for w in v["windows"].as_array().into_iter().flatten() {
+        println!(
+            "                {:>6.1}–{:<6.1} s  {} / {}",
+            w["start_s"].as_f64().unwrap_or(f64::NAN),
+            w["end_s"].as_f64().unwrap_or(f64::NAN),
+            line(&w["channel_insensitive"]),
+            line(&w["channel_sensitive"])
+        );
+    }
+}
