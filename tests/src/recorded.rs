@@ -60,21 +60,42 @@ fn rmse<'a>(errors: impl Iterator<Item = &'a f64>) -> f64 {
     (sum / f64::from(n.max(1))).sqrt()
 }
 
-/// Generate drive `seed` (good receiver), record it through the pipeline and judge it.
-pub fn record_drive(seed: u64, duration_s: f64) -> Outcome {
+/// A generated drive recorded through the pipeline, with its files.
+#[derive(Debug)]
+pub struct Recorded {
+    /// The scenario.
+    pub scenario: Scenario,
+    /// Scratch folder; the drive's files are in `work/drive`.
+    pub work: PathBuf,
+    /// The road's map tile.
+    pub tile: Vec<u8>,
+    /// The pipeline's output.
+    pub recording: Recording,
+    /// The log, decoded.
+    pub log: LogContents,
+    /// The pipeline's setup.
+    pub setup: Setup,
+}
+
+/// Generate drive `seed` (good receiver) and record it through the pipeline.
+pub fn record_scenario(seed: u64, duration_s: f64) -> Recorded {
     let scenario = generate(&ScenarioConfig { seed, duration_s, gnss: GnssModel::good(), ..ScenarioConfig::default() });
     let work = scratch(&format!("recorded-{seed}"));
     let drive = work.join("drive");
     write_scenario(&scenario, &drive).expect("write scenario");
     let [lat, lon, h] = scenario.config.origin;
     let (stream, _) = record::read_sources(&record::Sources::scenario(&drive)).expect("sources");
-    let setup = Setup::work_zone(
-        Geodetic::new(lat, lon, h).expect("origin"),
-        Some(road_tile(&scenario, &drive)),
-        *b"dash2sim-test\0\0\0",
-    );
+    let tile = road_tile(&scenario, &drive);
+    let setup =
+        Setup::work_zone(Geodetic::new(lat, lon, h).expect("origin"), Some(tile.clone()), *b"dash2sim-test\0\0\0");
     let recording = record::run_stream(&stream, &setup).expect("record");
     let log = logfile::decode(&recording.log, "recorded").expect("log");
+    Recorded { scenario, work, tile, recording, log, setup }
+}
+
+/// Generate drive `seed` (good receiver), record it through the pipeline and judge it.
+pub fn record_drive(seed: u64, duration_s: f64) -> Outcome {
+    let Recorded { scenario, work, recording, log, setup, .. } = record_scenario(seed, duration_s);
     let judged = judge_log(&scenario, &log);
 
     let mut gnss = Trajectory::default();

@@ -60,6 +60,10 @@ pub struct FinishArgs {
     pub json: bool,
 }
 
+/// Smoothing of the finished ego's planar track: position σ of the VO-derived positions
+/// (m) and the car's white acceleration (m/s² per √s).
+const EGO_SMOOTHING: (f64, f64) = (0.05, 1.0);
+
 /// What finishing produced, for the report and the tests.
 #[derive(Debug)]
 pub struct Finished {
@@ -193,23 +197,29 @@ pub fn finish(
     }
     refused.sort();
 
-    // The finished ego: every VO pose's camera through the solution and the mount.
-    let mut ego: BTreeMap<i64, EgoPose> = BTreeMap::new();
+    // The finished ego: every VO pose's camera through the solution and the mount, its
+    // planar track smoothed (the VO's frame-to-frame noise is not the car's motion).
+    let mut bodies = Vec::new();
     for s in &drive.vo {
         let Some((c, rotation)) = solution.camera_at(&drive.vo, s.t) else { continue };
-        let body = mount.body_pose(&Pose { rotation, translation: c });
-        let b = &body.translation;
-        let t_us = quantise(s.t, 1e-6);
-        ego.insert(
+        bodies.push((s.t, mount.body_pose(&Pose { rotation, translation: c })));
+    }
+    let mut planar: Vec<tracks::Sample> = bodies
+        .iter()
+        .map(|(t, b)| tracks::Sample { t: *t, x: b.translation.x, y: b.translation.y, vx: 0.0, vy: 0.0 })
+        .collect();
+    tracks::smooth_planar(&mut planar, (0.0, 0.0), EGO_SMOOTHING.0, EGO_SMOOTHING.1);
+    let mut ego: BTreeMap<i64, EgoPose> = BTreeMap::new();
+    for ((t, body), p) in bodies.iter().zip(&planar) {
+        let t_us = quantise(*t, 1e-6);
+        let pose = EgoPose {
             t_us,
-            EgoPose {
-                t_us,
-                x_mm: quantise(b.x, 1e-3),
-                y_mm: quantise(b.y, 1e-3),
-                z_mm: quantise(b.z, 1e-3),
-                yaw_e4: quantise(dash2sim_core::pipeline::mount::heading(&body.rotation), 1e-4),
-            },
-        );
+            x_mm: quantise(p.x, 1e-3),
+            y_mm: quantise(p.y, 1e-3),
+            z_mm: quantise(body.translation.z, 1e-3),
+            yaw_e4: quantise(dash2sim_core::pipeline::mount::heading(&body.rotation), 1e-4),
+        };
+        ego.insert(t_us, pose);
     }
     let online: BTreeMap<i64, EgoPose> =
         log.records.iter().filter_map(|r| if let Record::EgoPose(p) = r { Some((p.t_us, *p)) } else { None }).collect();

@@ -131,43 +131,75 @@ fn merge_static(states: &mut [(i64, Track3d)]) {
     }
 }
 
-/// Constant-velocity Kalman filter over the positions, then Rauch–Tung–Striebel.
+/// Constant-velocity smoothing of a track's positions and velocities.
 fn smooth(states: &mut [(i64, Track3d)]) {
-    let h = Matrix2x4::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0);
-    let r = Matrix2::identity() * MEASUREMENT_SIGMA_M * MEASUREMENT_SIGMA_M;
     let first = &states[0].1;
-    let x0 = Vector4::new(
-        first.x_mm as f64 * 1e-3,
-        first.y_mm as f64 * 1e-3,
-        first.vx_mm_s as f64 * 1e-3,
-        first.vy_mm_s as f64 * 1e-3,
-    );
-    let mut kf = Kalman::new(x0, Matrix4::from_diagonal(&Vector4::new(0.09, 0.09, 4.0, 4.0)));
-    let mut steps = Vec::with_capacity(states.len());
-    let mut previous = states[0].0;
-    for (k, (t, s)) in states.iter().enumerate() {
-        let dt = (*t - previous) as f64 * 1e-6;
-        previous = *t;
+    let velocity = (first.vx_mm_s as f64 * 1e-3, first.vy_mm_s as f64 * 1e-3);
+    let mut samples: Vec<Sample> = states
+        .iter()
+        .map(|(t, s)| Sample {
+            t: *t as f64 * 1e-6,
+            x: s.x_mm as f64 * 1e-3,
+            y: s.y_mm as f64 * 1e-3,
+            vx: 0.0,
+            vy: 0.0,
+        })
+        .collect();
+    smooth_planar(&mut samples, velocity, MEASUREMENT_SIGMA_M, ACCELERATION_SIGMA);
+    for ((_, s), p) in states.iter_mut().zip(&samples) {
+        s.x_mm = quantise(p.x, 1e-3);
+        s.y_mm = quantise(p.y, 1e-3);
+        s.vx_mm_s = quantise(p.vx, 1e-3);
+        s.vy_mm_s = quantise(p.vy, 1e-3);
+    }
+}
+
+/// A planar position at a time, and the velocity the smoother gives it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    /// Time, s.
+    pub t: f64,
+    /// East, m.
+    pub x: f64,
+    /// North, m.
+    pub y: f64,
+    /// Velocity east, m/s (output).
+    pub vx: f64,
+    /// Velocity north, m/s (output).
+    pub vy: f64,
+}
+
+/// Constant-velocity Kalman filter over planar positions measured with `sigma_m`, white
+/// acceleration of `acceleration_sigma` (m/s² per √s), then Rauch–Tung–Striebel; in place,
+/// starting from `velocity`. Used for the tracks and for the finished ego (whose positions
+/// carry the VO's frame-to-frame noise).
+pub fn smooth_planar(samples: &mut [Sample], velocity: (f64, f64), sigma_m: f64, acceleration_sigma: f64) {
+    let Some(first) = samples.first() else { return };
+    let h = Matrix2x4::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0);
+    let r = Matrix2::identity() * sigma_m * sigma_m;
+    let x0 = Vector4::new(first.x, first.y, velocity.0, velocity.1);
+    let mut kf = Kalman::new(x0, Matrix4::from_diagonal(&Vector4::new(sigma_m * sigma_m, sigma_m * sigma_m, 4.0, 4.0)));
+    let mut steps = Vec::with_capacity(samples.len());
+    let mut previous = first.t;
+    let q2 = acceleration_sigma * acceleration_sigma;
+    for (k, s) in samples.iter().enumerate() {
+        let dt = s.t - previous;
+        previous = s.t;
         let mut f = Matrix4::identity();
         f[(0, 2)] = dt;
         f[(1, 3)] = dt;
-        let q2 = ACCELERATION_SIGMA * ACCELERATION_SIGMA;
         let (a, b, c) = (dt.powi(3) / 3.0 * q2, dt * dt / 2.0 * q2, dt * q2);
         let q = Matrix4::new(a, 0.0, b, 0.0, 0.0, a, 0.0, b, b, 0.0, c, 0.0, 0.0, b, 0.0, c);
         if k > 0 {
             kf.predict(&f, &q);
         }
-        let z = Vector2::new(s.x_mm as f64 * 1e-3, s.y_mm as f64 * 1e-3);
         // A refused update (not finite) leaves the prediction: the smoother bridges it.
-        let _ = kf.update(&z, &h, &r);
+        let _ = kf.update(&Vector2::new(s.x, s.y), &h, &r);
         steps.push(SmoothStep { f, q, ..SmoothStep::filtered(&kf) });
     }
     rts_smooth(&mut steps);
-    for ((_, s), step) in states.iter_mut().zip(&steps) {
-        s.x_mm = quantise(step.x[0], 1e-3);
-        s.y_mm = quantise(step.x[1], 1e-3);
-        s.vx_mm_s = quantise(step.x[2], 1e-3);
-        s.vy_mm_s = quantise(step.x[3], 1e-3);
+    for (s, step) in samples.iter_mut().zip(&steps) {
+        (s.x, s.y, s.vx, s.vy) = (step.x[0], step.x[1], step.x[2], step.x[3]);
     }
 }
 
@@ -205,7 +237,9 @@ mod tests {
         for k in 0..50 {
             let jitter = if k % 2 == 0 { 0.2 } else { -0.2 };
             let mut b = Tracks3d { t_us: k * 100_000, ..Tracks3d::default() };
-            let _ = b.tracks.push(track(1, 20.0 + jitter, 3.0, 1));
+            // Static: 19.8, 20.0 or 20.2 m, and once a 5 m outlier.
+            let cone_x = if k == 10 { 25.0 } else { 20.0 + 0.2 * ((k % 3) as f64 - 1.0) };
+            let _ = b.tracks.push(track(1, cone_x, 3.0, 1));
             let _ = b.tracks.push(track(2, k as f64 + jitter, 0.0, 0));
             batches.push(b);
         }
@@ -216,7 +250,7 @@ mod tests {
         let cones: Vec<&Track3d> = out.iter().flat_map(|b| b.tracks.iter()).filter(|t| t.id == 1).collect();
         assert_eq!(cones.len(), 49);
         assert!(cones.iter().all(|c| c == &cones[0]), "one pose");
-        assert_eq!(cones[0].x_mm, 19_800, "the median of ±0.2 m jitter");
+        assert_eq!(cones[0].x_mm, 20_000, "the median, not moved by the outlier");
         let moving: Vec<f64> =
             out.iter().flat_map(|b| b.tracks.iter()).filter(|t| t.id == 2).map(|t| t.x_mm as f64 * 1e-3).collect();
         let error = |xs: &[f64]| {
