@@ -9,6 +9,7 @@ use dash2sim_linux::finish::solve::Settings;
 use dash2sim_linux::finish::{anchors, finish, Finished};
 use dash2sim_linux::logfile::{self, LogContents};
 use dash2sim_linux::scenario::judge::judge_log;
+use dash2sim_linux::scenario::street::street_anchors;
 use dash2sim_linux::verify::{read_objects, replay};
 use dash2sim_tests::recorded::{record_scenario, Recorded};
 
@@ -35,37 +36,6 @@ fn ego_rmse(online: &LogContents, finished: &[Record], recorded: &Recorded) -> (
     (rms(&a), rms(&b))
 }
 
-/// Anchors from the truth every `spacing` m with N(0, σ) noise per horizontal axis, at
-/// the log times of the frames (the CSV `t,lat,lon,alt,sigma_m`).
-fn street_anchors(recorded: &Recorded, spacing: f64, sigma: f64, seed: u64) -> String {
-    use rand::SeedableRng;
-    use rand_distr::{Distribution, Normal};
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let noise = Normal::new(0.0, sigma).expect("σ");
-    let frame = logfile::frame(&recorded.log.header.expect("header")).expect("frame");
-    let mut text = String::from("t,lat,lon,alt,sigma_m\n");
-    let (mut travelled, mut next, mut last) = (0.0, 0.0, None::<(f64, f64)>);
-    for (index, f) in recorded.scenario.frames.iter().enumerate() {
-        travelled += last.map_or(0.0, |(x, y)| (f.ego.x - x).hypot(f.ego.y - y));
-        last = Some((f.ego.x, f.ego.y));
-        if travelled < next {
-            continue;
-        }
-        next += spacing;
-        let east = f.ego.x + noise.sample(&mut rng);
-        let north = f.ego.y + noise.sample(&mut rng);
-        let g = frame.enu_to_geodetic(&dash2sim_core::nalgebra::Vector3::new(east, north, 0.0)).expect("geodetic");
-        text += &format!(
-            "{:.6},{:.10},{:.10},{:.3},{sigma}\n",
-            log_time(&recorded.log, index),
-            g.lat_deg,
-            g.lon_deg,
-            g.height_m
-        );
-    }
-    text
-}
-
 /// Log time of the drive's frame `index` (from 0), from the log's frame numbers.
 fn log_time(log: &LogContents, index: usize) -> f64 {
     log.records
@@ -82,7 +52,7 @@ fn finished_work_zones_verify_like_their_ground_truth() {
     for seed in 1..=3 {
         let recorded = record_scenario(seed, 40.0);
         // Street-imagery anchors as the method uses them: every 50 m, σ 0.3 m.
-        let anchors = street_anchors(&recorded, 50.0, 0.3, seed);
+        let anchors = street_anchors(&recorded.scenario, &recorded.log, 50.0, 0.3, seed);
         let finished = run(&recorded.log, Some(&anchors), Some(&recorded.tile)).expect("finish");
         let gnss_only = run(&recorded.log, None, Some(&recorded.tile)).expect("finish");
         let map = MapView::parse(&recorded.tile).expect("tile");

@@ -639,7 +639,7 @@ fn demo_runs_the_pipeline_and_leaves_every_product_behind() {
     let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "20", "--json"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let s: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
-    assert!(stderr(&out).contains("[5/5]"), "progress on stderr");
+    assert!(stderr(&out).contains("[6/6]"), "progress on stderr");
     // Anchoring becomes observable and lands within a few metres of the truth.
     assert!(s["anchoring"]["observable_after_s"].as_f64().is_some_and(|t| t < 15.0), "{s}");
     assert!(s["anchoring"]["ape_rmse_m"].as_f64().is_some_and(|e| e < 4.0), "{s}");
@@ -650,9 +650,23 @@ fn demo_runs_the_pipeline_and_leaves_every_product_behind() {
     assert_eq!(s["pipeline"]["issues"], serde_json::json!({}), "{s}");
     assert!(!s["verification"]["windows"].as_array().expect("windows").is_empty(), "{s}");
     assert_eq!(s["log"]["damaged"], 0);
-    for name in ["drive.d2slog", "drive.mcap", "ego.tum", "drive.geojson", "road.map", "summary.json"] {
+    for name in [
+        "drive.d2slog",
+        "anchors.csv",
+        "finished.d2slog",
+        "drive.mcap",
+        "ego.tum",
+        "drive.geojson",
+        "road.map",
+        "summary.json",
+    ] {
         assert!(dir.join(name).is_file(), "{name} written");
     }
+    // Finishing with the street-imagery anchors beats the online anchoring and the tracks.
+    let online = s["anchoring"]["ape_rmse_m"].as_f64().expect("ape");
+    let finished = s["finished"]["ape_rmse_m"].as_f64().expect("ape");
+    assert!(finished < 0.5 * online && finished < 0.5, "{finished} vs {online}");
+    assert!(s["finished"]["mota"].as_f64() > s["tracking"]["mota"].as_f64(), "{s}");
     // The log is what inspect and verify read.
     let log = dir.join("drive.d2slog").display().to_string();
     let inspect: serde_json::Value =
@@ -680,6 +694,61 @@ fn demo_runs_the_pipeline_and_leaves_every_product_behind() {
     assert!((score - s["verification"]["recovered"]["score"].as_f64().expect("score")).abs() < 1e-9, "{verify} {s}");
     let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "5"]);
     assert!(!out.status.success() && stderr(&out).contains("--duration"));
+}
+
+#[test]
+fn finish_reports_bad_anchor_lines_verifies_per_window_and_refuses_a_log_without_vo() {
+    let dir = scratch("finish");
+    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "20", "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let anchors = dir.join("anchors.csv");
+    let mut text = std::fs::read_to_string(&anchors).expect("anchors");
+    let good = text.lines().count() - 1;
+    text += "12.5,nan,24.9,10,0.3\n";
+    std::fs::write(&anchors, &text).expect("write");
+    let (log, map, finished) = (dir.join("drive.d2slog"), dir.join("road.map"), dir.join("again.d2slog"));
+    let path = |p: &Path| p.display().to_string();
+    let out = dash2sim(&[
+        "finish",
+        &path(&log),
+        "-o",
+        &path(&finished),
+        "--anchors",
+        &path(&anchors),
+        "--map",
+        &path(&map),
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let bad_line = text.lines().count();
+    assert!(stderr(&out).contains(&format!("anchors.csv:{bad_line}: field 2 `nan` is not finite")), "{}", stderr(&out));
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(r["anchors"]["used"], good, "{r}");
+    assert_eq!(r["anchors"]["refused"][0]["line"], bad_line, "{r}");
+    let windows = r["verification"]["windows"].as_array().expect("windows");
+    assert!(!windows.is_empty() && windows.iter().all(|w| w["channel_sensitive"]["score"].is_number()), "{r}");
+    // The finished log is a log: inspect reads it, verify scores it as finish did.
+    let inspect: serde_json::Value =
+        serde_json::from_slice(&dash2sim(&["inspect", &path(&finished), "--json"]).stdout).expect("json");
+    assert!(inspect["by_type"]["EgoPose"].as_u64().is_some_and(|n| n > 150), "{inspect}");
+    let verify: serde_json::Value =
+        serde_json::from_slice(&dash2sim(&["verify", &path(&finished), "--map", &path(&map), "--json"]).stdout)
+            .expect("json");
+    let drive = &r["verification"]["drive"]["channel_insensitive"]["score"];
+    assert!((verify["score"].as_f64().expect("score") - drive.as_f64().expect("score")).abs() < 1e-9, "{verify}");
+    // Human output.
+    let out = dash2sim(&["finish", &path(&log), "-o", &path(&finished), "--map", &path(&map)]);
+    assert!(out.status.success() && String::from_utf8_lossy(&out.stdout).contains("verification  drive"));
+    // A log without VO poses: nothing to re-anchor.
+    let gnss_only = dir.join("gnss-only.d2slog");
+    let nmea = dir.join("drive/gnss.nmea");
+    assert!(dash2sim(&["import", "-o", &path(&gnss_only), "--nmea", &path(&nmea)]).status.success());
+    let out = dash2sim(&["finish", &path(&gnss_only), "-o", &path(&finished)]);
+    assert!(!out.status.success() && stderr(&out).contains("no trajectory to re-anchor"), "{}", stderr(&out));
+    // A bad anchors header names the line.
+    std::fs::write(&anchors, "lat,lon\n").expect("write");
+    let out = dash2sim(&["finish", &path(&log), "-o", &path(&finished), "--anchors", &path(&anchors)]);
+    assert!(!out.status.success() && stderr(&out).contains("anchors.csv:1: header"), "{}", stderr(&out));
 }
 
 #[test]

@@ -189,6 +189,11 @@ pub fn finish(
             }
         }
     }
+    let settings = if enabled.iter().any(|&on| on) {
+        Settings { scale_walk: settings.anchored_walk.0, rotation_walk: settings.anchored_walk.1, ..settings }
+    } else {
+        settings
+    };
     let solution = solve::solve(inputs, settings, &enabled).map_err(|e| format!("{name}: {e}"))?;
     for (k, (&on, &used)) in enabled.iter().zip(&solution.anchor_used).enumerate() {
         if on && !used {

@@ -21,6 +21,7 @@ pub mod evaluate;
 pub mod judge;
 pub mod road;
 pub mod sensors;
+pub mod street;
 pub mod vo;
 pub mod write;
 
