@@ -28,6 +28,11 @@ use faer::{Mat, Side};
 
 /// Unknowns per keyframe: position (3), log-scale (1), rotation increment (3).
 const BLOCK: usize = 7;
+/// Information added to every rotation increment of a step (a step of 0.3 rad costs
+/// one σ): rotation about the direction of travel is unobservable on a straight road, and
+/// an undamped step along it leaves the region where the linearisation holds. It damps
+/// steps, not the solution (at convergence the increments are zero).
+const ROTATION_STEP_INFORMATION: f64 = 10.0;
 /// The global unknowns after the blocks: GNSS latency τ, log wheel factor ω.
 const GLOBALS: usize = 2;
 const TAU: usize = 0;
@@ -125,6 +130,8 @@ pub struct Settings {
     pub gate: f64,
     /// Gauss–Newton iterations at most.
     pub max_iterations: usize,
+    /// Latencies tried before the solve (first, last, step), s; none when step ≤ 0.
+    pub latency_search: (f64, f64, f64),
 }
 
 impl Default for Settings {
@@ -143,6 +150,7 @@ impl Default for Settings {
             robust: 3.0,
             gate: 6.0,
             max_iterations: 50,
+            latency_search: (0.0, 0.2, 0.05),
         }
     }
 }
@@ -332,7 +340,11 @@ impl Normal {
             for i in 0..BLOCK {
                 for j in i..BLOCK {
                     let v = self.diagonal[b][i][j] * if i == j { 1.0 + lambda } else { 1.0 }
-                        + if i == j { 1e-9 } else { 0.0 };
+                        + match (i == j, i >= 4) {
+                            (true, true) => ROTATION_STEP_INFORMATION,
+                            (true, false) => 1e-9,
+                            _ => 0.0,
+                        };
                     triplets.push(Triplet::new(b * BLOCK + i, b * BLOCK + j, v));
                 }
                 if b + 1 < self.blocks {
@@ -361,6 +373,15 @@ impl Normal {
     }
 }
 
+/// What one assembly gives: the normal equations and the residuals' sizes in σ (NaN where
+/// a measurement falls outside the drive).
+struct Assembled {
+    normal: Normal,
+    fix_u: Vec<f64>,
+    anchor_u: Vec<f64>,
+    wheel_u: Vec<f64>,
+}
+
 /// The problem's state during the iterations.
 #[derive(Clone)]
 struct State<'a> {
@@ -375,6 +396,7 @@ struct State<'a> {
     omega: f64,
     fix_weight: Vec<f64>,
     anchor_weight: Vec<f64>,
+    wheel_weight: Vec<f64>,
     /// Segment and offset of each VO-point anchor.
     anchor_keyframe: Vec<usize>,
     /// Odometer distance over each segment, m (NaN: no speed there).
@@ -511,11 +533,14 @@ impl State<'_> {
         self.geometry().scale_rotation(k)
     }
 
-    fn assemble(&self, robust: bool, gate: bool) -> (Normal, Vec<f64>, Vec<f64>) {
+    /// The normal equations at this state with its current weights, and every weighted
+    /// residual's size in σ.
+    fn assemble(&self) -> Assembled {
         let s = &self.settings;
         let blocks = self.keyframe_t.len();
         let mut normal = Normal::new(blocks);
         let global = blocks * BLOCK;
+        let mut wheel_u = vec![f64::NAN; blocks];
         // Motion priors between neighbouring segments and the VO chords.
         for k in 0..blocks - 1 {
             let dt = (self.keyframe_t[k + 1] - self.keyframe_t[k]).max(1e-3);
@@ -565,9 +590,11 @@ impl State<'_> {
             if d.is_finite() && d >= 1.0 && chord.norm() > 0.0 {
                 let sigma = s.wheel_sigma.0 + s.wheel_sigma.1 / d;
                 let r = self.rho[k] + chord.norm().ln() - self.omega - d.ln();
-                let u = (r / sigma).abs();
-                let w = if robust { cauchy(u, s.robust) } else { 1.0 };
-                normal.push(&Row::new(r / sigma).with(b0 + 3, 1.0 / sigma).with(global + OMEGA, -1.0 / sigma), w);
+                wheel_u[k] = (r / sigma).abs();
+                normal.push(
+                    &Row::new(r / sigma).with(b0 + 3, 1.0 / sigma).with(global + OMEGA, -1.0 / sigma),
+                    self.wheel_weight[k],
+                );
             }
         }
         if s.gravity_aligned {
@@ -592,13 +619,7 @@ impl State<'_> {
             let raw = Vector3::new(fix.sigma_h, fix.sigma_h, fix.sigma_v);
             let u = r.component_div(&raw).norm() / 3f64.sqrt();
             fix_u[i] = u;
-            let mut w = self.fix_weight[i];
-            if robust {
-                w = cauchy(u, s.robust);
-            }
-            if gate && u > s.gate {
-                w = 0.0;
-            }
+            let w = self.fix_weight[i];
             let v = -geometry.velocity(&at);
             geometry.add_position_rows(
                 &mut normal,
@@ -611,10 +632,7 @@ impl State<'_> {
         // Anchors.
         let mut anchor_u = vec![f64::NAN; self.inputs.anchors.len()];
         for (i, anchor) in self.inputs.anchors.iter().enumerate() {
-            let w0 = self.anchor_weight[i];
-            if w0 <= 0.0 {
-                continue;
-            }
+            let w = self.anchor_weight[i];
             let sigma = Vector3::repeat(anchor.sigma);
             let (r, u) = match anchor.at {
                 AnchorAt::Time(t) => {
@@ -622,7 +640,6 @@ impl State<'_> {
                     let lever = geometry.lever(&at, &self.inputs.lever);
                     let r = geometry.camera(&at) - lever - anchor.enu;
                     let u = r.norm() / anchor.sigma / 3f64.sqrt();
-                    let w = weight(w0, u, robust, gate, s);
                     geometry.add_position_rows(
                         &mut normal,
                         &at,
@@ -638,7 +655,6 @@ impl State<'_> {
                     let su = self.scale_rotation(k) * offset;
                     let r = self.p[k] + su - anchor.enu;
                     let u = r.norm() / anchor.sigma / 3f64.sqrt();
-                    let w = weight(w0, u, robust, gate, s);
                     let m = -skew(&su);
                     let identity = [Vector3::x(), Vector3::y(), Vector3::z()];
                     let rotation_columns: [Vector3<f64>; 3] =
@@ -651,7 +667,26 @@ impl State<'_> {
             let _ = r;
             anchor_u[i] = u;
         }
-        (normal, fix_u, anchor_u)
+        Assembled { normal, fix_u, anchor_u, wheel_u }
+    }
+
+    /// Weights from the residuals of this state: Cauchy when `robust`, zero beyond the
+    /// gate when `gate`; anchors not enabled stay at zero.
+    fn reweight(&mut self, at: &Assembled, robust: bool, gate: bool, anchor_enabled: &[bool]) {
+        let s = self.settings;
+        let weight = |u: f64| {
+            if !u.is_finite() || (gate && u > s.gate) {
+                0.0
+            } else if robust {
+                cauchy(u, s.robust)
+            } else {
+                1.0
+            }
+        };
+        self.fix_weight = at.fix_u.iter().map(|&u| weight(u)).collect();
+        self.wheel_weight = at.wheel_u.iter().map(|&u| weight(u)).collect();
+        self.anchor_weight =
+            at.anchor_u.iter().zip(anchor_enabled).map(|(&u, &on)| if on { weight(u) } else { 0.0 }).collect();
     }
 
     /// GNSS errors are correlated over `gnss_correlation_s`: fixes closer than that carry
@@ -687,16 +722,6 @@ impl State<'_> {
 
 fn cauchy(u: f64, c: f64) -> f64 {
     1.0 / (1.0 + (u / c) * (u / c))
-}
-
-fn weight(w0: f64, u: f64, robust: bool, gate: bool, s: &Settings) -> f64 {
-    if gate && u > s.gate {
-        0.0
-    } else if robust {
-        w0 * cauchy(u, s.robust)
-    } else {
-        w0
-    }
 }
 
 /// Keyframes: the first VO sample, then each at least `spacing` after the previous, and
@@ -785,9 +810,84 @@ fn solve_normal(normal: &Normal, lambda: f64) -> Result<Vec<f64>, SolveError> {
     Ok(delta)
 }
 
+/// First positions of the keyframes: each from an alignment of the fixes within
+/// ±[`LOCAL_WINDOW_S`] of it (recomputed every [`LOCAL_STEP_S`]), so that on a long drive
+/// the VO's drift does not put the start hundreds of metres off; the whole-drive alignment
+/// where a window has too few fixes or does not determine one.
+fn initial_positions(inputs: &Inputs<'_>, keyframe_vo: &[usize], global: &Sim3, gravity: bool) -> Vec<Vector3<f64>> {
+    let pairs: Vec<(f64, Vector3<f64>, Vector3<f64>, f64)> = inputs
+        .fixes
+        .iter()
+        .filter_map(|f| vo_at(inputs.vo, f.t).map(|(x, _, _)| (f.t, x, f.enu, 1.0 / (f.sigma_h * f.sigma_h))))
+        .collect();
+    let mode = if gravity { AlignMode::YawScale } else { AlignMode::Sim3 };
+    let mut local: Option<(f64, Sim3)> = None;
+    keyframe_vo
+        .iter()
+        .map(|&j| {
+            let sample = &inputs.vo[j];
+            if local.is_none_or(|(t, _)| (sample.t - t).abs() >= LOCAL_STEP_S) {
+                let from = pairs.partition_point(|p| p.0 < sample.t - LOCAL_WINDOW_S);
+                let to = pairs.partition_point(|p| p.0 <= sample.t + LOCAL_WINDOW_S);
+                let mut moments = Moments::default();
+                for (_, x, y, w) in &pairs[from..to] {
+                    let _ = moments.push(x, y, *w);
+                }
+                let fit = if to - from >= 10 { moments.align(mode).ok() } else { None };
+                local = Some((sample.t, fit.filter(Sim3::is_valid).unwrap_or(*global)));
+            }
+            local.map_or(*global, |(_, a)| a).transform_point(&sample.position)
+        })
+        .collect()
+}
+
+/// Converged when an accepted step moves no position by more than 0.1 mm (and no rotation
+/// by more than 10 µrad), or a refused one by less than ten times that.
+const CONVERGED_STEP: f64 = 1e-4;
+
+/// Half-width of the local alignments that start the solve, s.
+const LOCAL_WINDOW_S: f64 = 30.0;
+/// How often they are recomputed along the drive, s.
+const LOCAL_STEP_S: f64 = 5.0;
+
 /// Re-anchor the drive. `anchor_enabled` says which anchors take part (the caller gates
 /// them against a solution without them).
 pub fn solve(inputs: Inputs<'_>, settings: Settings, anchor_enabled: &[bool]) -> Result<Solution, SolveError> {
+    let (first, last, step) = settings.latency_search;
+    if inputs.fixes.is_empty() || !(step > 0.0 && last >= first) {
+        return solve_from(inputs, settings, anchor_enabled, settings.latency_prior.0).map(|(s, _)| s);
+    }
+    // The latency is found by a search before it is refined: how well the fixes fit as a
+    // function of it has several minima on real GNSS (its errors wander), and a descent
+    // from one guess ends in whichever is nearest. Each candidate is solved with the
+    // latency held and coarser keyframes; the fit is Σ min(u², gate²) over the fixes.
+    let coarse = Settings {
+        keyframe_s: settings.keyframe_s.max(2.0),
+        max_iterations: 12,
+        latency_search: (0.0, -1.0, 0.0),
+        ..settings
+    };
+    let mut best = (f64::INFINITY, settings.latency_prior.0);
+    let mut tau = first;
+    while tau <= last + 1e-9 {
+        let held = Settings { latency_prior: (tau, 1e-4), ..coarse };
+        if let Ok((_, fit)) = solve_from(inputs, held, anchor_enabled, tau) {
+            if fit < best.0 {
+                best = (fit, tau);
+            }
+        }
+        tau += step;
+    }
+    solve_from(inputs, settings, anchor_enabled, best.1).map(|(s, _)| s)
+}
+
+/// [`solve`] from the latency `tau0`; also returns the fit of the fixes and anchors.
+fn solve_from(
+    inputs: Inputs<'_>,
+    settings: Settings,
+    anchor_enabled: &[bool],
+    tau0: f64,
+) -> Result<(Solution, f64), SolveError> {
     if inputs.vo.len() < 2 {
         return Err(SolveError::NoVo);
     }
@@ -818,52 +918,59 @@ pub fn solve(inputs: Inputs<'_>, settings: Settings, anchor_enabled: &[bool]) ->
     let mut state = State {
         inputs,
         settings,
-        p: keyframe_vo.iter().map(|&j| initial.transform_point(&inputs.vo[j].position)).collect(),
+        p: initial_positions(&inputs, &keyframe_vo, &initial, settings.gravity_aligned),
         rho: vec![initial.scale.ln(); blocks],
         rotation: vec![initial.rotation; blocks],
-        tau: settings.latency_prior.0,
+        tau: tau0,
         omega: 0.0,
         fix_weight: vec![1.0; inputs.fixes.len()],
         anchor_weight: anchor_enabled.iter().map(|&on| if on { 1.0 } else { 0.0 }).collect(),
+        wheel_weight: vec![1.0; blocks],
         anchor_keyframe,
         odometer: odometer(inputs.speeds, &keyframe_t),
         keyframe_vo,
         keyframe_t,
     };
-    // Levenberg–Marquardt on the reweighted problem: robust weights from the second
-    // iteration on, the gate from the fourth (a first alignment far from the truth must not
-    // reject what is right); a step that does not lower the cost is retried with more damping.
-    let flags = |iteration: usize| (iteration >= 2, iteration >= 4);
+    // Levenberg–Marquardt on the reweighted problem: Cauchy weights from the second
+    // iteration on, the 6σ gate from the fourth (a first alignment still far from the
+    // solution must not reject what is right). A state's cost is Σ w(u)·u² with its own
+    // weights — bounded per measurement, so a step that moves an outlier is not refused for
+    // it; a step that does not lower the cost is retried with more damping.
     let mut iterations = 0;
     let mut lambda = 1e-4;
-    let mut current_flags = (false, false);
-    let mut current = state.assemble(false, false);
+    let mut current = state.assemble();
     while iterations < settings.max_iterations {
         iterations += 1;
-        let f = flags(iterations);
-        if f != current_flags {
-            current = state.assemble(f.0, f.1);
-            current_flags = f;
+        if iterations >= 2 {
+            state.reweight(&current, true, iterations >= 4, anchor_enabled);
+            current = state.assemble();
         }
-        let delta = solve_normal(&current.0, lambda)?;
+        let delta = solve_normal(&current.normal, lambda)?;
         let mut trial = state.clone();
         let step = trial.apply(&delta);
-        let assembled = trial.assemble(f.0, f.1);
-        if assembled.0.chi2 <= current.0.chi2 * (1.0 + 1e-12) + 1e-12 {
+        let mut assembled = trial.assemble();
+        if iterations >= 2 {
+            // The cost of the trial under its own weights: Σ w(u)·u², a bounded robust cost.
+            trial.reweight(&assembled, true, iterations >= 4, anchor_enabled);
+            assembled = trial.assemble();
+        }
+        let (before, after) = (current.normal.chi2, assembled.normal.chi2);
+        if after <= before {
             state = trial;
             current = assembled;
             lambda = (lambda * 0.1).max(1e-9);
-            if iterations >= 5 && step < 1e-4 {
+            if iterations >= 5 && (step < CONVERGED_STEP || before - after <= 1e-9 * before) {
                 break;
             }
         } else {
+            // A refused step this small: the cost is as low as reweighting noise lets it be.
             lambda *= 10.0;
-            if lambda > 1e8 {
+            if lambda > 1e8 || (iterations >= 5 && step < 10.0 * CONVERGED_STEP) {
                 break;
             }
         }
     }
-    let (normal, fix_u, anchor_u) = current;
+    let Assembled { normal, fix_u, anchor_u, .. } = current;
     let (chi2, rows) = (normal.chi2, normal.rows);
     let llt = normal.matrix(0.0)?.sp_cholesky(Side::Upper).map_err(|_| SolveError::Singular)?;
     let unknowns = blocks * BLOCK + GLOBALS;
@@ -873,6 +980,12 @@ pub fn solve(inputs: Inputs<'_>, settings: Settings, anchor_enabled: &[bool]) ->
     let anchor_used: Vec<bool> =
         anchor_u.iter().zip(anchor_enabled).map(|(u, &on)| on && u.is_finite() && *u <= gate).collect();
     let inflation_factor = sigma0_sq.max(1.0).sqrt();
+    let fit: f64 = fix_u
+        .iter()
+        .chain(anchor_u.iter().zip(anchor_enabled).filter(|(_, &on)| on).map(|(u, _)| u))
+        .filter(|u| u.is_finite())
+        .map(|u| (u * u).min(gate * gate))
+        .sum();
     // The drive's mean log-scale (segments weighted by duration): aᵀ H⁻¹ a.
     let n = unknowns;
     let total: f64 = state.keyframe_t.windows(2).map(|w| w[1] - w[0]).sum();
@@ -906,7 +1019,7 @@ pub fn solve(inputs: Inputs<'_>, settings: Settings, anchor_enabled: &[bool]) ->
     if let Some(r) = state.rho.last_mut() {
         *r = last_rho;
     }
-    Ok(Solution {
+    let solution = Solution {
         positions: state.p,
         log_scale: state.rho,
         rotation: state.rotation,
@@ -921,7 +1034,8 @@ pub fn solve(inputs: Inputs<'_>, settings: Settings, anchor_enabled: &[bool]) ->
         gnss_rms_m: if used > 0 { (sse / used as f64).sqrt() } else { f64::NAN },
         keyframe_t: state.keyframe_t,
         keyframe_vo: state.keyframe_vo,
-    })
+    };
+    Ok((solution, fit))
 }
 
 fn nearest_keyframe(vo: &[VoSample], keyframe_vo: &[usize], x: &Vector3<f64>) -> usize {
