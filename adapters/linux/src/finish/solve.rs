@@ -542,7 +542,7 @@ impl State<'_> {
         let global = blocks * BLOCK;
         let mut wheel_u = vec![f64::NAN; blocks];
         // Motion priors between neighbouring segments and the VO chords.
-        for k in 0..blocks - 1 {
+        for (k, wheel) in wheel_u.iter_mut().enumerate().take(blocks - 1) {
             let dt = (self.keyframe_t[k + 1] - self.keyframe_t[k]).max(1e-3);
             let (b0, b1) = (k * BLOCK, (k + 1) * BLOCK);
             if k + 2 < blocks {
@@ -590,7 +590,7 @@ impl State<'_> {
             if d.is_finite() && d >= 1.0 && chord.norm() > 0.0 {
                 let sigma = s.wheel_sigma.0 + s.wheel_sigma.1 / d;
                 let r = self.rho[k] + chord.norm().ln() - self.omega - d.ln();
-                wheel_u[k] = (r / sigma).abs();
+                *wheel = (r / sigma).abs();
                 normal.push(
                     &Row::new(r / sigma).with(b0 + 3, 1.0 / sigma).with(global + OMEGA, -1.0 / sigma),
                     self.wheel_weight[k],
