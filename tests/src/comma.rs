@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use dash2sim_core::binlog::Record;
 use dash2sim_linux::logfile::{self, LogContents};
-use dash2sim_linux::record::{self, ModeArg, RecordArgs};
+use dash2sim_linux::record::{self, DeviceArgs, ModeArg, RecordArgs};
 use dash2sim_linux::scenario::vo::VoModel;
 use dash2sim_linux::trajectory::{self, Format, Trajectory};
 
@@ -101,9 +101,7 @@ pub fn record_minute(dir: &Path, work: &Path, model: &VoModel) -> RecordedMinute
         speed_source: record::SpeedArg::Ccvs1,
         map: None,
         origin: Some(format!("{lat},{lon},{h}")),
-        mount: mount(),
-        mode: ModeArg::Full,
-        uere: UERE,
+        device: DeviceArgs { mount: mount(), mode: ModeArg::Full, uere: UERE },
         save_inputs: None,
         replay: None,
         device_id: "dash2sim-record".to_owned(),

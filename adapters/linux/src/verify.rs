@@ -240,22 +240,27 @@ fn poses_csv(steps: &[(f64, Pose2, StepReport)]) -> String {
     out
 }
 
+/// Each metric's score under nuPlan's name.
+pub fn metrics_json(s: &Scores) -> serde_json::Value {
+    serde_json::json!({
+        "no_at_fault_collisions": s.no_at_fault_collisions,
+        "drivable_area_compliance": s.drivable_area,
+        "driving_direction_compliance": s.driving_direction,
+        "ego_is_making_progress": s.making_progress,
+        "ego_progress_along_expert_route": s.progress,
+        "time_to_collision_within_bound": s.ttc,
+        "speed_limit_compliance": s.speed_limit,
+        "ego_is_comfortable": s.comfort,
+    })
+}
+
 /// The JSON report of `dash2sim verify --json`.
 pub fn report_json(v: &Verification, channel_sensitive: bool) -> serde_json::Value {
     let s = &v.scores;
     let finite = |x: f64| if x.is_finite() { serde_json::json!(x) } else { serde_json::Value::Null };
     let e = &s.comfort_extremes;
     serde_json::json!({
-        "metrics": {
-            "no_at_fault_collisions": s.no_at_fault_collisions,
-            "drivable_area_compliance": s.drivable_area,
-            "driving_direction_compliance": s.driving_direction,
-            "ego_is_making_progress": s.making_progress,
-            "ego_progress_along_expert_route": s.progress,
-            "time_to_collision_within_bound": s.ttc,
-            "speed_limit_compliance": s.speed_limit,
-            "ego_is_comfortable": s.comfort,
-        },
+        "metrics": metrics_json(s),
         "score": s.score,
         "verified": s.verified,
         "channel_sensitive": channel_sensitive,

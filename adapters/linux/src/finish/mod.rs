@@ -24,7 +24,7 @@ use dash2sim_core::sim3::Pose;
 use serde_json::{json, Value};
 
 use crate::logfile::{self, LogContents};
-use crate::record::{parse_mount, ModeArg};
+use crate::record::{DeviceArgs, ModeArg};
 use anchors::AnchorForm;
 use solve::{Anchor, AnchorAt, Fix, Inputs, Settings, Solution, VoSample};
 
@@ -43,15 +43,9 @@ pub struct FinishArgs {
     /// A map tile: verify the finished drive per 15 s window and as a whole.
     #[arg(long)]
     pub map: Option<PathBuf>,
-    /// The camera's mount, as given to `record`: `FORWARD,LEFT,UP[,ROLL,PITCH,YAW]`.
-    #[arg(long, default_value = "1.8,0,1.3")]
-    pub mount: String,
-    /// `gravity`: the VO frame's z is vertical (only yaw drifts); `full`: any orientation.
-    #[arg(long, value_enum, default_value = "gravity")]
-    pub mode: ModeArg,
-    /// GNSS 1-σ error model as given to `record`: σ = HDOP × UERE, m.
-    #[arg(long, default_value_t = 2.5)]
-    pub uere: f64,
+    /// The dashcam as given to `record`.
+    #[command(flatten)]
+    pub device: DeviceArgs,
     /// Keyframe spacing of the re-anchoring, s.
     #[arg(long, default_value_t = 0.5)]
     pub keyframe: f64,
@@ -388,13 +382,10 @@ pub fn mean_scale(s: &Solution) -> f64 {
 
 /// `dash2sim finish`.
 pub fn run(args: &FinishArgs) -> Result<(), String> {
-    if !(args.uere.is_finite() && args.uere > 0.0) {
-        return Err(format!("--uere {} must be a positive number of metres", args.uere));
-    }
     if !(args.keyframe.is_finite() && (0.05..=10.0).contains(&args.keyframe)) {
         return Err(format!("--keyframe {} must be between 0.05 and 10 s", args.keyframe));
     }
-    let mount = parse_mount(&args.mount)?;
+    let (mount, uere) = args.device.parse()?;
     let log = logfile::read(&args.log).map_err(|e| e.to_string())?;
     let name = args.log.display().to_string();
     let anchor_file = args.anchors.as_deref().map(anchors::read).transpose()?;
@@ -403,17 +394,13 @@ pub fn run(args: &FinishArgs) -> Result<(), String> {
         eprintln!("{}:{line}: {why}", anchor_name.as_deref().unwrap_or_default());
     }
     let map = args.map.as_deref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
-    let settings =
-        Settings { keyframe_s: args.keyframe, gravity_aligned: args.mode == ModeArg::Gravity, ..Settings::default() };
-    let finished = finish(
-        &log,
-        &name,
-        anchor_name.as_deref().zip(anchor_file.as_ref()),
-        map.as_deref(),
-        mount,
-        settings,
-        args.uere,
-    )?;
+    let settings = Settings {
+        keyframe_s: args.keyframe,
+        gravity_aligned: args.device.mode == ModeArg::Gravity,
+        ..Settings::default()
+    };
+    let finished =
+        finish(&log, &name, anchor_name.as_deref().zip(anchor_file.as_ref()), map.as_deref(), mount, settings, uere)?;
     let header = log.header.unwrap_or(Header { device_id: [0; 16], origin: [0; 3] });
     let bytes = logfile::import::encode_in_order(&header, &finished.records)?;
     std::fs::write(&args.output, &bytes).map_err(|e| format!("{}: {e}", args.output.display()))?;

@@ -12,7 +12,7 @@ use serde_json::{json, Map, Value};
 
 use super::event;
 use crate::logfile::LogContents;
-use crate::verify::{replay, AgentsByTime};
+use crate::verify::{metrics_json, replay, AgentsByTime};
 
 /// nuPlan's scenario length, s.
 pub const WINDOW_S: f64 = 15.0;
@@ -27,19 +27,9 @@ pub struct Verified {
     pub report: Value,
 }
 
+/// Score, verdict and the metrics (`verify --json`'s `metrics`).
 fn scores_json(s: &Scores) -> Value {
-    json!({
-        "score": s.score,
-        "verified": s.verified,
-        "no_at_fault_collisions": s.no_at_fault_collisions,
-        "drivable_area_compliance": s.drivable_area,
-        "driving_direction_compliance": s.driving_direction,
-        "ego_is_making_progress": s.making_progress,
-        "ego_progress_along_expert_route": s.progress,
-        "time_to_collision_within_bound": s.ttc,
-        "speed_limit_compliance": s.speed_limit,
-        "ego_is_comfortable": s.comfort,
-    })
+    json!({"score": s.score, "verified": s.verified, "metrics": metrics_json(s)})
 }
 
 fn both(map: MapView<'_>, poses: &[(f64, Pose2)], agents: &AgentsByTime) -> Result<(Scores, Scores), String> {

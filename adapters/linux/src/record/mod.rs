@@ -81,16 +81,9 @@ pub struct RecordArgs {
     /// ENU origin `LAT,LON[,H]` (default: the map's, else the first GNSS fix).
     #[arg(long)]
     pub origin: Option<String>,
-    /// Camera position on the vehicle: `FORWARD,LEFT,UP` from the rear axle on the
-    /// ground (m), optionally `,ROLL,PITCH,YAW` (rad, camera → body).
-    #[arg(long, default_value = "1.8,0,1.3")]
-    pub mount: String,
-    /// `gravity`: the VO frame's z is vertical (VIO, levelled VO); `full`: any orientation.
-    #[arg(long, value_enum, default_value = "gravity")]
-    pub mode: ModeArg,
-    /// 1-σ GNSS error model: UERE, m (σ = HDOP × UERE unless the receiver sends GST).
-    #[arg(long, default_value_t = 2.5)]
-    pub uere: f64,
+    /// The dashcam: mount, VO frame, GNSS error model.
+    #[command(flatten)]
+    pub device: DeviceArgs,
     /// Also write the merged input stream (the core's replay format) here.
     #[arg(long)]
     pub save_inputs: Option<PathBuf>,
@@ -137,6 +130,32 @@ pub enum SpeedArg {
     Ccvs1,
     /// OBD-II PID 0x0D responses.
     Obd,
+}
+
+/// How the dashcam is set up: `record` takes it, and `finish` needs the same (the log
+/// does not carry it).
+#[derive(Debug, Clone, clap::Args)]
+pub struct DeviceArgs {
+    /// Camera position on the vehicle: `FORWARD,LEFT,UP` from the rear axle on the
+    /// ground (m), optionally `,ROLL,PITCH,YAW` (rad, camera → body).
+    #[arg(long, default_value = "1.8,0,1.3")]
+    pub mount: String,
+    /// `gravity`: the VO frame's z is vertical (VIO, levelled VO); `full`: any orientation.
+    #[arg(long, value_enum, default_value = "gravity")]
+    pub mode: ModeArg,
+    /// 1-σ GNSS error model: UERE, m (σ = HDOP × UERE unless the receiver sends GST).
+    #[arg(long, default_value_t = 2.5)]
+    pub uere: f64,
+}
+
+impl DeviceArgs {
+    /// The mount, and the UERE checked.
+    pub fn parse(&self) -> Result<(CameraMount, f64), String> {
+        if !(self.uere.is_finite() && self.uere > 0.0) {
+            return Err(format!("--uere {} must be a positive number of metres", self.uere));
+        }
+        Ok((parse_mount(&self.mount)?, self.uere))
+    }
 }
 
 /// `--mode`.
@@ -398,17 +417,15 @@ fn setup_from_args(args: &RecordArgs, fallback: impl FnOnce() -> Result<Geodetic
         }
         (None, None) => fallback()?,
     };
-    if !(args.uere.is_finite() && args.uere > 0.0) {
-        return Err(format!("--uere {} must be a positive number of metres", args.uere));
-    }
+    let (mount, uere) = args.device.parse()?;
     Ok(Setup {
         origin,
-        mount: parse_mount(&args.mount)?,
-        mode: match args.mode {
+        mount,
+        mode: match args.device.mode {
             ModeArg::Full => AnchorMode::Full,
             ModeArg::Gravity => AnchorMode::GravityAligned,
         },
-        gnss: GnssErrorModel { uere_m: args.uere, ..GnssErrorModel::default() },
+        gnss: GnssErrorModel { uere_m: uere, ..GnssErrorModel::default() },
         speed: speed_source(args)?,
         map,
         device_id: device_id(&args.device_id)?,
