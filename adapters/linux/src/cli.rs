@@ -89,23 +89,9 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Export a 4D log: MCAP with Foxglove schemas, TUM (evo), GeoJSON (QGIS).
-    Export {
-        /// The log.
-        log: PathBuf,
-        /// MCAP output (zstd chunks, Foxglove JSON schemas).
-        #[arg(long)]
-        mcap: Option<PathBuf>,
-        /// TUM output: the ego poses.
-        #[arg(long)]
-        tum: Option<PathBuf>,
-        /// GeoJSON output: ego and GNSS tracks, objects as points.
-        #[arg(long)]
-        geojson: Option<PathBuf>,
-        /// A map tile whose lanes go into the MCAP as lines.
-        #[arg(long)]
-        map: Option<PathBuf>,
-    },
+    /// Export a 4D log: MCAP with Foxglove schemas, TUM (evo), GeoJSON (QGIS), nuPlan
+    /// (log database and map; docs/nuplan.md).
+    Export(Box<crate::logfile::export::ExportRequest>),
     /// Replay a recorded ego trajectory against a map tile and score it as nuPlan would;
     /// a log is verified above 90 (docs/verify.md).
     Verify(VerifyArgs),
@@ -432,9 +418,7 @@ pub fn run() -> ExitCode {
         Command::Record(args) => crate::record::run(&args),
         Command::Finish(args) => crate::finish::run(&args),
         Command::Inspect { log, json } => crate::logfile::inspect::run(&log, json),
-        Command::Export { log, mcap, tum, geojson, map } => {
-            crate::logfile::export::run(&crate::logfile::export::ExportRequest { log, mcap, tum, geojson, map })
-        }
+        Command::Export(request) => crate::logfile::export::run(&request),
         Command::Verify(a) => verify(&a),
     };
     match result {

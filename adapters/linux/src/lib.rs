@@ -18,6 +18,7 @@ pub mod logfile;
 pub mod map_tile;
 pub mod mot;
 pub mod nmea_decode;
+pub mod nuplan;
 pub mod objects;
 pub mod osm;
 pub mod record;

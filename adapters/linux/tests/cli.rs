@@ -752,6 +752,109 @@ fn finish_reports_bad_anchor_lines_verifies_per_window_and_refuses_a_log_without
 }
 
 #[test]
+fn export_nuplan_writes_the_devkits_tables_and_layers_and_refuses_bad_input() {
+    let dir = scratch("nuplan");
+    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "30", "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let path = |p: &Path| p.display().to_string();
+    let (log, map, nuplan) = (dir.join("finished.d2slog"), dir.join("road.map"), dir.join("nuplan"));
+    let out = dash2sim(&["export", &path(&log), "--nuplan", &path(&nuplan), "--map", &path(&map)]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let dbs: Vec<PathBuf> =
+        std::fs::read_dir(nuplan.join("db")).expect("db").map(|e| e.expect("entry").path()).collect();
+    assert_eq!(dbs.len(), 1, "{dbs:?}");
+    let name = dbs[0].file_name().and_then(|n| n.to_str()).unwrap_or_default().to_owned();
+    assert!(name.starts_with("2026.06.01.07.59") && name.ends_with("_dash2sim_finished.db"), "{name}");
+    let db = rusqlite::Connection::open(&dbs[0]).expect("sqlite");
+    let one = |sql: &str| -> i64 { db.query_row(sql, [], |r| r.get(0)).expect(sql) };
+    // The clock: exactly 20 Hz, one ego pose per tick, 30 s of drive.
+    let ticks = one("SELECT COUNT(*) FROM lidar_pc");
+    assert_eq!(ticks, one("SELECT COUNT(*) FROM ego_pose"));
+    assert!((590..=602).contains(&ticks), "{ticks}");
+    assert_eq!(one("SELECT MAX(timestamp) - MIN(timestamp) FROM lidar_pc"), (ticks - 1) * 50_000);
+    assert_eq!(one("SELECT COUNT(DISTINCT timestamp) FROM lidar_pc"), ticks);
+    assert_eq!(one("SELECT COUNT(*) FROM lidar_pc WHERE next_token IS NULL"), 1);
+    assert_eq!(one("SELECT COUNT(*) FROM scene"), 6);
+    assert_eq!(one("SELECT LENGTH(token) FROM scene LIMIT 1"), 8);
+    assert_eq!(one("SELECT COUNT(*) FROM lidar WHERE channel = 'MergedPointCloud'"), 1);
+    // The work zone's objects, by nuPlan category, every box on a tick of the clock.
+    for category in ["traffic_cone", "barrier", "czone_sign"] {
+        let n = one(&format!(
+            "SELECT COUNT(*) FROM track t JOIN category c ON t.category_token = c.token WHERE c.name = '{category}'"
+        ));
+        assert!(n > 0, "{category}");
+    }
+    assert_eq!(
+        one(
+            "SELECT COUNT(*) FROM lidar_box b LEFT JOIN lidar_pc p ON b.lidar_pc_token = p.token WHERE p.token IS NULL"
+        ),
+        0
+    );
+    // Every scene has a route of real roadblocks.
+    let routes: Vec<String> = db
+        .prepare("SELECT roadblock_ids FROM scene ORDER BY name")
+        .expect("query")
+        .query_map([], |r| r.get(0))
+        .expect("rows")
+        .collect::<Result<_, _>>()
+        .expect("routes");
+    assert!(
+        routes.iter().all(|r| r.split(' ').all(|id| id.parse::<i64>().is_ok_and(|id| id >= 1_000_000))),
+        "{routes:?}"
+    );
+    // The map: a GeoPackage with the layers nuPlan reads, in UTM 35N, lanes' ids apart from
+    // roadblocks'.
+    let gpkg = rusqlite::Connection::open(nuplan.join("maps/dash2sim-road/9.17.1964/map.gpkg")).expect("gpkg");
+    let g = |sql: &str| -> i64 { gpkg.query_row(sql, [], |r| r.get(0)).expect(sql) };
+    assert_eq!(g("PRAGMA application_id"), 0x4750_4B47);
+    assert_eq!(g("SELECT COUNT(*) FROM gpkg_contents WHERE data_type = 'features'"), 14);
+    assert_eq!(g("SELECT srs_id FROM gpkg_geometry_columns WHERE table_name = 'lanes_polygons'"), 32635);
+    assert!(g("SELECT MAX(fid) FROM lanes_polygons") < 1_000_000);
+    assert!(g("SELECT MIN(fid) FROM lane_groups_polygons") > 1_000_000);
+    assert!(g("SELECT COUNT(*) FROM generic_drivable_areas") > 100);
+    let maps: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(nuplan.join("maps/nuplan-maps-v1.0.json")).expect("json"))
+            .expect("json");
+    assert_eq!(maps["dash2sim-road"]["version"], "9.17.1964");
+
+    // Bad input: nothing is left behind.
+    let fresh = dir.join("refused");
+    let out =
+        dash2sim(&["export", &path(&log), "--nuplan", &path(&fresh), "--map", &path(&map), "--scenario-seconds", "10"]);
+    assert!(!out.status.success() && stderr(&out).contains("nuPlan needs at least 5"), "{}", stderr(&out));
+    let far = write(
+        &dir,
+        "far.osm",
+        r#"<osm version="0.6"><node id="1" lat="0.0" lon="0.0"/><node id="2" lat="0.001" lon="0.0"/>
+<way id="3"><nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/></way></osm>"#,
+    );
+    let out = dash2sim(&["export", &path(&log), "--nuplan", &path(&fresh), "--map", &far]);
+    assert!(!out.status.success() && stderr(&out).contains("the map does not cover the drive"), "{}", stderr(&out));
+    let gnss_only = dir.join("gnss-only.d2slog");
+    assert!(dash2sim(&["import", "-o", &path(&gnss_only), "--nmea", &path(&dir.join("drive/gnss.nmea"))])
+        .status
+        .success());
+    let out = dash2sim(&["export", &path(&gnss_only), "--nuplan", &path(&fresh), "--map", &path(&map)]);
+    assert!(!out.status.success() && stderr(&out).contains("no ego poses"), "{}", stderr(&out));
+    let out = dash2sim(&["export", &path(&log), "--nuplan", &path(&fresh)]);
+    assert!(!out.status.success() && stderr(&out).contains("--nuplan needs --map"), "{}", stderr(&out));
+    let left: Vec<_> = walk(&fresh).into_iter().filter(|p| p.is_file()).collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+fn walk(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+        let p = entry.path();
+        if p.is_dir() {
+            out.extend(walk(&p));
+        }
+        out.push(p);
+    }
+    out
+}
+
+#[test]
 fn live_record_closes_its_log_cleanly_on_sigterm() {
     let dir = scratch("live-sigterm");
     let out = dir.join("log");

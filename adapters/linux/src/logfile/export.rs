@@ -1,5 +1,6 @@
-//! `dash2sim export LOG [--mcap F] [--tum F] [--geojson F] [--map MAP]`: a log into the
-//! formats people already use — Foxglove (MCAP), evo (TUM), QGIS (GeoJSON).
+//! `dash2sim export LOG [--mcap F] [--tum F] [--geojson F] [--nuplan DIR] [--map MAP|OSM]`:
+//! a log into the formats people already use — Foxglove (MCAP), evo (TUM), QGIS (GeoJSON),
+//! nuPlan (`crate::nuplan`).
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -12,19 +13,52 @@ use serde_json::{json, Value};
 use super::import::CLASSES;
 use super::{frame, read, seconds, LogContents};
 
-/// What to export.
-#[derive(Clone, Debug, Default)]
+/// What to export (`dash2sim export`).
+#[derive(Clone, Debug, Default, clap::Args)]
 pub struct ExportRequest {
     /// The log.
     pub log: PathBuf,
-    /// MCAP output.
+    /// MCAP output (zstd chunks, Foxglove JSON schemas).
+    #[arg(long)]
     pub mcap: Option<PathBuf>,
-    /// TUM output (ego poses).
+    /// TUM output: the ego poses.
+    #[arg(long)]
     pub tum: Option<PathBuf>,
-    /// GeoJSON output.
+    /// GeoJSON output: ego and GNSS tracks, objects as points.
+    #[arg(long)]
     pub geojson: Option<PathBuf>,
-    /// A map tile whose lanes go into the MCAP as lines.
+    /// nuPlan output folder: `db/<log>.db` and `maps/` (needs --map).
+    #[arg(long)]
+    pub nuplan: Option<PathBuf>,
+    /// A map tile (`map build`) or an OpenStreetMap file (built into a tile around the
+    /// log's origin): its lanes go into the MCAP as lines and are the nuPlan map.
+    #[arg(long)]
     pub map: Option<PathBuf>,
+    /// Length of a nuPlan scene, s (nuPlan drops the first two and the last of a log).
+    #[arg(long, default_value_t = 5.0)]
+    pub scenario_seconds: f64,
+    /// The map's name in nuPlan (default: `dash2sim-` and the map file's name).
+    #[arg(long)]
+    pub map_name: Option<String>,
+}
+
+/// A map tile from `path`: a tile as it is, an OpenStreetMap file (XML or PBF) built into
+/// one around the log's origin.
+fn map_tile(path: &Path, log: &LogContents) -> Result<Vec<u8>, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    if bytes.starts_with(b"D2SMAP") {
+        return Ok(bytes);
+    }
+    let origin = log.header.as_ref().and_then(frame).map(|f| f.origin());
+    let osm = crate::osm::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(crate::map_tile::encode(&crate::map_tile::from_osm(&osm, origin, &mut Vec::new()), 50.0))
+}
+
+/// A nuPlan map name from a file name: lower case, `-` for anything but letters and digits.
+fn map_name(stem: &str) -> String {
+    let clean: String =
+        stem.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect();
+    format!("dash2sim-{}", clean.trim_matches('-'))
 }
 
 /// The ego poses of a log.
@@ -135,8 +169,8 @@ fn write(path: &Path, text: &str) -> Result<(), String> {
 
 /// `dash2sim export`.
 pub fn run(request: &ExportRequest) -> Result<(), String> {
-    if request.mcap.is_none() && request.tum.is_none() && request.geojson.is_none() {
-        return Err("nothing to export: give --mcap, --tum and/or --geojson".to_owned());
+    if request.mcap.is_none() && request.tum.is_none() && request.geojson.is_none() && request.nuplan.is_none() {
+        return Err("nothing to export: give --mcap, --tum, --geojson and/or --nuplan".to_owned());
     }
     let log = read(&request.log).map_err(|e| e.to_string())?;
     if log.stats.damaged > 0 {
@@ -161,9 +195,36 @@ pub fn run(request: &ExportRequest) -> Result<(), String> {
         write(path, &g.to_string())?;
         println!("{}: {} features", path.display(), g["features"].as_array().map_or(0, Vec::len));
     }
+    let map = request.map.as_deref().map(|p| map_tile(p, &log)).transpose()?;
+    if let Some(dir) = &request.nuplan {
+        let (Some(tile), Some(map_path)) = (&map, &request.map) else {
+            return Err("--nuplan needs --map (a tile or an OpenStreetMap file)".to_owned());
+        };
+        let stem = map_path.file_stem().and_then(|s| s.to_str()).unwrap_or("map");
+        let name = request.map_name.clone().unwrap_or_else(|| map_name(stem));
+        let log_name = request.log.display().to_string();
+        let started = std::time::Instant::now();
+        let out = crate::nuplan::export(&crate::nuplan::NuplanRequest {
+            log: &log,
+            log_name: &log_name,
+            tile,
+            map_name: &name,
+            out: dir,
+            scene_s: request.scenario_seconds,
+        })?;
+        let layers: Vec<String> = out.layers.iter().filter(|l| l.1 > 0).map(|(n, c)| format!("{c} {n}")).collect();
+        println!(
+            "{}: {} ego states at 20 Hz, {} scenes (EPSG:{}); map {} `{name}`: {} ({:.2} s)",
+            out.db.display(),
+            out.ego_states,
+            out.scenes,
+            out.epsg,
+            out.gpkg.display(),
+            layers.join(", "),
+            started.elapsed().as_secs_f64()
+        );
+    }
     if let Some(path) = &request.mcap {
-        let map =
-            request.map.as_ref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
         let view =
             map.as_deref().map(dash2sim_core::map::MapView::parse).transpose().map_err(|e| format!("--map: {e}"))?;
         let counts = super::mcap_export::write(&log, view.as_ref(), path, None)?;
