@@ -1,85 +1,171 @@
-"""Load a `dash2sim export --nuplan` folder with the real nuPlan devkit (issue #15).
+"""nuPlan's own simulator and metrics against `dash2sim verify`, on a `dash2sim export --nuplan`
+(issue #15).
 
-    /tmp/nuplan-venv/bin/python scripts/nuplan_crosscheck.py OUT_DIR MAP_NAME [--json]
+    VENV/bin/python scripts/nuplan_crosscheck.py --dash2sim target/release/dash2sim \
+        --log LOG --map MAP --out DIR [--every S] [--planner log|pdm] [--json]
 
-Builds every scenario of every log in OUT_DIR/db through `NuPlanScenarioBuilder` (with the map
-name added to the devkit's hard-coded `MAP_LOCATIONS`), and for each reads what the simulator
-reads: the ego's initial state, the route roadblocks, the mission goal, the tracked objects,
-and the map objects under the ego (lane, roadblock, drivable area). Prints one line per
-scenario, or JSON; exits non-zero when a scenario fails to load. The nuPlan tools are test
-tools: `../shared/nuplan/setup.sh VENV` installs them, the product never imports them.
+1. `dash2sim export LOG --nuplan DIR --map MAP` writes the log database and the map;
+2. the devkit's `NuPlanScenarioBuilder` loads every scenario (the map's name added to its
+   hard-coded `MAP_LOCATIONS`), one starting every S seconds (default 5);
+3. each is simulated as nuPlan's `closed_loop_nonreactive_agents` does — non-reactive agents
+   (`TracksObservation`), the LQR two-stage controller on a kinematic bicycle — with the
+   log-replay planner (`LogFuturePlanner`, the expert) or PDM-Closed, and scored with nuPlan's
+   metrics composed from its own Hydra configs; the aggregate as its weighted average computes it;
+4. `dash2sim verify LOG --map MAP --from START --to END` scores the same window.
+
+With the log-replay planner the two must give the same verdict, the same value for every
+multiplier metric and every weighted metric within 0.05; the script prints the table and
+exits 1 otherwise. With PDM-Closed it reports nuPlan's scores only. `../shared/nuplan/setup.sh
+VENV` installs the devkit and PDM-Closed; they are test tools, never product dependencies.
 """
+import argparse
 import json
+import subprocess
 import sys
+import tempfile
 from pathlib import Path
-
 import nuplan.database.maps_db.gpkg_mapsdb as gpkg_mapsdb
-from nuplan.common.actor_state.state_representation import Point2D
-from nuplan.common.maps.maps_datatypes import SemanticMapLayer
+from hydra import compose, initialize_config_dir
+from nuplan.common.actor_state.vehicle_parameters import get_pacifica_parameters
 from nuplan.planning.scenario_builder.nuplan_db.nuplan_scenario_builder import NuPlanScenarioBuilder
 from nuplan.planning.scenario_builder.scenario_filter import ScenarioFilter
+from nuplan.planning.script.builders.metric_builder import build_metrics_engines
+from nuplan.planning.simulation.controller.motion_model.kinematic_bicycle import KinematicBicycleModel
+from nuplan.planning.simulation.controller.tracker.lqr import LQRTracker
+from nuplan.planning.simulation.controller.two_stage_controller import TwoStageController
+from nuplan.planning.simulation.observation.tracks_observation import TracksObservation
+from nuplan.planning.simulation.planner.log_future_planner import LogFuturePlanner
+from nuplan.planning.simulation.simulation import Simulation
+from nuplan.planning.simulation.simulation_setup import SimulationSetup
+from nuplan.planning.simulation.simulation_time_controller.step_simulation_time_controller import (
+    StepSimulationTimeController,
+)
 from nuplan.planning.utils.multithreading.worker_sequential import Sequential
+
+MULTIPLIERS = ["no_ego_at_fault_collisions", "drivable_area_compliance", "ego_is_making_progress", "driving_direction_compliance"]
+WEIGHTS = {"ego_progress_along_expert_route": 5.0, "time_to_collision_within_bound": 5.0, "speed_limit_compliance": 4.0,
+           "ego_is_comfortable": 2.0}
+
+
+def metric_config(output: str):
+    """nuPlan's closed-loop non-reactive metric set, composed from its own configs."""
+    folder = tempfile.mkdtemp()
+    Path(folder, "main.yaml").write_text(
+        "defaults:\n  - simulation_metric: simulation_closed_loop_nonreactive_agents\n  - _self_\n"
+        "hydra:\n  searchpath:\n    - pkg://nuplan.planning.script.config.common\n"
+        f"output_dir: {output}\nmetric_dir: metrics\nselected_simulation_metrics: null\n"
+    )
+    with initialize_config_dir(config_dir=folder, version_base=None):
+        return compose(config_name="main")
+
+
+def planner_for(name: str, scenario):
+    if name == "pdm":
+        from tuplan_garage.planning.simulation.planner.pdm_planner.pdm_closed_planner import PDMClosedPlanner
+        from hydra.utils import instantiate
+        from omegaconf import OmegaConf
+        cfg = OmegaConf.load(Path(__import__("tuplan_garage").__file__).parent / "planning/script/config/simulation/planner/pdm_closed_planner.yaml")
+        return instantiate(cfg["pdm_closed_planner"])
+    return LogFuturePlanner(scenario, num_poses=16, future_time_horizon=8.0)
+
+
+NAMES = {"no_ego_at_fault_collisions": "no_at_fault_collisions"}
+TOLERANCE = 0.05
 
 
 def main() -> int:
-    out, map_name = Path(sys.argv[1]), sys.argv[2]
-    as_json = "--json" in sys.argv
-    # The devkit loads every location it knows (four cities) when a map is first read: only
-    # this one exists here.
-    gpkg_mapsdb.MAP_LOCATIONS = {map_name}
-    builder = NuPlanScenarioBuilder(
-        data_root=str(out / "db"),
-        map_root=str(out / "maps"),
-        sensor_root=None,
-        db_files=None,
-        map_version="nuplan-maps-v1.0",
-        include_cameras=False,
-        verbose=False,
-    )
-    scenario_filter = ScenarioFilter(
-        scenario_types=None,
-        scenario_tokens=None,
-        log_names=None,
-        map_names=None,
-        num_scenarios_per_type=None,
-        limit_total_scenarios=None,
-        timestamp_threshold_s=None,
-        ego_displacement_minimum_m=None,
-        expand_scenarios=False,
-        remove_invalid_goals=False,
-        shuffle=False,
-    )
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--dash2sim", required=True)
+    parser.add_argument("--log", required=True)
+    parser.add_argument("--map", required=True)
+    parser.add_argument("--out", required=True)
+    parser.add_argument("--map-name", default="dash2sim-crosscheck")
+    parser.add_argument("--every", type=float, default=5.0)
+    parser.add_argument("--planner", choices=["log", "pdm"], default="log")
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+    out = Path(args.out)
+    subprocess.run([args.dash2sim, "export", args.log, "--nuplan", str(out), "--map", args.map,
+                    "--map-name", args.map_name], check=True, stdout=subprocess.DEVNULL)
+    gpkg_mapsdb.MAP_LOCATIONS = {args.map_name}
+    builder = NuPlanScenarioBuilder(data_root=str(out / "db"), map_root=str(out / "maps"), sensor_root=None,
+                                    db_files=None, map_version="nuplan-maps-v1.0", include_cameras=False, verbose=False)
+    scenario_filter = ScenarioFilter(scenario_types=None, scenario_tokens=None, log_names=None, map_names=None,
+                                     num_scenarios_per_type=None, limit_total_scenarios=None,
+                                     timestamp_threshold_s=args.every, ego_displacement_minimum_m=None,
+                                     expand_scenarios=False, remove_invalid_goals=False, shuffle=False)
     scenarios = builder.get_scenarios(scenario_filter, Sequential())
-    rows = []
+    if not scenarios:
+        print("no scenario loaded", file=sys.stderr)
+        return 1
+    engines = build_metrics_engines(metric_config(tempfile.mkdtemp()), scenarios)
+    vehicle = get_pacifica_parameters()
+    rows, failures = [], 0
     for scenario in scenarios:
-        ego = scenario.initial_ego_state
-        centre = Point2D(ego.rear_axle.x, ego.rear_axle.y)
-        map_api = scenario.map_api
-        objects = scenario.initial_tracked_objects.tracked_objects
-        rows.append(
-            {
-                "token": scenario.token,
-                "log": scenario.log_name,
-                "start_us": scenario.start_time.time_us,
-                "duration_s": scenario.duration_s.time_s,
-                "iterations": scenario.get_number_of_iterations(),
-                "ego": [ego.rear_axle.x, ego.rear_axle.y, ego.rear_axle.heading],
-                "speed_mps": ego.dynamic_car_state.speed,
-                "route_roadblocks": scenario.get_route_roadblock_ids(),
-                "goal": None if scenario.get_mission_goal() is None else [scenario.get_mission_goal().x, scenario.get_mission_goal().y],
-                "objects": len(objects),
-                "object_types": sorted({o.tracked_object_type.fullname for o in objects}),
-                "on_drivable_area": map_api.is_in_layer(centre, SemanticMapLayer.DRIVABLE_AREA),
-                "lanes_here": [l.id for l in map_api.get_all_map_objects(centre, SemanticMapLayer.LANE)],
-            }
-        )
-    if as_json:
-        print(json.dumps({"scenarios": rows}))
-    else:
-        for r in rows:
-            print(f"{r['log']} {r['token']}: {r['duration_s']:.1f} s, speed {r['speed_mps']:.1f} m/s, "
-                  f"{r['objects']} objects, route {len(r['route_roadblocks'])} roadblocks, on drivable area {r['on_drivable_area']}")
-    return 0 if rows else 1
+        tracker = LQRTracker(q_longitudinal=[10.0], r_longitudinal=[1.0], q_lateral=[1.0, 10.0, 0.0], r_lateral=[1.0],
+                             discretization_time=0.1, tracking_horizon=10, jerk_penalty=1e-4, curvature_rate_penalty=1e-2,
+                             stopping_proportional_gain=0.5, stopping_velocity=0.2, vehicle=vehicle)
+        setup = SimulationSetup(time_controller=StepSimulationTimeController(scenario),
+                                observations=TracksObservation(scenario),
+                                ego_controller=TwoStageController(scenario, tracker, KinematicBicycleModel(vehicle)),
+                                scenario=scenario)
+        simulation = Simulation(setup, callback=None, simulation_history_buffer_duration=2.0)
+        planner = planner_for(args.planner, scenario)
+        planner.initialize(simulation.initialize())
+        try:
+            while simulation.is_simulation_running():
+                simulation.propagate(planner.compute_trajectory(simulation.get_planner_input()))
+        except ValueError as e:
+            # The log-replay planner needs the log to go on for its horizon (8 s) past the
+            # scenario: the last scenarios of a short log cannot be replayed.
+            rows.append({"token": scenario.token, "skipped": str(e)})
+            if not args.json:
+                print(f"{scenario.token}: skipped ({e})", flush=True)
+            continue
+        files = engines[scenario.scenario_type].compute(simulation.history, scenario=scenario, planner_name=args.planner)
+        nuplan = {}
+        for metric_files in files.values():
+            for f in metric_files:
+                # A metric may add results without a score (the drivable-area corners' time
+                # series): its score is the one that has one.
+                for result in f.metric_statistics:
+                    if result.metric_score is not None or result.metric_computator not in nuplan:
+                        nuplan[NAMES.get(result.metric_computator, result.metric_computator)] = result.metric_score
+        # nuPlan's weighted average: a metric without a score (None) counts as 1.
+        value = lambda m: 1.0 if nuplan.get(m) is None else float(nuplan[m])
+        multiplier = 1.0
+        for m in MULTIPLIERS:
+            multiplier *= value(NAMES.get(m, m))
+        score = 100.0 * multiplier * sum(WEIGHTS[m] * value(m) for m in WEIGHTS) / sum(WEIGHTS.values())
+        start, end = scenario.start_time.time_us / 1e6, scenario.end_time.time_us / 1e6
+        row = {"token": scenario.token, "start_s": start, "end_s": end, "planner": args.planner,
+               "nuplan": {"score": score, "verified": score > 90.0, "metrics": nuplan}}
+        if args.planner == "log":
+            verify = json.loads(subprocess.run([args.dash2sim, "verify", args.log, "--map", args.map, "--json",
+                                                "--from", str(start), "--to", str(end)],
+                                               check=True, capture_output=True, text=True).stdout)
+            row["dash2sim"] = {"score": verify["score"], "verified": verify["verified"], "metrics": verify["metrics"]}
+            problems = []
+            if verify["verified"] != row["nuplan"]["verified"]:
+                problems.append("verdict")
+            for m in MULTIPLIERS:
+                name = NAMES.get(m, m)
+                if value(name) != verify["metrics"][name]:
+                    problems.append(name)
+            for m in WEIGHTS:
+                if abs(value(m) - verify["metrics"][m]) > TOLERANCE:
+                    problems.append(m)
+            row["disagreements"] = problems
+            failures += bool(problems)
+        rows.append(row)
+        if not args.json:
+            d = row.get("dash2sim")
+            print(f"{scenario.token} {start:.2f}-{end:.2f} s: nuPlan {score:.2f}" +
+                  ("" if d is None else f", dash2sim {d['score']:.2f}" +
+                   (f"  DISAGREE: {', '.join(row['disagreements'])}" if row["disagreements"] else "  agree")), flush=True)
+    if args.json:
+        print(json.dumps({"scenarios": rows, "disagreeing": failures}))
+    return 1 if failures else 0
 
 
 if __name__ == "__main__":

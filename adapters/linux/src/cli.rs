@@ -163,6 +163,12 @@ struct VerifyArgs {
     /// Write the per-pose checks (corner distances, lanes, speed, TTC) to this CSV.
     #[arg(long)]
     poses: Option<PathBuf>,
+    /// Only the poses from this time on (the log's time, s: UTC for a log).
+    #[arg(long, allow_hyphen_values = true)]
+    from: Option<f64>,
+    /// Only the poses up to this time.
+    #[arg(long, allow_hyphen_values = true)]
+    to: Option<f64>,
     /// Print the report as JSON: each metric's score, the aggregate, `verified`.
     #[arg(long)]
     json: bool,
@@ -447,6 +453,7 @@ fn verify(a: &VerifyArgs) -> Result<(), String> {
         channel_sensitive: a.channel_sensitive,
         footprint,
         poses: a.poses.as_deref(),
+        window: (a.from.unwrap_or(f64::NEG_INFINITY), a.to.unwrap_or(f64::INFINITY)),
     };
     if valid {
         crate::verify::run(&request, a.json)

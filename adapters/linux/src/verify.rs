@@ -38,6 +38,8 @@ pub struct VerifyRequest<'a> {
     pub footprint: Footprint,
     /// Per-pose CSV to write.
     pub poses: Option<&'a Path>,
+    /// Only the poses within this time window, s (a nuPlan scenario's, for the cross-check).
+    pub window: (f64, f64),
 }
 
 /// Agents by time (ms).
@@ -300,6 +302,11 @@ pub fn run(request: &VerifyRequest<'_>, as_json: bool) -> Result<(), String> {
     };
     if let Some(path) = request.objects {
         objects = read_objects(path)?;
+    }
+    let (from, to) = request.window;
+    let poses: Vec<(f64, Pose2)> = poses.into_iter().filter(|(t, _)| *t >= from && *t <= to).collect();
+    if poses.is_empty() {
+        return Err(format!("{}: no ego poses between {from} and {to} s", name.display()));
     }
     let v = replay(map, &poses, &objects, request.channel_sensitive, request.footprint)?;
     if let Some(path) = request.poses {

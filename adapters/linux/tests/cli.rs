@@ -817,6 +817,21 @@ fn export_nuplan_writes_the_devkits_tables_and_layers_and_refuses_bad_input() {
             .expect("json");
     assert_eq!(maps["dash2sim-road"]["version"], "9.17.1964");
 
+    // `verify --from/--to` scores one scenario's window, as the nuPlan cross-check asks it.
+    let all: serde_json::Value =
+        serde_json::from_slice(&dash2sim(&["verify", &path(&log), "--map", &path(&map), "--json"]).stdout)
+            .expect("json");
+    let start = one("SELECT MIN(timestamp) FROM lidar_pc") as f64 * 1e-6;
+    let (from, to) = (format!("{:.3}", start + 5.0), format!("{:.3}", start + 20.0));
+    let window: serde_json::Value = serde_json::from_slice(
+        &dash2sim(&["verify", &path(&log), "--map", &path(&map), "--json", "--from", &from, "--to", &to]).stdout,
+    )
+    .expect("json");
+    let (n_all, n_window) = (all["poses"].as_u64().expect("poses"), window["poses"].as_u64().expect("poses"));
+    assert!(n_window < n_all && (140..=160).contains(&n_window), "{n_window} of {n_all}");
+    let out = dash2sim(&["verify", &path(&log), "--map", &path(&map), "--from", "0", "--to", "1"]);
+    assert!(!out.status.success() && stderr(&out).contains("no ego poses between"), "{}", stderr(&out));
+
     // Bad input: nothing is left behind.
     let fresh = dir.join("refused");
     let out =
