@@ -123,12 +123,14 @@ def main() -> int:
                 print(f"{scenario.token}: skipped ({e})", flush=True)
             continue
         files = engines[scenario.scenario_type].compute(simulation.history, scenario=scenario, planner_name=args.planner)
-        nuplan = {}
+        nuplan, lane_changes = {}, {}
         for metric_files in files.values():
             for f in metric_files:
                 # A metric may add results without a score (the drivable-area corners' time
                 # series): its score is the one that has one.
                 for result in f.metric_statistics:
+                    if result.metric_computator == "ego_lane_change":
+                        lane_changes = {st.name: st.value for st in result.statistics}
                     if result.metric_score is not None or result.metric_computator not in nuplan:
                         nuplan[NAMES.get(result.metric_computator, result.metric_computator)] = result.metric_score
         # nuPlan's weighted average: a metric without a score (None) counts as 1.
@@ -139,7 +141,7 @@ def main() -> int:
         score = 100.0 * multiplier * sum(WEIGHTS[m] * value(m) for m in WEIGHTS) / sum(WEIGHTS.values())
         start, end = scenario.start_time.time_us / 1e6, scenario.end_time.time_us / 1e6
         row = {"token": scenario.token, "start_s": start, "end_s": end, "planner": args.planner,
-               "nuplan": {"score": score, "verified": score > 90.0, "metrics": nuplan}}
+               "nuplan": {"score": score, "verified": score > 90.0, "metrics": nuplan, "lane_changes": lane_changes}}
         if args.planner == "log":
             verify = json.loads(subprocess.run([args.dash2sim, "verify", args.log, "--map", args.map, "--json",
                                                 "--from", str(start), "--to", str(end)],
