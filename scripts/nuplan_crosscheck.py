@@ -81,12 +81,13 @@ def main() -> int:
     parser.add_argument("--out", required=True)
     parser.add_argument("--map-name", default="dash2sim-crosscheck")
     parser.add_argument("--every", type=float, default=5.0)
+    parser.add_argument("--scenario-seconds", default="5")
     parser.add_argument("--planner", choices=["log", "pdm"], default="log")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     out = Path(args.out)
     subprocess.run([args.dash2sim, "export", args.log, "--nuplan", str(out), "--map", args.map,
-                    "--map-name", args.map_name], check=True, stdout=subprocess.DEVNULL)
+                    "--map-name", args.map_name, "--scenario-seconds", args.scenario_seconds], check=True, stdout=subprocess.DEVNULL)
     gpkg_mapsdb.MAP_LOCATIONS = {args.map_name}
     builder = NuPlanScenarioBuilder(data_root=str(out / "db"), map_root=str(out / "maps"), sensor_root=None,
                                     db_files=None, map_version="nuplan-maps-v1.0", include_cameras=False, verbose=False)
