@@ -178,21 +178,10 @@ pub fn export(request: &NuplanRequest<'_>) -> Result<NuplanExport, String> {
     })
 }
 
-/// nuPlan's log names start with the date and time: `YYYY.MM.DD.HH.MM.SS`.
+/// nuPlan's log names start with the date and time: `YYYY.MM.DD.HH.MM.SS` (the UTC of
+/// `crate::nmea_decode::iso8601`, re-punctuated).
 fn date_name(t_us: i64) -> String {
-    let secs = t_us.div_euclid(1_000_000);
-    let (days, rem) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
-    // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = doy - (153 * mp + 2) / 5 + 1;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 };
-    let year = yoe + era * 400 + i64::from(month <= 2);
-    format!("{year:04}.{month:02}.{day:02}.{:02}.{:02}.{:02}", rem / 3600, rem % 3600 / 60, rem % 60)
+    crate::nmea_decode::iso8601(t_us).chars().take(19).map(|c| if c.is_ascii_digit() { c } else { '.' }).collect()
 }
 
 #[cfg(test)]
