@@ -16,14 +16,14 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use clap::Args;
-use dash2sim_core::binlog::{quantise, AnchorEstimate, EgoPose, EventRecord, Header, Record, MAX_TEXT};
+use dash2sim_core::binlog::{quantise, AnchorEstimate, EgoPose, Header, Record};
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::nalgebra::{Rotation3, Vector3};
 use dash2sim_core::pipeline::CameraMount;
 use dash2sim_core::sim3::Pose;
 use serde_json::{json, Value};
 
-use crate::logfile::{self, LogContents};
+use crate::logfile::{self, event, LogContents};
 use crate::record::{DeviceArgs, ModeArg};
 use anchors::AnchorForm;
 use solve::{Anchor, AnchorAt, Fix, Inputs, Settings, Solution, VoSample};
@@ -112,17 +112,6 @@ fn drive(log: &LogContents, frame: &LocalFrame, uere: f64) -> Drive {
     speeds.sort_by(|a, b| by_time(&a.0, &b.0));
     speeds.dedup_by(|a, b| a.0 <= b.0);
     Drive { vo, fixes, speeds }
-}
-
-fn event(t_us: i64, level: u8, text: &str) -> Record {
-    let mut e = EventRecord { t_us, level, ..EventRecord::default() };
-    // Cut at a character boundary within the record's limit.
-    let mut end = text.len().min(MAX_TEXT);
-    while !text.is_char_boundary(end) {
-        end -= 1;
-    }
-    let _ = e.text.extend_from_slice(&text.as_bytes()[..end]);
-    Record::Event(e)
 }
 
 /// The anchors of a file in the log's frame, with those refused while reading.

@@ -10,8 +10,7 @@ use dash2sim_core::pipeline::verification_record;
 use dash2sim_core::score::Scores;
 use serde_json::{json, Map, Value};
 
-use super::event;
-use crate::logfile::LogContents;
+use crate::logfile::{event, LogContents};
 use crate::verify::{metrics_json, replay, AgentsByTime};
 
 /// nuPlan's scenario length, s.

@@ -14,8 +14,7 @@
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::binlog::{
-    EgoPose, EventRecord, GnssFix, Header, Record, Track3d, Tracks3d, VehicleSpeed, Writer, WriterConfig, MAX_TEXT,
-    MAX_TRACKS,
+    EgoPose, GnssFix, Header, Record, Track3d, Tracks3d, VehicleSpeed, Writer, WriterConfig, MAX_TRACKS,
 };
 use dash2sim_core::nmea::{Event as NmeaEvent, Stream, StreamEvent};
 
@@ -272,12 +271,8 @@ pub fn run(request: &ImportRequest) -> Result<(), String> {
             .iter()
             .filter_map(|(name, path)| path.as_ref().map(|p| format!("{name}={}", p.display())))
             .collect();
-    let mut event =
-        EventRecord { t_us: records.iter().map(Record::t_us).min().unwrap_or(0), level: 2, ..EventRecord::default() };
-    for b in format!("dash2sim import: {}", sources.join(" ")).bytes().take(MAX_TEXT) {
-        let _ = event.text.push(b);
-    }
-    records.push(Record::Event(event));
+    let first = records.iter().map(Record::t_us).min().unwrap_or(0);
+    records.push(super::event(first, 2, &format!("dash2sim import: {}", sources.join(" "))));
     let [lat, lon, h] = origin.unwrap_or([0.0; 3]);
     let header = Header {
         device_id: *b"dash2sim-import\0",

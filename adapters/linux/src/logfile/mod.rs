@@ -103,6 +103,17 @@ pub fn frame(header: &Header) -> Option<LocalFrame> {
     Geodetic::new(f64::from(lat) * 1e-7, f64::from(lon) * 1e-7, f64::from(h) * 1e-3).ok().map(LocalFrame::new)
 }
 
+/// An event record with `text` cut at a character boundary to the record's limit.
+pub fn event(t_us: i64, level: u8, text: &str) -> Record {
+    let mut e = dash2sim_core::binlog::EventRecord { t_us, level, ..Default::default() };
+    let mut end = text.len().min(dash2sim_core::binlog::MAX_TEXT);
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    let _ = e.text.extend_from_slice(&text.as_bytes()[..end]);
+    Record::Event(e)
+}
+
 /// Seconds from µs.
 pub fn seconds(t_us: i64) -> f64 {
     t_us as f64 / 1e6

@@ -16,7 +16,8 @@ pub enum Geometry {
 }
 
 impl Geometry {
-    fn points(&self) -> &[(f64, f64)] {
+    /// Its points (a polygon's ring as given).
+    pub fn points(&self) -> &[(f64, f64)] {
         match self {
             Geometry::LineString(p) | Geometry::Polygon(p) => p,
         }

@@ -299,7 +299,7 @@ pub fn write(
         })
         .collect();
     let projected = log_projection.project(&box_points);
-    for (n, (id, members)) in by_track.iter().enumerate() {
+    for (n, members) in by_track.values().enumerate() {
         let Some(&first) = members.first() else { continue };
         let t = &boxes[first].1;
         let category = CATEGORIES.iter().position(|c| *c == category(class_name(t.class))).unwrap_or(6);
@@ -308,7 +308,6 @@ pub fn write(
             params![token(7, n), token(3, category), t.w_mm as f64 * 1e-3, t.l_mm as f64 * 1e-3, t.h_mm as f64 * 1e-3],
         )
         .map_err(err)?;
-        let _ = id;
         for (m, &k) in members.iter().enumerate() {
             let (tick, b, _) = &boxes[k];
             let heading = log_projection.heading(box_points[k], b.yaw_e4 as f64 * 1e-4);

@@ -273,7 +273,7 @@ pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>
                 ring.extend(r.iter().rev());
                 ring
             }
-            _ => hull(members.iter().flat_map(|&i| lane_rows[i].1.points_vec()).collect()),
+            _ => hull(members.iter().flat_map(|&i| lane_rows[i].1.points().to_vec()).collect()),
         };
         roadblocks.push((id, Geometry::Polygon(ring), vec![]));
     }
@@ -424,14 +424,6 @@ pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>
         roadblock_connectors: roadblock_connectors.iter().map(|(k, (id, _))| (*k, *id)).collect(),
     };
     Ok((layers, ids))
-}
-
-impl Geometry {
-    fn points_vec(&self) -> Vec<(f64, f64)> {
-        match self {
-            Geometry::LineString(p) | Geometry::Polygon(p) => p.clone(),
-        }
-    }
 }
 
 #[cfg(test)]
