@@ -7,7 +7,6 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use dash2sim_core::binlog::{Record, Track3d};
-use dash2sim_core::map::MapView;
 use dash2sim_core::obb::Pose2;
 use rusqlite::{params, Connection};
 
@@ -142,26 +141,12 @@ fn token(kind: u8, index: usize) -> Vec<u8> {
     ((u64::from(kind) << 56) | index as u64).to_be_bytes().to_vec()
 }
 
-/// The roadblocks (and roadblock connectors between them) the ego's centre is on, in
-/// order, from tick `from` on.
-fn route(ticks: &[EgoTick], from: usize, map: &MapView<'_>, ids: &MapIds) -> Vec<i64> {
+/// The roadblocks (and roadblock connectors between them) the ego's rear axle is on, in
+/// order, from tick `from` on: nuPlan's own polygons, so that its route and the ego agree.
+fn route(ticks: &[EgoTick], from: usize, ids: &MapIds) -> Vec<i64> {
     let mut out: Vec<i64> = Vec::new();
     for tick in &ticks[from..] {
-        let p = &tick.enu;
-        let mut best: Option<(f64, u32)> = None;
-        map.for_each_near(p.x, p.y, 5.0, |item| {
-            if let Some(lane) = match item {
-                dash2sim_core::map::Item::Lane(i) => map.lane(i),
-                dash2sim_core::map::Item::Polygon(_) => None,
-            } {
-                let d = lane.distance_outside(p.x, p.y);
-                if best.is_none_or(|(b, _)| d < b) {
-                    best = Some((d, lane.index));
-                }
-            }
-        });
-        let Some((_, lane)) = best else { continue };
-        let Some(&roadblock) = ids.roadblock_of_lane.get(lane as usize) else { continue };
+        let Some(roadblock) = ids.roadblock_at((tick.x, tick.y)) else { continue };
         if let Some(&previous) = out.last() {
             if previous == roadblock {
                 continue;
@@ -205,7 +190,6 @@ pub fn write(
     log: &LogContents,
     ticks: &[EgoTick],
     map_name: &str,
-    map: &MapView<'_>,
     ids: &MapIds,
     log_projection: &Projection,
     scene_s: f64,
@@ -275,7 +259,7 @@ pub fn write(
         let first = s * per_scene;
         // The goal: the ego's pose at the end of the drive, the route: roadblocks ahead.
         let goal = ticks.len() - 1;
-        let roadblocks: Vec<String> = route(ticks, first, map, ids).iter().map(i64::to_string).collect();
+        let roadblocks: Vec<String> = route(ticks, first, ids).iter().map(i64::to_string).collect();
         tx.execute(
             "INSERT INTO scene VALUES (?1, ?2, ?3, ?4, ?5)",
             params![token(6, s), log_token, format!("scene-{s:04}"), token(4, goal), roadblocks.join(" ")],

@@ -1,13 +1,15 @@
 //! A map tile's lanes as nuPlan's map layers (`docs/nuplan.md`): the same lanes `map build`
 //! puts in the tile, so that `verify` and nuPlan see one geometry.
 //!
-//! * **Lanes**: each tile lane, its centreline trimmed by up to 2 m at an end that joins
-//!   another lane, as `lanes_polygons` (the trimmed centreline offset by half the width on
-//!   each side), its `baseline_paths` row and two `boundaries`.
-//! * **Roadblocks** (`lane_groups_polygons`): lanes joined by left/right neighbours; their
-//!   `lane_index` counts from the leftmost (0).
-//! * **Lane connectors**: one per successor relation, the trimmed end of one lane and the
-//!   trimmed start of the next; grouped by (roadblock, roadblock) into roadblock connectors.
+//! * **Lanes**: each tile lane cut at its junctions ([`super::junctions`]) into pieces that
+//!   overlap no other lane; each piece as `lanes_polygons` (its centreline offset by half
+//!   the width, in projected metres and less a 1 mm seam, on each side), its
+//!   `baseline_paths` row and two `boundaries`.
+//! * **Roadblocks** (`lane_groups_polygons`): pieces side by side, of lanes joined by
+//!   left/right neighbours; their `lane_index` counts from the leftmost (0).
+//! * **Lane connectors**: one per join through a junction — along the centreline where a
+//!   lane goes on, a cubic curve between two lanes; grouped by (roadblock, roadblock) into
+//!   roadblock connectors.
 //! * **Drivable area**: the roadblocks as `road_segments`, and — so that nuPlan's drivable
 //!   area equals the tile's (round caps and joins) — every centreline segment's capsule and
 //!   every tile polygon as `generic_drivable_areas`.
@@ -20,138 +22,42 @@ use std::collections::BTreeMap;
 
 use dash2sim_core::map::MapView;
 
+use super::geometry::{band, bezier, capsule, contains, cut, heading_at, hull, length, point_at, Line};
 use super::gpkg::{Geometry, Layer, Value};
+use super::junctions::{layout, DisjointSets, LaneShape};
 use super::projection::Projection;
 
 const ROADBLOCK_BASE: i64 = 1_000_000;
 const CONNECTOR_BASE: i64 = 2_000_000;
 const ROADBLOCK_CONNECTOR_BASE: i64 = 3_000_000;
 const BOUNDARY_BASE: i64 = 4_000_000;
-/// Length taken from each joined lane end for its connectors, m (at most a quarter of the
-/// lane).
-const TRIM_M: f64 = 2.0;
-/// Points on a half circle of a capsule.
-const CAP_POINTS: usize = 16;
+/// Lanes are drawn this much narrower on each side, m, so that side-by-side lanes never
+/// share a sliver (rounding of f32 points and of the projection) in which nuPlan would find
+/// two lanes under a point.
+const SEAM_M: f64 = 0.001;
+/// Points on a turn's curve.
+const TURN_POINTS: usize = 12;
 
 /// What the log export needs to know about the map besides its layers.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct MapIds {
-    /// Roadblock id of every tile lane.
-    pub roadblock_of_lane: Vec<i64>,
+    /// Every roadblock: id, bounding box (x0, y0, x1, y1) and polygon.
+    pub roadblocks: Vec<(i64, [f64; 4], Line)>,
     /// Roadblock connector id by (from roadblock, to roadblock).
     pub roadblock_connectors: BTreeMap<(i64, i64), i64>,
 }
 
-type Line = Vec<(f64, f64)>;
-
-fn length(line: &[(f64, f64)]) -> f64 {
-    line.windows(2).map(|w| (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1)).sum()
+impl MapIds {
+    /// The roadblock under `p` (projected), if any.
+    pub fn roadblock_at(&self, p: (f64, f64)) -> Option<i64> {
+        self.roadblocks
+            .iter()
+            .find(|(_, b, ring)| p.0 >= b[0] && p.1 >= b[1] && p.0 <= b[2] && p.1 <= b[3] && contains(ring, p))
+            .map(|(id, _, _)| *id)
+    }
 }
 
-/// The part of `line` between arc lengths `from` and `to`.
-fn cut(line: &[(f64, f64)], from: f64, to: f64) -> Line {
-    let mut out = Vec::new();
-    let mut s = 0.0;
-    for w in line.windows(2) {
-        let (a, b) = (w[0], w[1]);
-        let l = (b.0 - a.0).hypot(b.1 - a.1);
-        let at = |d: f64| {
-            let f = if l > 0.0 { ((d - s) / l).clamp(0.0, 1.0) } else { 0.0 };
-            (a.0 + (b.0 - a.0) * f, a.1 + (b.1 - a.1) * f)
-        };
-        if s + l >= from && s <= to {
-            if out.is_empty() {
-                out.push(at(from.max(s)));
-            }
-            out.push(at(to.min(s + l)));
-        }
-        s += l;
-    }
-    out.dedup();
-    if out.len() == 1 {
-        out.push(out[0]);
-    }
-    out
-}
-
-/// `line` moved sideways by `d` (left positive), each vertex along the mean of its
-/// segments' normals scaled so that straight stretches keep their distance.
-fn offset(line: &[(f64, f64)], d: f64) -> Line {
-    let normal = |a: (f64, f64), b: (f64, f64)| {
-        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-        let l = dx.hypot(dy).max(1e-9);
-        (-dy / l, dx / l)
-    };
-    let n = line.len();
-    (0..n)
-        .map(|k| {
-            let before = (k > 0).then(|| normal(line[k - 1], line[k]));
-            let after = (k + 1 < n).then(|| normal(line[k], line[k + 1]));
-            let (nx, ny) = match (before, after) {
-                (Some(a), Some(b)) => {
-                    let (x, y) = (a.0 + b.0, a.1 + b.1);
-                    let l = x.hypot(y).max(1e-9);
-                    // 1/cos of the half angle, limited at sharp turns.
-                    let scale = (2.0 / (1.0 + a.0 * b.0 + a.1 * b.1).max(0.25)).sqrt();
-                    (x / l * scale, y / l * scale)
-                }
-                (Some(a), None) | (None, Some(a)) => a,
-                (None, None) => (0.0, 0.0),
-            };
-            (line[k].0 + nx * d, line[k].1 + ny * d)
-        })
-        .collect()
-}
-
-/// The polygon between a centreline's two offsets.
-fn band(line: &[(f64, f64)], half_width: f64) -> (Line, Line, Line) {
-    let left = offset(line, half_width);
-    let right = offset(line, -half_width);
-    let mut ring = left.clone();
-    ring.extend(right.iter().rev());
-    (ring, left, right)
-}
-
-/// A segment's capsule (round caps), as a polygon.
-fn capsule(a: (f64, f64), b: (f64, f64), r: f64) -> Line {
-    let heading = (b.1 - a.1).atan2(b.0 - a.0);
-    let mut ring = Vec::with_capacity(2 * CAP_POINTS + 2);
-    for (centre, start) in [(b, heading - std::f64::consts::FRAC_PI_2), (a, heading + std::f64::consts::FRAC_PI_2)] {
-        for k in 0..=CAP_POINTS {
-            let angle = start + std::f64::consts::PI * k as f64 / CAP_POINTS as f64;
-            ring.push((centre.0 + r * angle.cos(), centre.1 + r * angle.sin()));
-        }
-    }
-    ring
-}
-
-/// Convex hull (Andrew's monotone chain), counter-clockwise.
-fn hull(mut points: Vec<(f64, f64)>) -> Line {
-    points.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
-    points.dedup();
-    if points.len() < 3 {
-        return points;
-    }
-    let cross = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0);
-    let mut lower: Line = Vec::new();
-    for &p in &points {
-        while lower.len() >= 2 && cross(lower[lower.len() - 2], lower[lower.len() - 1], p) <= 0.0 {
-            lower.pop();
-        }
-        lower.push(p);
-    }
-    let mut upper: Line = Vec::new();
-    for &p in points.iter().rev() {
-        while upper.len() >= 2 && cross(upper[upper.len() - 2], upper[upper.len() - 1], p) <= 0.0 {
-            upper.pop();
-        }
-        upper.push(p);
-    }
-    lower.pop();
-    upper.pop();
-    lower.extend(upper);
-    lower
-}
+type Row = (i64, Geometry, Vec<Value>);
 
 /// The layers of `view` in `projection`'s frame, and the ids the log export needs.
 pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>, MapIds), String> {
@@ -165,40 +71,28 @@ pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>
         projection.project(&enu)
     };
     let centrelines: Vec<Line> = lanes.iter().map(|l| project(l.points().collect())).collect();
+    // Widths in projected metres: UTM shrinks distances by up to 0.04 %, which would make
+    // the bands of side-by-side lanes overlap by a millimetre and more.
+    let scale = {
+        let unit = project(vec![(0.0, 0.0), (1.0, 0.0)]);
+        length(&unit)
+    };
     let count = lanes.len();
-    let mut predecessors = vec![0usize; count];
+    let mut has_predecessor = vec![false; count];
     for lane in &lanes {
         for s in lane.successors() {
-            if let Some(p) = predecessors.get_mut(s as usize) {
-                *p += 1;
+            if let Some(p) = has_predecessor.get_mut(s as usize) {
+                *p = true;
             }
         }
     }
-    // Roadblocks: connected by left/right neighbours.
-    let mut group: Vec<usize> = (0..count).collect();
-    fn root(group: &mut [usize], mut i: usize) -> usize {
-        while group[i] != i {
-            group[i] = group[group[i]];
-            i = group[i];
-        }
-        i
-    }
+    // Roadblocks: lanes connected by left/right neighbours.
+    let mut groups = DisjointSets::new(count);
     for (i, lane) in lanes.iter().enumerate() {
-        for n in [lane.left, lane.right].into_iter().flatten() {
-            let (a, b) = (root(&mut group, i), root(&mut group, n as usize));
-            if a != b && (n as usize) < count {
-                group[a.max(b)] = a.min(b);
-            }
+        for n in [lane.left, lane.right].into_iter().flatten().filter(|&n| (n as usize) < count) {
+            groups.join(i, n as usize);
         }
     }
-    let mut roadblock_index = BTreeMap::new();
-    let roadblock_of_lane: Vec<i64> = (0..count)
-        .map(|i| {
-            let r = root(&mut group, i);
-            let next = roadblock_index.len() as i64;
-            ROADBLOCK_BASE + 1 + *roadblock_index.entry(r).or_insert(next)
-        })
-        .collect();
     let lane_index: Vec<i64> = lanes
         .iter()
         .map(|l| {
@@ -213,67 +107,75 @@ pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>
             k
         })
         .collect();
-    let trims: Vec<(f64, f64, f64)> = lanes
+    let shapes: Vec<LaneShape> = lanes
         .iter()
-        .zip(&centrelines)
         .enumerate()
-        .map(|(i, (lane, c))| {
-            let l = length(c);
-            let d = TRIM_M.min(0.25 * l);
-            let start = if predecessors[i] > 0 { d } else { 0.0 };
-            let end = if lane.successors().next().is_some() { d } else { 0.0 };
-            (start, l - end, l)
+        .map(|(i, lane)| LaneShape {
+            centre: centrelines[i].clone(),
+            width: lane.width * scale,
+            successors: lane.successors().map(|s| s as usize).filter(|&s| s < count).collect(),
+            has_predecessor: has_predecessor[i],
+            group: groups.root(i),
+            carve: lane.area.is_none(),
         })
         .collect();
+    let cut_map = layout(&shapes);
 
-    let (mut lane_rows, mut baselines, mut boundaries) = (Vec::new(), Vec::new(), Vec::new());
-    let mut roadblock_sides: BTreeMap<i64, (Option<Line>, Option<Line>)> = BTreeMap::new();
+    let (mut lane_rows, mut baselines, mut boundaries): (Vec<Row>, Vec<Row>, Vec<Row>) = Default::default();
     let mut boundary_id = BOUNDARY_BASE;
-    let mut add_boundary = |line: Line, boundaries: &mut Vec<(i64, Geometry, Vec<Value>)>| {
+    let mut add_boundary = |line: Line, boundaries: &mut Vec<Row>| {
         boundary_id += 1;
         boundaries.push((boundary_id, Geometry::LineString(line), vec![]));
         boundary_id
     };
+    // Roadblock ids by (group, piece index); lane fids and roadblocks by (lane, piece).
+    let mut roadblock_ids: BTreeMap<(usize, usize), i64> = BTreeMap::new();
+    let mut piece_ids: BTreeMap<(usize, usize), (i64, i64)> = BTreeMap::new();
+    let mut roadblock_sides: BTreeMap<i64, (Option<Line>, Option<Line>, Vec<usize>)> = BTreeMap::new();
     for (i, lane) in lanes.iter().enumerate() {
-        let (start, end, _) = trims[i];
-        let centre = cut(&centrelines[i], start, end);
-        let (ring, left, right) = band(&centre, lane.width / 2.0);
-        let (left_id, right_id) =
-            (add_boundary(left.clone(), &mut boundaries), add_boundary(right.clone(), &mut boundaries));
-        let fid = i as i64 + 1;
-        let speed = lane.speed_limit.map_or(Value::Null, Value::Real);
-        lane_rows.push((
-            fid,
-            Geometry::Polygon(ring),
-            vec![
-                Value::Int(fid),
-                Value::Int(roadblock_of_lane[i]),
-                Value::Int(lane_index[i]),
-                speed,
-                Value::Int(left_id),
-                Value::Int(right_id),
-            ],
-        ));
-        baselines.push((fid, Geometry::LineString(centre), vec![Value::Int(fid), Value::Null]));
-        let sides = roadblock_sides.entry(roadblock_of_lane[i]).or_default();
-        if lane.left.is_none() {
-            sides.0 = Some(left);
-        }
-        if lane.right.is_none() {
-            sides.1 = Some(right);
+        for (k, &(from, to)) in cut_map.pieces[i].iter().enumerate() {
+            let next = ROADBLOCK_BASE + 1 + roadblock_ids.len() as i64;
+            let roadblock = *roadblock_ids.entry((shapes[i].group, k)).or_insert(next);
+            let centre = cut(&centrelines[i], from, to);
+            let (ring, left, right) = band(&centre, lane.width * scale / 2.0 - SEAM_M);
+            let (left_id, right_id) =
+                (add_boundary(left.clone(), &mut boundaries), add_boundary(right.clone(), &mut boundaries));
+            let fid = lane_rows.len() as i64 + 1;
+            piece_ids.insert((i, k), (fid, roadblock));
+            let speed = lane.speed_limit.map_or(Value::Null, Value::Real);
+            let sides = roadblock_sides.entry(roadblock).or_default();
+            sides.2.push(lane_rows.len());
+            lane_rows.push((
+                fid,
+                Geometry::Polygon(ring),
+                vec![
+                    Value::Int(fid),
+                    Value::Int(roadblock),
+                    Value::Int(lane_index[i]),
+                    speed,
+                    Value::Int(left_id),
+                    Value::Int(right_id),
+                ],
+            ));
+            baselines.push((fid, Geometry::LineString(centre), vec![Value::Int(fid), Value::Null]));
+            if lane.left.is_none() {
+                sides.0 = Some(left);
+            }
+            if lane.right.is_none() {
+                sides.1 = Some(right);
+            }
         }
     }
     // Roadblocks: the leftmost lane's left side and the rightmost lane's right side.
     let mut roadblocks = Vec::new();
-    for (&id, (left, right)) in &roadblock_sides {
-        let members: Vec<usize> = (0..count).filter(|&i| roadblock_of_lane[i] == id).collect();
+    for (&id, (left, right, members)) in &roadblock_sides {
         let ring = match (left, right) {
             (Some(l), Some(r)) => {
                 let mut ring = l.clone();
                 ring.extend(r.iter().rev());
                 ring
             }
-            _ => hull(members.iter().flat_map(|&i| lane_rows[i].1.points().to_vec()).collect()),
+            _ => hull(members.iter().flat_map(|&r| lane_rows[r].1.points().to_vec()).collect()),
         };
         roadblocks.push((id, Geometry::Polygon(ring), vec![]));
     }
@@ -281,48 +183,53 @@ pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>
     let (mut connectors, mut connector_polygons) = (Vec::new(), Vec::new());
     let mut roadblock_connectors: BTreeMap<(i64, i64), (i64, Line)> = BTreeMap::new();
     let mut connector_id = CONNECTOR_BASE;
-    for (i, lane) in lanes.iter().enumerate() {
-        for j in lane.successors() {
-            let j = j as usize;
-            let Some(next) = lanes.get(j) else { continue };
-            let (_, end, total) = trims[i];
-            let (start_next, _, _) = trims[j];
-            let mut line = cut(&centrelines[i], end, total);
-            line.extend(cut(&centrelines[j], 0.0, start_next).into_iter().skip(1));
-            line.dedup();
-            if line.len() < 2 || length(&line) < 1e-3 {
-                continue;
-            }
-            connector_id += 1;
-            let width = lane.width.min(next.width);
-            let (ring, left, right) = band(&line, width / 2.0);
-            let (left_id, right_id) = (add_boundary(left, &mut boundaries), add_boundary(right, &mut boundaries));
-            let key = (roadblock_of_lane[i], roadblock_of_lane[j]);
-            let next_id = ROADBLOCK_CONNECTOR_BASE + 1 + roadblock_connectors.len() as i64;
-            let entry = roadblock_connectors.entry(key).or_insert((next_id, Vec::new()));
-            entry.1.extend(ring.iter().copied());
-            let speed = lane.speed_limit.map_or(Value::Null, Value::Real);
-            connectors.push((
-                connector_id,
-                Geometry::LineString(line.clone()),
-                vec![
-                    Value::Int(i as i64 + 1),
-                    Value::Int(j as i64 + 1),
-                    Value::Int(key.0),
-                    Value::Int(key.1),
-                    Value::Int(entry.0),
-                    Value::Null,
-                    speed,
-                    Value::Text(String::new()),
-                ],
-            ));
-            connector_polygons.push((
-                connector_id,
-                Geometry::Polygon(ring),
-                vec![Value::Int(connector_id), Value::Int(left_id), Value::Int(right_id)],
-            ));
-            baselines.push((0, Geometry::LineString(line), vec![Value::Null, Value::Int(connector_id)]));
+    for join in &cut_map.joins {
+        let ((i, k), (j, l)) = (join.from, join.to);
+        let (Some(&(from_fid, from_block)), Some(&(to_fid, to_block))) =
+            (piece_ids.get(&(i, k)), piece_ids.get(&(j, l)))
+        else {
+            continue;
+        };
+        let (end, start) = (cut_map.pieces[i][k].1, cut_map.pieces[j][l].0);
+        let mut line = if i == j {
+            cut(&centrelines[i], end, start)
+        } else {
+            let (a, b) = (point_at(&centrelines[i], end), point_at(&centrelines[j], start));
+            bezier(a, heading_at(&centrelines[i], end), b, heading_at(&centrelines[j], start), TURN_POINTS)
+        };
+        line.dedup();
+        if line.len() < 2 || length(&line) < 1e-3 {
+            continue;
         }
+        connector_id += 1;
+        let width = lanes[i].width.min(lanes[j].width) * scale;
+        let (ring, left, right) = band(&line, width / 2.0);
+        let (left_id, right_id) = (add_boundary(left, &mut boundaries), add_boundary(right, &mut boundaries));
+        let key = (from_block, to_block);
+        let next_id = ROADBLOCK_CONNECTOR_BASE + 1 + roadblock_connectors.len() as i64;
+        let entry = roadblock_connectors.entry(key).or_insert((next_id, Vec::new()));
+        entry.1.extend(ring.iter().copied());
+        let speed = lanes[i].speed_limit.map_or(Value::Null, Value::Real);
+        connectors.push((
+            connector_id,
+            Geometry::LineString(line.clone()),
+            vec![
+                Value::Int(from_fid),
+                Value::Int(to_fid),
+                Value::Int(key.0),
+                Value::Int(key.1),
+                Value::Int(entry.0),
+                Value::Null,
+                speed,
+                Value::Text(String::new()),
+            ],
+        ));
+        connector_polygons.push((
+            connector_id,
+            Geometry::Polygon(ring),
+            vec![Value::Int(connector_id), Value::Int(left_id), Value::Int(right_id)],
+        ));
+        baselines.push((0, Geometry::LineString(line), vec![Value::Null, Value::Int(connector_id)]));
     }
     let roadblock_connector_rows = roadblock_connectors
         .iter()
@@ -339,7 +246,7 @@ pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>
         for w in centrelines[i].windows(2) {
             drivable.push((
                 drivable.len() as i64 + 1,
-                Geometry::Polygon(capsule(w[0], w[1], lane.width / 2.0)),
+                Geometry::Polygon(capsule(w[0], w[1], lane.width * scale / 2.0)),
                 vec![],
             ));
         }
@@ -353,6 +260,20 @@ pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>
     for (k, b) in baselines.iter_mut().enumerate() {
         b.0 = k as i64 + 1;
     }
+    let ids = MapIds {
+        roadblocks: roadblocks
+            .iter()
+            .map(|(id, ring, _)| {
+                let points = ring.points();
+                let bounds =
+                    points.iter().fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |b, p| {
+                        [b[0].min(p.0), b[1].min(p.1), b[2].max(p.0), b[3].max(p.1)]
+                    });
+                (*id, bounds, points.to_vec())
+            })
+            .collect(),
+        roadblock_connectors: roadblock_connectors.iter().map(|(k, (id, _))| (*k, *id)).collect(),
+    };
     let empty = |name: &'static str| Layer { name, geometry_type: "POLYGON", columns: vec![], features: vec![] };
     let layers = vec![
         Layer {
@@ -419,35 +340,5 @@ pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>
         empty("walkways"),
         empty("stop_polygons"),
     ];
-    let ids = MapIds {
-        roadblock_of_lane,
-        roadblock_connectors: roadblock_connectors.iter().map(|(k, (id, _))| (*k, *id)).collect(),
-    };
     Ok((layers, ids))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn cutting_offsetting_and_capsules() {
-        let line = vec![(0.0, 0.0), (10.0, 0.0), (10.0, 10.0)];
-        assert_eq!(cut(&line, 2.0, 12.0), vec![(2.0, 0.0), (10.0, 0.0), (10.0, 2.0)]);
-        // A right-angle corner offset by 1 to the left: the corner point moves to (9, 1).
-        let left = offset(&line, 1.0);
-        assert!((left[1].0 - 9.0).abs() < 1e-12 && (left[1].1 - 1.0).abs() < 1e-12, "{left:?}");
-        let c = capsule((0.0, 0.0), (4.0, 0.0), 1.0);
-        assert!(c.iter().all(|p| {
-            let d = if p.0 < 0.0 {
-                p.0.hypot(p.1)
-            } else if p.0 > 4.0 {
-                (p.0 - 4.0).hypot(p.1)
-            } else {
-                p.1.abs()
-            };
-            (d - 1.0).abs() < 1e-12
-        }));
-        assert_eq!(hull(vec![(0.0, 0.0), (1.0, 0.0), (0.5, 0.2), (1.0, 1.0), (0.0, 1.0)]).len(), 4);
-    }
 }

@@ -6,7 +6,9 @@
 //! zone of the map's origin ([`projection`]). Everything is written under temporary names
 //! and renamed at the end: a refused input leaves nothing behind.
 
+pub mod geometry;
 pub mod gpkg;
+pub mod junctions;
 pub mod logdb;
 pub mod map;
 pub mod projection;
@@ -154,7 +156,6 @@ pub fn export(request: &NuplanRequest<'_>) -> Result<NuplanExport, String> {
         request.log,
         &ticks,
         request.map_name,
-        &view,
         &ids,
         &log_projection,
         request.scene_s,
