@@ -156,6 +156,28 @@ pub fn contains(ring: &[(f64, f64)], p: (f64, f64)) -> bool {
     inside
 }
 
+/// Whether the ring (implicitly closed) is simple: no two of its edges cross, except
+/// neighbours at their shared point.
+pub fn is_simple(ring: &[(f64, f64)]) -> bool {
+    let n = ring.len();
+    let cross = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0);
+    for i in 0..n {
+        let (a, b) = (ring[i], ring[(i + 1) % n]);
+        for j in i + 2..n {
+            if (j + 1) % n == i {
+                continue;
+            }
+            let (c, d) = (ring[j], ring[(j + 1) % n]);
+            let (d1, d2) = (cross(a, b, c), cross(a, b, d));
+            let (d3, d4) = (cross(c, d, a), cross(c, d, b));
+            if d1 * d2 < 0.0 && d3 * d4 < 0.0 {
+                return false;
+            }
+        }
+    }
+    true
+}
+
 /// A cubic Bézier curve from `a` leaving along `heading_a` to `b` arriving along
 /// `heading_b`, as `points` points: the shape of a turn through a junction.
 pub fn bezier(a: (f64, f64), heading_a: f64, b: (f64, f64), heading_b: f64, points: usize) -> Line {
@@ -208,6 +230,11 @@ mod tests {
         assert!((nearest_arc(&line, (12.0, 4.0)) - 14.0).abs() < 1e-12);
         assert!(contains(&[(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)], (1.0, 1.0)));
         assert!(!contains(&[(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)], (3.0, 1.0)));
+        assert!(is_simple(&[(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)]));
+        assert!(!is_simple(&[(0.0, 0.0), (2.0, 2.0), (2.0, 0.0), (0.0, 2.0)]), "a bow tie");
+        // The band of a turn tighter than its half width folds over on the inside.
+        let tight = bezier((0.0, 0.0), 0.0, (0.0, 2.0), std::f64::consts::PI, 12);
+        assert!(!is_simple(&band(&tight, 1.75).0));
         // A right turn: leaves east, arrives south, ends where asked.
         let turn = bezier((0.0, 0.0), 0.0, (5.0, -5.0), -std::f64::consts::FRAC_PI_2, 9);
         assert_eq!((turn[0], turn[8]), ((0.0, 0.0), (5.0, -5.0)));

@@ -22,7 +22,7 @@ use std::collections::BTreeMap;
 
 use dash2sim_core::map::MapView;
 
-use super::geometry::{band, bezier, capsule, contains, cut, heading_at, hull, length, point_at, Line};
+use super::geometry::{band, bezier, capsule, contains, cut, heading_at, hull, is_simple, length, point_at, Line};
 use super::gpkg::{Geometry, Layer, Value};
 use super::junctions::{layout, DisjointSets, LaneShape};
 use super::projection::Projection;
@@ -58,6 +58,11 @@ impl MapIds {
 }
 
 type Row = (i64, Geometry, Vec<Value>);
+
+/// A roadblock's outer sides (its leftmost lane's left, its rightmost lane's right) and its
+/// lane rows.
+#[derive(Default)]
+struct RoadblockSides(Option<Line>, Option<Line>, Vec<usize>);
 
 /// The layers of `view` in `projection`'s frame, and the ids the log export needs.
 pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>, MapIds), String> {
@@ -131,7 +136,7 @@ pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>
     // Roadblock ids by (group, piece index); lane fids and roadblocks by (lane, piece).
     let mut roadblock_ids: BTreeMap<(usize, usize), i64> = BTreeMap::new();
     let mut piece_ids: BTreeMap<(usize, usize), (i64, i64)> = BTreeMap::new();
-    let mut roadblock_sides: BTreeMap<i64, (Option<Line>, Option<Line>, Vec<usize>)> = BTreeMap::new();
+    let mut roadblock_sides: BTreeMap<i64, RoadblockSides> = BTreeMap::new();
     for (i, lane) in lanes.iter().enumerate() {
         for (k, &(from, to)) in cut_map.pieces[i].iter().enumerate() {
             let next = ROADBLOCK_BASE + 1 + roadblock_ids.len() as i64;
@@ -168,7 +173,7 @@ pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>
     }
     // Roadblocks: the leftmost lane's left side and the rightmost lane's right side.
     let mut roadblocks = Vec::new();
-    for (&id, (left, right, members)) in &roadblock_sides {
+    for (&id, RoadblockSides(left, right, members)) in &roadblock_sides {
         let ring = match (left, right) {
             (Some(l), Some(r)) => {
                 let mut ring = l.clone();
@@ -204,6 +209,9 @@ pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>
         connector_id += 1;
         let width = lanes[i].width.min(lanes[j].width) * scale;
         let (ring, left, right) = band(&line, width / 2.0);
+        // A turn tighter than half the lane's width folds its band over on the inside: its
+        // hull stands for it (a polygon must be simple).
+        let ring = if is_simple(&ring) { ring } else { hull(ring) };
         let (left_id, right_id) = (add_boundary(left, &mut boundaries), add_boundary(right, &mut boundaries));
         let key = (from_block, to_block);
         let next_id = ROADBLOCK_CONNECTOR_BASE + 1 + roadblock_connectors.len() as i64;
