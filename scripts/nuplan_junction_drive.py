@@ -4,11 +4,12 @@ the devkit).
 
     VENV/bin/python scripts/nuplan_junction_drive.py --gpkg DIR/maps/NAME/9.17.1964/map.gpkg \
         --origin LAT,LON --out drive.tum [--turns left,right,straight] [--start-lane FID] \
-        [--seconds 45] [--speed 5]
+        [--junctions N] [--seconds 45] [--speed 5]
 
-Starts on the longest lane from which the route is long enough, follows its baseline path and at every junction takes the lane
+Starts on the longest lane from which the route is long enough (and passes `--junctions`),
+follows its baseline path and at every junction takes the lane
 connector the next entry of `--turns` asks for (the sharpest left, the sharpest right, or the
-straightest), until `--seconds` of driving at `--speed`. The path is smoothed over 1 m (a
+straightest, which must be within 30°), until `--seconds` of driving at `--speed`. The path is smoothed over 0.75 s of driving (a
 driver does not follow a polyline's corners) and written as rear-axle poses at 10 Hz, for
 `dash2sim import --traj drive.tum --origin LAT,LON`.
 """
@@ -22,7 +23,8 @@ import pyproj
 
 START_S = 1780300800.0  # 2026-06-01T08:00:00Z, the scenario clock's zero
 RATE_HZ = 10.0
-SMOOTHING_M = 1.0
+SMOOTHING_S = 0.75  # the path is smoothed over the distance driven in this time
+STRAIGHT_DEG = 30.0  # "straight" at a junction: the straightest connector, if within this
 
 
 def turn_of(line):
@@ -33,7 +35,7 @@ def turn_of(line):
     return (b - a + math.pi) % (2 * math.pi) - math.pi
 
 
-def route(gpkg, turns, metres, start_lane=None):
+def route(gpkg, turns, metres, start_lane=None, junctions=0):
     lanes = gpd.read_file(gpkg, layer="lanes_polygons")
     baselines = gpd.read_file(gpkg, layer="baseline_paths")
     connectors = gpd.read_file(gpkg, layer="lane_connectors", fid_as_index=True)
@@ -60,11 +62,14 @@ def route(gpkg, turns, metres, start_lane=None):
                 turn, connector, lane = min(scored)
             else:
                 turn, connector, lane = min(scored, key=lambda t: abs(t[0]))
+                if abs(turn) > math.radians(STRAIGHT_DEG):
+                    break
             taken.append(f"{want} ({math.degrees(turn):.0f}°) via connector {connector} to lane {lane}")
             points += list(connector_line[connector].coords)[1:] + list(lane_line[lane].coords)[1:]
-        if len(taken) > len(best[1]) or sum(math.dist(a, b) for a, b in zip(points, points[1:])) >= metres:
+        long_enough = sum(math.dist(a, b) for a, b in zip(points, points[1:])) >= metres
+        if len(taken) > len(best[1]) or long_enough:
             best = (points, taken)
-            if sum(math.dist(a, b) for a, b in zip(points, points[1:])) >= metres:
+            if long_enough and len(taken) > junctions:
                 break
     points, taken = best
     return np.asarray(points), taken, lanes.crs
@@ -86,6 +91,7 @@ def main():
     ap.add_argument("--out", required=True)
     ap.add_argument("--turns", default="left,right,straight")
     ap.add_argument("--start-lane", type=int, help="lane_fid to start on (default: the longest that works)")
+    ap.add_argument("--junctions", type=int, default=0, help="pass at least this many junctions")
     ap.add_argument("--seconds", type=float, default=45.0)
     ap.add_argument("--speed", type=float, default=5.0)
     args = ap.parse_args()
@@ -93,11 +99,11 @@ def main():
     if any(t not in ("left", "right", "straight") for t in turns):
         sys.exit(f"--turns: each entry is left, right or straight, not {args.turns!r}")
     metres = args.seconds * args.speed
-    points, taken, crs = route(args.gpkg, turns, metres + 10.0, args.start_lane)
+    points, taken, crs = route(args.gpkg, turns, metres + 10.0, args.start_lane, args.junctions)
     fine = resample(points, 0.1)
     if len(fine) * 0.1 < metres:
         sys.exit(f"the route ends after {len(fine) * 0.1:.0f} m (a dead end); {metres:.0f} m asked: {taken}")
-    window = int(SMOOTHING_M / 0.1)
+    window = max(int(SMOOTHING_S * args.speed / 0.1), 1)
     kernel = np.ones(window) / window
     padded = np.pad(fine, ((window // 2, window - window // 2 - 1), (0, 0)), mode="edge")
     smooth = np.column_stack([np.convolve(padded[:, i], kernel, mode="valid") for i in range(2)])

@@ -14,13 +14,13 @@
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
-use super::geometry::{heading_at, length, nearest_arc, point_at, segment_distance};
+use super::geometry::{band, cut, heading_at, is_simple, length, nearest_arc, point_at, segment_distance};
 
 /// Sampling step along a centreline when looking for overlaps, m.
 const STEP_M: f64 = 0.5;
 /// Lanes overlap when their centrelines come closer than the sum of their half widths
 /// minus this (side-by-side lanes are exactly that far apart), m.
-const TOLERANCE_M: f64 = 0.05;
+const TOLERANCE_M: f64 = 0.005;
 /// Length kept as a gap at a lane end that joins another lane, m (at most a quarter of the
 /// lane): room for the connector where two ways meet at an angle.
 const TRIM_M: f64 = 2.0;
@@ -85,7 +85,8 @@ struct Overlap {
 }
 
 /// Every place where a sample of one lane lies within overlap distance of another lane
-/// that is not its side-by-side neighbour, away from the joints of successive lanes.
+/// that is not its side-by-side neighbour (or of itself, farther along), away from the
+/// joints of successive lanes.
 fn overlaps(lanes: &[LaneShape]) -> Vec<Overlap> {
     let max_width = lanes.iter().map(|l| l.width).fold(0.0, f64::max);
     let cell = |p: (f64, f64)| ((p.0 / CELL_M).floor() as i64, (p.1 / CELL_M).floor() as i64);
@@ -102,10 +103,26 @@ fn overlaps(lanes: &[LaneShape]) -> Vec<Overlap> {
             }
         }
     }
-    let totals: Vec<f64> = lanes.iter().map(|l| length(&l.centre)).collect();
+    // Arc length at every vertex.
+    let arcs: Vec<Vec<f64>> = lanes
+        .iter()
+        .map(|l| {
+            let mut at = 0.0;
+            std::iter::once(0.0)
+                .chain(l.centre.windows(2).map(|w| {
+                    at += (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1);
+                    at
+                }))
+                .collect()
+        })
+        .collect();
+    let totals: Vec<f64> = arcs.iter().map(|a| a.last().copied().unwrap_or(0.0)).collect();
     let mut out = Vec::new();
     for (i, lane) in lanes.iter().enumerate().filter(|(_, l)| l.carve) {
         let total = totals[i];
+        // A lane that doubles back over itself overlaps itself: its own segments count when
+        // they are farther along it than this.
+        let own_reach = 2.0 * lane.width;
         let samples = (total / STEP_M).ceil() as usize;
         for n in 0..=samples {
             let s = (n as f64 * STEP_M).min(total);
@@ -114,7 +131,8 @@ fn overlaps(lanes: &[LaneShape]) -> Vec<Overlap> {
             let mut nearest: BTreeMap<usize, (f64, usize, f64)> = BTreeMap::new();
             for &(j, k) in grid.get(&cell(p)).map_or(&[][..], Vec::as_slice) {
                 let other = &lanes[j];
-                if j == i || other.group == lane.group {
+                let far_along_itself = j == i && (arcs[i][k + 1] < s - own_reach || arcs[i][k] > s + own_reach);
+                if other.group == lane.group && !far_along_itself {
                     continue;
                 }
                 let (d, f) = segment_distance(p, other.centre[k], other.centre[k + 1]);
@@ -125,9 +143,7 @@ fn overlaps(lanes: &[LaneShape]) -> Vec<Overlap> {
                 }
             }
             for (j, (_, k, f)) in nearest {
-                let before = length(&lanes[j].centre[..=k]);
-                let segment = length(&lanes[j].centre[k..=k + 1]);
-                let other_at = before + f * segment;
+                let other_at = arcs[j][k] + f * (arcs[j][k + 1] - arcs[j][k]);
                 // A lane and its successor touch where one ends and the other begins; only
                 // overlap away from that joint counts (an acute fork, an inner bend).
                 let at_joint = (lane.successors.contains(&j) && other_at <= JOINT_M)
@@ -200,26 +216,13 @@ fn angle_between(a: f64, b: f64) -> f64 {
     (b - a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
 }
 
-/// Cuts `lanes` at their junctions and joins the pieces through them.
-pub fn layout(lanes: &[LaneShape]) -> Layout {
-    let totals: Vec<f64> = lanes.iter().map(|l| length(&l.centre)).collect();
-    let found = overlaps(lanes);
-    // Gaps per lane: overlapping samples widened by a step each side (the overlap begins
-    // somewhere between two samples), and the trimmed ends that join other lanes.
-    let mut raw: Vec<Vec<(f64, f64)>> = vec![Vec::new(); lanes.len()];
-    for o in &found {
-        raw[o.lane].push(((o.at - STEP_M).max(0.0), (o.at + STEP_M).min(totals[o.lane])));
-    }
-    for (i, lane) in lanes.iter().enumerate() {
-        let trim = TRIM_M.min(0.25 * totals[i]);
-        if lane.has_predecessor {
-            raw[i].push((0.0, trim));
-        }
-        if !lane.successors.is_empty() {
-            raw[i].push((totals[i] - trim, totals[i]));
-        }
-    }
-    // One set of cuts per roadblock, on its first lane's arc length.
+/// Pieces and gaps of every lane from its `raw` gaps: one set of cuts per roadblock, on its
+/// first lane's arc length, so that side-by-side lanes are cut alike.
+fn cut_groups(
+    lanes: &[LaneShape],
+    totals: &[f64],
+    raw: &[Vec<(f64, f64)>],
+) -> (Vec<Vec<(f64, f64)>>, Vec<Vec<(f64, f64)>>) {
     let mut members: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
     for (i, lane) in lanes.iter().enumerate() {
         members.entry(lane.group).or_default().push(i);
@@ -263,6 +266,43 @@ pub fn layout(lanes: &[LaneShape]) -> Layout {
                 at = b;
             }
         }
+    }
+    (pieces, gaps)
+}
+
+/// Cuts `lanes` at their junctions and joins the pieces through them.
+pub fn layout(lanes: &[LaneShape]) -> Layout {
+    let totals: Vec<f64> = lanes.iter().map(|l| length(&l.centre)).collect();
+    let found = overlaps(lanes);
+    // Gaps per lane: overlapping samples widened by a step each side (the overlap begins
+    // somewhere between two samples), and the trimmed ends that join other lanes.
+    let mut raw: Vec<Vec<(f64, f64)>> = vec![Vec::new(); lanes.len()];
+    for o in &found {
+        raw[o.lane].push(((o.at - STEP_M).max(0.0), (o.at + STEP_M).min(totals[o.lane])));
+    }
+    for (i, lane) in lanes.iter().enumerate() {
+        let trim = TRIM_M.min(0.25 * totals[i]);
+        if lane.has_predecessor {
+            raw[i].push((0.0, trim));
+        }
+        if !lane.successors.is_empty() {
+            raw[i].push((totals[i] - trim, totals[i]));
+        }
+    }
+    let (mut pieces, mut gaps) = cut_groups(lanes, &totals, &raw);
+    // A piece whose band folds over itself (sharp corners on short segments) cannot be a
+    // polygon: it goes to the junction around it.
+    let mut folded = false;
+    for (i, list) in pieces.iter().enumerate() {
+        for &(a, b) in list {
+            if !is_simple(&band(&cut(&lanes[i].centre, a, b), lanes[i].width / 2.0).0) {
+                raw[i].push((a, b));
+                folded = true;
+            }
+        }
+    }
+    if folded {
+        (pieces, gaps) = cut_groups(lanes, &totals, &raw);
     }
     // Gaps as nodes: overlapping gaps and successor relations make junctions.
     let mut gap_ids: Vec<Vec<usize>> = Vec::new();
