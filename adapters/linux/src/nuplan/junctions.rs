@@ -75,6 +75,9 @@ pub struct Layout {
     pub joins: Vec<Join>,
 }
 
+/// Per lane, sorted arc-length intervals (pieces or gaps).
+type PerLane = Vec<Vec<(f64, f64)>>;
+
 /// A stretch of a lane closer to `other` than their half widths, at arc length `at` on the
 /// lane and `other_at` on `other`.
 struct Overlap {
@@ -218,11 +221,7 @@ fn angle_between(a: f64, b: f64) -> f64 {
 
 /// Pieces and gaps of every lane from its `raw` gaps: one set of cuts per roadblock, on its
 /// first lane's arc length, so that side-by-side lanes are cut alike.
-fn cut_groups(
-    lanes: &[LaneShape],
-    totals: &[f64],
-    raw: &[Vec<(f64, f64)>],
-) -> (Vec<Vec<(f64, f64)>>, Vec<Vec<(f64, f64)>>) {
+fn cut_groups(lanes: &[LaneShape], totals: &[f64], raw: &[Vec<(f64, f64)>]) -> (PerLane, PerLane) {
     let mut members: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
     for (i, lane) in lanes.iter().enumerate() {
         members.entry(lane.group).or_default().push(i);
