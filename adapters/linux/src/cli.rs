@@ -81,6 +81,9 @@ enum Command {
     /// wheel speed and optional external anchors, smooth the 3D tracks, verify per window
     /// (docs/finishing.md).
     Finish(Box<crate::finish::FinishArgs>),
+    /// Draw a drive: bird's-eye view (map lanes, GNSS fixes, online and finished ego, 3D
+    /// tracks by class) above speed and verification over time (docs/plot.md).
+    Plot(crate::plot::PlotArgs),
     /// What a 4D log holds: header, records per type, time span, gaps, damage, bytes.
     Inspect {
         /// The log.
@@ -423,6 +426,7 @@ pub fn run() -> ExitCode {
         Command::Demo { output, seed, duration, json } => crate::demo::run(&output, seed, duration, json),
         Command::Record(args) => crate::record::run(&args),
         Command::Finish(args) => crate::finish::run(&args),
+        Command::Plot(args) => crate::plot::run(&args),
         Command::Inspect { log, json } => crate::logfile::inspect::run(&log, json),
         Command::Export(request) => crate::logfile::export::run(&request),
         Command::Verify(a) => verify(&a),

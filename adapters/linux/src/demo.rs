@@ -35,7 +35,7 @@ use crate::scenario::street::street_anchors;
 use crate::scenario::write::write_scenario;
 use crate::scenario::{generate, tracker_classes, tracker_config, ScenarioConfig};
 
-const STEPS: u32 = 6;
+const STEPS: u32 = 7;
 
 fn step(n: u32, text: &str) {
     eprintln!("[{n}/{STEPS}] {text}");
@@ -133,6 +133,16 @@ pub fn run(out: &Path, seed: u64, duration_s: f64, as_json: bool) -> Result<(), 
     write_file(&out.join("ego.tum"), &logfile::export::tum(&log))?;
     write_file(&out.join("drive.geojson"), &logfile::export::geojson(&log)?.to_string())?;
 
+    step(7, "drawing the drive (plot.png, plot.svg)");
+    for name in ["plot.png", "plot.svg"] {
+        crate::plot::plot(&crate::plot::PlotArgs {
+            log: log_path.clone(),
+            map: Some(map_path.clone()),
+            finished: Some(finished_path.clone()),
+            output: out.join(name),
+        })?;
+    }
+
     let minutes = duration_s / 60.0;
     let observable_after = judged.first_anchored_s;
     let s = &recording.stats;
@@ -175,7 +185,7 @@ pub fn run(out: &Path, seed: u64, duration_s: f64, as_json: bool) -> Result<(), 
         "log": {"records": log.records.len(), "bytes": recording.log.len(),
                 "bytes_per_minute": recording.log.len() as f64 / minutes, "damaged": log.stats.damaged},
         "mcap_messages": messages,
-        "files": ["drive/", "road.map", "drive.d2slog", "anchors.csv", "finished.d2slog", "drive.mcap", "ego.tum", "drive.geojson", "summary.json"],
+        "files": ["drive/", "road.map", "drive.d2slog", "anchors.csv", "finished.d2slog", "drive.mcap", "ego.tum", "drive.geojson", "plot.png", "plot.svg", "summary.json"],
     });
     write_file(&out.join("summary.json"), &summary.to_string())?;
     if as_json {
@@ -249,10 +259,11 @@ pub fn run(out: &Path, seed: u64, duration_s: f64, as_json: bool) -> Result<(), 
         messages
     );
     println!(
-        "  open {} in Foxglove; `dash2sim inspect {}`; finished log {}",
+        "  open {} in Foxglove; `dash2sim inspect {}`; finished log {}; picture {}",
         mcap_path.display(),
         log_path.display(),
-        finished_path.display()
+        finished_path.display(),
+        out.join("plot.png").display()
     );
     Ok(())
 }

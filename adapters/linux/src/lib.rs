@@ -21,6 +21,7 @@ pub mod nmea_decode;
 pub mod nuplan;
 pub mod objects;
 pub mod osm;
+pub mod plot;
 pub mod record;
 pub mod scenario;
 pub mod sync;

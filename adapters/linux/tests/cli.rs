@@ -954,3 +954,75 @@ fn map_check_counts_compliant_poses_and_times_them() {
     let out = dash2sim(&["map", "check", &map, "--poses", &ego, "--passes", "0"]);
     assert!(!out.status.success() && stderr(&out).contains("--passes"));
 }
+
+#[test]
+fn plot_draws_the_map_the_three_trajectories_and_the_objects_and_refuses_a_log_without_poses() {
+    let dir = scratch("plot");
+    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "30", "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let path = |p: &Path| p.display().to_string();
+    // The demo drew its drive.
+    let png = std::fs::read(dir.join("plot.png")).expect("the demo's plot.png");
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let (w, h) = (
+        u32::from_be_bytes([png[16], png[17], png[18], png[19]]),
+        u32::from_be_bytes([png[20], png[21], png[22], png[23]]),
+    );
+    assert_eq!((w, h), (1200, 1400));
+
+    let svg_path = dir.join("again.svg");
+    let (log, finished, map) = (dir.join("drive.d2slog"), dir.join("finished.d2slog"), dir.join("road.map"));
+    let out =
+        dash2sim(&["plot", &path(&log), "--map", &path(&map), "--finished", &path(&finished), "-o", &path(&svg_path)]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let said = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(said.contains("online and") && said.contains("cone"), "{said}");
+    let svg = std::fs::read_to_string(&svg_path).expect("svg");
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    // The layers a person looks for, each named in a legend; the panels; scale bar, north.
+    let texts: Vec<String> = svg
+        .split("<text")
+        .skip(1)
+        .filter_map(|t| Some(t.split_once('>')?.1.split_once("</text>")?.0.trim().to_owned()))
+        .collect();
+    for label in [
+        "map lanes (drivable area)",
+        "GNSS fixes (raw)",
+        "online anchored ego",
+        "finished ego",
+        "cone",
+        "drum",
+        "barricade",
+        "car",
+        "vehicle speed (wheel / CAN)",
+        "time to collision",
+        "score / 100",
+        "speed",
+        "N",
+    ] {
+        assert!(texts.iter().any(|t| t == label), "no {label:?} among {texts:?}");
+    }
+    assert!(
+        texts.iter().any(|t| t.strip_suffix(" m").is_some_and(|n| n.parse::<u32>().is_ok_and(|n| n >= 10))),
+        "no scale bar among {texts:?}"
+    );
+    // Grey lane areas, red fixes, orange and blue lines are all there.
+    for colour in ["#CDCDCD", "#D62728", "#FF7F0E", "#1F77B4"] {
+        assert!(svg.contains(colour), "no {colour} in the SVG");
+    }
+    // Without a map or a finished log, those layers are absent, not empty.
+    let bare = dir.join("bare.svg");
+    assert!(dash2sim(&["plot", &path(&log), "-o", &path(&bare)]).status.success());
+    let bare = std::fs::read_to_string(&bare).expect("svg");
+    assert!(!bare.contains("map lanes") && !bare.contains("finished ego") && bare.contains("online anchored ego"));
+
+    // Bad input: a log without ego poses, an unknown picture format.
+    let gnss_only = dir.join("gnss-only.d2slog");
+    assert!(dash2sim(&["import", "-o", &path(&gnss_only), "--nmea", &path(&dir.join("drive/gnss.nmea"))])
+        .status
+        .success());
+    let out = dash2sim(&["plot", &path(&gnss_only), "-o", &path(&dir.join("x.svg"))]);
+    assert!(!out.status.success() && stderr(&out).contains("no ego poses to plot"), "{}", stderr(&out));
+    let out = dash2sim(&["plot", &path(&log), "-o", &path(&dir.join("x.gif"))]);
+    assert!(!out.status.success() && stderr(&out).contains("must end in .svg or .png"), "{}", stderr(&out));
+}
