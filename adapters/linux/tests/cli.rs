@@ -639,7 +639,7 @@ fn demo_runs_the_pipeline_and_leaves_every_product_behind() {
     let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "20", "--json"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let s: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
-    assert!(stderr(&out).contains("[6/6]"), "progress on stderr");
+    assert!(stderr(&out).contains("[7/7]"), "progress on stderr");
     // Anchoring becomes observable and lands within a few metres of the truth.
     assert!(s["anchoring"]["observable_after_s"].as_f64().is_some_and(|t| t < 15.0), "{s}");
     assert!(s["anchoring"]["ape_rmse_m"].as_f64().is_some_and(|e| e < 4.0), "{s}");
@@ -658,6 +658,8 @@ fn demo_runs_the_pipeline_and_leaves_every_product_behind() {
         "ego.tum",
         "drive.geojson",
         "road.map",
+        "plot.png",
+        "plot.svg",
         "summary.json",
     ] {
         assert!(dir.join(name).is_file(), "{name} written");
