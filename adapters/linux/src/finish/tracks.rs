@@ -151,8 +151,20 @@ fn smooth(states: &mut [(i64, Track3d)]) {
         s.y_mm = quantise(p.y, 1e-3);
         s.vx_mm_s = quantise(p.vx, 1e-3);
         s.vy_mm_s = quantise(p.vy, 1e-3);
+        // A box's front is ambiguous to the detector (it flips some), a moving one's is where
+        // it goes — and nuPlan moves agents along their box heading: a flipped car would be
+        // projected into oncoming traffic.
+        if p.vx.hypot(p.vy) > FRONT_FROM_MOTION_MPS {
+            let yaw = s.yaw_e4 as f64 * 1e-4;
+            if wrap_angle(yaw - p.vy.atan2(p.vx)).abs() > std::f64::consts::FRAC_PI_2 {
+                s.yaw_e4 = quantise(wrap_angle(yaw + std::f64::consts::PI), 1e-4);
+            }
+        }
     }
 }
+
+/// Above this speed a smoothed track's heading is turned to face its motion, m/s.
+const FRONT_FROM_MOTION_MPS: f64 = 2.0;
 
 /// A planar position at a time, and the velocity the smoother gives it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -258,5 +270,26 @@ mod tests {
         };
         let raw: Vec<f64> = (0..49).map(|k| k as f64 + if k % 2 == 0 { 0.2 } else { -0.2 }).collect();
         assert!(error(&moving) < 0.5 * error(&raw), "smoothed {} raw {}", error(&moving), error(&raw));
+    }
+
+    #[test]
+    fn a_moving_box_faces_where_it_goes_and_a_slow_one_keeps_its_heading() {
+        // A car at 10 m/s east whose box the detector reports facing west (π), and a
+        // pedestrian-slow one (0.5 m/s) with the same flipped box.
+        let mut batches = Vec::new();
+        for k in 0..30 {
+            let mut b = Tracks3d { t_us: k * 100_000, ..Tracks3d::default() };
+            let flipped = quantise(std::f64::consts::PI, 1e-4);
+            let _ = b.tracks.push(Track3d { yaw_e4: flipped, ..track(1, k as f64, 0.0, 0) });
+            let _ = b.tracks.push(Track3d { yaw_e4: flipped, ..track(2, 0.05 * k as f64, 5.0, 0) });
+            batches.push(b);
+        }
+        let same = |_t: i64| Some([0.0; 4]);
+        let (out, _) = finish_tracks(&batches, &same, &same);
+        let yaw = |id: i64| -> Vec<f64> {
+            out.iter().flat_map(|b| b.tracks.iter()).filter(|t| t.id == id).map(|t| t.yaw_e4 as f64 * 1e-4).collect()
+        };
+        assert!(yaw(1).iter().all(|y| y.abs() < 1e-3), "turned to face east: {:?}", yaw(1));
+        assert!(yaw(2).iter().all(|y| (y.abs() - std::f64::consts::PI).abs() < 1e-3), "{:?}", yaw(2));
     }
 }
