@@ -4,7 +4,7 @@
 //! comma2k19's 135 468 Toyota frames. canboat's JavaScript analyzer (canboatjs) is timed
 //! on the same file by `scripts/bench_canboatjs.js`. Figures in docs/benchmarks.md.
 
-use std::path::PathBuf;
+mod common;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use dash2sim_can::candump::CandumpReader;
@@ -13,10 +13,7 @@ use dash2sim_core::can::{Decoder, Event};
 use dash2sim_linux::can_decode::{decode_source, CanDecoder};
 
 fn data(path: &str) -> Option<Vec<u8>> {
-    let base = std::env::var_os("DASH2SIM_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")));
-    let path = base.join(path);
+    let path = common::data(path)?;
     std::fs::read(&path).map_err(|e| eprintln!("SKIPPED: {}: {e}", path.display())).ok()
 }
 

@@ -2,16 +2,13 @@
 //! `nmea` crate on the same bytes. pynmea2 is timed by `scripts/bench_pynmea2.py`.
 //! Figures in docs/benchmarks.md. Needs the shared data (skipped with a message without).
 
-use std::path::PathBuf;
+mod common;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use dash2sim_core::nmea::{Event, Stream, StreamEvent};
 
 fn corpus() -> Option<Vec<u8>> {
-    let base = std::env::var_os("DASH2SIM_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")));
-    let dir = base.join("gpsd/daemon");
+    let dir = common::data("gpsd/daemon")?;
     let Ok(entries) = std::fs::read_dir(&dir) else {
         eprintln!("SKIPPED: {} not found", dir.display());
         return None;

@@ -4,7 +4,9 @@
 //! export of the demo's 40 s drive is timed through the CLI (`docs/benchmarks.md`). The OSM
 //! files come from `$DASH2SIM_DATA` (default `../shared/data`); without them nothing runs.
 
-use std::path::PathBuf;
+mod common;
+
+use common::data;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use dash2sim_core::geo::Geodetic;
@@ -12,18 +14,6 @@ use dash2sim_core::map::MapView;
 use dash2sim_linux::map_tile::{encode, from_osm};
 use dash2sim_linux::nuplan::map::layers;
 use dash2sim_linux::nuplan::projection::Projection;
-
-fn data(sub: &str) -> Option<PathBuf> {
-    let base = std::env::var_os("DASH2SIM_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"));
-    let path = base.join(sub);
-    if !path.exists() {
-        eprintln!("{} not found: skipped", path.display());
-        return None;
-    }
-    Some(path)
-}
 
 fn map_layers(c: &mut Criterion) {
     for (name, sub) in

@@ -5,6 +5,8 @@
 //! Needs the shared data (`DASH2SIM_DATA`, default `../shared/data`); without it the
 //! file benchmarks are skipped with a message.
 
+mod common;
+
 use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -13,15 +15,7 @@ use dash2sim_linux::evaluate::{self, Align, Relation};
 use dash2sim_linux::trajectory::Format;
 
 fn evo_dir() -> Option<PathBuf> {
-    let base = std::env::var_os("DASH2SIM_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")));
-    let dir = base.join("evo");
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    eprintln!("SKIPPED: {} not found", dir.display());
-    None
+    common::data("evo")
 }
 
 fn kitti(c: &mut Criterion) {

@@ -6,7 +6,9 @@
 //! Figures in docs/benchmarks.md. The OSM files come from `$DASH2SIM_DATA` (default
 //! `../shared/data`); without them only the scenario score is measured.
 
-use std::path::PathBuf;
+mod common;
+
+use common::data;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use dash2sim_core::drivable::{Channel, Checker};
@@ -17,18 +19,6 @@ use dash2sim_linux::map_tile::{encode, from_osm};
 use dash2sim_linux::scenario::{generate, write::write_scenario, ScenarioConfig};
 use dash2sim_linux::verify::{read_objects, replay};
 use rand::{Rng, SeedableRng};
-
-fn data(sub: &str) -> Option<PathBuf> {
-    let base = std::env::var_os("DASH2SIM_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"));
-    let path = base.join(sub);
-    if !path.exists() {
-        eprintln!("{} not found: skipped", path.display());
-        return None;
-    }
-    Some(path)
-}
 
 fn tile(osm: &std::path::Path, origin: Option<Geodetic>) -> Vec<u8> {
     let data = dash2sim_linux::osm::read(osm).expect("OSM file");
