@@ -14,7 +14,7 @@
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
-use super::geometry::{band, cut, heading_at, is_simple, length, nearest_arc, point_at, segment_distance};
+use super::geometry::{band, cut, heading_at, is_simple, nearest_arc, point_at, segment_distance};
 
 /// Sampling step along a centreline when looking for overlaps, m.
 const STEP_M: f64 = 0.5;
@@ -90,7 +90,7 @@ struct Overlap {
 /// Every place where a sample of one lane lies within overlap distance of another lane
 /// that is not its side-by-side neighbour (or of itself, farther along), away from the
 /// joints of successive lanes.
-fn overlaps(lanes: &[LaneShape]) -> Vec<Overlap> {
+fn overlaps(lanes: &[LaneShape], arcs: &[Vec<f64>], totals: &[f64]) -> Vec<Overlap> {
     let max_width = lanes.iter().map(|l| l.width).fold(0.0, f64::max);
     let cell = |p: (f64, f64)| ((p.0 / CELL_M).floor() as i64, (p.1 / CELL_M).floor() as i64);
     let mut grid: HashMap<(i64, i64), Vec<(usize, usize)>> = HashMap::new();
@@ -106,20 +106,6 @@ fn overlaps(lanes: &[LaneShape]) -> Vec<Overlap> {
             }
         }
     }
-    // Arc length at every vertex.
-    let arcs: Vec<Vec<f64>> = lanes
-        .iter()
-        .map(|l| {
-            let mut at = 0.0;
-            std::iter::once(0.0)
-                .chain(l.centre.windows(2).map(|w| {
-                    at += (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1);
-                    at
-                }))
-                .collect()
-        })
-        .collect();
-    let totals: Vec<f64> = arcs.iter().map(|a| a.last().copied().unwrap_or(0.0)).collect();
     let mut out = Vec::new();
     for (i, lane) in lanes.iter().enumerate().filter(|(_, l)| l.carve) {
         let total = totals[i];
@@ -271,8 +257,21 @@ fn cut_groups(lanes: &[LaneShape], totals: &[f64], raw: &[Vec<(f64, f64)>]) -> (
 
 /// Cuts `lanes` at their junctions and joins the pieces through them.
 pub fn layout(lanes: &[LaneShape]) -> Layout {
-    let totals: Vec<f64> = lanes.iter().map(|l| length(&l.centre)).collect();
-    let found = overlaps(lanes);
+    // Arc length at every vertex, and every lane's length.
+    let arcs: Vec<Vec<f64>> = lanes
+        .iter()
+        .map(|l| {
+            let mut at = 0.0;
+            std::iter::once(0.0)
+                .chain(l.centre.windows(2).map(|w| {
+                    at += (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1);
+                    at
+                }))
+                .collect()
+        })
+        .collect();
+    let totals: Vec<f64> = arcs.iter().map(|a| a.last().copied().unwrap_or(0.0)).collect();
+    let found = overlaps(lanes, &arcs, &totals);
     // Gaps per lane: overlapping samples widened by a step each side (the overlap begins
     // somewhere between two samples), and the trimmed ends that join other lanes.
     let mut raw: Vec<Vec<(f64, f64)>> = vec![Vec::new(); lanes.len()];

@@ -9,6 +9,7 @@ mod scene;
 
 use std::path::{Path, PathBuf};
 
+use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -110,6 +111,22 @@ fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, scene: &Scene) -> Resu
     root.present().map_err(err)
 }
 
+/// The chart's legend: every labelled series, on a white box.
+fn legend<'a, DB: DrawingBackend + 'a>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    position: SeriesLabelPosition,
+    font_size: u32,
+) -> Result<(), String> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", font_size))
+        .draw()
+        .map_err(err)
+}
+
 /// Round length near a fifth of `span`, m: 1, 2 or 5 × 10ⁿ.
 fn scale_bar_length(span: f64) -> f64 {
     let target = (span / 5.0).max(1.0);
@@ -171,14 +188,7 @@ fn draw_map<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, scene: &Scene) ->
             .map_err(err)?;
         series.label(*class).legend(move |p| EmptyElement::at(p) + Polygon::new(marker_shape(class), style));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 16))
-        .draw()
-        .map_err(err)?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft, 16)?;
     // Scale bar (bottom right) and north arrow (top right), in pixels.
     let length = scale_bar_length(2.0 * half_w);
     let bar_px = (length / per_px) as i32;
@@ -262,22 +272,11 @@ fn draw_speed<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, scene: &Scene) 
             .label(series.label)
             .legend(move |(x, y)| PathElement::new(vec![(x - 10, y), (x + 10, y)], colour.stroke_width(2)));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        .draw()
-        .map_err(err)
+    legend(&mut chart, SeriesLabelPosition::LowerRight, 14)
 }
 
 fn shade_verified<DB: DrawingBackend>(
-    chart: &mut ChartContext<
-        '_,
-        DB,
-        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
-    >,
+    chart: &mut ChartContext<'_, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
     scene: &Scene,
     top: f64,
 ) -> Result<(), String> {
@@ -333,14 +332,7 @@ fn draw_scores<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, scene: &Scene)
         .map_err(err)?
         .label("score / 100")
         .legend(|(x, y)| PathElement::new(vec![(x - 10, y), (x + 10, y)], BLACK.stroke_width(3)));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 13))
-        .draw()
-        .map_err(err)
+    legend(&mut chart, SeriesLabelPosition::LowerLeft, 13)
 }
 
 #[cfg(test)]
