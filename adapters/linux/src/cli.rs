@@ -247,6 +247,10 @@ enum ScenarioCommand {
         #[arg(long, value_enum, default_value = "phone")]
         receiver: crate::scenario::command::Receiver,
     },
+    /// Be the camera process: publish a generated drive over shared memory (iceoryx2) at its
+    /// frame rate, and optionally the GNSS receiver's NMEA and the wheel-speed CAN frames
+    /// to a serial device, FIFO or file (docs/bridge.md). Prints `N frames published`.
+    Publish(crate::scenario::publish::PublishArgs),
     /// Run the 3D track manager over a generated drive and judge it: MOTA/IDF1 at 2 m,
     /// position RMSE of detections, filtered and smoothed tracks, static/dynamic accuracy.
     Eval {
@@ -388,6 +392,9 @@ pub fn run() -> ExitCode {
         Command::Mot(MotCommand::Eval { gt, test, max_distance, json }) => mot_eval(&gt, &test, max_distance, json),
         Command::Scenario(ScenarioCommand::Generate { output, seed, duration, receiver }) => {
             crate::scenario::command::run_generate(seed, duration, receiver, &output)
+        }
+        Command::Scenario(ScenarioCommand::Publish(args)) => {
+            crate::scenario::publish::run(&args).map(|n| println!("{n} frames published"))
         }
         Command::Scenario(ScenarioCommand::Eval { seed, duration, max_age, json }) => {
             crate::scenario::command::run_eval(seed, duration, max_age, json)

@@ -1,245 +1,28 @@
 //! A camera process for tests, demos and load runs: publishes a generated work-zone drive
-//! over the shared-memory bridge at its real frame rate (or `--speedup` times faster) — per
-//! frame its metadata (and, with `--images`, a 1920×1080 RGB image), the VO pose and the 3D
-//! and 2D detections — stamped with the shared device clock, and prints `N frames published`.
-//! With `--nmea-out` / `--can-out` it is the rest of the vehicle too: the GNSS receiver's
-//! sentences and the wheel-speed CAN frames (candump text) written to a serial device, FIFO
-//! or file at their own rates.
+//! over the shared-memory bridge at its real frame rate (or `--speedup` times faster) and
+//! prints `N frames published` (`dash2sim_linux::scenario::publish` is the code; `dash2sim
+//! scenario publish` runs the same).
 //!
 //! `cargo run --release -p dash2sim-examples --bin camera_sim -- --seconds 10`
 //!
 //! A 10-minute load run at 30 fps with 64 objects a frame (see docs/benchmarks.md):
 //! `camera_sim --fps 30 --objects 64 --seconds 50 --laps 12 --nmea-out gnss.fifo --can-out can.fifo`
 
-use std::io::Write;
-use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
 
 use clap::Parser;
-use dash2sim_core::box3d::Box3d;
-use dash2sim_core::pipeline::ImageDetection;
-use dash2sim_core::track2d::Detection;
-use dash2sim_core::track3d::Detection3d;
-use dash2sim_linux::bridge::messages::MAX_DETECTIONS;
-use dash2sim_linux::bridge::{device_now, CameraPublisher, DEFAULT_PREFIX, MAX_IMAGE_BYTES};
-use dash2sim_linux::scenario::actors::Class;
-use dash2sim_linux::scenario::road::Road;
-use dash2sim_linux::scenario::sensors::GnssModel;
-use dash2sim_linux::scenario::write::{receiver_output, wheel_speed_frames};
-use dash2sim_linux::scenario::{generate, Scenario, ScenarioConfig};
+use dash2sim_linux::scenario::publish::{self, PublishArgs};
 
 /// Publish a generated work-zone drive as a camera process would.
 #[derive(Debug, Parser)]
 #[command(name = "camera_sim", version, about)]
 struct Args {
-    /// Seed of the generated drive.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Length of the drive, s (1–50).
-    #[arg(long, default_value_t = 20.0)]
-    seconds: f64,
-    /// Frames per second (a multiple of the receiver's 5 Hz).
-    #[arg(long, default_value_t = 10)]
-    fps: u32,
-    /// Drive the road this many times (frame numbers and clocks go on; the road starts again).
-    #[arg(long, default_value_t = 1)]
-    laps: u32,
-    /// Report at least this many 3D detections a frame (up to 64), adding static cones beside
-    /// the road where the drive has fewer: a load test's worst case.
-    #[arg(long, default_value_t = 0)]
-    objects: usize,
-    /// Publish this many times faster than real time.
-    #[arg(long, default_value_t = 1.0)]
-    speedup: f64,
-    /// Service prefix.
-    #[arg(long, default_value = DEFAULT_PREFIX)]
-    prefix: String,
-    /// Also publish a 1920×1080×3 image per frame on the image service.
-    #[arg(long)]
-    images: bool,
-    /// Write the GNSS receiver's NMEA here at its rate (a pty, FIFO or file).
-    #[arg(long, value_name = "PATH")]
-    nmea_out: Option<PathBuf>,
-    /// Write the wheel-speed CAN frames here as candump lines at their rate (a FIFO or file).
-    #[arg(long, value_name = "PATH")]
-    can_out: Option<PathBuf>,
-}
-
-/// When the line or frame at drive time `t` of lap `lap` is due.
-struct Pace {
-    start: Instant,
-    lap_s: f64,
-    speedup: f64,
-}
-
-impl Pace {
-    fn wait(&self, lap: u32, t: f64) {
-        let due = self.start + Duration::from_secs_f64((f64::from(lap) * self.lap_s + t) / self.speedup);
-        if let Some(wait) = due.checked_duration_since(Instant::now()) {
-            std::thread::sleep(wait);
-        }
-    }
-}
-
-/// Write `lines(lap)` (time, text) to `path` at their times, lap after lap, in a thread.
-/// A reader that goes away ends the writing, not the run.
-fn write_paced(
-    path: PathBuf,
-    pace: Pace,
-    laps: u32,
-    lines: impl Fn(u32) -> Result<Vec<(f64, String)>, String> + Send + 'static,
-) -> std::thread::JoinHandle<Result<(), String>> {
-    std::thread::spawn(move || {
-        let mut out = std::fs::OpenOptions::new()
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(&path)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
-        for lap in 0..laps {
-            for (t, line) in lines(lap)? {
-                pace.wait(lap, t);
-                if out.write_all(line.as_bytes()).and_then(|()| out.flush()).is_err() {
-                    return Ok(());
-                }
-            }
-        }
-        Ok(())
-    })
-}
-
-/// Static cones beside the road for `--objects`: every 3 m of it, 7 m and 10 m to either
-/// side of the lane the drive starts in (off the lanes it uses, so they never block it).
-fn roadside_cones(road: &Road, lane: f64) -> Vec<[f64; 2]> {
-    let n = (road.length() / 3.0) as usize;
-    (0..n)
-        .flat_map(|i| [-10.0, -7.0, 7.0, 10.0].map(|d| road.point(i as f64 * 3.0, lane + d)))
-        .map(|(x, y)| [x, y])
-        .collect()
-}
-
-/// The frame's detections in the camera frame, with roadside cones added up to `objects`.
-fn camera_detections(scenario: &Scenario, frame: usize, cones: &[[f64; 2]], objects: usize) -> Vec<Detection3d> {
-    let camera = &scenario.config.camera;
-    let Some(f) = scenario.frames.get(frame) else { return Vec::new() };
-    // Detections are generated in the ego frame; the camera reports them in its own.
-    let mut detections: Vec<Detection3d> = f
-        .detections_3d
-        .iter()
-        .map(|d| {
-            let mut d = *d;
-            d.bbox.x -= camera.mount_forward;
-            d.bbox.z -= camera.mount_height;
-            d
-        })
-        .collect();
-    let (cos, sin) = (f.ego.heading.cos(), f.ego.heading.sin());
-    let mut seen: Vec<(f64, f64, f64)> = cones
-        .iter()
-        .map(|[x, y]| {
-            let (dx, dy) = (x - f.ego.x, y - f.ego.y);
-            (cos * dx + sin * dy - camera.mount_forward, -sin * dx + cos * dy)
-        })
-        .filter(|(x, y)| *x > 2.0 && *x < 60.0 && y.abs() < 12.0)
-        .map(|(x, y)| (x, y, x.hypot(y)))
-        .collect();
-    seen.sort_by(|a, b| a.2.total_cmp(&b.2));
-    let wanted = objects.min(MAX_DETECTIONS).saturating_sub(detections.len());
-    detections.extend(seen.into_iter().take(wanted).map(|(x, y, range)| Detection3d {
-        class: Class::Cone as u16,
-        bbox: Box3d { x, y, z: 0.35 - camera.mount_height, yaw: 0.0, l: 0.35, w: 0.35, h: 0.7 },
-        score: 0.9,
-        position_covariance: Some(scenario.config.detector.position_covariance(range, y.atan2(x))),
-    }));
-    detections
-}
-
-fn run(args: &Args) -> Result<u64, String> {
-    if !(args.seconds.is_finite() && (1.0..=50.0).contains(&args.seconds)) {
-        return Err(format!("--seconds {} must be between 1 and 50", args.seconds));
-    }
-    if !(args.speedup.is_finite() && args.speedup > 0.0) {
-        return Err(format!("--speedup {} must be positive", args.speedup));
-    }
-    if args.fps == 0 || !args.fps.is_multiple_of(5) || args.fps > 60 {
-        return Err(format!("--fps {} must be a multiple of 5 (the receiver's rate), at most 60", args.fps));
-    }
-    if args.laps == 0 {
-        return Err("--laps must be at least 1".to_owned());
-    }
-    let scenario = generate(&ScenarioConfig {
-        seed: args.seed,
-        duration_s: args.seconds,
-        frame_rate_hz: f64::from(args.fps),
-        gnss: GnssModel::good(),
-        ..ScenarioConfig::default()
-    });
-    let camera = CameraPublisher::new(&args.prefix, args.images).map_err(|e| e.to_string())?;
-    let image = args.images.then(|| vec![0x80u8; MAX_IMAGE_BYTES]);
-    let cones = if args.objects > 0 {
-        roadside_cones(&scenario.road, scenario.frames.first().map_or(0.0, |f| f.ego.d))
-    } else {
-        Vec::new()
-    };
-    let start = Instant::now();
-    let lap_s = args.seconds + 1.0 / f64::from(args.fps);
-    let pace = || Pace { start, lap_s, speedup: args.speedup };
-    let mut writers = Vec::new();
-    if let Some(path) = &args.nmea_out {
-        let receiver = scenario.clone();
-        writers.push(write_paced(path.clone(), pace(), args.laps, move |lap| {
-            let lines = receiver_output(&receiver, f64::from(lap) * lap_s).map_err(|e| e.to_string())?;
-            Ok(lines.into_iter().map(|(t, [gga, rmc])| (t, format!("{gga}\r\n{rmc}\r\n"))).collect())
-        }));
-    }
-    if let Some(path) = &args.can_out {
-        let frames = wheel_speed_frames(&scenario).map_err(|e| e.to_string())?;
-        writers.push(write_paced(path.clone(), pace(), args.laps, move |lap| {
-            frames
-                .iter()
-                .map(|(t, frame)| {
-                    let mut line = Vec::new();
-                    let stamp = dash2sim_core::time::Timestamp::from_micros(
-                        ((f64::from(lap) * lap_s + t) * 1e6).round() as i64,
-                    );
-                    dash2sim_can::candump::write_log_line(&mut line, stamp, "can0", frame)
-                        .map_err(|e| e.to_string())?;
-                    Ok((*t, String::from_utf8_lossy(&line).into_owned()))
-                })
-                .collect()
-        }));
-    }
-    let frames_per_lap = scenario.frames.len() as u64;
-    let mut published = 0u64;
-    for lap in 0..args.laps {
-        for (i, (frame, pose)) in scenario.frames.iter().zip(&scenario.vo.poses).enumerate() {
-            pace().wait(lap, frame.ego.t);
-            let t = device_now();
-            let sequence = u64::from(lap) * frames_per_lap + u64::from(frame.index);
-            camera.frame(sequence, t, 8_000, image.as_deref()).map_err(|e| e.to_string())?;
-            camera.vo(sequence, t, pose).map_err(|e| e.to_string())?;
-            camera
-                .detections3d(sequence, t, &camera_detections(&scenario, i, &cones, args.objects))
-                .map_err(|e| e.to_string())?;
-            let detections2d: Vec<ImageDetection> = frame
-                .detections_2d
-                .iter()
-                .map(|d| ImageDetection { class: 0, detection: Detection { bbox: d.bbox, score: d.score } })
-                .collect();
-            camera.detections2d(sequence, t, &detections2d).map_err(|e| e.to_string())?;
-            published += 1;
-        }
-    }
-    for writer in writers {
-        writer.join().map_err(|_| "a writer thread panicked".to_owned())??;
-    }
-    Ok(published)
+    #[command(flatten)]
+    publish: PublishArgs,
 }
 
 fn main() -> ExitCode {
-    let args = Args::parse();
-    match run(&args) {
+    match publish::run(&Args::parse().publish) {
         Ok(n) => {
             println!("{n} frames published");
             ExitCode::SUCCESS

@@ -292,14 +292,24 @@ impl EgoPlan {
             if k % per_frame == 0 {
                 let d = self.lateral(s);
                 let (x, y) = road.point(s, d);
-                let (xn, yn) = road.point(s + v * dt, self.lateral(s + v * dt));
+                let s_next = s + self.along_reference(road, s, v * dt);
+                let (xn, yn) = road.point(s_next, self.lateral(s_next));
                 let heading = (yn - y).atan2(xn - x);
                 let speed = (xn - x).hypot(yn - y) / dt;
                 states.push(EgoState { t: k as f64 * dt, s, d, x, y, heading, speed });
             }
-            s += v * dt + 0.5 * a * dt * dt;
+            s += self.along_reference(road, s, v * dt + 0.5 * a * dt * dt);
             v += a * dt;
         }
         states
+    }
+
+    /// How far along the reference line `distance` metres of the ego's own path take it at
+    /// `s`: a lane offset d from a line of curvature κ is (1 − κ·d) times as long, so that
+    /// the speed plan holds along the ego's path, not along the reference line (otherwise
+    /// the onset of a bend would read as a jump in speed on the outer lanes).
+    fn along_reference(&self, road: &Road, s: f64, distance: f64) -> f64 {
+        let stretch = 1.0 - road.pose(s).curvature * self.lateral(s);
+        distance / stretch.max(0.1)
     }
 }

@@ -1,7 +1,7 @@
 //! Deterministic work-zone drives: the ground truth the trackers, the anchoring, the demo
 //! and the benchmarks are judged against.
 //!
-//! A scenario is a two-lane-each-way road (a straight, a 48° left bend of radius 300 m,
+//! A scenario is a two-lane-each-way road (a straight, a 38° left bend of radius 300 m,
 //! a long straight) whose right lane is closed by a work zone: signs ahead on the shoulder, drums
 //! along a 50 m taper, an arrow board and barricades in the closed lane, cones along the
 //! closure and the end taper. The ego cruises, brakes to the zone speed, changes into the
@@ -19,6 +19,7 @@ pub mod actors;
 pub mod command;
 pub mod evaluate;
 pub mod judge;
+pub mod publish;
 pub mod road;
 pub mod sensors;
 pub mod street;
@@ -69,6 +70,20 @@ pub struct ScenarioConfig {
     pub vo_noise: f64,
     /// Wheel speed scale (tyre radius error) and noise σ, m/s.
     pub wheel: (f64, f64),
+    /// How the ego is driven through the work zone.
+    pub driver: Driver,
+}
+
+/// How the ego is driven through the work zone.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Driver {
+    /// Changes into the open lane well before the taper (the drives of the Dash2Sim
+    /// corpus: "the driver completed each route without any incidents").
+    #[default]
+    Careful,
+    /// Changes lanes only once the taper has begun and clips its drums: a log the
+    /// verifier must reject.
+    Careless,
 }
 
 impl Default for ScenarioConfig {
@@ -87,6 +102,7 @@ impl Default for ScenarioConfig {
             vo: VoModel::gravity_aligned(),
             vo_noise: 0.01,
             wheel: (0.99, 0.03),
+            driver: Driver::Careful,
         }
     }
 }
@@ -169,7 +185,7 @@ pub fn tracker_config(classes: &[ClassConfig]) -> Config3d<'_> {
 pub fn generate(config: &ScenarioConfig) -> Scenario {
     let mut layout = rng(config.seed, Stream::Layout);
     let road = Road {
-        segments: vec![Segment::Straight(200.0), Segment::Arc(250.0, 1.0 / 300.0), Segment::Straight(700.0)],
+        segments: vec![Segment::Straight(150.0), Segment::Arc(200.0, 1.0 / 300.0), Segment::Straight(800.0)],
         start: RoadPose { x: 0.0, y: 0.0, heading: layout.random_range(-3.1..3.1), curvature: 0.0 },
         lane_width: 3.5,
         lanes_forward: 2,
@@ -177,9 +193,9 @@ pub fn generate(config: &ScenarioConfig) -> Scenario {
         speed_limit: 80.0 / 3.6,
     };
     let zone = WorkZone {
-        taper_start: 330.0 + layout.random_range(-15.0..15.0),
+        taper_start: 400.0 + layout.random_range(-15.0..15.0),
         taper_length: 50.0,
-        closure_length: 150.0,
+        closure_length: 120.0,
         end_taper_length: 20.0,
     };
     let (open, closed) = (road.forward_lane(1), road.forward_lane(0));
@@ -189,7 +205,13 @@ pub fn generate(config: &ScenarioConfig) -> Scenario {
         zone_speed: 15.0,
         max_accel: 1.5,
         lanes: (open, closed),
-        changes: [(zone.taper_start - 130.0, zone.taper_start - 70.0), (zone.end() + 30.0, zone.end() + 100.0)],
+        changes: [
+            match config.driver {
+                Driver::Careful => (zone.taper_start - 130.0, zone.taper_start - 70.0),
+                Driver::Careless => (zone.taper_start - 5.0, zone.taper_start + 35.0),
+            },
+            (zone.end() + 30.0, zone.end() + 100.0),
+        ],
         slow: (zone.taper_start - 100.0, zone.end() + 10.0),
     };
     let mut next_id = 1;
