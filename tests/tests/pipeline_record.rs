@@ -48,7 +48,7 @@ fn recorded_work_zones_anchor_as_well_as_the_offline_anchorer_and_track_and_veri
         // pose costs the tracker nothing, and re-anchoring (finishing) gets it all back.
         let (relative, truth) = (o.judged.tracks_relative, o.tracks_truth_pose);
         assert!(
-            (relative.0 - truth.0).abs() < 0.03 && (relative.1 - truth.1).abs() < 0.03,
+            (relative.0 - truth.0).abs() < 0.04 && (relative.1 - truth.1).abs() < 0.04,
             "seed {seed}: {relative:?} vs {truth:?}"
         );
         assert!(

@@ -55,22 +55,10 @@ enum Command {
     /// Map tiles from OpenStreetMap (docs/map-tile.md).
     #[command(subcommand)]
     Map(MapCommand),
-    /// The whole pipeline on a generated work-zone drive: anchor VO to GNSS, track 3D
-    /// objects, verify against the road's map, write the 4D log, export it.
-    Demo {
-        /// Output folder.
-        #[arg(short, long, default_value = "demo-output")]
-        output: PathBuf,
-        /// Seed of the generated drive.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Length of the drive, s (10–50).
-        #[arg(long, default_value_t = 40.0)]
-        duration: f64,
-        /// Print the summary as JSON.
-        #[arg(long)]
-        json: bool,
-    },
+    /// The whole product on a generated work-zone drive: a camera process publishing over
+    /// shared memory, GNSS as NMEA and speed as CAN frames, `record`, `finish`, `verify`,
+    /// the exports (MCAP, TUM, GeoJSON, nuPlan) and `plot` (docs/demo.md).
+    Demo(crate::demo::DemoArgs),
     /// Turn existing recordings (NMEA capture, candump log with DBC files, trajectory,
     /// objects) into a 4D log, in time order (docs/binlog.md).
     Import(ImportArgs),
@@ -430,7 +418,7 @@ pub fn run() -> ExitCode {
                 None => Err(format!("--speed-unit {:?}: expected km/h, m/s or mph", a.speed_unit)),
             }
         }
-        Command::Demo { output, seed, duration, json } => crate::demo::run(&output, seed, duration, json),
+        Command::Demo(args) => crate::demo::run(&args),
         Command::Record(args) => crate::record::run(&args),
         Command::Finish(args) => crate::finish::run(&args),
         Command::Plot(args) => crate::plot::run(&args),

@@ -55,7 +55,8 @@ fn map_tile(path: &Path, log: &LogContents) -> Result<Vec<u8>, String> {
 }
 
 /// A nuPlan map name from a file name: lower case, `-` for anything but letters and digits.
-fn map_name(stem: &str) -> String {
+/// The nuPlan map name for a map file's stem.
+pub fn map_name(stem: &str) -> String {
     let clean: String =
         stem.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect();
     format!("dash2sim-{}", clean.trim_matches('-'))

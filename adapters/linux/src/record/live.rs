@@ -34,6 +34,18 @@ pub const QUEUE: usize = 4096;
 #[derive(Debug)]
 pub struct FileSink(File);
 
+impl FileSink {
+    /// A new file at `path` (an existing one is not overwritten).
+    pub fn create(path: &Path) -> Result<FileSink, String> {
+        File::options()
+            .write(true)
+            .create_new(true)
+            .open(path)
+            .map(FileSink)
+            .map_err(|e| format!("{}: {e}", path.display()))
+    }
+}
+
 /// A file write failed.
 #[derive(Debug)]
 pub struct FileError(std::io::Error);
@@ -197,13 +209,7 @@ fn can_reader(
 /// time, and an existing file is never overwritten (a logger restarted at once gets a new
 /// start time).
 fn new_file(dir: &Path, started: u128, index: u32) -> Result<FileSink, String> {
-    let path = dir.join(format!("dash2sim-{started}-{index:04}.d2slog"));
-    File::options()
-        .write(true)
-        .create_new(true)
-        .open(&path)
-        .map(FileSink)
-        .map_err(|e| format!("{}: {e}", path.display()))
+    FileSink::create(&dir.join(format!("dash2sim-{started}-{index:04}.d2slog")))
 }
 
 fn status_line(stats: &PipelineStats, frames: u64, dropped: u64, anchored: bool) {

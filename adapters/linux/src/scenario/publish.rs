@@ -22,7 +22,7 @@ use super::actors::Class;
 use super::road::Road;
 use super::sensors::GnssModel;
 use super::write::{receiver_output, wheel_speed_frames};
-use super::{generate, Scenario, ScenarioConfig};
+use super::{generate, Driver, Scenario, ScenarioConfig};
 use crate::bridge::messages::MAX_DETECTIONS;
 use crate::bridge::{device_now, CameraPublisher, DEFAULT_PREFIX, MAX_IMAGE_BYTES};
 
@@ -32,6 +32,9 @@ pub struct PublishArgs {
     /// Seed of the generated drive.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// How the ego drives through the work zone.
+    #[arg(long, value_enum, default_value = "careful")]
+    pub driver: Driver,
     /// Length of the drive, s (1–50).
     #[arg(long, default_value_t = 20.0)]
     pub seconds: f64,
@@ -167,6 +170,7 @@ pub fn run(args: &PublishArgs) -> Result<u64, String> {
     }
     let scenario = generate(&ScenarioConfig {
         seed: args.seed,
+        driver: args.driver,
         duration_s: args.seconds,
         frame_rate_hz: f64::from(args.fps),
         gnss: GnssModel::good(),

@@ -1,0 +1,156 @@
+//! The demo's recording step with real processes, as on a dashcam: the camera process
+//! (`dash2sim scenario publish`, a child process) publishes the drive's frames, VO poses
+//! and detections over shared memory (iceoryx2) and writes the GNSS receiver's NMEA and the
+//! wheel-speed CAN frames into two FIFOs at their rates; the logger (`record`'s live loop,
+//! a thread of this process) subscribes, reads the FIFOs as its serial port and its bus,
+//! feeds the on-device pipeline and writes the 4D log.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use indicatif::ProgressBar;
+
+use crate::record::live::{self, FileSink, LiveReport, LiveRequest};
+use crate::record::Setup;
+use crate::scenario::Driver;
+
+/// What to publish: the generated drive's seed, length and driver.
+#[derive(Clone, Copy, Debug)]
+pub struct Drive {
+    /// Seed.
+    pub seed: u64,
+    /// Length, s.
+    pub seconds: f64,
+    /// Driver.
+    pub driver: Driver,
+}
+
+/// What the live recording did.
+#[derive(Clone, Copy, Debug)]
+pub struct LiveRecording {
+    /// The logger's counters.
+    pub report: LiveReport,
+    /// Frames the camera process published.
+    pub published: u64,
+    /// Wall-clock time of the recording, s.
+    pub seconds: f64,
+}
+
+/// A FIFO at `path` (an old file of that name is replaced).
+fn fifo(path: &Path) -> Result<(), String> {
+    let _ = std::fs::remove_file(path);
+    rustix::fs::mkfifoat(rustix::fs::CWD, path, rustix::fs::Mode::RUSR | rustix::fs::Mode::WUSR)
+        .map_err(|e| format!("mkfifo {}: {e}", path.display()))
+}
+
+/// Record `drive` live into `log_path`; `bar` counts the drive's seconds.
+pub fn record(
+    drive: Drive,
+    dir: &Path,
+    log_path: &Path,
+    setup: &Setup,
+    bar: &ProgressBar,
+) -> Result<LiveRecording, String> {
+    let (gnss, can) = (dir.join("gnss.fifo"), dir.join("can.fifo"));
+    fifo(&gnss)?;
+    fifo(&can)?;
+    let prefix = format!("dash2sim-demo/{}", std::process::id());
+    let request = LiveRequest {
+        dir: dir.to_path_buf(),
+        camera_prefix: Some(prefix.clone()),
+        serial: Some(gnss.clone()),
+        baud: 115_200,
+        can_interface: None,
+        can_replay: Some(can.clone()),
+        // The camera process writes the bus at its own pace: read it as it comes.
+        realtime: false,
+        segment: Duration::from_secs(24 * 3600),
+        // A bound in case the camera process hangs; it normally ends the run.
+        duration: Some(Duration::from_secs_f64(drive.seconds + 60.0)),
+        status: false,
+    };
+    let stop = AtomicBool::new(false);
+    let started = Instant::now();
+    let result = std::thread::scope(|scope| {
+        let logger = scope.spawn(|| {
+            live::run_into(&request, setup, &stop, |index| match index {
+                0 => FileSink::create(log_path),
+                _ => Err("the demo's log does not rotate".to_owned()),
+            })
+        });
+        // The logger subscribes before the camera publishes its first frame.
+        std::thread::sleep(Duration::from_millis(300));
+        let camera = publish(drive, &prefix, &gnss, &can, bar, started);
+        if camera.is_err() {
+            // A camera process that never opened the FIFOs leaves the logger waiting in
+            // open(): open them here so that it can see their end.
+            for path in [&gnss, &can] {
+                let _ = std::fs::OpenOptions::new().write(true).open(path);
+            }
+        }
+        // What the camera published last is still in the bridge's buffers: let it drain.
+        std::thread::sleep(Duration::from_millis(500));
+        stop.store(true, Ordering::Relaxed);
+        let report = logger.join().map_err(|_| "the logger thread panicked".to_owned()).and_then(|r| r);
+        Ok::<_, String>((camera, report))
+    });
+    for path in [&gnss, &can] {
+        let _ = std::fs::remove_file(path);
+    }
+    let (camera, report) = result?;
+    let published = camera?;
+    let report = report?;
+    Ok(LiveRecording { report, published, seconds: started.elapsed().as_secs_f64() })
+}
+
+/// Run the camera process until it ends; the frames it published.
+fn publish(
+    drive: Drive,
+    prefix: &str,
+    gnss: &PathBuf,
+    can: &PathBuf,
+    bar: &ProgressBar,
+    started: Instant,
+) -> Result<u64, String> {
+    let exe = std::env::current_exe().map_err(|e| format!("the dash2sim executable: {e}"))?;
+    let driver = match drive.driver {
+        Driver::Careful => "careful",
+        Driver::Careless => "careless",
+    };
+    let mut child = Command::new(exe)
+        .args(["scenario", "publish", "--seed", &drive.seed.to_string(), "--seconds", &drive.seconds.to_string()])
+        .args(["--driver", driver, "--prefix", prefix])
+        .arg("--nmea-out")
+        .arg(gnss)
+        .arg("--can-out")
+        .arg(can)
+        .env("IOX2_LOG_LEVEL", std::env::var("IOX2_LOG_LEVEL").unwrap_or_else(|_| "Error".to_owned()))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| format!("starting the camera process: {e}"))?;
+    loop {
+        bar.set_position(started.elapsed().as_secs().min(drive.seconds as u64));
+        match child.try_wait() {
+            Ok(Some(_)) => break,
+            Ok(None) => std::thread::sleep(Duration::from_millis(100)),
+            Err(e) => return Err(format!("the camera process: {e}")),
+        }
+    }
+    let output = child.wait_with_output().map_err(|e| format!("the camera process: {e}"))?;
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    if !output.status.success() {
+        return Err(format!(
+            "the camera process failed ({}): {}",
+            output.status,
+            String::from_utf8_lossy(&output.stderr).trim()
+        ));
+    }
+    stdout
+        .split_whitespace()
+        .next()
+        .and_then(|n| n.parse().ok())
+        .ok_or_else(|| format!("the camera process said {:?}, not how many frames it published", stdout.trim()))
+}
