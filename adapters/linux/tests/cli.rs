@@ -634,41 +634,60 @@ fn import_inspect_export_a_drive_and_report_damage_without_failing() {
 }
 
 #[test]
-fn demo_runs_the_pipeline_and_leaves_every_product_behind() {
+fn demo_runs_the_product_through_real_processes_and_the_truth_and_the_finished_log_verify() {
     let dir = scratch("demo");
-    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "20", "--json"]);
+    // The default drive, live: a camera process over shared memory, NMEA and CAN over FIFOs.
+    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--json"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let s: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
-    assert!(stderr(&out).contains("[7/7]"), "progress on stderr");
-    // Anchoring becomes observable and lands within a few metres of the truth.
-    assert!(s["anchoring"]["observable_after_s"].as_f64().is_some_and(|t| t < 15.0), "{s}");
-    assert!(s["anchoring"]["ape_rmse_m"].as_f64().is_some_and(|e| e < 4.0), "{s}");
-    // Tracks through the anchored pose; seen from the ego as good as with the true pose.
-    assert!(s["tracking"]["mota_anchored_frames"].as_f64().is_some_and(|m| m > 0.3), "{s}");
-    let seen = s["tracking"]["mota_seen_from_ego"].as_f64().expect("mota");
-    assert!((seen - s["tracking"]["mota_true_pose"].as_f64().expect("mota")).abs() < 0.05, "{s}");
-    assert_eq!(s["pipeline"]["issues"], serde_json::json!({}), "{s}");
-    assert!(!s["verification"]["windows"].as_array().expect("windows").is_empty(), "{s}");
-    assert_eq!(s["log"]["damaged"], 0);
-    for name in [
-        "drive.d2slog",
-        "anchors.csv",
-        "finished.d2slog",
-        "drive.mcap",
-        "ego.tum",
-        "drive.geojson",
-        "road.map",
-        "plot.png",
-        "plot.svg",
-        "summary.json",
-    ] {
-        assert!(dir.join(name).is_file(), "{name} written");
+    assert!(stderr(&out).contains("[3/8] recording live") && stderr(&out).contains("[8/8]"), "progress on stderr");
+    let r = &s["recording"];
+    assert_eq!(r["mode"], "live");
+    assert_eq!(r["frames_published"], 401, "{r}");
+    assert_eq!(r["frames_received"], r["frames_published"], "every published frame logged: {r}");
+    assert_eq!((r["inputs_dropped"].as_u64(), r["issues"].as_u64()), (Some(0), Some(0)), "{r}");
+    assert_eq!(r["pipeline"]["fixes"], 201, "every fix through the FIFO: {r}");
+    assert_eq!(r["pipeline"]["speeds"], 2001, "every CAN speed frame through the FIFO: {r}");
+    // Anchoring: observable early, a few metres online, decimetres and < 1 % scale finished.
+    let (on, fin) = (&s["anchoring"]["online"], &s["anchoring"]["finished"]);
+    assert!(on["observable_after_s"].as_f64().is_some_and(|t| t < 15.0), "{on}");
+    assert!(on["ape_rmse_m"].as_f64().is_some_and(|e| e < 4.0), "{on}");
+    assert!(fin["ape_rmse_m"].as_f64().is_some_and(|e| e < 0.5), "{fin}");
+    assert!(fin["scale_error"].as_f64().is_some_and(|e| e.abs() < 0.01), "{fin}");
+    // Tracks: every work-zone class; seen from the ego as good as the tracker fed the truth.
+    for class in ["cone", "drum", "barricade", "sign", "arrow_board", "car", "truck"] {
+        assert!(s["tracking"]["tracks_by_class"][class].as_u64().is_some_and(|n| n > 0), "{class}: {s}");
     }
-    // Finishing with the street-imagery anchors beats the online anchoring and the tracks.
-    let online = s["anchoring"]["ape_rmse_m"].as_f64().expect("ape");
-    let finished = s["finished"]["ape_rmse_m"].as_f64().expect("ape");
-    assert!(finished < 0.5 * online && finished < 0.5, "{finished} vs {online}");
-    assert!(s["finished"]["mota"].as_f64() > s["tracking"]["mota"].as_f64(), "{s}");
+    let t = &s["tracking"];
+    assert!(
+        (t["online"]["mota_seen_from_ego"].as_f64().expect("mota")
+            - t["tracker_fed_true_pose"]["mota"].as_f64().expect("mota"))
+        .abs()
+            < 0.05,
+        "{t}"
+    );
+    assert!(t["finished"]["mota"].as_f64() > t["online"]["mota"].as_f64(), "{t}");
+    // The careful drive's truth verifies, and so does the finished log, in both modes.
+    let v = &s["verification"];
+    for who in ["ground_truth", "finished"] {
+        for mode in ["channel_insensitive", "channel_sensitive"] {
+            assert_eq!(v[who][mode]["verified"], true, "{who} {mode}: {}", v[who][mode]);
+            assert!(v[who][mode]["score"].as_f64().is_some_and(|x| x > 90.0));
+        }
+    }
+    assert!(v["online"]["channel_insensitive"]["score"].is_number());
+    assert!(!v["windows_on_device"].as_array().expect("windows").is_empty(), "{v}");
+    assert_eq!(s["log"]["damaged"], 0);
+    // Every file it names exists.
+    let files = s["files"].as_array().expect("files");
+    assert!(files.len() >= 15, "{files:?}");
+    for f in files {
+        let p = Path::new(f["path"].as_str().expect("path"));
+        assert!(p.exists(), "{} named but missing", p.display());
+    }
+    let db = rusqlite::Connection::open(s["nuplan"]["db"].as_str().expect("nuPlan db")).expect("sqlite");
+    let poses: i64 = db.query_row("SELECT COUNT(*) FROM ego_pose", [], |r| r.get(0)).expect("ego_pose");
+    assert!(poses > 700, "{poses}");
     // The log is what inspect and verify read.
     let log = dir.join("drive.d2slog").display().to_string();
     let inspect: serde_json::Value =
@@ -693,7 +712,26 @@ fn demo_runs_the_pipeline_and_leaves_every_product_behind() {
     let verify: serde_json::Value =
         serde_json::from_slice(&dash2sim(&["verify", &log, "--map", &map, "--json"]).stdout).expect("json");
     let score = verify["score"].as_f64().expect("score");
-    assert!((score - s["verification"]["recovered"]["score"].as_f64().expect("score")).abs() < 1e-9, "{verify} {s}");
+    assert!((score - v["online"]["channel_insensitive"]["score"].as_f64().expect("score")).abs() < 1e-9, "{verify}");
+}
+
+#[test]
+fn demo_of_a_careless_driver_is_rejected_and_bad_arguments_are_named() {
+    let dir = scratch("demo-careless");
+    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--driver", "careless", "--offline", "--quiet"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).is_empty(), "--quiet: {}", stderr(&out));
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(text.contains("careless driver") && text.contains("no at-fault collisions"), "{text}");
+    let s: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("summary.json")).expect("summary")).expect("json");
+    assert_eq!(s["recording"]["mode"], "offline");
+    let v = &s["verification"];
+    for who in ["ground_truth", "online", "finished"] {
+        assert_eq!(v[who]["channel_insensitive"]["verified"], false, "{who}: {}", v[who]);
+    }
+    // It hit the taper's drums.
+    assert!(v["finished"]["channel_insensitive"]["metrics"]["no_at_fault_collisions"].as_f64() < Some(1.0), "{v}");
     let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "5"]);
     assert!(!out.status.success() && stderr(&out).contains("--duration"));
 }
@@ -701,7 +739,7 @@ fn demo_runs_the_pipeline_and_leaves_every_product_behind() {
 #[test]
 fn finish_reports_bad_anchor_lines_verifies_per_window_and_refuses_a_log_without_vo() {
     let dir = scratch("finish");
-    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "20", "--json"]);
+    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "20", "--offline", "--json"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let anchors = dir.join("anchors.csv");
     let mut text = std::fs::read_to_string(&anchors).expect("anchors");
@@ -756,7 +794,7 @@ fn finish_reports_bad_anchor_lines_verifies_per_window_and_refuses_a_log_without
 #[test]
 fn export_nuplan_writes_the_devkits_tables_and_layers_and_refuses_bad_input() {
     let dir = scratch("nuplan");
-    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "30", "--json"]);
+    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "30", "--offline", "--json"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let path = |p: &Path| p.display().to_string();
     let (log, map, nuplan) = (dir.join("finished.d2slog"), dir.join("road.map"), dir.join("nuplan"));
@@ -960,7 +998,7 @@ fn map_check_counts_compliant_poses_and_times_them() {
 #[test]
 fn plot_draws_the_map_the_three_trajectories_and_the_objects_and_refuses_a_log_without_poses() {
     let dir = scratch("plot");
-    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "30", "--json"]);
+    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "30", "--offline", "--json"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let path = |p: &Path| p.display().to_string();
     // The demo drew its drive.
