@@ -2,7 +2,7 @@
 //!
 //! 1. generate the drive (`scenario`) and its road as OpenStreetMap;
 //! 2. build the map tile from the road's OSM;
-//! 3. `record`, live ([`live`]): the camera process (`dash2sim scenario publish`, a child
+//! 3. `record`, live (the `live` module): the camera process (`dash2sim scenario publish`, a child
 //!    process) publishes frames, VO poses and detections over shared memory and writes the
 //!    GNSS receiver's NMEA and the wheel-speed CAN frames into FIFOs at their rates; the
 //!    logger subscribes and reads them, runs the on-device pipeline (anchoring, 3D/2D
