@@ -5,7 +5,7 @@
 //! a thread of this process) subscribes, reads the FIFOs as its serial port and its bus,
 //! feeds the on-device pipeline and writes the 4D log.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -109,19 +109,15 @@ pub fn record(
 fn publish(
     drive: Drive,
     prefix: &str,
-    gnss: &PathBuf,
-    can: &PathBuf,
+    gnss: &Path,
+    can: &Path,
     bar: &ProgressBar,
     started: Instant,
 ) -> Result<u64, String> {
     let exe = std::env::current_exe().map_err(|e| format!("the dash2sim executable: {e}"))?;
-    let driver = match drive.driver {
-        Driver::Careful => "careful",
-        Driver::Careless => "careless",
-    };
     let mut child = Command::new(exe)
         .args(["scenario", "publish", "--seed", &drive.seed.to_string(), "--seconds", &drive.seconds.to_string()])
-        .args(["--driver", driver, "--prefix", prefix])
+        .args(["--driver", drive.driver.name(), "--prefix", prefix])
         .arg("--nmea-out")
         .arg(gnss)
         .arg("--can-out")

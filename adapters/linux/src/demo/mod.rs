@@ -77,7 +77,7 @@ pub fn run(args: &DemoArgs) -> Result<(), String> {
         return Err(format!("--duration {} must be between 10 and 50 seconds", args.duration));
     }
     let summary = generated(args, &progress)?;
-    write_file(&args.output.join("summary.json"), &summary.to_string())?;
+    write_file(&args.output.join("summary.json"), summary.to_string())?;
     if args.json {
         println!("{summary}");
     } else {
@@ -86,8 +86,8 @@ pub fn run(args: &DemoArgs) -> Result<(), String> {
     Ok(())
 }
 
-fn write_file(path: &Path, text: &str) -> Result<(), String> {
-    std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))
+fn write_file(path: &Path, contents: impl AsRef<[u8]>) -> Result<(), String> {
+    std::fs::write(path, contents).map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// How a log recorded from the drive fares: judged against the truth, verified both ways.
@@ -144,7 +144,8 @@ fn tracks_by_class(log: &LogContents) -> std::collections::BTreeMap<&'static str
     ids.into_iter().map(|(class, set)| (class, set.len())).collect()
 }
 
-fn windows(log: &LogContents) -> Vec<Value> {
+/// The device's verification windows (its records), as `{score, verified}`.
+fn device_windows(log: &LogContents) -> Vec<Value> {
     log.records
         .iter()
         .filter_map(|r| match r {
@@ -154,8 +155,23 @@ fn windows(log: &LogContents) -> Vec<Value> {
         .collect()
 }
 
-fn judged_json(j: &Judged) -> Value {
-    let t = &j.judgement;
+/// `finish`'s windows in the same form (channel-insensitive, as the device scores them).
+fn finished_windows(report: &Value) -> Vec<Value> {
+    report["verification"]["windows"]
+        .as_array()
+        .map(|windows| {
+            windows
+                .iter()
+                .map(|w| {
+                    let v = &w["channel_insensitive"];
+                    json!({"score": v["score"], "verified": v["verified"]})
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+fn judged_json(t: &LogJudgement) -> Value {
     json!({
         "ape_rmse_m": t.ego_rmse,
         "ape_max_m": t.ego_max,
@@ -167,7 +183,6 @@ fn judged_json(j: &Judged) -> Value {
         "idf1_anchored_frames": t.tracks_anchored.1,
         "mota_seen_from_ego": t.tracks_relative.0,
         "idf1_seen_from_ego": t.tracks_relative.1,
-        "verify": {"channel_insensitive": j.insensitive, "channel_sensitive": j.sensitive},
     })
 }
 
@@ -194,7 +209,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
     let osm = crate::osm::read(&drive_dir.join("road.osm")).map_err(|e| e.to_string())?;
     let tile = crate::map_tile::encode(&crate::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()), 50.0);
     let map_path = out.join("road.map");
-    std::fs::write(&map_path, &tile).map_err(|e| format!("{}: {e}", map_path.display()))?;
+    write_file(&map_path, &tile)?;
     let map = MapView::parse(&tile).map_err(|e| e.to_string())?;
 
     let log_path = out.join("drive.d2slog");
@@ -208,7 +223,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
         );
         let (stream, _) = record::read_sources(&record::Sources::scenario(&drive_dir))?;
         let recording = record::run_stream(&stream, &setup)?;
-        write_file_bytes(&log_path, &recording.log)?;
+        write_file(&log_path, &recording.log)?;
         json!({"mode": "offline", "inputs": recording.inputs, "pipeline": record::summary(&recording)})
     } else {
         progress.step(
@@ -220,14 +235,10 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
         let drive = live::Drive { seed, seconds: duration_s, driver: args.driver };
         let live = live::record(drive, out, &log_path, &setup, &bar)?;
         bar.finish_and_clear();
-        let (r, s) = (&live.report, &live.report.stats);
+        let r = &live.report;
         json!({"mode": "live", "frames_published": live.published, "frames_received": r.frames,
                "inputs_dropped": r.dropped, "issues": r.issues, "wall_s": live.seconds,
-               "pipeline": {"records": s.records, "vo_poses": s.vo_poses, "anchored_frames": s.anchored_frames,
-                            "fixes": s.fixes, "speeds": s.speeds, "can_frames": s.can_frames,
-                            "detections_placed": s.detections_placed, "detections_raw": s.detections_raw,
-                            "track_states": s.track_states, "track2d_states": s.track2d_states,
-                            "windows": s.windows, "windows_verified": s.windows_verified}})
+               "pipeline": record::stats_json(&r.stats)})
     };
     let log = logfile::read(&log_path).map_err(|e| e.to_string())?;
     let log_bytes = log.bytes;
@@ -256,7 +267,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
     let finished_path = out.join("finished.d2slog");
     let header = log.header.ok_or("the recorded log has no header")?;
     let finished_bytes = logfile::import::encode_in_order(&header, &finished.records)?;
-    write_file_bytes(&finished_path, &finished_bytes)?;
+    write_file(&finished_path, &finished_bytes)?;
     let finished_log = logfile::decode(&finished_bytes, "finished").map_err(|e| e.to_string())?;
 
     progress.step(5, STEPS, "verifying the true drive, the online log and the finished log (both channel modes)");
@@ -336,7 +347,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
     Ok(json!({
         "seed": seed,
         "duration_s": duration_s,
-        "driver": match args.driver { Driver::Careful => "careful", Driver::Careless => "careless" },
+        "driver": args.driver.name(),
         "recording": recording,
         "anchoring": {
             "online": {
@@ -359,8 +370,8 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
             },
         },
         "tracking": {
-            "online": judged_json(&online),
-            "finished": judged_json(&finished_judged),
+            "online": judged_json(&online.judgement),
+            "finished": judged_json(&finished_judged.judgement),
             "tracker_fed_true_pose": {"mota": truth_tracking.metric("mota"), "idf1": truth_tracking.metric("idf1")},
             "tracks_by_class": tracks_by_class(&log),
             "finished_tracks_by_class": tracks_by_class(&finished_log),
@@ -369,8 +380,8 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
             "ground_truth": {"channel_insensitive": truth_insensitive, "channel_sensitive": truth_sensitive},
             "online": {"channel_insensitive": online.insensitive, "channel_sensitive": online.sensitive},
             "finished": {"channel_insensitive": finished_judged.insensitive, "channel_sensitive": finished_judged.sensitive},
-            "windows_on_device": windows(&log),
-            "windows_finished": finished.report["verification"]["windows"],
+            "windows_on_device": device_windows(&log),
+            "windows_finished": finished_windows(&finished.report),
         },
         "log": {"records": log.records.len(), "bytes": log_bytes, "bytes_per_minute": log_bytes as f64 / minutes,
                 "damaged": log.stats.damaged, "finished_bytes": finished_bytes.len()},
@@ -378,8 +389,4 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
         "nuplan": nuplan_json,
         "files": files,
     }))
-}
-
-fn write_file_bytes(path: &Path, bytes: &[u8]) -> Result<(), String> {
-    std::fs::write(path, bytes).map_err(|e| format!("{}: {e}", path.display()))
 }

@@ -31,13 +31,10 @@ fn windows_text(windows: &Value) -> String {
     if list.is_empty() {
         return "none".to_owned();
     }
-    let score =
-        |w: &Value| if w["score"].is_number() { num(&w["score"]) } else { num(&w["channel_insensitive"]["score"]) };
-    let verified =
-        |w: &Value| w["verified"].as_bool().or_else(|| w["channel_insensitive"]["verified"].as_bool()).unwrap_or(false);
+    let verified = |w: &Value| w["verified"].as_bool().unwrap_or(false);
     let verified_count = list.iter().filter(|w| verified(w)).count();
     let each: Vec<String> =
-        list.iter().map(|w| format!("{} {:.1}", if verified(w) { "✓" } else { "✗" }, score(w))).collect();
+        list.iter().map(|w| format!("{} {:.1}", if verified(w) { "✓" } else { "✗" }, num(&w["score"]))).collect();
     format!("{verified_count} of {} verified ({})", list.len(), each.join(", "))
 }
 

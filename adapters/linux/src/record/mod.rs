@@ -450,12 +450,16 @@ fn run_live(args: &RecordArgs, request: &live::LiveRequest) -> Result<(), String
     let report = live::run(request, &setup, &stop)?;
     let s = &report.stats;
     if args.json {
-        println!(
-            "{}",
-            json!({"files": report.files, "frames": report.frames, "dropped": report.dropped, "issues": report.issues,
-                   "vo_poses": s.vo_poses, "anchored_frames": s.anchored_frames, "fixes": s.fixes, "speeds": s.speeds,
-                   "track_states": s.track_states, "windows": s.windows, "records": s.records})
-        );
+        let mut summary = stats_json(s);
+        for (key, value) in [
+            ("files", u64::from(report.files)),
+            ("frames", report.frames),
+            ("dropped", report.dropped),
+            ("issues", report.issues),
+        ] {
+            summary[key] = json!(value);
+        }
+        println!("{summary}");
     } else {
         println!(
             "{}: {} files; {} camera frames, {s}; {} inputs dropped, {} issues",
@@ -473,17 +477,9 @@ fn display(p: &Option<PathBuf>) -> String {
     p.as_deref().map_or_else(String::new, |p: &Path| p.display().to_string())
 }
 
-/// The summary of a recording.
-pub fn summary(recording: &Recording) -> serde_json::Value {
-    let s = &recording.stats;
-    let issues: serde_json::Map<String, serde_json::Value> = Issue::ALL
-        .iter()
-        .filter(|i| recording.issues.get(**i) > 0)
-        .map(|i| (format!("{i:?}"), json!(recording.issues.get(*i))))
-        .collect();
+/// The pipeline's totals as JSON (file and live recordings, the demo).
+pub fn stats_json(s: &PipelineStats) -> serde_json::Value {
     json!({
-        "inputs": recording.inputs,
-        "log_bytes": recording.log.len(),
         "records": s.records,
         "vo_poses": s.vo_poses,
         "anchored_frames": s.anchored_frames,
@@ -497,8 +493,21 @@ pub fn summary(recording: &Recording) -> serde_json::Value {
         "track2d_states": s.track2d_states,
         "windows": s.windows,
         "windows_verified": s.windows_verified,
-        "issues": issues,
     })
+}
+
+/// The summary of a recording.
+pub fn summary(recording: &Recording) -> serde_json::Value {
+    let issues: serde_json::Map<String, serde_json::Value> = Issue::ALL
+        .iter()
+        .filter(|i| recording.issues.get(**i) > 0)
+        .map(|i| (format!("{i:?}"), json!(recording.issues.get(*i))))
+        .collect();
+    let mut summary = stats_json(&recording.stats);
+    summary["inputs"] = json!(recording.inputs);
+    summary["log_bytes"] = json!(recording.log.len());
+    summary["issues"] = json!(issues);
+    summary
 }
 
 fn report(output: &Path, recording: &Recording, counts: &sources::SourceCounts, as_json: bool) {

@@ -313,3 +313,39 @@ impl EgoPlan {
         distance / stretch.max(0.1)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::road::{RoadPose, Segment};
+    use super::*;
+
+    #[test]
+    fn the_speed_plan_holds_along_the_egos_own_path_through_a_bend() {
+        // A lane 5.25 m right of a left bend of radius 300 m is 1.75 % longer than the
+        // reference line: planned along the line, the ego would speed up by that much (and
+        // jump at the bend's onset).
+        let road = Road {
+            segments: vec![Segment::Straight(100.0), Segment::Arc(300.0, 1.0 / 300.0), Segment::Straight(300.0)],
+            start: RoadPose { x: 0.0, y: 0.0, heading: 0.0, curvature: 0.0 },
+            lane_width: 3.5,
+            lanes_forward: 2,
+            lanes_backward: 2,
+            speed_limit: 25.0,
+        };
+        let lane = road.forward_lane(0);
+        let plan = EgoPlan {
+            s0: 0.0,
+            cruise_speed: 20.0,
+            zone_speed: 20.0,
+            max_accel: 1.5,
+            lanes: (lane, lane),
+            changes: [(1e6, 1e6 + 1.0), (2e6, 2e6 + 1.0)],
+            slow: (1e6, 1e6),
+        };
+        let states = plan.drive(&road, 25.0, 10.0);
+        assert!(states.iter().any(|e| (150.0..350.0).contains(&e.s)), "the drive passes the bend");
+        for e in &states {
+            assert!((e.speed - 20.0).abs() < 0.01, "t {}: {} m/s at s {}", e.t, e.speed, e.s);
+        }
+    }
+}

@@ -86,6 +86,16 @@ pub enum Driver {
     Careless,
 }
 
+impl Driver {
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Driver::Careful => "careful",
+            Driver::Careless => "careless",
+        }
+    }
+}
+
 impl Default for ScenarioConfig {
     fn default() -> Self {
         ScenarioConfig {
