@@ -1,7 +1,7 @@
 //! A camera process for tests, demos and load runs: publishes a generated work-zone drive
 //! over the shared-memory bridge at its real frame rate (or `--speedup` times faster) — per
 //! frame its metadata (and, with `--images`, a 1920×1080 RGB image), the VO pose and the 3D
-//! and 2D detections — stamped with the shared device clock. With `--nmea-out` /
+//! and 2D detections — stamped with the shared device clock at their capture times. With `--nmea-out` /
 //! `--can-out` it is the rest of the vehicle too: the GNSS receiver's sentences and the
 //! wheel-speed CAN frames (candump text) written to a serial device, FIFO or file at their
 //! own rates.
@@ -68,16 +68,30 @@ pub struct PublishArgs {
 /// When the line or frame at drive time `t` of lap `lap` is due.
 struct Pace {
     start: Instant,
+    /// The device clock at `start`.
+    device_start: dash2sim_core::time::Timestamp,
     lap_s: f64,
     speedup: f64,
 }
 
 impl Pace {
+    /// From `start` on, the run's own clock.
+    fn offset_s(&self, lap: u32, t: f64) -> f64 {
+        (f64::from(lap) * self.lap_s + t) / self.speedup
+    }
+
     fn wait(&self, lap: u32, t: f64) {
-        let due = self.start + Duration::from_secs_f64((f64::from(lap) * self.lap_s + t) / self.speedup);
+        let due = self.start + Duration::from_secs_f64(self.offset_s(lap, t));
         if let Some(wait) = due.checked_duration_since(Instant::now()) {
             std::thread::sleep(wait);
         }
+    }
+
+    /// The device time a frame due at `t` was captured: a camera stamps its exposure, which
+    /// runs on its own schedule, not the moment this process woke to publish it (a busy
+    /// machine wakes it milliseconds late, and VO poses stamped so read as jerk).
+    fn capture_time(&self, lap: u32, t: f64) -> dash2sim_core::time::Timestamp {
+        self.device_start + dash2sim_core::time::Duration::from_micros((self.offset_s(lap, t) * 1e6).round() as i64)
     }
 }
 
@@ -183,9 +197,9 @@ pub fn run(args: &PublishArgs) -> Result<u64, String> {
     } else {
         Vec::new()
     };
-    let start = Instant::now();
+    let (start, device_start) = (Instant::now(), device_now());
     let lap_s = args.seconds + 1.0 / f64::from(args.fps);
-    let pace = || Pace { start, lap_s, speedup: args.speedup };
+    let pace = || Pace { start, device_start, lap_s, speedup: args.speedup };
     let mut writers = Vec::new();
     if let Some(path) = &args.nmea_out {
         let receiver = scenario.clone();
@@ -216,7 +230,7 @@ pub fn run(args: &PublishArgs) -> Result<u64, String> {
     for lap in 0..args.laps {
         for (i, (frame, pose)) in scenario.frames.iter().zip(&scenario.vo.poses).enumerate() {
             pace().wait(lap, frame.ego.t);
-            let t = device_now();
+            let t = pace().capture_time(lap, frame.ego.t);
             let sequence = u64::from(lap) * frames_per_lap + u64::from(frame.index);
             camera.frame(sequence, t, 8_000, image.as_deref()).map_err(|e| e.to_string())?;
             camera.vo(sequence, t, pose).map_err(|e| e.to_string())?;
