@@ -291,9 +291,9 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
     let messages: u64 = logfile::mcap_export::write(&log, Some(&map), &mcap_path, None)?.values().sum();
     let finished_mcap = out.join("finished.mcap");
     logfile::mcap_export::write(&finished_log, Some(&map), &finished_mcap, None)?;
-    write_file(&out.join("ego.tum"), &logfile::export::tum(&log))?;
-    write_file(&out.join("finished.tum"), &logfile::export::tum(&finished_log))?;
-    write_file(&out.join("drive.geojson"), &logfile::export::geojson(&log)?.to_string())?;
+    write_file(&out.join("ego.tum"), logfile::export::tum(&log))?;
+    write_file(&out.join("finished.tum"), logfile::export::tum(&finished_log))?;
+    write_file(&out.join("drive.geojson"), logfile::export::geojson(&log)?.to_string())?;
     let nuplan_dir = out.join("nuplan");
     let _ = std::fs::remove_dir_all(&nuplan_dir);
     let nuplan = crate::nuplan::export(&crate::nuplan::NuplanRequest {
