@@ -10,7 +10,6 @@
 use std::path::{Path, PathBuf};
 
 pub mod can;
-pub mod comma;
 pub mod drive;
 pub mod recorded;
 pub mod road;

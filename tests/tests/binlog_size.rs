@@ -14,7 +14,7 @@ use dash2sim_core::binlog::Kind;
 use dash2sim_linux::logfile::{self, import::ImportRequest, mcap_export};
 use dash2sim_linux::scenario::write::{import_request, write_scenario};
 use dash2sim_linux::scenario::{generate, ScenarioConfig};
-use dash2sim_tests::comma::ublox_nmea;
+use dash2sim_linux::recordings::comma::{ublox_nmea, ORIGIN};
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("dash2sim-binlog-size-{}-{name}", std::process::id()));
@@ -48,21 +48,21 @@ fn check_size(name: &str, log_path: &Path, mcap_path: &Path) {
 fn the_comma2k19_minute_is_a_third_of_its_mcap() {
     let Some(dir) = dash2sim_tests::data_dir("comma2k19") else { return };
     let work = scratch("comma");
-    let (nmea, _, offset) = ublox_nmea(&dir.join("expected/live_gnss_ublox.csv"));
+    let nmea = ublox_nmea(&dir.join("expected/live_gnss_ublox.csv")).expect("u-blox CSV");
     let nmea_path = work.join("ublox.nmea");
-    std::fs::write(&nmea_path, nmea).expect("write");
+    std::fs::write(&nmea_path, nmea.raw).expect("write");
     let output = work.join("drive.d2slog");
     let request = ImportRequest {
         output: output.clone(),
         nmea: Some(nmea_path),
-        nmea_offset_s: offset,
+        nmea_offset_s: nmea.offset_s,
         can: Some(dir.join("raw_can.candump.log")),
         dbc: vec![dir.join("opendbc-toyota/_toyota_2017.dbc")],
         speed_signal: Some("SPEED.SPEED".to_owned()),
         speed_unit: 1.0 / 3.6,
         traj: Some(dir.join("expected/global_pose_camera_enu.tum")),
         objects: None,
-        origin: Some("37.721000009,-122.472299089,31.6392".to_owned()),
+        origin: Some(format!("{},{},{}", ORIGIN[0], ORIGIN[1], ORIGIN[2])),
     };
     logfile::import::run(&request).expect("import");
     let log = logfile::read(&output).expect("log");

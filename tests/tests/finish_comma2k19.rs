@@ -11,7 +11,6 @@ use dash2sim_core::binlog::{quantise, GnssFix, Record};
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::nalgebra::Vector3;
 use dash2sim_core::pipeline::CameraMount;
-use dash2sim_core::sim3::{AlignMode, Moments};
 use dash2sim_linux::finish::anchors;
 use dash2sim_linux::finish::solve::Settings;
 use dash2sim_linux::finish::{finish, Finished};
@@ -19,7 +18,8 @@ use dash2sim_linux::logfile::LogContents;
 use dash2sim_linux::record::parse_mount;
 use dash2sim_linux::scenario::vo::VoModel;
 use dash2sim_linux::trajectory::Trajectory;
-use dash2sim_tests::comma::{device_times, mount, record_minute, ORIGIN, UERE};
+use dash2sim_linux::recordings::comma::{compare, mount, record_minute, truth_at, ORIGIN, UERE};
+use dash2sim_linux::recordings::device_times;
 use dash2sim_tests::recorded::scratch;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
@@ -35,52 +35,24 @@ struct Judged {
     segment_scale_rms: f64,
 }
 
-/// The fused camera position at `t`, interpolated between the poses around it (None
-/// outside them or across a gap of more than 0.1 s).
-fn truth_at(truth: &Trajectory, t: f64) -> Option<Vector3<f64>> {
-    let k = truth.stamps.partition_point(|s| *s < t);
-    let (b, tb) = (truth.poses.get(k)?, *truth.stamps.get(k)?);
-    if (tb - t).abs() < 1e-6 {
-        return Some(b.translation);
-    }
-    let (a, ta) = (truth.poses.get(k.checked_sub(1)?)?, truth.stamps[k - 1]);
-    if tb - ta > 0.1 {
-        return None;
-    }
-    Some(a.translation + (b.translation - a.translation) * ((t - ta) / (tb - ta)))
-}
-
 fn judge(finished: &[Record], truth: &Trajectory, model: &VoModel) -> Judged {
-    let device = device_times(finished);
+    let device = device_times(finished).expect("UTC");
     let t0 = truth.stamps[0];
-    let mut pairs = Vec::new();
-    let mut scale_errors = Vec::new();
-    for (r, &t) in finished.iter().zip(&device) {
-        match r {
-            Record::EgoPose(p) => {
-                if let Some(x) = truth_at(truth, t) {
-                    pairs.push((Vector3::new(p.x_mm as f64, p.y_mm as f64, p.z_mm as f64) * 1e-3, x));
-                }
-            }
-            Record::AnchorEstimate(a) => scale_errors.push(a.scale_e6 as f64 * 1e-6 / model.scale_at(t - t0) - 1.0),
-            _ => {}
-        }
-    }
-    assert!(pairs.len() > 1000, "{} finished poses matched the truth", pairs.len());
-    let rms = |e: &mut dyn Iterator<Item = f64>| {
-        let (s, n) = e.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
-        (s / n.max(1) as f64).sqrt()
-    };
-    let mut moments = Moments::default();
-    for (x, y) in &pairs {
-        moments.push(x, y, 1.0).expect("finite");
-    }
-    let sim3 = moments.align(AlignMode::Sim3).expect("alignment");
+    let compared = compare(finished, &device, truth).expect("comparison");
+    assert!(compared.matched > 1000, "{} finished poses matched the truth", compared.matched);
+    let scale_errors: Vec<f64> = finished
+        .iter()
+        .zip(&device)
+        .filter_map(|(r, t)| match r {
+            Record::AnchorEstimate(a) => Some(a.scale_e6 as f64 * 1e-6 / model.scale_at(t - t0) - 1.0),
+            _ => None,
+        })
+        .collect();
     Judged {
-        ate: rms(&mut pairs.iter().map(|(x, y)| (x - y).norm())),
-        ate_aligned: rms(&mut pairs.iter().map(|(x, y)| (sim3.transform_point(x) - y).norm())),
-        scale_error: sim3.scale - 1.0,
-        segment_scale_rms: rms(&mut scale_errors.into_iter()),
+        ate: compared.ape_rmse,
+        ate_aligned: compared.ape_aligned,
+        scale_error: compared.scale_error,
+        segment_scale_rms: (scale_errors.iter().map(|e| e * e).sum::<f64>() / scale_errors.len().max(1) as f64).sqrt(),
     }
 }
 
@@ -90,7 +62,7 @@ fn anchors_from_truth(log: &LogContents, truth: &Trajectory, spacing: f64, sigma
     let frame = LocalFrame::new(Geodetic::new(ORIGIN[0], ORIGIN[1], ORIGIN[2]).expect("origin"));
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let noise = Normal::new(0.0, sigma).expect("σ");
-    let device = device_times(&log.records);
+    let device = device_times(&log.records).expect("UTC");
     let mut text = String::from("t,lat,lon,alt,sigma_m\n");
     let (mut travelled, mut last, mut next) = (0.0, None::<Vector3<f64>>, 0.0);
     for (r, &t) in log.records.iter().zip(&device) {
@@ -115,7 +87,7 @@ fn coarse_gnss(log: &LogContents, truth: &Trajectory, sigma_h: f64, sigma_v: f64
     let frame = LocalFrame::new(Geodetic::new(ORIGIN[0], ORIGIN[1], ORIGIN[2]).expect("origin"));
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let (h, v) = (Normal::new(0.0, sigma_h).expect("σ"), Normal::new(0.0, sigma_v).expect("σ"));
-    let device = device_times(&log.records);
+    let device = device_times(&log.records).expect("UTC");
     let mut records = Vec::new();
     for (r, &t) in log.records.iter().zip(&device) {
         match r {
@@ -157,7 +129,7 @@ fn finishing_the_comma2k19_minute_beats_the_online_anchorer_and_meets_the_papers
     let Some(dir) = dash2sim_tests::data_dir("comma2k19") else { return };
     let work = scratch("comma-finish");
     let model = VoModel::arbitrary();
-    let recorded = record_minute(&dir, &work, &model);
+    let recorded = record_minute(&dir, &work, &model).expect("record");
     let (log, truth) = (&recorded.log, &recorded.truth);
     // "σ 0.3 m" read two ways: 0.3 m per axis (0.52 m in 3D), and 0.3 m of 3D error
     // (0.17 m per axis).

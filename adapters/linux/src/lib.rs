@@ -23,6 +23,7 @@ pub mod objects;
 pub mod osm;
 pub mod plot;
 pub mod record;
+pub mod recordings;
 pub mod scenario;
 pub mod sync;
 pub mod track2d;

@@ -35,10 +35,11 @@ pub mod issues;
 pub mod mount;
 pub mod profile;
 pub mod replay;
+pub mod signals;
 
 use core::fmt::Write as _;
 
-use embedded_can::{Frame, Id};
+use embedded_can::Frame;
 use embedded_io::Write;
 use nalgebra::Vector3;
 
@@ -64,6 +65,7 @@ use crate::track3d::{Config3d, Detection3d, Tracker3d};
 pub use clock::{Clock, OffsetChange};
 pub use issues::{Issue, Issues};
 pub use mount::CameraMount;
+pub use signals::{FrameId, GnssFrame, GnssSignals};
 
 /// nuPlan's scenario length, s: the verification window.
 pub const SCENARIO_SECONDS: f64 = 15.0;
@@ -77,10 +79,8 @@ pub enum SpeedSource {
     Obd,
     /// A DBC-defined signal of the frame with this id.
     Signal {
-        /// Frame id (raw 11- or 29-bit value).
-        id: u32,
-        /// Whether the id is 29-bit.
-        extended: bool,
+        /// The frame.
+        frame: FrameId,
         /// The signal.
         signal: Signal,
         /// Physical value × this = m/s (1/3.6 for km/h).
@@ -133,6 +133,8 @@ pub struct PipelineConfig<'a> {
     pub classes: &'a [ClassMeta],
     /// Which CAN message is the vehicle speed (none: speed is not read from CAN).
     pub speed: Option<SpeedSource>,
+    /// GNSS from DBC-defined CAN signals, besides NMEA 0183, NMEA 2000 and J1939 VP1.
+    pub gnss_signals: Option<GnssSignals>,
     /// Segments and flushing of the log.
     pub writer: WriterConfig,
     /// The map tile to verify against; `None` verifies nothing.
@@ -161,6 +163,7 @@ impl<'a> PipelineConfig<'a> {
             gnss: GnssErrorModel::default(),
             classes,
             speed: None,
+            gnss_signals: None,
             writer: WriterConfig::default(),
             map: None,
             footprint: PACIFICA,
@@ -340,6 +343,8 @@ struct State<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> {
     hdop: Option<f64>,
     /// Receive time of the NMEA sentence before the current one (the epoch's last).
     last_sentence: Option<Timestamp>,
+    /// A DBC-defined GNSS source's latest time frame: (receive time, UTC of the fix).
+    signal_epoch: Option<(Timestamp, Timestamp)>,
     /// The latest monotonic time of any input.
     now: Timestamp,
     issues: Issues,
@@ -397,6 +402,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
                 window: None,
                 hdop: None,
                 last_sentence: None,
+                signal_epoch: None,
                 now: Timestamp::ZERO,
                 issues: Issues::default(),
                 stats: PipelineStats::default(),
@@ -444,17 +450,16 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
         let state = &mut self.state;
         let t = state.monotonic(t)?;
         state.stats.can_frames = state.stats.can_frames.saturating_add(1);
-        if let Some(SpeedSource::Signal { id, extended, signal, to_mps }) = state.config.speed {
-            let matches = match frame.id() {
-                Id::Standard(s) => !extended && u32::from(s.as_raw()) == id,
-                Id::Extended(e) => extended && e.as_raw() == id,
-            };
-            if matches && !frame.is_remote_frame() {
+        if let Some(SpeedSource::Signal { frame: id, signal, to_mps }) = state.config.speed {
+            if id.matches(frame) {
                 if let Some(v) = signal.value(frame.data()) {
                     state.speed(t, v * to_mps, 3)?;
                 }
                 return Ok(());
             }
+        }
+        if let Some(read) = state.config.gnss_signals.and_then(|g| g.read(frame)) {
+            return state.on_gnss_signals(t, read);
         }
         let mut result = Ok(());
         self.can.decode(t, frame, |event| {
@@ -700,6 +705,31 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
                 self.on_fix(t, &fix)
             }
             _ => Ok(()),
+        }
+    }
+
+    fn on_gnss_signals(&mut self, t: Timestamp, read: GnssFrame) -> Result<(), PipelineError<W::Error>> {
+        match read {
+            GnssFrame::Time(utc) => {
+                self.signal_epoch = Some((t, utc));
+                Ok(())
+            }
+            GnssFrame::Position { lat, lon, valid, sigma_m } => {
+                let utc = self
+                    .signal_epoch
+                    .take()
+                    .and_then(|(rx, utc)| (t - rx <= signals::EPOCH_GAP).then_some(utc));
+                let fix = Fix {
+                    utc,
+                    lat: Some(lat),
+                    lon: Some(lon),
+                    gst: sigma_m.map(|s| (s, s)),
+                    mode: if valid { 2 } else { 0 },
+                    ..Fix::default()
+                };
+                self.on_fix(t, &fix)
+            }
+            GnssFrame::Unreadable => self.issue(t, Issue::CanBadFrame, 1),
         }
     }
 

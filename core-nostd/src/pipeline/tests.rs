@@ -103,6 +103,45 @@ fn ccvs1(mps: f64) -> CanFrame {
     CanFrame::data_frame(id, &[0xFF, raw[0], raw[1], 0xFF, 0xFF, 0xFF, 0xFF, 0xFF]).unwrap_or_else(|| unreachable!())
 }
 
+fn intel(start_bit: u16, length: u16, factor: f64, offset: f64) -> Signal {
+    use crate::can::signal::{ByteOrder, Multiplex};
+    Signal::new(start_bit, length, ByteOrder::Intel, false, factor, offset, Multiplex::Plain)
+        .unwrap_or_else(|_| unreachable!())
+}
+
+/// CSS Electronics' CANmod.gps as `canmod-gps.dbc` defines it: gnss_time (id 2) and
+/// gnss_pos (id 3).
+pub(super) fn canmod() -> GnssSignals {
+    GnssSignals {
+        position: FrameId { id: 3, extended: false },
+        latitude: intel(1, 28, 1e-6, -90.0),
+        longitude: intel(29, 29, 1e-6, -180.0),
+        valid: Some(intel(0, 1, 1.0, 0.0)),
+        accuracy: Some(intel(58, 6, 1.0, 0.0)),
+        time: Some((FrameId { id: 2, extended: false }, intel(8, 40, 1e-3, 1_577_840_400.0))),
+    }
+}
+
+fn standard(id: u16, data: &[u8]) -> CanFrame {
+    let id = Id::Standard(embedded_can::StandardId::new(id).unwrap_or(embedded_can::StandardId::ZERO));
+    CanFrame::data_frame(id, data).unwrap_or_else(|| unreachable!())
+}
+
+/// A CANmod gnss_pos frame.
+pub(super) fn canmod_position(lat: f64, lon: f64, valid: bool, accuracy_m: u64) -> CanFrame {
+    let lat_raw = libm::round((lat + 90.0) * 1e6) as u64;
+    let lon_raw = libm::round((lon + 180.0) * 1e6) as u64;
+    let bits = u64::from(valid) | (lat_raw << 1) | (lon_raw << 29) | (accuracy_m << 58);
+    standard(3, &bits.to_le_bytes())
+}
+
+/// A CANmod gnss_time frame for UTC `utc_us` (6 bytes, as the module sends it).
+pub(super) fn canmod_time(utc_us: i64) -> CanFrame {
+    let raw = ((utc_us / 1000) - 1_577_840_400_000) as u64;
+    let bytes = ((raw << 8) | 1).to_le_bytes();
+    standard(2, &bytes[..6])
+}
+
 /// A cone 30 m ahead of the start, on the road's edge, in the camera frame at `t_us`.
 fn cone(t_us: i64) -> Detection3d {
     let ahead = 30.0 - camera_at(t_us).x;
@@ -417,4 +456,53 @@ fn a_camera_restart_and_skipped_frames_are_events_and_tracking_goes_on_across_a_
     assert_eq!(later.clock_reasons.first(), Some(&1), "the new file starts with the clock offset");
     assert!(later.events.iter().any(|e| e.starts_with("log continued on a new file (rotation 1)")));
     assert!(count(&later, Kind::EgoPose) > 60 && count(&later, Kind::Tracks3d) > 0);
+}
+
+#[test]
+fn gnss_from_dbc_signals_anchors_the_drive_and_puts_the_log_in_utc() {
+    let classes = cone_class();
+    let mut trackers = trackers(&classes);
+    let mut buffer = [0u8; 65_536];
+    let total = buffer.len();
+    let config = PipelineConfig { gnss_signals: Some(canmod()), ..config() };
+    let frame = LocalFrame::new(Geodetic::new(ORIGIN_LAT, ORIGIN_LON, 0.0).unwrap_or_else(|_| unreachable!()));
+    let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> = Pipeline::new(&mut buffer[..], config, &mut trackers);
+    for step in 0..20 * 50 {
+        let t = step * 20_000;
+        let _ = p.push_can(us(t), &ccvs1(10.0));
+        if step % 10 == 0 {
+            // The epoch's burst: time, then position 0.5 ms later. No fix in the first
+            // second; at 4 s no time frame, at 6 s one that came 0.6 s early (not this
+            // fix's: taken, it would move the clock by 0.6 s).
+            let g = frame.enu_to_geodetic(&camera_at(t)).unwrap_or_else(|_| unreachable!());
+            let rx = t + LATENCY_US;
+            match t {
+                4_000_000 => {}
+                6_000_000 => {
+                    let _ = p.push_can(us(rx - 600_000), &canmod_time(UTC0 + t));
+                }
+                _ => {
+                    let _ = p.push_can(us(rx), &canmod_time(UTC0 + t));
+                }
+            }
+            let _ = p.push_can(us(rx + 500), &canmod_position(g.lat_deg, g.lon_deg, t >= 1_000_000, 2));
+        }
+        if step % 5 == 0 {
+            let _ = p.push_vo(us(t), step as u64 / 5 + 1, &vo_pose(t));
+        }
+    }
+    let _ = p.push_can(us(20_000_000), &standard(3, &[0; 4]));
+    let (rest, stats, issues) = p.finish().unwrap_or_else(|_| unreachable!());
+    let len = total - rest.len();
+    let log = decode(&buffer[..len]);
+    assert_eq!(issues.get(Issue::GnssNoPosition), 5, "the first second has no fix: {issues:?}");
+    assert_eq!(issues.get(Issue::CanBadFrame), 1, "the short position frame");
+    assert_eq!(count(&log, Kind::GnssFix), 95);
+    assert_eq!(stats.fixes, 95);
+    assert_eq!(log.clock_reasons.as_slice(), &[0], "UTC from the time frames, and only from this fix's");
+    assert_eq!(issues.get(Issue::GnssTimeIgnored), 0);
+    assert!(stats.anchored_frames > 150, "{stats:?}");
+    let ego = log.last_ego.unwrap_or_default();
+    assert!((ego.x_mm as f64 * 1e-3 - 199.0).abs() < 2.1, "{ego:?}");
+    assert!((ego.t_us - (UTC0 + 19_900_000 - LATENCY_US)).abs() < 1_000, "{ego:?}");
 }

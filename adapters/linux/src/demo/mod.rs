@@ -17,9 +17,12 @@
 //! 7. `export`: MCAP (Foxglove), TUM (evo), GeoJSON (QGIS) and the nuPlan database and map;
 //! 8. `plot` the drive.
 //!
+//! `--data DIR` runs the real recordings of a data folder instead ([`data`]).
+//!
 //! The receiver is a good one (σ 1–2 m, errors correlated over 2 s, no multipath): with the
 //! generator's default phone-grade GNSS the anchorer rightly declines to commit within 40 s.
 
+mod data;
 mod live;
 mod progress;
 mod summary;
@@ -68,6 +71,12 @@ pub struct DemoArgs {
     /// No progress on stderr.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Run the real recordings of this data folder instead of a generated drive: the
+    /// comma2k19 minute and the CSS CANedge drive (without a value: `$DASH2SIM_DATA`,
+    /// else `../shared/data`).
+    #[arg(long, value_name = "DIR")]
+    #[allow(clippy::option_option)]
+    pub data: Option<Option<PathBuf>>,
 }
 
 /// `dash2sim demo`.
@@ -75,6 +84,24 @@ pub fn run(args: &DemoArgs) -> Result<(), String> {
     let progress = Progress::new(args.quiet);
     if !(args.duration.is_finite() && (10.0..=50.0).contains(&args.duration)) {
         return Err(format!("--duration {} must be between 10 and 50 seconds", args.duration));
+    }
+    if let Some(dir) = &args.data {
+        let dir = dir.clone().unwrap_or_else(crate::recordings::default_dir);
+        std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
+        let summary = data::run(&dir, &args.output, &progress)?;
+        write_file(&args.output.join("summary.json"), summary.to_string())?;
+        if args.json {
+            println!("{summary}");
+        } else {
+            summary::print_data(&summary);
+        }
+        let failed: Vec<String> = summary["recordings"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(|r| Some(format!("{}: {}", r["name"].as_str()?, r["error"].as_str()?)))
+            .collect();
+        return if failed.is_empty() { Ok(()) } else { Err(failed.join("; ")) };
     }
     let summary = generated(args, &progress)?;
     write_file(&args.output.join("summary.json"), summary.to_string())?;

@@ -163,8 +163,88 @@ pub fn print(s: &Value) {
     if let Some(e) = s["nuplan"]["error"].as_str() {
         println!("  nuPlan        not written: {e}");
     }
+    print_files(&files);
+}
+
+fn print_files(files: &[Value]) {
     println!("  files");
-    for f in &files {
+    for f in files {
         println!("    {:<60} {}", f["path"].as_str().unwrap_or("?"), f["what"].as_str().unwrap_or(""));
+    }
+}
+
+fn percent(v: &Value) -> String {
+    v.as_f64().map_or_else(|| "n/a".to_owned(), |x| format!("{:+.3} %", 100.0 * x))
+}
+
+/// Print the real recordings' summary (`demo --data`).
+pub fn print_data(s: &Value) {
+    println!("dash2sim demo --data {}", s["data"].as_str().unwrap_or("?"));
+    for r in s["recordings"].as_array().into_iter().flatten() {
+        let name = r["name"].as_str().unwrap_or("?");
+        if let Some(missing) = r["missing"].as_array() {
+            let list: Vec<&str> = missing.iter().filter_map(Value::as_str).collect();
+            println!("\n{name}: not run — missing {}", list.join(", "));
+            continue;
+        }
+        if let Some(e) = r["error"].as_str() {
+            println!("\n{name}: failed — {e}");
+            continue;
+        }
+        println!("\n{name} — {}", r["what"].as_str().unwrap_or(""));
+        println!("  VO            {}", r["vo"].as_str().unwrap_or(""));
+        let rec = &r["recording"];
+        let p = &rec["pipeline"];
+        match name {
+            "comma2k19" => {
+                println!(
+                    "  recording     {:.0} s: {} of {} u-blox fixes, {} speeds, {} VO poses ({} anchored); {} bytes ({:.0} per minute)",
+                    num(&r["duration_s"]), p["fixes"], rec["fixes_in_csv"], p["speeds"], p["vo_poses"],
+                    p["anchored_frames"], rec["log_bytes"], num(&rec["bytes_per_minute"])
+                );
+                println!(
+                    "  GNSS alone    APE {:.2} m RMS, {:.2} m max (evo, against comma's fused poses)",
+                    num(&r["gnss_alone"]["ape_rmse_m"]),
+                    num(&r["gnss_alone"]["ape_max_m"])
+                );
+                let (o, f) = (&r["online"]["compared"], &r["finished"]["compared"]);
+                println!(
+                    "  online        observable after {:.1} s; APE {:.2} m RMS, {:.2} m max; anchor scale error at the end {}",
+                    num(&o["observable_after_s"]), num(&o["ape_rmse_m"]), num(&o["ape_max_m"]),
+                    percent(&r["online"]["anchor_scale_error_at_end"])
+                );
+                println!(
+                    "  finished      APE {:.2} m RMS, {:.2} m max ({:.3} m after Sim(3)); scale error {} (σ {}), GNSS latency {:.0} ms",
+                    num(&f["ape_rmse_m"]), num(&f["ape_max_m"]), num(&f["ape_after_sim3_m"]), percent(&f["scale_error"]),
+                    percent(&r["finished"]["scale_sigma_relative"]).trim_start_matches('+'),
+                    1e3 * num(&r["finished"]["gnss_latency_s"])
+                );
+            }
+            _ => {
+                let c = &r["clock"];
+                let v = &r["speed_check"];
+                println!(
+                    "  recording     {} candump files, {} frames: {} fixes (cantools: {} valid), {} positions without a fix (cantools: {}), {} speeds of {}; {} bytes ({:.0} per minute)",
+                    r["candump_files"], r["can_frames"], rec["fixes"], rec["fixes_valid_by_cantools"],
+                    rec["positions_without_fix"], rec["positions_without_fix_by_cantools"], rec["speeds"],
+                    rec["speeds_in_reference"], rec["log_bytes"], num(&rec["bytes_per_minute"])
+                );
+                println!(
+                    "  drive         {:.1} min, {:.1} km",
+                    num(&r["drive"]["duration_s"]) / 60.0,
+                    num(&r["drive"]["distance_km"])
+                );
+                println!(
+                    "  clock         logger − GNSS {:+.3} s at the first fix, {:+.3} s at the end ({:+.3} to {:+.3} s over {} offset records)",
+                    num(&c["logger_minus_gnss_first_s"]), num(&c["logger_minus_gnss_last_s"]),
+                    num(&c["logger_minus_gnss_min_s"]), num(&c["logger_minus_gnss_max_s"]), c["offset_records"]
+                );
+                println!(
+                    "  speed check   fixes vs OBD PID 0x0D: mean |Δ| {:.2} km/h, correlation {:.4} ({} pairs)",
+                    num(&v["mean_abs_diff_kmh"]), num(&v["correlation"]), v["pairs"]
+                );
+            }
+        }
+        print_files(r["files"].as_array().map_or(&[][..], Vec::as_slice));
     }
 }

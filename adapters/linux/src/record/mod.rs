@@ -6,17 +6,20 @@
 pub mod live;
 pub mod sources;
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use clap::{Args, ValueEnum};
 use dash2sim_core::anchor::{AnchorConfig, AnchorMode};
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
-use dash2sim_core::pipeline::replay::{feed, Reader};
+use dash2sim_core::pipeline::replay::{feed, Input, Reader};
 use dash2sim_core::pipeline::{
-    CameraMount, ClassMeta, GnssErrorModel, Issue, Issues, Pipeline, PipelineConfig, PipelineStats, SpeedSource,
-    Trackers,
+    CameraMount, ClassMeta, FrameId, GnssErrorModel, GnssFrame, GnssSignals, Issue, Issues, Pipeline, PipelineConfig,
+    PipelineStats, SpeedSource, Trackers,
 };
+use dash2sim_can::SignalTable;
+use dash2sim_core::can::signal::Signal;
 use serde_json::json;
 
 use dash2sim_core::pipeline::profile::{self, work_zone_meta, work_zone_pipeline, work_zone_trackers};
@@ -30,9 +33,10 @@ pub struct Sources {
     /// The GNSS serial capture: `(device seconds) $SENTENCE*CS` per line.
     #[arg(long)]
     pub nmea: Option<PathBuf>,
-    /// candump capture of the vehicle bus (device-clock stamps).
+    /// candump capture of the vehicle bus (device-clock stamps); repeat for a drive split
+    /// into several files.
     #[arg(long)]
-    pub can: Option<PathBuf>,
+    pub can: Vec<PathBuf>,
     /// 3D detections in the camera frame (the detections CSV).
     #[arg(long)]
     pub detections: Option<PathBuf>,
@@ -47,7 +51,7 @@ impl Sources {
         Sources {
             vo: Some(dir.join("vo.tum")),
             nmea: Some(dir.join("gnss.serial.log")),
-            can: Some(dir.join("speed.can.log")),
+            can: vec![dir.join("speed.can.log")],
             detections: Some(dir.join("detections3d.csv")),
             detections2d: Some(dir.join("det2d.txt")),
         }
@@ -63,7 +67,7 @@ pub struct RecordArgs {
     /// The recorded inputs.
     #[command(flatten)]
     pub sources: Sources,
-    /// DBC files for `--speed-signal`.
+    /// DBC files for `--speed-signal` and `--gnss-signals`.
     #[arg(long)]
     pub dbc: Vec<PathBuf>,
     /// `MESSAGE.SIGNAL` of a DBC carrying the vehicle speed (else `--speed-source`).
@@ -75,6 +79,12 @@ pub struct RecordArgs {
     /// Built-in speed message when no `--speed-signal` is given.
     #[arg(long, value_enum, default_value = "ccvs1")]
     pub speed_source: SpeedArg,
+    /// GNSS from DBC signals (a CAN GNSS module):
+    /// `lat=MSG.SIG,lon=MSG.SIG[,valid=MSG.SIG][,accuracy=MSG.SIG][,time=MSG.SIG]` —
+    /// degrees; a valid flag (0 = no fix); accuracy in m, taken as 1-σ; UTC in seconds
+    /// since 1970. All but `time` from one message.
+    #[arg(long)]
+    pub gnss_signals: Option<String>,
     /// Map tile to verify against on the way (windows of 15 s); its origin is the log's.
     #[arg(long)]
     pub map: Option<PathBuf>,
@@ -121,6 +131,19 @@ pub struct RecordArgs {
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
+}
+
+impl RecordArgs {
+    /// A recording from `sources` into `output` with the command line's defaults for
+    /// everything else (taken from the parser, so that they cannot drift apart).
+    pub fn from_files(output: &Path, sources: Sources) -> Result<Self, String> {
+        use clap::FromArgMatches as _;
+        let command = RecordArgs::augment_args(clap::Command::new("record"));
+        let argv = [std::ffi::OsStr::new("record"), std::ffi::OsStr::new("-o"), output.as_os_str()];
+        let matches = command.try_get_matches_from(argv).map_err(|e| e.to_string())?;
+        let args = RecordArgs::from_arg_matches(&matches).map_err(|e| e.to_string())?;
+        Ok(RecordArgs { sources, ..args })
+    }
 }
 
 /// `--speed-source`.
@@ -187,24 +210,29 @@ pub fn parse_mount(text: &str) -> Result<CameraMount, String> {
     }
 }
 
-/// The first fix of a serial capture, for the origin when none is given.
-fn first_fix(stream: &[u8]) -> Option<Geodetic> {
+/// The first fix of an input stream (NMEA, or CAN through `gnss`), for the origin when
+/// none is given.
+fn first_fix(stream: &[u8], gnss: Option<&GnssSignals>) -> Option<Geodetic> {
     let mut reader = Reader::new(stream).ok()?;
     let mut nmea: dash2sim_core::nmea::Stream = dash2sim_core::nmea::Stream::new();
-    let mut found = None;
     while let Some(Ok((_, input))) = reader.next_input() {
-        if let dash2sim_core::pipeline::replay::Input::Serial(bytes) = input {
-            nmea.feed(bytes, |_| {});
-            let f = nmea.decoder.current();
-            if found.is_none() && f.has_position() {
-                found = Geodetic::new(f.lat?, f.lon?, f.alt_hae().or(f.alt_msl).unwrap_or(0.0)).ok();
+        let found = match input {
+            Input::Serial(bytes) => {
+                nmea.feed(bytes, |_| {});
+                let f = nmea.decoder.current();
+                f.has_position().then(|| Geodetic::new(f.lat?, f.lon?, f.alt_hae().or(f.alt_msl).unwrap_or(0.0)).ok())
             }
-        }
-        if found.is_some() {
-            break;
+            Input::Can(frame) => match gnss.and_then(|g| g.read(&frame)) {
+                Some(GnssFrame::Position { lat, lon, valid: true, .. }) => Some(Geodetic::new(lat, lon, 0.0).ok()),
+                _ => None,
+            },
+            _ => None,
+        };
+        if let Some(Some(origin)) = found {
+            return Some(origin);
         }
     }
-    found
+    None
 }
 
 /// What a run of the pipeline over an input stream produced.
@@ -233,6 +261,8 @@ pub struct Setup {
     pub gnss: GnssErrorModel,
     /// Vehicle speed on the bus.
     pub speed: Option<SpeedSource>,
+    /// GNSS from DBC signals on the bus.
+    pub gnss_signals: Option<GnssSignals>,
     /// Map tile bytes.
     pub map: Option<Vec<u8>>,
     /// Device id of the header.
@@ -251,6 +281,7 @@ impl Setup {
             anchor: AnchorConfig { mode: self.mode, ..base.anchor },
             gnss: self.gnss,
             speed: self.speed,
+            gnss_signals: self.gnss_signals,
             map,
             ..base
         })
@@ -265,6 +296,7 @@ impl Setup {
             mode: AnchorMode::GravityAligned,
             gnss: GnssErrorModel::default(),
             speed: Some(SpeedSource::Ccvs1),
+            gnss_signals: None,
             map,
             device_id,
         }
@@ -291,7 +323,7 @@ pub fn run_stream(stream: &[u8], setup: &Setup) -> Result<Recording, String> {
 /// The speed source the arguments name.
 fn speed_source(args: &RecordArgs) -> Result<Option<SpeedSource>, String> {
     let Some(name) = &args.speed_signal else {
-        let bus = args.sources.can.is_some()
+        let bus = !args.sources.can.is_empty()
             || args.replay.is_some()
             || args.can_iface.is_some()
             || args.can_replay.is_some();
@@ -300,8 +332,6 @@ fn speed_source(args: &RecordArgs) -> Result<Option<SpeedSource>, String> {
             SpeedArg::Obd => SpeedSource::Obd,
         }));
     };
-    let (message, signal) =
-        name.split_once('.').ok_or_else(|| format!("--speed-signal {name:?}: expected MESSAGE.SIGNAL"))?;
     let to_mps = match args.speed_unit.as_str() {
         "km/h" | "kph" => 1.0 / 3.6,
         "m/s" => 1.0,
@@ -309,16 +339,63 @@ fn speed_source(args: &RecordArgs) -> Result<Option<SpeedSource>, String> {
         other => return Err(format!("--speed-unit {other:?}: expected km/h, m/s or mph")),
     };
     let table = crate::can_decode::load_tables(&args.dbc)?;
-    let m = table
-        .message_by_name(message)
-        .ok_or_else(|| format!("--speed-signal: no message {message:?} in the DBC files"))?;
-    let i =
-        m.signal_index(signal).ok_or_else(|| format!("--speed-signal: message {message} has no signal {signal:?}"))?;
-    let (id, extended) = match m.id {
-        embedded_can::Id::Standard(s) => (u32::from(s.as_raw()), false),
-        embedded_can::Id::Extended(e) => (e.as_raw(), true),
+    let (frame, signal) = dbc_signal(&table, name, "--speed-signal")?;
+    Ok(Some(SpeedSource::Signal { frame, signal, to_mps }))
+}
+
+/// The frame and signal `MESSAGE.SIGNAL` names in the DBC files; `option` says who asked.
+fn dbc_signal(table: &SignalTable, name: &str, option: &str) -> Result<(FrameId, Signal), String> {
+    let (message, signal) = name.split_once('.').ok_or_else(|| format!("{option} {name:?}: expected MESSAGE.SIGNAL"))?;
+    let m = table.message_by_name(message).ok_or_else(|| {
+        if table.is_empty() {
+            format!("{option}: no DBC files given (--dbc FILE)")
+        } else {
+            format!("{option}: no message {message:?} in the DBC files")
+        }
+    })?;
+    let i = m.signal_index(signal).ok_or_else(|| format!("{option}: message {message} has no signal {signal:?}"))?;
+    let frame = match m.id {
+        embedded_can::Id::Standard(s) => FrameId { id: u32::from(s.as_raw()), extended: false },
+        embedded_can::Id::Extended(e) => FrameId { id: e.as_raw(), extended: true },
     };
-    Ok(Some(SpeedSource::Signal { id, extended, signal: m.signals[i], to_mps }))
+    Ok((frame, m.signals[i]))
+}
+
+/// `--gnss-signals`: `KEY=MESSAGE.SIGNAL` pairs, found in the DBC files.
+fn gnss_signals(args: &RecordArgs) -> Result<Option<GnssSignals>, String> {
+    const OPTION: &str = "--gnss-signals";
+    let Some(text) = &args.gnss_signals else { return Ok(None) };
+    let table = crate::can_decode::load_tables(&args.dbc)?;
+    let mut found: BTreeMap<&str, (FrameId, Signal)> = BTreeMap::new();
+    for pair in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+        let (key, name) =
+            pair.split_once('=').ok_or_else(|| format!("{OPTION}: {pair:?} is not KEY=MESSAGE.SIGNAL"))?;
+        if !matches!(key, "lat" | "lon" | "valid" | "accuracy" | "time") {
+            return Err(format!("{OPTION}: unknown key {key:?} (lat, lon, valid, accuracy, time)"));
+        }
+        if found.insert(key, dbc_signal(&table, name, OPTION)?).is_some() {
+            return Err(format!("{OPTION}: {key} given twice"));
+        }
+    }
+    let required = |key: &str| found.get(key).copied().ok_or_else(|| format!("{OPTION}: {key}=MESSAGE.SIGNAL is required"));
+    let ((position, latitude), (lon_frame, longitude)) = (required("lat")?, required("lon")?);
+    let in_position = |key: &str| match found.get(key) {
+        Some((frame, _)) if *frame != position => {
+            Err(format!("{OPTION}: {key} must be in the latitude's message (the fix is read from one frame)"))
+        }
+        other => Ok(other.map(|(_, s)| *s)),
+    };
+    if lon_frame != position {
+        return Err(format!("{OPTION}: lat and lon must be in one message"));
+    }
+    Ok(Some(GnssSignals {
+        position,
+        latitude,
+        longitude,
+        valid: in_position("valid")?,
+        accuracy: in_position("accuracy")?,
+        time: found.get("time").copied(),
+    }))
 }
 
 /// Read the file sources into one input stream.
@@ -330,7 +407,7 @@ pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts), 
     if let Some(p) = &args.nmea {
         inputs.serial(p)?;
     }
-    if let Some(p) = &args.can {
+    for p in &args.can {
         inputs.can(p)?;
     }
     if let Some(p) = &args.detections {
@@ -355,7 +432,7 @@ fn live_request(args: &RecordArgs) -> Result<Option<live::LiveRequest>, String> 
         return Ok(None);
     }
     let s = &args.sources;
-    if s.vo.is_some() || s.nmea.is_some() || s.can.is_some() || s.detections.is_some() || args.replay.is_some() {
+    if s.vo.is_some() || s.nmea.is_some() || !s.can.is_empty() || s.detections.is_some() || args.replay.is_some() {
         return Err(
             "live sources (--camera, --serial, --can-iface, --can-replay) and file sources do not mix".to_owned()
         );
@@ -387,6 +464,15 @@ pub fn run(args: &RecordArgs) -> Result<(), String> {
     if let Some(request) = live_request(args)? {
         return run_live(args, &request);
     }
+    let (recording, counts) = record_files(args)?;
+    std::fs::write(&args.output, &recording.log).map_err(|e| format!("{}: {e}", args.output.display()))?;
+    report(&args.output, &recording, &counts, args.json);
+    Ok(())
+}
+
+/// `record` from files (or a saved input stream), without writing the log or reporting:
+/// the recording and what the files held.
+pub fn record_files(args: &RecordArgs) -> Result<(Recording, sources::SourceCounts), String> {
     let (stream, counts) = match &args.replay {
         Some(path) => (std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?, Default::default()),
         None => read_sources(&args.sources)?,
@@ -394,20 +480,22 @@ pub fn run(args: &RecordArgs) -> Result<(), String> {
     if let Some(path) = &args.save_inputs {
         std::fs::write(path, &stream).map_err(|e| format!("{}: {e}", path.display()))?;
     }
-    let setup = setup_from_args(args, || {
-        first_fix(&stream).ok_or_else(|| {
-            "no ENU origin: give --origin LAT,LON[,H], a --map, or an --nmea capture with a fix".to_owned()
+    let setup = setup_from_args(args, |gnss| {
+        first_fix(&stream, gnss).ok_or_else(|| {
+            "no ENU origin: give --origin LAT,LON[,H], a --map, or GNSS with a fix (--nmea, or --can with --gnss-signals)"
+                .to_owned()
         })
     })?;
-    let recording = run_stream(&stream, &setup)?;
-    std::fs::write(&args.output, &recording.log).map_err(|e| format!("{}: {e}", args.output.display()))?;
-    report(&args.output, &recording, &counts, args.json);
-    Ok(())
+    Ok((run_stream(&stream, &setup)?, counts))
 }
 
 /// The recorder's setup from its arguments (both recorders): the origin is `--origin`, else
 /// the map's, else what `fallback` finds.
-fn setup_from_args(args: &RecordArgs, fallback: impl FnOnce() -> Result<Geodetic, String>) -> Result<Setup, String> {
+fn setup_from_args(
+    args: &RecordArgs,
+    fallback: impl FnOnce(Option<&GnssSignals>) -> Result<Geodetic, String>,
+) -> Result<Setup, String> {
+    let gnss_signals = gnss_signals(args)?;
     let map = args.map.as_ref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
     let origin = match (&args.origin, &map) {
         (Some(text), _) => parse_origin(text)?,
@@ -415,7 +503,7 @@ fn setup_from_args(args: &RecordArgs, fallback: impl FnOnce() -> Result<Geodetic
             let h = MapView::parse(bytes).map_err(|e| format!("{}: {e}", display(&args.map)))?.header().origin;
             Geodetic::new(h[0], h[1], h[2]).map_err(|e| format!("map origin: {e}"))?
         }
-        (None, None) => fallback()?,
+        (None, None) => fallback(gnss_signals.as_ref())?,
     };
     let (mount, uere) = args.device.parse()?;
     Ok(Setup {
@@ -427,6 +515,7 @@ fn setup_from_args(args: &RecordArgs, fallback: impl FnOnce() -> Result<Geodetic
         },
         gnss: GnssErrorModel { uere_m: uere, ..GnssErrorModel::default() },
         speed: speed_source(args)?,
+        gnss_signals,
         map,
         device_id: device_id(&args.device_id)?,
     })
@@ -443,7 +532,7 @@ fn device_id(text: &str) -> Result<[u8; 16], String> {
 
 /// The live logger.
 fn run_live(args: &RecordArgs, request: &live::LiveRequest) -> Result<(), String> {
-    let setup = setup_from_args(args, || {
+    let setup = setup_from_args(args, |_| {
         Err("a live recording needs its ENU origin: give --origin LAT,LON[,H] or a --map".to_owned())
     })?;
     let stop = live::stop_on_signals()?;

@@ -1,0 +1,190 @@
+//! CSS Electronics' CANedge drive (`css-electronics-canedge/` of the data folder): 40
+//! minutes of a car in Denmark, logged as five candump files. GNSS arrives over CAN from a
+//! CANmod.gps module (DBC-defined frames on can1, read through `canmod-gps.dbc` as
+//! [`GnssSignals`](dash2sim_core::pipeline::GnssSignals)), the speed as OBD-II PID 0x0D
+//! responses on can0. There is no camera: the log carries GNSS and speed only — no VO, so
+//! no anchoring, no ego poses and no verification (and the data has no map of Denmark).
+//! What can be measured: every fix and every speed reaches the log (against cantools'
+//! decoding), the logger's clock against GNSS time, and the fixes against the OBD speed.
+
+use std::path::{Path, PathBuf};
+
+use dash2sim_core::binlog::Record;
+use dash2sim_core::geo::{Geodetic, LocalFrame};
+use dash2sim_core::pipeline::Issue;
+use serde_json::{json, Value};
+
+use super::write;
+use crate::logfile;
+use crate::record::{self, RecordArgs};
+
+/// The session's candump files start with this.
+pub const SPLITS: &str = "candump/3BA199E2_00000164_";
+
+/// The files the drive needs besides its candump splits, relative to its folder.
+pub const REQUIRED: [&str; 3] = [
+    "dbc/canmod-gps.dbc",
+    "expected/3BA199E2_session164.gnss_pos.csv",
+    "expected/3BA199E2_session164.obd_pid0d_speed.csv",
+];
+
+/// CANmod.gps's position and time as `record --gnss-signals` takes them.
+pub const GNSS_SIGNALS: &str = "lat=gnss_pos.Latitude,lon=gnss_pos.Longitude,valid=gnss_pos.PositionValid,\
+accuracy=gnss_pos.PositionAccuracy,time=gnss_time.Epoch";
+
+/// The session's candump files in order (their names sort by split number).
+pub fn splits(dir: &Path) -> Vec<PathBuf> {
+    let (folder, prefix) = SPLITS.split_once('/').unwrap_or(("", SPLITS));
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir.join(folder))
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.starts_with(prefix) && n.ends_with(".log")))
+        .collect();
+    files.sort();
+    files
+}
+
+/// Rows of a CSV with a header, and how many of them have `column` equal to `value`
+/// (every row when `column` is `None`).
+fn csv_rows(path: &Path, column: Option<(&str, &str)>) -> Result<usize, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
+    let Some((name, value)) = column else { return Ok(lines.count()) };
+    let i = header.iter().position(|h| *h == name).ok_or_else(|| format!("{}: no column {name}", path.display()))?;
+    Ok(lines.filter(|l| l.split(',').nth(i) == Some(value)).count())
+}
+
+/// Pearson correlation.
+fn correlation(pairs: &[(f64, f64)]) -> f64 {
+    let n = pairs.len() as f64;
+    let (ma, mb) = (pairs.iter().map(|p| p.0).sum::<f64>() / n, pairs.iter().map(|p| p.1).sum::<f64>() / n);
+    let (mut ab, mut aa, mut bb) = (0.0, 0.0, 0.0);
+    for (a, b) in pairs {
+        ab += (a - ma) * (b - mb);
+        aa += (a - ma) * (a - ma);
+        bb += (b - mb) * (b - mb);
+    }
+    ab / (aa * bb).sqrt()
+}
+
+/// The fixes' own speed (distance between consecutive fixes over their time, at the
+/// midpoint) against the OBD speeds of the log, interpolated at the OBD times: pairs of
+/// (fixes, OBD) in km/h.
+fn speed_pairs(records: &[Record], frame: &LocalFrame) -> Vec<(f64, f64)> {
+    let mut from_fixes: Vec<(f64, f64)> = Vec::new();
+    let mut last: Option<(f64, dash2sim_core::nalgebra::Vector3<f64>)> = None;
+    for r in records {
+        let Record::GnssFix(f) = r else { continue };
+        let Ok(g) = Geodetic::new(f.lat_e7 as f64 * 1e-7, f.lon_e7 as f64 * 1e-7, 0.0) else { continue };
+        let (t, p) = (f.t_us as f64 * 1e-6, frame.geodetic_to_enu(&g));
+        if let Some((t0, p0)) = last {
+            // Only fixes a second or so apart: a gap is not a speed.
+            if (0.5..=1.5).contains(&(t - t0)) {
+                from_fixes.push((0.5 * (t + t0), (p - p0).norm() / (t - t0) * 3.6));
+            }
+        }
+        last = Some((t, p));
+    }
+    let mut pairs = Vec::new();
+    for r in records {
+        let Record::VehicleSpeed(v) = r else { continue };
+        let t = v.t_us as f64 * 1e-6;
+        let k = from_fixes.partition_point(|(s, _)| *s < t);
+        let (Some(a), Some(b)) = (k.checked_sub(1).and_then(|i| from_fixes.get(i)), from_fixes.get(k)) else {
+            continue;
+        };
+        if b.0 - a.0 <= 1.5 {
+            pairs.push((a.1 + (b.1 - a.1) * (t - a.0) / (b.0 - a.0), v.speed_mm_s as f64 * 3.6e-3));
+        }
+    }
+    pairs
+}
+
+/// The drive through the product into `out`: recorded from its candump splits, exported,
+/// and measured. The summary.
+pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let files = splits(dir);
+    if files.is_empty() {
+        return Err(format!("{}: no candump files {SPLITS}*.log", dir.display()));
+    }
+    let sources = record::Sources { can: files.clone(), ..record::Sources::default() };
+    let log_path = out.join("css.d2slog");
+    let args = RecordArgs {
+        dbc: vec![dir.join("dbc/canmod-gps.dbc")],
+        gnss_signals: Some(GNSS_SIGNALS.to_owned()),
+        speed_source: record::SpeedArg::Obd,
+        ..RecordArgs::from_files(&log_path, sources)?
+    };
+    let (recording, counts) = record::record_files(&args)?;
+    write(&log_path, &recording.log)?;
+    let log = logfile::read(&log_path).map_err(|e| e.to_string())?;
+    let header = log.header.ok_or("the recorded log has no header")?;
+    let frame = logfile::frame(&header).ok_or("the log's origin is not a position")?;
+
+    let offsets: Vec<f64> = log
+        .records
+        .iter()
+        .filter_map(|r| if let Record::ClockOffset(c) = r { Some(-(c.offset_us as f64) * 1e-6) } else { None })
+        .collect();
+    let fixes: Vec<(f64, dash2sim_core::nalgebra::Vector3<f64>)> = log
+        .records
+        .iter()
+        .filter_map(|r| match r {
+            Record::GnssFix(f) => Geodetic::new(f.lat_e7 as f64 * 1e-7, f.lon_e7 as f64 * 1e-7, 0.0)
+                .ok()
+                .map(|g| (f.t_us as f64 * 1e-6, frame.geodetic_to_enu(&g))),
+            _ => None,
+        })
+        .collect();
+    let distance_m: f64 = fixes.windows(2).map(|w| (w[1].1 - w[0].1).norm()).sum();
+    let span_s = fixes.last().map_or(0.0, |l| l.0) - fixes.first().map_or(0.0, |f| f.0);
+    let pairs = speed_pairs(&log.records, &frame);
+    let mean_abs = pairs.iter().map(|(a, b)| (a - b).abs()).sum::<f64>() / pairs.len().max(1) as f64;
+
+    write(&out.join("drive.geojson"), logfile::export::geojson(&log)?.to_string())?;
+    logfile::mcap_export::write(&log, None, &out.join("drive.mcap"), None)?;
+
+    let expected = |name: &str| dir.join("expected").join(format!("3BA199E2_session164.{name}.csv"));
+    let file = |name: &str| out.join(name).display().to_string();
+    Ok(json!({
+        "name": "css",
+        "what": "CSS Electronics' CANedge: 40 minutes of a car in Denmark; GNSS over CAN (CANmod.gps, DBC-defined), speed as OBD-II PID 0x0D",
+        "vo": "none: the log carries GNSS and speed only (no anchoring, no ego poses, no verification — and no map of Denmark in the data)",
+        "candump_files": files.len(),
+        "can_frames": counts.can_frames,
+        "recording": {
+            "pipeline": record::summary(&recording),
+            "fixes": recording.stats.fixes,
+            "fixes_valid_by_cantools": csv_rows(&expected("gnss_pos"), Some(("PositionValid", "1")))?,
+            "positions_without_fix": recording.issues.get(Issue::GnssNoPosition),
+            "positions_without_fix_by_cantools": csv_rows(&expected("gnss_pos"), Some(("PositionValid", "0")))?,
+            "speeds": recording.stats.speeds,
+            "speeds_in_reference": csv_rows(&expected("obd_pid0d_speed"), None)?,
+            "log_bytes": log.bytes,
+            "bytes_per_minute": log.bytes as f64 / (span_s / 60.0),
+        },
+        "drive": {"duration_s": span_s, "distance_km": distance_m * 1e-3},
+        "clock": {
+            "logger_minus_gnss_first_s": offsets.first(),
+            "logger_minus_gnss_last_s": offsets.last(),
+            "logger_minus_gnss_min_s": offsets.iter().copied().reduce(f64::min),
+            "logger_minus_gnss_max_s": offsets.iter().copied().reduce(f64::max),
+            "offset_records": offsets.len(),
+        },
+        "speed_check": {
+            "pairs": pairs.len(),
+            "mean_abs_diff_kmh": mean_abs,
+            "correlation": correlation(&pairs),
+            "what": "speed from consecutive fixes vs OBD PID 0x0D, both from the log (UTC), OBD times",
+        },
+        "files": [
+            {"what": "the device's 4D log (GNSS and speed)", "path": file("css.d2slog")},
+            {"what": "GeoJSON for QGIS (the GNSS track)", "path": file("drive.geojson")},
+            {"what": "MCAP for Foxglove", "path": file("drive.mcap")},
+        ],
+    }))
+}
