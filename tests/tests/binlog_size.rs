@@ -12,9 +12,9 @@ use std::path::{Path, PathBuf};
 
 use dash2sim_core::binlog::Kind;
 use dash2sim_linux::logfile::{self, import::ImportRequest, mcap_export};
+use dash2sim_linux::recordings::comma::{ublox_nmea, ORIGIN};
 use dash2sim_linux::scenario::write::{import_request, write_scenario};
 use dash2sim_linux::scenario::{generate, ScenarioConfig};
-use dash2sim_linux::recordings::comma::{ublox_nmea, ORIGIN};
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("dash2sim-binlog-size-{}-{name}", std::process::id()));

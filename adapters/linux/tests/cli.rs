@@ -1066,3 +1066,109 @@ fn plot_draws_the_map_the_three_trajectories_and_the_objects_and_refuses_a_log_w
     let out = dash2sim(&["plot", &path(&log), "-o", &path(&dir.join("x.gif"))]);
     assert!(!out.status.success() && stderr(&out).contains("must end in .svg or .png"), "{}", stderr(&out));
 }
+
+/// The shared data folder (`$DASH2SIM_DATA`, else `../shared` beside the checkout), if
+/// there; with `DASH2SIM_REQUIRE_DATA=1` it must be.
+fn shared_data() -> Option<PathBuf> {
+    let dir = std::env::var_os("DASH2SIM_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"));
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    assert!(std::env::var("DASH2SIM_REQUIRE_DATA").as_deref() != Ok("1"), "{} does not exist", dir.display());
+    eprintln!("SKIPPED: {} not found", dir.display());
+    None
+}
+
+#[test]
+fn demo_data_names_the_missing_recordings_and_runs_the_rest() {
+    let dir = scratch("demo-data");
+    let empty = dir.join("empty");
+    std::fs::create_dir_all(&empty).expect("dir");
+    let out = dash2sim(&["demo", "--data", &empty.display().to_string(), "-o", &dir.join("out").display().to_string()]);
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    for name in ["comma2k19 is missing", "css is missing", "no recording could run"] {
+        assert!(err.contains(name), "{name}: {err}");
+    }
+    let Some(data) = shared_data() else { return };
+    // A folder with an incomplete comma2k19 and the whole CSS drive.
+    let partial = dir.join("partial");
+    std::fs::create_dir_all(partial.join("comma2k19/expected")).expect("dir");
+    std::fs::copy(data.join("comma2k19/raw_can.candump.log"), partial.join("comma2k19/raw_can.candump.log"))
+        .expect("copy");
+    std::os::unix::fs::symlink(
+        data.join("css-electronics-canedge").canonicalize().expect("css folder"),
+        partial.join("css-electronics-canedge"),
+    )
+    .expect("symlink");
+    let out_dir = dir.join("partial-out");
+    let out = dash2sim(&["demo", "--data", &partial.display().to_string(), "-o", &out_dir.display().to_string(), "-q"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let err = stderr(&out);
+    assert!(err.contains("comma2k19 is missing") && err.contains("global_pose_camera_enu.tum"), "{err}");
+    assert!(!err.contains("raw_can.candump.log"), "what is there is not named missing: {err}");
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(text.contains("comma2k19: not run") && text.contains("2161 fixes (cantools: 2161 valid)"), "{text}");
+    let s: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).expect("summary")).expect("json");
+    assert!(s["recordings"][0]["missing"].is_array() && s["recordings"][1]["recording"]["speeds"] == 4785, "{s}");
+    // Both, from the data folder as given.
+    let out = dash2sim(&["demo", "--data", &data.display().to_string(), "-o", &dir.join("both").display().to_string()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(text.contains("comma2k19 —") && text.contains("css —") && !text.contains("not run"), "{text}");
+}
+
+#[test]
+fn record_reads_gnss_from_dbc_signals_and_names_bad_signal_lists() {
+    let dir = scratch("gnss-signals");
+    let dbc = write(
+        &dir,
+        "gps.dbc",
+        "VERSION \"\"\n\nBS_:\n\nBU_:\n\n\
+         BO_ 2 gnss_time: 6 Vector__XXX\n SG_ Epoch : 8|40@1+ (0.001,1577840400) [0|0] \"sec\" Vector__XXX\n\n\
+         BO_ 3 gnss_pos: 8 Vector__XXX\n SG_ PositionValid : 0|1@1+ (1,0) [0|1] \"\" Vector__XXX\n \
+         SG_ Latitude : 1|28@1+ (1e-06,-90) [-90|90] \"deg\" Vector__XXX\n \
+         SG_ Longitude : 29|29@1+ (1e-06,-180) [-180|180] \"deg\" Vector__XXX\n \
+         SG_ PositionAccuracy : 58|6@1+ (1,0) [0|63] \"m\" Vector__XXX\n",
+    );
+    // Two epochs of CANmod.gps at 60.1 N 24.9 E, 3 m accuracy, the logger 2 s behind GNSS.
+    let mut lines = String::new();
+    for (k, utc) in [1_700_000_000.0f64, 1_700_000_001.0].iter().enumerate() {
+        let time = (((utc - 1_577_840_400.0) * 1e3).round() as u64) << 8 | 1;
+        let lat = ((60.1f64 + 90.0) * 1e6).round() as u64;
+        let lon = ((24.9f64 + 180.0 + 1e-5 * k as f64) * 1e6).round() as u64;
+        let pos = 1 | lat << 1 | lon << 29 | 3 << 58;
+        let hex = |v: u64, n: usize| v.to_le_bytes()[..n].iter().map(|b| format!("{b:02X}")).collect::<String>();
+        let t = utc - 2.0;
+        lines += &format!("({t:.6}) can1 002#{}\n({:.6}) can1 003#{}\n", hex(time, 6), t + 0.001, hex(pos, 8));
+    }
+    let can = write(&dir, "gps.log", &lines);
+    let log = dir.join("gps.d2slog").display().to_string();
+    let signals = "lat=gnss_pos.Latitude,lon=gnss_pos.Longitude,valid=gnss_pos.PositionValid,accuracy=gnss_pos.PositionAccuracy,time=gnss_time.Epoch";
+    let out = dash2sim(&["record", "-o", &log, "--can", &can, "--dbc", &dbc, "--gnss-signals", signals, "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(s["fixes"], 2, "{s}");
+    let inspect = dash2sim(&["inspect", &log, "--json"]);
+    let i: serde_json::Value = serde_json::from_slice(&inspect.stdout).expect("json");
+    assert!(i.to_string().contains("1700000000"), "the log is in GNSS time: {i}");
+    for (bad, says) in [
+        ("lon=gnss_pos.Longitude", "lat=MESSAGE.SIGNAL is required"),
+        ("lat=gnss_pos.Latitude,lon=gnss_pos.Longitude,speed=gnss_pos.Latitude", "unknown key \"speed\""),
+        ("lat=gnss_pos.Latitude,lon=gnss_time.Epoch", "lat and lon must be in one message"),
+        (
+            "lat=gnss_pos.Latitude,lon=gnss_pos.Longitude,valid=gnss_time.Epoch",
+            "valid must be in the latitude's message",
+        ),
+        ("lat=gnss_pos.Nope,lon=gnss_pos.Longitude", "has no signal \"Nope\""),
+        ("lat=gnss_pos,lon=gnss_pos.Longitude", "expected MESSAGE.SIGNAL"),
+    ] {
+        let out = dash2sim(&["record", "-o", &log, "--can", &can, "--dbc", &dbc, "--gnss-signals", bad]);
+        assert!(!out.status.success() && stderr(&out).contains(says), "{bad}: {}", stderr(&out));
+    }
+    let out = dash2sim(&["record", "-o", &log, "--can", &can, "--gnss-signals", signals]);
+    assert!(!out.status.success() && stderr(&out).contains("no DBC files given"), "{}", stderr(&out));
+}

@@ -715,10 +715,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
                 Ok(())
             }
             GnssFrame::Position { lat, lon, valid, sigma_m } => {
-                let utc = self
-                    .signal_epoch
-                    .take()
-                    .and_then(|(rx, utc)| (t - rx <= signals::EPOCH_GAP).then_some(utc));
+                let utc = self.signal_epoch.take().and_then(|(rx, utc)| (t - rx <= signals::EPOCH_GAP).then_some(utc));
                 let fix = Fix {
                     utc,
                     lat: Some(lat),

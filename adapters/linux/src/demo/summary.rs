@@ -230,9 +230,10 @@ pub fn print_data(s: &Value) {
                     rec["speeds_in_reference"], rec["log_bytes"], num(&rec["bytes_per_minute"])
                 );
                 println!(
-                    "  drive         {:.1} min, {:.1} km",
+                    "  drive         {:.1} min, {:.2} km along the fixes (the module's trip odometer: {:.2} km)",
                     num(&r["drive"]["duration_s"]) / 60.0,
-                    num(&r["drive"]["distance_km"])
+                    num(&r["drive"]["distance_km"]),
+                    num(&r["drive"]["module_odometer_km"])
                 );
                 println!(
                     "  clock         logger − GNSS {:+.3} s at the first fix, {:+.3} s at the end ({:+.3} to {:+.3} s over {} offset records)",
@@ -241,7 +242,9 @@ pub fn print_data(s: &Value) {
                 );
                 println!(
                     "  speed check   fixes vs OBD PID 0x0D: mean |Δ| {:.2} km/h, correlation {:.4} ({} pairs)",
-                    num(&v["mean_abs_diff_kmh"]), num(&v["correlation"]), v["pairs"]
+                    num(&v["mean_abs_diff_kmh"]),
+                    num(&v["correlation"]),
+                    v["pairs"]
                 );
             }
         }

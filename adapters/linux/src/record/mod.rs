@@ -10,7 +10,9 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use clap::{Args, ValueEnum};
+use dash2sim_can::SignalTable;
 use dash2sim_core::anchor::{AnchorConfig, AnchorMode};
+use dash2sim_core::can::signal::Signal;
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use dash2sim_core::pipeline::replay::{feed, Input, Reader};
@@ -18,8 +20,6 @@ use dash2sim_core::pipeline::{
     CameraMount, ClassMeta, FrameId, GnssErrorModel, GnssFrame, GnssSignals, Issue, Issues, Pipeline, PipelineConfig,
     PipelineStats, SpeedSource, Trackers,
 };
-use dash2sim_can::SignalTable;
-use dash2sim_core::can::signal::Signal;
 use serde_json::json;
 
 use dash2sim_core::pipeline::profile::{self, work_zone_meta, work_zone_pipeline, work_zone_trackers};
@@ -345,7 +345,8 @@ fn speed_source(args: &RecordArgs) -> Result<Option<SpeedSource>, String> {
 
 /// The frame and signal `MESSAGE.SIGNAL` names in the DBC files; `option` says who asked.
 fn dbc_signal(table: &SignalTable, name: &str, option: &str) -> Result<(FrameId, Signal), String> {
-    let (message, signal) = name.split_once('.').ok_or_else(|| format!("{option} {name:?}: expected MESSAGE.SIGNAL"))?;
+    let (message, signal) =
+        name.split_once('.').ok_or_else(|| format!("{option} {name:?}: expected MESSAGE.SIGNAL"))?;
     let m = table.message_by_name(message).ok_or_else(|| {
         if table.is_empty() {
             format!("{option}: no DBC files given (--dbc FILE)")
@@ -377,7 +378,8 @@ fn gnss_signals(args: &RecordArgs) -> Result<Option<GnssSignals>, String> {
             return Err(format!("{OPTION}: {key} given twice"));
         }
     }
-    let required = |key: &str| found.get(key).copied().ok_or_else(|| format!("{OPTION}: {key}=MESSAGE.SIGNAL is required"));
+    let required =
+        |key: &str| found.get(key).copied().ok_or_else(|| format!("{OPTION}: {key}=MESSAGE.SIGNAL is required"));
     let ((position, latitude), (lon_frame, longitude)) = (required("lat")?, required("lon")?);
     let in_position = |key: &str| match found.get(key) {
         Some((frame, _)) if *frame != position => {

@@ -71,8 +71,11 @@ pub fn ublox_nmea(csv: &Path) -> Result<UbloxNmea, String> {
     let (mut offset, mut fixes) = (None, 0);
     for (n, line) in text.lines().enumerate().skip(1) {
         let at = || format!("{}:{}", csv.display(), n + 1);
-        let v: Vec<f64> =
-            line.split(',').map(|x| x.trim().parse()).collect::<Result<_, _>>().map_err(|e| format!("{}: {e}", at()))?;
+        let v: Vec<f64> = line
+            .split(',')
+            .map(|x| x.trim().parse())
+            .collect::<Result<_, _>>()
+            .map_err(|e| format!("{}: {e}", at()))?;
         let [t_boot, lat, lon, speed, utc_ms, alt, bearing] = v[..] else {
             return Err(format!("{}: expected 7 columns, found {}", at(), v.len()));
         };
@@ -230,7 +233,9 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
     let online = compare(&log.records, &minute.device, truth)?;
     let t0 = truth.stamps.first().copied().unwrap_or_default();
     let online_scale = log.records.iter().zip(&minute.device).rev().find_map(|(r, t)| match r {
-        Record::AnchorEstimate(a) if a.observability == 2 => Some(a.scale_e6 as f64 * 1e-6 / model.scale_at(t - t0) - 1.0),
+        Record::AnchorEstimate(a) if a.observability == 2 => {
+            Some(a.scale_e6 as f64 * 1e-6 / model.scale_at(t - t0) - 1.0)
+        }
         _ => None,
     });
 
@@ -251,10 +256,9 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
     logfile::mcap_export::write(&finished_log, None, &out.join("finished.mcap"), None)?;
 
     let evo_path = dir.join("expected/evo_ape_gnss_vs_pose.json");
-    let evo: Value = serde_json::from_str(
-        &std::fs::read_to_string(&evo_path).map_err(|e| format!("{}: {e}", evo_path.display()))?,
-    )
-    .map_err(|e| format!("{}: {e}", evo_path.display()))?;
+    let evo: Value =
+        serde_json::from_str(&std::fs::read_to_string(&evo_path).map_err(|e| format!("{}: {e}", evo_path.display()))?)
+            .map_err(|e| format!("{}: {e}", evo_path.display()))?;
     let gnss_alone = &evo["cases"]["maxdiff0.01_none"]["ape_translation_stats"];
     let span = truth.stamps.last().copied().unwrap_or_default() - t0;
     let a = &finished.report["anchoring"];

@@ -22,9 +22,10 @@ use crate::record::{self, RecordArgs};
 pub const SPLITS: &str = "candump/3BA199E2_00000164_";
 
 /// The files the drive needs besides its candump splits, relative to its folder.
-pub const REQUIRED: [&str; 3] = [
+pub const REQUIRED: [&str; 4] = [
     "dbc/canmod-gps.dbc",
     "expected/3BA199E2_session164.gnss_pos.csv",
+    "expected/3BA199E2_session164.gnss_odo.csv",
     "expected/3BA199E2_session164.obd_pid0d_speed.csv",
 ];
 
@@ -40,7 +41,9 @@ pub fn splits(dir: &Path) -> Vec<PathBuf> {
         .flatten()
         .flatten()
         .map(|e| e.path())
-        .filter(|p| p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.starts_with(prefix) && n.ends_with(".log")))
+        .filter(|p| {
+            p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.starts_with(prefix) && n.ends_with(".log"))
+        })
         .collect();
     files.sort();
     files
@@ -55,6 +58,21 @@ fn csv_rows(path: &Path, column: Option<(&str, &str)>) -> Result<usize, String> 
     let Some((name, value)) = column else { return Ok(lines.count()) };
     let i = header.iter().position(|h| *h == name).ok_or_else(|| format!("{}: no column {name}", path.display()))?;
     Ok(lines.filter(|l| l.split(',').nth(i) == Some(value)).count())
+}
+
+/// The module's own trip odometer at the end (the last valid `DistanceTrip`), m.
+fn odometer_m(path: &Path) -> Result<Option<f64>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
+    let column = |name: &str| {
+        header.iter().position(|h| *h == name).ok_or_else(|| format!("{}: no column {name}", path.display()))
+    };
+    let (valid, trip) = (column("DistanceValid")?, column("DistanceTrip")?);
+    Ok(lines.rev().find_map(|l| {
+        let v: Vec<&str> = l.split(',').collect();
+        (v.get(valid) == Some(&"1")).then(|| v.get(trip)?.parse().ok()).flatten()
+    }))
 }
 
 /// Pearson correlation.
@@ -167,7 +185,8 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
             "log_bytes": log.bytes,
             "bytes_per_minute": log.bytes as f64 / (span_s / 60.0),
         },
-        "drive": {"duration_s": span_s, "distance_km": distance_m * 1e-3},
+        "drive": {"duration_s": span_s, "distance_km": distance_m * 1e-3,
+                  "module_odometer_km": odometer_m(&expected("gnss_odo"))?.map(|m| m * 1e-3)},
         "clock": {
             "logger_minus_gnss_first_s": offsets.first(),
             "logger_minus_gnss_last_s": offsets.last(),

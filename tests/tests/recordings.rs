@@ -1,0 +1,68 @@
+//! `dash2sim demo --data`'s two real recordings through the product (issue #17), against
+//! their peers: cantools' decoding and the module's own odometer for the CSS CANedge drive
+//! (GNSS over CAN through `canmod-gps.dbc`), evo's GNSS error and comma's fused poses for
+//! the comma2k19 minute.
+
+use dash2sim_linux::recordings::{comma, css};
+use dash2sim_tests::recorded::scratch;
+use serde_json::Value;
+
+fn num(v: &Value) -> f64 {
+    v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
+}
+
+fn files_exist(summary: &Value) {
+    for f in summary["files"].as_array().expect("files") {
+        let path = f["path"].as_str().expect("path");
+        let len = std::fs::metadata(path).unwrap_or_else(|e| panic!("{path}: {e}")).len();
+        assert!(len > 0, "{path} is empty");
+    }
+}
+
+#[test]
+fn the_css_drive_logs_every_can_fix_and_speed_in_utc_and_its_fixes_agree_with_the_odometer_and_obd() {
+    let Some(dir) = dash2sim_tests::data_dir("css-electronics-canedge") else { return };
+    let s = css::run(&dir, &scratch("recordings-css")).expect("the CSS drive");
+    println!("{s:#}");
+    let r = &s["recording"];
+    assert_eq!(s["candump_files"], 5);
+    // Every CANmod position frame, as cantools decodes them: 2161 fixes, 111 without one.
+    assert_eq!(r["fixes"], r["fixes_valid_by_cantools"]);
+    assert_eq!(r["fixes"], 2161);
+    assert_eq!(r["positions_without_fix"], r["positions_without_fix_by_cantools"]);
+    // Every OBD-II PID 0x0D response.
+    assert_eq!(r["speeds"], r["speeds_in_reference"]);
+    assert_eq!(r["speeds"], 4785);
+    // The log's clock: logger − GNSS of the first epoch from the raw frames (t of its
+    // gnss_pos − its gnss_time Epoch, decoded independently with python) is 4.5281 s; every
+    // epoch of the session lies within 4.281–4.793 s.
+    let c = &s["clock"];
+    assert!((num(&c["logger_minus_gnss_first_s"]) - 4.5281).abs() < 2e-3, "{c}");
+    assert!(num(&c["logger_minus_gnss_min_s"]) >= 4.280 && num(&c["logger_minus_gnss_max_s"]) <= 4.794, "{c}");
+    // The fixes against the module's trip odometer (40.579 km) and the OBD speed.
+    let d = &s["drive"];
+    assert!((num(&d["distance_km"]) / num(&d["module_odometer_km"]) - 1.0).abs() < 0.005, "{d}");
+    let v = &s["speed_check"];
+    assert!(num(&v["pairs"]) > 3500.0 && num(&v["correlation"]) > 0.99 && num(&v["mean_abs_diff_kmh"]) < 1.5, "{v}");
+    files_exist(&s);
+}
+
+#[test]
+fn the_comma2k19_minute_is_anchored_online_and_finishing_improves_it() {
+    let Some(dir) = dash2sim_tests::data_dir("comma2k19") else { return };
+    let s = comma::run(&dir, &scratch("recordings-comma")).expect("the comma2k19 minute");
+    println!("{s:#}");
+    let p = &s["recording"]["pipeline"];
+    assert_eq!((p["fixes"].as_u64(), p["speeds"].as_u64()), (Some(579), Some(2487)), "every fix and 0xB4 frame");
+    assert_eq!(p["fixes"], s["recording"]["fixes_in_csv"]);
+    let gnss = num(&s["gnss_alone"]["ape_rmse_m"]);
+    let (online, finished) = (&s["online"]["compared"], &s["finished"]["compared"]);
+    // Anchored VO beats the fixes it was anchored to (evo: 1.81 m), finished beats online.
+    assert!(num(&online["ape_rmse_m"]) <= 1.35 && num(&online["ape_rmse_m"]) < gnss, "{online}");
+    assert!(num(&finished["ape_rmse_m"]) < num(&online["ape_rmse_m"]), "{finished} vs {online}");
+    assert!(num(&finished["ape_max_m"]) < num(&online["ape_max_m"]), "{finished} vs {online}");
+    assert!(num(&online["observable_after_s"]) < 10.0, "{online}");
+    assert!(num(&s["online"]["anchor_scale_error_at_end"]).abs() < 0.003, "{}", s["online"]);
+    assert!(num(&finished["scale_error"]).abs() <= 1e-3, "{finished}");
+    files_exist(&s);
+}
