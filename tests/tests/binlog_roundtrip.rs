@@ -166,40 +166,27 @@ fn decode(bytes: &[u8], chunk: usize) -> (Vec<Record>, u64) {
     (out, damaged)
 }
 
-/// What a reader gives back for `records`: a batch of tracks at the same time as the one
-/// before it joins it, and batches come back in records of at most MAX_TRACKS.
-fn as_read(records: &[Record]) -> Vec<Record> {
-    let mut out: Vec<Record> = Vec::new();
-    let mut pending: Option<(i64, Vec<Track3d>)> = None;
-    let flush = |pending: &mut Option<(i64, Vec<Track3d>)>, out: &mut Vec<Record>| {
-        if let Some((t_us, tracks)) = pending.take() {
-            for chunk in tracks.chunks(MAX_TRACKS) {
-                let mut b = Tracks3d { t_us, ..Tracks3d::default() };
-                for x in chunk {
-                    let _ = b.tracks.push(*x);
-                }
-                out.push(Record::Tracks3d(b));
-            }
-        }
-    };
+/// A log's records with the 3D tracks of one time as one list. A writer puts the tracks of
+/// one time into one frame until it is full and then starts another, and a reader hands a
+/// frame back in records of at most `MAX_TRACKS` tracks: how a time's tracks are cut into
+/// records depends on their coded size, what they are does not.
+#[derive(Debug, PartialEq)]
+enum Joined {
+    Tracks(i64, Vec<Track3d>),
+    Other(Record),
+}
+
+fn joined(records: &[Record]) -> Vec<Joined> {
+    let mut out: Vec<Joined> = Vec::new();
     for r in records {
-        match r {
-            Record::Tracks3d(b) if pending.as_ref().is_some_and(|(t, _)| *t == b.t_us) => {
-                if let Some((_, tracks)) = pending.as_mut() {
-                    tracks.extend(b.tracks.iter().copied());
-                }
+        match (r, out.last_mut()) {
+            (Record::Tracks3d(b), Some(Joined::Tracks(t, tracks))) if *t == b.t_us => {
+                tracks.extend(b.tracks.iter().copied());
             }
-            Record::Tracks3d(b) => {
-                flush(&mut pending, &mut out);
-                pending = Some((b.t_us, b.tracks.to_vec()));
-            }
-            other => {
-                flush(&mut pending, &mut out);
-                out.push(other.clone());
-            }
+            (Record::Tracks3d(b), _) => out.push(Joined::Tracks(b.t_us, b.tracks.to_vec())),
+            (other, _) => out.push(Joined::Other(other.clone())),
         }
     }
-    flush(&mut pending, &mut out);
     out
 }
 
@@ -218,7 +205,7 @@ proptest! {
         let bytes = encode(&records, WriterConfig { segment_us, segment_records, flush });
         let (back, damaged) = decode(&bytes, chunk);
         prop_assert_eq!(damaged, 0);
-        prop_assert_eq!(back, as_read(&records));
+        prop_assert_eq!(joined(&back), joined(&records));
     }
 }
 
