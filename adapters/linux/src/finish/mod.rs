@@ -56,7 +56,7 @@ pub struct FinishArgs {
 
 /// Smoothing of the finished ego's planar track: position σ of the VO-derived positions
 /// (m) and the car's white acceleration (m/s² per √s).
-const EGO_SMOOTHING: (f64, f64) = (0.05, 1.0);
+const EGO_SMOOTHING: (f64, f64) = (0.05, 0.5);
 
 /// What finishing produced, for the report and the tests.
 #[derive(Debug)]
