@@ -6,7 +6,6 @@
 #![no_main]
 
 use dash2sim_core::binlog::{Decoder, Event};
-use dash2sim_core::can::signal::{ByteOrder, Multiplex, Signal};
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::pipeline::replay::{feed, Reader, MAGIC};
 use dash2sim_core::pipeline::{ClassMeta, FrameId, GnssSignals, Pipeline, PipelineConfig, SpeedSource, Trackers};
@@ -27,22 +26,6 @@ const CLASS: ClassConfig = ClassConfig {
 const META: [ClassMeta; 2] =
     [ClassMeta { code: 6, kind: AgentKind::Object }, ClassMeta { code: 0, kind: AgentKind::Vehicle }];
 
-fn intel(start_bit: u16, length: u16, factor: f64, offset: f64) -> Signal {
-    Signal::new(start_bit, length, ByteOrder::Intel, false, factor, offset, Multiplex::Plain).expect("fits a frame")
-}
-
-/// CANmod.gps as `canmod-gps.dbc` defines its time (id 2) and position (id 3).
-fn canmod() -> GnssSignals {
-    GnssSignals {
-        position: FrameId { id: 3, extended: false },
-        latitude: intel(1, 28, 1e-6, -90.0),
-        longitude: intel(29, 29, 1e-6, -180.0),
-        valid: Some(intel(0, 1, 1.0, 0.0)),
-        accuracy: Some(intel(58, 6, 1.0, 0.0)),
-        time: Some((FrameId { id: 2, extended: false }, intel(8, 40, 1e-3, 1_577_840_400.0))),
-    }
-}
-
 fuzz_target!(|data: &[u8]| {
     let mut stream = MAGIC.to_vec();
     stream.extend_from_slice(data);
@@ -52,7 +35,7 @@ fuzz_target!(|data: &[u8]| {
     let tracker = Config3d { classes: &classes, min_hits: 1, max_age: 2, ground_z: 0.0, static_speed: 0.3 };
     let config = PipelineConfig {
         speed: Some(SpeedSource::Ccvs1),
-        gnss_signals: Some(canmod()),
+        gnss_signals: GnssSignals::canmod_gps(),
         ..PipelineConfig::new(origin, &META)
     };
     let mut trackers: Box<Trackers<'_, 8, 4>> = Box::new(Trackers::new(tracker, TrackerConfig::default()));

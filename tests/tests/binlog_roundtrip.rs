@@ -173,7 +173,7 @@ fn decode(bytes: &[u8], chunk: usize) -> (Vec<Record>, u64) {
 #[derive(Debug, PartialEq)]
 enum Joined {
     Tracks(i64, Vec<Track3d>),
-    Other(Record),
+    Other(Box<Record>),
 }
 
 fn joined(records: &[Record]) -> Vec<Joined> {
@@ -184,7 +184,7 @@ fn joined(records: &[Record]) -> Vec<Joined> {
                 tracks.extend(b.tracks.iter().copied());
             }
             (Record::Tracks3d(b), _) => out.push(Joined::Tracks(b.t_us, b.tracks.to_vec())),
-            (other, _) => out.push(Joined::Other(other.clone())),
+            (other, _) => out.push(Joined::Other(Box::new(other.clone()))),
         }
     }
     out

@@ -5,7 +5,7 @@
 
 use embedded_can::{Frame, Id};
 
-use crate::can::signal::Signal;
+use crate::can::signal::{ByteOrder, Multiplex, Signal};
 use crate::time::{Duration, Timestamp};
 
 /// A frame id as a DBC names it: the raw 11- or 29-bit value and which of the two.
@@ -46,6 +46,24 @@ pub struct GnssSignals {
     /// UTC of the fix as seconds since 1970 in its own frame (else the fix carries no time
     /// and the log stays on the device clock).
     pub time: Option<(FrameId, Signal)>,
+}
+
+impl GnssSignals {
+    /// CSS Electronics' CANmod.gps with its factory ids, as its `canmod-gps.dbc` defines
+    /// gnss_time (id 2) and gnss_pos (id 3): for a device that parses no DBC.
+    pub fn canmod_gps() -> Option<Self> {
+        let intel = |start_bit, length, factor, offset| {
+            Signal::new(start_bit, length, ByteOrder::Intel, false, factor, offset, Multiplex::Plain).ok()
+        };
+        Some(GnssSignals {
+            position: FrameId { id: 3, extended: false },
+            latitude: intel(1, 28, 1e-6, -90.0)?,
+            longitude: intel(29, 29, 1e-6, -180.0)?,
+            valid: Some(intel(0, 1, 1.0, 0.0)?),
+            accuracy: Some(intel(58, 6, 1.0, 0.0)?),
+            time: Some((FrameId { id: 2, extended: false }, intel(8, 40, 1e-3, 1_577_840_400.0)?)),
+        })
+    }
 }
 
 /// How long before its position frame an epoch's time frame may come.
@@ -103,7 +121,6 @@ impl GnssSignals {
 mod tests {
     use super::*;
     use crate::can::CanFrame;
-    use crate::pipeline::tests::canmod;
 
     fn frame(id: u16, data: &[u8]) -> CanFrame {
         CanFrame::new(embedded_can::StandardId::new(id).expect("id"), data).expect("frame")
@@ -111,27 +128,29 @@ mod tests {
 
     #[test]
     fn a_canmod_position_frame_of_the_css_drive_reads_as_cantools_decodes_it() {
+        let canmod = GnssSignals::canmod_gps().expect("valid signals");
         // The 3BA199E2 drive's first frames: cantools gives PositionValid 0, 56.098655 N,
         // 10.218348 E, accuracy 29 m, and Epoch 1627274470.6 s for the time frame.
         let position = crate::pipeline::tests::canmod_position(56.098_655, 10.218_348, false, 29);
-        let GnssFrame::Position { lat, lon, valid, sigma_m } = canmod().read(&position).expect("ours") else {
+        let GnssFrame::Position { lat, lon, valid, sigma_m } = canmod.read(&position).expect("ours") else {
             panic!("a position")
         };
         assert!((lat - 56.098_655).abs() < 1e-9 && (lon - 10.218_348).abs() < 1e-9, "{lat} {lon}");
         assert!(!valid);
         assert_eq!(sigma_m, Some(29.0));
         let time = crate::pipeline::tests::canmod_time(1_627_274_470_600_000);
-        assert_eq!(canmod().read(&time), Some(GnssFrame::Time(Timestamp::from_micros(1_627_274_470_600_000))));
+        assert_eq!(canmod.read(&time), Some(GnssFrame::Time(Timestamp::from_micros(1_627_274_470_600_000))));
     }
 
     #[test]
     fn other_frames_are_not_the_sources_and_short_ones_are_unreadable() {
-        assert_eq!(canmod().read(&frame(4, &[0; 8])), None);
-        assert_eq!(canmod().read(&frame(3, &[0; 4])), Some(GnssFrame::Unreadable));
-        assert_eq!(canmod().read(&frame(2, &[0; 2])), Some(GnssFrame::Unreadable));
+        let canmod = GnssSignals::canmod_gps().expect("valid signals");
+        assert_eq!(canmod.read(&frame(4, &[0; 8])), None);
+        assert_eq!(canmod.read(&frame(3, &[0; 4])), Some(GnssFrame::Unreadable));
+        assert_eq!(canmod.read(&frame(2, &[0; 2])), Some(GnssFrame::Unreadable));
         let extended = CanFrame::new(embedded_can::ExtendedId::new(3).expect("id"), &[0; 8]).expect("frame");
-        assert_eq!(canmod().read(&extended), None, "an extended id 3 is another frame");
-        let no_time = GnssSignals { time: None, ..canmod() };
+        assert_eq!(canmod.read(&extended), None, "an extended id 3 is another frame");
+        let no_time = GnssSignals { time: None, ..canmod };
         assert_eq!(no_time.read(&frame(2, &[0; 6])), None);
     }
 }

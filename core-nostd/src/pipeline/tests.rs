@@ -103,25 +103,6 @@ fn ccvs1(mps: f64) -> CanFrame {
     CanFrame::data_frame(id, &[0xFF, raw[0], raw[1], 0xFF, 0xFF, 0xFF, 0xFF, 0xFF]).unwrap_or_else(|| unreachable!())
 }
 
-fn intel(start_bit: u16, length: u16, factor: f64, offset: f64) -> Signal {
-    use crate::can::signal::{ByteOrder, Multiplex};
-    Signal::new(start_bit, length, ByteOrder::Intel, false, factor, offset, Multiplex::Plain)
-        .unwrap_or_else(|_| unreachable!())
-}
-
-/// CSS Electronics' CANmod.gps as `canmod-gps.dbc` defines it: gnss_time (id 2) and
-/// gnss_pos (id 3).
-pub(super) fn canmod() -> GnssSignals {
-    GnssSignals {
-        position: FrameId { id: 3, extended: false },
-        latitude: intel(1, 28, 1e-6, -90.0),
-        longitude: intel(29, 29, 1e-6, -180.0),
-        valid: Some(intel(0, 1, 1.0, 0.0)),
-        accuracy: Some(intel(58, 6, 1.0, 0.0)),
-        time: Some((FrameId { id: 2, extended: false }, intel(8, 40, 1e-3, 1_577_840_400.0))),
-    }
-}
-
 fn standard(id: u16, data: &[u8]) -> CanFrame {
     let id = Id::Standard(embedded_can::StandardId::new(id).unwrap_or(embedded_can::StandardId::ZERO));
     CanFrame::data_frame(id, data).unwrap_or_else(|| unreachable!())
@@ -464,7 +445,7 @@ fn gnss_from_dbc_signals_anchors_the_drive_and_puts_the_log_in_utc() {
     let mut trackers = trackers(&classes);
     let mut buffer = [0u8; 65_536];
     let total = buffer.len();
-    let config = PipelineConfig { gnss_signals: Some(canmod()), ..config() };
+    let config = PipelineConfig { gnss_signals: GnssSignals::canmod_gps(), ..config() };
     let frame = LocalFrame::new(Geodetic::new(ORIGIN_LAT, ORIGIN_LON, 0.0).unwrap_or_else(|_| unreachable!()));
     let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> = Pipeline::new(&mut buffer[..], config, &mut trackers);
     for step in 0..20 * 50 {
