@@ -8,7 +8,7 @@
 use dash2sim_core::binlog::{Decoder, Event};
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::pipeline::replay::{feed, Reader, MAGIC};
-use dash2sim_core::pipeline::{ClassMeta, FrameId, GnssSignals, Pipeline, PipelineConfig, SpeedSource, Trackers};
+use dash2sim_core::pipeline::{ClassMeta, GnssSignals, Pipeline, PipelineConfig, SpeedSource, Trackers};
 use dash2sim_core::score::AgentKind;
 use dash2sim_core::track2d::TrackerConfig;
 use dash2sim_core::track3d::{Association, ClassConfig, Config3d};
