@@ -1172,3 +1172,65 @@ fn record_reads_gnss_from_dbc_signals_and_names_bad_signal_lists() {
     let out = dash2sim(&["record", "-o", &log, "--can", &can, "--gnss-signals", signals]);
     assert!(!out.status.success() && stderr(&out).contains("no DBC files given"), "{}", stderr(&out));
 }
+
+/// Rows of a Parquet file and its Arrow schema, read with the parquet crate's own reader.
+fn parquet_table(path: &Path) -> (usize, Vec<arrow_array::RecordBatch>) {
+    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let reader = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(file)
+        .expect("parquet")
+        .build()
+        .expect("reader");
+    let batches: Vec<_> = reader.map(|b| b.expect("batch")).collect();
+    (batches.iter().map(|b| b.num_rows()).sum(), batches)
+}
+
+#[test]
+fn export_parquet_writes_a_table_per_record_kind_in_si_units_and_utc() {
+    use arrow_array::cast::AsArray;
+    use arrow_array::types::{Float64Type, TimestampMicrosecondType};
+    let dir = scratch("parquet");
+    let demo = dir.join("demo");
+    let out = dash2sim(&["demo", "--offline", "-q", "--duration", "20", "-o", &demo.display().to_string()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let log = demo.join("finished.d2slog").display().to_string();
+    let out_dir = dir.join("pq");
+    let out = dash2sim(&["export", &log, "--parquet", &out_dir.display().to_string(), "--log-id", "seed-1"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let inspect: serde_json::Value =
+        serde_json::from_slice(&dash2sim(&["inspect", &log, "--json"]).stdout).expect("json");
+    let by_type = &inspect["by_type"];
+    for (table, kind) in [
+        ("ego", "EgoPose"),
+        ("gnss", "GnssFix"),
+        ("speed", "VehicleSpeed"),
+        ("anchors", "AnchorEstimate"),
+        ("verification", "Verification"),
+        ("events", "Event"),
+    ] {
+        let (rows, _) = parquet_table(&out_dir.join(format!("{table}.parquet")));
+        assert_eq!(rows as u64, by_type[kind].as_u64().unwrap_or(0), "{table}");
+    }
+    let (states, _) = parquet_table(&out_dir.join("tracks3d.parquet"));
+    assert!(states as u64 >= by_type["Tracks3d"].as_u64().unwrap_or(0) && states > 0);
+    // The ego in metres and UTC: the TUM export's first pose.
+    let tum_path = dir.join("ego.tum");
+    assert!(dash2sim(&["export", &log, "--tum", &tum_path.display().to_string()]).status.success());
+    let tum = std::fs::read_to_string(&tum_path).expect("tum");
+    let first: Vec<f64> = tum
+        .lines()
+        .find(|l| !l.starts_with('#'))
+        .expect("a pose")
+        .split(' ')
+        .map(|x| x.parse().expect("number"))
+        .collect();
+    let (_, batches) = parquet_table(&out_dir.join("ego.parquet"));
+    let b = &batches[0];
+    let t = b.column_by_name("t").expect("t").as_primitive::<TimestampMicrosecondType>().value(0);
+    let x = b.column_by_name("x_m").expect("x").as_primitive::<Float64Type>().value(0);
+    assert!((t as f64 * 1e-6 - first[0]).abs() < 1e-6 && (x - first[1]).abs() < 1e-9, "{t} {x} vs {first:?}");
+    assert_eq!(b.column_by_name("log_id").expect("id").as_string::<i32>().value(0), "seed-1");
+    // A folder that cannot be made is named.
+    let blocker = write(&dir, "file", "");
+    let out = dash2sim(&["export", &log, "--parquet", &format!("{blocker}/pq")]);
+    assert!(!out.status.success() && stderr(&out).contains(&blocker), "{}", stderr(&out));
+}

@@ -1,6 +1,7 @@
-//! `dash2sim export LOG [--mcap F] [--tum F] [--geojson F] [--nuplan DIR] [--map MAP|OSM]`:
-//! a log into the formats people already use — Foxglove (MCAP), evo (TUM), QGIS (GeoJSON),
-//! nuPlan (`crate::nuplan`).
+//! `dash2sim export LOG [--mcap F] [--tum F] [--geojson F] [--parquet DIR] [--nuplan DIR]
+//! [--map MAP|OSM]`: a log into the formats people already use — Foxglove (MCAP), evo
+//! (TUM), QGIS (GeoJSON), DuckDB/pandas/Spark (Parquet, `super::parquet_export`), nuPlan
+//! (`crate::nuplan`).
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -27,6 +28,12 @@ pub struct ExportRequest {
     /// GeoJSON output: ego and GNSS tracks, objects as points.
     #[arg(long)]
     pub geojson: Option<PathBuf>,
+    /// Parquet output folder: one file per record kind (docs/parquet.md).
+    #[arg(long)]
+    pub parquet: Option<PathBuf>,
+    /// The log's id in the Parquet files (default: the log file's name without extension).
+    #[arg(long)]
+    pub log_id: Option<String>,
     /// nuPlan output folder: `db/<log>.db` and `maps/` (needs --map).
     #[arg(long)]
     pub nuplan: Option<PathBuf>,
@@ -170,8 +177,13 @@ fn write(path: &Path, text: &str) -> Result<(), String> {
 
 /// `dash2sim export`.
 pub fn run(request: &ExportRequest) -> Result<(), String> {
-    if request.mcap.is_none() && request.tum.is_none() && request.geojson.is_none() && request.nuplan.is_none() {
-        return Err("nothing to export: give --mcap, --tum, --geojson and/or --nuplan".to_owned());
+    if request.mcap.is_none()
+        && request.tum.is_none()
+        && request.geojson.is_none()
+        && request.parquet.is_none()
+        && request.nuplan.is_none()
+    {
+        return Err("nothing to export: give --mcap, --tum, --geojson, --parquet and/or --nuplan".to_owned());
     }
     let log = read(&request.log).map_err(|e| e.to_string())?;
     if log.stats.damaged > 0 {
@@ -195,6 +207,13 @@ pub fn run(request: &ExportRequest) -> Result<(), String> {
         let g = geojson(&log)?;
         write(path, &g.to_string())?;
         println!("{}: {} features", path.display(), g["features"].as_array().map_or(0, Vec::len));
+    }
+    if let Some(dir) = &request.parquet {
+        let stem = request.log.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let id = request.log_id.clone().unwrap_or(stem);
+        let rows = super::parquet_export::write(&log, &id, dir)?;
+        let each: Vec<String> = rows.iter().map(|(name, n)| format!("{n} {name}")).collect();
+        println!("{}: {} (log id {id:?})", dir.display(), each.join(", "));
     }
     let map = request.map.as_deref().map(|p| map_tile(p, &log)).transpose()?;
     if let Some(dir) = &request.nuplan {
