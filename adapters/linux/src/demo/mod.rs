@@ -17,7 +17,7 @@
 //! 7. `export`: MCAP (Foxglove), TUM (evo), GeoJSON (QGIS) and the nuPlan database and map;
 //! 8. `plot` the drive.
 //!
-//! `--data DIR` runs the real recordings of a data folder instead ([`data`]).
+//! `--data DIR` runs the real recordings of a data folder instead ([`crate::recordings`]).
 //!
 //! The receiver is a good one (σ 1–2 m, errors correlated over 2 s, no multipath): with the
 //! generator's default phone-grade GNSS the anchorer rightly declines to commit within 40 s.
