@@ -321,7 +321,7 @@ pub fn run_stream(stream: &[u8], setup: &Setup) -> Result<Recording, String> {
 }
 
 /// The speed source the arguments name.
-fn speed_source(args: &RecordArgs) -> Result<Option<SpeedSource>, String> {
+fn speed_source(args: &RecordArgs, table: &SignalTable) -> Result<Option<SpeedSource>, String> {
     let Some(name) = &args.speed_signal else {
         let bus = !args.sources.can.is_empty()
             || args.replay.is_some()
@@ -338,8 +338,7 @@ fn speed_source(args: &RecordArgs) -> Result<Option<SpeedSource>, String> {
         "mph" => 0.44704,
         other => return Err(format!("--speed-unit {other:?}: expected km/h, m/s or mph")),
     };
-    let table = crate::can_decode::load_tables(&args.dbc)?;
-    let (frame, signal) = dbc_signal(&table, name, "--speed-signal")?;
+    let (frame, signal) = dbc_signal(table, name, "--speed-signal")?;
     Ok(Some(SpeedSource::Signal { frame, signal, to_mps }))
 }
 
@@ -363,10 +362,9 @@ fn dbc_signal(table: &SignalTable, name: &str, option: &str) -> Result<(FrameId,
 }
 
 /// `--gnss-signals`: `KEY=MESSAGE.SIGNAL` pairs, found in the DBC files.
-fn gnss_signals(args: &RecordArgs) -> Result<Option<GnssSignals>, String> {
+fn gnss_signals(args: &RecordArgs, table: &SignalTable) -> Result<Option<GnssSignals>, String> {
     const OPTION: &str = "--gnss-signals";
     let Some(text) = &args.gnss_signals else { return Ok(None) };
-    let table = crate::can_decode::load_tables(&args.dbc)?;
     let mut found: BTreeMap<&str, (FrameId, Signal)> = BTreeMap::new();
     for pair in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
         let (key, name) =
@@ -374,7 +372,7 @@ fn gnss_signals(args: &RecordArgs) -> Result<Option<GnssSignals>, String> {
         if !matches!(key, "lat" | "lon" | "valid" | "accuracy" | "time") {
             return Err(format!("{OPTION}: unknown key {key:?} (lat, lon, valid, accuracy, time)"));
         }
-        if found.insert(key, dbc_signal(&table, name, OPTION)?).is_some() {
+        if found.insert(key, dbc_signal(table, name, OPTION)?).is_some() {
             return Err(format!("{OPTION}: {key} given twice"));
         }
     }
@@ -497,7 +495,9 @@ fn setup_from_args(
     args: &RecordArgs,
     fallback: impl FnOnce(Option<&GnssSignals>) -> Result<Geodetic, String>,
 ) -> Result<Setup, String> {
-    let gnss_signals = gnss_signals(args)?;
+    // The DBC files, read once for both signal options.
+    let table = crate::can_decode::load_tables(&args.dbc)?;
+    let gnss_signals = gnss_signals(args, &table)?;
     let map = args.map.as_ref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
     let origin = match (&args.origin, &map) {
         (Some(text), _) => parse_origin(text)?,
@@ -516,7 +516,7 @@ fn setup_from_args(
             ModeArg::Gravity => AnchorMode::GravityAligned,
         },
         gnss: GnssErrorModel { uere_m: uere, ..GnssErrorModel::default() },
-        speed: speed_source(args)?,
+        speed: speed_source(args, &table)?,
         gnss_signals,
         map,
         device_id: device_id(&args.device_id)?,
@@ -657,7 +657,7 @@ mod tests {
             gnss_signals: Some(crate::recordings::css::GNSS_SIGNALS.to_owned()),
             ..RecordArgs::from_files(Path::new("out.d2slog"), Sources::default()).expect("defaults")
         };
-        let from_dbc = gnss_signals(&args);
+        let from_dbc = crate::can_decode::load_tables(&args.dbc).and_then(|table| gnss_signals(&args, &table));
         let _ = std::fs::remove_file(&path);
         assert_eq!(from_dbc.expect("signals"), GnssSignals::canmod_gps());
     }

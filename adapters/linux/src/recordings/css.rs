@@ -10,7 +10,8 @@
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::binlog::Record;
-use dash2sim_core::geo::{Geodetic, LocalFrame};
+use dash2sim_core::geo::Geodetic;
+use dash2sim_core::nalgebra::Vector3;
 use dash2sim_core::pipeline::Issue;
 use serde_json::{json, Value};
 
@@ -49,30 +50,40 @@ pub fn splits(dir: &Path) -> Vec<PathBuf> {
     files
 }
 
-/// Rows of a CSV with a header, and how many of them have `column` equal to `value`
-/// (every row when `column` is `None`).
-fn csv_rows(path: &Path, column: Option<(&str, &str)>) -> Result<usize, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
-    let Some((name, value)) = column else { return Ok(lines.count()) };
-    let i = header.iter().position(|h| *h == name).ok_or_else(|| format!("{}: no column {name}", path.display()))?;
-    Ok(lines.filter(|l| l.split(',').nth(i) == Some(value)).count())
+/// A reference CSV with a header: its rows split into cells, and a column's index by name.
+struct Csv {
+    path: PathBuf,
+    header: Vec<String>,
+    rows: Vec<Vec<String>>,
+}
+
+impl Csv {
+    fn read(path: &Path) -> Result<Self, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut lines = text.lines().map(|l| l.split(',').map(str::to_owned).collect::<Vec<_>>());
+        let header = lines.next().unwrap_or_default();
+        Ok(Csv { path: path.to_path_buf(), header, rows: lines.collect() })
+    }
+
+    fn column(&self, name: &str) -> Result<usize, String> {
+        self.header.iter().position(|h| h == name).ok_or_else(|| format!("{}: no column {name}", self.path.display()))
+    }
+
+    /// Rows whose `name` column is `value`.
+    fn count(&self, name: &str, value: &str) -> Result<usize, String> {
+        let i = self.column(name)?;
+        Ok(self.rows.iter().filter(|r| r.get(i).map(String::as_str) == Some(value)).count())
+    }
 }
 
 /// The module's own trip odometer at the end (the last valid `DistanceTrip`), m.
-fn odometer_m(path: &Path) -> Result<Option<f64>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
-    let column = |name: &str| {
-        header.iter().position(|h| *h == name).ok_or_else(|| format!("{}: no column {name}", path.display()))
-    };
-    let (valid, trip) = (column("DistanceValid")?, column("DistanceTrip")?);
-    Ok(lines.rev().find_map(|l| {
-        let v: Vec<&str> = l.split(',').collect();
-        (v.get(valid) == Some(&"1")).then(|| v.get(trip)?.parse().ok()).flatten()
-    }))
+fn odometer_m(odo: &Csv) -> Result<Option<f64>, String> {
+    let (valid, trip) = (odo.column("DistanceValid")?, odo.column("DistanceTrip")?);
+    Ok(odo
+        .rows
+        .iter()
+        .rev()
+        .find_map(|r| (r.get(valid).map(String::as_str) == Some("1")).then(|| r.get(trip)?.parse().ok()).flatten()))
 }
 
 /// Pearson correlation.
@@ -90,22 +101,16 @@ fn correlation(pairs: &[(f64, f64)]) -> f64 {
 
 /// The fixes' own speed (distance between consecutive fixes over their time, at the
 /// midpoint) against the OBD speeds of the log, interpolated at the OBD times: pairs of
-/// (fixes, OBD) in km/h.
-fn speed_pairs(records: &[Record], frame: &LocalFrame) -> Vec<(f64, f64)> {
-    let mut from_fixes: Vec<(f64, f64)> = Vec::new();
-    let mut last: Option<(f64, dash2sim_core::nalgebra::Vector3<f64>)> = None;
-    for r in records {
-        let Record::GnssFix(f) = r else { continue };
-        let Ok(g) = Geodetic::new(f.lat_e7 as f64 * 1e-7, f.lon_e7 as f64 * 1e-7, 0.0) else { continue };
-        let (t, p) = (f.t_us as f64 * 1e-6, frame.geodetic_to_enu(&g));
-        if let Some((t0, p0)) = last {
+/// (fixes, OBD) in km/h. `fixes` are (UTC s, ENU) in log order.
+fn speed_pairs(records: &[Record], fixes: &[(f64, Vector3<f64>)]) -> Vec<(f64, f64)> {
+    let from_fixes: Vec<(f64, f64)> = fixes
+        .windows(2)
+        .filter_map(|w| {
+            let ((t0, p0), (t, p)) = (w[0], w[1]);
             // Only fixes a second or so apart: a gap is not a speed.
-            if (0.5..=1.5).contains(&(t - t0)) {
-                from_fixes.push((0.5 * (t + t0), (p - p0).norm() / (t - t0) * 3.6));
-            }
-        }
-        last = Some((t, p));
-    }
+            (0.5..=1.5).contains(&(t - t0)).then(|| (0.5 * (t + t0), (p - p0).norm() / (t - t0) * 3.6))
+        })
+        .collect();
     let mut pairs = Vec::new();
     for r in records {
         let Record::VehicleSpeed(v) = r else { continue };
@@ -148,7 +153,7 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
         .iter()
         .filter_map(|r| if let Record::ClockOffset(c) = r { Some(-(c.offset_us as f64) * 1e-6) } else { None })
         .collect();
-    let fixes: Vec<(f64, dash2sim_core::nalgebra::Vector3<f64>)> = log
+    let fixes: Vec<(f64, Vector3<f64>)> = log
         .records
         .iter()
         .filter_map(|r| match r {
@@ -160,13 +165,14 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
         .collect();
     let distance_m: f64 = fixes.windows(2).map(|w| (w[1].1 - w[0].1).norm()).sum();
     let span_s = fixes.last().map_or(0.0, |l| l.0) - fixes.first().map_or(0.0, |f| f.0);
-    let pairs = speed_pairs(&log.records, &frame);
+    let pairs = speed_pairs(&log.records, &fixes);
     let mean_abs = pairs.iter().map(|(a, b)| (a - b).abs()).sum::<f64>() / pairs.len().max(1) as f64;
 
     write(&out.join("drive.geojson"), logfile::export::geojson(&log)?.to_string())?;
     logfile::mcap_export::write(&log, None, &out.join("drive.mcap"), None)?;
 
-    let expected = |name: &str| dir.join("expected").join(format!("3BA199E2_session164.{name}.csv"));
+    let expected = |name: &str| Csv::read(&dir.join("expected").join(format!("3BA199E2_session164.{name}.csv")));
+    let (positions, odo) = (expected("gnss_pos")?, expected("gnss_odo")?);
     let file = |name: &str| out.join(name).display().to_string();
     Ok(json!({
         "name": "css",
@@ -177,16 +183,16 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
         "recording": {
             "pipeline": record::summary(&recording),
             "fixes": recording.stats.fixes,
-            "fixes_valid_by_cantools": csv_rows(&expected("gnss_pos"), Some(("PositionValid", "1")))?,
+            "fixes_valid_by_cantools": positions.count("PositionValid", "1")?,
             "positions_without_fix": recording.issues.get(Issue::GnssNoPosition),
-            "positions_without_fix_by_cantools": csv_rows(&expected("gnss_pos"), Some(("PositionValid", "0")))?,
+            "positions_without_fix_by_cantools": positions.count("PositionValid", "0")?,
             "speeds": recording.stats.speeds,
-            "speeds_in_reference": csv_rows(&expected("obd_pid0d_speed"), None)?,
+            "speeds_in_reference": expected("obd_pid0d_speed")?.rows.len(),
             "log_bytes": log.bytes,
             "bytes_per_minute": log.bytes as f64 / (span_s / 60.0),
         },
         "drive": {"duration_s": span_s, "distance_km": distance_m * 1e-3,
-                  "module_odometer_km": odometer_m(&expected("gnss_odo"))?.map(|m| m * 1e-3)},
+                  "module_odometer_km": odometer_m(&odo)?.map(|m| m * 1e-3)},
         "clock": {
             "logger_minus_gnss_first_s": offsets.first(),
             "logger_minus_gnss_last_s": offsets.last(),
