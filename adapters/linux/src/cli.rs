@@ -239,6 +239,10 @@ enum ScenarioCommand {
     /// frame rate, and optionally the GNSS receiver's NMEA and the wheel-speed CAN frames
     /// to a serial device, FIFO or file (docs/bridge.md). Prints `N frames published`.
     Publish(crate::scenario::publish::PublishArgs),
+    /// Generate a corpus of device logs as a fleet uploads them: drives of several seeds,
+    /// lengths, regions and drivers recorded through the pipeline, each with its map tile,
+    /// some damaged on purpose (docs/fleet.md).
+    Corpus(crate::scenario::corpus::CorpusArgs),
     /// Run the 3D track manager over a generated drive and judge it: MOTA/IDF1 at 2 m,
     /// position RMSE of detections, filtered and smoothed tracks, static/dynamic accuracy.
     Eval {
@@ -384,6 +388,7 @@ pub fn run() -> ExitCode {
         Command::Scenario(ScenarioCommand::Publish(args)) => {
             crate::scenario::publish::run(&args).map(|n| println!("{n} frames published"))
         }
+        Command::Scenario(ScenarioCommand::Corpus(args)) => crate::scenario::corpus::run(&args),
         Command::Scenario(ScenarioCommand::Eval { seed, duration, max_age, json }) => {
             crate::scenario::command::run_eval(seed, duration, max_age, json)
         }

@@ -289,8 +289,9 @@ pub fn report_json(v: &Verification, channel_sensitive: bool) -> serde_json::Val
     })
 }
 
-/// `dash2sim verify`.
-pub fn run(request: &VerifyRequest<'_>, as_json: bool) -> Result<(), String> {
+/// Replay the request's ego trajectory against its map (the command line and the Python
+/// package's `verify`): the verification, and the ego's source for messages.
+pub fn evaluate<'a>(request: &VerifyRequest<'a>) -> Result<(Verification, &'a Path), String> {
     let bytes = std::fs::read(request.map).map_err(|e| format!("{}: {e}", request.map.display()))?;
     let map = MapView::parse(&bytes).map_err(|e| format!("{}: {e}", request.map.display()))?;
     let (poses, mut objects, name) = match request.ego {
@@ -312,6 +313,12 @@ pub fn run(request: &VerifyRequest<'_>, as_json: bool) -> Result<(), String> {
     if let Some(path) = request.poses {
         std::fs::write(path, poses_csv(&v.steps)).map_err(|e| format!("{}: {e}", path.display()))?;
     }
+    Ok((v, name))
+}
+
+/// `dash2sim verify`.
+pub fn run(request: &VerifyRequest<'_>, as_json: bool) -> Result<(), String> {
+    let (v, name) = evaluate(request)?;
     if as_json {
         println!("{}", report_json(&v, request.channel_sensitive));
         return Ok(());

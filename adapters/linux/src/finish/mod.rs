@@ -369,8 +369,24 @@ pub fn mean_scale(s: &Solution) -> f64 {
     }
 }
 
-/// `dash2sim finish`.
+/// `dash2sim finish`: [`finish_file`], the refused anchors on stderr, the report on stdout.
 pub fn run(args: &FinishArgs) -> Result<(), String> {
+    let report = finish_file(args)?;
+    let file = report["anchors"]["file"].as_str().unwrap_or_default();
+    for refused in report["anchors"]["refused"].as_array().into_iter().flatten() {
+        eprintln!("{file}:{}: {}", refused["line"], refused["reason"].as_str().unwrap_or_default());
+    }
+    if args.json {
+        println!("{report}");
+    } else {
+        print_report(&report);
+    }
+    Ok(())
+}
+
+/// Finish the log at `args.log` into `args.output` (the command line and the Python
+/// package's `finish`): the report (`--json`) with the output's path and size.
+pub fn finish_file(args: &FinishArgs) -> Result<Value, String> {
     if !(args.keyframe.is_finite() && (0.05..=10.0).contains(&args.keyframe)) {
         return Err(format!("--keyframe {} must be between 0.05 and 10 s", args.keyframe));
     }
@@ -379,9 +395,6 @@ pub fn run(args: &FinishArgs) -> Result<(), String> {
     let name = args.log.display().to_string();
     let anchor_file = args.anchors.as_deref().map(anchors::read).transpose()?;
     let anchor_name = args.anchors.as_deref().map(Path::display).map(|d| d.to_string());
-    for (line, why) in anchor_file.iter().flat_map(|f| &f.refused) {
-        eprintln!("{}:{line}: {why}", anchor_name.as_deref().unwrap_or_default());
-    }
     let map = args.map.as_deref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
     let settings = Settings {
         keyframe_s: args.keyframe,
@@ -393,24 +406,20 @@ pub fn run(args: &FinishArgs) -> Result<(), String> {
     let header = log.header.unwrap_or(Header { device_id: [0; 16], origin: [0; 3] });
     let bytes = logfile::import::encode_in_order(&header, &finished.records)?;
     std::fs::write(&args.output, &bytes).map_err(|e| format!("{}: {e}", args.output.display()))?;
-    if args.json {
-        let mut report = finished.report;
-        report["output"] = json!(args.output.display().to_string());
-        report["bytes"] = json!(bytes.len());
-        println!("{report}");
-        return Ok(());
-    }
-    print_report(&finished.report, &args.output, bytes.len());
-    Ok(())
+    let mut report = finished.report;
+    report["output"] = json!(args.output.display().to_string());
+    report["bytes"] = json!(bytes.len());
+    Ok(report)
 }
 
-fn print_report(r: &Value, output: &Path, bytes: usize) {
+fn print_report(r: &Value) {
     let a = &r["anchoring"];
     println!(
-        "{} → {} ({} records, {bytes} bytes)",
+        "{} → {} ({} records, {} bytes)",
         r["log"].as_str().unwrap_or_default(),
-        output.display(),
-        r["records"]
+        r["output"].as_str().unwrap_or_default(),
+        r["records"],
+        r["bytes"]
     );
     println!(
         "  anchoring     {} keyframes, {} iterations: scale {:.6} ± {:.4} %, positions ± {:.2} m, GNSS latency {:.0} ms, wheel factor {:.4}",

@@ -175,8 +175,29 @@ fn write(path: &Path, text: &str) -> Result<(), String> {
     std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))
 }
 
-/// `dash2sim export`.
+/// What [`export`] wrote: one line per output, and a warning when the log was damaged.
+#[derive(Debug, Default)]
+pub struct Exported {
+    /// What was skipped while reading the log, if anything.
+    pub warning: Option<String>,
+    /// One line per output written: its path and what it holds.
+    pub written: Vec<String>,
+}
+
+/// `dash2sim export`: print what [`export`] wrote.
 pub fn run(request: &ExportRequest) -> Result<(), String> {
+    let exported = export(request)?;
+    if let Some(warning) = &exported.warning {
+        eprintln!("warning: {warning}");
+    }
+    for line in &exported.written {
+        println!("{line}");
+    }
+    Ok(())
+}
+
+/// Export a log as `request` says (the command line and the Python package's `export`).
+pub fn export(request: &ExportRequest) -> Result<Exported, String> {
     if request.mcap.is_none()
         && request.tum.is_none()
         && request.geojson.is_none()
@@ -186,14 +207,15 @@ pub fn run(request: &ExportRequest) -> Result<(), String> {
         return Err("nothing to export: give --mcap, --tum, --geojson, --parquet and/or --nuplan".to_owned());
     }
     let log = read(&request.log).map_err(|e| e.to_string())?;
+    let mut exported = Exported::default();
     if log.stats.damaged > 0 {
-        eprintln!(
-            "warning: {}: {} damaged stretches ({} bytes) skipped; exporting the {} intact records",
+        exported.warning = Some(format!(
+            "{}: {} damaged stretches ({} bytes) skipped; exporting the {} intact records",
             request.log.display(),
             log.stats.damaged,
             log.stats.damaged_bytes,
             log.records.len()
-        );
+        ));
     }
     if let Some(path) = &request.tum {
         let n = ego_poses(&log).count();
@@ -201,19 +223,19 @@ pub fn run(request: &ExportRequest) -> Result<(), String> {
             return Err(format!("{}: no ego poses to write as TUM", request.log.display()));
         }
         write(path, &tum(&log))?;
-        println!("{}: {n} ego poses", path.display());
+        exported.written.push(format!("{}: {n} ego poses", path.display()));
     }
     if let Some(path) = &request.geojson {
         let g = geojson(&log)?;
         write(path, &g.to_string())?;
-        println!("{}: {} features", path.display(), g["features"].as_array().map_or(0, Vec::len));
+        exported.written.push(format!("{}: {} features", path.display(), g["features"].as_array().map_or(0, Vec::len)));
     }
     if let Some(dir) = &request.parquet {
         let stem = request.log.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         let id = request.log_id.clone().unwrap_or(stem);
         let rows = super::parquet_export::write(&log, &id, dir)?;
         let each: Vec<String> = rows.iter().map(|(name, n)| format!("{n} {name}")).collect();
-        println!("{}: {} (log id {id:?})", dir.display(), each.join(", "));
+        exported.written.push(format!("{}: {} (log id {id:?})", dir.display(), each.join(", ")));
     }
     let map = request.map.as_deref().map(|p| map_tile(p, &log)).transpose()?;
     if let Some(dir) = &request.nuplan {
@@ -233,7 +255,7 @@ pub fn run(request: &ExportRequest) -> Result<(), String> {
             scene_s: request.scenario_seconds,
         })?;
         let layers: Vec<String> = out.layers.iter().filter(|l| l.1 > 0).map(|(n, c)| format!("{c} {n}")).collect();
-        println!(
+        exported.written.push(format!(
             "{}: {} ego states at 20 Hz, {} scenes (EPSG:{}); map {} `{name}`: {} ({:.2} s)",
             out.db.display(),
             out.ego_states,
@@ -242,7 +264,7 @@ pub fn run(request: &ExportRequest) -> Result<(), String> {
             out.gpkg.display(),
             layers.join(", "),
             started.elapsed().as_secs_f64()
-        );
+        ));
     }
     if let Some(path) = &request.mcap {
         let view =
@@ -250,7 +272,7 @@ pub fn run(request: &ExportRequest) -> Result<(), String> {
         let counts = super::mcap_export::write(&log, view.as_ref(), path, None)?;
         let total: u64 = counts.values().sum();
         let detail: Vec<String> = counts.iter().map(|(topic, n)| format!("{n} {topic}")).collect();
-        println!("{}: {total} messages ({})", path.display(), detail.join(", "));
+        exported.written.push(format!("{}: {total} messages ({})", path.display(), detail.join(", ")));
     }
-    Ok(())
+    Ok(exported)
 }

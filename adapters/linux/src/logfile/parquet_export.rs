@@ -13,6 +13,7 @@ use arrow_array::{
 use arrow_schema::{DataType, Field, Schema, TimeUnit};
 use dash2sim_core::binlog::Record;
 use dash2sim_core::geo::Geodetic;
+use arrow_ipc::writer::StreamWriter;
 use parquet::arrow::ArrowWriter;
 use parquet::basic::{Compression, ZstdLevel};
 use parquet::file::metadata::KeyValue;
@@ -78,21 +79,44 @@ impl Table {
         self
     }
 
-    /// Write the table to `path` with `metadata`; the number of rows.
-    fn write(self, path: &Path, metadata: &[KeyValue]) -> Result<usize, String> {
-        let at = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
-        let schema = Arc::new(Schema::new(self.fields));
-        let batch = RecordBatch::try_new(schema.clone(), self.arrays).map_err(|e| at(&e))?;
-        let properties = WriterProperties::builder()
-            .set_compression(Compression::ZSTD(ZstdLevel::default()))
-            .set_key_value_metadata(Some(metadata.to_vec()))
-            .build();
-        let file = std::fs::File::create(path).map_err(|e| at(&e))?;
-        let mut writer = ArrowWriter::try_new(file, schema, Some(properties)).map_err(|e| at(&e))?;
-        writer.write(&batch).map_err(|e| at(&e))?;
-        writer.close().map_err(|e| at(&e))?;
-        Ok(batch.num_rows())
+    fn batch(self) -> Result<RecordBatch, String> {
+        RecordBatch::try_new(Arc::new(Schema::new(self.fields)), self.arrays).map_err(|e| e.to_string())
     }
+}
+
+/// A log as Arrow tables: the metadata every file carries, and one batch per record kind
+/// in [`TABLES`] order.
+#[derive(Debug)]
+pub struct LogTables {
+    /// `dash2sim.schema_version`, `dash2sim.log_id`, `dash2sim.device_id`, `dash2sim.origin`.
+    pub metadata: Vec<(String, String)>,
+    /// The tables, named as in [`TABLES`].
+    pub tables: Vec<(&'static str, RecordBatch)>,
+}
+
+/// Write `batch` to `path` as Parquet (zstd) with `metadata` as the file's key-value metadata.
+fn write_parquet(path: &Path, batch: &RecordBatch, metadata: &[(String, String)]) -> Result<(), String> {
+    let at = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let metadata = metadata.iter().map(|(k, v)| KeyValue::new(k.clone(), v.clone())).collect();
+    let properties = WriterProperties::builder()
+        .set_compression(Compression::ZSTD(ZstdLevel::default()))
+        .set_key_value_metadata(Some(metadata))
+        .build();
+    let file = std::fs::File::create(path).map_err(|e| at(&e))?;
+    let mut writer = ArrowWriter::try_new(file, batch.schema(), Some(properties)).map_err(|e| at(&e))?;
+    writer.write(batch).map_err(|e| at(&e))?;
+    writer.close().map_err(|e| at(&e))?;
+    Ok(())
+}
+
+/// `batch` as an Arrow IPC stream with `metadata` on its schema: the form a Python caller
+/// reads without a copy through `pyarrow.ipc.open_stream`.
+pub fn ipc_stream(batch: &RecordBatch, metadata: &[(String, String)]) -> Result<Vec<u8>, String> {
+    let schema = batch.schema().as_ref().clone().with_metadata(metadata.iter().cloned().collect::<std::collections::HashMap<String, String>>());
+    let batch = batch.clone().with_schema(Arc::new(schema.clone())).map_err(|e| e.to_string())?;
+    let mut writer = StreamWriter::try_new(Vec::new(), &schema).map_err(|e| e.to_string())?;
+    writer.write(&batch).map_err(|e| e.to_string())?;
+    writer.into_inner().map_err(|e| e.to_string())
 }
 
 /// The rows of one record kind.
@@ -121,23 +145,33 @@ fn speed_source(code: i64) -> String {
 
 /// Write `log` as Parquet files into `dir` (created); rows per table, in [`TABLES`] order.
 pub fn write(log: &LogContents, log_id: &str, dir: &Path) -> Result<Vec<(&'static str, usize)>, String> {
+    let tables = tables(log, log_id)?;
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let mut written = Vec::new();
+    for (name, batch) in &tables.tables {
+        write_parquet(&dir.join(format!("{name}.parquet")), batch, &tables.metadata)?;
+        written.push((*name, batch.num_rows()));
+    }
+    Ok(written)
+}
+
+/// `log` as Arrow tables, `log_id` in every row.
+pub fn tables(log: &LogContents, log_id: &str) -> Result<LogTables, String> {
     let header = log.header.ok_or("the log's header is damaged: no origin to place it")?;
     let frame = super::frame(&header).ok_or("the header's origin is not a position")?;
     let [lat0, lon0, h0] =
         [header.origin[0] as f64 * 1e-7, header.origin[1] as f64 * 1e-7, header.origin[2] as f64 * 1e-3];
     let device = String::from_utf8_lossy(&header.device_id).trim_end_matches('\0').to_owned();
-    let metadata: Vec<KeyValue> = [
+    let metadata: Vec<(String, String)> = [
         ("dash2sim.schema_version", SCHEMA_VERSION.to_owned()),
         ("dash2sim.log_id", log_id.to_owned()),
         ("dash2sim.device_id", device),
         ("dash2sim.origin", format!("{lat0},{lon0},{h0}")),
     ]
     .into_iter()
-    .map(|(k, v)| KeyValue::new(k.to_owned(), v))
+    .map(|(k, v)| (k.to_owned(), v))
     .collect();
-    let path = |name: &str| dir.join(format!("{name}.parquet"));
-    let mut written = Vec::new();
+    let mut batches = Vec::new();
 
     let ego = rows(log, |r| if let Record::EgoPose(p) = r { Some(p) } else { None });
     let geodetic: Vec<Option<Geodetic>> = column(&ego, |p| {
@@ -151,7 +185,7 @@ pub fn write(log: &LogContents, log_id: &str, dir: &Path) -> Result<Vec<(&'stati
         .f64("heading_rad", column(&ego, |p| p.yaw_e4 as f64 * 1e-4))
         .f64_or_null("lat_deg", geodetic.iter().map(|g| g.map(|g| g.lat_deg)).collect())
         .f64_or_null("lon_deg", geodetic.iter().map(|g| g.map(|g| g.lon_deg)).collect());
-    written.push(("ego", table.write(&path("ego"), &metadata)?));
+    batches.push(("ego", table.batch()?));
 
     let fixes = rows(log, |r| if let Record::GnssFix(f) = r { Some(f) } else { None });
     let table = Table::new(log_id, column(&fixes, |f| f.t_us))
@@ -163,13 +197,13 @@ pub fn write(log: &LogContents, log_id: &str, dir: &Path) -> Result<Vec<(&'stati
         .f64_or_null("hdop", column(&fixes, |f| or_null(f.hdop_e2, 1e-2)))
         .i64_or_null("satellites", column(&fixes, |f| (f.satellites >= 0).then_some(f.satellites)))
         .i64("mode", column(&fixes, |f| f.mode));
-    written.push(("gnss", table.write(&path("gnss"), &metadata)?));
+    batches.push(("gnss", table.batch()?));
 
     let speeds = rows(log, |r| if let Record::VehicleSpeed(v) = r { Some(v) } else { None });
     let table = Table::new(log_id, column(&speeds, |v| v.t_us))
         .f64("speed_mps", column(&speeds, |v| v.speed_mm_s as f64 * 1e-3))
         .text("source", column(&speeds, |v| speed_source(v.source)));
-    written.push(("speed", table.write(&path("speed"), &metadata)?));
+    batches.push(("speed", table.batch()?));
 
     let anchors = rows(log, |r| if let Record::AnchorEstimate(a) = r { Some(a) } else { None });
     let table = Table::new(log_id, column(&anchors, |a| a.t_us))
@@ -183,7 +217,7 @@ pub fn write(log: &LogContents, log_id: &str, dir: &Path) -> Result<Vec<(&'stati
         .i64("observability", column(&anchors, |a| a.observability))
         .i64("anchors", column(&anchors, |a| a.anchors))
         .f64("rms_m", column(&anchors, |a| a.rms_mm as f64 * 1e-3));
-    written.push(("anchors", table.write(&path("anchors"), &metadata)?));
+    batches.push(("anchors", table.batch()?));
 
     let states: Vec<(i64, &dash2sim_core::binlog::Track3d)> = tracks(log).collect();
     let track =
@@ -202,7 +236,7 @@ pub fn write(log: &LogContents, log_id: &str, dir: &Path) -> Result<Vec<(&'stati
         .f64("vx_mps", track(|s| s.vx_mm_s as f64 * 1e-3))
         .f64("vy_mps", track(|s| s.vy_mm_s as f64 * 1e-3))
         .bool("is_static", states.iter().map(|(_, s)| s.is_static != 0).collect());
-    written.push(("tracks3d", table.write(&path("tracks3d"), &metadata)?));
+    batches.push(("tracks3d", table.batch()?));
 
     let windows = rows(log, |r| if let Record::Verification(v) = r { Some(v) } else { None });
     let metric = |f: fn(&dash2sim_core::binlog::Verification) -> i64| -> Vec<f64> {
@@ -220,12 +254,12 @@ pub fn write(log: &LogContents, log_id: &str, dir: &Path) -> Result<Vec<(&'stati
         .f64("speed_limit_compliance", metric(|v| v.speed_limit_e4))
         .f64("ego_is_comfortable", metric(|v| v.comfort_e4))
         .f64("worst_corner_outside_m", column(&windows, |v| v.worst_corner_mm as f64 * 1e-3));
-    written.push(("verification", table.write(&path("verification"), &metadata)?));
+    batches.push(("verification", table.batch()?));
 
     let events = rows(log, |r| if let Record::Event(e) = r { Some(e) } else { None });
     let table = Table::new(log_id, column(&events, |e| e.t_us))
         .i64("level", column(&events, |e| i64::from(e.level)))
         .text("text", column(&events, |e| String::from_utf8_lossy(&e.text).into_owned()));
-    written.push(("events", table.write(&path("events"), &metadata)?));
-    Ok(written)
+    batches.push(("events", table.batch()?));
+    Ok(LogTables { metadata, tables: batches })
 }

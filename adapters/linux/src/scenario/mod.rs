@@ -17,6 +17,7 @@
 
 pub mod actors;
 pub mod command;
+pub mod corpus;
 pub mod evaluate;
 pub mod judge;
 pub mod publish;

@@ -1,0 +1,166 @@
+//! `dash2sim._native`: the Rust side of the dash2sim Python package.
+//!
+//! A thin layer: each function calls the same library function as the command line
+//! (`dash2sim finish`, `verify`, `export`, `inspect`), so a verdict from Python is the
+//! command line's verdict on the same log. Every call releases the GIL while Rust works,
+//! so Python threads (and Dask's threaded workers) run logs side by side. Errors come back
+//! as `dash2sim.Dash2SimError` carrying the Rust message. Reports cross as JSON text and
+//! tables as Arrow IPC streams; `python/dash2sim/__init__.py` turns them into `dict`s and
+//! `pyarrow.Table`s, so this module needs no Python-side types of its own.
+
+use std::path::PathBuf;
+
+use dash2sim_core::obb::{Footprint, PACIFICA};
+use dash2sim_linux::finish::FinishArgs;
+use dash2sim_linux::logfile::{self, export::ExportRequest, parquet_export};
+use dash2sim_linux::record::{DeviceArgs, ModeArg};
+use dash2sim_linux::verify::{EgoSource, VerifyRequest};
+use pyo3::create_exception;
+use pyo3::exceptions::PyException;
+use pyo3::prelude::*;
+use pyo3::types::PyBytes;
+
+create_exception!(
+    _native,
+    Dash2SimError,
+    PyException,
+    "An error from dash2sim: the message is the command line's, naming the file and what was wrong."
+);
+
+fn error(message: String) -> PyErr {
+    Dash2SimError::new_err(message)
+}
+
+/// The log's id: `log_id` if given, else the file's name without its extension (as
+/// `dash2sim export --parquet` does).
+fn id_of(path: &std::path::Path, log_id: Option<String>) -> String {
+    log_id.unwrap_or_else(|| path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default())
+}
+
+/// Read a log into Arrow IPC streams, one per record kind: `[(name, stream bytes)]`.
+#[pyfunction]
+#[pyo3(signature = (path, log_id = None))]
+fn read_log(py: Python<'_>, path: PathBuf, log_id: Option<String>) -> PyResult<Vec<(String, Py<PyBytes>)>> {
+    let streams = py
+        .detach(|| -> Result<Vec<(&'static str, Vec<u8>)>, String> {
+            let log = logfile::read(&path).map_err(|e| e.to_string())?;
+            let tables = parquet_export::tables(&log, &id_of(&path, log_id))?;
+            tables
+                .tables
+                .iter()
+                .map(|(name, batch)| Ok((*name, parquet_export::ipc_stream(batch, &tables.metadata)?)))
+                .collect()
+        })
+        .map_err(error)?;
+    Ok(streams.into_iter().map(|(name, bytes)| (name.to_owned(), PyBytes::new(py, &bytes).unbind())).collect())
+}
+
+/// What a log holds (`dash2sim inspect --json`), as JSON text.
+#[pyfunction]
+fn inspect(py: Python<'_>, path: PathBuf) -> PyResult<String> {
+    py.detach(|| {
+        let log = logfile::read(&path).map_err(|e| e.to_string())?;
+        Ok(logfile::inspect::report(&log).to_string())
+    })
+    .map_err(error)
+}
+
+/// Finish a log (`dash2sim finish --json`): the report as JSON text.
+#[pyfunction]
+#[pyo3(signature = (log, output, map = None, anchors = None, mount = "1.8,0,1.3".to_owned(), mode = "gravity", uere = 2.5, keyframe = 0.5))]
+#[allow(clippy::too_many_arguments)]
+fn finish(
+    py: Python<'_>,
+    log: PathBuf,
+    output: PathBuf,
+    map: Option<PathBuf>,
+    anchors: Option<PathBuf>,
+    mount: String,
+    mode: &str,
+    uere: f64,
+    keyframe: f64,
+) -> PyResult<String> {
+    let mode = match mode {
+        "gravity" => ModeArg::Gravity,
+        "full" => ModeArg::Full,
+        other => return Err(error(format!("mode {other:?}: give \"gravity\" or \"full\""))),
+    };
+    let args = FinishArgs { log, output, anchors, map, device: DeviceArgs { mount, mode, uere }, keyframe, json: true };
+    py.detach(|| dash2sim_linux::finish::finish_file(&args)).map(|report| report.to_string()).map_err(error)
+}
+
+/// Replay a log's ego against a map tile and score it (`dash2sim verify --json`).
+#[pyfunction]
+#[pyo3(signature = (log, map, channel_sensitive = false, start = None, end = None, footprint = None))]
+fn verify(
+    py: Python<'_>,
+    log: PathBuf,
+    map: PathBuf,
+    channel_sensitive: bool,
+    start: Option<f64>,
+    end: Option<f64>,
+    footprint: Option<(f64, f64, f64)>,
+) -> PyResult<String> {
+    let footprint = footprint.map_or(PACIFICA, |(width, front, rear)| Footprint { width, front, rear });
+    if !(footprint.width > 0.0 && footprint.front + footprint.rear > 0.0) {
+        return Err(error("footprint: the width and front + rear must be positive".to_owned()));
+    }
+    let request = VerifyRequest {
+        map: &map,
+        ego: EgoSource::Log(&log),
+        objects: None,
+        channel_sensitive,
+        footprint,
+        poses: None,
+        window: (start.unwrap_or(f64::NEG_INFINITY), end.unwrap_or(f64::INFINITY)),
+    };
+    py.detach(|| {
+        let (verification, _) = dash2sim_linux::verify::evaluate(&request)?;
+        Ok(dash2sim_linux::verify::report_json(&verification, channel_sensitive).to_string())
+    })
+    .map_err(error)
+}
+
+/// Export a log (`dash2sim export`): a warning if the log was damaged, and a line per output.
+#[pyfunction]
+#[pyo3(signature = (log, parquet = None, log_id = None, tum = None, geojson = None, mcap = None, nuplan = None, map = None))]
+#[allow(clippy::too_many_arguments)]
+fn export(
+    py: Python<'_>,
+    log: PathBuf,
+    parquet: Option<PathBuf>,
+    log_id: Option<String>,
+    tum: Option<PathBuf>,
+    geojson: Option<PathBuf>,
+    mcap: Option<PathBuf>,
+    nuplan: Option<PathBuf>,
+    map: Option<PathBuf>,
+) -> PyResult<(Option<String>, Vec<String>)> {
+    let request = ExportRequest {
+        log,
+        mcap,
+        tum,
+        geojson,
+        parquet,
+        log_id,
+        nuplan,
+        map,
+        scenario_seconds: 5.0,
+        map_name: None,
+    };
+    let exported = py.detach(|| logfile::export::export(&request)).map_err(error)?;
+    Ok((exported.warning, exported.written))
+}
+
+/// The module `dash2sim._native`.
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("Dash2SimError", m.py().get_type::<Dash2SimError>())?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_function(wrap_pyfunction!(read_log, m)?)?;
+    m.add_function(wrap_pyfunction!(inspect, m)?)?;
+    m.add_function(wrap_pyfunction!(finish, m)?)?;
+    m.add_function(wrap_pyfunction!(verify, m)?)?;
+    m.add_function(wrap_pyfunction!(export, m)?)?;
+    Ok(())
+}
