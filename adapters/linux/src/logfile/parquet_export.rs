@@ -10,10 +10,10 @@ use std::sync::Arc;
 use arrow_array::{
     ArrayRef, BooleanArray, Float64Array, Int64Array, RecordBatch, StringArray, TimestampMicrosecondArray,
 };
+use arrow_ipc::writer::StreamWriter;
 use arrow_schema::{DataType, Field, Schema, TimeUnit};
 use dash2sim_core::binlog::Record;
 use dash2sim_core::geo::Geodetic;
-use arrow_ipc::writer::StreamWriter;
 use parquet::arrow::ArrowWriter;
 use parquet::basic::{Compression, ZstdLevel};
 use parquet::file::metadata::KeyValue;
@@ -112,7 +112,11 @@ fn write_parquet(path: &Path, batch: &RecordBatch, metadata: &[(String, String)]
 /// `batch` as an Arrow IPC stream with `metadata` on its schema: the form a Python caller
 /// reads without a copy through `pyarrow.ipc.open_stream`.
 pub fn ipc_stream(batch: &RecordBatch, metadata: &[(String, String)]) -> Result<Vec<u8>, String> {
-    let schema = batch.schema().as_ref().clone().with_metadata(metadata.iter().cloned().collect::<std::collections::HashMap<String, String>>());
+    let schema = batch
+        .schema()
+        .as_ref()
+        .clone()
+        .with_metadata(metadata.iter().cloned().collect::<std::collections::HashMap<String, String>>());
     let batch = batch.clone().with_schema(Arc::new(schema.clone())).map_err(|e| e.to_string())?;
     let mut writer = StreamWriter::try_new(Vec::new(), &schema).map_err(|e| e.to_string())?;
     writer.write(&batch).map_err(|e| e.to_string())?;

@@ -37,8 +37,11 @@ pub struct CorpusArgs {
 }
 
 /// Where the drives are: the synthetic road is placed at each origin in turn.
-const REGIONS: [(&str, [f64; 3]); 3] =
-    [("helsinki", [60.2711, 24.8572, 20.0]), ("tampere", [61.4978, 23.7610, 110.0]), ("oulu", [65.0121, 25.4651, 15.0])];
+const REGIONS: [(&str, [f64; 3]); 3] = [
+    ("helsinki", [60.2711, 24.8572, 20.0]),
+    ("tampere", [61.4978, 23.7610, 110.0]),
+    ("oulu", [65.0121, 25.4651, 15.0]),
+];
 
 /// Lengths of the drives, s, in turn.
 const DURATIONS: [f64; 4] = [20.0, 30.0, 40.0, 50.0];
@@ -88,7 +91,7 @@ struct Plan {
 }
 
 fn plan(args: &CorpusArgs, i: usize) -> Plan {
-    let damaged = args.damaged_every > 0 && (i + 1) % args.damaged_every == 0;
+    let damaged = args.damaged_every > 0 && (i + 1).is_multiple_of(args.damaged_every);
     Plan {
         name_index: i + 1,
         seed: args.first_seed + i as u64,
@@ -128,7 +131,8 @@ fn make(plan: &Plan, out: &Path) -> Result<Value, String> {
     let recording = record::run_stream(&stream, &Setup::work_zone(geodetic, Some(tile.clone()), device_id))?;
     std::fs::remove_dir_all(&work).map_err(|e| format!("{}: {e}", work.display()))?;
     let log = damaged(recording.log, plan);
-    let write = |path: PathBuf, bytes: &[u8]| std::fs::write(&path, bytes).map_err(|e| format!("{}: {e}", path.display()));
+    let write =
+        |path: PathBuf, bytes: &[u8]| std::fs::write(&path, bytes).map_err(|e| format!("{}: {e}", path.display()));
     write(out.join(format!("{name}.d2slog")), &log)?;
     if plan.damage != Some(Damage::NoMap) {
         write(out.join(format!("{name}.map")), &tile)?;
@@ -189,7 +193,7 @@ pub fn run(args: &CorpusArgs) -> Result<(), String> {
                         .map(|p| {
                             let entry = make(p, out);
                             let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                            if !args.quiet && (n % 25 == 0 || n == args.logs) {
+                            if !args.quiet && (n.is_multiple_of(25) || n == args.logs) {
                                 eprintln!("{n} of {} logs written", args.logs);
                             }
                             entry
@@ -206,7 +210,12 @@ pub fn run(args: &CorpusArgs) -> Result<(), String> {
     let path = args.output.join("corpus.json");
     let text = serde_json::to_string_pretty(&json!({"logs": entries})).map_err(|e| e.to_string())?;
     std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
-    println!("{}: {} logs ({damaged} damaged on purpose), listed in {}", args.output.display(), args.logs, path.display());
+    println!(
+        "{}: {} logs ({damaged} damaged on purpose), listed in {}",
+        args.output.display(),
+        args.logs,
+        path.display()
+    );
     Ok(())
 }
 
