@@ -4,9 +4,10 @@ Given a folder of device logs (``*.d2slog``, searched recursively) the job finis
 verifies each log on a Dask cluster — a local one it starts, or an existing one by its
 scheduler address — and writes:
 
-``OUT/dataset/<table>/date=YYYY-MM-DD/region=<geohash>/verified=<true|false>/<log_id>.parquet``
+``OUT/dataset/<table>/date=YYYY-MM-DD/region=<geohash>/verdict=<verified|rejected>/<log_id>.parquet``
     each finished log's tables (docs/parquet.md), Hive-partitioned by the UTC date of the
-    log's start, the geohash (4 characters, about 40 × 20 km) of its origin and its verdict;
+    log's start, the geohash (4 characters, about 40 × 20 km) of its origin and its verdict
+    (``verdict``, not ``verified``: the verification table has a ``verified`` column per window);
 ``OUT/finished/<log_id>.d2slog``
     the finished logs;
 ``OUT/_manifest/<log_id>.json``
@@ -110,10 +111,17 @@ class CorpusResult:
     rejected: int
     failed: int
     seconds: float
+    #: Of ``seconds``, starting the cluster (or connecting to it) and stopping it.
+    cluster_seconds: float
     workers: int
     manifest: Path
 
     def summary(self) -> str:
+        if self.processed == 0:
+            return (
+                f"{self.logs} logs, all done before: nothing to do; {self.verified} verified, "
+                f"{self.rejected} rejected, {self.failed} failed in the manifest"
+            )
         rate = self.processed / self.seconds / max(self.workers, 1) if self.seconds > 0 else 0.0
         return (
             f"{self.logs} logs: {self.processed} processed, {self.skipped} skipped (already done); "
@@ -179,7 +187,7 @@ def _finish_and_export(task: Task, out: Path) -> Dict[str, Any]:
     partition = {
         "date": _utc_date(info["t_start"]),
         "region": geohash(origin["lat"], origin["lon"]),
-        "verified": "true" if verified else "false",
+        "verdict": "verified" if verified else "rejected",
     }
     files = [str(finished)]
     with tempfile.TemporaryDirectory(dir=out, prefix=".export-") as tmp:
@@ -294,9 +302,9 @@ def run(
         raise FileNotFoundError(f"{logs_path}: not a folder of logs")
     out_path.mkdir(parents=True, exist_ok=True)
     tasks, skipped, total = plan(logs_path, out_path, Path(map) if map else None, retry_failed)
-    used_workers = 0
+    used_workers, cluster_seconds = 0, 0.0
     if tasks:
-        used_workers = _run_on_dask(tasks, workers, scheduler, progress)
+        used_workers, cluster_seconds = _run_on_dask(tasks, workers, scheduler, progress)
     manifest = out_path / "manifest.parquet"
     if tasks or not manifest.exists():
         write_manifest(out_path)
@@ -309,6 +317,7 @@ def run(
         rejected=statuses.count("rejected"),
         failed=statuses.count("failed"),
         seconds=time.perf_counter() - started,
+        cluster_seconds=cluster_seconds,
         workers=used_workers,
         manifest=manifest,
     )
@@ -319,9 +328,11 @@ def _run_on_dask(
     workers: int,
     scheduler: Optional[str],
     progress: Optional[Callable[[int, int, Dict[str, Any]], None]],
-) -> int:
+) -> tuple:
+    """Run the tasks: the number of workers, and the seconds spent starting and stopping the cluster."""
     from dask.distributed import Client, LocalCluster, as_completed
 
+    started = time.perf_counter()
     if scheduler is None:
         if workers < 1:
             raise ValueError(f"workers={workers}: at least one worker")
@@ -333,15 +344,17 @@ def _run_on_dask(
     try:
         with Client(cluster if cluster is not None else scheduler) as client:
             used = len(client.scheduler_info()["workers"])
+            working = time.perf_counter()
             futures = client.map(process_log, tasks, key=[f"dash2sim-{t.log_id}-{t.fingerprint[:16]}" for t in tasks])
             for done, future in enumerate(as_completed(futures), start=1):
                 entry = future.result()
                 if progress is not None:
                     progress(done, len(tasks), entry)
-            return used
+            worked = time.perf_counter() - working
     finally:
         if cluster is not None:
             cluster.close()
+    return used, time.perf_counter() - started - worked
 
 
 def _print_progress(done: int, total: int, entry: Dict[str, Any]) -> None:
