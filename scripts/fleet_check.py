@@ -20,6 +20,8 @@ command-line calls, on a generated corpus with logs damaged on purpose.
 
 import argparse
 import json
+import os
+import re
 import shutil
 import subprocess
 import sys
@@ -135,6 +137,21 @@ def main():
         arrow = ds.dataset(out / "dataset" / table, format="parquet", partitioning="hive").count_rows()
         check(duck == arrow, f"{table}: DuckDB {duck} rows, pyarrow {arrow}")
         counts[table] = duck
+
+    # Every query of docs/fleet.md runs on the dataset (the docs stay true to it).
+    doc = Path(__file__).resolve().parent.parent / "docs" / "fleet.md"
+    queries = re.findall(r"```sql\n(.*?)```", doc.read_text(), re.S)
+    check(len(queries) >= 4, f"{doc}: {len(queries)} SQL examples")
+    cwd = os.getcwd()
+    os.chdir(out)
+    try:
+        for query in queries:
+            try:
+                check(len(con.execute(query).fetchall()) > 0, f"docs/fleet.md query gave no rows: {query}")
+            except duckdb.Error as e:
+                check(False, f"docs/fleet.md query failed: {e}\n{query}")
+    finally:
+        os.chdir(cwd)
 
     r1, r2 = runs[1][0], runs[2][0]
     n = len(logs)
