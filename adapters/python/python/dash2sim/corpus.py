@@ -43,6 +43,9 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterable, List, Optional
 
+import pyarrow as pa
+import pyarrow.parquet as pq
+
 import dash2sim
 
 #: The metrics of a verification, in the order of docs/verify.md.
@@ -266,9 +269,6 @@ def plan(logs: Path, out: Path, default_map: Optional[Path], retry_failed: bool)
 
 def write_manifest(out: Path) -> Path:
     """All entries as ``out/manifest.parquet`` (one row per log; ``files`` as a list)."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
     entries = list(read_manifest(out).values())
     columns = sorted({key for entry in entries for key in entry})
     table = pa.Table.from_pylist([{key: entry.get(key) for key in columns} for entry in entries])
