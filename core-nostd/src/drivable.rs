@@ -215,11 +215,20 @@ impl<'a> Checker<'a> {
         let mut centre_lanes: heapless::Vec<(u32, Projection), 4> = heapless::Vec::new();
         let mut measured: heapless::Vec<(u32, u8), CANDIDATES> = heapless::Vec::new();
         let mut measure = |check: &mut PoseCheck, item: Item| -> u8 {
+            // How far outside each point's distance is still wanted: the centre's only to
+            // know whether it is inside; a corner's while it could lower the corner's
+            // distance so far (inside or not, as far as the search radius).
+            let mut limits = [0.0; 5];
+            if channel.allows(item) {
+                for (limit, corner) in limits[1..].iter_mut().zip(&check.corners) {
+                    *limit = corner.map_or(SEARCH_RADIUS, |c| c.max(0.0));
+                }
+            }
             let mut d = [f64::INFINITY; 5];
             match item {
                 Item::Lane(i) => {
                     if let Some(centreline) = self.map.lane_centreline(i) {
-                        let nearest = centreline.nearest_within(&points, SEARCH_RADIUS);
+                        let nearest = centreline.nearest_within(&points, &limits);
                         for (d, n) in d.iter_mut().zip(&nearest) {
                             *d = centreline.outside(n);
                         }
@@ -228,13 +237,11 @@ impl<'a> Checker<'a> {
                             let _ = centre_lanes.push((i, centreline.projection(&nearest[0])));
                         }
                     } else if let Some(lane) = self.map.lane(i) {
-                        lane.distances_outside(&points, SEARCH_RADIUS, &mut d);
+                        lane.distances_outside(&points, &limits, &mut d);
                     }
                 }
                 Item::Polygon(i) => {
-                    for (d, &(x, y)) in d.iter_mut().zip(&points) {
-                        *d = self.map.polygon_distance(i, x, y).unwrap_or(f64::INFINITY);
-                    }
+                    let _ = self.map.polygon_distances(i, &points, &limits, &mut d);
                 }
             }
             if channel.allows(item) {

@@ -249,26 +249,17 @@ impl<'a> Lane<'a> {
     /// Signed distance from (x, y) to the lane's area: ≤ 0 inside.
     pub fn distance_outside(&self, x: f64, y: f64) -> f64 {
         let mut d = [0.0];
-        self.distances_outside(&[(x, y)], f64::INFINITY, &mut d);
+        self.distances_outside(&[(x, y)], &[f64::INFINITY], &mut d);
         d[0]
     }
 
     /// [`Lane::distance_outside`] of several points at once (one pass over the lane). A
-    /// point farther than `limit` from a centreline lane's area gets an infinite distance,
-    /// which is cheaper to find.
-    pub fn distances_outside<const N: usize>(&self, points: &[(f64, f64); N], limit: f64, out: &mut [f64; N]) {
-        let Some(polygon) = self.area else {
-            return self.centreline().distances_outside(points, limit, out);
-        };
-        for (&(x, y), d) in points.iter().zip(out.iter_mut()) {
-            *d = match self.view.polygon_distance(polygon, x, y) {
-                Some(d) => d,
-                None => {
-                    let mut single = [0.0];
-                    self.centreline().distances_outside(&[(x, y)], f64::INFINITY, &mut single);
-                    single[0]
-                }
-            };
+    /// point outside the area by more than its limit gets an infinite distance, which is
+    /// cheaper to find; every other distance is exact.
+    pub fn distances_outside<const N: usize>(&self, points: &[(f64, f64); N], limits: &[f64; N], out: &mut [f64; N]) {
+        let area = self.area.and_then(|polygon| self.view.polygon_distances(polygon, points, limits, out));
+        if area.is_none() {
+            self.centreline().distances_outside(points, limits, out);
         }
     }
 }
@@ -321,17 +312,21 @@ impl<'a> Centreline<'a> {
         }
     }
 
-    /// Signed distances of `points` to the area (≤ 0 inside); infinite beyond `limit`.
-    pub fn distances_outside<const N: usize>(&self, points: &[(f64, f64); N], limit: f64, out: &mut [f64; N]) {
-        let nearest = self.nearest_within(points, limit);
+    /// Signed distances of `points` to the area (≤ 0 inside); infinite beyond their limits.
+    pub fn distances_outside<const N: usize>(&self, points: &[(f64, f64); N], limits: &[f64; N], out: &mut [f64; N]) {
+        let nearest = self.nearest_within(points, limits);
         for (d, best) in out.iter_mut().zip(&nearest) {
             *d = self.outside(best);
         }
     }
 
-    /// The nearest segment to each point, not looking beyond `limit` from the area.
-    pub fn nearest_within<const N: usize>(&self, points: &[(f64, f64); N], limit: f64) -> [Nearest; N] {
-        let mut nearest = [Nearest::within(limit + self.width / 2.0); N];
+    /// The nearest segment to each point, not looking farther from the area than the
+    /// point's limit (a limit of 0 asks only whether the point is inside).
+    pub fn nearest_within<const N: usize>(&self, points: &[(f64, f64); N], limits: &[f64; N]) -> [Nearest; N] {
+        let mut nearest = [Nearest::NONE; N];
+        for (n, limit) in nearest.iter_mut().zip(limits) {
+            *n = Nearest::within(limit + self.width / 2.0);
+        }
         self.nearest_segments(points, &mut nearest);
         nearest
     }
@@ -355,18 +350,7 @@ impl<'a> Centreline<'a> {
         while first + 1 < count {
             let n = (count - first).min(CHUNK + 1);
             let chunk = self.points.get(first * POINT_LEN..(first + n) * POINT_LEN).unwrap_or(&[]);
-            // The chunk's box, in the stored f32 (finite, checked at parse: plain compares).
-            let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
-            for p in chunk.chunks_exact(POINT_LEN) {
-                for (axis, v) in [f32_at(p, 0), f32_at(p, 4)].into_iter().enumerate() {
-                    if v < lo[axis] {
-                        lo[axis] = v;
-                    }
-                    if v > hi[axis] {
-                        hi[axis] = v;
-                    }
-                }
-            }
+            let (lo, hi) = bounding_box(chunk);
             // The points this chunk could bring nearer (one bit each).
             let reachable = points.iter().zip(nearest.iter()).enumerate().fold(0u64, |mask, (k, (&point, best))| {
                 if k < 64 && box_reaches(lo, hi, point, best.squared) {
@@ -430,6 +414,68 @@ fn box_reaches(lo: [f32; 2], hi: [f32; 2], point: (f64, f64), squared: f64) -> b
 /// Margin on a box in the culls, m: f32 rounding of map coordinates (tiles span a few km)
 /// is below a millimetre.
 const CULL_SLACK: f32 = 0.01;
+
+/// The box of stored points (x, y f32 pairs; finite, checked at parse: plain compares).
+fn bounding_box(points: &[u8]) -> ([f32; 2], [f32; 2]) {
+    let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+    for p in points.chunks_exact(POINT_LEN) {
+        for (axis, v) in [f32_at(p, 0), f32_at(p, 4)].into_iter().enumerate() {
+            if v < lo[axis] {
+                lo[axis] = v;
+            }
+            if v > hi[axis] {
+                hi[axis] = v;
+            }
+        }
+    }
+    (lo, hi)
+}
+
+/// The distance from a point to its nearest polygon edge, found by squared distances.
+///
+/// Only the winner's `hypot` is taken, plus one for each edge that comes within a relative
+/// 1e-9 of the nearest in squared distance (a vertex ends two edges, whose rounded
+/// residuals may differ): the distance is the least of those, so it does not depend on the
+/// order the edges come in.
+#[derive(Clone, Copy, Debug)]
+struct EdgeDistance {
+    squared: f64,
+    residual: (f64, f64),
+    found: bool,
+    ties: f64,
+    inside: bool,
+}
+
+impl EdgeDistance {
+    const NONE: EdgeDistance =
+        EdgeDistance { squared: f64::INFINITY, residual: (0.0, 0.0), found: false, ties: f64::INFINITY, inside: false };
+
+    /// Nothing yet, and no edge farther than `distance` wanted.
+    fn within(distance: f64) -> EdgeDistance {
+        EdgeDistance { squared: Nearest::within(distance).squared, ..EdgeDistance::NONE }
+    }
+
+    fn offer(&mut self, residual: (f64, f64)) {
+        let squared = residual.0 * residual.0 + residual.1 * residual.1;
+        if squared < self.squared {
+            if self.found && self.squared <= squared * (1.0 + 1e-9) {
+                self.ties = self.ties.min(libm::hypot(self.residual.0, self.residual.1));
+            }
+            (self.squared, self.residual, self.found) = (squared, residual, true);
+        } else if self.found && squared <= self.squared * (1.0 + 1e-9) {
+            self.ties = self.ties.min(libm::hypot(residual.0, residual.1));
+        }
+    }
+
+    /// Infinite when no edge was within the limit.
+    fn distance(&self) -> f64 {
+        if self.found {
+            libm::hypot(self.residual.0, self.residual.1).min(self.ties)
+        } else {
+            f64::INFINITY
+        }
+    }
+}
 
 /// Segments [`Centreline::nearest_segments`] reads at a time (and may skip at once).
 pub const CHUNK: usize = 16;
@@ -685,31 +731,103 @@ impl<'a> MapView<'a> {
         Some((first..first + count).filter_map(move |k| view.point(k)))
     }
 
-    /// Signed distance from (x, y) to polygon `i`: negative inside.
-    pub fn polygon_distance(&self, i: u32, x: f64, y: f64) -> Option<f64> {
+    /// The points of polygon `i` as stored (x, y f32 pairs, at least three: checked when
+    /// the tile was parsed).
+    fn polygon_bytes(&self, i: u32) -> Option<&'a [u8]> {
         if i >= self.header.polygons {
             return None;
         }
         let at = self.layout[3] + i as usize * POLYGON_LEN;
         let (first, count) = (u32_at(self.bytes, at), u32_at(self.bytes, at + 4));
-        let (mut inside, mut best, mut best_squared) = (false, f64::INFINITY, f64::INFINITY);
-        let mut a = self.point(first + count - 1)?;
-        for k in first..first + count {
-            let b = self.point(k)?;
-            // `segment_distance` (a hypot) only for edges about as near as the nearest so
-            // far: the others are farther by far more than rounding, so the minimum is the same.
-            let (_, (rx, ry)) = closest_on_segment((x, y), a, (b.0 - a.0, b.1 - a.1));
-            let squared = rx * rx + ry * ry;
-            if squared <= best_squared * (1.0 + 1e-9) {
-                best = best.min(libm::hypot(rx, ry));
-                best_squared = best_squared.min(squared);
+        let start = self.layout[0] + first as usize * POINT_LEN;
+        self.bytes.get(start..start + count as usize * POINT_LEN).filter(|ring| ring.len() >= 3 * POINT_LEN)
+    }
+
+    /// Signed distance from (x, y) to polygon `i`: negative inside.
+    pub fn polygon_distance(&self, i: u32, x: f64, y: f64) -> Option<f64> {
+        let mut d = [0.0];
+        self.polygon_distances(i, &[(x, y)], &[f64::INFINITY], &mut d)?;
+        Some(d[0])
+    }
+
+    /// Signed distances from `points` to polygon `i` (negative inside), in one walk of its
+    /// edges. A point outside the polygon by more than its limit gets an infinite distance,
+    /// which is cheaper to find; every other distance is exact.
+    ///
+    /// Points farther than their limit from the polygon's box are outside and done first;
+    /// the others get their inside/outside parity, then their nearest edge — an inside
+    /// point's at any distance, an outside point's within its limit — with runs of
+    /// [`CHUNK`] edges skipped whole where their box cannot hold a nearer one.
+    pub fn polygon_distances<const N: usize>(
+        &self,
+        i: u32,
+        points: &[(f64, f64); N],
+        limits: &[f64; N],
+        out: &mut [f64; N],
+    ) -> Option<()> {
+        let ring = self.polygon_bytes(i)?;
+        out.fill(f64::INFINITY);
+        let stored = |p: &[u8]| [f32_at(p, 0), f32_at(p, 4)];
+        let wide = |p: [f32; 2]| (f64::from(p[0]), f64::from(p[1]));
+        let last = stored(ring.get(ring.len() - POINT_LEN..)?);
+        let (lo, hi) = bounding_box(ring);
+        let mut nearest = [EdgeDistance::NONE; N];
+        let mut active = 0u64;
+        for (k, ((&point, &limit), n)) in points.iter().zip(limits).zip(nearest.iter_mut()).enumerate() {
+            *n = EdgeDistance::within(limit);
+            if k < 64 && box_reaches(lo, hi, point, n.squared) {
+                active |= 1 << k;
             }
-            if (a.1 > y) != (b.1 > y) && x < a.0 + (y - a.1) * (b.0 - a.0) / (b.1 - a.1) {
-                inside = !inside;
+        }
+        if active == 0 {
+            return Some(());
+        }
+        let is_active = |k: usize| k < 64 && active & 1 << k != 0;
+        // Even-odd parity: an inside point's nearest edge is wanted at any distance.
+        let mut a = wide(last);
+        for b in ring.chunks_exact(POINT_LEN).map(|p| wide(stored(p))) {
+            for (k, (&(x, y), n)) in points.iter().zip(nearest.iter_mut()).enumerate() {
+                if is_active(k) && (a.1 > y) != (b.1 > y) && x < a.0 + (y - a.1) * (b.0 - a.0) / (b.1 - a.1) {
+                    n.inside = !n.inside;
+                }
             }
             a = b;
         }
-        Some(if inside { -best } else { best })
+        for n in nearest.iter_mut().filter(|n| n.inside) {
+            n.squared = f64::INFINITY;
+        }
+        // Edges (previous point, point) in runs of CHUNK, the ring closed by the last point.
+        let mut a32 = last;
+        for chunk in ring.chunks(CHUNK * POINT_LEN) {
+            let (lo, hi) = bounding_box(chunk);
+            let (lo, hi) = ([lo[0].min(a32[0]), lo[1].min(a32[1])], [hi[0].max(a32[0]), hi[1].max(a32[1])]);
+            let reachable = points.iter().zip(&nearest).enumerate().fold(0u64, |mask, (k, (&point, n))| {
+                if is_active(k) && box_reaches(lo, hi, point, n.squared) {
+                    mask | 1 << k
+                } else {
+                    mask
+                }
+            });
+            if reachable == 0 {
+                a32 = chunk.get(chunk.len() - POINT_LEN..).map_or(a32, stored);
+                continue;
+            }
+            for b32 in chunk.chunks_exact(POINT_LEN).map(stored) {
+                let (a, b) = (wide(a32), wide(b32));
+                let direction = (b.0 - a.0, b.1 - a.1);
+                for (_, (&point, n)) in
+                    points.iter().zip(nearest.iter_mut()).enumerate().filter(|(k, _)| reachable & 1 << k != 0)
+                {
+                    n.offer(closest_on_segment(point, a, direction).1);
+                }
+                a32 = b32;
+            }
+        }
+        for (d, n) in out.iter_mut().zip(&nearest) {
+            let distance = n.distance();
+            *d = if n.inside { -distance } else { distance };
+        }
+        Some(())
     }
 
     /// Every grid entry in the cells that the square of half-side `radius` around
