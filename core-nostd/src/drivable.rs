@@ -15,7 +15,7 @@
 //!   lane to pass a closure is penalised here and not in the insensitive mode. The channel
 //!   is collected in a first pass over the drive ([`LaneSet::add_route_pose`]).
 
-use crate::map::{Item, MapView, Projection};
+use crate::map::{Item, MapView, Nearest, Projection};
 use crate::obb::{Footprint, Pose2};
 
 /// A corner outside the drivable area by this much or more breaks compliance, m.
@@ -203,13 +203,13 @@ impl<'a> Checker<'a> {
         let points = [centre, corners[0], corners[1], corners[2], corners[3]];
         let mut check = PoseCheck { corners: [None; 4], occupied: heapless::Vec::new(), centre_lane: None };
 
-        // Every item within SEARCH_RADIUS of a corner lies in a cell of this square.
+        // The footprint's box, as a square around its middle.
         let (lo, hi) = points
             .iter()
             .fold(((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY)), |(lo, hi), p| {
                 ((lo.0.min(p.0), lo.1.min(p.1)), (hi.0.max(p.0), hi.1.max(p.1)))
             });
-        let half = 0.5 * (hi.0 - lo.0).max(hi.1 - lo.1) + SEARCH_RADIUS;
+        let (middle, half) = (((lo.0 + hi.0) / 2.0, (lo.1 + hi.1) / 2.0), 0.5 * (hi.0 - lo.0).max(hi.1 - lo.1));
         let mut candidates: heapless::Vec<u32, CANDIDATES> = heapless::Vec::new();
         // Lanes containing the centre, with its projection on each (more are projected again).
         let mut centre_lanes: heapless::Vec<(u32, Projection), 4> = heapless::Vec::new();
@@ -228,13 +228,14 @@ impl<'a> Checker<'a> {
             match item {
                 Item::Lane(i) => {
                     if let Some(centreline) = self.map.lane_centreline(i) {
-                        let nearest = centreline.nearest_within(&points, &limits);
+                        let mut nearest = [Nearest::NONE; 5];
+                        centreline.nearest_within(&points, &limits, &mut nearest);
                         for (d, n) in d.iter_mut().zip(&nearest) {
                             *d = centreline.outside(n);
                         }
                         if d[0] <= 0.0 {
                             // The centre's lane is among these: its projection is at hand.
-                            let _ = centre_lanes.push((i, centreline.projection(&nearest[0])));
+                            let _ = centre_lanes.push((i, centreline.projection(centre, &nearest[0])));
                         }
                     } else if let Some(lane) = self.map.lane(i) {
                         lane.distances_outside(&points, &limits, &mut d);
@@ -253,24 +254,45 @@ impl<'a> Checker<'a> {
             }
             d.iter().enumerate().fold(0u8, |inside, (k, &d)| if d <= 0.0 { inside | 1 << k } else { inside })
         };
+        // Two rounds. The cells under the footprint list every lane that contains one of its
+        // points (a lane is listed wherever its area's box reaches), so after the first round
+        // every point knows whether it is inside and most corners are done. The second round
+        // looks farther, as far as the corners still outside need, at what they may use.
         let mut complete = true;
-        self.map.for_each_near((lo.0 + hi.0) / 2.0, (lo.1 + hi.1) / 2.0, half, |item| {
-            if candidates.push(key(item)).is_err() {
-                // More than the list holds: measured at once (duplicates then cost twice).
-                complete = false;
-                measure(&mut check, item);
+        let mut reach = 0.0;
+        for round in 0..2 {
+            candidates.clear();
+            self.map.for_each_near(middle.0, middle.1, half + reach, |item| {
+                if round == 1 && !channel.allows(item) {
+                    return;
+                }
+                if candidates.push(key(item)).is_err() {
+                    // More than the list holds: measured at once (duplicates then cost twice).
+                    complete = false;
+                    measure(&mut check, item);
+                }
+            });
+            candidates.sort_unstable();
+            let near = measured.len();
+            let mut last = None;
+            for &k in &candidates {
+                let seen = measured.get(..near).is_some_and(|first| first.binary_search_by_key(&k, |m| m.0).is_ok());
+                if last != Some(k) && !seen {
+                    last = Some(k);
+                    let inside = measure(&mut check, item(k));
+                    if measured.push((k, inside)).is_err() {
+                        // Not remembered: occupancy is then looked up point by point.
+                        complete = false;
+                    }
+                }
             }
-        });
-        candidates.sort_unstable();
-        let mut last = None;
-        for &k in &candidates {
-            if last != Some(k) {
-                last = Some(k);
-                let inside = measure(&mut check, item(k));
-                // Cannot fail: no more entries than candidates.
-                let _ = measured.push((k, inside));
+            // How far a corner still outside needs to look (0 when all are inside).
+            reach = check.corners.iter().map(|c| c.map_or(SEARCH_RADIUS, |c| c.max(0.0))).fold(0.0, f64::max);
+            if reach <= 0.0 {
+                break;
             }
         }
+        measured.sort_unstable_by_key(|m| m.0);
 
         // The lanes each point is in, in the grid's order (lanes by index: the occupied list
         // keeps that order), and the centre's lane.

@@ -283,15 +283,19 @@ impl<'a> Centreline<'a> {
     pub fn project(&self, x: f64, y: f64) -> Projection {
         let mut nearest = [Nearest::NONE];
         self.nearest_segments(&[(x, y)], &mut nearest);
-        self.projection(&nearest[0])
+        self.projection((x, y), &nearest[0])
     }
 
-    /// The projection a [`Centreline::nearest_segments`] result stands for (the same as
-    /// [`Centreline::project`] of its point when nothing cut the search short).
-    pub fn projection(&self, n: &Nearest) -> Projection {
-        if n.segment == u32::MAX {
+    /// The projection of `point` that its [`Centreline::nearest_segments`] result stands
+    /// for (the same as [`Centreline::project`] when nothing cut the search short).
+    pub fn projection(&self, point: (f64, f64), n: &Nearest) -> Projection {
+        let segment = self.points.get(n.segment as usize * POINT_LEN..(n.segment as usize + 2) * POINT_LEN);
+        let Some(segment) = segment.filter(|_| n.segment != u32::MAX) else {
             return Projection { distance: f64::INFINITY, heading: 0.0, along: 0.0 };
-        }
+        };
+        let a = (f64::from(f32_at(segment, 0)), f64::from(f32_at(segment, 4)));
+        let direction = (f64::from(f32_at(segment, 8)) - a.0, f64::from(f32_at(segment, 12)) - a.1);
+        let (t, _) = closest_on_segment(point, a, direction);
         // The arc length to the nearest segment, summed in driving order.
         let mut start = 0.0;
         let mut previous: Option<(f64, f64)> = None;
@@ -304,17 +308,18 @@ impl<'a> Centreline<'a> {
             }
             previous = Some(p);
         }
-        let (dx, dy) = n.direction;
+        let (dx, dy) = direction;
         Projection {
             distance: n.distance(),
             heading: libm::atan2(dy, dx),
-            along: start + n.t * libm::sqrt(dx * dx + dy * dy),
+            along: start + t * libm::sqrt(dx * dx + dy * dy),
         }
     }
 
     /// Signed distances of `points` to the area (≤ 0 inside); infinite beyond their limits.
     pub fn distances_outside<const N: usize>(&self, points: &[(f64, f64); N], limits: &[f64; N], out: &mut [f64; N]) {
-        let nearest = self.nearest_within(points, limits);
+        let mut nearest = [Nearest::NONE; N];
+        self.nearest_within(points, limits, &mut nearest);
         for (d, best) in out.iter_mut().zip(&nearest) {
             *d = self.outside(best);
         }
@@ -322,13 +327,11 @@ impl<'a> Centreline<'a> {
 
     /// The nearest segment to each point, not looking farther from the area than the
     /// point's limit (a limit of 0 asks only whether the point is inside).
-    pub fn nearest_within<const N: usize>(&self, points: &[(f64, f64); N], limits: &[f64; N]) -> [Nearest; N] {
-        let mut nearest = [Nearest::NONE; N];
+    pub fn nearest_within<const N: usize>(&self, points: &[(f64, f64); N], limits: &[f64; N], nearest: &mut [Nearest; N]) {
         for (n, limit) in nearest.iter_mut().zip(limits) {
             *n = Nearest::within(limit + self.width / 2.0);
         }
-        self.nearest_segments(points, &mut nearest);
-        nearest
+        self.nearest_segments(points, nearest);
     }
 
     /// The signed distance to the area (≤ 0 inside) of a point whose nearest segment is `n`.
@@ -376,10 +379,10 @@ impl<'a> Centreline<'a> {
                         .filter(|(k, _)| *k < 64 && reachable & 1 << k != 0)
                         .filter(|(_, (&point, best))| !SOFT_F64 || box_reaches(lo, hi, point, best.squared));
                     for (_, (&point, best)) in active {
-                        let (t, residual) = closest_on_segment(point, a, direction);
+                        let (_, residual) = closest_on_segment(point, a, direction);
                         let squared = residual.0 * residual.0 + residual.1 * residual.1;
                         if squared < best.squared {
-                            *best = Nearest { squared, residual, direction, t, segment: (first + j) as u32 };
+                            *best = Nearest { squared, residual, segment: (first + j) as u32 };
                         }
                     }
                     (a, a32) = (p, p32);
@@ -480,20 +483,18 @@ impl EdgeDistance {
 /// Segments [`Centreline::nearest_segments`] reads at a time (and may skip at once).
 pub const CHUNK: usize = 16;
 
-/// The segment of a centreline nearest to a point.
+/// The segment of a centreline nearest to a point (what the projection needs besides is
+/// worked out again for the winner alone).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Nearest {
     squared: f64,
     residual: (f64, f64),
-    direction: (f64, f64),
-    t: f64,
     segment: u32,
 }
 
 impl Nearest {
     /// No segment yet.
-    pub const NONE: Nearest =
-        Nearest { squared: f64::INFINITY, residual: (0.0, 0.0), direction: (0.0, 0.0), t: 0.0, segment: u32::MAX };
+    pub const NONE: Nearest = Nearest { squared: f64::INFINITY, residual: (0.0, 0.0), segment: u32::MAX };
 
     /// No segment yet, and none farther than `distance` wanted (with a little slack, so
     /// that rounding never drops one at the limit).
