@@ -15,7 +15,7 @@
 //!   lane to pass a closure is penalised here and not in the insensitive mode. The channel
 //!   is collected in a first pass over the drive ([`LaneSet::add_route_pose`]).
 
-use crate::map::{Item, MapView, Nearest, Projection};
+use crate::map::{Item, LaneArea, MapView, Nearest, Projection};
 use crate::obb::{Footprint, Pose2};
 
 /// A corner outside the drivable area by this much or more breaks compliance, m.
@@ -215,19 +215,19 @@ impl<'a> Checker<'a> {
         let mut centre_lanes: heapless::Vec<(u32, Projection), 4> = heapless::Vec::new();
         let mut measured: heapless::Vec<(u32, u8), CANDIDATES> = heapless::Vec::new();
         let mut measure = |check: &mut PoseCheck, item: Item| -> u8 {
-            // How far outside each point's distance is still wanted: the centre's only to
-            // know whether it is inside; a corner's while it could lower the corner's
-            // distance so far (inside or not, as far as the search radius).
-            let mut limits = [0.0; 5];
+            // Below what each point's distance is wanted: the centre's not at all, only
+            // whether it is inside; a corner's while it would lower the corner's distance
+            // so far (or the search radius).
+            let mut limits = [f64::NEG_INFINITY; 5];
             if channel.allows(item) {
                 for (limit, corner) in limits[1..].iter_mut().zip(&check.corners) {
-                    *limit = corner.map_or(SEARCH_RADIUS, |c| c.max(0.0));
+                    *limit = corner.unwrap_or(SEARCH_RADIUS);
                 }
             }
             let mut d = [f64::INFINITY; 5];
             match item {
-                Item::Lane(i) => {
-                    if let Some(centreline) = self.map.lane_centreline(i) {
+                Item::Lane(i) => match self.map.lane_area(i) {
+                    Some(LaneArea::Buffered(centreline)) => {
                         let mut nearest = [Nearest::NONE; 5];
                         centreline.nearest_within(&points, &limits, &mut nearest);
                         for (d, n) in d.iter_mut().zip(&nearest) {
@@ -237,10 +237,12 @@ impl<'a> Checker<'a> {
                             // The centre's lane is among these: its projection is at hand.
                             let _ = centre_lanes.push((i, centreline.projection(centre, &nearest[0])));
                         }
-                    } else if let Some(lane) = self.map.lane(i) {
-                        lane.distances_outside(&points, &limits, &mut d);
                     }
-                }
+                    Some(LaneArea::Polygon(polygon)) => {
+                        let _ = self.map.polygon_distances(polygon, &points, &limits, &mut d);
+                    }
+                    None => {}
+                },
                 Item::Polygon(i) => {
                     let _ = self.map.polygon_distances(i, &points, &limits, &mut d);
                 }

@@ -238,7 +238,7 @@ impl<'a> Lane<'a> {
 
     /// The centreline and width (what the distance queries read).
     pub fn centreline(&self) -> Centreline<'a> {
-        Centreline { points: self.view.point_bytes(self.first_point, self.point_count), width: self.width }
+        Centreline { points: self.view.stored_points(self.first_point, usize::from(self.point_count)), width: self.width }
     }
 
     /// The point of the centreline nearest to (x, y).
@@ -253,9 +253,9 @@ impl<'a> Lane<'a> {
         d[0]
     }
 
-    /// [`Lane::distance_outside`] of several points at once (one pass over the lane). A
-    /// point outside the area by more than its limit gets an infinite distance, which is
-    /// cheaper to find; every other distance is exact.
+    /// [`Lane::distance_outside`] of several points at once (one pass over the lane), each
+    /// wanted only below its limit ([`MapView::polygon_distances`] says what comes back
+    /// otherwise).
     pub fn distances_outside<const N: usize>(&self, points: &[(f64, f64); N], limits: &[f64; N], out: &mut [f64; N]) {
         let area = self.area.and_then(|polygon| self.view.polygon_distances(polygon, points, limits, out));
         if area.is_none() {
@@ -264,11 +264,20 @@ impl<'a> Lane<'a> {
     }
 }
 
+/// What a lane's area is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LaneArea<'a> {
+    /// The centreline buffered by half the width (OpenStreetMap lanes).
+    Buffered(Centreline<'a>),
+    /// A drivable polygon of the tile (Lanelet2 lanes).
+    Polygon(u32),
+}
+
 /// A lane's centreline (its points as stored: x, y f32 pairs, range checked when the tile
 /// was parsed) and width: the area is the centreline buffered by half the width.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Centreline<'a> {
-    points: &'a [u8],
+    points: &'a [StoredPoint],
     /// Width, m.
     pub width: f64,
 }
@@ -276,7 +285,7 @@ pub struct Centreline<'a> {
 impl<'a> Centreline<'a> {
     /// Points in driving order, ENU metres.
     pub fn points(&self) -> impl Iterator<Item = (f64, f64)> + 'a {
-        self.points.chunks_exact(POINT_LEN).map(|p| (f64::from(f32_at(p, 0)), f64::from(f32_at(p, 4))))
+        self.points.iter().map(|p| wide(xy(p)))
     }
 
     /// The point nearest to (x, y).
@@ -289,12 +298,12 @@ impl<'a> Centreline<'a> {
     /// The projection of `point` that its [`Centreline::nearest_segments`] result stands
     /// for (the same as [`Centreline::project`] when nothing cut the search short).
     pub fn projection(&self, point: (f64, f64), n: &Nearest) -> Projection {
-        let segment = self.points.get(n.segment as usize * POINT_LEN..(n.segment as usize + 2) * POINT_LEN);
-        let Some(segment) = segment.filter(|_| n.segment != u32::MAX) else {
+        let segment = self.points.get(n.segment as usize..n.segment as usize + 2);
+        let Some([a, b]) = segment.filter(|_| n.segment != u32::MAX) else {
             return Projection { distance: f64::INFINITY, heading: 0.0, along: 0.0 };
         };
-        let a = (f64::from(f32_at(segment, 0)), f64::from(f32_at(segment, 4)));
-        let direction = (f64::from(f32_at(segment, 8)) - a.0, f64::from(f32_at(segment, 12)) - a.1);
+        let (a, b) = (wide(xy(a)), wide(xy(b)));
+        let direction = (b.0 - a.0, b.1 - a.1);
         let (t, _) = closest_on_segment(point, a, direction);
         // The arc length to the nearest segment, summed in driving order.
         let mut start = 0.0;
@@ -316,7 +325,8 @@ impl<'a> Centreline<'a> {
         }
     }
 
-    /// Signed distances of `points` to the area (≤ 0 inside); infinite beyond their limits.
+    /// Signed distances of `points` to the area (≤ 0 inside), exact up to the limits (or 0)
+    /// and infinite beyond them.
     pub fn distances_outside<const N: usize>(&self, points: &[(f64, f64); N], limits: &[f64; N], out: &mut [f64; N]) {
         let mut nearest = [Nearest::NONE; N];
         self.nearest_within(points, limits, &mut nearest);
@@ -326,10 +336,11 @@ impl<'a> Centreline<'a> {
     }
 
     /// The nearest segment to each point, not looking farther from the area than the
-    /// point's limit (a limit of 0 asks only whether the point is inside).
+    /// point's limit (a limit of 0 or less: only as far as it takes to know whether the
+    /// point is inside).
     pub fn nearest_within<const N: usize>(&self, points: &[(f64, f64); N], limits: &[f64; N], nearest: &mut [Nearest; N]) {
         for (n, limit) in nearest.iter_mut().zip(limits) {
-            *n = Nearest::within(limit + self.width / 2.0);
+            *n = Nearest::within(limit.max(0.0) + self.width / 2.0);
         }
         self.nearest_segments(points, nearest);
     }
@@ -347,12 +358,12 @@ impl<'a> Centreline<'a> {
     /// segment so far (or than its [`Nearest::within`] cut-off) is skipped whole — exactly,
     /// since no segment in it could be nearer.
     pub fn nearest_segments(&self, points: &[(f64, f64)], nearest: &mut [Nearest]) {
-        let count = self.points.len() / POINT_LEN;
+        let count = self.points.len();
         let mut first = 0usize;
         // Chunks overlap by one point: the last point of one is the first of the next.
         while first + 1 < count {
             let n = (count - first).min(CHUNK + 1);
-            let chunk = self.points.get(first * POINT_LEN..(first + n) * POINT_LEN).unwrap_or(&[]);
+            let chunk = self.points.get(first..first + n).unwrap_or(&[]);
             let (lo, hi) = bounding_box(chunk);
             // The points this chunk could bring nearer (one bit each).
             let reachable = points.iter().zip(nearest.iter()).enumerate().fold(0u64, |mask, (k, (&point, best))| {
@@ -363,11 +374,10 @@ impl<'a> Centreline<'a> {
                 }
             });
             if reachable != 0 {
-                let stored = |p: &[u8]| [f32_at(p, 0), f32_at(p, 4)];
-                let mut a32 = chunk.get(..POINT_LEN).map_or([0.0; 2], stored);
-                let mut a = (f64::from(a32[0]), f64::from(a32[1]));
-                for (j, p32) in chunk.chunks_exact(POINT_LEN).skip(1).map(stored).enumerate() {
-                    let p = (f64::from(p32[0]), f64::from(p32[1]));
+                let mut a32 = chunk.first().map_or([0.0; 2], xy);
+                let mut a = wide(a32);
+                for (j, p32) in chunk.iter().skip(1).map(xy).enumerate() {
+                    let p = wide(p32);
                     let direction = (p.0 - a.0, p.1 - a.1);
                     // The segment's own box: where f64 is software, culling each segment in
                     // f32 saves most of the f64 work; elsewhere it costs more than it saves.
@@ -418,18 +428,25 @@ fn box_reaches(lo: [f32; 2], hi: [f32; 2], point: (f64, f64), squared: f64) -> b
 /// is below a millimetre.
 const CULL_SLACK: f32 = 0.01;
 
-/// The box of stored points (x, y f32 pairs; finite, checked at parse: plain compares).
-fn bounding_box(points: &[u8]) -> ([f32; 2], [f32; 2]) {
+/// A point as stored: x, y as little-endian f32.
+type StoredPoint = [u8; POINT_LEN];
+
+/// The coordinates of a stored point.
+fn xy(p: &StoredPoint) -> [f32; 2] {
+    let [a, b, c, d, e, f, g, h] = *p;
+    [f32::from_le_bytes([a, b, c, d]), f32::from_le_bytes([e, f, g, h])]
+}
+
+/// Stored coordinates as the f64 every distance is worked in.
+fn wide(p: [f32; 2]) -> (f64, f64) {
+    (f64::from(p[0]), f64::from(p[1]))
+}
+
+/// The box of stored points (finite, checked at parse: plain compares).
+fn bounding_box(points: &[StoredPoint]) -> ([f32; 2], [f32; 2]) {
     let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
-    for p in points.chunks_exact(POINT_LEN) {
-        for (axis, v) in [f32_at(p, 0), f32_at(p, 4)].into_iter().enumerate() {
-            if v < lo[axis] {
-                lo[axis] = v;
-            }
-            if v > hi[axis] {
-                hi[axis] = v;
-            }
-        }
+    for [x, y] in points.iter().map(xy) {
+        (lo, hi) = ([lo[0].min(x), lo[1].min(y)], [hi[0].max(x), hi[1].max(y)]);
     }
     (lo, hi)
 }
@@ -447,11 +464,20 @@ struct EdgeDistance {
     found: bool,
     ties: f64,
     inside: bool,
+    /// An edge this near (squared) is near enough: the search for this point stops.
+    enough: f64,
 }
 
 impl EdgeDistance {
     const NONE: EdgeDistance =
-        EdgeDistance { squared: f64::INFINITY, residual: (0.0, 0.0), found: false, ties: f64::INFINITY, inside: false };
+        EdgeDistance {
+            squared: f64::INFINITY,
+            residual: (0.0, 0.0),
+            found: false,
+            ties: f64::INFINITY,
+            inside: false,
+            enough: 0.0,
+        };
 
     /// Nothing yet, and no edge farther than `distance` wanted.
     fn within(distance: f64) -> EdgeDistance {
@@ -699,49 +725,41 @@ impl<'a> MapView<'a> {
         })
     }
 
-    /// The centreline of lane `i` when the centreline buffered by half the width is its
-    /// area (`None` for a lane with an area polygon, or no such lane): the cheap way to a
-    /// lane's distances, without building a [`Lane`].
-    pub fn lane_centreline(&self, i: u32) -> Option<Centreline<'a>> {
+    /// The area of lane `i`: the cheap way to a lane's distances, without building a
+    /// [`Lane`].
+    pub fn lane_area(&self, i: u32) -> Option<LaneArea<'a>> {
         if i >= self.header.lanes {
             return None;
         }
         let at = self.layout[1] + i as usize * LANE_LEN;
-        if u16_at(self.bytes, at + 26) != 0 {
-            return None;
+        if let Some(polygon) = u16_at(self.bytes, at + 26).checked_sub(1) {
+            return Some(LaneArea::Polygon(u32::from(polygon)));
         }
-        let points = self.point_bytes(u32_at(self.bytes, at), u16_at(self.bytes, at + 4));
-        Some(Centreline { points, width: f64::from(u16_at(self.bytes, at + 6)) / 100.0 })
+        let points = self.stored_points(u32_at(self.bytes, at), usize::from(u16_at(self.bytes, at + 4)));
+        Some(LaneArea::Buffered(Centreline { points, width: f64::from(u16_at(self.bytes, at + 6)) / 100.0 }))
     }
 
-    /// `count` points from point `first` as stored (x, y f32 pairs; lane ranges were checked
+    /// `count` points from point `first` as stored (lane and polygon ranges were checked
     /// when the tile was parsed, anything else reads as no points).
-    fn point_bytes(&self, first: u32, count: u16) -> &'a [u8] {
+    fn stored_points(&self, first: u32, count: usize) -> &'a [StoredPoint] {
         let start = self.layout[0] + first as usize * POINT_LEN;
-        self.bytes.get(start..start + usize::from(count) * POINT_LEN).unwrap_or(&[])
+        let bytes = self.bytes.get(start..start + count * POINT_LEN).unwrap_or(&[]);
+        bytes.as_chunks().0
+    }
+
+    /// The points of polygon `i` as stored (a ring, implicitly closed; at least three).
+    fn polygon_points(&self, i: u32) -> Option<&'a [StoredPoint]> {
+        if i >= self.header.polygons {
+            return None;
+        }
+        let at = self.layout[3] + i as usize * POLYGON_LEN;
+        let ring = self.stored_points(u32_at(self.bytes, at), u32_at(self.bytes, at + 4) as usize);
+        (ring.len() >= 3).then_some(ring)
     }
 
     /// Points of polygon `i` (a ring, implicitly closed).
     pub fn polygon(&self, i: u32) -> Option<impl Iterator<Item = (f64, f64)> + 'a> {
-        if i >= self.header.polygons {
-            return None;
-        }
-        let at = self.layout[3] + i as usize * POLYGON_LEN;
-        let (first, count) = (u32_at(self.bytes, at), u32_at(self.bytes, at + 4));
-        let view = *self;
-        Some((first..first + count).filter_map(move |k| view.point(k)))
-    }
-
-    /// The points of polygon `i` as stored (x, y f32 pairs, at least three: checked when
-    /// the tile was parsed).
-    fn polygon_bytes(&self, i: u32) -> Option<&'a [u8]> {
-        if i >= self.header.polygons {
-            return None;
-        }
-        let at = self.layout[3] + i as usize * POLYGON_LEN;
-        let (first, count) = (u32_at(self.bytes, at), u32_at(self.bytes, at + 4));
-        let start = self.layout[0] + first as usize * POINT_LEN;
-        self.bytes.get(start..start + count as usize * POINT_LEN).filter(|ring| ring.len() >= 3 * POINT_LEN)
+        Some(self.polygon_points(i)?.iter().map(|p| wide(xy(p))))
     }
 
     /// Signed distance from (x, y) to polygon `i`: negative inside.
@@ -752,13 +770,16 @@ impl<'a> MapView<'a> {
     }
 
     /// Signed distances from `points` to polygon `i` (negative inside), in one walk of its
-    /// edges. A point outside the polygon by more than its limit gets an infinite distance,
-    /// which is cheaper to find; every other distance is exact.
+    /// edges, each wanted exactly only below its limit: a distance below the limit is
+    /// exact; one at or above it comes back as a value at or above it of the right sign
+    /// (infinite outside; between the limit and 0 inside), which is cheaper to find. A
+    /// limit of −∞ asks only whether the point is inside; +∞ for every distance exact.
     ///
     /// Points farther than their limit from the polygon's box are outside and done first;
-    /// the others get their inside/outside parity, then their nearest edge — an inside
-    /// point's at any distance, an outside point's within its limit — with runs of
-    /// [`CHUNK`] edges skipped whole where their box cannot hold a nearer one.
+    /// the others get their inside/outside parity, then their nearest edge — an outside
+    /// point's within its limit, an inside point's until one is nearer than its (negative)
+    /// limit, or the nearest if the limit is not negative — with runs of [`CHUNK`] edges
+    /// skipped whole where their box cannot hold a nearer one.
     pub fn polygon_distances<const N: usize>(
         &self,
         i: u32,
@@ -766,16 +787,14 @@ impl<'a> MapView<'a> {
         limits: &[f64; N],
         out: &mut [f64; N],
     ) -> Option<()> {
-        let ring = self.polygon_bytes(i)?;
+        let ring = self.polygon_points(i)?;
         out.fill(f64::INFINITY);
-        let stored = |p: &[u8]| [f32_at(p, 0), f32_at(p, 4)];
-        let wide = |p: [f32; 2]| (f64::from(p[0]), f64::from(p[1]));
-        let last = stored(ring.get(ring.len() - POINT_LEN..)?);
+        let last = xy(ring.last()?);
         let (lo, hi) = bounding_box(ring);
         let mut nearest = [EdgeDistance::NONE; N];
         let mut active = 0u64;
         for (k, ((&point, &limit), n)) in points.iter().zip(limits).zip(nearest.iter_mut()).enumerate() {
-            *n = EdgeDistance::within(limit);
+            *n = EdgeDistance::within(limit.max(0.0));
             if k < 64 && box_reaches(lo, hi, point, n.squared) {
                 active |= 1 << k;
             }
@@ -786,7 +805,7 @@ impl<'a> MapView<'a> {
         let is_active = |k: usize| k < 64 && active & 1 << k != 0;
         // Even-odd parity: an inside point's nearest edge is wanted at any distance.
         let mut a = wide(last);
-        for b in ring.chunks_exact(POINT_LEN).map(|p| wide(stored(p))) {
+        for b in ring.iter().map(|p| wide(xy(p))) {
             for (k, (&(x, y), n)) in points.iter().zip(nearest.iter_mut()).enumerate() {
                 if is_active(k) && (a.1 > y) != (b.1 > y) && x < a.0 + (y - a.1) * (b.0 - a.0) / (b.1 - a.1) {
                     n.inside = !n.inside;
@@ -794,26 +813,29 @@ impl<'a> MapView<'a> {
             }
             a = b;
         }
-        for n in nearest.iter_mut().filter(|n| n.inside) {
+        for (n, &limit) in nearest.iter_mut().zip(limits).filter(|(n, _)| n.inside) {
+            // Inside: the nearest edge at any distance, but only until one is within a
+            // negative limit's depth (nearer than that, the distance is not wanted).
             n.squared = f64::INFINITY;
+            n.enough = if limit < 0.0 { limit * limit } else { 0.0 };
         }
         // Edges (previous point, point) in runs of CHUNK, the ring closed by the last point.
         let mut a32 = last;
-        for chunk in ring.chunks(CHUNK * POINT_LEN) {
+        for chunk in ring.chunks(CHUNK) {
             let (lo, hi) = bounding_box(chunk);
             let (lo, hi) = ([lo[0].min(a32[0]), lo[1].min(a32[1])], [hi[0].max(a32[0]), hi[1].max(a32[1])]);
             let reachable = points.iter().zip(&nearest).enumerate().fold(0u64, |mask, (k, (&point, n))| {
-                if is_active(k) && box_reaches(lo, hi, point, n.squared) {
+                if is_active(k) && n.squared > n.enough && box_reaches(lo, hi, point, n.squared) {
                     mask | 1 << k
                 } else {
                     mask
                 }
             });
             if reachable == 0 {
-                a32 = chunk.get(chunk.len() - POINT_LEN..).map_or(a32, stored);
+                a32 = chunk.last().map_or(a32, xy);
                 continue;
             }
-            for b32 in chunk.chunks_exact(POINT_LEN).map(stored) {
+            for b32 in chunk.iter().map(xy) {
                 let (a, b) = (wide(a32), wide(b32));
                 let direction = (b.0 - a.0, b.1 - a.1);
                 for (_, (&point, n)) in
@@ -825,8 +847,12 @@ impl<'a> MapView<'a> {
             }
         }
         for (d, n) in out.iter_mut().zip(&nearest) {
-            let distance = n.distance();
-            *d = if n.inside { -distance } else { distance };
+            *d = match (n.inside, n.found) {
+                (true, true) => -n.distance(),
+                // Inside, and only that was asked.
+                (true, false) => -0.0,
+                (false, _) => n.distance(),
+            };
         }
         Some(())
     }
