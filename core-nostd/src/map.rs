@@ -445,10 +445,19 @@ fn wide(p: [f32; 2]) -> (f64, f64) {
 /// The box of stored points (finite, checked at parse: plain compares).
 fn bounding_box(points: &[StoredPoint]) -> ([f32; 2], [f32; 2]) {
     let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+    // Selects rather than branches (or `f32::min`, which also handles NaN): the compiler
+    // makes them `minss`/`maxss`, where branches would be mispredicted half the time.
     for [x, y] in points.iter().map(xy) {
-        (lo, hi) = ([lo[0].min(x), lo[1].min(y)], [hi[0].max(x), hi[1].max(y)]);
+        lo = [if x < lo[0] { x } else { lo[0] }, if y < lo[1] { y } else { lo[1] }];
+        hi = [if x > hi[0] { x } else { hi[0] }, if y > hi[1] { y } else { hi[1] }];
     }
     (lo, hi)
+}
+
+/// The box of a point and stored points.
+fn bounding_box_from(first: [f32; 2], points: &[StoredPoint]) -> ([f32; 2], [f32; 2]) {
+    let (lo, hi) = bounding_box(points);
+    ([lo[0].min(first[0]), lo[1].min(first[1])], [hi[0].max(first[0]), hi[1].max(first[1])])
 }
 
 /// The distance from a point to its nearest polygon edge, found by squared distances.
@@ -478,11 +487,6 @@ impl EdgeDistance {
             inside: false,
             enough: 0.0,
         };
-
-    /// Nothing yet, and no edge farther than `distance` wanted.
-    fn within(distance: f64) -> EdgeDistance {
-        EdgeDistance { squared: Nearest::within(distance).squared, ..EdgeDistance::NONE }
-    }
 
     fn offer(&mut self, residual: (f64, f64)) {
         let squared = residual.0 * residual.0 + residual.1 * residual.1;
@@ -775,11 +779,11 @@ impl<'a> MapView<'a> {
     /// (infinite outside; between the limit and 0 inside), which is cheaper to find. A
     /// limit of −∞ asks only whether the point is inside; +∞ for every distance exact.
     ///
-    /// Points farther than their limit from the polygon's box are outside and done first;
-    /// the others get their inside/outside parity, then their nearest edge — an outside
-    /// point's within its limit, an inside point's until one is nearer than its (negative)
-    /// limit, or the nearest if the limit is not negative — with runs of [`CHUNK`] edges
-    /// skipped whole where their box cannot hold a nearer one.
+    /// Points farther than their limit from the polygon's box are outside and done first.
+    /// One walk of the edges then gives the others their inside/outside parity and those
+    /// whose distance is wanted their nearest edge, until one is nearer than a negative
+    /// limit's depth; a long ring is walked in runs of [`CHUNK`] edges, a run skipped for a
+    /// point where its box cannot hold a nearer edge.
     pub fn polygon_distances<const N: usize>(
         &self,
         i: u32,
@@ -789,69 +793,59 @@ impl<'a> MapView<'a> {
     ) -> Option<()> {
         let ring = self.polygon_points(i)?;
         out.fill(f64::INFINITY);
-        let last = xy(ring.last()?);
         let (lo, hi) = bounding_box(ring);
         let mut nearest = [EdgeDistance::NONE; N];
-        let mut active = 0u64;
+        let (mut active, mut measured) = (0u64, 0u64);
         for (k, ((&point, &limit), n)) in points.iter().zip(limits).zip(nearest.iter_mut()).enumerate() {
-            *n = EdgeDistance::within(limit.max(0.0));
-            if k < 64 && box_reaches(lo, hi, point, n.squared) {
+            n.enough = if limit < 0.0 { limit * limit } else { 0.0 };
+            if k < 64 && box_reaches(lo, hi, point, Nearest::within(limit.max(0.0)).squared) {
                 active |= 1 << k;
+                if limit > f64::NEG_INFINITY {
+                    measured |= 1 << k;
+                }
             }
         }
         if active == 0 {
             return Some(());
         }
-        let is_active = |k: usize| k < 64 && active & 1 << k != 0;
-        // Even-odd parity: an inside point's nearest edge is wanted at any distance.
-        let mut a = wide(last);
-        for b in ring.iter().map(|p| wide(xy(p))) {
-            for (k, (&(x, y), n)) in points.iter().zip(nearest.iter_mut()).enumerate() {
-                if is_active(k) && (a.1 > y) != (b.1 > y) && x < a.0 + (y - a.1) * (b.0 - a.0) / (b.1 - a.1) {
-                    n.inside = !n.inside;
-                }
-            }
-            a = b;
-        }
-        for (n, &limit) in nearest.iter_mut().zip(limits).filter(|(n, _)| n.inside) {
-            // Inside: the nearest edge at any distance, but only until one is within a
-            // negative limit's depth (nearer than that, the distance is not wanted).
-            n.squared = f64::INFINITY;
-            n.enough = if limit < 0.0 { limit * limit } else { 0.0 };
-        }
-        // Edges (previous point, point) in runs of CHUNK, the ring closed by the last point.
-        let mut a32 = last;
+        // One walk: the even-odd parity of every active point, the nearest edge of those
+        // whose distance is wanted (inside or not is known only at the end).
+        let mut a32 = xy(ring.last()?);
         for chunk in ring.chunks(CHUNK) {
-            let (lo, hi) = bounding_box(chunk);
-            let (lo, hi) = ([lo[0].min(a32[0]), lo[1].min(a32[1])], [hi[0].max(a32[0]), hi[1].max(a32[1])]);
+            let (lo, hi) = if ring.len() > CHUNK { bounding_box_from(a32, chunk) } else { (lo, hi) };
             let reachable = points.iter().zip(&nearest).enumerate().fold(0u64, |mask, (k, (&point, n))| {
-                if is_active(k) && n.squared > n.enough && box_reaches(lo, hi, point, n.squared) {
+                let wanted = k < 64 && measured & 1 << k != 0 && n.squared > n.enough;
+                if wanted && box_reaches(lo, hi, point, n.squared) {
                     mask | 1 << k
                 } else {
                     mask
                 }
             });
-            if reachable == 0 {
-                a32 = chunk.last().map_or(a32, xy);
-                continue;
-            }
             for b32 in chunk.iter().map(xy) {
                 let (a, b) = (wide(a32), wide(b32));
                 let direction = (b.0 - a.0, b.1 - a.1);
-                for (_, (&point, n)) in
-                    points.iter().zip(nearest.iter_mut()).enumerate().filter(|(k, _)| reachable & 1 << k != 0)
-                {
-                    n.offer(closest_on_segment(point, a, direction).1);
+                for (k, (&(x, y), n)) in points.iter().zip(nearest.iter_mut()).enumerate() {
+                    if k >= 64 || active & 1 << k == 0 {
+                        continue;
+                    }
+                    // Without branches (they would be mispredicted): where the edge is
+                    // level the quotient is not finite and the first test is false anyway.
+                    let straddles = (a.1 > y) != (b.1 > y);
+                    n.inside ^= straddles & (x < a.0 + (y - a.1) * (b.0 - a.0) / (b.1 - a.1));
+                    if reachable & 1 << k != 0 {
+                        n.offer(closest_on_segment((x, y), a, direction).1);
+                    }
                 }
                 a32 = b32;
             }
         }
-        for (d, n) in out.iter_mut().zip(&nearest) {
+        for ((d, n), &limit) in out.iter_mut().zip(&nearest).zip(limits) {
             *d = match (n.inside, n.found) {
                 (true, true) => -n.distance(),
                 // Inside, and only that was asked.
                 (true, false) => -0.0,
-                (false, _) => n.distance(),
+                // Outside: exact up to the limit.
+                (false, _) => Some(n.distance()).filter(|&d| d <= limit).unwrap_or(f64::INFINITY),
             };
         }
         Some(())
@@ -908,3 +902,4 @@ impl<'a> MapView<'a> {
         best
     }
 }
+
