@@ -416,6 +416,7 @@ type Cull = f64;
 /// Whether a point may lie within `squared` (a squared distance) of the box `lo`–`hi` (the
 /// stored f32 coordinates). The box is grown by [`CULL_SLACK`], far more than f32's rounding
 /// at map distances, so that `false` is certain.
+#[inline]
 fn box_reaches(lo: [f32; 2], hi: [f32; 2], point: (f64, f64), squared: f64) -> bool {
     let (x, y) = (point.0 as Cull, point.1 as Cull);
     let slack = CULL_SLACK as Cull;
@@ -432,6 +433,7 @@ const CULL_SLACK: f32 = 0.01;
 type StoredPoint = [u8; POINT_LEN];
 
 /// The coordinates of a stored point.
+#[inline]
 fn xy(p: &StoredPoint) -> [f32; 2] {
     let [a, b, c, d, e, f, g, h] = *p;
     [f32::from_le_bytes([a, b, c, d]), f32::from_le_bytes([e, f, g, h])]
@@ -443,6 +445,7 @@ fn wide(p: [f32; 2]) -> (f64, f64) {
 }
 
 /// The box of stored points (finite, checked at parse: plain compares).
+#[inline]
 fn bounding_box(points: &[StoredPoint]) -> ([f32; 2], [f32; 2]) {
     let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
     // Selects rather than branches (or `f32::min`, which also handles NaN): the compiler
@@ -488,6 +491,7 @@ impl EdgeDistance {
             enough: 0.0,
         };
 
+    #[inline]
     fn offer(&mut self, residual: (f64, f64)) {
         let squared = residual.0 * residual.0 + residual.1 * residual.1;
         if squared < self.squared {
@@ -562,6 +566,7 @@ pub fn segment_distance(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
 
 /// The point of the segment from `a` along `direction` nearest to `p`: its parameter t
 /// (0 at `a`, 1 at the end) and the residual `p` − that point.
+#[inline]
 fn closest_on_segment(p: (f64, f64), a: (f64, f64), direction: (f64, f64)) -> (f64, (f64, f64)) {
     let (dx, dy) = direction;
     let len2 = dx * dx + dy * dy;
