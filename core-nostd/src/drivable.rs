@@ -225,6 +225,10 @@ impl<'a> Checker<'a> {
                 }
             }
             let mut d = [f64::INFINITY; 5];
+            if !self.map.item_reaches(item, &points, &limits) {
+                // Its box is farther than any point's limit: nothing in it is wanted.
+                return 0;
+            }
             match item {
                 Item::Lane(i) => match self.map.lane_area(i) {
                     Some(LaneArea::Buffered(centreline)) => {

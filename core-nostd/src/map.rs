@@ -1,9 +1,12 @@
-//! The compact map tile (format v1, `docs/map-tile.md`) and a zero-copy view of it.
+//! The compact map tile (format v2, `docs/map-tile.md`; v1 is read too) and a zero-copy
+//! view of it.
 //!
 //! A tile is a byte slice — from flash, a file or a `static` — holding an ENU origin,
 //! lanes (centreline in driving order, width, speed limit, road class, neighbours and
-//! successors), drivable polygons, and a uniform grid index so that a query touches only
-//! the lanes near it. [`MapView::parse`] checks the whole tile once (magic, version,
+//! successors), drivable polygons, a uniform grid index so that a query touches only
+//! the lanes near it, and (v2) the bounding box of every lane's and polygon's area, so that
+//! a lane near a query in the grid but far from it in fact is passed over without reading
+//! its points. [`MapView::parse`] checks the whole tile once (magic, version,
 //! CRC-32C, every length, index and float); after that every accessor is cheap and none
 //! can panic, so a truncated or corrupted tile is an error, never a crash.
 //!
@@ -15,8 +18,9 @@ use crc::{Crc, CRC_32_ISCSI};
 
 /// The file's first six bytes.
 pub const MAGIC: [u8; 6] = *b"D2SMAP";
-/// Format major version this view reads.
-pub const VERSION_MAJOR: u8 = 1;
+/// Format major version written by this crate; this view reads it and version 1 (the
+/// same without item boxes).
+pub const VERSION_MAJOR: u8 = 2;
 /// Format minor version written by this crate (a reader accepts any minor of its major).
 pub const VERSION_MINOR: u8 = 0;
 /// Header length in bytes.
@@ -27,6 +31,8 @@ pub const POINT_LEN: usize = 8;
 pub const LANE_LEN: usize = 28;
 /// Bytes per polygon record.
 pub const POLYGON_LEN: usize = 8;
+/// Bytes per item box (lo x, lo y, hi x, hi y as f32; format 2).
+pub const BOX_LEN: usize = 16;
 /// "No neighbour".
 pub const NONE: u32 = u32::MAX;
 /// Grid entries with this bit set name a polygon, otherwise a lane.
@@ -60,7 +66,9 @@ impl core::fmt::Display for MapError {
         match self {
             MapError::TooShort => write!(f, "shorter than the {HEADER_LEN}-byte header"),
             MapError::BadMagic => write!(f, "not a dash2sim map tile (bad magic)"),
-            MapError::UnsupportedVersion(v) => write!(f, "format version {v} is not supported (this reader: 1)"),
+            MapError::UnsupportedVersion(v) => {
+                write!(f, "format version {v} is not supported (this reader: 1 and {VERSION_MAJOR})")
+            }
             MapError::BadChecksum => write!(f, "CRC-32C mismatch: the tile is corrupted"),
             MapError::BadLength => write!(f, "section lengths do not match the tile length (truncated?)"),
             MapError::BadReference(section, i) => write!(f, "{section} {i} refers outside the tile"),
@@ -123,6 +131,8 @@ pub struct Header {
     pub grid_size: [u16; 2],
     /// What the source file held: nodes, ways, highway ways, relations (for `map info`).
     pub source_counts: [u32; 4],
+    /// Whether the tile has a box per lane and polygon (format 2; format 1 has none).
+    pub boxes: bool,
 }
 
 impl Header {
@@ -138,6 +148,7 @@ impl Header {
             grid_min: [f32_at(b, 56), f32_at(b, 60)],
             grid_size: [u16_at(b, 64), u16_at(b, 66)],
             source_counts: [u32_at(b, 68), u32_at(b, 72), u32_at(b, 76), u32_at(b, 80)],
+            boxes: b.get(6).is_some_and(|&major| major >= 2),
         }
     }
 
@@ -146,7 +157,7 @@ impl Header {
         let Some(h) = out.get_mut(..HEADER_LEN) else { return };
         h.fill(0);
         h[..6].copy_from_slice(&MAGIC);
-        h[6] = VERSION_MAJOR;
+        h[6] = if self.boxes { VERSION_MAJOR } else { 1 };
         h[7] = VERSION_MINOR;
         for (k, v) in self.origin.iter().enumerate() {
             h[8 + 8 * k..16 + 8 * k].copy_from_slice(&v.to_le_bytes());
@@ -171,16 +182,18 @@ impl Header {
     }
 
     /// Byte offsets of the sections: points, lanes, successors, polygons, cell starts,
-    /// entries, end.
-    pub fn layout(&self) -> Option<[usize; 7]> {
+    /// entries, boxes (empty in format 1), end.
+    pub fn layout(&self) -> Option<[usize; 8]> {
         let points = HEADER_LEN;
         let lanes = points.checked_add((self.points as usize).checked_mul(POINT_LEN)?)?;
         let successors = lanes.checked_add((self.lanes as usize).checked_mul(LANE_LEN)?)?;
         let polygons = successors.checked_add((self.successors as usize).checked_mul(4)?)?;
         let cells = polygons.checked_add((self.polygons as usize).checked_mul(POLYGON_LEN)?)?;
         let entries = cells.checked_add(self.cells().checked_add(1)?.checked_mul(4)?)?;
-        let end = entries.checked_add((self.grid_entries as usize).checked_mul(4)?)?;
-        Some([points, lanes, successors, polygons, cells, entries, end])
+        let boxes = entries.checked_add((self.grid_entries as usize).checked_mul(4)?)?;
+        let items = if self.boxes { (self.lanes as usize).checked_add(self.polygons as usize)? } else { 0 };
+        let end = boxes.checked_add(items.checked_mul(BOX_LEN)?)?;
+        Some([points, lanes, successors, polygons, cells, entries, boxes, end])
     }
 }
 
@@ -238,7 +251,10 @@ impl<'a> Lane<'a> {
 
     /// The centreline and width (what the distance queries read).
     pub fn centreline(&self) -> Centreline<'a> {
-        Centreline { points: self.view.stored_points(self.first_point, usize::from(self.point_count)), width: self.width }
+        Centreline {
+            points: self.view.stored_points(self.first_point, usize::from(self.point_count)),
+            width: self.width,
+        }
     }
 
     /// The point of the centreline nearest to (x, y).
@@ -338,7 +354,12 @@ impl<'a> Centreline<'a> {
     /// The nearest segment to each point, not looking farther from the area than the
     /// point's limit (a limit of 0 or less: only as far as it takes to know whether the
     /// point is inside).
-    pub fn nearest_within<const N: usize>(&self, points: &[(f64, f64); N], limits: &[f64; N], nearest: &mut [Nearest; N]) {
+    pub fn nearest_within<const N: usize>(
+        &self,
+        points: &[(f64, f64); N],
+        limits: &[f64; N],
+        nearest: &mut [Nearest; N],
+    ) {
         for (n, limit) in nearest.iter_mut().zip(limits) {
             *n = Nearest::within(limit.max(0.0) + self.width / 2.0);
         }
@@ -416,7 +437,6 @@ type Cull = f64;
 /// Whether a point may lie within `squared` (a squared distance) of the box `lo`–`hi` (the
 /// stored f32 coordinates). The box is grown by [`CULL_SLACK`], far more than f32's rounding
 /// at map distances, so that `false` is certain.
-#[inline]
 fn box_reaches(lo: [f32; 2], hi: [f32; 2], point: (f64, f64), squared: f64) -> bool {
     let (x, y) = (point.0 as Cull, point.1 as Cull);
     let slack = CULL_SLACK as Cull;
@@ -433,7 +453,6 @@ const CULL_SLACK: f32 = 0.01;
 type StoredPoint = [u8; POINT_LEN];
 
 /// The coordinates of a stored point.
-#[inline]
 fn xy(p: &StoredPoint) -> [f32; 2] {
     let [a, b, c, d, e, f, g, h] = *p;
     [f32::from_le_bytes([a, b, c, d]), f32::from_le_bytes([e, f, g, h])]
@@ -445,7 +464,6 @@ fn wide(p: [f32; 2]) -> (f64, f64) {
 }
 
 /// The box of stored points (finite, checked at parse: plain compares).
-#[inline]
 fn bounding_box(points: &[StoredPoint]) -> ([f32; 2], [f32; 2]) {
     let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
     // Selects rather than branches (or `f32::min`, which also handles NaN): the compiler
@@ -481,17 +499,15 @@ struct EdgeDistance {
 }
 
 impl EdgeDistance {
-    const NONE: EdgeDistance =
-        EdgeDistance {
-            squared: f64::INFINITY,
-            residual: (0.0, 0.0),
-            found: false,
-            ties: f64::INFINITY,
-            inside: false,
-            enough: 0.0,
-        };
+    const NONE: EdgeDistance = EdgeDistance {
+        squared: f64::INFINITY,
+        residual: (0.0, 0.0),
+        found: false,
+        ties: f64::INFINITY,
+        inside: false,
+        enough: 0.0,
+    };
 
-    #[inline]
     fn offer(&mut self, residual: (f64, f64)) {
         let squared = residual.0 * residual.0 + residual.1 * residual.1;
         if squared < self.squared {
@@ -566,7 +582,6 @@ pub fn segment_distance(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
 
 /// The point of the segment from `a` along `direction` nearest to `p`: its parameter t
 /// (0 at `a`, 1 at the end) and the residual `p` − that point.
-#[inline]
 fn closest_on_segment(p: (f64, f64), a: (f64, f64), direction: (f64, f64)) -> (f64, (f64, f64)) {
     let (dx, dy) = direction;
     let len2 = dx * dx + dy * dy;
@@ -588,7 +603,7 @@ pub enum Item {
 pub struct MapView<'a> {
     bytes: &'a [u8],
     header: Header,
-    layout: [usize; 7],
+    layout: [usize; 8],
 }
 
 impl<'a> MapView<'a> {
@@ -601,12 +616,12 @@ impl<'a> MapView<'a> {
             return Err(MapError::BadMagic);
         }
         let major = bytes.get(6).copied().unwrap_or(0);
-        if major != VERSION_MAJOR {
+        if !(1..=VERSION_MAJOR).contains(&major) {
             return Err(MapError::UnsupportedVersion(major));
         }
         let header = Header::read(bytes);
         let layout = header.layout().ok_or(MapError::BadLength)?;
-        if layout[6] != bytes.len() {
+        if layout[7] != bytes.len() {
             return Err(MapError::BadLength);
         }
         if body_checksum(bytes) != u32_at(bytes, CRC_AT) {
@@ -679,7 +694,72 @@ impl<'a> MapView<'a> {
                 return Err(MapError::BadReference("grid entry", i));
             }
         }
+        if h.boxes {
+            self.validate_boxes()?;
+        }
         Ok(())
+    }
+
+    /// Every box holds its item's area: a lane's centreline grown by half its width (or its
+    /// polygon), a polygon's ring. A box that did not would make the check pass over a lane
+    /// it should measure, so a tile whose boxes lie is refused like any other bad value.
+    fn validate_boxes(&self) -> Result<(), MapError> {
+        let h = &self.header;
+        let holds = |(lo, hi): ([f32; 2], [f32; 2]), points: &[StoredPoint], margin: f64| {
+            points.iter().map(|p| wide(xy(p))).all(|(x, y)| {
+                f64::from(lo[0]) <= x - margin
+                    && f64::from(lo[1]) <= y - margin
+                    && x + margin <= f64::from(hi[0])
+                    && y + margin <= f64::from(hi[1])
+            })
+        };
+        for i in 0..h.lanes {
+            let ok = match (self.stored_box(i as usize), self.lane_area(i)) {
+                (Some(b), Some(LaneArea::Buffered(c))) => holds(b, c.points, c.width / 2.0),
+                (Some(b), Some(LaneArea::Polygon(j))) => self.polygon_points(j).is_some_and(|ring| holds(b, ring, 0.0)),
+                _ => false,
+            };
+            if !ok {
+                return Err(MapError::BadValue("lane box", i));
+            }
+        }
+        for j in 0..h.polygons {
+            let b = self.stored_box(h.lanes as usize + j as usize);
+            if !b.zip(self.polygon_points(j)).is_some_and(|(b, ring)| holds(b, ring, 0.0)) {
+                return Err(MapError::BadValue("polygon box", j));
+            }
+        }
+        Ok(())
+    }
+
+    /// Box `index` of the boxes section (lanes first, then polygons); none in format 1.
+    fn stored_box(&self, index: usize) -> Option<([f32; 2], [f32; 2])> {
+        if !self.header.boxes {
+            return None;
+        }
+        let at = self.layout[6].checked_add(index.checked_mul(BOX_LEN)?)?;
+        let b = self.bytes.get(at..at.checked_add(BOX_LEN)?)?;
+        Some(([f32_at(b, 0), f32_at(b, 4)], [f32_at(b, 8), f32_at(b, 12)]))
+    }
+
+    /// The bounding box of an item's area (lo, hi), as stored (format 2).
+    pub fn item_box(&self, item: Item) -> Option<([f32; 2], [f32; 2])> {
+        match item {
+            Item::Lane(i) if i < self.header.lanes => self.stored_box(i as usize),
+            Item::Polygon(i) if i < self.header.polygons => self.stored_box(self.header.lanes as usize + i as usize),
+            _ => None,
+        }
+    }
+
+    /// Whether any of `points` may lie within its limit (0 or less: in) of `item`'s area,
+    /// judged by the item's box alone — `false` is certain, so the item need not be read;
+    /// always `true` without boxes (format 1).
+    pub fn item_reaches<const N: usize>(&self, item: Item, points: &[(f64, f64); N], limits: &[f64; N]) -> bool {
+        let Some((lo, hi)) = self.item_box(item) else { return true };
+        points
+            .iter()
+            .zip(limits)
+            .any(|(&point, &limit)| box_reaches(lo, hi, point, Nearest::within(limit.max(0.0)).squared))
     }
 
     /// The header.
@@ -798,7 +878,7 @@ impl<'a> MapView<'a> {
     ) -> Option<()> {
         let ring = self.polygon_points(i)?;
         out.fill(f64::INFINITY);
-        let (lo, hi) = bounding_box(ring);
+        let (lo, hi) = self.item_box(Item::Polygon(i)).unwrap_or_else(|| bounding_box(ring));
         let mut nearest = [EdgeDistance::NONE; N];
         let (mut active, mut measured) = (0u64, 0u64);
         for (k, ((&point, &limit), n)) in points.iter().zip(limits).zip(nearest.iter_mut()).enumerate() {
@@ -907,4 +987,3 @@ impl<'a> MapView<'a> {
         best
     }
 }
-

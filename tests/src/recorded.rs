@@ -31,7 +31,10 @@ pub fn road_tile(scenario: &Scenario, drive: &Path) -> Vec<u8> {
     let [lat, lon, h] = scenario.config.origin;
     let osm = dash2sim_linux::osm::read(&drive.join("road.osm")).expect("road.osm");
     let origin = Geodetic::new(lat, lon, h).expect("origin");
-    dash2sim_linux::map_tile::encode(&dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()), 50.0)
+    dash2sim_linux::map_tile::encode(
+        &dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
+        dash2sim_linux::map_tile::DEFAULT_CELL_M,
+    )
 }
 
 /// What recording one generated drive measured.

@@ -52,7 +52,7 @@ pub fn tile_of_ways(ways: &[WaySpec<'_>]) -> Vec<u8> {
     let mut warnings = Vec::new();
     let content = from_osm(&data, Some(origin), &mut warnings);
     assert!(warnings.is_empty(), "{warnings:?}");
-    encode(&content, 50.0)
+    encode(&content, dash2sim_linux::map_tile::DEFAULT_CELL_M)
 }
 
 /// 500 m east from the origin, a node every 5 m.

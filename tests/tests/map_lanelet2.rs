@@ -23,7 +23,7 @@ fn the_lanelet2_example_becomes_consistent_lanes() {
     let mut warnings = Vec::new();
     let content = from_osm(&data, None, &mut warnings);
     assert!(warnings.is_empty(), "{warnings:?}");
-    let bytes = encode(&content, 50.0);
+    let bytes = encode(&content, dash2sim_linux::map_tile::DEFAULT_CELL_M);
     let map = MapView::parse(&bytes).expect("valid tile");
     println!(
         "{} vehicle lanelets ({two_way} two-way) → {} lanes, {} bytes",

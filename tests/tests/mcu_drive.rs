@@ -30,7 +30,7 @@ fn the_mcu_example_drive_is_todays_and_records_on_the_host() {
     let origin = Geodetic::new(60.2711, 24.8572, 0.0).expect("origin");
     let tile = dash2sim_linux::map_tile::encode(
         &dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
-        50.0,
+        dash2sim_linux::map_tile::DEFAULT_CELL_M,
     );
     let committed_tile = std::fs::read(root.join("drive.d2smap")).expect("drive.d2smap");
     assert!(tile == committed_tile, "examples/mcu/drive.d2smap is stale; {REBUILD}");

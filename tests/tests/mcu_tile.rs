@@ -14,7 +14,7 @@ fn the_mcu_example_tile_is_built_from_its_osm_file() {
     assert!(warnings.is_empty(), "{warnings:?}");
     let committed = std::fs::read(root.join("road.d2smap")).expect("road.d2smap");
     assert!(
-        encode(&content, 50.0) == committed,
+        encode(&content, dash2sim_linux::map_tile::DEFAULT_CELL_M) == committed,
         "rebuild it: dash2sim map build examples/mcu/road.osm -o examples/mcu/road.d2smap --origin 60.2,24.9"
     );
 }

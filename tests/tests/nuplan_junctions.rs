@@ -62,7 +62,7 @@ fn village_lanes_never_overlap_and_connectors_carry_the_drive_through_its_juncti
     let osm = dash2sim_linux::osm::read(&dir.join("planet_10.068_48.135_10.071_48.137.osm")).expect("osm");
     let origin = Geodetic::new(ORIGIN.0, ORIGIN.1, 0.0).expect("origin");
     let content = dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new());
-    let tile = dash2sim_linux::map_tile::encode(&content, 50.0);
+    let tile = dash2sim_linux::map_tile::encode(&content, dash2sim_linux::map_tile::DEFAULT_CELL_M);
     let view = MapView::parse(&tile).expect("tile");
     let projection = Projection::new(origin).expect("projection");
     let (all, ids) = layers(&view, &projection).expect("layers");

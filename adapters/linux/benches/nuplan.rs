@@ -21,7 +21,7 @@ fn map_layers(c: &mut Criterion) {
     {
         let Some(path) = data(sub) else { continue };
         let osm = dash2sim_linux::osm::read(&path).expect("OSM file");
-        let bytes = encode(&from_osm(&osm, None, &mut Vec::new()), 50.0);
+        let bytes = encode(&from_osm(&osm, None, &mut Vec::new()), dash2sim_linux::map_tile::DEFAULT_CELL_M);
         let map = MapView::parse(&bytes).expect("tile");
         let [lat, lon, h] = map.header().origin;
         let projection = Projection::new(Geodetic::new(lat, lon, h).expect("origin")).expect("projection");

@@ -22,7 +22,7 @@ use rand::{Rng, SeedableRng};
 
 fn tile(osm: &std::path::Path, origin: Option<Geodetic>) -> Vec<u8> {
     let data = dash2sim_linux::osm::read(osm).expect("OSM file");
-    encode(&from_osm(&data, origin, &mut Vec::new()), 50.0)
+    encode(&from_osm(&data, origin, &mut Vec::new()), dash2sim_linux::map_tile::DEFAULT_CELL_M)
 }
 
 /// 1000 poses: half within 8 m of a lane point, half anywhere in the lanes' box + 20 m.

@@ -183,7 +183,7 @@ enum MapCommand {
         #[arg(long, value_name = "W,S,E,N")]
         bbox: Option<String>,
         /// Grid cell size, metres.
-        #[arg(long, default_value_t = 50.0)]
+        #[arg(long, default_value_t = crate::map_tile::DEFAULT_CELL_M)]
         cell: f64,
     },
     /// Describe a map tile: origin, source counts, lanes, lane-km, bytes.

@@ -234,7 +234,10 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
 
     progress.step(2, STEPS, "building the map tile from the road's OpenStreetMap");
     let osm = crate::osm::read(&drive_dir.join("road.osm")).map_err(|e| e.to_string())?;
-    let tile = crate::map_tile::encode(&crate::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()), 50.0);
+    let tile = crate::map_tile::encode(
+        &crate::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
+        crate::map_tile::DEFAULT_CELL_M,
+    );
     let map_path = out.join("road.map");
     write_file(&map_path, &tile)?;
     let map = MapView::parse(&tile).map_err(|e| e.to_string())?;

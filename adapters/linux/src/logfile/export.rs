@@ -58,7 +58,10 @@ fn map_tile(path: &Path, log: &LogContents) -> Result<Vec<u8>, String> {
     }
     let origin = log.header.as_ref().and_then(frame).map(|f| f.origin());
     let osm = crate::osm::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    Ok(crate::map_tile::encode(&crate::map_tile::from_osm(&osm, origin, &mut Vec::new()), 50.0))
+    Ok(crate::map_tile::encode(
+        &crate::map_tile::from_osm(&osm, origin, &mut Vec::new()),
+        crate::map_tile::DEFAULT_CELL_M,
+    ))
 }
 
 /// A nuPlan map name from a file name: lower case, `-` for anything but letters and digits.

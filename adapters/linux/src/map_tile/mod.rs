@@ -1,4 +1,4 @@
-//! Building map tiles (format v1, `docs/map-tile.md`): OpenStreetMap highway ways → lanes
+//! Building map tiles (format v2, `docs/map-tile.md`): OpenStreetMap highway ways → lanes
 //! in a local ENU frame → the bytes the core's `map::MapView` reads.
 //!
 //! Every drivable way becomes `forward + backward` lanes laid side by side across its
@@ -15,7 +15,7 @@ use std::collections::HashMap;
 use std::io::Write as _;
 
 use dash2sim_core::geo::{Geodetic, LocalFrame};
-use dash2sim_core::map::{body_checksum, Header, CRC_AT, HEADER_LEN, NONE, POLYGON_BIT};
+use dash2sim_core::map::{body_checksum, Header, CRC_AT, HEADER_LEN, NONE, POLYGON_BIT, VERSION_MAJOR};
 
 use crate::osm::highway::{interpret, RoadSpec};
 use crate::osm::OsmData;
@@ -221,6 +221,11 @@ pub fn from_osm(data: &OsmData, origin: Option<Geodetic>, warnings: &mut Vec<Str
     content
 }
 
+/// The grid's cell size unless asked otherwise, m. A smaller cell lists fewer lanes that
+/// are not near a query (the drivable check got 15 % faster on central Helsinki going from
+/// 50 m to 25 m) for a larger index (the tile 12 % larger): `docs/benchmarks.md`.
+pub const DEFAULT_CELL_M: f64 = 25.0;
+
 /// Encode `content` with a grid of `cell_size` metres.
 pub fn encode(content: &TileContent, cell_size: f64) -> Vec<u8> {
     let mut points: Vec<(f64, f64)> = Vec::new();
@@ -242,7 +247,7 @@ pub fn encode(content: &TileContent, cell_size: f64) -> Vec<u8> {
         let mut r = [0u8; 28];
         r[0..4].copy_from_slice(&first.to_le_bytes());
         r[4..6].copy_from_slice(&(lane.points.len().min(usize::from(u16::MAX)) as u16).to_le_bytes());
-        r[6..8].copy_from_slice(&((lane.width * 100.0).round().clamp(1.0, 65535.0) as u16).to_le_bytes());
+        r[6..8].copy_from_slice(&width_cm(lane.width).to_le_bytes());
         let speed = lane.speed_limit.map_or(0, |v| (v * 100.0).round().clamp(1.0, 65535.0) as u16);
         r[8..10].copy_from_slice(&speed.to_le_bytes());
         r[10] = lane.class;
@@ -323,6 +328,7 @@ pub fn encode(content: &TileContent, cell_size: f64) -> Vec<u8> {
         grid_min: [min.0 as f32, min.1 as f32],
         grid_size: [cols as u16, rows as u16],
         source_counts: content.source_counts,
+        boxes: true,
     };
     let mut out = vec![0u8; HEADER_LEN];
     header.write(&mut out);
@@ -346,9 +352,40 @@ pub fn encode(content: &TileContent, cell_size: f64) -> Vec<u8> {
             out.extend_from_slice(&e.to_le_bytes());
         }
     }
+    // Item boxes (format 2): lanes, then polygons, from the stored f32 points and width,
+    // rounded outward so that every box holds its item exactly.
+    let stored = |p: &(f64, f64)| (f64::from(p.0 as f32), f64::from(p.1 as f32));
+    let ring_box = |ring: &[(f64, f64)], margin: f64| item_box(ring.iter().map(stored), margin);
+    for lane in &content.lanes {
+        let b = match lane.area.and_then(|a| content.polygons.get(a)) {
+            Some(ring) => ring_box(ring, 0.0),
+            None => ring_box(&lane.points, f64::from(width_cm(lane.width)) / 100.0 / 2.0),
+        };
+        out.extend(b.iter().flat_map(|v| v.to_le_bytes()));
+    }
+    for ring in &content.polygons {
+        out.extend(ring_box(ring, 0.0).iter().flat_map(|v| v.to_le_bytes()));
+    }
     let crc = body_checksum(&out);
     out[CRC_AT..CRC_AT + 4].copy_from_slice(&crc.to_le_bytes());
     out
+}
+
+/// A lane's width as stored, cm.
+fn width_cm(width: f64) -> u16 {
+    (width * 100.0).round().clamp(1.0, 65535.0) as u16
+}
+
+/// The box (lo x, lo y, hi x, hi y) of points grown by `margin`, in f32 rounded outward.
+fn item_box(points: impl Iterator<Item = (f64, f64)>, margin: f64) -> [f32; 4] {
+    let (mut lo, mut hi) = ((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY));
+    for (x, y) in points {
+        lo = (lo.0.min(x - margin), lo.1.min(y - margin));
+        hi = (hi.0.max(x + margin), hi.1.max(y + margin));
+    }
+    let down = |v: f64| if f64::from(v as f32) > v { (v as f32).next_down() } else { v as f32 };
+    let up = |v: f64| if f64::from(v as f32) < v { (v as f32).next_up() } else { v as f32 };
+    [down(lo.0), down(lo.1), up(hi.0), up(hi.1)]
 }
 
 fn parse_origin(text: &str) -> Result<Geodetic, String> {
@@ -486,7 +523,7 @@ pub fn run_info(path: &std::path::Path, as_json: bool) -> Result<(), String> {
     if as_json {
         println!("{info}");
     } else {
-        println!("map tile {} (format v1)", path.display());
+        println!("map tile {} (format v{})", path.display(), if h.boxes { VERSION_MAJOR } else { 1 });
         println!("  origin      {:.7}, {:.7}", h.origin[0], h.origin[1]);
         println!("  source      {nodes} nodes, {ways} ways ({highway_ways} highway), {relations} relations");
         println!("  lanes       {} ({lane_km:.2} lane-km), {} polygons, {} points", h.lanes, h.polygons, h.points);
@@ -565,15 +602,30 @@ mod tests {
         (distances, occupied, centre)
     }
 
+    /// The same tile in format 1: no item boxes.
+    fn without_boxes(tile: &[u8]) -> Vec<u8> {
+        let view = MapView::parse(tile).expect("tile");
+        let mut v1 = tile[..view.header().layout().expect("layout")[6]].to_vec();
+        v1[6] = 1;
+        let crc = body_checksum(&v1);
+        v1[CRC_AT..CRC_AT + 4].copy_from_slice(&crc.to_le_bytes());
+        v1
+    }
+
     #[test]
     fn the_check_agrees_with_one_point_queries_on_sparse_and_crowded_tiles() {
         use dash2sim_core::drivable::{Channel, Checker};
         // 10 lanes 7 m apart: every item near a footprint is remembered. 300 lanes 0.3 m
         // apart: more grid entries near a footprint than the check remembers, so the rest
         // are measured as they come and occupancy is looked up point by point.
-        for (n, spacing) in [(10, 7.0), (300, 0.3)] {
-            let bytes = encode(&parallel_lanes(n, spacing), 50.0);
+        // Each in format 2 and in format 1, whose check reads every lane near the footprint.
+        for (n, spacing, format) in [(10, 7.0, 2), (10, 7.0, 1), (300, 0.3, 2), (300, 0.3, 1)] {
+            let mut bytes = encode(&parallel_lanes(n, spacing), 50.0);
+            if format == 1 {
+                bytes = without_boxes(&bytes);
+            }
             let view = MapView::parse(&bytes).expect("tile");
+            assert_eq!(view.header().boxes, format == 2);
             let checker = Checker::new(view, PACIFICA);
             let mut compared = 0;
             for i in 0..40 {
@@ -648,6 +700,34 @@ mod tests {
     }
 
     #[test]
+    fn item_boxes_hold_their_areas_and_a_box_that_does_not_is_refused() {
+        let mut content = square_road();
+        content.lanes[0].points = vec![(0.1, 0.3), (100.7, -0.2)];
+        let bytes = encode(&content, 25.0);
+        let view = MapView::parse(&bytes).expect("valid");
+        // The centreline grown by half the 3.5 m width, rounded outward to f32.
+        let (lo, hi) = view.item_box(Item::Lane(0)).expect("box");
+        assert!(f64::from(lo[0]) <= 0.1f32 as f64 - 1.75 && f64::from(lo[0]) > 0.1f32 as f64 - 1.75 - 1e-5, "{lo:?}");
+        assert!(f64::from(hi[1]) >= 0.3f32 as f64 + 1.75 && f64::from(hi[1]) < 0.3f32 as f64 + 1.75 + 1e-5, "{hi:?}");
+        assert_eq!(view.item_box(Item::Polygon(0)), Some(([-20.0, -20.0], [-10.0, -10.0])));
+        // A lane's box shrunk by 1 cm no longer holds its area: the tile is refused.
+        let mut lying = bytes.clone();
+        let at = view.header().layout().expect("layout")[6];
+        lying[at..at + 4].copy_from_slice(&(lo[0] + 0.01).to_le_bytes());
+        let crc = body_checksum(&lying);
+        lying[CRC_AT..CRC_AT + 4].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(MapView::parse(&lying), Err(MapError::BadValue("lane box", 0)));
+        // Format 1 has no boxes; it is read, and its answers are the same.
+        let v1 = without_boxes(&bytes);
+        let old = MapView::parse(&v1).expect("format 1");
+        assert_eq!((old.header().boxes, old.item_box(Item::Lane(0))), (false, None));
+        assert_eq!(
+            old.distance_to_drivable(50.0, 3.0, 5.0, |_| true),
+            view.distance_to_drivable(50.0, 3.0, 5.0, |_| true)
+        );
+    }
+
+    #[test]
     fn corruption_and_truncation_are_refused() {
         let bytes = encode(&square_road(), 25.0);
         assert_eq!(MapView::parse(&bytes[..bytes.len() - 1]), Err(MapError::BadLength));
@@ -656,8 +736,8 @@ mod tests {
         flipped[HEADER_LEN + 3] ^= 0x10;
         assert_eq!(MapView::parse(&flipped), Err(MapError::BadChecksum));
         let mut version = bytes.clone();
-        version[6] = 2;
-        assert_eq!(MapView::parse(&version), Err(MapError::UnsupportedVersion(2)));
+        version[6] = 3;
+        assert_eq!(MapView::parse(&version), Err(MapError::UnsupportedVersion(3)));
         let mut magic = bytes;
         magic[0] = b'X';
         assert_eq!(MapView::parse(&magic), Err(MapError::BadMagic));

@@ -120,7 +120,10 @@ fn make(plan: &Plan, out: &Path) -> Result<Value, String> {
     let work = out.join(".work").join(&name);
     write_scenario(&scenario, &work).map_err(|e| format!("{}: {e}", work.display()))?;
     let osm = crate::osm::read(&work.join("road.osm")).map_err(|e| e.to_string())?;
-    let tile = crate::map_tile::encode(&crate::map_tile::from_osm(&osm, Some(geodetic), &mut Vec::new()), 50.0);
+    let tile = crate::map_tile::encode(
+        &crate::map_tile::from_osm(&osm, Some(geodetic), &mut Vec::new()),
+        crate::map_tile::DEFAULT_CELL_M,
+    );
     let mut sources = Sources::scenario(&work);
     if plan.damage == Some(Damage::NoGnss) {
         sources.nmea = None;
