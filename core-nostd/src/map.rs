@@ -515,7 +515,8 @@ impl EdgeDistance {
                 self.ties = self.ties.min(libm::hypot(self.residual.0, self.residual.1));
             }
             (self.squared, self.residual, self.found) = (squared, residual, true);
-        } else if self.found && squared <= self.squared * (1.0 + 1e-9) {
+        } else if self.found && squared <= self.squared * (1.0 + 1e-9) && residual != self.residual {
+            // (The same residual again — the vertex two edges share — has the same hypot.)
             self.ties = self.ties.min(libm::hypot(residual.0, residual.1));
         }
     }
