@@ -188,9 +188,12 @@ impl<'a> Checker<'a> {
     /// the pose before: where lanes overlap (junctions) the centre stays in it, as nuPlan
     /// keeps ego on the lane it is following.
     ///
-    /// One grid query gathers every lane and polygon near the footprint, each is measured
-    /// once for the centre and the four corners together (one pass over its centreline),
-    /// and the per-point lookups that follow reuse what that pass found.
+    /// Two grid queries gather the lanes and polygons near the footprint (the cells under
+    /// it, then farther as far as the corners still outside need). Each item is measured
+    /// once for the centre and the four corners together (one pass over its centreline or
+    /// ring), each point's distance wanted only while it could change the answer, and an
+    /// item whose box is beyond that is passed over unread; the per-point lookups that
+    /// follow reuse what the pass found.
     pub fn check<const WORDS: usize>(
         &self,
         pose: &Pose2,

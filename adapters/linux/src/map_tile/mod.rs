@@ -560,17 +560,31 @@ mod tests {
         }
     }
 
-    /// `n` parallel lanes 100 m long, `spacing` apart, 3 m wide, plus the square road's polygon.
-    fn parallel_lanes(n: usize, spacing: f64) -> TileContent {
+    /// `n` parallel lanes 100 m long, `spacing` apart, 3 m wide, plus the square road's
+    /// polygon; with `areas`, each lane's area is a polygon of 42 points around it
+    /// (Lanelet2's kind, long enough to be walked in several runs), and they overlap when
+    /// the lanes are closer than 3 m.
+    fn parallel_lanes(n: usize, spacing: f64, areas: bool) -> TileContent {
         let mut content = square_road();
         content.lanes = (0..n)
             .map(|k| TileLane {
                 points: vec![(0.0, k as f64 * spacing), (50.0, k as f64 * spacing + 1.0), (100.0, k as f64 * spacing)],
                 width: 3.0,
                 successors: Vec::new(),
+                area: areas.then_some(k + 1),
                 ..content.lanes[0].clone()
             })
             .collect();
+        if areas {
+            for k in 0..n {
+                // The centreline's kink, 1 m up at x = 50.
+                let centre = |x: f64| k as f64 * spacing + 1.0 - (x - 50.0).abs() / 50.0;
+                let xs = (0..=20).map(|i| 5.0 * f64::from(i));
+                let right = xs.clone().map(|x| (x, centre(x) - 1.5));
+                let left = xs.rev().map(|x| (x, centre(x) + 1.5));
+                content.polygons.push(right.chain(left).collect());
+            }
+        }
         content
     }
 
@@ -618,9 +632,11 @@ mod tests {
         // 10 lanes 7 m apart: every item near a footprint is remembered. 300 lanes 0.3 m
         // apart: more grid entries near a footprint than the check remembers, so the rest
         // are measured as they come and occupancy is looked up point by point.
-        // Each in format 2 and in format 1, whose check reads every lane near the footprint.
-        for (n, spacing, format) in [(10, 7.0, 2), (10, 7.0, 1), (300, 0.3, 2), (300, 0.3, 1)] {
-            let mut bytes = encode(&parallel_lanes(n, spacing), 50.0);
+        // Each in format 2 and in format 1, whose check reads every lane near the footprint;
+        // and with polygon areas (Lanelet2's kind), 2 m apart so that they overlap.
+        let cases = [(10, 7.0, 2, false), (10, 7.0, 1, false), (300, 0.3, 2, false), (300, 0.3, 1, false)];
+        for (n, spacing, format, areas) in cases.into_iter().chain([(12, 2.0, 2, true), (12, 2.0, 1, true)]) {
+            let mut bytes = encode(&parallel_lanes(n, spacing, areas), 50.0);
             if format == 1 {
                 bytes = without_boxes(&bytes);
             }
@@ -697,6 +713,57 @@ mod tests {
         let crc = body_checksum(&bad);
         bad[CRC_AT..CRC_AT + 4].copy_from_slice(&crc.to_le_bytes());
         assert_eq!(MapView::parse(&bad), Err(MapError::BadReference("lane", 2)));
+    }
+
+    #[test]
+    fn polygon_distances_equal_every_edge_measured_with_culls_and_limits_or_without() {
+        use dash2sim_core::map::segment_distance;
+        use rand::{Rng, SeedableRng};
+        // A 60-point star with uneven arms (walked in four runs of 16 edges), and a thin
+        // sliver: points inside, outside, near vertices and far away.
+        let star: Vec<(f64, f64)> = (0..60)
+            .map(|i| {
+                let angle = std::f64::consts::TAU * f64::from(i) / 60.0;
+                let r = if i % 2 == 0 { 20.0 + f64::from(i % 7) } else { 8.0 };
+                (r * angle.cos(), r * angle.sin())
+            })
+            .collect();
+        let mut content = square_road();
+        content.polygons = vec![star, vec![(30.0, 0.0), (60.0, 0.4), (30.0, 0.5)]];
+        let bytes = encode(&content, 25.0);
+        let view = MapView::parse(&bytes).expect("tile");
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(16);
+        for j in 0..2u32 {
+            let ring: Vec<(f64, f64)> = view.polygon(j).expect("ring").collect();
+            for _ in 0..2000 {
+                let p = (rng.random_range(-35.0..65.0), rng.random_range(-35.0..35.0));
+                // Every edge, no cull: the nearest edge's distance, even-odd parity.
+                let mut inside = false;
+                let mut nearest = f64::INFINITY;
+                for (k, &b) in ring.iter().enumerate() {
+                    let a = ring[(k + ring.len() - 1) % ring.len()];
+                    nearest = nearest.min(segment_distance(p, a, b));
+                    if (a.1 > p.1) != (b.1 > p.1) && p.0 < a.0 + (p.1 - a.1) * (b.0 - a.0) / (b.1 - a.1) {
+                        inside = !inside;
+                    }
+                }
+                let exact = if inside { -nearest } else { nearest };
+                assert_eq!(view.polygon_distance(j, p.0, p.1), Some(exact), "polygon {j}, {p:?}");
+                // With limits: exact below the limit; at or above it, a value at or above it
+                // of the right sign.
+                let limits = [f64::NEG_INFINITY, -6.0, -2.0, -0.5, 0.0, 1.0, 5.0];
+                let mut d = [0.0; 7];
+                view.polygon_distances(j, &[p; 7], &limits, &mut d).expect("polygon");
+                for (&d, &limit) in d.iter().zip(&limits) {
+                    assert_eq!(d <= 0.0, inside, "polygon {j}, {p:?}, limit {limit}");
+                    if exact < limit {
+                        assert_eq!(d, exact, "polygon {j}, {p:?}, limit {limit}");
+                    } else {
+                        assert!(d >= limit, "polygon {j}, {p:?}, limit {limit}: {d} < {limit}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]
