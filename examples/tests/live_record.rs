@@ -1,12 +1,12 @@
 //! `dash2sim record` live, with real processes and real shared memory: `camera_sim`
 //! publishes a generated drive at its frame rate while the logger (this process, through
-//! the library) subscribes, reads the drive's NMEA from a pseudo-terminal written at the
-//! receiver's rate, and replays the wheel-speed candump in real time.
+//! the library) subscribes, reads the drive's NMEA from a pseudo-terminal (written by
+//! the camera process at the receiver's rate), and replays the wheel-speed candump in real time.
 
-use std::io::Write;
+use std::io::{Read, Write};
 use std::process::Command;
 use std::sync::atomic::AtomicBool;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use dash2sim_core::binlog::Record;
 use dash2sim_linux::logfile;
@@ -60,9 +60,14 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
     let from_files = record::run_stream(&stream, &setup).expect("file record");
     let from_files = judge_log(&scenario, &logfile::decode(&from_files.log, "files").expect("log"));
 
-    // The receiver: NMEA lines written to a pty at their receive times (from when the camera starts).
+    // The receiver: the camera process writes the NMEA at its receive times, on the clock
+    // its frames are paced by, into a FIFO; a thread here forwards it as it comes to a pty
+    // (the serial port the logger reads). Pacing the NMEA here instead would start its
+    // clock before the camera's: a slow start of the camera process (it generates the
+    // drive first) would put every fix early against the frames.
     let (mut master, slave) = pty();
-    let serial = std::fs::read_to_string(drive.join("gnss.serial.log")).expect("serial");
+    let nmea = dir.join("gnss.fifo");
+    rustix::fs::mkfifoat(rustix::fs::CWD, &nmea, rustix::fs::Mode::RUSR | rustix::fs::Mode::WUSR).expect("mkfifo");
     let prefix = format!("dash2sim-test/live/{}", std::process::id());
     let request = LiveRequest {
         dir: dir.join("log"),
@@ -79,18 +84,25 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
     let logger = std::thread::spawn(move || live::run(&request, &setup, &AtomicBool::new(false)));
     std::thread::sleep(Duration::from_millis(300));
     let camera = Command::new(env!("CARGO_BIN_EXE_camera_sim"))
-        .args(["--seconds", &SECONDS.to_string(), "--prefix", &prefix])
+        .args(["--seconds", &SECONDS.to_string(), "--prefix", &prefix, "--nmea-out"])
+        .arg(&nmea)
         .spawn()
         .expect("camera_sim");
-    let start = Instant::now();
-    for line in serial.lines() {
-        let (stamp, sentence) = line.trim_start_matches('(').split_once(") ").expect("stamped line");
-        let due = start + Duration::from_secs_f64(stamp.parse::<f64>().expect("time"));
-        if let Some(wait) = due.checked_duration_since(Instant::now()) {
-            std::thread::sleep(wait);
+    // Opening a FIFO's read end waits for its writer; its end of file is the writer's.
+    let mut from_camera = std::fs::File::open(&nmea).expect("open the NMEA FIFO");
+    let mut forwarded = Vec::new();
+    let mut chunk = [0u8; 512];
+    loop {
+        let n = from_camera.read(&mut chunk).expect("read the NMEA FIFO");
+        if n == 0 {
+            break;
         }
-        master.write_all(format!("{sentence}\r\n").as_bytes()).expect("pty");
+        master.write_all(&chunk[..n]).expect("pty");
+        forwarded.extend_from_slice(&chunk[..n]);
     }
+    let serial = std::fs::read_to_string(drive.join("gnss.serial.log")).expect("serial");
+    let sentences = forwarded.iter().filter(|&&b| b == b'\n').count();
+    assert_eq!(sentences, serial.lines().count(), "every sentence of the receiver went through");
     let camera = camera.wait_with_output().expect("camera_sim");
     assert!(camera.status.success());
     let report = logger.join().expect("logger thread").expect("live record");
