@@ -61,7 +61,7 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
     let from_files = judge_log(&scenario, &logfile::decode(&from_files.log, "files").expect("log"));
 
     // The receiver: the camera process writes the NMEA at its receive times, on the clock
-    // its frames are paced by, into a FIFO; a thread here forwards it as it comes to a pty
+    // its frames are paced by, into a FIFO; this test forwards it as it comes to a pty
     // (the serial port the logger reads). Pacing the NMEA here instead would start its
     // clock before the camera's: a slow start of the camera process (it generates the
     // drive first) would put every fix early against the frames.
@@ -90,7 +90,7 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
         .expect("camera_sim");
     // Opening a FIFO's read end waits for its writer; its end of file is the writer's.
     let mut from_camera = std::fs::File::open(&nmea).expect("open the NMEA FIFO");
-    let mut forwarded = Vec::new();
+    let mut sentences = 0;
     let mut chunk = [0u8; 512];
     loop {
         let n = from_camera.read(&mut chunk).expect("read the NMEA FIFO");
@@ -98,10 +98,9 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
             break;
         }
         master.write_all(&chunk[..n]).expect("pty");
-        forwarded.extend_from_slice(&chunk[..n]);
+        sentences += chunk[..n].iter().filter(|&&b| b == b'\n').count();
     }
     let serial = std::fs::read_to_string(drive.join("gnss.serial.log")).expect("serial");
-    let sentences = forwarded.iter().filter(|&&b| b == b'\n').count();
     assert_eq!(sentences, serial.lines().count(), "every sentence of the receiver went through");
     let camera = camera.wait_with_output().expect("camera_sim");
     assert!(camera.status.success());
