@@ -17,6 +17,8 @@
 
 use crate::map::{Item, LaneArea, MapView, Nearest, Projection};
 use crate::obb::{Footprint, Pose2};
+#[cfg(feature = "polygon-index")]
+use crate::polygon_index::{PolygonIndex, WHOLE_BIT};
 
 /// A corner outside the drivable area by this much or more breaks compliance, m.
 pub const TOLERANCE: f64 = 0.3;
@@ -166,12 +168,28 @@ impl PoseCheck {
 pub struct Checker<'a> {
     map: MapView<'a>,
     footprint: Footprint,
+    #[cfg(feature = "polygon-index")]
+    index: Option<PolygonIndex<'a>>,
 }
 
 impl<'a> Checker<'a> {
     /// A checker for vehicles of `footprint` on `map`.
     pub fn new(map: MapView<'a>, footprint: Footprint) -> Self {
-        Checker { map, footprint }
+        Checker {
+            map,
+            footprint,
+            #[cfg(feature = "polygon-index")]
+            index: None,
+        }
+    }
+
+    #[cfg(feature = "polygon-index")]
+    /// The same checker reading `index` (built for this map's polygons) in the
+    /// channel-insensitive mode, with the same answers: each point's cell says which
+    /// polygons may hold it and which edges may be nearest, instead of every polygon the
+    /// grid lists around the footprint.
+    pub fn with_index(self, index: PolygonIndex<'a>) -> Self {
+        Checker { index: Some(index), ..self }
     }
 
     /// The map.
@@ -200,6 +218,10 @@ impl<'a> Checker<'a> {
         channel: Channel<'_, WORDS>,
         previous: Option<u32>,
     ) -> PoseCheck {
+        #[cfg(feature = "polygon-index")]
+        if let (Some(index), Channel::Insensitive) = (&self.index, &channel) {
+            return self.check_indexed(index, pose, previous);
+        }
         let footprint = self.footprint.at(pose);
         let corners = footprint.corners();
         let centre = (footprint.centre.x, footprint.centre.y);
@@ -314,20 +336,7 @@ impl<'a> Checker<'a> {
             if k == 0 {
                 let known = centre_lanes.iter().find(|(lane, _)| *lane == i).map(|&(_, p)| p);
                 let p = known.unwrap_or_else(|| lane.project(centre.0, centre.1));
-                let candidate = (
-                    previous == Some(i),
-                    p.distance,
-                    CentreLane { lane: i, along: p.along, heading: p.heading, speed_limit: lane.speed_limit },
-                );
-                let better = match &best {
-                    None => true,
-                    Some((was_previous, distance, _)) => {
-                        (candidate.0 && !was_previous) || (candidate.0 == *was_previous && candidate.1 < *distance)
-                    }
-                };
-                if better {
-                    best = Some(candidate);
-                }
+                prefer_centre_lane(&mut best, previous, i, lane, &p);
             }
         };
         for (k, &(x, y)) in points.iter().enumerate() {
@@ -352,6 +361,76 @@ impl<'a> Checker<'a> {
         }
         check.centre_lane = best.map(|(_, _, lane)| lane);
         check
+    }
+
+    #[cfg(feature = "polygon-index")]
+    /// [`Checker::check`] on a map of polygons, channel-insensitive, through its index: per
+    /// point, the polygons of its cell that hold it (occupancy, the centre's lane, a corner's
+    /// depth: the deepest), else its distance to the nearest of the cell's edges.
+    fn check_indexed(&self, index: &PolygonIndex<'_>, pose: &Pose2, previous: Option<u32>) -> PoseCheck {
+        let footprint = self.footprint.at(pose);
+        let corners = footprint.corners();
+        let centre = (footprint.centre.x, footprint.centre.y);
+        let points = [centre, corners[0], corners[1], corners[2], corners[3]];
+        let mut check = PoseCheck { corners: [None; 4], occupied: heapless::Vec::new(), centre_lane: None };
+        let mut best: Option<(bool, f64, CentreLane)> = None;
+        for (k, &point) in points.iter().enumerate() {
+            let Some(c) = index.cell_of(point.0, point.1) else { continue };
+            let mut depth: Option<f64> = None;
+            for &[entry, p, start, end] in index.areas(c) {
+                if entry & WHOLE_BIT == 0 && !self.map.polygon_holds(p, point) {
+                    continue;
+                }
+                if k > 0 {
+                    let d = -crate::map::edges_distance(index.depth_edges(start, end), point);
+                    depth = Some(depth.map_or(d, |m: f64| m.min(d)));
+                }
+                let Item::Lane(i) = item(entry & !WHOLE_BIT) else { continue };
+                if !check.occupied.contains(&i) {
+                    let _ = check.occupied.push(i);
+                }
+                if k == 0 {
+                    let Some(lane) = self.map.lane(i) else { continue };
+                    prefer_centre_lane(&mut best, previous, i, &lane, &lane.project(centre.0, centre.1));
+                }
+            }
+            let Some(corner) = k.checked_sub(1).and_then(|k| check.corners.get_mut(k)) else { continue };
+            if depth.is_some() {
+                *corner = depth;
+                continue;
+            }
+            let nearest = crate::map::edges_distance(index.edges(c), point);
+            if nearest <= SEARCH_RADIUS {
+                *corner = Some(nearest);
+            }
+        }
+        check.centre_lane = best.map(|(_, _, lane)| lane);
+        check
+    }
+}
+
+/// Keep lane `i` (the centre projected on it at `p`) as the centre's lane if it beats
+/// `best`: the lane of the pose before first, then the one whose centreline is nearest.
+fn prefer_centre_lane(
+    best: &mut Option<(bool, f64, CentreLane)>,
+    previous: Option<u32>,
+    i: u32,
+    lane: &crate::map::Lane<'_>,
+    p: &Projection,
+) {
+    let candidate = (
+        previous == Some(i),
+        p.distance,
+        CentreLane { lane: i, along: p.along, heading: p.heading, speed_limit: lane.speed_limit },
+    );
+    let better = match best {
+        None => true,
+        Some((was_previous, distance, _)) => {
+            (candidate.0 && !*was_previous) || (candidate.0 == *was_previous && candidate.1 < *distance)
+        }
+    };
+    if better {
+        *best = Some(candidate);
     }
 }
 

@@ -21,6 +21,7 @@
 //! | [`map`] | the compact map tile: zero-copy view, grid index, distance to the drivable area |
 //! | [`obb`] | oriented boxes in the plane: the ego footprint at its rear axle, overlap tests |
 //! | [`drivable`] | drivable-area compliance of a footprint, lane occupancy, channel modes |
+//! | `polygon_index` | (feature `polygon-index`) a fine index of a map's polygons for the drivable check |
 //! | [`score`] | the nuPlan-style closed-loop score, streaming |
 //! | [`binlog`] | the compact, crash-safe 4D log: writer over `embedded-io`, push decoder |
 //! | [`can`] | CAN: J1939/NMEA 2000 ids, fast packets, GNSS/speed decoders, DBC signals |
@@ -49,6 +50,8 @@ pub mod map;
 pub mod nmea;
 pub mod obb;
 pub mod pipeline;
+#[cfg(feature = "polygon-index")]
+pub mod polygon_index;
 pub mod score;
 pub mod sim3;
 pub mod time;

@@ -458,6 +458,25 @@ fn xy(p: &StoredPoint) -> [f32; 2] {
     [f32::from_le_bytes([a, b, c, d]), f32::from_le_bytes([e, f, g, h])]
 }
 
+/// Distance from `point` to the nearest of `edges` (x, y of both ends, as stored), found as
+/// [`MapView::polygon_distances`] finds it; infinite for none.
+pub fn edges_distance(edges: &[[f32; 4]], point: (f64, f64)) -> f64 {
+    let mut n = EdgeDistance::NONE;
+    for &[ax, ay, bx, by] in edges {
+        let (a, b) = (wide([ax, ay]), wide([bx, by]));
+        n.offer(closest_on_segment(point, a, (b.0 - a.0, b.1 - a.1)).1);
+    }
+    n.distance()
+}
+
+/// Whether the edge a–b crosses the ray from `p` towards +x (the even-odd rule's test).
+/// Without branches (they would be mispredicted): where the edge is level the quotient is
+/// not finite and the first test is false anyway.
+fn crosses_ray(a: (f64, f64), b: (f64, f64), (x, y): (f64, f64)) -> bool {
+    let straddles = (a.1 > y) != (b.1 > y);
+    straddles & (x < a.0 + (y - a.1) * (b.0 - a.0) / (b.1 - a.1))
+}
+
 /// Stored coordinates as the f64 every distance is worked in.
 fn wide(p: [f32; 2]) -> (f64, f64) {
     (f64::from(p[0]), f64::from(p[1]))
@@ -852,6 +871,19 @@ impl<'a> MapView<'a> {
         Some(self.polygon_points(i)?.iter().map(|p| wide(xy(p))))
     }
 
+    /// Whether polygon `i` holds (x, y) (even-odd parity, as [`MapView::polygon_distances`]).
+    pub fn polygon_holds(&self, i: u32, point: (f64, f64)) -> bool {
+        let Some(ring) = self.polygon_points(i) else { return false };
+        let Some(last) = ring.last() else { return false };
+        let mut a = wide(xy(last));
+        let mut inside = false;
+        for b in ring.iter().map(|p| wide(xy(p))) {
+            inside ^= crosses_ray(a, b, point);
+            a = b;
+        }
+        inside
+    }
+
     /// Signed distance from (x, y) to polygon `i`: negative inside.
     pub fn polygon_distance(&self, i: u32, x: f64, y: f64) -> Option<f64> {
         let mut d = [0.0];
@@ -914,10 +946,7 @@ impl<'a> MapView<'a> {
                     if k >= 64 || active & 1 << k == 0 {
                         continue;
                     }
-                    // Without branches (they would be mispredicted): where the edge is
-                    // level the quotient is not finite and the first test is false anyway.
-                    let straddles = (a.1 > y) != (b.1 > y);
-                    n.inside ^= straddles & (x < a.0 + (y - a.1) * (b.0 - a.0) / (b.1 - a.1));
+                    n.inside ^= crosses_ray(a, b, (x, y));
                     if reachable & 1 << k != 0 {
                         n.offer(closest_on_segment((x, y), a, direction).1);
                     }

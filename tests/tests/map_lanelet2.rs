@@ -90,3 +90,123 @@ fn the_lanelet2_example_becomes_consistent_lanes() {
     println!("{successors} successor links, {neighbours} neighbour pairs");
     assert!(successors > 300 && neighbours > 20, "{successors} {neighbours}");
 }
+
+/// The drivable check through the fine polygon index gives the plain check's answers bit for
+/// bit on the Lanelet2 example: 20 000 footprints, half near a lanelet (on it, across its
+/// bounds, at its ends), half anywhere in the map's box.
+#[test]
+fn the_polygon_index_gives_the_checks_answers_on_the_lanelet2_example() {
+    use dash2sim_core::drivable::{Channel, Checker};
+    use dash2sim_core::obb::{Pose2, PACIFICA};
+    use rand::{Rng, SeedableRng};
+
+    let Some(dir) = dash2sim_tests::data_dir("osm/lanelet2") else { return };
+    let data = osm::read(&dir.join("mapping_example.osm")).unwrap_or_else(|e| panic!("{e}"));
+    let bytes = encode(&from_osm(&data, None, &mut Vec::new()), dash2sim_linux::map_tile::DEFAULT_CELL_M);
+    let map = MapView::parse(&bytes).expect("valid tile");
+    let arrays = dash2sim_linux::map_tile::polygon_index::build(&map).expect("Lanelet2 lanes are polygons");
+    let (plain, indexed) = (Checker::new(map, PACIFICA), Checker::new(map, PACIFICA).with_index(arrays.view()));
+    let points: Vec<(f64, f64)> = (0..map.header().lanes)
+        .filter_map(|i| map.lane(i))
+        .flat_map(|lane| lane.points().collect::<Vec<_>>())
+        .collect();
+    let (lo, hi) = points.iter().fold(((f64::MAX, f64::MAX), (f64::MIN, f64::MIN)), |(lo, hi), p| {
+        ((lo.0.min(p.0), lo.1.min(p.1)), (hi.0.max(p.0), hi.1.max(p.1)))
+    });
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(16);
+    let (mut inside, mut outside, mut far, mut occupied) = (0, 0, 0, 0);
+    let mut previous = None;
+    for k in 0..20_000 {
+        let pose = if k % 2 == 0 {
+            let lane = map.lane(rng.random_range(0..map.header().lanes)).expect("lane");
+            let centreline: Vec<(f64, f64)> = lane.points().collect();
+            let (a, b) = (centreline[0], centreline[centreline.len() - 1]);
+            let t = rng.random_range(-0.1..1.1);
+            let heading = (b.1 - a.1).atan2(b.0 - a.0) + rng.random_range(-0.5..0.5);
+            let across = rng.random_range(-4.0..4.0);
+            Pose2::new(
+                a.0 + t * (b.0 - a.0) - across * heading.sin(),
+                a.1 + t * (b.1 - a.1) + across * heading.cos(),
+                heading,
+            )
+        } else {
+            Pose2::new(rng.random_range(lo.0..hi.0), rng.random_range(lo.1..hi.1), rng.random_range(-3.2..3.2))
+        };
+        let (a, b) = (
+            plain.check::<1>(&pose, Channel::Insensitive, previous),
+            indexed.check::<1>(&pose, Channel::Insensitive, previous),
+        );
+        assert_eq!(
+            a.corners.map(|d| d.map(f64::to_bits)),
+            b.corners.map(|d| d.map(f64::to_bits)),
+            "pose {k}: {pose:?}"
+        );
+        assert_eq!(a, b, "pose {k}: {pose:?}");
+        // The centre's lane of the pose before is preferred where lanelets overlap.
+        previous = a.centre_lane.map(|c| c.lane);
+        occupied += usize::from(!a.occupied.is_empty());
+        for d in a.corners {
+            match d {
+                Some(d) if d <= 0.0 => inside += 1,
+                Some(_) => outside += 1,
+                None => far += 1,
+            }
+        }
+    }
+    println!(
+        "{inside} corners inside, {outside} outside, {far} with nothing within 10 m; {occupied} poses on a lane; index {} bytes",
+        arrays.bytes()
+    );
+    assert!(inside > 10_000 && outside > 10_000 && far > 10_000 && occupied > 8_000);
+}
+
+/// The index's promise itself, where it is tightest (cell corners) and in between: a cell's
+/// edges hold the nearest edge of all polygons to any point of the cell within 10 m, and a
+/// polygon's own listed edges hold its nearest edge to any point of the cell.
+#[test]
+fn the_polygon_index_lists_the_nearest_edges_of_every_cell() {
+    use dash2sim_core::drivable::SEARCH_RADIUS;
+    use dash2sim_core::map::edges_distance;
+    use rand::{Rng, SeedableRng};
+
+    let Some(dir) = dash2sim_tests::data_dir("osm/lanelet2") else { return };
+    let data = osm::read(&dir.join("mapping_example.osm")).unwrap_or_else(|e| panic!("{e}"));
+    let bytes = encode(&from_osm(&data, None, &mut Vec::new()), dash2sim_linux::map_tile::DEFAULT_CELL_M);
+    let map = MapView::parse(&bytes).expect("valid tile");
+    let arrays = dash2sim_linux::map_tile::polygon_index::build(&map).expect("Lanelet2 lanes are polygons");
+    let index = arrays.view();
+    let rings: Vec<Vec<[f32; 4]>> = (0..map.header().polygons)
+        .map(|p| {
+            let ring: Vec<(f64, f64)> = map.polygon(p).expect("polygon").collect();
+            (0..ring.len())
+                .map(|j| {
+                    let (a, b) = (ring[(j + ring.len() - 1) % ring.len()], ring[j]);
+                    [a.0 as f32, a.1 as f32, b.0 as f32, b.1 as f32]
+                })
+                .collect()
+        })
+        .collect();
+    let all: Vec<[f32; 4]> = rings.concat();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+    let (mut near, mut depths) = (0, 0);
+    for k in 0..20_000 {
+        // A point near a random vertex; every other one snapped to a 2 m cell corner.
+        let [x, y, ..] = all[rng.random_range(0..all.len())];
+        let mut p = (f64::from(x) + rng.random_range(-12.0..12.0), f64::from(y) + rng.random_range(-12.0..12.0));
+        if k % 2 == 0 {
+            p = ((p.0 / 2.0).round() * 2.0 - 1e-9, (p.1 / 2.0).round() * 2.0 - 1e-9);
+        }
+        let Some(c) = index.cell_of(p.0, p.1) else { continue };
+        let nearest = edges_distance(&all, p);
+        if nearest <= SEARCH_RADIUS {
+            near += 1;
+            assert_eq!(edges_distance(index.edges(c), p), nearest, "point {p:?}");
+        }
+        for &[key, polygon, start, end] in index.areas(c) {
+            let own = edges_distance(&rings[polygon as usize], p);
+            assert_eq!(edges_distance(index.depth_edges(start, end), p), own, "point {p:?}, area {key}");
+            depths += 1;
+        }
+    }
+    assert!(near > 10_000 && depths > 10_000, "{near} {depths}");
+}

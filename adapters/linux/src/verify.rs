@@ -194,7 +194,12 @@ pub fn replay(
     channel_sensitive: bool,
     footprint: Footprint,
 ) -> Result<Verification, String> {
-    let checker = Checker::new(map, footprint);
+    // A map of polygons (Lanelet2) is checked through its fine index (channel-insensitive).
+    let index = if channel_sensitive { None } else { crate::map_tile::polygon_index::build(&map) };
+    let checker = match &index {
+        Some(index) => Checker::new(map, footprint).with_index(index.view()),
+        None => Checker::new(map, footprint),
+    };
     let mut channel_set: Box<LaneSet<CHANNEL_WORDS>> = Box::default();
     if channel_sensitive {
         if map.header().lanes as usize > LaneSet::<CHANNEL_WORDS>::capacity() {

@@ -21,7 +21,12 @@ pub fn run_check(map: &Path, poses: &Path, passes: u32, as_json: bool) -> Result
     if poses.is_empty() {
         return Err("no poses to check".to_owned());
     }
-    let checker = Checker::new(view, PACIFICA);
+    // A map of polygons (Lanelet2) is checked through its fine index, built first (not timed).
+    let index = super::polygon_index::build(&view);
+    let checker = match &index {
+        Some(index) => Checker::new(view, PACIFICA).with_index(index.view()),
+        None => Checker::new(view, PACIFICA),
+    };
     let mut fastest = f64::INFINITY;
     let (mut compliant, mut outside, mut nothing_near) = (0usize, 0usize, 0usize);
     for _ in 0..passes {

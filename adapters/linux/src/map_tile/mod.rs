@@ -10,6 +10,7 @@
 
 pub mod check;
 pub mod lanelet2;
+pub mod polygon_index;
 
 use std::collections::HashMap;
 use std::io::Write as _;
@@ -658,6 +659,55 @@ mod tests {
             }
             assert!(compared > 100, "{n} lanes: only {compared} poses on a lane");
         }
+    }
+
+    #[test]
+    fn the_polygon_index_gives_the_checks_answers_bit_for_bit() {
+        use dash2sim_core::drivable::{Channel, Checker, LaneSet, PoseCheck};
+        use dash2sim_core::polygon_index::WHOLE_BIT;
+        // Tiles of buffered centrelines (OpenStreetMap's) get no index.
+        let osm = encode(&square_road(), 25.0);
+        assert!(polygon_index::build(&MapView::parse(&osm).expect("tile")).is_none());
+        // 12 lanelet-like polygons 3 m wide, 2 m apart (they overlap), and a free-standing
+        // square: every way a point can lie.
+        let bytes = encode(&parallel_lanes(12, 2.0, true), 50.0);
+        let view = MapView::parse(&bytes).expect("tile");
+        let arrays = polygon_index::build(&view).expect("a tile of polygons");
+        let index = arrays.view();
+        let (plain, indexed) = (Checker::new(view, PACIFICA), Checker::new(view, PACIFICA).with_index(index));
+        let mut channel = LaneSet::<1>::new();
+        channel.insert(3);
+        let bits = |c: &PoseCheck| c.corners.map(|d| d.map(f64::to_bits));
+        let (mut inside, mut outside, mut far, mut whole) = (0, 0, 0, 0);
+        for i in 0..70 {
+            for j in 0..30 {
+                let pose = Pose2::new(-30.0 + 2.3 * f64::from(i), -25.0 + 2.9 * f64::from(j), 0.37 * f64::from(i * j));
+                for previous in [None, Some(4)] {
+                    let (a, b) = (
+                        plain.check::<1>(&pose, Channel::Insensitive, previous),
+                        indexed.check::<1>(&pose, Channel::Insensitive, previous),
+                    );
+                    assert_eq!((bits(&a), &a), (bits(&b), &b), "pose {pose:?}");
+                    // The channel-sensitive mode does not use the index.
+                    let sensitive = Channel::Sensitive(&channel);
+                    assert_eq!(plain.check(&pose, sensitive, previous), indexed.check(&pose, sensitive, previous));
+                }
+                for d in plain.check::<1>(&pose, Channel::Insensitive, None).corners {
+                    match d {
+                        Some(d) if d <= 0.0 => inside += 1,
+                        Some(_) => outside += 1,
+                        None => far += 1,
+                    }
+                }
+                let centre = PACIFICA.at(&pose).centre;
+                let cell = index.cell_of(centre.x, centre.y);
+                whole += cell.map_or(0, |c| index.areas(c).iter().filter(|a| a[0] & WHOLE_BIT != 0).count());
+            }
+        }
+        assert!(inside > 1000 && outside > 1000 && far > 1000 && whole > 100, "{inside} {outside} {far} {whole}");
+        // Outside the grid, and at a point that is not a number: nothing.
+        assert_eq!(index.cell_of(-1e6, 0.0), None);
+        assert_eq!(index.cell_of(f64::NAN, 0.0), None);
     }
 
     #[test]
