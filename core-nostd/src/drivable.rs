@@ -18,7 +18,7 @@
 use crate::map::{Item, LaneArea, MapView, Nearest, Projection};
 use crate::obb::{Footprint, Pose2};
 #[cfg(feature = "polygon-index")]
-use crate::polygon_index::{PolygonIndex, WHOLE_BIT};
+use crate::polygon_index::PolygonIndex;
 
 /// A corner outside the drivable area by this much or more breaks compliance, m.
 pub const TOLERANCE: f64 = 0.3;
@@ -377,15 +377,31 @@ impl<'a> Checker<'a> {
         for (k, &point) in points.iter().enumerate() {
             let Some(c) = index.cell_of(point.0, point.1) else { continue };
             let mut depth: Option<f64> = None;
-            for &[entry, p, start, end] in index.areas(c) {
-                if entry & WHOLE_BIT == 0 && !self.map.polygon_holds(p, point) {
+            // The polygon of the area before, whether it holds the point, and its depth
+            // there: a two-way lanelet's lanes share their polygon.
+            let mut last: Option<(u32, bool, f64)> = None;
+            for area in index.areas(c) {
+                let (holds, d) = match last {
+                    Some((polygon, holds, d)) if polygon == area.polygon => (holds, d),
+                    _ => {
+                        let holds =
+                            area.whole || crate::map::edges_parity(index.area_edges(area.crossing), point, area.parity);
+                        let d = if holds && k > 0 {
+                            -crate::map::edges_distance(index.area_edges(area.nearest), point)
+                        } else {
+                            f64::INFINITY
+                        };
+                        last = Some((area.polygon, holds, d));
+                        (holds, d)
+                    }
+                };
+                if !holds {
                     continue;
                 }
                 if k > 0 {
-                    let d = -crate::map::edges_distance(index.depth_edges(start, end), point);
                     depth = Some(depth.map_or(d, |m: f64| m.min(d)));
                 }
-                let Item::Lane(i) = item(entry & !WHOLE_BIT) else { continue };
+                let Item::Lane(i) = item(area.key) else { continue };
                 if !check.occupied.contains(&i) {
                     let _ = check.occupied.push(i);
                 }

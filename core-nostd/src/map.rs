@@ -469,6 +469,12 @@ pub fn edges_distance(edges: &[[f32; 4]], point: (f64, f64)) -> f64 {
     n.distance()
 }
 
+/// The even-odd parity of `point` from `edges` (x, y of both ends, as stored), starting from
+/// `parity`: the test [`MapView::polygon_distances`] makes, edge by edge.
+pub fn edges_parity(edges: &[[f32; 4]], point: (f64, f64), parity: bool) -> bool {
+    edges.iter().fold(parity, |inside, &[ax, ay, bx, by]| inside ^ crosses_ray(wide([ax, ay]), wide([bx, by]), point))
+}
+
 /// Whether the edge a–b crosses the ray from `p` towards +x (the even-odd rule's test).
 /// Without branches (they would be mispredicted): where the edge is level the quotient is
 /// not finite and the first test is false anyway.
@@ -869,19 +875,6 @@ impl<'a> MapView<'a> {
     /// Points of polygon `i` (a ring, implicitly closed).
     pub fn polygon(&self, i: u32) -> Option<impl Iterator<Item = (f64, f64)> + 'a> {
         Some(self.polygon_points(i)?.iter().map(|p| wide(xy(p))))
-    }
-
-    /// Whether polygon `i` holds (x, y) (even-odd parity, as [`MapView::polygon_distances`]).
-    pub fn polygon_holds(&self, i: u32, point: (f64, f64)) -> bool {
-        let Some(ring) = self.polygon_points(i) else { return false };
-        let Some(last) = ring.last() else { return false };
-        let mut a = wide(xy(last));
-        let mut inside = false;
-        for b in ring.iter().map(|p| wide(xy(p))) {
-            inside ^= crosses_ray(a, b, point);
-            a = b;
-        }
-        inside
     }
 
     /// Signed distance from (x, y) to polygon `i`: negative inside.

@@ -3,8 +3,9 @@
 //! The tile's grid lists, per 25 m cell, every lane or polygon whose box reaches the cell:
 //! around a footprint that is some 19 small polygons, each then walked whole for each
 //! corner. This index says per small cell which polygons may hold a point of it (and
-//! whether one holds all of it), which of each one's edges may be nearest to a point of it
-//! inside, and which edges of all may be nearest to a point of it outside them all. A
+//! whether one holds all of it, or else which of its edges decide it), which of each one's
+//! edges may be nearest to a point of it, and which edges of all may be nearest to a point of
+//! it outside them all. A
 //! corner then reads a few edges instead of every polygon around it, with the same answer
 //! (edges that cannot be nearest are left out; those that can are read in the same order).
 //!
@@ -13,9 +14,24 @@
 //! [`Checker::with_index`](crate::drivable::Checker::with_index) as plain arrays: nothing
 //! here allocates, and a short or inconsistent array reads as empty cells, never a panic.
 
-/// Set in an area's key when its polygon holds the whole cell (with a margin): points of the
-/// cell need no parity test.
-pub const WHOLE_BIT: u32 = 0x4000_0000;
+/// A polygon that may hold points of a cell.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Area {
+    /// The grid key of its item (a lane, or a free-standing polygon).
+    pub key: u32,
+    /// The polygon.
+    pub polygon: u32,
+    /// It holds the whole cell, with a margin: its points need no parity test.
+    pub whole: bool,
+    /// The even-odd parity a point of the cell has from the edges that cross the cell's row
+    /// wholly and lie wholly to its right (every such point's ray crosses them).
+    pub parity: bool,
+    /// Its edges (a range of [`PolygonIndex::area_edges`]) that may cross the ray from a
+    /// point of the cell towards +x: the rest cannot, or are counted in `parity`.
+    pub crossing: (u32, u32),
+    /// Its edges that may be nearest to a point of the cell.
+    pub nearest: (u32, u32),
+}
 
 /// The index: a grid of cells of `cell` metres from `min`; per cell a range of `areas` and
 /// a range of `edges`.
@@ -27,16 +43,15 @@ pub struct PolygonIndex<'a> {
     rows: u32,
     /// Per cell `c`, its areas from `area_starts[c]` to `area_starts[c + 1]`.
     area_starts: &'a [u32],
-    /// Grid key (with [`WHOLE_BIT`]), polygon, and the range of `depth_edges` that may be
-    /// nearest to a point of the cell inside it; by key.
-    areas: &'a [[u32; 4]],
+    /// By key.
+    areas: &'a [Area],
     /// Per cell `c`, its edges from `edge_starts[c]` to `edge_starts[c + 1]`.
     edge_starts: &'a [u32],
     /// Edges as stored in the tile (x, y of the start, x, y of the end), by key and then in
     /// ring order.
     edges: &'a [[f32; 4]],
     /// The areas' edges, likewise.
-    depth_edges: &'a [[f32; 4]],
+    area_edges: &'a [[f32; 4]],
 }
 
 impl<'a> PolygonIndex<'a> {
@@ -47,11 +62,11 @@ impl<'a> PolygonIndex<'a> {
         cell: f64,
         [cols, rows]: [u32; 2],
         [area_starts, edge_starts]: [&'a [u32]; 2],
-        areas: &'a [[u32; 4]],
+        areas: &'a [Area],
         edges: &'a [[f32; 4]],
-        depth_edges: &'a [[f32; 4]],
+        area_edges: &'a [[f32; 4]],
     ) -> Self {
-        PolygonIndex { min, cell, cols, rows, area_starts, areas, edge_starts, edges, depth_edges }
+        PolygonIndex { min, cell, cols, rows, area_starts, areas, edge_starts, edges, area_edges }
     }
 
     /// The cell holding (x, y); `None` outside the grid, where nothing is within the search
@@ -65,9 +80,8 @@ impl<'a> PolygonIndex<'a> {
         (row as usize).checked_mul(self.cols as usize)?.checked_add(col as usize)
     }
 
-    /// The polygons that may hold a point of cell `c`: grid key (with [`WHOLE_BIT`]),
-    /// polygon, and the range of their edges for [`PolygonIndex::depth_edges`].
-    pub fn areas(&self, c: usize) -> &'a [[u32; 4]] {
+    /// The polygons that may hold a point of cell `c`, by key.
+    pub fn areas(&self, c: usize) -> &'a [Area] {
         range(self.area_starts, c).and_then(|r| self.areas.get(r)).unwrap_or(&[])
     }
 
@@ -77,9 +91,9 @@ impl<'a> PolygonIndex<'a> {
         range(self.edge_starts, c).and_then(|r| self.edges.get(r)).unwrap_or(&[])
     }
 
-    /// An area's edges that may be nearest to a point of its cell inside it.
-    pub fn depth_edges(&self, start: u32, end: u32) -> &'a [[f32; 4]] {
-        self.depth_edges.get(start as usize..end as usize).unwrap_or(&[])
+    /// An area's edges: `(start, end)` of [`Area::crossing`] or [`Area::nearest`].
+    pub fn area_edges(&self, (start, end): (u32, u32)) -> &'a [[f32; 4]] {
+        self.area_edges.get(start as usize..end as usize).unwrap_or(&[])
     }
 }
 

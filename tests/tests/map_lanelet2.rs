@@ -91,6 +91,13 @@ fn the_lanelet2_example_becomes_consistent_lanes() {
     assert!(successors > 300 && neighbours > 20, "{successors} {neighbours}");
 }
 
+/// The example's tile, or `None` (the test skipped) without the data.
+fn example_tile() -> Option<Vec<u8>> {
+    let dir = dash2sim_tests::data_dir("osm/lanelet2")?;
+    let data = osm::read(&dir.join("mapping_example.osm")).unwrap_or_else(|e| panic!("{e}"));
+    Some(encode(&from_osm(&data, None, &mut Vec::new()), dash2sim_linux::map_tile::DEFAULT_CELL_M))
+}
+
 /// The drivable check through the fine polygon index gives the plain check's answers bit for
 /// bit on the Lanelet2 example: 20 000 footprints, half near a lanelet (on it, across its
 /// bounds, at its ends), half anywhere in the map's box.
@@ -100,9 +107,7 @@ fn the_polygon_index_gives_the_checks_answers_on_the_lanelet2_example() {
     use dash2sim_core::obb::{Pose2, PACIFICA};
     use rand::{Rng, SeedableRng};
 
-    let Some(dir) = dash2sim_tests::data_dir("osm/lanelet2") else { return };
-    let data = osm::read(&dir.join("mapping_example.osm")).unwrap_or_else(|e| panic!("{e}"));
-    let bytes = encode(&from_osm(&data, None, &mut Vec::new()), dash2sim_linux::map_tile::DEFAULT_CELL_M);
+    let Some(bytes) = example_tile() else { return };
     let map = MapView::parse(&bytes).expect("valid tile");
     let arrays = dash2sim_linux::map_tile::polygon_index::build(&map).expect("Lanelet2 lanes are polygons");
     let (plain, indexed) = (Checker::new(map, PACIFICA), Checker::new(map, PACIFICA).with_index(arrays.view()));
@@ -161,17 +166,16 @@ fn the_polygon_index_gives_the_checks_answers_on_the_lanelet2_example() {
 }
 
 /// The index's promise itself, where it is tightest (cell corners) and in between: a cell's
-/// edges hold the nearest edge of all polygons to any point of the cell within 10 m, and a
-/// polygon's own listed edges hold its nearest edge to any point of the cell.
+/// edges hold the nearest edge of all polygons to any point of the cell within 10 m, and an
+/// area's listed edges hold its polygon's nearest edge to any point of the cell and decide
+/// whether the polygon holds the point as all its edges do.
 #[test]
 fn the_polygon_index_lists_the_nearest_edges_of_every_cell() {
     use dash2sim_core::drivable::SEARCH_RADIUS;
-    use dash2sim_core::map::edges_distance;
+    use dash2sim_core::map::{edges_distance, edges_parity};
     use rand::{Rng, SeedableRng};
 
-    let Some(dir) = dash2sim_tests::data_dir("osm/lanelet2") else { return };
-    let data = osm::read(&dir.join("mapping_example.osm")).unwrap_or_else(|e| panic!("{e}"));
-    let bytes = encode(&from_osm(&data, None, &mut Vec::new()), dash2sim_linux::map_tile::DEFAULT_CELL_M);
+    let Some(bytes) = example_tile() else { return };
     let map = MapView::parse(&bytes).expect("valid tile");
     let arrays = dash2sim_linux::map_tile::polygon_index::build(&map).expect("Lanelet2 lanes are polygons");
     let index = arrays.view();
@@ -202,9 +206,11 @@ fn the_polygon_index_lists_the_nearest_edges_of_every_cell() {
             near += 1;
             assert_eq!(edges_distance(index.edges(c), p), nearest, "point {p:?}");
         }
-        for &[key, polygon, start, end] in index.areas(c) {
-            let own = edges_distance(&rings[polygon as usize], p);
-            assert_eq!(edges_distance(index.depth_edges(start, end), p), own, "point {p:?}, area {key}");
+        for area in index.areas(c) {
+            let own = &rings[area.polygon as usize];
+            assert_eq!(edges_distance(index.area_edges(area.nearest), p), edges_distance(own, p), "{p:?}, {area:?}");
+            let holds = area.whole || edges_parity(index.area_edges(area.crossing), p, area.parity);
+            assert_eq!(holds, edges_parity(own, p, false), "point {p:?}, area {area:?}");
             depths += 1;
         }
     }

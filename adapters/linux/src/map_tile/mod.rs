@@ -664,7 +664,6 @@ mod tests {
     #[test]
     fn the_polygon_index_gives_the_checks_answers_bit_for_bit() {
         use dash2sim_core::drivable::{Channel, Checker, LaneSet, PoseCheck};
-        use dash2sim_core::polygon_index::WHOLE_BIT;
         // Tiles of buffered centrelines (OpenStreetMap's) get no index.
         let osm = encode(&square_road(), 25.0);
         assert!(polygon_index::build(&MapView::parse(&osm).expect("tile")).is_none());
@@ -701,7 +700,7 @@ mod tests {
                 }
                 let centre = PACIFICA.at(&pose).centre;
                 let cell = index.cell_of(centre.x, centre.y);
-                whole += cell.map_or(0, |c| index.areas(c).iter().filter(|a| a[0] & WHOLE_BIT != 0).count());
+                whole += cell.map_or(0, |c| index.areas(c).iter().filter(|a| a.whole).count());
             }
         }
         assert!(inside > 1000 && outside > 1000 && far > 1000 && whole > 100, "{inside} {outside} {far} {whole}");

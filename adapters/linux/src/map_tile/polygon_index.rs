@@ -10,7 +10,7 @@
 
 use dash2sim_core::drivable::SEARCH_RADIUS;
 use dash2sim_core::map::{LaneArea, MapView, POLYGON_BIT};
-use dash2sim_core::polygon_index::{PolygonIndex, WHOLE_BIT};
+use dash2sim_core::polygon_index::{Area, PolygonIndex};
 
 /// Cell size, m: a corner then reads about 11 edges for its distance to the drivable area
 /// (the 25 m cells of the tile's grid list every polygon around a footprint, ~36 edges per
@@ -35,10 +35,10 @@ pub struct IndexArrays {
     cols: u32,
     rows: u32,
     area_starts: Vec<u32>,
-    areas: Vec<[u32; 4]>,
+    areas: Vec<Area>,
     edge_starts: Vec<u32>,
     edges: Vec<[f32; 4]>,
-    depth_edges: Vec<[f32; 4]>,
+    area_edges: Vec<[f32; 4]>,
 }
 
 impl IndexArrays {
@@ -51,14 +51,15 @@ impl IndexArrays {
             [&self.area_starts, &self.edge_starts],
             &self.areas,
             &self.edges,
-            &self.depth_edges,
+            &self.area_edges,
         )
     }
 
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         4 * (self.area_starts.len() + self.edge_starts.len())
-            + 16 * (self.areas.len() + self.edges.len() + self.depth_edges.len())
+            + size_of::<Area>() * self.areas.len()
+            + 16 * (self.edges.len() + self.area_edges.len())
     }
 }
 
@@ -221,7 +222,7 @@ pub fn build(map: &MapView<'_>) -> Option<IndexArrays> {
         areas: Vec::new(),
         edge_starts: vec![0],
         edges: Vec::new(),
-        depth_edges: Vec::new(),
+        area_edges: Vec::new(),
     };
     // Edges within reach of the cell: ring, edge, least distance to the cell.
     let mut near: Vec<(usize, usize, f64)> = Vec::new();
@@ -272,19 +273,37 @@ pub fn build(map: &MapView<'_>) -> Option<IndexArrays> {
                     continue;
                 }
                 let whole = !crossed && held.iter().all(|&h| h);
-                // The ring's edges that may be nearest to a point of the cell (its depth).
+                // The edges that decide its parity for a point of the cell: those that may
+                // cross the row within reach of the cell's right. An edge wholly above or
+                // below the row, or wholly left of the cell, crosses no point's ray; one
+                // wholly across the row and wholly to the right crosses every point's.
+                let (mut parity, start) = (false, out.area_edges.len() as u32);
+                for j in (0..ring.points.len()).filter(|_| !whole) {
+                    let (a, b) = ring.edge(j);
+                    let (below, above) = (a.1.min(b.1), a.1.max(b.1));
+                    if above < c.lo.1 - SLACK || below > c.hi.1 + SLACK || a.0.max(b.0) < c.lo.0 - SLACK {
+                        continue;
+                    }
+                    if below < c.lo.1 - SLACK && above > c.hi.1 + SLACK && a.0.min(b.0) > c.hi.0 + SLACK {
+                        parity = !parity;
+                    } else {
+                        out.area_edges.push(stored(a, b));
+                    }
+                }
+                let crossing = (start, out.area_edges.len() as u32);
+                // Its edges that may be nearest to a point of the cell (its depth).
                 let bound = (0..ring.points.len()).map(|j| {
                     let (a, b) = ring.edge(j);
                     c.greatest_distance(a, b)
                 });
                 let bound = bound.fold(f64::INFINITY, f64::min) + SLACK;
-                let start = out.depth_edges.len() as u32;
-                out.depth_edges.extend((0..ring.points.len()).filter_map(|j| {
+                let start = out.area_edges.len() as u32;
+                out.area_edges.extend((0..ring.points.len()).filter_map(|j| {
                     let (a, b) = ring.edge(j);
                     (c.least_distance(a, b) <= bound).then(|| stored(a, b))
                 }));
-                let key = if whole { ring.key | WHOLE_BIT } else { ring.key };
-                out.areas.push([key, ring.polygon, start, out.depth_edges.len() as u32]);
+                let nearest = (start, out.area_edges.len() as u32);
+                out.areas.push(Area { key: ring.key, polygon: ring.polygon, whole, parity, crossing, nearest });
             }
             out.area_starts.push(out.areas.len() as u32);
         }
