@@ -41,12 +41,11 @@ pub struct PolygonIndex<'a> {
     cell: f64,
     cols: u32,
     rows: u32,
-    /// Per cell `c`, its areas from `area_starts[c]` to `area_starts[c + 1]`.
-    area_starts: &'a [u32],
+    /// Per cell `c`, where its areas and its edges start; they end where those of `c + 1`
+    /// start (one array: a cell's lookup touches one cache line, not two).
+    starts: &'a [[u32; 2]],
     /// By key.
     areas: &'a [Area],
-    /// Per cell `c`, its edges from `edge_starts[c]` to `edge_starts[c + 1]`.
-    edge_starts: &'a [u32],
     /// Edges as stored in the tile (x, y of the start, x, y of the end), by key and then in
     /// ring order.
     edges: &'a [[f32; 4]],
@@ -56,17 +55,18 @@ pub struct PolygonIndex<'a> {
 
 impl<'a> PolygonIndex<'a> {
     /// An index over these arrays: `[cols, rows]` cells of `cell` metres from `min`,
-    /// `[area_starts, edge_starts]` each one longer than the number of cells.
+    /// `starts` (where each cell's areas and edges start) one longer than the number of
+    /// cells.
     pub fn new(
         min: (f64, f64),
         cell: f64,
         [cols, rows]: [u32; 2],
-        [area_starts, edge_starts]: [&'a [u32]; 2],
+        starts: &'a [[u32; 2]],
         areas: &'a [Area],
         edges: &'a [[f32; 4]],
         area_edges: &'a [[f32; 4]],
     ) -> Self {
-        PolygonIndex { min, cell, cols, rows, area_starts, areas, edge_starts, edges, area_edges }
+        PolygonIndex { min, cell, cols, rows, starts, areas, edges, area_edges }
     }
 
     /// The cell holding (x, y); `None` outside the grid, where nothing is within the search
@@ -82,13 +82,19 @@ impl<'a> PolygonIndex<'a> {
 
     /// The polygons that may hold a point of cell `c`, by key.
     pub fn areas(&self, c: usize) -> &'a [Area] {
-        range(self.area_starts, c).and_then(|r| self.areas.get(r)).unwrap_or(&[])
+        self.range(c, 0).and_then(|r| self.areas.get(r)).unwrap_or(&[])
     }
 
     /// The edges of all polygons that may be nearest to a point of cell `c` outside them
     /// all, within the search radius.
     pub fn edges(&self, c: usize) -> &'a [[f32; 4]] {
-        range(self.edge_starts, c).and_then(|r| self.edges.get(r)).unwrap_or(&[])
+        self.range(c, 1).and_then(|r| self.edges.get(r)).unwrap_or(&[])
+    }
+
+    /// Cell `c`'s areas (`which` 0) or edges (1).
+    fn range(&self, c: usize, which: usize) -> Option<core::ops::Range<usize>> {
+        let (start, end) = (self.starts.get(c)?, self.starts.get(c.checked_add(1)?)?);
+        Some(*start.get(which)? as usize..*end.get(which)? as usize)
     }
 
     /// An area's edges: `(start, end)` of [`Area::crossing`] or [`Area::nearest`].
@@ -97,6 +103,3 @@ impl<'a> PolygonIndex<'a> {
     }
 }
 
-fn range(starts: &[u32], c: usize) -> Option<core::ops::Range<usize>> {
-    Some(*starts.get(c)? as usize..*starts.get(c.checked_add(1)?)? as usize)
-}

@@ -34,9 +34,8 @@ pub struct IndexArrays {
     cell: f64,
     cols: u32,
     rows: u32,
-    area_starts: Vec<u32>,
+    starts: Vec<[u32; 2]>,
     areas: Vec<Area>,
-    edge_starts: Vec<u32>,
     edges: Vec<[f32; 4]>,
     area_edges: Vec<[f32; 4]>,
 }
@@ -48,7 +47,7 @@ impl IndexArrays {
             self.min,
             self.cell,
             [self.cols, self.rows],
-            [&self.area_starts, &self.edge_starts],
+            &self.starts,
             &self.areas,
             &self.edges,
             &self.area_edges,
@@ -57,7 +56,7 @@ impl IndexArrays {
 
     /// Bytes held.
     pub fn bytes(&self) -> usize {
-        4 * (self.area_starts.len() + self.edge_starts.len())
+        8 * self.starts.len()
             + size_of::<Area>() * self.areas.len()
             + 16 * (self.edges.len() + self.area_edges.len())
     }
@@ -218,9 +217,8 @@ pub fn build(map: &MapView<'_>) -> Option<IndexArrays> {
         cell,
         cols,
         rows,
-        area_starts: vec![0],
+        starts: vec![[0, 0]],
         areas: Vec::new(),
-        edge_starts: vec![0],
         edges: Vec::new(),
         area_edges: Vec::new(),
     };
@@ -251,7 +249,6 @@ pub fn build(map: &MapView<'_>) -> Option<IndexArrays> {
                 let (a, b) = rings[r].edge(j);
                 stored(a, b)
             }));
-            out.edge_starts.push(out.edges.len() as u32);
 
             held_rings.clear();
             held_rings.extend(ring_buckets.near(c.lo, c.hi));
@@ -305,7 +302,7 @@ pub fn build(map: &MapView<'_>) -> Option<IndexArrays> {
                 let nearest = (start, out.area_edges.len() as u32);
                 out.areas.push(Area { key: ring.key, polygon: ring.polygon, whole, parity, crossing, nearest });
             }
-            out.area_starts.push(out.areas.len() as u32);
+            out.starts.push([out.areas.len() as u32, out.edges.len() as u32]);
         }
     }
     Some(out)
