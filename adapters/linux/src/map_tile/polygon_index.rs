@@ -10,7 +10,7 @@
 
 use dash2sim_core::drivable::SEARCH_RADIUS;
 use dash2sim_core::map::{LaneArea, MapView, POLYGON_BIT};
-use dash2sim_core::polygon_index::{Area, PolygonIndex};
+use dash2sim_core::polygon_index::{Area, PolygonIndex, BLOCK};
 
 /// Cell size, m: a corner then reads about 11 edges for its distance to the drivable area
 /// (the 25 m cells of the tile's grid list every polygon around a footprint, ~36 edges per
@@ -35,6 +35,7 @@ pub struct IndexArrays {
     cols: u32,
     rows: u32,
     starts: Vec<[u32; 2]>,
+    blocks: Vec<u64>,
     areas: Vec<Area>,
     edges: Vec<[f32; 4]>,
     area_edges: Vec<[f32; 4]>,
@@ -48,15 +49,15 @@ impl IndexArrays {
             self.cell,
             [self.cols, self.rows],
             &self.starts,
+            &self.blocks,
             &self.areas,
-            &self.edges,
-            &self.area_edges,
+            [&self.edges, &self.area_edges],
         )
     }
 
     /// Bytes held.
     pub fn bytes(&self) -> usize {
-        8 * self.starts.len()
+        8 * (self.starts.len() + self.blocks.len())
             + size_of::<Area>() * self.areas.len()
             + 16 * (self.edges.len() + self.area_edges.len())
     }
@@ -218,6 +219,7 @@ pub fn build(map: &MapView<'_>) -> Option<IndexArrays> {
         cols,
         rows,
         starts: vec![[0, 0]],
+        blocks: vec![0; (cols.div_ceil(BLOCK) * rows.div_ceil(BLOCK)).div_ceil(64) as usize],
         areas: Vec::new(),
         edges: Vec::new(),
         area_edges: Vec::new(),
@@ -302,7 +304,12 @@ pub fn build(map: &MapView<'_>) -> Option<IndexArrays> {
                 let nearest = (start, out.area_edges.len() as u32);
                 out.areas.push(Area { key: ring.key, polygon: ring.polygon, whole, parity, crossing, nearest });
             }
+            let start = out.starts[out.starts.len() - 1];
             out.starts.push([out.areas.len() as u32, out.edges.len() as u32]);
+            if start != out.starts[out.starts.len() - 1] {
+                let block = (row / BLOCK * cols.div_ceil(BLOCK) + col / BLOCK) as usize;
+                out.blocks[block / 64] |= 1 << (block % 64);
+            }
         }
     }
     Some(out)
