@@ -9,7 +9,7 @@
 //! of the greatest distance from the cell (plus a centimetre for f32 rounding).
 
 use dash2sim_core::drivable::SEARCH_RADIUS;
-use dash2sim_core::map::{LaneArea, MapView, POLYGON_BIT};
+use dash2sim_core::map::{edges_parity, segment_distance, LaneArea, MapView, POLYGON_BIT};
 use dash2sim_core::polygon_index::{Area, PolygonIndex, BLOCK};
 
 /// Cell size, m: a corner then reads about 11 edges for its distance to the drivable area
@@ -65,11 +65,12 @@ impl IndexArrays {
 
 type Point = (f64, f64);
 
-/// A drivable polygon: its grid key, polygon index, ring and box.
+/// A drivable polygon: its grid key, polygon index, ring (and its edges as stored) and box.
 struct Ring {
     key: u32,
     polygon: u32,
     points: Vec<Point>,
+    stored: Vec<[f32; 4]>,
     lo: Point,
     hi: Point,
 }
@@ -81,11 +82,9 @@ impl Ring {
         (self.points[(j + n - 1) % n], self.points[j])
     }
 
-    fn holds(&self, (x, y): Point) -> bool {
-        (0..self.points.len()).fold(false, |inside, j| {
-            let (a, b) = self.edge(j);
-            inside ^ ((a.1 > y) != (b.1 > y) && x < a.0 + (y - a.1) * (b.0 - a.0) / (b.1 - a.1))
-        })
+    /// Whether the polygon holds `p`, by the test the check makes.
+    fn holds(&self, p: Point) -> bool {
+        edges_parity(&self.stored, p, false)
     }
 }
 
@@ -122,13 +121,6 @@ impl Cell {
     fn greatest_distance(&self, a: Point, b: Point) -> f64 {
         self.corners().iter().map(|&c| segment_distance(c, a, b)).fold(0.0, f64::max)
     }
-}
-
-fn segment_distance(p: Point, a: Point, b: Point) -> f64 {
-    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-    let len2 = dx * dx + dy * dy;
-    let t = if len2 > 0.0 { (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
-    (p.0 - (a.0 + t * dx)).hypot(p.1 - (a.1 + t * dy))
 }
 
 fn segments_cross(a: Point, b: Point, c: Point, d: Point) -> bool {
@@ -183,7 +175,9 @@ pub fn build(map: &MapView<'_>) -> Option<IndexArrays> {
         let points: Vec<Point> = map.polygon(polygon)?.collect();
         let lo = points.iter().fold((f64::INFINITY, f64::INFINITY), |l, p| (l.0.min(p.0), l.1.min(p.1)));
         let hi = points.iter().fold((f64::NEG_INFINITY, f64::NEG_INFINITY), |h, p| (h.0.max(p.0), h.1.max(p.1)));
-        Some(Ring { key, polygon, points, lo, hi })
+        let stored =
+            (0..points.len()).map(|j| stored(points[(j + points.len() - 1) % points.len()], points[j])).collect();
+        Some(Ring { key, polygon, points, stored, lo, hi })
     };
     for i in 0..map.header().lanes {
         match map.lane_area(i)? {
@@ -247,10 +241,7 @@ pub fn build(map: &MapView<'_>) -> Option<IndexArrays> {
                 *least <= reach
             });
             let limit = bound.min(SEARCH_RADIUS) + SLACK;
-            out.edges.extend(near.iter().filter(|e| e.2 <= limit).map(|&(r, j, _)| {
-                let (a, b) = rings[r].edge(j);
-                stored(a, b)
-            }));
+            out.edges.extend(near.iter().filter(|e| e.2 <= limit).map(|&(r, j, _)| rings[r].stored[j]));
 
             held_rings.clear();
             held_rings.extend(ring_buckets.near(c.lo, c.hi));
@@ -276,8 +267,9 @@ pub fn build(map: &MapView<'_>) -> Option<IndexArrays> {
                 // cross the row within reach of the cell's right. An edge wholly above or
                 // below the row, or wholly left of the cell, crosses no point's ray; one
                 // wholly across the row and wholly to the right crosses every point's.
+                // (A polygon holding the whole cell needs none.)
                 let (mut parity, start) = (false, out.area_edges.len() as u32);
-                for j in (0..ring.points.len()).filter(|_| !whole) {
+                for j in 0..if whole { 0 } else { ring.points.len() } {
                     let (a, b) = ring.edge(j);
                     let (below, above) = (a.1.min(b.1), a.1.max(b.1));
                     if above < c.lo.1 - SLACK || below > c.hi.1 + SLACK || a.0.max(b.0) < c.lo.0 - SLACK {
@@ -286,7 +278,7 @@ pub fn build(map: &MapView<'_>) -> Option<IndexArrays> {
                     if below < c.lo.1 - SLACK && above > c.hi.1 + SLACK && a.0.min(b.0) > c.hi.0 + SLACK {
                         parity = !parity;
                     } else {
-                        out.area_edges.push(stored(a, b));
+                        out.area_edges.push(ring.stored[j]);
                     }
                 }
                 let crossing = (start, out.area_edges.len() as u32);
@@ -299,7 +291,7 @@ pub fn build(map: &MapView<'_>) -> Option<IndexArrays> {
                 let start = out.area_edges.len() as u32;
                 out.area_edges.extend((0..ring.points.len()).filter_map(|j| {
                     let (a, b) = ring.edge(j);
-                    (c.least_distance(a, b) <= bound).then(|| stored(a, b))
+                    (c.least_distance(a, b) <= bound).then_some(ring.stored[j])
                 }));
                 let nearest = (start, out.area_edges.len() as u32);
                 out.areas.push(Area { key: ring.key, polygon: ring.polygon, whole, parity, crossing, nearest });
