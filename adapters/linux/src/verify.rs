@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use dash2sim_core::drivable::{Channel, Checker, LaneSet};
+use dash2sim_core::drivable::{Channel, LaneSet};
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Footprint, OrientedBox, Pose2, CORNER_NAMES};
 use dash2sim_core::score::{Agent, AgentKind, ScoreConfig, Scorer, Scores, StepReport};
@@ -196,10 +196,7 @@ pub fn replay(
 ) -> Result<Verification, String> {
     // A map of polygons (Lanelet2) is checked through its fine index (channel-insensitive).
     let index = if channel_sensitive { None } else { crate::map_tile::polygon_index::build(&map) };
-    let checker = match &index {
-        Some(index) => Checker::new(map, footprint).with_index(index.view()),
-        None => Checker::new(map, footprint),
-    };
+    let checker = crate::map_tile::polygon_index::checker(map, footprint, index.as_ref());
     let mut channel_set: Box<LaneSet<CHANNEL_WORDS>> = Box::default();
     if channel_sensitive {
         if map.header().lanes as usize > LaneSet::<CHANNEL_WORDS>::capacity() {

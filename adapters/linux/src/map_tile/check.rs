@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use dash2sim_core::drivable::{Channel, Checker};
+use dash2sim_core::drivable::Channel;
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::PACIFICA;
 
@@ -23,10 +23,7 @@ pub fn run_check(map: &Path, poses: &Path, passes: u32, as_json: bool) -> Result
     }
     // A map of polygons (Lanelet2) is checked through its fine index, built first (not timed).
     let index = super::polygon_index::build(&view);
-    let checker = match &index {
-        Some(index) => Checker::new(view, PACIFICA).with_index(index.view()),
-        None => Checker::new(view, PACIFICA),
-    };
+    let checker = super::polygon_index::checker(view, PACIFICA, index.as_ref());
     let mut fastest = f64::INFINITY;
     let (mut compliant, mut outside, mut nothing_near) = (0usize, 0usize, 0usize);
     for _ in 0..passes {

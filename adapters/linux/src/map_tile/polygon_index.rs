@@ -8,8 +8,9 @@
 //! point of the cell when its least distance to the cell is at most the least, over edges,
 //! of the greatest distance from the cell (plus a centimetre for f32 rounding).
 
-use dash2sim_core::drivable::SEARCH_RADIUS;
+use dash2sim_core::drivable::{Checker, SEARCH_RADIUS};
 use dash2sim_core::map::{edges_parity, segment_distance, LaneArea, MapView, POLYGON_BIT};
+use dash2sim_core::obb::Footprint;
 use dash2sim_core::polygon_index::{Area, PolygonIndex, BLOCK};
 
 /// Cell size, m: a corner then reads about 11 edges for its distance to the drivable area
@@ -60,6 +61,14 @@ impl IndexArrays {
         8 * (self.starts.len() + self.blocks.len())
             + size_of::<Area>() * self.areas.len()
             + 16 * (self.edges.len() + self.area_edges.len())
+    }
+}
+
+/// A checker for `map` that reads `index` (built for `map`) where there is one.
+pub fn checker<'a>(map: MapView<'a>, footprint: Footprint, index: Option<&'a IndexArrays>) -> Checker<'a> {
+    match index {
+        Some(index) => Checker::new(map, footprint).with_index(index.view()),
+        None => Checker::new(map, footprint),
     }
 }
 
