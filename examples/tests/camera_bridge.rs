@@ -46,7 +46,11 @@ fn every_published_frame_arrives_with_its_pose_and_detections() {
             det2.insert(sequence, d.len());
         }
     };
-    let published = run_camera(&subscriber, &["--seconds", "5", "--speedup", "5", "--prefix", &prefix], &mut collect);
+    let published = run_camera(
+        &subscriber,
+        &["--profile", "ideal", "--seconds", "5", "--speedup", "5", "--prefix", &prefix],
+        &mut collect,
+    );
     assert_eq!(published, "51 frames published");
 
     let scenario =
@@ -54,7 +58,7 @@ fn every_published_frame_arrives_with_its_pose_and_detections() {
     let expected: Vec<u64> = (1..=51).collect();
     assert_eq!(frames, expected, "every frame sequence arrives, in order");
     assert_eq!(poses.keys().copied().collect::<Vec<_>>(), expected);
-    for (frame, pose) in scenario.frames.iter().zip(&scenario.vo.poses) {
+    for (frame, pose) in scenario.frames.iter().zip(&scenario.vo.poses.poses) {
         let got = &poses[&u64::from(frame.index)];
         assert_eq!((got.translation, got.rotation), (pose.translation, pose.rotation), "VO poses arrive exactly");
         let (_, d) = &det3[&u64::from(frame.index)];

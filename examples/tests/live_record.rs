@@ -84,7 +84,7 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
     let logger = std::thread::spawn(move || live::run(&request, &setup, &AtomicBool::new(false)));
     std::thread::sleep(Duration::from_millis(300));
     let camera = Command::new(env!("CARGO_BIN_EXE_camera_sim"))
-        .args(["--seconds", &SECONDS.to_string(), "--prefix", &prefix, "--nmea-out"])
+        .args(["--profile", "ideal", "--seconds", &SECONDS.to_string(), "--prefix", &prefix, "--nmea-out"])
         .arg(&nmea)
         .spawn()
         .expect("camera_sim");

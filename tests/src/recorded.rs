@@ -110,12 +110,13 @@ pub fn record_drive(seed: u64, duration_s: f64) -> Outcome {
         });
     }
     // The receiver's σ as the NMEA capture states it: HDOP (one decimal) × the UERE.
-    let sigmas: Vec<f64> = scenario.gnss.iter().map(|f| (f.sigma / 2.5 * 10.0).round() / 10.0 * 2.5).collect();
+    let sigmas: Vec<f64> = scenario.gnss.iter().map(|f| (f.reported_sigma / 2.5 * 10.0).round() / 10.0 * 2.5).collect();
     let config = AnchorConfig { mode: AnchorMode::GravityAligned, ..AnchorConfig::default() };
-    let frames = dash2sim_linux::anchoring::replay_with_sigmas(&scenario.vo, &gnss, &sigmas, &scenario.speed, config)
-        .expect("replay");
+    let frames =
+        dash2sim_linux::anchoring::replay_with_sigmas(&scenario.vo.poses, &gnss, &sigmas, &scenario.speed, config)
+            .expect("replay");
     let mut offline = HashMap::new();
-    for (k, ((t, pose), f)) in scenario.vo.stamps.iter().zip(&scenario.vo.poses).zip(&frames).enumerate() {
+    for (k, ((t, pose), f)) in scenario.vo.poses.stamps.iter().zip(&scenario.vo.poses.poses).zip(&frames).enumerate() {
         let Some(anchor) = f.estimate else { continue };
         let body = setup.mount.body_pose(&camera_in_world(&anchor, pose));
         let truth = truth_at(&scenario, *t).expect("frame");

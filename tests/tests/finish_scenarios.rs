@@ -52,7 +52,7 @@ fn finished_work_zones_verify_like_their_ground_truth() {
     for seed in 1..=3 {
         let recorded = record_scenario(seed, 40.0);
         // Street-imagery anchors as the method uses them: every 50 m, σ 0.3 m.
-        let anchors = street_anchors(&recorded.scenario, &recorded.log, 50.0, 0.3, seed);
+        let anchors = street_anchors(&recorded.scenario, &recorded.log, 50.0, seed);
         let finished = run(&recorded.log, Some(&anchors), Some(&recorded.tile)).expect("finish");
         let gnss_only = run(&recorded.log, None, Some(&recorded.tile)).expect("finish");
         let map = MapView::parse(&recorded.tile).expect("tile");

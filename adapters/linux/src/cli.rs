@@ -233,7 +233,11 @@ enum ScenarioCommand {
         duration: f64,
         /// The GNSS receiver: `phone` (σ 3–10 m, multipath) or `good` (σ 1–2 m, the demo's).
         #[arg(long, value_enum, default_value = "phone")]
-        receiver: crate::scenario::command::Receiver,
+        receiver: crate::scenario::profile::Receiver,
+        /// How far the sensors are from ideal (docs/scenario.md): `ideal` (the old, kind
+        /// simulator), `typical` (a consumer dashcam) or `hard`.
+        #[arg(long, value_enum, default_value = "typical")]
+        profile: crate::scenario::profile::Profile,
     },
     /// Be the camera process: publish a generated drive over shared memory (iceoryx2) at its
     /// frame rate, and optionally the GNSS receiver's NMEA and the wheel-speed CAN frames
@@ -243,6 +247,11 @@ enum ScenarioCommand {
     /// lengths, regions and drivers recorded through the pipeline, each with its map tile,
     /// some damaged on purpose (docs/fleet.md).
     Corpus(crate::scenario::corpus::CorpusArgs),
+    /// Run many generated drives through the product (generate → record from the device's
+    /// files → finish → verify truth, online and finished, both channel modes) in parallel
+    /// and measure how often each log's verdict equals the truth's: runs.csv, runs.jsonl,
+    /// summary.json, sweep.png (docs/fidelity.md).
+    Sweep(crate::fidelity::sweep::SweepArgs),
     /// Run the 3D track manager over a generated drive and judge it: MOTA/IDF1 at 2 m,
     /// position RMSE of detections, filtered and smoothed tracks, static/dynamic accuracy.
     Eval {
@@ -252,6 +261,9 @@ enum ScenarioCommand {
         /// Length of the drive, seconds.
         #[arg(long, default_value_t = 40.0)]
         duration: f64,
+        /// How far the sensors are from ideal: `ideal`, `typical` or `hard`.
+        #[arg(long, value_enum, default_value = "typical")]
+        profile: crate::scenario::profile::Profile,
         /// Missed frames before a track is dropped (AB3DMOT: 2).
         #[arg(long, default_value_t = 4)]
         max_age: u32,
@@ -382,15 +394,16 @@ pub fn run() -> ExitCode {
         Command::Can(CanCommand::Decode { file, dbc, json }) => crate::can_decode::run(&file, &dbc, json),
         Command::Track2d { detections, output } => crate::track2d::run(&detections, &output),
         Command::Mot(MotCommand::Eval { gt, test, max_distance, json }) => mot_eval(&gt, &test, max_distance, json),
-        Command::Scenario(ScenarioCommand::Generate { output, seed, duration, receiver }) => {
-            crate::scenario::command::run_generate(seed, duration, receiver, &output)
+        Command::Scenario(ScenarioCommand::Generate { output, seed, duration, receiver, profile }) => {
+            crate::scenario::command::run_generate(seed, duration, profile, receiver, &output)
         }
         Command::Scenario(ScenarioCommand::Publish(args)) => {
             crate::scenario::publish::run(&args).map(|n| println!("{n} frames published"))
         }
         Command::Scenario(ScenarioCommand::Corpus(args)) => crate::scenario::corpus::run(&args),
-        Command::Scenario(ScenarioCommand::Eval { seed, duration, max_age, json }) => {
-            crate::scenario::command::run_eval(seed, duration, max_age, json)
+        Command::Scenario(ScenarioCommand::Sweep(args)) => crate::fidelity::sweep::run(&args),
+        Command::Scenario(ScenarioCommand::Eval { seed, duration, profile, max_age, json }) => {
+            crate::scenario::command::run_eval(seed, duration, profile, max_age, json)
         }
         Command::Map(MapCommand::Build { osm, output, origin, bbox, cell }) => {
             crate::map_tile::run_build(&osm, &output, origin.as_deref(), bbox.as_deref(), cell)

@@ -13,6 +13,7 @@ pub mod cli;
 pub mod demo;
 pub mod detections;
 pub mod evaluate;
+pub mod fidelity;
 pub mod finish;
 pub mod logfile;
 pub mod map_tile;

@@ -364,7 +364,18 @@ fn track2d_keeps_one_id_along_a_moving_box_and_skips_rows_out_of_order() {
 #[test]
 fn scenario_files_round_trip_through_the_other_commands() {
     let dir = scratch("scenario");
-    let out = dash2sim(&["scenario", "generate", "-o", &dir.display().to_string(), "--seed", "3", "--duration", "12"]);
+    let out = dash2sim(&[
+        "scenario",
+        "generate",
+        "--profile",
+        "ideal",
+        "-o",
+        &dir.display().to_string(),
+        "--seed",
+        "3",
+        "--duration",
+        "12",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let path = |name: &str| dir.join(name).display().to_string();
     for name in ["ego.tum", "vo.tum", "gnss.tum", "gnss.nmea", "speed.csv", "objects.csv", "detections3d.csv"] {
@@ -459,8 +470,18 @@ fn map_build_and_info_describe_the_tile_and_refuse_a_corrupted_one() {
 fn verify_scores_a_generated_drive_and_names_bad_inputs() {
     let dir = scratch("verify");
     let drive = dir.join("drive");
-    let out =
-        dash2sim(&["scenario", "generate", "-o", &drive.display().to_string(), "--seed", "1", "--duration", "10"]);
+    let out = dash2sim(&[
+        "scenario",
+        "generate",
+        "--profile",
+        "ideal",
+        "-o",
+        &drive.display().to_string(),
+        "--seed",
+        "1",
+        "--duration",
+        "10",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let map = dir.join("road.map").display().to_string();
     let road = drive.join("road.osm").display().to_string();
@@ -550,8 +571,18 @@ fn map_build_cuts_at_a_bbox_and_survives_odd_ways() {
 fn import_inspect_export_a_drive_and_report_damage_without_failing() {
     let dir = scratch("binlog");
     let drive = dir.join("drive");
-    let out =
-        dash2sim(&["scenario", "generate", "-o", &drive.display().to_string(), "--seed", "2", "--duration", "12"]);
+    let out = dash2sim(&[
+        "scenario",
+        "generate",
+        "--profile",
+        "ideal",
+        "-o",
+        &drive.display().to_string(),
+        "--seed",
+        "2",
+        "--duration",
+        "12",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let file = |name: &str| drive.join(name).display().to_string();
     let log = dir.join("drive.d2slog").display().to_string();
@@ -637,10 +668,10 @@ fn import_inspect_export_a_drive_and_report_damage_without_failing() {
 fn demo_runs_the_product_through_real_processes_and_the_truth_and_the_finished_log_verify() {
     let dir = scratch("demo");
     // The default drive, live: a camera process over shared memory, NMEA and CAN over FIFOs.
-    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--json"]);
+    let out = dash2sim(&["demo", "--profile", "ideal", "-o", &dir.display().to_string(), "--json"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let s: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
-    assert!(stderr(&out).contains("[3/8] recording live") && stderr(&out).contains("[8/8]"), "progress on stderr");
+    assert!(stderr(&out).contains("[3/7] recording live") && stderr(&out).contains("[7/7]"), "progress on stderr");
     let r = &s["recording"];
     assert_eq!(r["mode"], "live");
     assert_eq!(r["frames_published"], 401, "{r}");
@@ -718,7 +749,17 @@ fn demo_runs_the_product_through_real_processes_and_the_truth_and_the_finished_l
 #[test]
 fn demo_of_a_careless_driver_is_rejected_and_bad_arguments_are_named() {
     let dir = scratch("demo-careless");
-    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--driver", "careless", "--offline", "--quiet"]);
+    let out = dash2sim(&[
+        "demo",
+        "--profile",
+        "ideal",
+        "-o",
+        &dir.display().to_string(),
+        "--driver",
+        "careless",
+        "--offline",
+        "--quiet",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(stderr(&out).is_empty(), "--quiet: {}", stderr(&out));
     let text = String::from_utf8_lossy(&out.stdout).to_string();
@@ -739,11 +780,21 @@ fn demo_of_a_careless_driver_is_rejected_and_bad_arguments_are_named() {
 #[test]
 fn finish_reports_bad_anchor_lines_verifies_per_window_and_refuses_a_log_without_vo() {
     let dir = scratch("finish");
-    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "20", "--offline", "--json"]);
+    let out = dash2sim(&[
+        "demo",
+        "--profile",
+        "ideal",
+        "-o",
+        &dir.display().to_string(),
+        "--duration",
+        "20",
+        "--offline",
+        "--json",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let anchors = dir.join("anchors.csv");
     let mut text = std::fs::read_to_string(&anchors).expect("anchors");
-    let good = text.lines().count() - 1;
+    let good = text.lines().filter(|l| !l.starts_with('#')).count() - 1;
     text += "12.5,nan,24.9,10,0.3\n";
     std::fs::write(&anchors, &text).expect("write");
     let (log, map, finished) = (dir.join("drive.d2slog"), dir.join("road.map"), dir.join("again.d2slog"));
@@ -794,7 +845,17 @@ fn finish_reports_bad_anchor_lines_verifies_per_window_and_refuses_a_log_without
 #[test]
 fn export_nuplan_writes_the_devkits_tables_and_layers_and_refuses_bad_input() {
     let dir = scratch("nuplan");
-    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "30", "--offline", "--json"]);
+    let out = dash2sim(&[
+        "demo",
+        "--profile",
+        "ideal",
+        "-o",
+        &dir.display().to_string(),
+        "--duration",
+        "30",
+        "--offline",
+        "--json",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let path = |p: &Path| p.display().to_string();
     let (log, map, nuplan) = (dir.join("finished.d2slog"), dir.join("road.map"), dir.join("nuplan"));
@@ -962,7 +1023,18 @@ fn live_socketcan_records_or_says_why_it_was_skipped() {
 fn map_check_counts_compliant_poses_and_times_them() {
     let dir = scratch("map-check");
     let drive = dir.join("drive");
-    let out = dash2sim(&["scenario", "generate", "--seed", "2", "--duration", "5", "-o", &drive.display().to_string()]);
+    let out = dash2sim(&[
+        "scenario",
+        "generate",
+        "--profile",
+        "ideal",
+        "--seed",
+        "2",
+        "--duration",
+        "5",
+        "-o",
+        &drive.display().to_string(),
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let map = dir.join("road.map").display().to_string();
     let osm = drive.join("road.osm").display().to_string();
@@ -998,7 +1070,17 @@ fn map_check_counts_compliant_poses_and_times_them() {
 #[test]
 fn plot_draws_the_map_the_three_trajectories_and_the_objects_and_refuses_a_log_without_poses() {
     let dir = scratch("plot");
-    let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "30", "--offline", "--json"]);
+    let out = dash2sim(&[
+        "demo",
+        "--profile",
+        "ideal",
+        "-o",
+        &dir.display().to_string(),
+        "--duration",
+        "30",
+        "--offline",
+        "--json",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let path = |p: &Path| p.display().to_string();
     // The demo drew its drive.
@@ -1192,7 +1274,17 @@ fn export_parquet_writes_a_table_per_record_kind_in_si_units_and_utc() {
     use arrow_array::types::{Float64Type, TimestampMicrosecondType};
     let dir = scratch("parquet");
     let demo = dir.join("demo");
-    let out = dash2sim(&["demo", "--offline", "-q", "--duration", "20", "-o", &demo.display().to_string()]);
+    let out = dash2sim(&[
+        "demo",
+        "--profile",
+        "ideal",
+        "--offline",
+        "-q",
+        "--duration",
+        "20",
+        "-o",
+        &demo.display().to_string(),
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let log = demo.join("finished.d2slog").display().to_string();
     let out_dir = dir.join("pq");

@@ -46,7 +46,7 @@ fn a_logger_killed_and_restarted_leaves_its_flushed_log_and_the_camera_unaffecte
     let camera = CameraPublisher::new(&prefix, false).expect("publisher");
     let start = Instant::now();
     let (mut killed_at, mut second) = (None, None);
-    for (frame, pose) in scenario.frames.iter().zip(&scenario.vo.poses) {
+    for (frame, pose) in scenario.frames.iter().zip(&scenario.vo.poses.poses) {
         let due = start + Duration::from_secs_f64(frame.ego.t);
         if let Some(wait) = due.checked_duration_since(Instant::now()) {
             std::thread::sleep(wait);
@@ -54,7 +54,7 @@ fn a_logger_killed_and_restarted_leaves_its_flushed_log_and_the_camera_unaffecte
         let (sequence, t) = (u64::from(frame.index), device_now());
         // The publisher is unaffected: every publish succeeds, with or without a logger.
         camera.frame(sequence, t, 8_000, None).expect("frame published");
-        camera.vo(sequence, t, pose).expect("pose published");
+        camera.vo(sequence, t, pose, 0).expect("pose published");
         camera.detections3d(sequence, t, &frame.detections_3d).expect("detections published");
         if let Some(mut running) = first.take_if(|_| frame.ego.t >= 8.0) {
             running.kill().expect("SIGKILL");

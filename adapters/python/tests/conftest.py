@@ -31,7 +31,8 @@ def corpus(dash2sim_bin, tmp_path_factory) -> Path:
     """18 logs, every third damaged: one of each kind (garbage, header-cut, tail-cut,
     bit-flips, no-gnss, no-map)."""
     out = tmp_path_factory.mktemp("corpus")
-    result = run_cli(dash2sim_bin, "scenario", "corpus", "-o", out, "--logs", "18", "--damaged-every", "3", "-q")
+    result = run_cli(dash2sim_bin, "scenario", "corpus", "-o", out, "--logs", "18", "--damaged-every", "3",
+                     "--profile", "ideal", "-q")
     assert result.returncode == 0, result.stderr
     return out
 

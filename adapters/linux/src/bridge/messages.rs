@@ -33,8 +33,10 @@ pub struct FrameMetaMsg {
 pub struct VoPoseMsg {
     /// [`LAYOUT_VERSION`].
     pub version: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// VO session: 0 from the start, one more each time the VO re-initialises (a new
+    /// origin, orientation and scale). Publishers that predate it send 0 (the field was
+    /// reserved, zero), so the layout is unchanged.
+    pub session: u32,
     /// Frame number.
     pub sequence: u64,
     /// Capture time, device clock, µs.

@@ -18,7 +18,7 @@
 //! # let (t, pose, boxes3d, boxes2d) = (Timestamp::ZERO, dash2sim_core::sim3::Pose::identity(), [], []);
 //! // per frame, in this order:
 //! camera.frame(42, t, 8_000, None)?;
-//! camera.vo(42, t, &pose)?;
+//! camera.vo(42, t, &pose, 0)?;
 //! camera.detections3d(42, t, &boxes3d)?;
 //! camera.detections2d(42, t, &boxes2d)?;
 //! # Ok(()) }
@@ -195,15 +195,16 @@ impl CameraPublisher {
         Ok(())
     }
 
-    /// The VO pose of frame `sequence` (camera → VO frame).
-    pub fn vo(&self, sequence: u64, t: Timestamp, pose: &Pose) -> Result<(), BridgeError> {
+    /// The VO pose of frame `sequence` (camera → VO frame) in VO session `session` (0 until
+    /// the VO first re-initialises).
+    pub fn vo(&self, sequence: u64, t: Timestamp, pose: &Pose, session: u32) -> Result<(), BridgeError> {
         let mut rotation = [0.0; 9];
         for (k, r) in rotation.iter_mut().enumerate() {
             *r = pose.rotation[(k / 3, k % 3)];
         }
         let message = VoPoseMsg {
             version: LAYOUT_VERSION,
-            reserved: 0,
+            session,
             sequence,
             device_time_us: micros(t),
             position: [pose.translation.x, pose.translation.y, pose.translation.z],

@@ -14,9 +14,10 @@ use indicatif::ProgressBar;
 
 use crate::record::live::{self, FileSink, LiveReport, LiveRequest};
 use crate::record::Setup;
+use crate::scenario::profile::Profile;
 use crate::scenario::Driver;
 
-/// What to publish: the generated drive's seed, length and driver.
+/// What to publish: the generated drive's seed, length, driver and sensor profile.
 #[derive(Clone, Copy, Debug)]
 pub struct Drive {
     /// Seed.
@@ -25,6 +26,8 @@ pub struct Drive {
     pub seconds: f64,
     /// Driver.
     pub driver: Driver,
+    /// Sensor profile.
+    pub profile: Profile,
 }
 
 /// What the live recording did.
@@ -117,7 +120,7 @@ fn publish(
     let exe = std::env::current_exe().map_err(|e| format!("the dash2sim executable: {e}"))?;
     let mut child = Command::new(exe)
         .args(["scenario", "publish", "--seed", &drive.seed.to_string(), "--seconds", &drive.seconds.to_string()])
-        .args(["--driver", drive.driver.name(), "--prefix", prefix])
+        .args(["--driver", drive.driver.name(), "--profile", drive.profile.name(), "--prefix", prefix])
         .arg("--nmea-out")
         .arg(gnss)
         .arg("--can-out")

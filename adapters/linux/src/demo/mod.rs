@@ -29,20 +29,17 @@ mod summary;
 
 use std::path::{Path, PathBuf};
 
-use dash2sim_core::binlog::Record;
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
-use dash2sim_core::obb::{Pose2, PACIFICA};
 use serde_json::{json, Value};
 
+use crate::fidelity::drive::{assess, judged_json, Anchors};
 use crate::logfile::{self, LogContents};
 use crate::record::{self, Setup};
 use crate::scenario::evaluate::evaluate_tracking;
-use crate::scenario::judge::{judge_log, LogJudgement};
-use crate::scenario::sensors::GnssModel;
-use crate::scenario::street::street_anchors;
+use crate::scenario::profile::{Profile, Receiver};
 use crate::scenario::write::write_scenario;
-use crate::scenario::{generate, tracker_classes, tracker_config, Driver, Scenario, ScenarioConfig};
+use crate::scenario::{generate, tracker_classes, tracker_config, Driver, ScenarioConfig};
 use progress::Progress;
 
 /// `dash2sim demo` arguments.
@@ -61,6 +58,14 @@ pub struct DemoArgs {
     /// the taper and hits its drums: a log the verifier must reject).
     #[arg(long, value_enum, default_value = "careful")]
     pub driver: Driver,
+    /// How far the sensors are from ideal (docs/scenario.md): `ideal` (the old, kind
+    /// simulator), `typical` (a consumer dashcam) or `hard`.
+    #[arg(long, value_enum, default_value = "typical")]
+    pub profile: Profile,
+    /// Finishing's street-imagery anchors: `street` (simulated from the true path every
+    /// 50 m) or `none` (GNSS and wheel speed only).
+    #[arg(long, value_enum, default_value = "street")]
+    pub anchors: Anchors,
     /// Record from the drive's files in this process (repeatable, no shared memory) instead
     /// of from a live camera process, serial FIFO and CAN FIFO.
     #[arg(long)]
@@ -117,51 +122,6 @@ fn write_file(path: &Path, contents: impl AsRef<[u8]>) -> Result<(), String> {
     std::fs::write(path, contents).map_err(|e| format!("{}: {e}", path.display()))
 }
 
-/// How a log recorded from the drive fares: judged against the truth, verified both ways.
-struct Judged {
-    judgement: LogJudgement,
-    insensitive: Value,
-    sensitive: Value,
-}
-
-/// Every metric of `verify` on `ego`, in both channel modes.
-fn verify_both(
-    map: MapView<'_>,
-    ego: &[(f64, Pose2)],
-    agents: &crate::verify::AgentsByTime,
-) -> Result<(Value, Value), String> {
-    let mode = |sensitive| -> Result<Value, String> {
-        let v = crate::verify::replay(map, ego, agents, sensitive, PACIFICA)?;
-        Ok(crate::verify::report_json(&v, sensitive))
-    };
-    Ok((mode(false)?, mode(true)?))
-}
-
-fn judge(scenario: &Scenario, log: &LogContents, name: &str, map: MapView<'_>) -> Result<Judged, String> {
-    let (ego, agents) = crate::verify::from_contents(log, name, &map)?;
-    let (insensitive, sensitive) = verify_both(map, &ego, &agents)?;
-    Ok(Judged { judgement: judge_log(scenario, log), insensitive, sensitive })
-}
-
-/// The drive time (s from its first frame) of log time `t_us`, through the frame numbers.
-fn drive_time(log: &LogContents, t_us: i64) -> Option<f64> {
-    let first = log.records.iter().find_map(|r| match r {
-        Record::FrameMeta(f) if f.frame == 1 => Some(f.t_us),
-        _ => None,
-    })?;
-    Some((t_us - first) as f64 * 1e-6)
-}
-
-/// The online anchor's scale at the end of the drive against the VO's true scale then.
-fn online_scale(scenario: &Scenario, log: &LogContents) -> Option<(f64, f64)> {
-    let (t_us, scale) = log.records.iter().rev().find_map(|r| match r {
-        Record::AnchorEstimate(a) if a.observability == 2 => Some((a.t_us, a.scale_e6 as f64 * 1e-6)),
-        _ => None,
-    })?;
-    let truth = scenario.config.vo.scale_at(drive_time(log, t_us)?);
-    Some((scale, scale / truth - 1.0))
-}
-
 /// Distinct 3D tracks per class name.
 fn tracks_by_class(log: &LogContents) -> std::collections::BTreeMap<&'static str, usize> {
     let mut ids: std::collections::BTreeMap<&'static str, std::collections::BTreeSet<i64>> = Default::default();
@@ -169,17 +129,6 @@ fn tracks_by_class(log: &LogContents) -> std::collections::BTreeMap<&'static str
         ids.entry(logfile::export::class_name(track.class)).or_default().insert(track.id);
     }
     ids.into_iter().map(|(class, set)| (class, set.len())).collect()
-}
-
-/// The device's verification windows (its records), as `{score, verified}`.
-fn device_windows(log: &LogContents) -> Vec<Value> {
-    log.records
-        .iter()
-        .filter_map(|r| match r {
-            Record::Verification(v) => Some(json!({"score": v.score_e2 as f64 / 100.0, "verified": v.score_e2 > 9000})),
-            _ => None,
-        })
-        .collect()
 }
 
 /// `finish`'s windows in the same form (channel-insensitive, as the device scores them).
@@ -198,36 +147,25 @@ fn finished_windows(report: &Value) -> Vec<Value> {
         .unwrap_or_default()
 }
 
-fn judged_json(t: &LogJudgement) -> Value {
-    json!({
-        "ape_rmse_m": t.ego_rmse,
-        "ape_max_m": t.ego_max,
-        "observable_after_s": t.first_anchored_s,
-        "anchored_frames": t.ego_errors.len(),
-        "mota": t.tracks.0,
-        "idf1": t.tracks.1,
-        "mota_anchored_frames": t.tracks_anchored.0,
-        "idf1_anchored_frames": t.tracks_anchored.1,
-        "mota_seen_from_ego": t.tracks_relative.0,
-        "idf1_seen_from_ego": t.tracks_relative.1,
-    })
-}
-
 /// The generated drive through the product; the summary.
 fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
-    const STEPS: u32 = 8;
+    const STEPS: u32 = 7;
     let (out, seed, duration_s) = (&args.output, args.seed, args.duration);
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let drive_dir = out.join("drive");
     let config =
-        ScenarioConfig { seed, duration_s, gnss: GnssModel::good(), driver: args.driver, ..ScenarioConfig::default() };
+        ScenarioConfig { duration_s, driver: args.driver, ..ScenarioConfig::drive(seed, args.profile, Receiver::Good) };
     let [lat, lon, height] = config.origin;
     let origin = Geodetic::new(lat, lon, height).map_err(|e| e.to_string())?;
 
     progress.step(
         1,
         STEPS,
-        &format!("generating a {duration_s:.0} s work-zone drive (seed {seed}) into {}", drive_dir.display()),
+        &format!(
+            "generating a {duration_s:.0} s work-zone drive (seed {seed}, {} sensor profile) into {}",
+            args.profile.name(),
+            drive_dir.display()
+        ),
     );
     let scenario = generate(&config);
     write_scenario(&scenario, &drive_dir).map_err(|e| format!("{}: {e}", drive_dir.display()))?;
@@ -262,7 +200,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
             "recording live: the camera process publishes over shared memory, GNSS arrives as NMEA on a FIFO, speed as CAN frames",
         );
         let bar = progress.bar(duration_s.ceil() as u64, "s of the drive");
-        let drive = live::Drive { seed, seconds: duration_s, driver: args.driver };
+        let drive = live::Drive { seed, seconds: duration_s, driver: args.driver, profile: args.profile };
         let live = live::record(drive, out, &log_path, &setup, &bar)?;
         bar.finish_and_clear();
         let r = &live.report;
@@ -276,58 +214,46 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
     progress.step(
         4,
         STEPS,
-        "finishing: the whole drive re-anchored with street-imagery anchors, tracks smoothed, verified per window",
+        match args.anchors {
+            Anchors::Street => "finishing: the whole drive re-anchored with street-imagery anchors (simulated from the true path), tracks smoothed, verified per window",
+            Anchors::None => "finishing: the whole drive re-anchored with GNSS and wheel speed, tracks smoothed, verified per window",
+        },
     );
-    let spinner = progress.spinner("solving");
+    let spinner =
+        progress.spinner("solving; verifying the true drive, the online log and the finished log (both channel modes)");
     let anchors_path = out.join("anchors.csv");
-    let anchors_text = street_anchors(&scenario, &log, 50.0, 0.3, seed);
-    write_file(&anchors_path, &anchors_text)?;
-    let anchor_file = crate::finish::anchors::parse(&anchors_text)
-        .map_err(|(line, why)| format!("{}:{line}: {why}", anchors_path.display()))?;
-    let finished = crate::finish::finish(
+    let _ = std::fs::remove_file(&anchors_path);
+    let assessed = assess(
+        &scenario,
+        &drive_dir,
         &log,
         &log_path.display().to_string(),
-        Some((&anchors_path.display().to_string(), &anchor_file)),
-        Some(&tile),
-        setup.mount,
-        crate::finish::solve::Settings { gravity_aligned: true, ..Default::default() },
-        setup.gnss.uere_m,
+        &tile,
+        &setup,
+        args.anchors,
+        &anchors_path,
     )?;
     spinner.finish_and_clear();
     let finished_path = out.join("finished.d2slog");
-    let header = log.header.ok_or("the recorded log has no header")?;
-    let finished_bytes = logfile::import::encode_in_order(&header, &finished.records)?;
-    write_file(&finished_path, &finished_bytes)?;
-    let finished_log = logfile::decode(&finished_bytes, "finished").map_err(|e| e.to_string())?;
+    write_file(&finished_path, &assessed.finished_bytes)?;
+    let finished_log = &assessed.finished_log;
 
-    progress.step(5, STEPS, "verifying the true drive, the online log and the finished log (both channel modes)");
-    let truth_ego: Vec<(f64, Pose2)> =
-        scenario.frames.iter().map(|f| (f.ego.t, Pose2::new(f.ego.x, f.ego.y, f.ego.heading))).collect();
-    let truth_agents = crate::verify::read_objects(&drive_dir.join("objects.csv"))?;
-    let (truth_insensitive, truth_sensitive) = verify_both(map, &truth_ego, &truth_agents)?;
-    let online = judge(&scenario, &log, "the online log", map)?;
-    let finished_judged = judge(&scenario, &finished_log, "the finished log", map)?;
-
-    progress.step(6, STEPS, "judging the logs against the truth (anchoring, 3D tracks)");
+    progress.step(5, STEPS, "judging the logs against the truth (anchoring, 3D tracks)");
     let classes = tracker_classes();
     let truth_tracking = evaluate_tracking::<64>(&scenario, tracker_config(&classes));
-    let frame_times: Vec<f64> = scenario.frames.iter().map(|f| f.ego.t).collect();
-    let true_mean_scale =
-        frame_times.iter().map(|t| scenario.config.vo.scale_at(*t)).sum::<f64>() / frame_times.len().max(1) as f64;
-    let finished_scale = finished.report["anchoring"]["scale"].as_f64().unwrap_or(f64::NAN);
 
-    progress.step(7, STEPS, "exporting MCAP (Foxglove), TUM (evo), GeoJSON (QGIS) and the nuPlan database and map");
+    progress.step(6, STEPS, "exporting MCAP (Foxglove), TUM (evo), GeoJSON (QGIS) and the nuPlan database and map");
     let mcap_path = out.join("drive.mcap");
     let messages: u64 = logfile::mcap_export::write(&log, Some(&map), &mcap_path, None)?.values().sum();
     let finished_mcap = out.join("finished.mcap");
-    logfile::mcap_export::write(&finished_log, Some(&map), &finished_mcap, None)?;
+    logfile::mcap_export::write(finished_log, Some(&map), &finished_mcap, None)?;
     write_file(&out.join("ego.tum"), logfile::export::tum(&log))?;
-    write_file(&out.join("finished.tum"), logfile::export::tum(&finished_log))?;
+    write_file(&out.join("finished.tum"), logfile::export::tum(finished_log))?;
     write_file(&out.join("drive.geojson"), logfile::export::geojson(&log)?.to_string())?;
     let nuplan_dir = out.join("nuplan");
     let _ = std::fs::remove_dir_all(&nuplan_dir);
     let nuplan = crate::nuplan::export(&crate::nuplan::NuplanRequest {
-        log: &finished_log,
+        log: finished_log,
         log_name: &finished_path.display().to_string(),
         tile: &tile,
         map_name: &logfile::export::map_name("road"),
@@ -335,7 +261,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
         scene_s: 5.0,
     });
 
-    progress.step(8, STEPS, "drawing the drive (plot.png, plot.svg)");
+    progress.step(7, STEPS, "drawing the drive (plot.png, plot.svg)");
     for name in ["plot.png", "plot.svg"] {
         crate::plot::plot(&crate::plot::PlotArgs {
             log: log_path.clone(),
@@ -351,7 +277,6 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
         json!({"what": "the generated drive (truth, sensor streams, road OSM)", "path": file("drive")}),
         json!({"what": "map tile", "path": file("road.map")}),
         json!({"what": "the device's 4D log", "path": file("drive.d2slog")}),
-        json!({"what": "street-imagery anchors", "path": file("anchors.csv")}),
         json!({"what": "the finished 4D log", "path": file("finished.d2slog")}),
         json!({"what": "MCAP for Foxglove (the device's log)", "path": file("drive.mcap")}),
         json!({"what": "MCAP for Foxglove (finished)", "path": file("finished.mcap")}),
@@ -362,6 +287,12 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
         json!({"what": "the picture (vector)", "path": file("plot.svg")}),
         json!({"what": "this summary", "path": file("summary.json")}),
     ];
+    if assessed.anchors_text.is_some() {
+        files.insert(
+            3,
+            json!({"what": "street-imagery anchors (simulated from the true path)", "path": file("anchors.csv")}),
+        );
+    }
     let nuplan_json = match &nuplan {
         Ok(n) => {
             files.push(json!({"what": "nuPlan log database", "path": n.db.display().to_string()}));
@@ -372,12 +303,16 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
         // A short drive makes too few scenes: said, not fatal.
         Err(e) => json!({"error": e}),
     };
-    let (online_scale, online_scale_error) =
-        online_scale(&scenario, &log).map_or((None, None), |(s, e)| (Some(s), Some(e)));
+    let (online_scale, online_scale_error) = assessed.online_scale.map_or((None, None), |(s, e)| (Some(s), Some(e)));
+    let (online, finished) = (&assessed.online, &assessed.finished);
+    let (finished_scale, true_mean_scale, finished_scale_error) = assessed.finished_scale;
+    let both = |b: &crate::fidelity::drive::BothModes| json!({"channel_insensitive": b.insensitive, "channel_sensitive": b.sensitive});
     Ok(json!({
         "seed": seed,
         "duration_s": duration_s,
         "driver": args.driver.name(),
+        "profile": args.profile.name(),
+        "anchors": args.anchors.name(),
         "recording": recording,
         "anchoring": {
             "online": {
@@ -390,31 +325,31 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
                 "scale_error": online_scale_error,
             },
             "finished": {
-                "anchors_used": finished.report["anchors"]["used"],
-                "ape_rmse_m": finished_judged.judgement.ego_rmse,
-                "ape_max_m": finished_judged.judgement.ego_max,
+                "anchors_used": assessed.finish_report["anchors"]["used"],
+                "ape_rmse_m": finished.judgement.ego_rmse,
+                "ape_max_m": finished.judgement.ego_max,
                 "scale": finished_scale,
-                "scale_sigma_relative": finished.report["anchoring"]["scale_sigma_relative"],
+                "scale_sigma_relative": assessed.finish_report["anchoring"]["scale_sigma_relative"],
                 "true_mean_scale": true_mean_scale,
-                "scale_error": finished_scale / true_mean_scale - 1.0,
+                "scale_error": finished_scale_error,
             },
         },
         "tracking": {
             "online": judged_json(&online.judgement),
-            "finished": judged_json(&finished_judged.judgement),
+            "finished": judged_json(&finished.judgement),
             "tracker_fed_true_pose": {"mota": truth_tracking.metric("mota"), "idf1": truth_tracking.metric("idf1")},
             "tracks_by_class": tracks_by_class(&log),
-            "finished_tracks_by_class": tracks_by_class(&finished_log),
+            "finished_tracks_by_class": tracks_by_class(finished_log),
         },
         "verification": {
-            "ground_truth": {"channel_insensitive": truth_insensitive, "channel_sensitive": truth_sensitive},
-            "online": {"channel_insensitive": online.insensitive, "channel_sensitive": online.sensitive},
-            "finished": {"channel_insensitive": finished_judged.insensitive, "channel_sensitive": finished_judged.sensitive},
-            "windows_on_device": device_windows(&log),
-            "windows_finished": finished_windows(&finished.report),
+            "ground_truth": both(&assessed.truth),
+            "online": both(&online.verification),
+            "finished": both(&finished.verification),
+            "windows_on_device": assessed.windows,
+            "windows_finished": finished_windows(&assessed.finish_report),
         },
         "log": {"records": log.records.len(), "bytes": log_bytes, "bytes_per_minute": log_bytes as f64 / minutes,
-                "damaged": log.stats.damaged, "finished_bytes": finished_bytes.len()},
+                "damaged": log.stats.damaged, "finished_bytes": assessed.finished_bytes.len()},
         "mcap_messages": messages,
         "nuplan": nuplan_json,
         "files": files,

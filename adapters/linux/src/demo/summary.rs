@@ -38,6 +38,25 @@ fn windows_text(windows: &Value) -> String {
     format!("{verified_count} of {} verified ({})", list.len(), each.join(", "))
 }
 
+/// The device's windows, each with the truth's verdict over the same stretch.
+fn device_windows_text(windows: &Value) -> String {
+    let Some(list) = windows.as_array().filter(|l| !l.is_empty()) else { return "none".to_owned() };
+    let mark = |v: &Value| if v.as_bool().unwrap_or(false) { "✓" } else { "✗" };
+    let agree = list.iter().filter(|w| w["device_verified"] == w["truth_verified"]).count();
+    let each: Vec<String> = list
+        .iter()
+        .map(|w| {
+            format!(
+                "{} {:.1} (truth {})",
+                mark(&w["device_verified"]),
+                num(&w["device_score"]),
+                mark(&w["truth_verified"])
+            )
+        })
+        .collect();
+    format!("{agree} of {} agree with the truth's verdict ({})", list.len(), each.join(", "))
+}
+
 /// Print the generated drive's summary.
 pub fn print(s: &Value) {
     let files = s["files"].as_array().cloned().unwrap_or_default();
@@ -46,10 +65,11 @@ pub fn print(s: &Value) {
         .and_then(|f| f["path"].as_str())
         .map_or(String::new(), |p| std::path::Path::new(p).parent().map_or(String::new(), |d| d.display().to_string()));
     println!(
-        "dash2sim demo — {:.0} s work zone, seed {}, {} driver; everything in {folder}",
+        "dash2sim demo — {:.0} s work zone, seed {}, {} driver, {} sensor profile; everything in {folder}",
         num(&s["duration_s"]),
         s["seed"],
-        s["driver"].as_str().unwrap_or("?")
+        s["driver"].as_str().unwrap_or("?"),
+        s["profile"].as_str().unwrap_or("?")
     );
     let r = &s["recording"];
     let p = &r["pipeline"];
@@ -91,7 +111,7 @@ pub fn print(s: &Value) {
         num(&on["ape_max_m"])
     );
     println!(
-        "                finished: {} street-imagery anchors, APE {:.2} m RMSE ({:.2} m max), scale {:.4} ± {:.3} % (error {:+.3} %)",
+        "                finished: {} street-imagery anchors (simulated from the true path), APE {:.2} m RMSE ({:.2} m max), scale {:.4} ± {:.3} % (error {:+.3} %)",
         fin["anchors_used"],
         num(&fin["ape_rmse_m"]),
         num(&fin["ape_max_m"]),
@@ -149,7 +169,7 @@ pub fn print(s: &Value) {
         "                {:<26} {:>9}{:>9}{:>10}   {:>9}{:>9}{:>10}",
         "", verdicts[0], verdicts[1], verdicts[2], verdicts[3], verdicts[4], verdicts[5]
     );
-    println!("  windows       on the device: {}", windows_text(&v["windows_on_device"]));
+    println!("  windows       on the device: {}", device_windows_text(&v["windows_on_device"]));
     println!("                finished:      {}", windows_text(&v["windows_finished"]));
     let l = &s["log"];
     println!(

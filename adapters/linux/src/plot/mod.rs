@@ -21,9 +21,9 @@ const SIZE: (u32, u32) = (1200, 1400);
 const MAP_HEIGHT: u32 = 900;
 /// Colours: the paper's (GNSS red, online orange, finished blue), lanes grey.
 const LANE: RGBColor = RGBColor(205, 205, 205);
-const GNSS: RGBColor = RGBColor(214, 39, 40);
-const ONLINE: RGBColor = RGBColor(255, 127, 14);
-const FINISHED: RGBColor = RGBColor(31, 119, 180);
+pub(crate) const GNSS: RGBColor = RGBColor(214, 39, 40);
+pub(crate) const ONLINE: RGBColor = RGBColor(255, 127, 14);
+pub(crate) const FINISHED: RGBColor = RGBColor(31, 119, 180);
 const VERIFIED: RGBColor = RGBColor(200, 235, 200);
 /// The font the PNG's text is drawn with.
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
@@ -84,10 +84,7 @@ pub fn plot(args: &PlotArgs) -> Result<Drawn, String> {
         args.map.as_deref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
     let scene =
         Scene::new(&log, finished.as_ref(), tile.as_deref()).map_err(|e| format!("{}: {e}", args.log.display()))?;
-    // Both backends measure text with it (SVG to lay out the legend). Registering twice is
-    // harmless; a font that does not parse is a build fault.
-    plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
-        .map_err(|_| "the shipped font does not parse".to_owned())?;
+    register_font()?;
     let extension = args.output.extension().and_then(|e| e.to_str()).unwrap_or_default().to_ascii_lowercase();
     match extension.as_str() {
         "svg" => draw(SVGBackend::new(&args.output, SIZE).into_drawing_area(), &scene),
@@ -97,7 +94,15 @@ pub fn plot(args: &PlotArgs) -> Result<Drawn, String> {
     Ok(scene.drawn())
 }
 
-fn err<E: std::fmt::Debug>(e: E) -> String {
+/// Make the shipped font the `sans-serif` of every picture. Both backends measure text with
+/// it (SVG to lay out the legend). Registering twice is harmless; a font that does not
+/// parse is a build fault.
+pub(crate) fn register_font() -> Result<(), String> {
+    plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
+        .map_err(|_| "the shipped font does not parse".to_owned())
+}
+
+pub(crate) fn err<E: std::fmt::Debug>(e: E) -> String {
     format!("drawing: {e:?}")
 }
 

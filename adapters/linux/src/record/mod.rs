@@ -27,7 +27,8 @@ use dash2sim_core::pipeline::profile::{self, work_zone_meta, work_zone_pipeline,
 /// The recorded files `dash2sim record` reads (see [`sources`] for their forms).
 #[derive(Clone, Debug, Default, Args)]
 pub struct Sources {
-    /// VO poses of the camera, TUM (device-clock stamps; frame k is the k-th pose).
+    /// VO poses of the camera: TUM (device-clock stamps; frame k is the k-th pose), or a CSV
+    /// `frame,t_s,x,y,z,qx,qy,qz,qw,session` with each pose's frame number (docs/cli.md).
     #[arg(long)]
     pub vo: Option<PathBuf>,
     /// The GNSS serial capture: `(device seconds) $SENTENCE*CS` per line.
@@ -49,7 +50,7 @@ impl Sources {
     /// The files `dash2sim scenario generate` writes into `dir`.
     pub fn scenario(dir: &Path) -> Self {
         Sources {
-            vo: Some(dir.join("vo.tum")),
+            vo: Some(dir.join("vo.csv")),
             nmea: Some(dir.join("gnss.serial.log")),
             can: vec![dir.join("speed.can.log")],
             detections: Some(dir.join("detections3d.csv")),
@@ -607,6 +608,7 @@ fn report(output: &Path, recording: &Recording, counts: &sources::SourceCounts, 
         "vo_poses": counts.vo, "serial_lines": counts.serial_lines, "can_frames": counts.can_frames,
         "detection_frames": counts.detection_frames, "detections": counts.detections,
         "detection2d_frames": counts.detection2d_frames,
+        "detection2d_frames_without_time": counts.detection2d_frames_without_time,
     });
     if as_json {
         println!("{summary}");

@@ -63,6 +63,9 @@ pub struct SourceCounts {
     pub detections: u64,
     /// Frames with 2D detections.
     pub detection2d_frames: u64,
+    /// Frames with 2D detections skipped because no other input gives their time (no VO
+    /// pose, no 3D detections: the VO had lost track and nothing was seen in 3D).
+    pub detection2d_frames_without_time: u64,
 }
 
 /// The inputs of the files, to be merged by time.
@@ -88,14 +91,19 @@ impl Inputs {
         self.items.insert(key, input);
     }
 
-    /// VO poses: frame k is the k-th pose (from 1).
+    /// VO poses: TUM (frame k is the k-th pose, from 1), or the CSV a camera process that
+    /// loses track writes ([`read_vo_csv`]: each pose with its frame number).
     pub fn vo(&mut self, path: &Path) -> Result<(), String> {
-        let traj = Trajectory::read(path, Format::Tum).map_err(|e| e.to_string())?;
-        for (k, (t, pose)) in traj.stamps.iter().zip(&traj.poses).enumerate() {
-            let t_us = micros(*t, &format!("{}:{}", path.display(), k + 1))?;
-            let frame = k as u64 + 1;
+        let poses: Vec<(u64, f64, Pose)> = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")) {
+            read_vo_csv(path)?
+        } else {
+            let traj = Trajectory::read(path, Format::Tum).map_err(|e| e.to_string())?;
+            (1..).zip(traj.stamps).zip(traj.poses).map(|((frame, t), pose)| (frame, t, pose)).collect()
+        };
+        for (k, (frame, t, pose)) in poses.into_iter().enumerate() {
+            let t_us = micros(t, &format!("{}:{}", path.display(), k + 1))?;
             self.frame_times.insert(frame, t_us);
-            self.push(t_us, Input::Vo(frame, *pose));
+            self.push(t_us, Input::Vo(frame, pose));
             self.counts.vo += 1;
         }
         Ok(())
@@ -180,12 +188,17 @@ impl Inputs {
         for (frame, (t, detections)) in frames {
             self.counts.detection_frames += 1;
             self.counts.detections += detections.len() as u64;
-            self.push(micros(t, &path.display().to_string())?, Input::Detections3d(frame, detections));
+            let t_us = micros(t, &path.display().to_string())?;
+            // A frame the VO lost keeps its time for the 2D detections.
+            self.frame_times.entry(frame).or_insert(t_us);
+            self.push(t_us, Input::Detections3d(frame, detections));
         }
         Ok(())
     }
 
-    /// 2D detections (MOTChallenge); each frame at its VO stamp, so read `--vo` first.
+    /// 2D detections (MOTChallenge); each frame at its VO stamp (or, where the VO lost
+    /// track, its 3D detections' time), so read those first. A frame with neither is
+    /// skipped and counted.
     pub fn detections2d(&mut self, path: &Path) -> Result<(), String> {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
         let mut frames: BTreeMap<u64, Vec<ImageDetection>> = BTreeMap::new();
@@ -214,10 +227,8 @@ impl Inputs {
         }
         for (frame, detections) in frames {
             let Some(&t_us) = self.frame_times.get(&frame) else {
-                return Err(format!(
-                    "{}: frame {frame} has no VO pose (give --vo with one pose per frame)",
-                    path.display()
-                ));
+                self.counts.detection2d_frames_without_time += 1;
+                continue;
             };
             self.counts.detection2d_frames += 1;
             self.push(t_us, Input::Detections2d(frame, detections));
@@ -246,4 +257,51 @@ impl Inputs {
         }
         recorder.finish().map_err(|e| e.to_string())
     }
+}
+
+/// The header of a VO CSV.
+pub const VO_CSV_HEADER: &str = "frame,t_s,x,y,z,qx,qy,qz,qw,session";
+
+/// A VO CSV: `frame,t_s,x,y,z,qx,qy,qz,qw,session` — the frame number of each pose (frames
+/// where the VO had lost track have none), its device time, the camera's pose in the VO
+/// frame (TUM's order) and the VO session (0, then one more after each re-initialisation;
+/// `record` does not read it yet: issue #31). Frame numbers must increase.
+pub fn read_vo_csv(path: &Path) -> Result<Vec<(u64, f64, Pose)>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
+    match lines.next() {
+        Some((_, header)) if header.trim() == VO_CSV_HEADER => {}
+        Some((n, header)) => {
+            return Err(format!("{}:{}: header `{}`: expected `{VO_CSV_HEADER}`", path.display(), n + 1, header.trim()))
+        }
+        None => return Err(format!("{}: empty: expected the header `{VO_CSV_HEADER}`", path.display())),
+    }
+    let mut out: Vec<(u64, f64, Pose)> = Vec::new();
+    for (n, line) in lines {
+        let at = || format!("{}:{}", path.display(), n + 1);
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        if fields.len() != 10 {
+            return Err(format!("{}: {} fields, expected 10 ({VO_CSV_HEADER})", at(), fields.len()));
+        }
+        let frame: u64 =
+            fields[0].parse().map_err(|_| format!("{}: frame `{}` is not a frame number", at(), fields[0]))?;
+        let mut v = [0.0f64; 8];
+        for (slot, field) in v.iter_mut().zip(&fields[1..9]) {
+            *slot = field
+                .parse()
+                .ok()
+                .filter(|x: &f64| x.is_finite())
+                .ok_or_else(|| format!("{}: `{field}` is not a finite number", at()))?;
+        }
+        if out.last().is_some_and(|(previous, _, _)| *previous >= frame) {
+            return Err(format!("{}: frame {frame} does not follow the frame before it", at()));
+        }
+        let [t, x, y, z, qx, qy, qz, qw] = v;
+        if qw * qw + qx * qx + qy * qy + qz * qz < 1e-12 {
+            return Err(format!("{}: the quaternion is zero, not a rotation", at()));
+        }
+        let pose = Pose::from_quaternion_wxyz([qw, qx, qy, qz], dash2sim_core::nalgebra::Vector3::new(x, y, z));
+        out.push((frame, t, pose));
+    }
+    Ok(out)
 }

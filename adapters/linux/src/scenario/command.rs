@@ -6,47 +6,44 @@ use dash2sim_core::track3d::Config3d;
 use serde_json::json;
 
 use super::evaluate::evaluate_tracking;
-use super::sensors::GnssModel;
+use super::profile::{Profile, Receiver};
 use super::write::write_scenario;
 use super::{generate, tracker_classes, tracker_config, ScenarioConfig};
 
 /// Longest drive, seconds: the road is about 1.15 km and the ego cruises at 22 m/s.
 pub const MAX_DURATION_S: f64 = 50.0;
 
-fn config(seed: u64, duration_s: f64) -> Result<ScenarioConfig, String> {
+/// The drive `seed` of `duration_s` seconds under `profile` with `receiver`, or why not.
+pub fn config(seed: u64, duration_s: f64, profile: Profile, receiver: Receiver) -> Result<ScenarioConfig, String> {
     if !(duration_s.is_finite() && (1.0..=MAX_DURATION_S).contains(&duration_s)) {
         return Err(format!("--duration {duration_s} must be between 1 and {MAX_DURATION_S} seconds"));
     }
-    Ok(ScenarioConfig { seed, duration_s, ..ScenarioConfig::default() })
-}
-
-/// Which GNSS receiver the generated drive has.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Receiver {
-    /// A phone-grade receiver: σ 3–10 m wandering, multipath jumps ([`GnssModel::default`]).
-    Phone,
-    /// A good receiver: σ 1–2 m, no multipath ([`GnssModel::good`]).
-    Good,
+    Ok(ScenarioConfig { duration_s, ..ScenarioConfig::drive(seed, profile, receiver) })
 }
 
 /// Generate scenario `seed` and write it to `dir`.
-pub fn run_generate(seed: u64, duration_s: f64, receiver: Receiver, dir: &Path) -> Result<(), String> {
-    let gnss = match receiver {
-        Receiver::Phone => GnssModel::default(),
-        Receiver::Good => GnssModel::good(),
-    };
-    let scenario = generate(&ScenarioConfig { gnss, ..config(seed, duration_s)? });
+pub fn run_generate(
+    seed: u64,
+    duration_s: f64,
+    profile: Profile,
+    receiver: Receiver,
+    dir: &Path,
+) -> Result<(), String> {
+    let scenario = generate(&config(seed, duration_s, profile, receiver)?);
     let files = write_scenario(&scenario, dir).map_err(|e| format!("writing {}: {e}", dir.display()))?;
     let count = |f: fn(&super::Frame) -> usize| scenario.frames.iter().map(f).sum::<usize>();
     println!(
-        "scenario {seed}: {} frames, {} objects, {} 3D and {} 2D detections, {} GNSS fixes ({} in multipath), {} speed samples",
+        "scenario {seed} ({} profile, {} receiver): {} frames, {} objects, {} 3D and {} 2D detections, {} GNSS fixes ({} in multipath), {} speed samples, {} VO session(s)",
+        profile.name(),
+        receiver.name(),
         scenario.frames.len(),
         scenario.frames.first().map_or(0, |f| f.objects.len()),
         count(|f| f.detections_3d.len()),
         count(|f| f.detections_2d.len()),
         scenario.gnss.len(),
         scenario.gnss.iter().filter(|g| g.multipath).count(),
-        scenario.speed.len()
+        scenario.speed.len(),
+        scenario.vo.reinits() + 1
     );
     for file in files {
         println!("  {}", file.display());
@@ -55,8 +52,8 @@ pub fn run_generate(seed: u64, duration_s: f64, receiver: Receiver, dir: &Path) 
 }
 
 /// Generate scenario `seed`, run the 3D tracker over it and print the report.
-pub fn run_eval(seed: u64, duration_s: f64, max_age: u32, as_json: bool) -> Result<(), String> {
-    let scenario = generate(&config(seed, duration_s)?);
+pub fn run_eval(seed: u64, duration_s: f64, profile: Profile, max_age: u32, as_json: bool) -> Result<(), String> {
+    let scenario = generate(&config(seed, duration_s, profile, Receiver::Phone)?);
     let classes = tracker_classes();
     let report = evaluate_tracking::<64>(&scenario, Config3d { max_age, ..tracker_config(&classes) });
     let figures = [
@@ -68,6 +65,7 @@ pub fn run_eval(seed: u64, duration_s: f64, max_age: u32, as_json: bool) -> Resu
     if as_json {
         let mut out = json!({
             "seed": seed,
+            "profile": profile.name(),
             "frames": report.frames,
             "objects": report.objects,
             "object_frames": report.object_frames,
@@ -82,8 +80,12 @@ pub fn run_eval(seed: u64, duration_s: f64, max_age: u32, as_json: bool) -> Resu
         return Ok(());
     }
     println!(
-        "scenario {seed}: {} frames, {} objects in view, {} object-frames, {} detections",
-        report.frames, report.objects, report.object_frames, report.detections
+        "scenario {seed} ({} profile): {} frames, {} objects in view, {} object-frames, {} detections",
+        profile.name(),
+        report.frames,
+        report.objects,
+        report.object_frames,
+        report.detections
     );
     for name in ["mota", "motp", "idf1", "num_switches", "num_fragmentations", "num_false_positives", "num_misses"] {
         println!("{name:>20}  {}", report.metric(name));

@@ -11,7 +11,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
 
-use super::sensors::GnssModel;
+use super::profile::{Profile, Receiver};
 use super::write::write_scenario;
 use super::{generate, Driver, ScenarioConfig};
 use crate::record::{self, Setup, Sources};
@@ -31,6 +31,9 @@ pub struct CorpusArgs {
     /// Seed of the first drive; the others follow.
     #[arg(long, default_value_t = 1)]
     pub first_seed: u64,
+    /// How far the sensors are from ideal: `ideal`, `typical` or `hard` (docs/scenario.md).
+    #[arg(long, value_enum, default_value = "typical")]
+    pub profile: Profile,
     /// No progress on stderr.
     #[arg(short, long)]
     pub quiet: bool,
@@ -88,6 +91,7 @@ struct Plan {
     driver: Driver,
     region: usize,
     damage: Option<Damage>,
+    profile: Profile,
 }
 
 fn plan(args: &CorpusArgs, i: usize) -> Plan {
@@ -100,6 +104,7 @@ fn plan(args: &CorpusArgs, i: usize) -> Plan {
         driver: if i % 5 == 3 { Driver::Careless } else { Driver::Careful },
         region: i % REGIONS.len(),
         damage: damaged.then(|| DAMAGES[(i / args.damaged_every) % DAMAGES.len()]),
+        profile: args.profile,
     }
 }
 
@@ -108,12 +113,10 @@ fn make(plan: &Plan, out: &Path) -> Result<Value, String> {
     let name = format!("drive-{:04}", plan.name_index);
     let (region, origin) = REGIONS[plan.region];
     let config = ScenarioConfig {
-        seed: plan.seed,
         duration_s: plan.duration_s,
-        gnss: GnssModel::good(),
         driver: plan.driver,
         origin,
-        ..ScenarioConfig::default()
+        ..ScenarioConfig::drive(plan.seed, plan.profile, Receiver::Good)
     };
     let geodetic = Geodetic::new(origin[0], origin[1], origin[2]).map_err(|e| e.to_string())?;
     let scenario = generate(&config);
@@ -148,6 +151,7 @@ fn make(plan: &Plan, out: &Path) -> Result<Value, String> {
         "region": region,
         "origin": origin,
         "damage": plan.damage.map(Damage::name),
+        "profile": plan.profile.name(),
     }))
 }
 
@@ -228,7 +232,14 @@ mod tests {
 
     #[test]
     fn the_plan_cycles_through_lengths_regions_drivers_and_damage() {
-        let args = CorpusArgs { output: PathBuf::new(), logs: 60, damaged_every: 10, first_seed: 5, quiet: true };
+        let args = CorpusArgs {
+            output: PathBuf::new(),
+            logs: 60,
+            damaged_every: 10,
+            first_seed: 5,
+            profile: Profile::Typical,
+            quiet: true,
+        };
         let plans: Vec<Plan> = (0..60).map(|i| plan(&args, i)).collect();
         assert_eq!(plans[0].seed, 5);
         let damages: Vec<Damage> = plans.iter().filter_map(|p| p.damage).collect();
@@ -254,6 +265,14 @@ mod tests {
     }
 
     fn plan_zero() -> Plan {
-        Plan { name_index: 1, seed: 1, duration_s: 20.0, driver: Driver::Careful, region: 0, damage: None }
+        Plan {
+            name_index: 1,
+            seed: 1,
+            duration_s: 20.0,
+            driver: Driver::Careful,
+            region: 0,
+            damage: None,
+            profile: Profile::Ideal,
+        }
     }
 }

@@ -10,16 +10,17 @@
 //! choice comes from one seed (ChaCha8, one stream per sensor), so a seed names a scenario.
 //!
 //! Sensor streams: frames at 10 Hz with 3D detections in the ego frame and 2D detections
-//! in the image ([`sensors::DetectorModel`]), gravity-aligned VO with unknown, drifting
-//! scale and heading ([`vo::VoModel`]), GNSS at 5 Hz with σ 3–10 m and multipath jumps
-//! ([`sensors::GnssModel`]), wheel speed at 50 Hz. Occlusion between objects is not
-//! modelled: everything in range and in the image may be detected.
+//! in the image ([`sensors::DetectorModel`]), gravity-aligned VO with unknown, wandering
+//! scale and heading, re-initialised now and then ([`vo::VoModel`]), GNSS at 5 Hz
+//! ([`sensors::GnssModel`]), wheel speed at 50 Hz ([`sensors::WheelModel`]). How far each is
+//! from ideal is the drive's sensor profile ([`profile::Profile`]).
 
 pub mod actors;
 pub mod command;
 pub mod corpus;
 pub mod evaluate;
 pub mod judge;
+pub mod profile;
 pub mod publish;
 pub mod road;
 pub mod sensors;
@@ -34,9 +35,10 @@ use rand_distr::{Distribution, StandardNormal};
 
 use crate::trajectory::Trajectory;
 use actors::{lay_out_work_zone, Class, EgoPlan, EgoState, ObjectState, Vehicle, WorkZone};
+use profile::{Profile, Receiver, StreetAnchorModel};
 use road::{Road, RoadPose, Segment};
-use sensors::{observable, Camera, Detection2d, DetectorModel, GnssModel, GnssSample, Object2d};
-use vo::VoModel;
+use sensors::{observable, Camera, Detection2d, DetectorModel, GnssModel, GnssSample, Object2d, WheelModel};
+use vo::{VoModel, VoTrack};
 
 /// A zero-mean Gaussian sample with standard deviation `sigma`.
 pub(crate) fn gauss(rng: &mut impl Rng, sigma: f64) -> f64 {
@@ -67,12 +69,17 @@ pub struct ScenarioConfig {
     pub gnss: GnssModel,
     /// How VO sees the motion.
     pub vo: VoModel,
-    /// Relative VO increment noise per axis.
-    pub vo_noise: f64,
-    /// Wheel speed scale (tyre radius error) and noise σ, m/s.
-    pub wheel: (f64, f64),
+    /// The wheel-speed signal.
+    pub wheel: WheelModel,
+    /// Street-imagery anchors, when finishing is given them.
+    pub anchors: StreetAnchorModel,
     /// How the ego is driven through the work zone.
     pub driver: Driver,
+    /// The sensor profile the models above were drawn from (a label: generation reads the
+    /// models).
+    pub profile: Profile,
+    /// The receiver the GNSS model above belongs to (a label, as `profile`).
+    pub receiver: Receiver,
 }
 
 /// How the ego is driven through the work zone.
@@ -98,6 +105,8 @@ impl Driver {
 }
 
 impl Default for ScenarioConfig {
+    /// Seed 1, 40 s, the ideal profile with a phone-grade receiver: the generator as it was
+    /// before sensor profiles. [`ScenarioConfig::drive`] makes the other profiles.
     fn default() -> Self {
         ScenarioConfig {
             seed: 1,
@@ -110,10 +119,12 @@ impl Default for ScenarioConfig {
             camera: Camera::default(),
             detector: DetectorModel::default(),
             gnss: GnssModel::default(),
-            vo: VoModel::gravity_aligned(),
-            vo_noise: 0.01,
-            wheel: (0.99, 0.03),
+            vo: VoModel { translation_noise: 0.01, ..VoModel::gravity_aligned() },
+            wheel: WheelModel::default(),
+            anchors: StreetAnchorModel::default(),
             driver: Driver::Careful,
+            profile: Profile::Ideal,
+            receiver: Receiver::Phone,
         }
     }
 }
@@ -155,8 +166,9 @@ pub struct Scenario {
     pub zone: WorkZone,
     /// Camera frames.
     pub frames: Vec<Frame>,
-    /// VO poses of the camera (unknown scale, drifting), one per frame.
-    pub vo: Trajectory,
+    /// VO poses of the camera (unknown scale, drifting; none while tracking is lost) and
+    /// the truth behind each.
+    pub vo: VoTrack,
     /// GNSS fixes.
     pub gnss: Vec<GnssSample>,
     /// Wheel speed, (t, m/s).
@@ -264,13 +276,21 @@ pub fn generate(config: &ScenarioConfig) -> Scenario {
                 statics.iter().copied().chain(vehicles.iter().filter_map(|v| v.state(&road, ego.t))).collect();
             let (mut visible, mut detections_3d, mut detections_2d, mut objects_2d) =
                 (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-            for object in &objects {
-                let Some((local, image, visibility)) = observable(camera, ego, object) else { continue };
+            let seen: Vec<_> =
+                objects.iter().filter_map(|o| observable(camera, ego, o).map(|seen| (o, seen))).collect();
+            let occluded = if model.occlusion {
+                sensors::occlusion(
+                    &seen.iter().map(|(_, (local, image, _))| (*image, local.x.hypot(local.y))).collect::<Vec<_>>(),
+                )
+            } else {
+                vec![0.0; seen.len()]
+            };
+            for ((object, (local, image, visibility)), occluded) in seen.into_iter().zip(occluded) {
                 visible.push(object.id);
                 objects_2d.push(Object2d { id: object.id, class: object.class, bbox: image, visibility });
-                detections_3d.extend(model.detect_3d(&mut detector, camera, object.class, &local));
+                detections_3d.extend(model.detect_3d(&mut detector, camera, object.class, &local, occluded));
                 let range = local.x.hypot(local.y);
-                detections_2d.extend(model.detect_2d(&mut detector, camera, object.class, range, &image));
+                detections_2d.extend(model.detect_2d(&mut detector, camera, object.class, range, &image, occluded));
             }
             detections_3d.extend(model.false_positives_3d(&mut detector, camera));
             detections_2d.extend(model.false_positives_2d(&mut detector, camera));
@@ -280,36 +300,42 @@ pub fn generate(config: &ScenarioConfig) -> Scenario {
         .collect();
 
     // The dashcam (camera and GNSS receiver in one housing) rides ahead of and above the
-    // rear axle: VO follows the camera, the fixes describe the camera's position.
+    // rear axle, where it really is: VO follows the camera, the fixes describe the camera's
+    // position.
     let camera_truth = camera_trajectory(&egos, camera);
-    let mut vo = config.vo.make_vo(&camera_truth);
-    vo::add_increment_noise(&mut vo, &mut rng(config.seed, Stream::Vo), config.vo_noise);
+    let vo = config.vo.generate(&camera_truth, &mut rng(config.seed, Stream::Vo));
     let frames_per_fix = (config.frame_rate_hz / config.gnss_rate_hz).round().max(1.0) as usize;
+    let [forward, left, up] = camera.true_mount().position;
     let fix_states: Vec<EgoState> = egos
         .iter()
         .step_by(frames_per_fix)
         .map(|e| EgoState {
-            x: e.x + camera.mount_forward * e.heading.cos(),
-            y: e.y + camera.mount_forward * e.heading.sin(),
+            x: e.x + (forward * e.heading.cos() - left * e.heading.sin()),
+            y: e.y + (forward * e.heading.sin() + left * e.heading.cos()),
             ..*e
         })
         .collect();
     let mut gnss = config.gnss.fixes(&mut rng(config.seed, Stream::Gnss), &fix_states);
     for fix in &mut gnss {
-        fix.enu[2] += camera.mount_height;
+        fix.enu[2] += up;
     }
     let wheel_states = plan.drive(&road, config.duration_s, config.speed_rate_hz);
-    let speed =
-        sensors::wheel_speed(&mut rng(config.seed, Stream::Wheel), &wheel_states, config.wheel.0, config.wheel.1);
+    let speed = sensors::wheel_speed(&mut rng(config.seed, Stream::Wheel), &wheel_states, &config.wheel);
     Scenario { config: *config, road, zone, frames, vo, gnss, speed }
 }
 
-/// The camera's poses (ENU; levelled camera axes: x forward, y left, z up).
+/// The real camera's poses (ENU; camera axes x forward, y left, z up), through its real
+/// mount.
 pub fn camera_trajectory(egos: &[EgoState], camera: &Camera) -> Trajectory {
     let mut out = ego_trajectory(egos);
+    let mount = camera.true_mount();
+    let (position, rotation) = (dash2sim_core::nalgebra::Vector3::from(mount.position), mount.rotation());
+    let turned = camera.mount_error.yaw != 0.0 || camera.mount_error.pitch != 0.0;
     for pose in &mut out.poses {
-        pose.translation +=
-            pose.rotation * dash2sim_core::nalgebra::Vector3::new(camera.mount_forward, 0.0, camera.mount_height);
+        pose.translation += pose.rotation * position;
+        if turned {
+            pose.rotation *= rotation;
+        }
     }
     out
 }

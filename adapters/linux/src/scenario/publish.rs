@@ -19,8 +19,8 @@ use dash2sim_core::track2d::Detection;
 use dash2sim_core::track3d::Detection3d;
 
 use super::actors::Class;
+use super::profile::{Profile, Receiver};
 use super::road::Road;
-use super::sensors::GnssModel;
 use super::write::{receiver_output, wheel_speed_frames};
 use super::{generate, Driver, Scenario, ScenarioConfig};
 use crate::bridge::messages::MAX_DETECTIONS;
@@ -38,6 +38,12 @@ pub struct PublishArgs {
     /// Length of the drive, s (1–50).
     #[arg(long, default_value_t = 20.0)]
     pub seconds: f64,
+    /// How far the sensors are from ideal: `ideal`, `typical` or `hard` (docs/scenario.md).
+    #[arg(long, value_enum, default_value = "typical")]
+    pub profile: Profile,
+    /// The GNSS receiver: `good` (σ 1–2 m) or `phone` (σ 3–10 m).
+    #[arg(long, value_enum, default_value = "good")]
+    pub receiver: Receiver,
     /// Frames per second (a multiple of the receiver's 5 Hz).
     #[arg(long, default_value_t = 10)]
     pub fps: u32,
@@ -183,12 +189,10 @@ pub fn run(args: &PublishArgs) -> Result<u64, String> {
         return Err("--laps must be at least 1".to_owned());
     }
     let scenario = generate(&ScenarioConfig {
-        seed: args.seed,
         driver: args.driver,
         duration_s: args.seconds,
         frame_rate_hz: f64::from(args.fps),
-        gnss: GnssModel::good(),
-        ..ScenarioConfig::default()
+        ..ScenarioConfig::drive(args.seed, args.profile, args.receiver)
     });
     let camera = CameraPublisher::new(&args.prefix, args.images).map_err(|e| e.to_string())?;
     let image = args.images.then(|| vec![0x80u8; MAX_IMAGE_BYTES]);
@@ -228,12 +232,15 @@ pub fn run(args: &PublishArgs) -> Result<u64, String> {
     let frames_per_lap = scenario.frames.len() as u64;
     let mut published = 0u64;
     for lap in 0..args.laps {
-        for (i, (frame, pose)) in scenario.frames.iter().zip(&scenario.vo.poses).enumerate() {
+        for (i, frame) in scenario.frames.iter().enumerate() {
             pace().wait(lap, frame.ego.t);
             let t = pace().capture_time(lap, frame.ego.t);
             let sequence = u64::from(lap) * frames_per_lap + u64::from(frame.index);
             camera.frame(sequence, t, 8_000, image.as_deref()).map_err(|e| e.to_string())?;
-            camera.vo(sequence, t, pose).map_err(|e| e.to_string())?;
+            // While the VO has lost track there is no pose to publish.
+            if let Some((pose, session)) = scenario.vo.at_frame(i) {
+                camera.vo(sequence, t, pose, session).map_err(|e| e.to_string())?;
+            }
             camera
                 .detections3d(sequence, t, &camera_detections(&scenario, i, &cones, args.objects))
                 .map_err(|e| e.to_string())?;

@@ -1,12 +1,17 @@
 //! What a dashcam would record of a generated scene: a pinhole camera's 2D detections, a
-//! monocular 3D detector's boxes (depth error growing with range, misses, false
-//! positives, heading flips), GNSS fixes (σ 3–10 m, correlated, multipath jumps) and wheel
-//! speed (scale bias, noise, CAN resolution).
+//! monocular 3D detector's boxes (depth error growing with range, misses rising with range
+//! and occlusion, false positives, class confusions, heading flips, a covariance that is
+//! only roughly calibrated), GNSS fixes (correlated error, multipath jumps, outages, an
+//! accuracy the receiver misreports, latency) and wheel speed (scale bias, latency, noise,
+//! CAN resolution). The camera sits on the car where it was stuck, not where the device
+//! is told it is ([`MountError`]).
 
 use std::f64::consts::PI;
 
 use dash2sim_core::box2d::Box2d;
 use dash2sim_core::box3d::Box3d;
+use dash2sim_core::nalgebra::{Matrix3, Vector3};
+use dash2sim_core::pipeline::CameraMount;
 use dash2sim_core::track3d::Detection3d;
 use rand::Rng;
 use rand_distr::{Distribution, Poisson};
@@ -28,12 +33,35 @@ pub struct Camera {
     pub mount_height: f64,
     /// Mounting position ahead of the ego reference point (rear axle), metres.
     pub mount_forward: f64,
+    /// How the real mount differs from the nominal one above (which is what the device is
+    /// told: [`CameraMount::default`]).
+    pub mount_error: MountError,
+}
+
+/// How a dashcam really sits against its nominal mount: turned and moved a little, as a
+/// camera stuck behind a windscreen by hand does.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MountError {
+    /// Yaw of the camera against the body, rad (positive: looking left).
+    pub yaw: f64,
+    /// Pitch of the camera against the body, rad (the core's convention: about the left axis).
+    pub pitch: f64,
+    /// Position error (forward, left, up), m.
+    pub offset: [f64; 3],
 }
 
 impl Default for Camera {
-    /// A 1280 × 720 dashcam with a 65° horizontal field of view behind the windscreen.
+    /// A 1280 × 720 dashcam with a 65° horizontal field of view behind the windscreen,
+    /// mounted exactly where the device is told.
     fn default() -> Self {
-        Camera { focal_px: 1000.0, width: 1280.0, height: 720.0, mount_height: 1.3, mount_forward: 1.8 }
+        Camera {
+            focal_px: 1000.0,
+            width: 1280.0,
+            height: 720.0,
+            mount_height: 1.3,
+            mount_forward: 1.8,
+            mount_error: MountError::default(),
+        }
     }
 }
 
@@ -70,19 +98,44 @@ pub fn detection_to_world(ego: &EgoState, d: &Detection3d) -> Detection3d {
 }
 
 impl Camera {
-    /// The image box of an ego-frame 3D box, clipped to the image, and the fraction of it
-    /// inside the image; `None` when any corner is behind the camera or nothing is inside.
+    /// The mount the device is told: the nominal position, levelled axes.
+    pub fn nominal_mount(&self) -> CameraMount {
+        CameraMount { position: [self.mount_forward, 0.0, self.mount_height], roll_pitch_yaw: [0.0; 3] }
+    }
+
+    /// The real mount: the nominal one moved and turned by [`Camera::mount_error`].
+    pub fn true_mount(&self) -> CameraMount {
+        let e = &self.mount_error;
+        CameraMount {
+            position: [self.mount_forward + e.offset[0], e.offset[1], self.mount_height + e.offset[2]],
+            roll_pitch_yaw: [0.0, e.pitch, e.yaw],
+        }
+    }
+
+    /// An ego-frame point in the real camera's frame (x forward, y left, z up).
+    fn ego_to_camera(&self, mount: &(Matrix3<f64>, Vector3<f64>), p: Vector3<f64>) -> Vector3<f64> {
+        mount.0.transpose() * (p - mount.1)
+    }
+
+    fn true_mount_transform(&self) -> (Matrix3<f64>, Vector3<f64>) {
+        let m = self.true_mount();
+        (m.rotation(), Vector3::from(m.position))
+    }
+
+    /// The image box of an ego-frame 3D box seen by the real camera, clipped to the image,
+    /// and the fraction of it inside the image; `None` when any corner is behind the camera
+    /// or nothing is inside.
     pub fn project(&self, b: &Box3d) -> Option<(Box2d, f64)> {
         let (c, s) = (b.yaw.cos(), b.yaw.sin());
+        let mount = self.true_mount_transform();
         let (mut u0, mut v0, mut u1, mut v1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
         for (dl, dw, dh) in [(1.0, 1.0, 1.0), (1.0, -1.0, 1.0), (-1.0, 1.0, 1.0), (-1.0, -1.0, 1.0)]
             .into_iter()
             .flat_map(|(l, w, _)| [(l, w, 1.0), (l, w, -1.0)])
         {
             let (l, w) = (dl * b.l / 2.0, dw * b.w / 2.0);
-            let x = b.x + l * c - w * s - self.mount_forward;
-            let y = b.y + l * s + w * c;
-            let z = b.z + dh * b.h / 2.0 - self.mount_height;
+            let corner = Vector3::new(b.x + l * c - w * s, b.y + l * s + w * c, b.z + dh * b.h / 2.0);
+            let [x, y, z] = self.ego_to_camera(&mount, corner).into();
             if x < 0.5 {
                 return None;
             }
@@ -162,6 +215,15 @@ pub struct DetectorModel {
     pub false_positives: f64,
     /// Image-box edge error σ = a + b · box size, pixels.
     pub edge_sigma: (f64, f64),
+    /// The covariance each detection reports is the error model's times this factor (1: a
+    /// calibrated detector; a real one is off by a factor it does not know).
+    pub covariance_factor: f64,
+    /// Probability that a cone is reported as a drum (and back), a sign as an arrow board
+    /// (and back).
+    pub confusion: f64,
+    /// Whether nearer objects hide farther ones: the detection probability is scaled by the
+    /// fraction of the object's image box that no nearer object covers.
+    pub occlusion: bool,
 }
 
 impl Default for DetectorModel {
@@ -177,33 +239,94 @@ impl Default for DetectorModel {
             yaw_flip: 0.1,
             false_positives: 0.4,
             edge_sigma: (1.0, 0.03),
+            covariance_factor: 1.0,
+            confusion: 0.0,
+            occlusion: false,
         }
     }
 }
 
+/// How much of each image box nearer boxes cover (0: none, 1: all), for boxes given with
+/// their ranges; the same order as the input.
+pub fn occlusion(boxes: &[(Box2d, f64)]) -> Vec<f64> {
+    boxes
+        .iter()
+        .map(|(b, range)| {
+            let covered: f64 =
+                boxes.iter().filter(|(_, other)| other < range).map(|(other, _)| intersection_area(b, other)).sum();
+            (covered / b.area().max(1e-9)).min(1.0)
+        })
+        .collect()
+}
+
+fn intersection_area(a: &Box2d, b: &Box2d) -> f64 {
+    let w = (a.right().min(b.right()) - a.x.max(b.x)).max(0.0);
+    let h = (a.bottom().min(b.bottom()) - a.y.max(b.y)).max(0.0);
+    w * h
+}
+
 impl DetectorModel {
-    fn detected(&self, rng: &mut impl Rng, range: f64, max_range: f64) -> bool {
+    fn detected(&self, rng: &mut impl Rng, range: f64, max_range: f64, occluded: f64) -> bool {
         let u = (range / max_range).clamp(0.0, 1.0);
-        rng.random::<f64>() < self.p_near - (self.p_near - self.p_far) * u * u
+        let p = self.p_near - (self.p_near - self.p_far) * u * u;
+        rng.random::<f64>() < p * (1.0 - occluded)
     }
 
-    /// The ego-frame covariance of a centre seen at `range` and `bearing` from the camera:
-    /// depth error along the ray, bearing error across it.
+    /// The covariance of a centre seen at `range` and `bearing` from the camera, in the
+    /// camera's horizontal axes: depth error along the ray, bearing error across it (the
+    /// error model's, not scaled by `covariance_factor`).
     pub fn position_covariance(&self, range: f64, bearing: f64) -> [f64; 3] {
         let along = self.depth_sigma.0 + self.depth_sigma.1 * range;
         let across = (range * self.bearing_sigma).max(0.01);
         rotate_covariance([along * along, 0.0, across * across], bearing)
     }
 
+    /// The covariance the detector reports for such a centre.
+    fn reported_covariance(&self, range: f64, bearing: f64) -> [f64; 3] {
+        let c = self.position_covariance(range, bearing);
+        if self.covariance_factor == 1.0 {
+            c
+        } else {
+            c.map(|v| v * self.covariance_factor)
+        }
+    }
+
     fn score(&self, rng: &mut impl Rng, range: f64, max_range: f64) -> f64 {
         (0.95 - 0.4 * range / max_range + gauss(rng, 0.05)).clamp(0.05, 1.0)
     }
 
-    /// A noisy ego-frame box of a seen object, or `None` when it is missed.
-    pub fn detect_3d(&self, rng: &mut impl Rng, camera: &Camera, class: Class, truth: &Box3d) -> Option<Detection3d> {
-        let (cx, cy) = (truth.x - camera.mount_forward, truth.y);
+    fn reported_class(&self, rng: &mut impl Rng, class: Class) -> Class {
+        let other = match class {
+            Class::Cone => Class::Drum,
+            Class::Drum => Class::Cone,
+            Class::Sign => Class::ArrowBoard,
+            Class::ArrowBoard => Class::Sign,
+            _ => return class,
+        };
+        if self.confusion > 0.0 && rng.random::<f64>() < self.confusion {
+            other
+        } else {
+            class
+        }
+    }
+
+    /// A noisy box of an object seen by the real camera, or `None` when it is missed
+    /// (`occluded`: the fraction of its image box nearer objects cover). The detector
+    /// measures in the real camera's frame; the box is returned in the ego frame as the
+    /// device puts it, through the nominal mount, so a mount error shows as it would.
+    pub fn detect_3d(
+        &self,
+        rng: &mut impl Rng,
+        camera: &Camera,
+        class: Class,
+        truth: &Box3d,
+        occluded: f64,
+    ) -> Option<Detection3d> {
+        let mount = camera.true_mount_transform();
+        let centre = camera.ego_to_camera(&mount, Vector3::new(truth.x, truth.y, truth.z));
+        let (cx, cy) = (centre.x, centre.y);
         let range = cx.hypot(cy);
-        if !self.detected(rng, range, class.max_range()) {
+        if !self.detected(rng, range, class.max_range(), occluded) {
             return None;
         }
         let depth = range + gauss(rng, self.depth_sigma.0 + self.depth_sigma.1 * range);
@@ -214,24 +337,31 @@ impl DetectorModel {
         }
         let yaw = if class.has_heading() {
             let flip = if rng.random::<f64>() < self.yaw_flip { PI } else { 0.0 };
-            wrap(truth.yaw + gauss(rng, self.yaw_sigma) + flip)
+            wrap(truth.yaw - camera.mount_error.yaw + gauss(rng, self.yaw_sigma) + flip)
         } else {
             rng.random_range(-PI..PI)
+        };
+        let z = if camera.mount_error == MountError::default() {
+            truth.z + gauss(rng, self.z_sigma)
+        } else {
+            camera.mount_height + centre.z + gauss(rng, self.z_sigma)
         };
         let bbox = Box3d {
             x: camera.mount_forward + depth * bearing.cos(),
             y: depth * bearing.sin(),
-            z: truth.z + gauss(rng, self.z_sigma),
+            z,
             yaw,
             l: size[0],
             w: size[1],
             h: size[2],
         };
+        let score = self.score(rng, range, class.max_range());
+        let class = self.reported_class(rng, class);
         Some(Detection3d {
             class: class as u16,
             bbox,
-            score: self.score(rng, range, class.max_range()),
-            position_covariance: Some(self.position_covariance(depth.max(0.0), bearing)),
+            score,
+            position_covariance: Some(self.reported_covariance(depth.max(0.0), bearing)),
         })
     }
 
@@ -243,8 +373,9 @@ impl DetectorModel {
         class: Class,
         range: f64,
         truth: &Box2d,
+        occluded: f64,
     ) -> Option<Detection2d> {
-        if !self.detected(rng, range, class.max_range()) {
+        if !self.detected(rng, range, class.max_range(), occluded) {
             return None;
         }
         let sigma = |size: f64| self.edge_sigma.0 + self.edge_sigma.1 * size;
@@ -255,7 +386,8 @@ impl DetectorModel {
         let (left, right) = (left.clamp(0.0, camera.width), right.clamp(0.0, camera.width));
         let (top, bottom) = (top.clamp(0.0, camera.height), bottom.clamp(0.0, camera.height));
         let bbox = Box2d::new(left, top, right - left, bottom - top).ok()?;
-        Some(Detection2d { class, bbox, score: self.score(rng, range, class.max_range()) })
+        let score = self.score(rng, range, class.max_range());
+        Some(Detection2d { class: self.reported_class(rng, class), bbox, score })
     }
 
     fn false_positive_count(&self, rng: &mut impl Rng) -> u64 {
@@ -287,7 +419,7 @@ impl DetectorModel {
                     class: class as u16,
                     bbox,
                     score: rng.random_range(0.1..0.5),
-                    position_covariance: Some(self.position_covariance(range, bearing)),
+                    position_covariance: Some(self.reported_covariance(range, bearing)),
                 }
             })
             .collect()
@@ -316,18 +448,22 @@ pub struct GnssSample {
     pub t_receive: f64,
     /// Measured position (east, north, up), metres.
     pub enu: [f64; 3],
-    /// Horizontal error σ in force at this fix, metres.
+    /// Horizontal error σ in force at this fix, metres (the truth).
     pub sigma: f64,
+    /// The horizontal σ the receiver reports (as HDOP × 2.5 m): the truth times the
+    /// receiver's own misjudgement.
+    pub reported_sigma: f64,
     /// Whether a multipath jump corrupts it.
     pub multipath: bool,
-    /// Measured ground speed, m/s, and course over ground, degrees from north.
+    /// Measured ground speed, m/s.
     pub speed: f64,
     /// Course over ground, degrees clockwise from north.
     pub course_deg: f64,
 }
 
 /// The GNSS error model: a Gauss–Markov horizontal error whose σ wanders between
-/// `sigma_range`, and occasional multipath jumps.
+/// `sigma_range`, occasional multipath jumps and outages, and an accuracy the receiver
+/// reports only roughly.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GnssModel {
     /// Smallest and largest σ, metres.
@@ -342,6 +478,14 @@ pub struct GnssModel {
     pub multipath_jump: (f64, f64),
     /// Duration of an episode, seconds (uniform).
     pub multipath_duration: (f64, f64),
+    /// The reported σ is the true σ times this factor (1: a receiver that knows its error).
+    pub reported_sigma_factor: f64,
+    /// σ of the log of the reported σ's fix-to-fix jitter (0: none).
+    pub reported_jitter: f64,
+    /// Mean outages per minute (0: none); no fix is reported during one.
+    pub outages_per_min: f64,
+    /// Length of an outage, seconds (uniform).
+    pub outage_s: (f64, f64),
 }
 
 impl Default for GnssModel {
@@ -353,6 +497,10 @@ impl Default for GnssModel {
             multipath_rate: 0.015,
             multipath_jump: (15.0, 40.0),
             multipath_duration: (1.0, 3.0),
+            reported_sigma_factor: 1.0,
+            reported_jitter: 0.0,
+            outages_per_min: 0.0,
+            outage_s: (5.0, 30.0),
         }
     }
 }
@@ -363,16 +511,18 @@ impl GnssModel {
         GnssModel { sigma_range: (1.0, 2.0), correlation_s: 2.0, multipath_rate: 0.0, ..GnssModel::default() }
     }
 
-    /// Fixes at the given ego states (in time order).
+    /// Fixes at the given ego states (in time order); none inside an outage.
     pub fn fixes(&self, rng: &mut impl Rng, truth: &[EgoState]) -> Vec<GnssSample> {
         let (lo, hi) = self.sigma_range;
         let phase = rng.random_range(0.0..2.0 * PI);
         let mut error = [0.0f64; 3];
         let mut previous_t: Option<f64> = None;
         let mut episode: Option<(f64, [f64; 2])> = None; // (end time, offset)
+        let mut outage_until: Option<f64> = None;
         let mut out = Vec::with_capacity(truth.len());
         for ego in truth {
             let sigma = lo + (hi - lo) * 0.5 * (1.0 + (2.0 * PI * ego.t / 50.0 + phase).sin());
+            let dt = previous_t.map_or(0.0, |p| ego.t - p);
             let phi = previous_t.map_or(0.0, |p| (-(ego.t - p) / self.correlation_s).exp());
             let fresh = (1.0 - phi * phi).sqrt();
             // σ per horizontal axis is σ/√2 so that the horizontal RMS is σ.
@@ -393,11 +543,28 @@ impl GnssModel {
             let jump = episode.map_or([0.0; 2], |(_, o)| o);
             let speed = (ego.speed + gauss(rng, 0.1)).max(0.0);
             let course_deg = (90.0 - ego.heading.to_degrees() + gauss(rng, 0.5)).rem_euclid(360.0);
+            let mut reported_sigma = sigma * self.reported_sigma_factor;
+            if self.reported_jitter > 0.0 {
+                reported_sigma *= gauss(rng, self.reported_jitter).exp();
+            }
+            if self.outages_per_min > 0.0 {
+                if outage_until.is_some_and(|until| ego.t >= until) {
+                    outage_until = None;
+                }
+                if outage_until.is_none() && rng.random::<f64>() < self.outages_per_min * dt / 60.0 {
+                    let (a, b) = self.outage_s;
+                    outage_until = Some(ego.t + rng.random_range(a..b));
+                }
+                if outage_until.is_some() {
+                    continue;
+                }
+            }
             out.push(GnssSample {
                 t_fix: ego.t,
                 t_receive: ego.t + self.latency_s,
                 enu: [ego.x + error[0] + jump[0], ego.y + error[1] + jump[1], error[2]],
                 sigma,
+                reported_sigma,
                 multipath: episode.is_some(),
                 speed,
                 course_deg,
@@ -407,16 +574,45 @@ impl GnssModel {
     }
 }
 
-/// Wheel speed as the vehicle bus reports it: a tyre-radius scale bias, noise, and the
-/// 0.01 km/h resolution of a typical CAN signal. Returns (t, m/s).
-pub fn wheel_speed(rng: &mut impl Rng, truth: &[EgoState], scale: f64, sigma: f64) -> Vec<(f64, f64)> {
+/// The wheel-speed signal on the vehicle bus.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WheelModel {
+    /// Reported / true speed (the tyres' rolling radius against the nominal one).
+    pub scale: f64,
+    /// Noise σ, m/s.
+    pub sigma: f64,
+    /// How late each sample is: it reports the speed this long before its stamp, s.
+    pub latency_s: f64,
+}
+
+impl Default for WheelModel {
+    fn default() -> Self {
+        WheelModel { scale: 0.99, sigma: 0.03, latency_s: 0.0 }
+    }
+}
+
+/// Wheel speed as the vehicle bus reports it: a tyre-radius scale bias, latency, noise, and
+/// the 0.01 km/h resolution of a typical CAN signal. Returns (t, m/s).
+pub fn wheel_speed(rng: &mut impl Rng, truth: &[EgoState], model: &WheelModel) -> Vec<(f64, f64)> {
     truth
         .iter()
         .map(|ego| {
-            let kmh = ((ego.speed * scale + gauss(rng, sigma)).max(0.0) * 3.6 * 100.0).round() / 100.0;
+            let speed = if model.latency_s > 0.0 { speed_at(truth, ego.t - model.latency_s) } else { ego.speed };
+            let kmh = ((speed * model.scale + gauss(rng, model.sigma)).max(0.0) * 3.6 * 100.0).round() / 100.0;
             (ego.t, kmh / 3.6)
         })
         .collect()
+}
+
+/// The true speed at `t`, linear between the states (the first one before them).
+fn speed_at(truth: &[EgoState], t: f64) -> f64 {
+    let k = truth.partition_point(|e| e.t <= t);
+    match (k.checked_sub(1).and_then(|i| truth.get(i)), truth.get(k)) {
+        (Some(a), Some(b)) if b.t > a.t => a.speed + (b.speed - a.speed) * (t - a.t) / (b.t - a.t),
+        (Some(a), _) => a.speed,
+        (None, Some(b)) => b.speed,
+        (None, None) => 0.0,
+    }
 }
 
 #[cfg(test)]

@@ -53,7 +53,7 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
     let mut written = Vec::new();
     let frame = LocalFrame::new(origin(scenario)?);
 
-    for (name, traj) in [("ego.tum", scenario.ego_trajectory()), ("vo.tum", scenario.vo.clone())] {
+    for (name, traj) in [("ego.tum", scenario.ego_trajectory()), ("vo.tum", scenario.vo.poses.clone())] {
         let path = dir.join(name);
         write_file(&traj, &path, Format::Tum)?;
         written.push(path);
@@ -66,6 +66,29 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
     let path = dir.join("gnss.tum");
     write_file(&gnss, &path, Format::Tum)?;
     written.push(path);
+
+    // The VO as the camera process reports it: each pose with its frame number (none while
+    // tracking is lost) and its VO session.
+    let mut out = create(dir, "vo.csv", &mut written)?;
+    writeln!(out, "{}", crate::record::sources::VO_CSV_HEADER)?;
+    for ((t, pose), sample) in scenario.vo.poses.stamps.iter().zip(&scenario.vo.poses.poses).zip(&scenario.vo.samples) {
+        let q = dash2sim_core::nalgebra::UnitQuaternion::from_matrix(&pose.rotation);
+        let p = pose.translation;
+        writeln!(
+            out,
+            "{},{t:.6},{:.9},{:.9},{:.9},{:.9},{:.9},{:.9},{:.9},{}",
+            sample.frame + 1,
+            p.x,
+            p.y,
+            p.z,
+            q.i,
+            q.j,
+            q.k,
+            q.w,
+            sample.session
+        )?;
+    }
+    out.flush()?;
 
     let mut out = create(dir, "gnss.nmea", &mut written)?;
     let mut serial = create(dir, "gnss.serial.log", &mut written)?;
@@ -172,8 +195,9 @@ pub fn receiver_output(scenario: &Scenario, shift_s: f64) -> io::Result<Vec<(f64
             let time = hhmmss(START_SECONDS_OF_DAY + shift_s + fix.t_fix);
             let (lat, ns) = nmea_angle(position.lat_deg, 2, ['N', 'S']);
             let (lon, ew) = nmea_angle(position.lon_deg, 3, ['E', 'W']);
-            // The receiver reports its σ as HDOP × 2.5 m (the pipeline's default UERE).
-            let hdop = fix.sigma / 2.5;
+            // The receiver reports its σ, as it judges it, as HDOP × 2.5 m (the pipeline's
+            // default UERE).
+            let hdop = fix.reported_sigma / 2.5;
             let gga = format!("GPGGA,{time},{lat},{ns},{lon},{ew},1,09,{hdop:.1},{:.1},M,0.0,M,,", position.height_m);
             let knots = fix.speed * 3600.0 / 1852.0;
             let rmc = format!("GPRMC,{time},A,{lat},{ns},{lon},{ew},{knots:.2},{:.1},010626,,,A", fix.course_deg);
@@ -286,16 +310,33 @@ fn summary(scenario: &Scenario, files: &[PathBuf]) -> serde_json::Value {
         "origin": {"lat": c.origin[0], "lon": c.origin[1], "height_m": c.origin[2]},
         "start_utc": "2026-06-01T08:00:00Z",
         "classes": Class::ALL.iter().map(|k| k.name()).collect::<Vec<_>>(),
+        "profile": c.profile.name(),
+        "receiver": c.receiver.name(),
         "camera": {"focal_px": c.camera.focal_px, "width": c.camera.width, "height": c.camera.height,
-                   "mount_height_m": c.camera.mount_height, "mount_forward_m": c.camera.mount_forward},
+                   "mount_height_m": c.camera.mount_height, "mount_forward_m": c.camera.mount_forward,
+                   "true_mount_error": {"yaw_deg": c.camera.mount_error.yaw.to_degrees(),
+                                        "pitch_deg": c.camera.mount_error.pitch.to_degrees(),
+                                        "offset_m": c.camera.mount_error.offset}},
         "road": {"start_heading_rad": scenario.road.start.heading, "segments": segments,
                  "lane_width_m": scenario.road.lane_width, "lanes_forward": scenario.road.lanes_forward,
                  "lanes_backward": scenario.road.lanes_backward, "speed_limit_mps": scenario.road.speed_limit},
         "work_zone": {"taper_start_s": z.taper_start, "taper_length_m": z.taper_length,
                       "closure_length_m": z.closure_length, "end_taper_length_m": z.end_taper_length},
         "vo": {"scale": c.vo.scale, "scale_drift_per_min": c.vo.scale_drift_per_min,
-               "yaw_drift_deg_per_min": c.vo.yaw_drift_deg_per_min, "increment_noise": c.vo_noise},
-        "wheel": {"scale": c.wheel.0, "sigma_mps": c.wheel.1},
+               "yaw_drift_deg_per_min": c.vo.yaw_drift_deg_per_min,
+               "scale_walk_per_sqrt_min": c.vo.scale_walk_per_sqrt_min,
+               "yaw_walk_deg_per_sqrt_min": c.vo.yaw_walk_deg_per_sqrt_min, "tilt_deg": c.vo.tilt_deg,
+               "increment_noise": c.vo.translation_noise, "rotation_noise_deg": c.vo.rotation_noise_deg,
+               "reinit": c.vo.reinit.map(|r| json!({"every_s": r.every_s, "gap_s": r.gap_s, "scale_factor": r.scale_factor})),
+               "sessions": scenario.vo.reinits() + 1},
+        "gnss": {"sigma_range_m": c.gnss.sigma_range, "correlation_s": c.gnss.correlation_s,
+                 "latency_s": c.gnss.latency_s, "multipath_rate": c.gnss.multipath_rate,
+                 "reported_sigma_factor": c.gnss.reported_sigma_factor, "reported_jitter": c.gnss.reported_jitter,
+                 "outages_per_min": c.gnss.outages_per_min},
+        "wheel": {"scale": c.wheel.scale, "sigma_mps": c.wheel.sigma, "latency_s": c.wheel.latency_s},
+        "detector": {"covariance_factor": c.detector.covariance_factor, "confusion": c.detector.confusion,
+                     "occlusion": c.detector.occlusion, "false_positives_per_frame": c.detector.false_positives},
+        "street_anchors": c.anchors,
         "counts": {
             "frames": scenario.frames.len(),
             "objects": scenario.frames.first().map_or(0, |f| f.objects.len()),

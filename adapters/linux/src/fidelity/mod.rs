@@ -1,0 +1,9 @@
+//! How faithful the product's logs are, measured on generated drives whose truth is known:
+//! one drive on the product's path judged against its truth ([`drive`]), many of them in
+//! parallel (`dash2sim scenario sweep`, [`sweep`]), the statistics over them ([`summary`])
+//! and their picture ([`plot`]). `docs/fidelity.md` holds the figures.
+
+pub mod drive;
+pub mod plot;
+pub mod summary;
+pub mod sweep;

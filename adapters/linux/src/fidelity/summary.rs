@@ -1,0 +1,402 @@
+//! The statistics over a sweep's rows: how often each log's verdict equals the truth's
+//! (confusion tables), the spread of the anchoring and tracking errors, and every
+//! disagreement with its cause.
+
+use std::fmt::Write as _;
+
+use serde::Serialize;
+
+use super::sweep::{Row, SweepArgs, Verdict, Verdicts};
+
+/// A log's verdicts against the truth's: rows truth, columns the log.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct Confusion {
+    /// Both verified.
+    pub truth_verified_log_verified: usize,
+    /// The truth verified, the log rejected (a good drive thrown away).
+    pub truth_verified_log_rejected: usize,
+    /// The truth rejected, the log verified (a bad drive let through).
+    pub truth_rejected_log_verified: usize,
+    /// Both rejected.
+    pub truth_rejected_log_rejected: usize,
+}
+
+impl Confusion {
+    fn of(pairs: impl Iterator<Item = (bool, bool)>) -> Self {
+        let mut c = Confusion::default();
+        for (truth, log) in pairs {
+            match (truth, log) {
+                (true, true) => c.truth_verified_log_verified += 1,
+                (true, false) => c.truth_verified_log_rejected += 1,
+                (false, true) => c.truth_rejected_log_verified += 1,
+                (false, false) => c.truth_rejected_log_rejected += 1,
+            }
+        }
+        c
+    }
+
+    /// Pairs counted.
+    pub fn total(&self) -> usize {
+        self.truth_verified_log_verified
+            + self.truth_verified_log_rejected
+            + self.truth_rejected_log_verified
+            + self.truth_rejected_log_rejected
+    }
+
+    /// Fraction of pairs that agree (none without pairs).
+    pub fn agreement(&self) -> Option<f64> {
+        let n = self.total();
+        (n > 0).then(|| (self.truth_verified_log_verified + self.truth_rejected_log_rejected) as f64 / n as f64)
+    }
+}
+
+/// Percentiles of a figure over the drives that have it (linear between ranks, as numpy's
+/// default).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Spread {
+    /// Drives with a value.
+    pub n: usize,
+    /// 5th percentile.
+    pub p5: Option<f64>,
+    /// Median.
+    pub p50: Option<f64>,
+    /// 90th percentile.
+    pub p90: Option<f64>,
+    /// 95th percentile.
+    pub p95: Option<f64>,
+    /// Largest.
+    pub max: Option<f64>,
+}
+
+/// The `q`-quantile (0–1) of sorted `values`, linear between ranks.
+pub fn quantile(sorted: &[f64], q: f64) -> Option<f64> {
+    let last = sorted.len().checked_sub(1)?;
+    let at = q.clamp(0.0, 1.0) * last as f64;
+    let (lo, hi) = (at.floor() as usize, at.ceil() as usize);
+    Some(sorted[lo] + (sorted[hi] - sorted[lo]) * (at - lo as f64))
+}
+
+impl Spread {
+    fn of(values: impl Iterator<Item = Option<f64>>) -> Self {
+        let mut v: Vec<f64> = values.flatten().filter(|x| x.is_finite()).collect();
+        v.sort_by(f64::total_cmp);
+        Spread {
+            n: v.len(),
+            p5: quantile(&v, 0.05),
+            p50: quantile(&v, 0.5),
+            p90: quantile(&v, 0.9),
+            p95: quantile(&v, 0.95),
+            max: v.last().copied(),
+        }
+    }
+}
+
+/// The confusion tables of a sweep.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Confusions {
+    /// The finished log against the truth, channel-insensitive.
+    pub finished: Confusion,
+    /// The same, channel-sensitive.
+    pub finished_channel_sensitive: Confusion,
+    /// The online log (the whole drive) against the truth, channel-insensitive.
+    pub online: Confusion,
+    /// The device's 15 s windows against the truth's over the same stretches.
+    pub device_windows: Confusion,
+}
+
+/// The spreads of a sweep's figures.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Spreads {
+    /// Online ego APE (RMSE per drive), m.
+    pub ape_online_m: Spread,
+    /// Finished ego APE, m.
+    pub ape_finished_m: Spread,
+    /// |online scale error| at the last observable estimate.
+    pub scale_error_online_abs: Spread,
+    /// |finished scale error|.
+    pub scale_error_finished_abs: Spread,
+    /// MOTA of the online tracks.
+    pub mota_online: Spread,
+    /// MOTA of the finished tracks.
+    pub mota_finished: Spread,
+    /// IDF1 of the finished tracks.
+    pub idf1_finished: Spread,
+    /// Seconds to the device's first anchored pose.
+    pub first_anchor_s: Spread,
+}
+
+/// A drive whose finished verdict differs from the truth's, and why.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Disagreement {
+    /// Seed.
+    pub seed: u64,
+    /// Driver.
+    pub driver: &'static str,
+    /// The truth's score and the finished log's (channel-insensitive).
+    pub truth_score: f64,
+    /// See `truth_score`.
+    pub finished_score: f64,
+    /// Metrics below 1 for the finished log and not for the truth, or the reverse.
+    pub metrics: Vec<String>,
+    /// `agents` (the finished ego against the true objects verifies as the truth does: the
+    /// tracks made the difference), `ego` (it does not), or `map` (the truth itself leaves
+    /// the map's drivable area or direction: the map and the road disagree).
+    pub cause: &'static str,
+}
+
+/// Metric names that only the map decides.
+const MAP_METRICS: [&str; 2] = ["drivable_area_compliance", "driving_direction_compliance"];
+
+fn disagreement(row: &Row) -> Option<Disagreement> {
+    let truth = &row.truth.as_ref()?.insensitive;
+    let finished = &row.finished.as_ref()?.insensitive;
+    if truth.verified == finished.verified {
+        return None;
+    }
+    let only =
+        |a: &Verdict, b: &Verdict| a.failed.iter().filter(|m| !b.failed.contains(m)).cloned().collect::<Vec<_>>();
+    let mut metrics = only(finished, truth);
+    metrics.extend(only(truth, finished));
+    let with_true_agents = row.finished_ego_true_agents.as_ref().map(|v| v.insensitive.verified);
+    let cause = if truth.failed.iter().any(|m| MAP_METRICS.contains(&m.as_str())) && !truth.verified {
+        "map"
+    } else if with_true_agents == Some(truth.verified) {
+        "agents"
+    } else {
+        "ego"
+    };
+    Some(Disagreement {
+        seed: row.seed,
+        driver: row.driver,
+        truth_score: truth.score,
+        finished_score: finished.score,
+        metrics,
+        cause,
+    })
+}
+
+/// A sweep's summary (`summary.json`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Summary {
+    /// Sensor profile.
+    pub profile: &'static str,
+    /// GNSS receiver.
+    pub receiver: &'static str,
+    /// Finishing's anchors.
+    pub anchors: &'static str,
+    /// Seeds, `A-B`.
+    pub seeds: String,
+    /// Drivers.
+    pub drivers: Vec<&'static str>,
+    /// Length of each drive, s.
+    pub duration_s: f64,
+    /// Drives run.
+    pub drives: usize,
+    /// Drives that did not come through the product (their rows say why).
+    pub failed_drives: usize,
+    /// Fraction of drives whose finished verdict equals the truth's (channel-insensitive).
+    pub finished_agreement: Option<f64>,
+    /// The same, channel-sensitive.
+    pub finished_agreement_channel_sensitive: Option<f64>,
+    /// Drives the truth rejects and the finished log verifies (channel-insensitive).
+    pub finished_false_verified: usize,
+    /// Drives the truth verifies and the finished log rejects.
+    pub finished_false_rejected: usize,
+    /// Fraction of drives whose online verdict (the whole drive) equals the truth's.
+    pub online_agreement: Option<f64>,
+    /// Fraction of the device's windows whose verdict equals the truth's over the same stretch.
+    pub online_window_agreement: Option<f64>,
+    /// The device's windows judged.
+    pub windows: usize,
+    /// Device windows verified where the truth has an at-fault collision.
+    pub device_verified_collision_windows: usize,
+    /// Median finished APE, m.
+    pub ape_finished_median_m: Option<f64>,
+    /// Drives the device never anchored.
+    pub never_anchored: usize,
+    /// Drives whose VO re-initialised at least once.
+    pub drives_with_vo_reinit: usize,
+    /// The confusion tables.
+    pub confusion: Confusions,
+    /// The spreads of the figures.
+    pub spread: Spreads,
+    /// Every finished verdict that differs from the truth's, with its cause.
+    pub disagreements: Vec<Disagreement>,
+}
+
+fn verdict_pair(
+    row: &Row,
+    log: impl Fn(&Verdicts) -> &Verdict,
+    truth: impl Fn(&Verdicts) -> &Verdict,
+) -> Option<(bool, bool)> {
+    Some((truth(row.truth.as_ref()?).verified, log(row.finished.as_ref()?).verified))
+}
+
+impl Summary {
+    /// The summary of `rows`, run as `args` says.
+    pub fn of(args: &SweepArgs, rows: &[Row]) -> Self {
+        let ok: Vec<&Row> = rows.iter().filter(|r| r.error.is_none()).collect();
+        let finished = Confusion::of(ok.iter().filter_map(|r| verdict_pair(r, |v| &v.insensitive, |v| &v.insensitive)));
+        let finished_cs = Confusion::of(ok.iter().filter_map(|r| verdict_pair(r, |v| &v.sensitive, |v| &v.sensitive)));
+        let online =
+            Confusion::of(ok.iter().filter_map(|r| {
+                Some((r.truth.as_ref()?.insensitive.verified, r.online.as_ref()?.insensitive.verified))
+            }));
+        let device_windows =
+            Confusion::of(ok.iter().flat_map(|r| r.windows.iter().map(|w| (w.truth_verified, w.device_verified))));
+        let abs = |x: Option<f64>| x.map(f64::abs);
+        let spread = Spreads {
+            ape_online_m: Spread::of(ok.iter().map(|r| r.online_ape_m)),
+            ape_finished_m: Spread::of(ok.iter().map(|r| r.finished_ape_m)),
+            scale_error_online_abs: Spread::of(ok.iter().map(|r| abs(r.online_scale_error))),
+            scale_error_finished_abs: Spread::of(ok.iter().map(|r| abs(r.finished_scale_error))),
+            mota_online: Spread::of(ok.iter().map(|r| r.online_mota)),
+            mota_finished: Spread::of(ok.iter().map(|r| r.finished_mota)),
+            idf1_finished: Spread::of(ok.iter().map(|r| r.finished_idf1)),
+            first_anchor_s: Spread::of(ok.iter().map(|r| r.first_anchor_s)),
+        };
+        Summary {
+            profile: args.profile.name(),
+            receiver: args.receiver.name(),
+            anchors: args.anchors.name(),
+            seeds: format!("{}-{}", args.seeds.start(), args.seeds.end()),
+            drivers: rows.iter().map(|r| r.driver).fold(Vec::new(), |mut v, d| {
+                if !v.contains(&d) {
+                    v.push(d);
+                }
+                v
+            }),
+            duration_s: args.duration,
+            drives: rows.len(),
+            failed_drives: rows.len() - ok.len(),
+            finished_agreement: finished.agreement(),
+            finished_agreement_channel_sensitive: finished_cs.agreement(),
+            finished_false_verified: finished.truth_rejected_log_verified,
+            finished_false_rejected: finished.truth_verified_log_rejected,
+            online_agreement: online.agreement(),
+            online_window_agreement: device_windows.agreement(),
+            windows: device_windows.total(),
+            device_verified_collision_windows: ok
+                .iter()
+                .flat_map(|r| &r.windows)
+                .filter(|w| w.truth_collision && w.device_verified)
+                .count(),
+            ape_finished_median_m: spread.ape_finished_m.p50,
+            never_anchored: ok.iter().filter(|r| r.first_anchor_s.is_none()).count(),
+            drives_with_vo_reinit: ok.iter().filter(|r| r.vo_sessions > 1).count(),
+            confusion: Confusions { finished, finished_channel_sensitive: finished_cs, online, device_windows },
+            spread,
+            disagreements: ok.iter().filter_map(|r| disagreement(r)).collect(),
+        }
+    }
+
+    /// The summary as a person reads it.
+    pub fn text(&self) -> String {
+        let mut t = String::new();
+        let pct = |x: Option<f64>| x.map_or_else(|| "–".to_owned(), |v| format!("{:.1} %", 100.0 * v));
+        let m = |x: Option<f64>| x.map_or_else(|| "–".to_owned(), |v| format!("{v:.2}"));
+        let _ = writeln!(
+            t,
+            "dash2sim scenario sweep — seeds {}, {} driver(s), {} profile, {} receiver, {} anchors, {:.0} s drives (simulated)",
+            self.seeds,
+            self.drivers.join("+"),
+            self.profile,
+            self.receiver,
+            self.anchors,
+            self.duration_s
+        );
+        let _ = writeln!(
+            t,
+            "  drives        {} ({} failed to run, {} never anchored on the device, {} with a VO re-initialisation)",
+            self.drives, self.failed_drives, self.never_anchored, self.drives_with_vo_reinit
+        );
+        let table = |t: &mut String, name: &str, c: &Confusion| {
+            let _ = writeln!(t, "  {name:<40} log verified  log rejected   agreement {}", pct(c.agreement()));
+            let _ = writeln!(
+                t,
+                "  {:<40} {:>12}  {:>12}",
+                "    truth verified", c.truth_verified_log_verified, c.truth_verified_log_rejected
+            );
+            let _ = writeln!(
+                t,
+                "  {:<40} {:>12}  {:>12}",
+                "    truth rejected", c.truth_rejected_log_verified, c.truth_rejected_log_rejected
+            );
+        };
+        table(&mut t, "finished vs truth (channel-insensitive)", &self.confusion.finished);
+        table(&mut t, "finished vs truth (channel-sensitive)", &self.confusion.finished_channel_sensitive);
+        table(&mut t, "online (whole drive) vs truth", &self.confusion.online);
+        table(&mut t, "device windows vs truth's windows", &self.confusion.device_windows);
+        let _ = writeln!(
+            t,
+            "  device windows verified where the truth collides: {}",
+            self.device_verified_collision_windows
+        );
+        let spread = |t: &mut String, name: &str, s: &Spread, scale: f64, unit: &str| {
+            let f = |x: Option<f64>| x.map_or_else(|| "–".to_owned(), |v| format!("{:.3}", v * scale));
+            let _ = writeln!(
+                t,
+                "  {name:<28} median {} {unit}, 90 % {}, 95 % {}, max {} (n = {})",
+                f(s.p50),
+                f(s.p90),
+                f(s.p95),
+                f(s.max),
+                s.n
+            );
+        };
+        let s = &self.spread;
+        spread(&mut t, "APE online", &s.ape_online_m, 1.0, "m");
+        spread(&mut t, "APE finished", &s.ape_finished_m, 1.0, "m");
+        spread(&mut t, "|scale error| online", &s.scale_error_online_abs, 100.0, "%");
+        spread(&mut t, "|scale error| finished", &s.scale_error_finished_abs, 100.0, "%");
+        spread(&mut t, "MOTA online", &s.mota_online, 1.0, "");
+        spread(&mut t, "MOTA finished", &s.mota_finished, 1.0, "");
+        spread(&mut t, "first anchored after", &s.first_anchor_s, 1.0, "s");
+        let _ = writeln!(
+            t,
+            "  finished agreement {} (false verified {}, false rejected {}); online window agreement {}; finished APE median {} m",
+            pct(self.finished_agreement),
+            self.finished_false_verified,
+            self.finished_false_rejected,
+            pct(self.online_window_agreement),
+            m(self.ape_finished_median_m)
+        );
+        if !self.disagreements.is_empty() {
+            let mut causes: Vec<(&str, usize)> = Vec::new();
+            for d in &self.disagreements {
+                match causes.iter_mut().find(|(c, _)| *c == d.cause) {
+                    Some((_, n)) => *n += 1,
+                    None => causes.push((d.cause, 1)),
+                }
+            }
+            let causes: Vec<String> = causes.iter().map(|(c, n)| format!("{n} {c}")).collect();
+            let _ = writeln!(t, "  disagreements by cause: {}", causes.join(", "));
+        }
+        t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantiles_are_linear_between_ranks_as_numpy_s() {
+        let v = [1.0, 2.0, 3.0, 4.0];
+        assert_eq!(quantile(&v, 0.5), Some(2.5));
+        assert_eq!(quantile(&v, 0.0), Some(1.0));
+        assert_eq!(quantile(&v, 1.0), Some(4.0));
+        // numpy.percentile([1, 2, 3, 4], 90) = 3.7
+        assert!((quantile(&v, 0.9).unwrap_or(f64::NAN) - 3.7).abs() < 1e-12);
+        assert_eq!(quantile(&[], 0.5), None);
+    }
+
+    #[test]
+    fn confusion_counts_each_pair_once() {
+        let c = Confusion::of([(true, true), (true, false), (false, true), (false, false), (true, true)].into_iter());
+        assert_eq!(c.total(), 5);
+        assert_eq!(c.truth_verified_log_verified, 2);
+        assert_eq!(c.agreement(), Some(0.6));
+        assert_eq!(Confusion::default().agreement(), None);
+    }
+}

@@ -1,0 +1,429 @@
+//! `dash2sim scenario sweep`: many generated drives, each on the product's path — generate,
+//! `record` from the device's files, `finish`, `verify` the truth, the online and the
+//! finished log in both channel modes — in parallel, one row per drive (`runs.csv`,
+//! `runs.jsonl`), the statistics over them (`summary.json`, printed) and a picture
+//! (`sweep.png`).
+
+use std::fmt::Write as _;
+use std::ops::RangeInclusive;
+use std::path::{Path, PathBuf};
+
+use dash2sim_core::geo::Geodetic;
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use serde::Serialize;
+use serde_json::Value;
+
+use super::drive::{assess, Anchors, Assessment, WindowPair};
+use super::summary::Summary;
+use crate::logfile;
+use crate::record::{self, Setup};
+use crate::scenario::command::{config, MAX_DURATION_S};
+use crate::scenario::profile::{Profile, Receiver};
+use crate::scenario::write::write_scenario;
+use crate::scenario::{generate, Driver};
+
+/// Which drivers a sweep drives each seed with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Drivers {
+    /// Careful only: every drive should verify.
+    Careful,
+    /// Careless only: every drive should be rejected.
+    Careless,
+    /// Each seed twice, careful and careless.
+    Both,
+}
+
+impl Drivers {
+    fn list(self) -> &'static [Driver] {
+        match self {
+            Drivers::Careful => &[Driver::Careful],
+            Drivers::Careless => &[Driver::Careless],
+            Drivers::Both => &[Driver::Careful, Driver::Careless],
+        }
+    }
+}
+
+/// `dash2sim scenario sweep` arguments.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SweepArgs {
+    /// Seeds, `A-B` (both included) or one seed.
+    #[arg(long, value_parser = parse_seeds)]
+    pub seeds: RangeInclusive<u64>,
+    /// Drive each seed `careful`, `careless` or `both`.
+    #[arg(long, value_enum, default_value = "both")]
+    pub driver: Drivers,
+    /// How far the sensors are from ideal: `ideal`, `typical` or `hard` (docs/scenario.md).
+    #[arg(long, value_enum, default_value = "typical")]
+    pub profile: Profile,
+    /// The GNSS receiver: `good` (σ 1–2 m) or `phone` (σ 3–10 m).
+    #[arg(long, value_enum, default_value = "good")]
+    pub receiver: Receiver,
+    /// Finishing's anchors: `street` (simulated from the true path every 50 m) or `none`.
+    #[arg(long, value_enum, default_value = "street")]
+    pub anchors: Anchors,
+    /// Length of each drive, s.
+    #[arg(long, default_value_t = 40.0)]
+    pub duration: f64,
+    /// Drives run at once (default: one per core).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+    /// Output folder: runs.csv, runs.jsonl, summary.json, sweep.png.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Print the summary as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress on stderr.
+    #[arg(short, long)]
+    pub quiet: bool,
+    /// Keep each drive's files (generated streams, logs, anchors) under `OUTPUT/drives/`.
+    #[arg(long)]
+    pub keep: bool,
+}
+
+/// `A-B` or `A` as an inclusive range of seeds.
+pub fn parse_seeds(text: &str) -> Result<RangeInclusive<u64>, String> {
+    let number = |s: &str| -> Result<u64, String> {
+        s.trim().parse().map_err(|_| format!("`{s}` is not a seed (a whole number ≥ 0); give A-B or A"))
+    };
+    let (a, b) = match text.split_once('-') {
+        Some((a, b)) => (number(a)?, number(b)?),
+        None => {
+            let a = number(text)?;
+            (a, a)
+        }
+    };
+    if a > b {
+        return Err(format!("{text}: the first seed is after the last (give A-B with A ≤ B)"));
+    }
+    Ok(a..=b)
+}
+
+/// One drive's verdict in one channel mode.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Verdict {
+    /// nuPlan-style score, 0–100.
+    pub score: f64,
+    /// Score > 90.
+    pub verified: bool,
+    /// nuPlan's names of the metrics below 1.
+    pub failed: Vec<String>,
+}
+
+impl Verdict {
+    fn of(report: &Value) -> Self {
+        let failed = report["metrics"]
+            .as_object()
+            .map(|m| m.iter().filter(|(_, v)| v.as_f64().is_some_and(|x| x < 1.0)).map(|(k, _)| k.clone()).collect())
+            .unwrap_or_default();
+        Verdict {
+            score: report["score"].as_f64().unwrap_or(f64::NAN),
+            verified: report["verified"].as_bool().unwrap_or(false),
+            failed,
+        }
+    }
+}
+
+/// A verdict in both channel modes.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Verdicts {
+    /// Every lane drivable (as the device verifies).
+    pub insensitive: Verdict,
+    /// Only the lanes along the route.
+    pub sensitive: Verdict,
+}
+
+impl Verdicts {
+    fn of(b: &super::drive::BothModes) -> Self {
+        Verdicts { insensitive: Verdict::of(&b.insensitive), sensitive: Verdict::of(&b.sensitive) }
+    }
+}
+
+/// What a drive came to: one row of the sweep.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Row {
+    /// The drive's seed.
+    pub seed: u64,
+    /// `careful` or `careless`.
+    pub driver: &'static str,
+    /// Sensor profile.
+    pub profile: &'static str,
+    /// GNSS receiver.
+    pub receiver: &'static str,
+    /// Finishing's anchors.
+    pub anchors: &'static str,
+    /// Why the drive did not come through the product (then nothing else is filled).
+    pub error: Option<String>,
+    /// The true drive's verification.
+    pub truth: Option<Verdicts>,
+    /// The device's log's.
+    pub online: Option<Verdicts>,
+    /// The finished log's.
+    pub finished: Option<Verdicts>,
+    /// The online ego verified against the true objects (its tracks set aside).
+    pub online_ego_true_agents: Option<Verdicts>,
+    /// The finished ego verified against the true objects.
+    pub finished_ego_true_agents: Option<Verdicts>,
+    /// Online horizontal ego APE (RMSE over anchored frames), m; none when never anchored.
+    pub online_ape_m: Option<f64>,
+    /// Finished ego APE (RMSE), m.
+    pub finished_ape_m: Option<f64>,
+    /// Online scale error at the last observable estimate (relative).
+    pub online_scale_error: Option<f64>,
+    /// Finished scale against the VO's mean true scale (relative).
+    pub finished_scale_error: Option<f64>,
+    /// MOTA of the online 3D tracks against the truth.
+    pub online_mota: Option<f64>,
+    /// IDF1 of the online 3D tracks.
+    pub online_idf1: Option<f64>,
+    /// MOTA of the finished tracks.
+    pub finished_mota: Option<f64>,
+    /// IDF1 of the finished tracks.
+    pub finished_idf1: Option<f64>,
+    /// Seconds from the first frame to the device's first anchored pose.
+    pub first_anchor_s: Option<f64>,
+    /// VO sessions in the drive (1: no re-initialisation).
+    pub vo_sessions: u32,
+    /// The device's 15 s windows beside the truth's.
+    pub windows: Vec<WindowPair>,
+}
+
+fn finite(x: f64) -> Option<f64> {
+    x.is_finite().then_some(x)
+}
+
+impl Row {
+    fn empty(seed: u64, driver: Driver, args: &SweepArgs) -> Self {
+        Row {
+            seed,
+            driver: driver.name(),
+            profile: args.profile.name(),
+            receiver: args.receiver.name(),
+            anchors: args.anchors.name(),
+            error: None,
+            truth: None,
+            online: None,
+            finished: None,
+            online_ego_true_agents: None,
+            finished_ego_true_agents: None,
+            online_ape_m: None,
+            finished_ape_m: None,
+            online_scale_error: None,
+            finished_scale_error: None,
+            online_mota: None,
+            online_idf1: None,
+            finished_mota: None,
+            finished_idf1: None,
+            first_anchor_s: None,
+            vo_sessions: 0,
+            windows: Vec::new(),
+        }
+    }
+
+    fn from_assessment(mut self, a: &Assessment, vo_sessions: u32) -> Self {
+        let ape = |j: &crate::scenario::judge::LogJudgement| (!j.ego_errors.is_empty()).then_some(j.ego_rmse);
+        self.truth = Some(Verdicts::of(&a.truth));
+        self.online = Some(Verdicts::of(&a.online.verification));
+        self.finished = Some(Verdicts::of(&a.finished.verification));
+        self.online_ego_true_agents = Some(Verdicts::of(&a.online.ego_with_true_agents));
+        self.finished_ego_true_agents = Some(Verdicts::of(&a.finished.ego_with_true_agents));
+        self.online_ape_m = ape(&a.online.judgement);
+        self.finished_ape_m = ape(&a.finished.judgement);
+        self.online_scale_error = a.online_scale.map(|(_, e)| e);
+        self.finished_scale_error = finite(a.finished_scale.2);
+        self.online_mota = finite(a.online.judgement.tracks.0);
+        self.online_idf1 = finite(a.online.judgement.tracks.1);
+        self.finished_mota = finite(a.finished.judgement.tracks.0);
+        self.finished_idf1 = finite(a.finished.judgement.tracks.1);
+        self.first_anchor_s = a.online.judgement.first_anchored_s;
+        self.vo_sessions = vo_sessions;
+        self.windows = a.windows.clone();
+        self
+    }
+}
+
+/// Generate drive `seed` with `driver`, record it from its files, judge it; its row.
+fn run_drive(seed: u64, driver: Driver, args: &SweepArgs, work: &Path) -> Row {
+    let row = Row::empty(seed, driver, args);
+    match try_drive(seed, driver, args, work) {
+        Ok((assessment, sessions)) => row.from_assessment(&assessment, sessions),
+        Err(e) => Row { error: Some(e), ..row },
+    }
+}
+
+fn try_drive(seed: u64, driver: Driver, args: &SweepArgs, work: &Path) -> Result<(Assessment, u32), String> {
+    let config =
+        crate::scenario::ScenarioConfig { driver, ..config(seed, args.duration, args.profile, args.receiver)? };
+    let scenario = generate(&config);
+    let drive_dir = work.join("drive");
+    write_scenario(&scenario, &drive_dir).map_err(|e| format!("{}: {e}", drive_dir.display()))?;
+    let [lat, lon, height] = config.origin;
+    let origin = Geodetic::new(lat, lon, height).map_err(|e| e.to_string())?;
+    let osm = crate::osm::read(&drive_dir.join("road.osm")).map_err(|e| e.to_string())?;
+    let tile = crate::map_tile::encode(
+        &crate::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
+        crate::map_tile::DEFAULT_CELL_M,
+    );
+    // The demo's device: the same setup, so that a row equals `demo --offline`'s summary.
+    let setup = Setup::work_zone(origin, Some(tile.clone()), *b"dash2sim-demo\0\0\0");
+    let (stream, _) = record::read_sources(&record::Sources::scenario(&drive_dir))?;
+    let recording = record::run_stream(&stream, &setup)?;
+    let log_path = work.join("drive.d2slog");
+    std::fs::write(&log_path, &recording.log).map_err(|e| format!("{}: {e}", log_path.display()))?;
+    let log = logfile::read(&log_path).map_err(|e| e.to_string())?;
+    let assessment = assess(
+        &scenario,
+        &drive_dir,
+        &log,
+        &log_path.display().to_string(),
+        &tile,
+        &setup,
+        args.anchors,
+        &work.join("anchors.csv"),
+    )?;
+    if args.keep {
+        let finished = work.join("finished.d2slog");
+        std::fs::write(&finished, &assessment.finished_bytes).map_err(|e| format!("{}: {e}", finished.display()))?;
+    }
+    Ok((assessment, scenario.vo.reinits() + 1))
+}
+
+/// The columns of `runs.csv`.
+const CSV_HEADER: &str = "seed,driver,profile,receiver,anchors,error,\
+truth_score,truth_verified,truth_failed,online_score,online_verified,online_failed,finished_score,finished_verified,finished_failed,\
+truth_score_cs,truth_verified_cs,online_score_cs,online_verified_cs,finished_score_cs,finished_verified_cs,finished_failed_cs,\
+online_ape_m,finished_ape_m,online_scale_error,finished_scale_error,online_mota,online_idf1,finished_mota,finished_idf1,\
+first_anchor_s,vo_sessions,windows,device_windows_verified,truth_windows_verified";
+
+fn csv_row(r: &Row) -> String {
+    let opt = |x: Option<f64>| x.map_or_else(String::new, |v| format!("{v:.6}"));
+    let verdict = |v: Option<&Verdict>| match v {
+        Some(v) => format!("{:.4},{},{}", v.score, u8::from(v.verified), v.failed.join(" ")),
+        None => ",,".to_owned(),
+    };
+    let short = |v: Option<&Verdict>| match v {
+        Some(v) => format!("{:.4},{}", v.score, u8::from(v.verified)),
+        None => ",".to_owned(),
+    };
+    let marks = |f: fn(&WindowPair) -> bool| r.windows.iter().map(|w| if f(w) { '1' } else { '0' }).collect::<String>();
+    let error = r.error.as_deref().map_or_else(String::new, |e| format!("\"{}\"", e.replace('"', "'")));
+    format!(
+        "{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        r.seed,
+        r.driver,
+        r.profile,
+        r.receiver,
+        r.anchors,
+        verdict(r.truth.as_ref().map(|v| &v.insensitive)),
+        verdict(r.online.as_ref().map(|v| &v.insensitive)),
+        verdict(r.finished.as_ref().map(|v| &v.insensitive)),
+        short(r.truth.as_ref().map(|v| &v.sensitive)),
+        short(r.online.as_ref().map(|v| &v.sensitive)),
+        verdict(r.finished.as_ref().map(|v| &v.sensitive)),
+        opt(r.online_ape_m),
+        opt(r.finished_ape_m),
+        opt(r.online_scale_error),
+        opt(r.finished_scale_error),
+        opt(r.online_mota),
+        opt(r.online_idf1),
+        opt(r.finished_mota),
+        opt(r.finished_idf1),
+        opt(r.first_anchor_s),
+        r.vo_sessions,
+        r.windows.len(),
+        marks(|w| w.device_verified),
+        marks(|w| w.truth_verified),
+    )
+}
+
+fn write(path: &Path, contents: impl AsRef<[u8]>) -> Result<(), String> {
+    std::fs::write(path, contents).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Run the sweep `args` describes: its rows (in seed, driver order) and summary, written to
+/// the output folder.
+pub fn sweep(args: &SweepArgs) -> Result<(Vec<Row>, Summary), String> {
+    if !(args.duration.is_finite() && (10.0..=MAX_DURATION_S).contains(&args.duration)) {
+        return Err(format!("--duration {} must be between 10 and {MAX_DURATION_S} seconds", args.duration));
+    }
+    if args.jobs == Some(0) {
+        return Err("--jobs must be at least 1".to_owned());
+    }
+    let out = &args.output;
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create the output folder {}: {e}", out.display()))?;
+    // Fail now, not after the drives, when the folder cannot be written.
+    write(&out.join("runs.csv"), format!("{CSV_HEADER}\n"))?;
+    let work_root = if args.keep { out.join("drives") } else { out.join(".work") };
+    let drives: Vec<(u64, Driver)> =
+        args.seeds.clone().flat_map(|seed| args.driver.list().iter().map(move |d| (seed, *d))).collect();
+    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(drives.len() as u64) };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} drives ({elapsed}, about {eta} left)")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let jobs = args.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(jobs).build().map_err(|e| e.to_string())?;
+    let rows: Vec<Row> = pool.install(|| {
+        drives
+            .par_iter()
+            .map(|&(seed, driver)| {
+                let work = work_root.join(format!("{seed:05}-{}", driver.name()));
+                let row = run_drive(seed, driver, args, &work);
+                if !args.keep {
+                    let _ = std::fs::remove_dir_all(&work);
+                }
+                bar.inc(1);
+                row
+            })
+            .collect()
+    });
+    bar.finish_and_clear();
+    if !args.keep {
+        let _ = std::fs::remove_dir(&work_root);
+    }
+    let mut csv = format!("{CSV_HEADER}\n");
+    let mut lines = String::new();
+    for row in &rows {
+        let _ = writeln!(csv, "{}", csv_row(row));
+        let _ = writeln!(lines, "{}", serde_json::to_string(row).map_err(|e| e.to_string())?);
+    }
+    write(&out.join("runs.csv"), csv)?;
+    write(&out.join("runs.jsonl"), lines)?;
+    let summary = Summary::of(args, &rows);
+    let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+    write(&out.join("summary.json"), text)?;
+    super::plot::draw(&rows, &summary, &out.join("sweep.png"))?;
+    Ok((rows, summary))
+}
+
+/// `dash2sim scenario sweep`.
+pub fn run(args: &SweepArgs) -> Result<(), String> {
+    let (_, summary) = sweep(args)?;
+    if args.json {
+        println!("{}", serde_json::to_string(&summary).map_err(|e| e.to_string())?);
+    } else {
+        print!("{}", summary.text());
+        println!(
+            "rows in {}, summary in {}",
+            args.output.join("runs.csv").display(),
+            args.output.join("summary.json").display()
+        );
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seeds_are_a_range_or_one_and_a_backward_range_is_refused() {
+        assert_eq!(parse_seeds("3-7"), Ok(3..=7));
+        assert_eq!(parse_seeds("12"), Ok(12..=12));
+        let e = parse_seeds("5-2").expect_err("backwards");
+        assert!(e.contains("first seed is after the last"), "{e}");
+        assert!(parse_seeds("a-3").expect_err("not a number").contains("not a seed"));
+        assert!(parse_seeds("-3").is_err());
+    }
+}
