@@ -414,9 +414,11 @@ fn scenario_files_round_trip_through_the_other_commands() {
 
 #[test]
 fn scenario_eval_reports_the_figures_and_bad_durations_are_refused() {
-    let out = dash2sim(&["scenario", "eval", "--seed", "2", "--duration", "30", "--json"]);
+    // The tracker's own figures, on the ideal profile's detections.
+    let out = dash2sim(&["scenario", "eval", "--profile", "ideal", "--seed", "2", "--duration", "30", "--json"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(r["profile"], "ideal");
     let get = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
     assert!(get("rmse_filtered_m") < get("rmse_detections_m") && get("static_accuracy") > 0.9, "{r}");
     assert!(r["metrics"]["idf1"].as_f64().is_some_and(|v| v > 0.5), "{r}");

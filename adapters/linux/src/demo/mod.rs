@@ -306,7 +306,11 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
     let (online_scale, online_scale_error) = assessed.online_scale.map_or((None, None), |(s, e)| (Some(s), Some(e)));
     let (online, finished) = (&assessed.online, &assessed.finished);
     let (finished_scale, true_mean_scale, finished_scale_error) = assessed.finished_scale;
-    let both = |b: &crate::fidelity::drive::BothModes| json!({"channel_insensitive": b.insensitive, "channel_sensitive": b.sensitive});
+    // A log without ego poses (never anchored) has nothing verified: null.
+    let both = |b: Option<&crate::fidelity::drive::BothModes>| {
+        b.map(|b| json!({"channel_insensitive": b.insensitive, "channel_sensitive": b.sensitive}))
+            .unwrap_or_else(|| json!({"channel_insensitive": null, "channel_sensitive": null}))
+    };
     Ok(json!({
         "seed": seed,
         "duration_s": duration_s,
@@ -342,9 +346,9 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
             "finished_tracks_by_class": tracks_by_class(finished_log),
         },
         "verification": {
-            "ground_truth": both(&assessed.truth),
-            "online": both(&online.verification),
-            "finished": both(&finished.verification),
+            "ground_truth": both(Some(&assessed.truth)),
+            "online": both(online.verification.as_ref()),
+            "finished": both(finished.verification.as_ref()),
             "windows_on_device": assessed.windows,
             "windows_finished": finished_windows(&assessed.finish_report),
         },

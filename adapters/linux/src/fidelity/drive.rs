@@ -69,11 +69,12 @@ impl BothModes {
 pub struct Judged {
     /// Ego error and tracks against the truth.
     pub judgement: LogJudgement,
-    /// Its verification.
-    pub verification: BothModes,
+    /// Its verification; none when the log has no ego pose (the device never anchored):
+    /// nothing to verify, so nothing verified.
+    pub verification: Option<BothModes>,
     /// Its ego verified against the true objects instead of its tracks: where this agrees
     /// with the truth and `verification` does not, the tracks made the difference.
-    pub ego_with_true_agents: BothModes,
+    pub ego_with_true_agents: Option<BothModes>,
 }
 
 /// One of the device's verification windows and the truth's over the same stretch.
@@ -201,11 +202,19 @@ fn judge(
     map: MapView<'_>,
     true_agents: &AgentsByTime,
 ) -> Result<Judged, String> {
+    let judgement = judge_log(scenario, log);
+    if !log.records.iter().any(|r| matches!(r, Record::EgoPose(_))) {
+        return Ok(Judged { judgement, verification: None, ego_with_true_agents: None });
+    }
     let (ego, agents) = crate::verify::from_contents(log, name, &map)?;
+    // The true objects are on the drive's clock (0 at the first frame), the log's ego on
+    // the log's: move the objects onto the log's clock.
+    let first_frame_ms = drive_time(log, 0).map_or(0, |t| (-t * 1000.0).round() as i64);
+    let true_agents: AgentsByTime = true_agents.iter().map(|(ms, a)| (ms + first_frame_ms, a.clone())).collect();
     Ok(Judged {
-        judgement: judge_log(scenario, log),
-        verification: BothModes::of(map, &ego, &agents)?,
-        ego_with_true_agents: BothModes::of(map, &ego, true_agents)?,
+        judgement,
+        verification: Some(BothModes::of(map, &ego, &agents)?),
+        ego_with_true_agents: Some(BothModes::of(map, &ego, &true_agents)?),
     })
 }
 

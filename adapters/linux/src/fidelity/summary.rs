@@ -149,7 +149,8 @@ const MAP_METRICS: [&str; 2] = ["drivable_area_compliance", "driving_direction_c
 
 fn disagreement(row: &Row) -> Option<Disagreement> {
     let truth = &row.truth.as_ref()?.insensitive;
-    let finished = &row.finished.as_ref()?.insensitive;
+    let nothing = Verdict { score: 0.0, verified: false, failed: vec!["no ego poses".to_owned()] };
+    let finished = row.finished.as_ref().map_or(&nothing, |v| &v.insensitive);
     if truth.verified == finished.verified {
         return None;
     }
@@ -224,24 +225,21 @@ pub struct Summary {
     pub disagreements: Vec<Disagreement>,
 }
 
-fn verdict_pair(
-    row: &Row,
-    log: impl Fn(&Verdicts) -> &Verdict,
-    truth: impl Fn(&Verdicts) -> &Verdict,
-) -> Option<(bool, bool)> {
-    Some((truth(row.truth.as_ref()?).verified, log(row.finished.as_ref()?).verified))
+/// The truth's verdict and the finished log's (a finished log without an ego verifies nothing).
+fn verdict_pair(row: &Row, mode: impl Fn(&Verdicts) -> &Verdict) -> Option<(bool, bool)> {
+    Some((mode(row.truth.as_ref()?).verified, row.finished.as_ref().is_some_and(|v| mode(v).verified)))
 }
 
 impl Summary {
     /// The summary of `rows`, run as `args` says.
     pub fn of(args: &SweepArgs, rows: &[Row]) -> Self {
         let ok: Vec<&Row> = rows.iter().filter(|r| r.error.is_none()).collect();
-        let finished = Confusion::of(ok.iter().filter_map(|r| verdict_pair(r, |v| &v.insensitive, |v| &v.insensitive)));
-        let finished_cs = Confusion::of(ok.iter().filter_map(|r| verdict_pair(r, |v| &v.sensitive, |v| &v.sensitive)));
-        let online =
-            Confusion::of(ok.iter().filter_map(|r| {
-                Some((r.truth.as_ref()?.insensitive.verified, r.online.as_ref()?.insensitive.verified))
-            }));
+        let finished = Confusion::of(ok.iter().filter_map(|r| verdict_pair(r, |v| &v.insensitive)));
+        let finished_cs = Confusion::of(ok.iter().filter_map(|r| verdict_pair(r, |v| &v.sensitive)));
+        // A device that never anchored verified nothing.
+        let online = Confusion::of(ok.iter().filter_map(|r| {
+            Some((r.truth.as_ref()?.insensitive.verified, r.online.as_ref().is_some_and(|v| v.insensitive.verified)))
+        }));
         let device_windows =
             Confusion::of(ok.iter().flat_map(|r| r.windows.iter().map(|w| (w.truth_verified, w.device_verified))));
         let abs = |x: Option<f64>| x.map(f64::abs);

@@ -157,7 +157,7 @@ pub struct Row {
     pub error: Option<String>,
     /// The true drive's verification.
     pub truth: Option<Verdicts>,
-    /// The device's log's.
+    /// The device's log's (none when it never anchored: nothing verified).
     pub online: Option<Verdicts>,
     /// The finished log's.
     pub finished: Option<Verdicts>,
@@ -224,10 +224,10 @@ impl Row {
     fn from_assessment(mut self, a: &Assessment, vo_sessions: u32) -> Self {
         let ape = |j: &crate::scenario::judge::LogJudgement| (!j.ego_errors.is_empty()).then_some(j.ego_rmse);
         self.truth = Some(Verdicts::of(&a.truth));
-        self.online = Some(Verdicts::of(&a.online.verification));
-        self.finished = Some(Verdicts::of(&a.finished.verification));
-        self.online_ego_true_agents = Some(Verdicts::of(&a.online.ego_with_true_agents));
-        self.finished_ego_true_agents = Some(Verdicts::of(&a.finished.ego_with_true_agents));
+        self.online = a.online.verification.as_ref().map(Verdicts::of);
+        self.finished = a.finished.verification.as_ref().map(Verdicts::of);
+        self.online_ego_true_agents = a.online.ego_with_true_agents.as_ref().map(Verdicts::of);
+        self.finished_ego_true_agents = a.finished.ego_with_true_agents.as_ref().map(Verdicts::of);
         self.online_ape_m = ape(&a.online.judgement);
         self.finished_ape_m = ape(&a.finished.judgement);
         self.online_scale_error = a.online_scale.map(|(_, e)| e);
