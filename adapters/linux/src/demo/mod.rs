@@ -33,12 +33,12 @@ use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use serde_json::{json, Value};
 
-use crate::fidelity::drive::{assess, judged_json, Anchors};
+use crate::fidelity::drive::{assess, judged_json, Anchors, Recorded};
 use crate::logfile::{self, LogContents};
 use crate::record::{self, Setup};
 use crate::scenario::evaluate::evaluate_tracking;
 use crate::scenario::profile::{Profile, Receiver};
-use crate::scenario::write::write_scenario;
+use crate::scenario::write::{road_tile, write_scenario};
 use crate::scenario::{generate, tracker_classes, tracker_config, Driver, ScenarioConfig};
 use progress::Progress;
 
@@ -171,11 +171,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
     write_scenario(&scenario, &drive_dir).map_err(|e| format!("{}: {e}", drive_dir.display()))?;
 
     progress.step(2, STEPS, "building the map tile from the road's OpenStreetMap");
-    let osm = crate::osm::read(&drive_dir.join("road.osm")).map_err(|e| e.to_string())?;
-    let tile = crate::map_tile::encode(
-        &crate::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
-        crate::map_tile::DEFAULT_CELL_M,
-    );
+    let tile = road_tile(&drive_dir, origin)?;
     let map_path = out.join("road.map");
     write_file(&map_path, &tile)?;
     let map = MapView::parse(&tile).map_err(|e| e.to_string())?;
@@ -223,16 +219,16 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
         progress.spinner("solving; verifying the true drive, the online log and the finished log (both channel modes)");
     let anchors_path = out.join("anchors.csv");
     let _ = std::fs::remove_file(&anchors_path);
-    let assessed = assess(
-        &scenario,
-        &drive_dir,
-        &log,
-        &log_path.display().to_string(),
-        &tile,
-        &setup,
-        args.anchors,
-        &anchors_path,
-    )?;
+    let log_name = log_path.display().to_string();
+    let recorded = Recorded {
+        scenario: &scenario,
+        drive_dir: &drive_dir,
+        log: &log,
+        log_name: &log_name,
+        tile: &tile,
+        setup: &setup,
+    };
+    let assessed = assess(&recorded, args.anchors, &anchors_path)?;
     spinner.finish_and_clear();
     let finished_path = out.join("finished.d2slog");
     write_file(&finished_path, &assessed.finished_bytes)?;

@@ -218,20 +218,28 @@ fn judge(
     })
 }
 
-/// Judge the device's `log` of `scenario` (its files in `drive_dir`): finish it with
-/// `anchors` (the anchors CSV written to `anchors_path`), verify the truth, the online and
-/// the finished log on the map tile `tile`, and set the device's windows against the
-/// truth's. `log_name` names the log in messages.
-pub fn assess(
-    scenario: &Scenario,
-    drive_dir: &Path,
-    log: &LogContents,
-    log_name: &str,
-    tile: &[u8],
-    setup: &Setup,
-    anchors: Anchors,
-    anchors_path: &Path,
-) -> Result<Assessment, String> {
+/// A generated drive and the device's log of it.
+#[derive(Clone, Copy, Debug)]
+pub struct Recorded<'a> {
+    /// The drive, with its truth.
+    pub scenario: &'a Scenario,
+    /// Where its files were written (`objects.csv` is the truth verify reads).
+    pub drive_dir: &'a Path,
+    /// The device's log.
+    pub log: &'a LogContents,
+    /// The log's name in messages.
+    pub log_name: &'a str,
+    /// The map tile of its road.
+    pub tile: &'a [u8],
+    /// The device setup it was recorded with (finishing takes its mount and UERE).
+    pub setup: &'a Setup,
+}
+
+/// Judge a recorded drive: finish it with `anchors` (the anchors CSV written to
+/// `anchors_path`), verify the truth, the online and the finished log on the drive's map
+/// tile, and set the device's windows against the truth's.
+pub fn assess(recorded: &Recorded<'_>, anchors: Anchors, anchors_path: &Path) -> Result<Assessment, String> {
+    let Recorded { scenario, drive_dir, log, log_name, tile, setup } = *recorded;
     let map = MapView::parse(tile).map_err(|e| e.to_string())?;
     let anchors_text = match anchors {
         Anchors::Street => {

@@ -35,7 +35,7 @@ pub fn draw(rows: &[Row], summary: &Summary, path: &Path) -> Result<(), String> 
     ];
     let ape_max = ape.iter().flat_map(|(_, _, c)| c.iter().map(|p| p.0)).fold(1.0f64, f64::max).min(50.0);
     let mut chart = ChartBuilder::on(&ape_area)
-        .caption("ego APE per drive (RMSE), CDF", ("sans-serif", 22))
+        .caption("ego APE per drive (RMSE), CDF (beyond 50 m at the edge)", ("sans-serif", 22))
         .margin(15)
         .x_label_area_size(40)
         .y_label_area_size(50)
@@ -85,8 +85,8 @@ pub fn draw(rows: &[Row], summary: &Summary, path: &Path) -> Result<(), String> 
     );
     bottom.draw(&Text::new(title, (30, 20), ("sans-serif", 20))).map_err(err)?;
     let tables: [(&str, &Confusion); 4] = [
-        ("finished (channel-insensitive)", &summary.confusion.finished),
-        ("finished (channel-sensitive)", &summary.confusion.finished_channel_sensitive),
+        ("finished", &summary.confusion.finished),
+        ("finished, channel-sens.", &summary.confusion.finished_channel_sensitive),
         ("online, whole drive", &summary.confusion.online),
         ("device windows", &summary.confusion.device_windows),
     ];

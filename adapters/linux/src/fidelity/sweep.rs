@@ -14,13 +14,13 @@ use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::Value;
 
-use super::drive::{assess, Anchors, Assessment, WindowPair};
+use super::drive::{assess, Anchors, Assessment, Recorded, WindowPair};
 use super::summary::Summary;
 use crate::logfile;
 use crate::record::{self, Setup};
 use crate::scenario::command::{config, MAX_DURATION_S};
 use crate::scenario::profile::{Profile, Receiver};
-use crate::scenario::write::write_scenario;
+use crate::scenario::write::{road_tile, write_scenario};
 use crate::scenario::{generate, Driver};
 
 /// Which drivers a sweep drives each seed with.
@@ -221,7 +221,7 @@ impl Row {
         }
     }
 
-    fn from_assessment(mut self, a: &Assessment, vo_sessions: u32) -> Self {
+    fn with_assessment(mut self, a: &Assessment, vo_sessions: u32) -> Self {
         let ape = |j: &crate::scenario::judge::LogJudgement| (!j.ego_errors.is_empty()).then_some(j.ego_rmse);
         self.truth = Some(Verdicts::of(&a.truth));
         self.online = a.online.verification.as_ref().map(Verdicts::of);
@@ -247,7 +247,7 @@ impl Row {
 fn run_drive(seed: u64, driver: Driver, args: &SweepArgs, work: &Path) -> Row {
     let row = Row::empty(seed, driver, args);
     match try_drive(seed, driver, args, work) {
-        Ok((assessment, sessions)) => row.from_assessment(&assessment, sessions),
+        Ok((assessment, sessions)) => row.with_assessment(&assessment, sessions),
         Err(e) => Row { error: Some(e), ..row },
     }
 }
@@ -260,11 +260,7 @@ fn try_drive(seed: u64, driver: Driver, args: &SweepArgs, work: &Path) -> Result
     write_scenario(&scenario, &drive_dir).map_err(|e| format!("{}: {e}", drive_dir.display()))?;
     let [lat, lon, height] = config.origin;
     let origin = Geodetic::new(lat, lon, height).map_err(|e| e.to_string())?;
-    let osm = crate::osm::read(&drive_dir.join("road.osm")).map_err(|e| e.to_string())?;
-    let tile = crate::map_tile::encode(
-        &crate::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
-        crate::map_tile::DEFAULT_CELL_M,
-    );
+    let tile = road_tile(&drive_dir, origin)?;
     // The demo's device: the same setup, so that a row equals `demo --offline`'s summary.
     let setup = Setup::work_zone(origin, Some(tile.clone()), *b"dash2sim-demo\0\0\0");
     let (stream, _) = record::read_sources(&record::Sources::scenario(&drive_dir))?;
@@ -272,16 +268,16 @@ fn try_drive(seed: u64, driver: Driver, args: &SweepArgs, work: &Path) -> Result
     let log_path = work.join("drive.d2slog");
     std::fs::write(&log_path, &recording.log).map_err(|e| format!("{}: {e}", log_path.display()))?;
     let log = logfile::read(&log_path).map_err(|e| e.to_string())?;
-    let assessment = assess(
-        &scenario,
-        &drive_dir,
-        &log,
-        &log_path.display().to_string(),
-        &tile,
-        &setup,
-        args.anchors,
-        &work.join("anchors.csv"),
-    )?;
+    let log_name = log_path.display().to_string();
+    let recorded = Recorded {
+        scenario: &scenario,
+        drive_dir: &drive_dir,
+        log: &log,
+        log_name: &log_name,
+        tile: &tile,
+        setup: &setup,
+    };
+    let assessment = assess(&recorded, args.anchors, &work.join("anchors.csv"))?;
     if args.keep {
         let finished = work.join("finished.d2slog");
         std::fs::write(&finished, &assessment.finished_bytes).map_err(|e| format!("{}: {e}", finished.display()))?;

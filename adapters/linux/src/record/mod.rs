@@ -629,6 +629,12 @@ fn report(output: &Path, recording: &Recording, counts: &sources::SourceCounts, 
     if s.windows > 0 {
         println!("  verification: {} of {} windows verified", s.windows_verified, s.windows);
     }
+    if counts.detection2d_frames_without_time > 0 {
+        println!(
+            "  {} frames of 2D detections skipped: no VO pose or 3D detection gives their time",
+            counts.detection2d_frames_without_time
+        );
+    }
     for issue in Issue::ALL {
         let n = recording.issues.get(issue);
         if n > 0 {

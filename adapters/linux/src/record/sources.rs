@@ -305,3 +305,44 @@ pub fn read_vo_csv(path: &Path) -> Result<Vec<(u64, f64, Pose)>, String> {
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn vo_csv(name: &str, body: &str) -> std::path::PathBuf {
+        let path = std::env::temp_dir().join(format!("dash2sim-vo-{}-{name}.csv", std::process::id()));
+        std::fs::write(&path, format!("{VO_CSV_HEADER}\n{body}")).expect("write");
+        path
+    }
+
+    #[test]
+    fn a_vo_csv_keeps_each_pose_s_frame_number_across_a_gap() {
+        let path = vo_csv("gap", "1,0.0,0,0,0,0,0,0,1,0\n2,0.1,1,0,0,0,0,0,1,0\n7,0.6,0,0,0,0,0,0,1,1\n");
+        let mut inputs = Inputs::default();
+        inputs.vo(&path).expect("read");
+        assert_eq!(inputs.frame_times.keys().copied().collect::<Vec<_>>(), vec![1, 2, 7]);
+        assert_eq!(inputs.frame_times[&7], 600_000);
+        let _ = std::fs::remove_file(path);
+    }
+
+    #[test]
+    fn a_bad_vo_csv_names_the_line_and_what_is_wrong() {
+        for (name, body, expected) in [
+            ("order", "3,0.2,0,0,0,0,0,0,1,0\n2,0.3,0,0,0,0,0,0,1,0\n", ":3: frame 2 does not follow"),
+            ("zero", "1,0.0,0,0,0,0,0,0,0,0\n", ":2: the quaternion is zero"),
+            ("nan", "1,0.0,nan,0,0,0,0,0,1,0\n", ":2: `nan` is not a finite number"),
+            ("short", "1,0.0,0,0,0\n", ":2: 5 fields, expected 10"),
+            ("frame", "x,0.0,0,0,0,0,0,0,1,0\n", ":2: frame `x` is not a frame number"),
+        ] {
+            let path = vo_csv(name, body);
+            let e = read_vo_csv(&path).expect_err(name);
+            assert!(e.contains(expected), "{name}: {e}");
+            let _ = std::fs::remove_file(path);
+        }
+        let path = std::env::temp_dir().join(format!("dash2sim-vo-{}-header.csv", std::process::id()));
+        std::fs::write(&path, "t,x,y\n").expect("write");
+        assert!(read_vo_csv(&path).expect_err("header").contains(":1: header `t,x,y`"));
+        let _ = std::fs::remove_file(path);
+    }
+}

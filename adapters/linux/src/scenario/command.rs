@@ -71,6 +71,7 @@ pub fn run_eval(seed: u64, duration_s: f64, profile: Profile, max_age: u32, as_j
             "object_frames": report.object_frames,
             "detections": report.detections,
             "paired": report.paired,
+            "rejected_detections": report.stats.rejected,
             "metrics": report.summary.to_json(),
         });
         for (name, value) in figures {
@@ -94,5 +95,9 @@ pub fn run_eval(seed: u64, duration_s: f64, profile: Profile, max_age: u32, as_j
         println!("{name:>20}  {value:.4}");
     }
     println!("{:>20}  {} (object-frames with both a matched detection and a matched track)", "paired", report.paired);
+    println!(
+        "{:>20}  {} of {} (implausible: off the ground or of an unknown class)",
+        "rejected", report.stats.rejected, report.detections
+    );
     Ok(())
 }

@@ -12,7 +12,7 @@ use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
 
 use super::profile::{Profile, Receiver};
-use super::write::write_scenario;
+use super::write::{road_tile, write_scenario};
 use super::{generate, Driver, ScenarioConfig};
 use crate::record::{self, Setup, Sources};
 
@@ -122,11 +122,7 @@ fn make(plan: &Plan, out: &Path) -> Result<Value, String> {
     let scenario = generate(&config);
     let work = out.join(".work").join(&name);
     write_scenario(&scenario, &work).map_err(|e| format!("{}: {e}", work.display()))?;
-    let osm = crate::osm::read(&work.join("road.osm")).map_err(|e| e.to_string())?;
-    let tile = crate::map_tile::encode(
-        &crate::map_tile::from_osm(&osm, Some(geodetic), &mut Vec::new()),
-        crate::map_tile::DEFAULT_CELL_M,
-    );
+    let tile = road_tile(&work, geodetic)?;
     let mut sources = Sources::scenario(&work);
     if plan.damage == Some(Damage::NoGnss) {
         sources.nmea = None;

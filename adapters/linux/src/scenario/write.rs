@@ -181,6 +181,14 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
     Ok(written)
 }
 
+/// The map tile of a drive written to `dir`: its `road.osm` in the ENU frame at `origin`,
+/// with the default grid cell (what `map build` makes of it).
+pub fn road_tile(dir: &Path, origin: Geodetic) -> Result<Vec<u8>, String> {
+    let osm = crate::osm::read(&dir.join("road.osm")).map_err(|e| e.to_string())?;
+    let content = crate::map_tile::from_osm(&osm, Some(origin), &mut Vec::new());
+    Ok(crate::map_tile::encode(&content, crate::map_tile::DEFAULT_CELL_M))
+}
+
 /// What the GNSS receiver sends: per fix its receive time (s) and its GGA and RMC sentences,
 /// the receiver's clock `shift_s` later than the drive's (a drive replayed again).
 pub fn receiver_output(scenario: &Scenario, shift_s: f64) -> io::Result<Vec<(f64, [String; 2])>> {
