@@ -14,7 +14,7 @@ fn the_comma2k19_minute_anchors_through_the_pipeline_as_in_the_anchoring_test() 
     let Some(dir) = dash2sim_tests::data_dir("comma2k19") else { return };
     let work = scratch("comma-record");
     let model = VoModel::arbitrary();
-    let recorded = record_minute(&dir, &work, &model).expect("record");
+    let recorded = record_minute(&dir, &work, &model, 1).expect("record");
     let (truth, log, device) = (&recorded.truth, &recorded.log, &recorded.device);
     let t0 = truth.stamps[0];
     let truth_at = |t: f64| {

@@ -16,7 +16,8 @@ use super::{device_times, write};
 use crate::logfile::{self, LogContents};
 use crate::record::{self, DeviceArgs, ModeArg, RecordArgs};
 use crate::scenario::vo::VoModel;
-use crate::trajectory::{self, Format, Trajectory};
+use crate::trajectory::{Format, Trajectory};
+use rand::SeedableRng;
 
 /// The files the minute needs, relative to its folder.
 pub const REQUIRED: [&str; 5] = [
@@ -116,13 +117,17 @@ pub struct RecordedMinute {
     pub fixes_in_csv: usize,
 }
 
-/// Record the minute from `dir` into `work` (`vo.tum`, `ublox.serial.log`, `comma.d2slog`)
-/// with VO made by `model`.
-pub fn record_minute(dir: &Path, work: &Path, model: &VoModel) -> Result<RecordedMinute, String> {
+/// Record the minute from `dir` into `work` (`vo.csv`, `ublox.serial.log`, `comma.d2slog`)
+/// with VO made by `model`, its noise drawn from `noise_seed` (a model without noise draws
+/// nothing: the seed does not matter then).
+pub fn record_minute(dir: &Path, work: &Path, model: &VoModel, noise_seed: u64) -> Result<RecordedMinute, String> {
     let truth = Trajectory::read(&dir.join("expected/global_pose_camera_enu.tum"), Format::Tum)
         .map_err(|e| format!("comma2k19 poses: {e}"))?;
-    let vo_path = work.join("vo.tum");
-    trajectory::write_file(&model.make_vo(&truth), &vo_path, Format::Tum).map_err(|e| e.to_string())?;
+    let vo = model.generate(&truth, &mut rand_chacha::ChaCha8Rng::seed_from_u64(noise_seed));
+    let vo_path = work.join("vo.csv");
+    let mut text = Vec::new();
+    crate::scenario::write::write_vo_csv(&mut text, &vo).map_err(|e| e.to_string())?;
+    write(&vo_path, &text)?;
     let nmea = ublox_nmea(&dir.join("expected/live_gnss_ublox.csv"))?;
     let nmea_path = work.join("ublox.serial.log");
     write(&nmea_path, &nmea.stamped)?;
@@ -228,7 +233,7 @@ fn compared_json(c: &Compared) -> Value {
 pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let model = VoModel::arbitrary();
-    let minute = record_minute(dir, out, &model)?;
+    let minute = record_minute(dir, out, &model, 1)?;
     let (log, truth) = (&minute.log, &minute.truth);
     let online = compare(&log.records, &minute.device, truth)?;
     let t0 = truth.stamps.first().copied().unwrap_or_default();

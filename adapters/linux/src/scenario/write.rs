@@ -70,24 +70,7 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
     // The VO as the camera process reports it: each pose with its frame number (none while
     // tracking is lost) and its VO session.
     let mut out = create(dir, "vo.csv", &mut written)?;
-    writeln!(out, "{}", crate::record::sources::VO_CSV_HEADER)?;
-    for ((t, pose), sample) in scenario.vo.poses.stamps.iter().zip(&scenario.vo.poses.poses).zip(&scenario.vo.samples) {
-        let q = dash2sim_core::nalgebra::UnitQuaternion::from_matrix(&pose.rotation);
-        let p = pose.translation;
-        writeln!(
-            out,
-            "{},{t:.6},{:.9},{:.9},{:.9},{:.9},{:.9},{:.9},{:.9},{}",
-            sample.frame + 1,
-            p.x,
-            p.y,
-            p.z,
-            q.i,
-            q.j,
-            q.k,
-            q.w,
-            sample.session
-        )?;
-    }
+    write_vo_csv(&mut out, &scenario.vo)?;
     out.flush()?;
 
     let mut out = create(dir, "gnss.nmea", &mut written)?;
@@ -179,6 +162,30 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
     writeln!(out)?;
     out.flush()?;
     Ok(written)
+}
+
+/// A VO track as `record --vo F.csv` reads it (`frame,t_s,x,y,z,qx,qy,qz,qw,session`,
+/// frames from 1).
+pub fn write_vo_csv(out: &mut impl Write, vo: &super::vo::VoTrack) -> io::Result<()> {
+    writeln!(out, "{}", crate::record::sources::VO_CSV_HEADER)?;
+    for ((t, pose), sample) in vo.poses.stamps.iter().zip(&vo.poses.poses).zip(&vo.samples) {
+        let q = dash2sim_core::nalgebra::UnitQuaternion::from_matrix(&pose.rotation);
+        let p = pose.translation;
+        writeln!(
+            out,
+            "{},{t:.6},{:.9},{:.9},{:.9},{:.9},{:.9},{:.9},{:.9},{}",
+            sample.frame + 1,
+            p.x,
+            p.y,
+            p.z,
+            q.i,
+            q.j,
+            q.k,
+            q.w,
+            sample.session
+        )?;
+    }
+    Ok(())
 }
 
 /// The map tile of a drive written to `dir`: its `road.osm` in the ENU frame at `origin`,
