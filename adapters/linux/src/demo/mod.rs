@@ -51,7 +51,7 @@ pub struct DemoArgs {
     /// Seed of the generated drive.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Length of the drive, s (10–50).
+    /// Length of the drive, s (10–600; live, the recording takes as long as the drive).
     #[arg(long, default_value_t = 40.0)]
     pub duration: f64,
     /// `careful` (the corpus's drives: the log verifies) or `careless` (changes lanes inside
@@ -87,8 +87,9 @@ pub struct DemoArgs {
 /// `dash2sim demo`.
 pub fn run(args: &DemoArgs) -> Result<(), String> {
     let progress = Progress::new(args.quiet);
-    if !(args.duration.is_finite() && (10.0..=50.0).contains(&args.duration)) {
-        return Err(format!("--duration {} must be between 10 and 50 seconds", args.duration));
+    let longest = crate::scenario::command::MAX_DURATION_S;
+    if !(args.duration.is_finite() && (10.0..=longest).contains(&args.duration)) {
+        return Err(format!("--duration {} must be between 10 and {longest} seconds", args.duration));
     }
     if let Some(dir) = &args.data {
         let dir = dir.clone().unwrap_or_else(crate::recordings::default_dir);

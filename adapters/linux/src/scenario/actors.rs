@@ -196,6 +196,9 @@ pub struct Vehicle {
     pub d: f64,
     /// A lane change: (start s, end s, target d).
     pub lane_change: Option<(f64, f64, f64)>,
+    /// The stretch of road it exists on (s from, to): on a road of several sections each
+    /// section's traffic stays in its own.
+    pub s_range: (f64, f64),
 }
 
 impl Vehicle {
@@ -212,7 +215,7 @@ impl Vehicle {
     /// Ground truth at `t`, or `None` when it is off the road.
     pub fn state(&self, road: &Road, t: f64) -> Option<ObjectState> {
         let (s, d) = self.road_position(t);
-        if !(0.0..=road.length()).contains(&s) {
+        if !(0.0..=road.length()).contains(&s) || !(self.s_range.0..=self.s_range.1).contains(&s) {
             return None;
         }
         let dt = 0.05;
@@ -245,8 +248,17 @@ pub struct EgoState {
     pub speed: f64,
 }
 
-/// How the ego drives: cruise, slow for the zone, change lanes around the closure and back.
+/// What the ego does at one work zone: change into the open lane and back, and slow down.
 #[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ZonePlan {
+    /// Lane change into the open lane: (start s, end s); and back: (start s, end s).
+    pub changes: [(f64, f64); 2],
+    /// Where the zone speed applies: (from s, to s).
+    pub slow: (f64, f64),
+}
+
+/// How the ego drives: cruise, slow for each zone, change lanes around each closure and back.
+#[derive(Clone, Debug, PartialEq)]
 pub struct EgoPlan {
     /// Start s.
     pub s0: f64,
@@ -258,16 +270,16 @@ pub struct EgoPlan {
     pub max_accel: f64,
     /// Lateral offsets of the open lane and the closed lane.
     pub lanes: (f64, f64),
-    /// Lane change into the open lane: (start s, end s); and back: (start s, end s).
-    pub changes: [(f64, f64); 2],
-    /// Where the zone speed applies: (from s, to s).
-    pub slow: (f64, f64),
+    /// The zones along the road, in order.
+    pub zones: Vec<ZonePlan>,
 }
 
 impl EgoPlan {
     fn lateral(&self, s: f64) -> f64 {
         let (open, closed) = self.lanes;
-        let [(a0, a1), (b0, b1)] = self.changes;
+        // The zone whose change back has not ended yet (past the last, the last).
+        let Some(zone) = self.zones.iter().find(|z| s < z.changes[1].1).or(self.zones.last()) else { return closed };
+        let [(a0, a1), (b0, b1)] = zone.changes;
         if s < b0 {
             lane_change(s, a0, a1, closed, open)
         } else {
@@ -286,8 +298,8 @@ impl EgoPlan {
         for k in 0..=steps {
             // Brake for the zone early enough to be at zone speed when it starts.
             let braking = (self.cruise_speed.powi(2) - self.zone_speed.powi(2)) / (2.0 * self.max_accel);
-            let target =
-                if s + braking >= self.slow.0 && s < self.slow.1 { self.zone_speed } else { self.cruise_speed };
+            let slow = self.zones.iter().any(|z| s + braking >= z.slow.0 && s < z.slow.1);
+            let target = if slow { self.zone_speed } else { self.cruise_speed };
             let a = ((target - v) / 1.0).clamp(-self.max_accel, self.max_accel);
             if k % per_frame == 0 {
                 let d = self.lateral(s);
@@ -339,8 +351,7 @@ mod tests {
             zone_speed: 20.0,
             max_accel: 1.5,
             lanes: (lane, lane),
-            changes: [(1e6, 1e6 + 1.0), (2e6, 2e6 + 1.0)],
-            slow: (1e6, 1e6),
+            zones: vec![ZonePlan { changes: [(1e6, 1e6 + 1.0), (2e6, 2e6 + 1.0)], slow: (1e6, 1e6) }],
         };
         let states = plan.drive(&road, 25.0, 10.0);
         assert!(states.iter().any(|e| (150.0..350.0).contains(&e.s)), "the drive passes the bend");

@@ -10,8 +10,9 @@ use super::profile::{Profile, Receiver};
 use super::write::write_scenario;
 use super::{generate, tracker_classes, tracker_config, ScenarioConfig};
 
-/// Longest drive, seconds: the road is about 1.15 km and the ego cruises at 22 m/s.
-pub const MAX_DURATION_S: f64 = 50.0;
+/// Longest drive, seconds: ten minutes, on a road of 12 sections (13.8 km, a work zone in
+/// each).
+pub const MAX_DURATION_S: f64 = 600.0;
 
 /// The drive `seed` of `duration_s` seconds under `profile` with `receiver`, or why not.
 pub fn config(seed: u64, duration_s: f64, profile: Profile, receiver: Receiver) -> Result<ScenarioConfig, String> {

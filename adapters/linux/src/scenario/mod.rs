@@ -34,7 +34,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 use crate::trajectory::Trajectory;
-use actors::{lay_out_work_zone, Class, EgoPlan, EgoState, ObjectState, Vehicle, WorkZone};
+use actors::{lay_out_work_zone, Class, EgoPlan, EgoState, ObjectState, Vehicle, WorkZone, ZonePlan};
 use profile::{Profile, Receiver, StreetAnchorModel};
 use road::{Road, RoadPose, Segment};
 use sensors::{observable, Camera, Detection2d, DetectorModel, GnssModel, GnssSample, Object2d, WheelModel};
@@ -162,8 +162,8 @@ pub struct Scenario {
     pub config: ScenarioConfig,
     /// The road.
     pub road: Road,
-    /// Where the work zone is.
-    pub zone: WorkZone,
+    /// Where the work zones are: one per section of the road, in order.
+    pub zones: Vec<WorkZone>,
     /// Camera frames.
     pub frames: Vec<Frame>,
     /// VO poses of the camera (unknown scale, drifting; none while tracking is lost) and
@@ -204,52 +204,90 @@ pub fn tracker_config(classes: &[ClassConfig]) -> Config3d<'_> {
     dash2sim_core::pipeline::profile::work_zone_tracker(classes)
 }
 
-/// Generate the scenario named by `config`.
-pub fn generate(config: &ScenarioConfig) -> Scenario {
-    let mut layout = rng(config.seed, Stream::Layout);
-    let road = Road {
-        segments: vec![Segment::Straight(150.0), Segment::Arc(200.0, 1.0 / 300.0), Segment::Straight(800.0)],
-        start: RoadPose { x: 0.0, y: 0.0, heading: layout.random_range(-3.1..3.1), curvature: 0.0 },
+/// Length of one section of the road: a straight, a bend, a long straight with a work zone.
+pub const SECTION_M: f64 = 1150.0;
+
+/// Where the ego starts, s.
+const EGO_S0: f64 = 20.0;
+
+/// Objects of a section after the first are in a frame while the ego is this close to the
+/// section (so that a long drive's truth stays a few sections' worth of objects a frame).
+const SECTION_VIEW_M: f64 = 300.0;
+
+/// Sections a drive of `duration_s` seconds needs (the ego cruises at 22 m/s at most).
+pub fn sections_for(duration_s: f64) -> usize {
+    ((EGO_S0 + 22.0 * duration_s) / SECTION_M).ceil().max(1.0) as usize
+}
+
+/// The road of `sections` sections: each a 150 m straight, a 38° bend of radius 300 m (200 m;
+/// left, then right, in turn) and an 800 m straight.
+fn road(sections: usize, heading: f64) -> Road {
+    let segments = (0..sections)
+        .flat_map(|k| {
+            let curvature = if k % 2 == 0 { 1.0 / 300.0 } else { -1.0 / 300.0 };
+            [Segment::Straight(150.0), Segment::Arc(200.0, curvature), Segment::Straight(800.0)]
+        })
+        .collect();
+    Road {
+        segments,
+        start: RoadPose { x: 0.0, y: 0.0, heading, curvature: 0.0 },
         lane_width: 3.5,
         lanes_forward: 2,
         lanes_backward: 2,
         speed_limit: 80.0 / 3.6,
-    };
-    let zone = WorkZone {
-        taper_start: 400.0 + layout.random_range(-15.0..15.0),
+    }
+}
+
+/// Section `k`'s work zone: its taper 400 m into the section, ±15 m.
+fn zone_of(section: usize, layout: &mut ChaCha8Rng) -> WorkZone {
+    WorkZone {
+        taper_start: section as f64 * SECTION_M + 400.0 + layout.random_range(-15.0..15.0),
         taper_length: 50.0,
         closure_length: 120.0,
         end_taper_length: 20.0,
-    };
-    let (open, closed) = (road.forward_lane(1), road.forward_lane(0));
-    let plan = EgoPlan {
-        s0: 20.0,
-        cruise_speed: 22.0,
-        zone_speed: 15.0,
-        max_accel: 1.5,
-        lanes: (open, closed),
+    }
+}
+
+/// What the ego does at `zone`.
+fn zone_plan(zone: &WorkZone, driver: Driver) -> ZonePlan {
+    ZonePlan {
         changes: [
-            match config.driver {
+            match driver {
                 Driver::Careful => (zone.taper_start - 130.0, zone.taper_start - 70.0),
                 Driver::Careless => (zone.taper_start - 5.0, zone.taper_start + 35.0),
             },
             (zone.end() + 30.0, zone.end() + 100.0),
         ],
         slow: (zone.taper_start - 100.0, zone.end() + 10.0),
-    };
-    let mut next_id = 1;
-    let statics = lay_out_work_zone(&road, &zone, &mut layout, &mut next_id);
+    }
+}
+
+/// The traffic of a section whose zone is `zone`, the ego reaching the section's start at
+/// time `arrival` (0 for the first): the same traffic in the same places around the ego as
+/// the first section's at the start. Every vehicle stays within `s_range`.
+fn traffic(
+    road: &Road,
+    zone: &WorkZone,
+    offset: f64,
+    arrival: f64,
+    s_range: (f64, f64),
+    layout: &mut ChaCha8Rng,
+    next_id: &mut u32,
+) -> Vec<Vehicle> {
+    let (open, closed) = (road.forward_lane(1), road.forward_lane(0));
     let mut vehicles = Vec::new();
     let mut vehicle = |class, s0: f64, speed: f64, d, lane_change, layout: &mut ChaCha8Rng| {
         let jitter_s = layout.random_range(-8.0..8.0);
         let jitter_v = layout.random_range(-0.8..0.8);
-        vehicles.push(Vehicle { id: next_id, class, s0: s0 + jitter_s, speed: speed + jitter_v, d, lane_change });
-        next_id += 1;
+        let speed: f64 = speed + jitter_v;
+        let s0 = s0 + jitter_s + offset - speed * arrival;
+        vehicles.push(Vehicle { id: *next_id, class, s0, speed, d, lane_change, s_range });
+        *next_id += 1;
     };
-    vehicle(Class::Car, plan.s0 + 50.0, 20.5, open, None, &mut layout);
+    vehicle(Class::Car, EGO_S0 + 50.0, 20.5, open, None, layout);
     let merge = Some((zone.taper_start - 90.0, zone.taper_start - 40.0, open));
-    vehicle(Class::Truck, plan.s0 + 150.0, 16.0, closed, merge, &mut layout);
-    vehicle(Class::Car, 420.0, 19.0, open, None, &mut layout);
+    vehicle(Class::Truck, EGO_S0 + 150.0, 16.0, closed, merge, layout);
+    vehicle(Class::Car, 420.0, 19.0, open, None, layout);
     for (k, (class, s0, speed)) in [
         (Class::Car, 300.0, -19.0),
         (Class::Car, 520.0, -21.0),
@@ -261,7 +299,55 @@ pub fn generate(config: &ScenarioConfig) -> Scenario {
     .enumerate()
     {
         let d = road.backward_lane(if k % 2 == 0 { 0 } else { 1 });
-        vehicle(class, s0, speed, d, None, &mut layout);
+        vehicle(class, s0, speed, d, None, layout);
+    }
+    vehicles
+}
+
+/// Generate the scenario named by `config`.
+///
+/// The road has as many sections as the drive needs ([`sections_for`]); a drive of up to
+/// 50 s has one, as it always had. The first section's layout and traffic are drawn first, so
+/// a longer drive starts as a shorter one of the same seed does.
+pub fn generate(config: &ScenarioConfig) -> Scenario {
+    let mut layout = rng(config.seed, Stream::Layout);
+    let sections = sections_for(config.duration_s);
+    let road = road(sections, layout.random_range(-3.1..3.1));
+    let mut zones = vec![zone_of(0, &mut layout)];
+    let mut next_id = 1;
+    // Each section's statics and traffic, with the s-range in which the ego sees them.
+    let mut objects_by_section: Vec<(Vec<ObjectState>, Vec<Vehicle>)> = Vec::new();
+    let statics = lay_out_work_zone(&road, &zones[0], &mut layout, &mut next_id);
+    let first_range = (f64::NEG_INFINITY, SECTION_M + 200.0);
+    let vehicles = traffic(&road, &zones[0], 0.0, 0.0, first_range, &mut layout, &mut next_id);
+    objects_by_section.push((statics, vehicles));
+    for k in 1..sections {
+        zones.push(zone_of(k, &mut layout));
+    }
+    let plan = EgoPlan {
+        s0: EGO_S0,
+        cruise_speed: 22.0,
+        zone_speed: 15.0,
+        max_accel: 1.5,
+        lanes: (road.forward_lane(1), road.forward_lane(0)),
+        zones: zones.iter().map(|z| zone_plan(z, config.driver)).collect(),
+    };
+    if sections > 1 {
+        // When the ego reaches each section's start (its traffic is placed around it then).
+        let path = plan.drive(&road, config.duration_s, 10.0);
+        for (k, zone) in zones.iter().enumerate().skip(1) {
+            let start = k as f64 * SECTION_M;
+            let statics = lay_out_work_zone(&road, zone, &mut layout, &mut next_id);
+            let arrival = path.iter().find(|e| e.s >= EGO_S0 + start).map(|e| e.t);
+            let vehicles = match arrival {
+                Some(t) => {
+                    let range = (start - 200.0, start + SECTION_M + 200.0);
+                    traffic(&road, zone, start, t, range, &mut layout, &mut next_id)
+                }
+                None => Vec::new(),
+            };
+            objects_by_section.push((statics, vehicles));
+        }
     }
 
     let egos = plan.drive(&road, config.duration_s, config.frame_rate_hz);
@@ -272,8 +358,17 @@ pub fn generate(config: &ScenarioConfig) -> Scenario {
         .iter()
         .enumerate()
         .map(|(k, ego)| {
-            let objects: Vec<ObjectState> =
-                statics.iter().copied().chain(vehicles.iter().filter_map(|v| v.state(&road, ego.t))).collect();
+            let objects: Vec<ObjectState> = objects_by_section
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| {
+                    let start = *k as f64 * SECTION_M;
+                    *k == 0 || (start - SECTION_VIEW_M..start + SECTION_M + SECTION_VIEW_M).contains(&ego.s)
+                })
+                .flat_map(|(_, (statics, vehicles))| {
+                    statics.iter().copied().chain(vehicles.iter().filter_map(|v| v.state(&road, ego.t)))
+                })
+                .collect();
             let (mut visible, mut detections_3d, mut detections_2d, mut objects_2d) =
                 (Vec::new(), Vec::new(), Vec::new(), Vec::new());
             let seen: Vec<_> =
@@ -321,7 +416,7 @@ pub fn generate(config: &ScenarioConfig) -> Scenario {
     }
     let wheel_states = plan.drive(&road, config.duration_s, config.speed_rate_hz);
     let speed = sensors::wheel_speed(&mut rng(config.seed, Stream::Wheel), &wheel_states, &config.wheel);
-    Scenario { config: *config, road, zone, frames, vo, gnss, speed }
+    Scenario { config: *config, road, zones, frames, vo, gnss, speed }
 }
 
 /// The real camera's poses (ENU; camera axes x forward, y left, z up), through its real
@@ -376,6 +471,64 @@ mod tests {
     }
 
     #[test]
+    fn a_ten_minute_drive_passes_a_work_zone_in_every_section_calmly_and_in_the_open_lane() {
+        let s = generate(&ScenarioConfig { seed: 5, duration_s: 600.0, ..ScenarioConfig::default() });
+        assert_eq!(s.frames.len(), 6001);
+        assert_eq!((s.zones.len(), sections_for(600.0)), (12, 12));
+        let egos: Vec<EgoState> = s.frames.iter().map(|f| f.ego).collect();
+        let last = egos.last().expect("frames");
+        assert!(last.s > 9.0 * SECTION_M && last.s < s.road.length(), "the ego ends at s = {}", last.s);
+        let line = s.road.right_edge() + s.road.lane_width;
+        let mut passed = 0;
+        for zone in s.zones.iter().filter(|z| z.end() < last.s) {
+            passed += 1;
+            for e in egos.iter().filter(|e| (zone.taper_start..zone.closure_end()).contains(&e.s)) {
+                assert!(e.d - 0.95 > line, "ego at d = {} beside the closure at {}", e.d, zone.taper_start);
+            }
+        }
+        assert!(passed >= 9, "{passed} zones passed");
+        // Accelerations of the ego's motion (from its positions: the speed a state reports is
+        // sampled over one 10 ms step, which at a bend's onset can straddle it).
+        let speeds: Vec<f64> =
+            egos.windows(2).map(|w| (w[1].x - w[0].x).hypot(w[1].y - w[0].y) / (w[1].t - w[0].t)).collect();
+        for (k, w) in speeds.windows(3).enumerate() {
+            let a_long = (w[2] - w[0]) / 0.2;
+            assert!(a_long.abs() <= 1.6, "t {}: {a_long} m/s²", egos[k + 1].t);
+        }
+        // Every section's traffic and zone are seen, and nobody comes too close: a vehicle the
+        // ego overtakes on a ten-minute drive is in the other lane.
+        for f in s.frames.iter().step_by(5) {
+            let (c, sn) = (f.ego.heading.cos(), f.ego.heading.sin());
+            for o in f.objects.iter().filter(|o| !o.is_static()) {
+                let (dx, dy) = (o.bbox.x - f.ego.x, o.bbox.y - f.ego.y);
+                let (gap, lateral) = (dx.hypot(dy), -sn * dx + c * dy);
+                let same_way = o.velocity[0] * c + o.velocity[1] * sn > 0.0;
+                let clear = if same_way { gap > 12.0 || lateral.abs() > 2.5 } else { gap > 3.0 };
+                assert!(clear, "frame {}: {gap} m to {} ({lateral} m to the side)", f.index, o.id);
+            }
+        }
+        let seen: std::collections::BTreeSet<u32> = s.frames.iter().flat_map(|f| f.visible.iter().copied()).collect();
+        assert!(seen.len() > 9 * 30, "{} objects seen", seen.len());
+        // A section's objects are in the truth only near it: a long drive's truth stays small.
+        assert!(
+            s.frames.iter().all(|f| f.objects.len() < 3 * 45),
+            "{}",
+            s.frames.iter().map(|f| f.objects.len()).max().unwrap_or(0)
+        );
+    }
+
+    #[test]
+    fn a_drive_of_up_to_fifty_seconds_has_the_one_section_road_it_always_had() {
+        assert_eq!(sections_for(50.0), 1);
+        assert_eq!(sections_for(51.0), 1);
+        assert_eq!(sections_for(60.0), 2);
+        let short = generate(&ScenarioConfig { duration_s: 20.0, ..ScenarioConfig::default() });
+        let long = generate(&ScenarioConfig { duration_s: 120.0, ..ScenarioConfig::default() });
+        assert_eq!(short.zones[0], long.zones[0], "the first section is drawn first");
+        assert_eq!(short.frames[..200], long.frames[..200], "a longer drive starts as the shorter one");
+    }
+
+    #[test]
     fn the_drive_is_plausible_and_passes_the_closure_in_the_open_lane() {
         for seed in 1..=4 {
             let s = generate(&ScenarioConfig { seed, ..ScenarioConfig::default() });
@@ -396,10 +549,11 @@ mod tests {
             }
             // Alongside the cones the ego's right side stays clear of the cone line.
             let line = s.road.right_edge() + s.road.lane_width;
-            for e in egos.iter().filter(|e| (s.zone.taper_start..s.zone.closure_end()).contains(&e.s)) {
+            let zone = &s.zones[0];
+            for e in egos.iter().filter(|e| (zone.taper_start..zone.closure_end()).contains(&e.s)) {
                 assert!(e.d - 0.95 > line, "seed {seed}: ego at d = {} beside the closure", e.d);
             }
-            assert!(egos.iter().any(|e| e.s > s.zone.end()), "seed {seed}: the drive ends before the zone does");
+            assert!(egos.iter().any(|e| e.s > zone.end()), "seed {seed}: the drive ends before the zone does");
             // Nobody drives into the ego; vehicles ahead in its direction keep their distance.
             for f in &s.frames {
                 for o in f.objects.iter().filter(|o| !o.is_static()) {

@@ -35,7 +35,7 @@ pub struct PublishArgs {
     /// How the ego drives through the work zone.
     #[arg(long, value_enum, default_value = "careful")]
     pub driver: Driver,
-    /// Length of the drive, s (1–50).
+    /// Length of the drive, s (1–600).
     #[arg(long, default_value_t = 20.0)]
     pub seconds: f64,
     /// How far the sensors are from ideal: `ideal`, `typical` or `hard` (docs/scenario.md).
@@ -176,8 +176,9 @@ fn camera_detections(scenario: &Scenario, frame: usize, cones: &[[f64; 2]], obje
 
 /// Publish the drive `args` names; the number of frames published.
 pub fn run(args: &PublishArgs) -> Result<u64, String> {
-    if !(args.seconds.is_finite() && (1.0..=50.0).contains(&args.seconds)) {
-        return Err(format!("--seconds {} must be between 1 and 50", args.seconds));
+    let longest = super::command::MAX_DURATION_S;
+    if !(args.seconds.is_finite() && (1.0..=longest).contains(&args.seconds)) {
+        return Err(format!("--seconds {} must be between 1 and {longest}", args.seconds));
     }
     if !(args.speedup.is_finite() && args.speedup > 0.0) {
         return Err(format!("--speedup {} must be positive", args.speedup));

@@ -314,7 +314,14 @@ fn summary(scenario: &Scenario, files: &[PathBuf]) -> serde_json::Value {
             Segment::Arc(l, k) => json!({"arc_m": l, "curvature_per_m": k}),
         })
         .collect();
-    let z = &scenario.zone;
+    let zones: Vec<_> = scenario
+        .zones
+        .iter()
+        .map(|z| {
+            json!({"taper_start_s": z.taper_start, "taper_length_m": z.taper_length,
+                   "closure_length_m": z.closure_length, "end_taper_length_m": z.end_taper_length})
+        })
+        .collect();
     let count = |f: fn(&super::Frame) -> usize| scenario.frames.iter().map(f).sum::<usize>();
     json!({
         "seed": c.seed,
@@ -335,8 +342,8 @@ fn summary(scenario: &Scenario, files: &[PathBuf]) -> serde_json::Value {
         "road": {"start_heading_rad": scenario.road.start.heading, "segments": segments,
                  "lane_width_m": scenario.road.lane_width, "lanes_forward": scenario.road.lanes_forward,
                  "lanes_backward": scenario.road.lanes_backward, "speed_limit_mps": scenario.road.speed_limit},
-        "work_zone": {"taper_start_s": z.taper_start, "taper_length_m": z.taper_length,
-                      "closure_length_m": z.closure_length, "end_taper_length_m": z.end_taper_length},
+        "work_zone": zones.first(),
+        "work_zones": zones,
         "vo": {"scale": c.vo.scale, "scale_drift_per_min": c.vo.scale_drift_per_min,
                "yaw_drift_deg_per_min": c.vo.yaw_drift_deg_per_min,
                "scale_walk_per_sqrt_min": c.vo.scale_walk_per_sqrt_min,
