@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The sweeps docs/fidelity.md reports: every profile with and without street-imagery anchors
 # (good receiver), the typical profile with a phone receiver, 200 drives each (held-out seeds
-# 1001-1100, careful and careless), and the 24 careful drives on the ideal profile.
-# Usage: scripts/fidelity_sweeps.sh [DASH2SIM] [OUT]   (about 3 minutes on 2 cores)
+# 1001-1100, careful and careless), the 24 careful drives on the ideal profile, and
+# 40 ten-minute drives on the ideal and typical profiles.
+# Usage: scripts/fidelity_sweeps.sh [DASH2SIM] [OUT]   (about 12 minutes on 2 cores)
 set -euo pipefail
 D2S="${1:-target/release/dash2sim}"
 OUT="${2:-target/fidelity}"
@@ -18,4 +19,8 @@ for anchors in street none; do
     -o "$OUT/typical-phone-$anchors" -q > "$OUT/typical-phone-$anchors.txt"
 done
 "$D2S" scenario sweep --seeds 1-24 --driver careful --profile ideal -o "$OUT/ideal-1-24" -q > "$OUT/ideal-1-24.txt"
+for profile in ideal typical; do
+  "$D2S" scenario sweep --seeds 1001-1020 --driver both --profile "$profile" --duration 600 \
+    -o "$OUT/long-$profile" -q > "$OUT/long-$profile.txt"
+done
 echo "summaries in $OUT/*.txt and $OUT/*/summary.json"
