@@ -195,95 +195,72 @@ fn median_and_worst(values: &mut [f64]) -> (f64, f64) {
     (values[values.len() / 2], values[values.len() - 1])
 }
 
+/// The minute recorded with VO made by `model` (noise from `seed`), finished with GNSS and
+/// wheel speed, and with anchors every 50 m (σ 0.3 m per axis): online ATE, finished ATE,
+/// after Sim(3), |scale error|, ATE with anchors, after Sim(3). `label` names the row
+/// printed. The VO sessions the recording had are checked to be `sessions`.
+fn typical_minute(dir: &std::path::Path, model: &VoModel, seed: u64, label: &str, sessions: u32) -> [f64; 6] {
+    let work = scratch(&format!("comma-typical-{label}"));
+    let recorded = record_minute(dir, &work, model, seed).expect("record");
+    let (log, truth) = (&recorded.log, &recorded.truth);
+    let last_session = std::fs::read_to_string(work.join("vo.csv"))
+        .expect("vo.csv")
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.rsplit(',').next()?.parse::<u32>().ok())
+        .max();
+    assert_eq!(last_session, Some(sessions - 1), "{label}: {sessions} VO session(s) in the minute");
+    let on = compare(&log.records, &recorded.device, truth).expect("online comparison");
+    let gnss = run(log, None);
+    let fin = compare(&gnss.records, &device_times(&gnss.records).expect("UTC"), truth).expect("finished");
+    let with = run(log, Some(&anchors_from_truth(log, truth, 50.0, 0.3, seed)));
+    let anc = compare(&with.records, &device_times(&with.records).expect("UTC"), truth).expect("anchored");
+    assert!(fin.matched > 1000 && anc.matched > 1000, "{label}: {} / {} poses", fin.matched, anc.matched);
+    let row = [on.ape_rmse, fin.ape_rmse, fin.ape_aligned, fin.scale_error.abs(), anc.ape_rmse, anc.ape_aligned];
+    println!(
+        "| {label} | {:.2} | {:.2} | {:.2} | {:.2} % | {:.2} | {:.2} |",
+        row[0],
+        row[1],
+        row[2],
+        100.0 * row[3],
+        row[4],
+        row[5]
+    );
+    row
+}
+
 /// Issue #30: the minute with the typical profile's VO — noise on every increment of
-/// translation and rotation, random-walk scale and heading, a bounded tilt, and one tracking
-/// loss with a new origin, heading and scale — over five noise seeds. This measures; issue
-/// #31 sets the targets. The figures are in docs/fidelity.md
-/// (`cargo test --release -p dash2sim-tests --test finish_comma2k19 -- --nocapture`).
+/// translation and rotation, random-walk scale and heading, a bounded tilt — with one
+/// tracking loss and re-initialisation (a new origin, heading and scale) and without, over
+/// five noise seeds. This measures; issue #31 sets the targets. The figures are in
+/// docs/fidelity.md (`cargo test --release -p dash2sim-tests --test finish_comma2k19 --
+/// --nocapture`).
 #[test]
 fn the_comma2k19_minute_with_a_typical_vo_over_five_noise_seeds() {
     use dash2sim_linux::scenario::profile::{Profile, Receiver};
     use dash2sim_linux::scenario::vo::Reinit;
     use dash2sim_linux::scenario::ScenarioConfig;
     let Some(dir) = dash2sim_tests::data_dir("comma2k19") else { return };
-    println!("| noise seed | online ATE (m) | finished ATE, GNSS + wheel speed (m) | after Sim(3) | scale error | with anchors every 50 m, σ 0.3 m per axis (m) | after Sim(3) |");
+    println!("| noise seed | online ATE (m) | finished ATE, GNSS + wheel speed (m) | after Sim(3) | abs. scale error | with anchors every 50 m, σ 0.3 m per axis (m) | after Sim(3) |");
     println!("|---|---|---|---|---|---|---|");
-    let (mut online, mut finished, mut finished_aligned, mut scale, mut anchored, mut anchored_aligned) =
-        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    let (mut steady_finished, mut steady_anchored) = (Vec::new(), Vec::new());
+    let (mut reinit_rows, mut steady_rows) = (Vec::new(), Vec::new());
     for seed in 1..=5u64 {
-        // The typical profile's VO for this seed; its re-initialisation once in the minute
-        // (the profile's every 2–5 min would put one in a minute only now and then).
+        // The typical profile's VO for this seed, re-initialised once in the minute (the
+        // profile's every 2–5 min would put one in a minute only now and then).
         let typical = ScenarioConfig::drive(seed, Profile::Typical, Receiver::Good).vo;
         let reinit = Reinit { every_s: (60.0, 60.0), ..typical.reinit.expect("the typical profile re-initialises") };
         let model = VoModel { reinit: Some(reinit), ..typical };
-        let work = scratch(&format!("comma-typical-{seed}"));
-        let recorded = record_minute(&dir, &work, &model, seed).expect("record");
-        let (log, truth) = (&recorded.log, &recorded.truth);
-        let sessions = std::fs::read_to_string(work.join("vo.csv"))
-            .expect("vo.csv")
-            .lines()
-            .skip(1)
-            .filter_map(|l| l.rsplit(',').next()?.parse::<u32>().ok())
-            .max();
-        assert_eq!(sessions, Some(1), "seed {seed}: exactly one re-initialisation in the minute");
-        let on = compare(&log.records, &recorded.device, truth).expect("online comparison");
-        let gnss = run(log, None);
-        let gnss_device = device_times(&gnss.records).expect("UTC");
-        let fin = compare(&gnss.records, &gnss_device, truth).expect("finished comparison");
-        let with = run(log, Some(&anchors_from_truth(log, truth, 50.0, 0.3, seed)));
-        let with_device = device_times(&with.records).expect("UTC");
-        let anc = compare(&with.records, &with_device, truth).expect("anchored comparison");
-        assert!(fin.matched > 1000 && anc.matched > 1000, "seed {seed}: {} / {} poses", fin.matched, anc.matched);
-        println!(
-            "| {seed} | {:.2} | {:.2} | {:.2} | {:+.2} % | {:.2} | {:.2} |",
-            on.ape_rmse,
-            fin.ape_rmse,
-            fin.ape_aligned,
-            100.0 * fin.scale_error,
-            anc.ape_rmse,
-            anc.ape_aligned
-        );
-        online.push(on.ape_rmse);
-        finished.push(fin.ape_rmse);
-        finished_aligned.push(fin.ape_aligned);
-        scale.push(fin.scale_error.abs());
-        anchored.push(anc.ape_rmse);
-        anchored_aligned.push(anc.ape_aligned);
+        reinit_rows.push(typical_minute(&dir, &model, seed, &format!("{seed}, one re-init"), 2));
         // The same noise without the re-initialisation: what the rest of the model costs.
         let steady = VoModel { reinit: None, ..model };
-        let work = scratch(&format!("comma-typical-steady-{seed}"));
-        let recorded = record_minute(&dir, &work, &steady, seed).expect("record");
-        let (log, truth) = (&recorded.log, &recorded.truth);
-        let on = compare(&log.records, &recorded.device, truth).expect("online comparison");
-        let gnss = run(log, None);
-        let fin = compare(&gnss.records, &device_times(&gnss.records).expect("UTC"), truth).expect("finished");
-        let with = run(log, Some(&anchors_from_truth(log, truth, 50.0, 0.3, seed)));
-        let anc = compare(&with.records, &device_times(&with.records).expect("UTC"), truth).expect("anchored");
-        println!(
-            "| {seed}, no re-init | {:.2} | {:.2} | {:.2} | {:+.2} % | {:.2} | {:.2} |",
-            on.ape_rmse,
-            fin.ape_rmse,
-            fin.ape_aligned,
-            100.0 * fin.scale_error,
-            anc.ape_rmse,
-            anc.ape_aligned
-        );
-        steady_finished.push(fin.ape_rmse);
-        steady_anchored.push(anc.ape_rmse);
+        steady_rows.push(typical_minute(&dir, &steady, seed, &format!("{seed}, no re-init"), 1));
     }
-    for (name, values) in [
-        ("online ATE", &mut online),
-        ("finished ATE", &mut finished),
-        ("finished ATE after Sim(3)", &mut finished_aligned),
-        ("|finished scale error|", &mut scale),
-        ("ATE with anchors", &mut anchored),
-        ("ATE with anchors after Sim(3)", &mut anchored_aligned),
-        ("finished ATE without the re-init", &mut steady_finished),
-        ("ATE with anchors without the re-init", &mut steady_anchored),
-    ] {
-        let (median, worst) = median_and_worst(values);
-        assert!(median.is_finite() && worst.is_finite(), "{name}");
-        println!("{name}: median {median:.4}, worst {worst:.4}");
+    let names = ["online ATE", "finished ATE", "after Sim(3)", "|scale error|", "ATE with anchors", "after Sim(3)"];
+    for (variant, rows) in [("one re-init", &reinit_rows), ("no re-init", &steady_rows)] {
+        for (k, name) in names.iter().enumerate() {
+            let (median, worst) = median_and_worst(&mut rows.iter().map(|r| r[k]).collect::<Vec<_>>());
+            assert!(median.is_finite() && worst.is_finite(), "{variant} {name}");
+            println!("{variant}: {name} median {median:.4}, worst {worst:.4}");
+        }
     }
 }

@@ -289,7 +289,7 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
             "wheel_factor": a["wheel_factor"],
         },
         "files": [
-            {"what": "VO made from the fused poses", "path": file("vo.tum")},
+            {"what": "VO made from the fused poses (frame, pose, VO session)", "path": file("vo.csv")},
             {"what": "the u-blox fixes as a serial capture", "path": file("ublox.serial.log")},
             {"what": "the device's 4D log", "path": file("comma.d2slog")},
             {"what": "the finished 4D log", "path": file("finished.d2slog")},
