@@ -24,6 +24,19 @@ fn write(dir: &Path, name: &str, text: &str) -> String {
     p.display().to_string()
 }
 
+/// `scenario generate` of drive `seed` on the ideal profile (the tests that pin its
+/// figures test the tools, not the sensors) into `dir`.
+fn generate_ideal(dir: &Path, seed: &str, duration: &str) -> Output {
+    let dir = dir.display().to_string();
+    dash2sim(&["scenario", "generate", "--profile", "ideal", "-o", &dir, "--seed", seed, "--duration", duration])
+}
+
+/// `demo --offline --json` of seed 1 on the ideal profile into `dir`.
+fn demo_ideal_offline(dir: &Path, duration: &str) -> Output {
+    let dir = dir.display().to_string();
+    dash2sim(&["demo", "--profile", "ideal", "-o", &dir, "--duration", duration, "--offline", "--json"])
+}
+
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -364,18 +377,7 @@ fn track2d_keeps_one_id_along_a_moving_box_and_skips_rows_out_of_order() {
 #[test]
 fn scenario_files_round_trip_through_the_other_commands() {
     let dir = scratch("scenario");
-    let out = dash2sim(&[
-        "scenario",
-        "generate",
-        "--profile",
-        "ideal",
-        "-o",
-        &dir.display().to_string(),
-        "--seed",
-        "3",
-        "--duration",
-        "12",
-    ]);
+    let out = generate_ideal(&dir, "3", "12");
     assert!(out.status.success(), "{}", stderr(&out));
     let path = |name: &str| dir.join(name).display().to_string();
     for name in ["ego.tum", "vo.tum", "gnss.tum", "gnss.nmea", "speed.csv", "objects.csv", "detections3d.csv"] {
@@ -472,18 +474,7 @@ fn map_build_and_info_describe_the_tile_and_refuse_a_corrupted_one() {
 fn verify_scores_a_generated_drive_and_names_bad_inputs() {
     let dir = scratch("verify");
     let drive = dir.join("drive");
-    let out = dash2sim(&[
-        "scenario",
-        "generate",
-        "--profile",
-        "ideal",
-        "-o",
-        &drive.display().to_string(),
-        "--seed",
-        "1",
-        "--duration",
-        "10",
-    ]);
+    let out = generate_ideal(&drive, "1", "10");
     assert!(out.status.success(), "{}", stderr(&out));
     let map = dir.join("road.map").display().to_string();
     let road = drive.join("road.osm").display().to_string();
@@ -573,18 +564,7 @@ fn map_build_cuts_at_a_bbox_and_survives_odd_ways() {
 fn import_inspect_export_a_drive_and_report_damage_without_failing() {
     let dir = scratch("binlog");
     let drive = dir.join("drive");
-    let out = dash2sim(&[
-        "scenario",
-        "generate",
-        "--profile",
-        "ideal",
-        "-o",
-        &drive.display().to_string(),
-        "--seed",
-        "2",
-        "--duration",
-        "12",
-    ]);
+    let out = generate_ideal(&drive, "2", "12");
     assert!(out.status.success(), "{}", stderr(&out));
     let file = |name: &str| drive.join(name).display().to_string();
     let log = dir.join("drive.d2slog").display().to_string();
@@ -782,17 +762,7 @@ fn demo_of_a_careless_driver_is_rejected_and_bad_arguments_are_named() {
 #[test]
 fn finish_reports_bad_anchor_lines_verifies_per_window_and_refuses_a_log_without_vo() {
     let dir = scratch("finish");
-    let out = dash2sim(&[
-        "demo",
-        "--profile",
-        "ideal",
-        "-o",
-        &dir.display().to_string(),
-        "--duration",
-        "20",
-        "--offline",
-        "--json",
-    ]);
+    let out = demo_ideal_offline(&dir, "20");
     assert!(out.status.success(), "{}", stderr(&out));
     let anchors = dir.join("anchors.csv");
     let mut text = std::fs::read_to_string(&anchors).expect("anchors");
@@ -847,17 +817,7 @@ fn finish_reports_bad_anchor_lines_verifies_per_window_and_refuses_a_log_without
 #[test]
 fn export_nuplan_writes_the_devkits_tables_and_layers_and_refuses_bad_input() {
     let dir = scratch("nuplan");
-    let out = dash2sim(&[
-        "demo",
-        "--profile",
-        "ideal",
-        "-o",
-        &dir.display().to_string(),
-        "--duration",
-        "30",
-        "--offline",
-        "--json",
-    ]);
+    let out = demo_ideal_offline(&dir, "30");
     assert!(out.status.success(), "{}", stderr(&out));
     let path = |p: &Path| p.display().to_string();
     let (log, map, nuplan) = (dir.join("finished.d2slog"), dir.join("road.map"), dir.join("nuplan"));
@@ -1025,18 +985,7 @@ fn live_socketcan_records_or_says_why_it_was_skipped() {
 fn map_check_counts_compliant_poses_and_times_them() {
     let dir = scratch("map-check");
     let drive = dir.join("drive");
-    let out = dash2sim(&[
-        "scenario",
-        "generate",
-        "--profile",
-        "ideal",
-        "--seed",
-        "2",
-        "--duration",
-        "5",
-        "-o",
-        &drive.display().to_string(),
-    ]);
+    let out = generate_ideal(&drive, "2", "5");
     assert!(out.status.success(), "{}", stderr(&out));
     let map = dir.join("road.map").display().to_string();
     let osm = drive.join("road.osm").display().to_string();
@@ -1072,17 +1021,7 @@ fn map_check_counts_compliant_poses_and_times_them() {
 #[test]
 fn plot_draws_the_map_the_three_trajectories_and_the_objects_and_refuses_a_log_without_poses() {
     let dir = scratch("plot");
-    let out = dash2sim(&[
-        "demo",
-        "--profile",
-        "ideal",
-        "-o",
-        &dir.display().to_string(),
-        "--duration",
-        "30",
-        "--offline",
-        "--json",
-    ]);
+    let out = demo_ideal_offline(&dir, "30");
     assert!(out.status.success(), "{}", stderr(&out));
     let path = |p: &Path| p.display().to_string();
     // The demo drew its drive.

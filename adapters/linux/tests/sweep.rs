@@ -44,11 +44,20 @@ fn a_sweep_s_rows_are_the_demo_s_drives_and_its_summary_counts_them() {
     let summary: Value = serde_json::from_slice(&out.stdout).expect("summary JSON");
     assert_eq!(summary["profile"], "typical");
     assert_eq!(summary["drives"], 4);
-    for field in ["finished_agreement", "online_window_agreement", "ape_finished_median_m"] {
-        assert!(summary[field].is_number() || summary[field].is_null(), "{field}: {summary}");
+    let table = &summary["confusion"]["finished"];
+    for field in ["finished_agreement", "ape_finished_median_m"] {
+        assert!(summary[field].as_f64().is_some_and(f64::is_finite), "{field}: {summary}");
+    }
+    // The window agreement is a fraction of the windows, absent only when there are none.
+    match summary["windows"].as_u64() {
+        Some(0) => assert!(summary["online_window_agreement"].is_null(), "{summary}"),
+        Some(_) => assert!(summary["online_window_agreement"].as_f64().is_some_and(|a| (0.0..=1.0).contains(&a))),
+        None => panic!("no window count: {summary}"),
     }
     assert!(summary["finished_false_verified"].is_u64(), "{summary}");
-    let table = &summary["confusion"]["finished"];
+    // The agreement is what the table says.
+    let agree = table["truth_verified_log_verified"].as_f64().unwrap_or(0.0)
+        + table["truth_rejected_log_rejected"].as_f64().unwrap_or(0.0);
     let total: u64 = [
         "truth_verified_log_verified",
         "truth_verified_log_rejected",
@@ -58,6 +67,8 @@ fn a_sweep_s_rows_are_the_demo_s_drives_and_its_summary_counts_them() {
     .iter()
     .map(|k| table[k].as_u64().expect("count"))
     .sum();
+    let agreement = summary["finished_agreement"].as_f64().unwrap_or(f64::NAN);
+    assert!((agreement - agree / total as f64).abs() < 1e-12, "{summary}");
     assert_eq!(total + summary["failed_drives"].as_u64().expect("failed"), 4, "{summary}");
     // The files: a CSV row and a JSON line per drive, the summary, the picture.
     let csv = std::fs::read_to_string(out_dir.join("runs.csv")).expect("runs.csv");

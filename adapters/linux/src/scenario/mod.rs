@@ -140,7 +140,9 @@ pub struct Frame {
     pub objects: Vec<ObjectState>,
     /// Ids of the objects the detector could see (in range, ≥ 30 % in the image).
     pub visible: Vec<u32>,
-    /// 3D detections in the ego frame (x forward, y left, z up), misses and ghosts included.
+    /// 3D detections in the ego frame (x forward, y left, z up) as the device places them:
+    /// measured by the real camera, moved through the nominal mount (so a mount error shows);
+    /// misses and ghosts included.
     pub detections_3d: Vec<Detection3d>,
     /// 2D detections in the image.
     pub detections_2d: Vec<Detection2d>,
@@ -425,6 +427,8 @@ pub fn camera_trajectory(egos: &[EgoState], camera: &Camera) -> Trajectory {
     let mut out = ego_trajectory(egos);
     let mount = camera.true_mount();
     let (position, rotation) = (dash2sim_core::nalgebra::Vector3::from(mount.position), mount.rotation());
+    // A mount without a turn leaves the rotation untouched (the ideal profile's VO then stays
+    // bit for bit what it was before mount errors existed).
     let turned = camera.mount_error.yaw != 0.0 || camera.mount_error.pitch != 0.0;
     for pose in &mut out.poses {
         pose.translation += pose.rotation * position;

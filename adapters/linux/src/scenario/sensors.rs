@@ -341,6 +341,8 @@ impl DetectorModel {
         } else {
             rng.random_range(-PI..PI)
         };
+        // On the nominal mount the height comes straight from the ego frame (bit for bit the
+        // ideal profile's of before mount errors); otherwise through the real camera.
         let z = if camera.mount_error == MountError::default() {
             truth.z + gauss(rng, self.z_sigma)
         } else {
