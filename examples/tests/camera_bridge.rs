@@ -36,8 +36,8 @@ fn every_published_frame_arrives_with_its_pose_and_detections() {
     let (mut frames, mut poses, mut det3, mut det2) = (Vec::new(), BTreeMap::new(), BTreeMap::new(), BTreeMap::new());
     let mut collect = |input: CameraInput| match input {
         CameraInput::Frame { sequence, .. } => frames.push(sequence),
-        CameraInput::Vo(_, sequence, pose) => {
-            poses.insert(sequence, pose);
+        CameraInput::Vo(_, sequence, session, pose) => {
+            poses.insert(sequence, (session, pose));
         }
         CameraInput::Detections3d(t, sequence, d) => {
             det3.insert(sequence, (t, d));
@@ -58,9 +58,10 @@ fn every_published_frame_arrives_with_its_pose_and_detections() {
     let expected: Vec<u64> = (1..=51).collect();
     assert_eq!(frames, expected, "every frame sequence arrives, in order");
     assert_eq!(poses.keys().copied().collect::<Vec<_>>(), expected);
-    for (frame, pose) in scenario.frames.iter().zip(&scenario.vo.poses.poses) {
-        let got = &poses[&u64::from(frame.index)];
+    for ((frame, pose), sample) in scenario.frames.iter().zip(&scenario.vo.poses.poses).zip(&scenario.vo.samples) {
+        let (session, got) = &poses[&u64::from(frame.index)];
         assert_eq!((got.translation, got.rotation), (pose.translation, pose.rotation), "VO poses arrive exactly");
+        assert_eq!(*session, sample.session, "with their VO session");
         let (_, d) = &det3[&u64::from(frame.index)];
         assert_eq!(d.len(), frame.detections_3d.len());
         assert_eq!(det2[&u64::from(frame.index)], frame.detections_2d.len());

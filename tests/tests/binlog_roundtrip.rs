@@ -4,8 +4,9 @@
 //! degrees and seconds come back within half a quantisation step.
 
 use dash2sim_core::binlog::{
-    AnchorEstimate, Decoder, Detection2d, EgoPose, Event, EventRecord, FlushPolicy, FrameMeta, GnssFix, Header, Record,
-    Track2d, Track3d, Tracks3d, VehicleSpeed, Verification, VoPose, Writer, WriterConfig, MAX_TRACKS,
+    AnchorEstimate, Decoder, Detection2d, EgoPose, Event, EventRecord, FlushPolicy, FrameMeta, GnssFix, Header,
+    MountEstimate, Record, Track2d, Track3d, Tracks3d, VehicleSpeed, Verification, VoPose, Writer, WriterConfig,
+    MAX_TRACKS,
 };
 use dash2sim_linux::logfile::quantise;
 use proptest::prelude::*;
@@ -56,14 +57,25 @@ fn record() -> impl Strategy<Value = Record> {
             speed_mm_s: s,
             source: k
         })),
-        (t.clone(), prop::array::uniform6(value())).prop_map(|(t_us, v)| Record::VoPose(VoPose {
+        (t.clone(), prop::array::uniform7(value())).prop_map(|(t_us, v)| Record::VoPose(VoPose {
             t_us,
             x: v[0],
             y: v[1],
             z: v[2],
             yaw_e4: v[3],
             pitch_e4: v[4],
-            roll_e4: v[5]
+            roll_e4: v[5],
+            session: v[6]
+        })),
+        (t.clone(), prop::array::uniform7(value())).prop_map(|(t_us, v)| Record::MountEstimate(MountEstimate {
+            t_us,
+            yaw_e6: v[0],
+            pitch_e6: v[1],
+            roll_e6: v[2],
+            sigma_yaw_e6: v[3],
+            sigma_pitch_e6: v[4],
+            samples: v[5],
+            calibrated: v[6]
         })),
         (t.clone(), prop::array::uniform4(value())).prop_map(|(t_us, v)| Record::EgoPose(EgoPose {
             t_us,

@@ -11,9 +11,10 @@ use dash2sim_linux::scenario::write::write_scenario;
 use dash2sim_linux::scenario::{generate, ScenarioConfig};
 use dash2sim_tests::recorded::scratch;
 
-const REBUILD: &str = "rebuild them: dash2sim scenario generate -o D --seed 1 --duration 20 --receiver good && \
+const REBUILD: &str =
+    "rebuild them: dash2sim scenario generate -o D --seed 1 --duration 20 --receiver good --profile ideal && \
 dash2sim map build D/road.osm -o examples/mcu/drive.d2smap --origin 60.2711,24.8572 && \
-dash2sim record -o /tmp/x.d2slog --vo D/vo.tum --nmea D/gnss.serial.log --can D/speed.can.log \
+dash2sim record -o /tmp/x.d2slog --vo D/vo.csv --nmea D/gnss.serial.log --can D/speed.can.log \
 --detections D/detections3d.csv --detections2d D/det2d.txt --save-inputs examples/mcu/drive.d2sin";
 
 #[test]

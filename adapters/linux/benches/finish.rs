@@ -62,6 +62,7 @@ fn drive(minutes: f64) -> (Header, Vec<Record>) {
                 yaw_e4: quantise(heading + yaw, 1e-4),
                 pitch_e4: 0,
                 roll_e4: 0,
+                session: 0,
             }));
         }
         if k % 2 == 0 {

@@ -358,6 +358,23 @@ impl<const K: usize> Anchorer<K> {
         Some(self.estimate?.transform_point(&self.history.latest()?.position))
     }
 
+    /// The VO lost track and started again (a new origin, orientation and scale): what
+    /// was learnt about the old VO frame no longer holds, so the fit starts afresh; what
+    /// concerns only the car and the receiver — the wheel factor, the odometer, the last
+    /// accepted fix for the jump test, the fix rate — is kept.
+    pub fn new_vo_session(&mut self) {
+        let mut wheel = self.wheel;
+        wheel.new_vo_session();
+        *self = Anchorer {
+            odometer: self.odometer,
+            wheel,
+            last_fix_time: self.last_fix_time,
+            last_accepted: self.last_accepted,
+            mean_fix_interval_s: self.mean_fix_interval_s,
+            ..Anchorer::new(self.config)
+        };
+    }
+
     /// A vehicle-speed sample (wheel-based or vehicle speed, m/s).
     pub fn push_speed(&mut self, t: Timestamp, speed_mps: f64) -> Result<(), AnchorError> {
         if !speed_mps.is_finite() {

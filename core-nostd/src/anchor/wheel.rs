@@ -35,6 +35,12 @@ pub(crate) struct WheelScale {
 }
 
 impl WheelScale {
+    /// The VO started again: its path so far is in another scale; the calibration against
+    /// GNSS (wheels against the world) still holds.
+    pub fn new_vo_session(&mut self) {
+        *self = WheelScale { vo_path: 0.0, wheel_path: 0.0, last_frame: None, ..*self };
+    }
+
     /// A VO frame with the odometer reading at its time.
     pub fn push_frame(&mut self, t: Timestamp, position: &Vector3<f64>, odometer_m: f64, time_constant_s: f64) {
         if let Some((t0, p0, o0)) = self.last_frame {

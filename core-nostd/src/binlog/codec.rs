@@ -391,8 +391,9 @@ impl Streams {
     }
 
     /// Decode a payload of `kind`. Bytes after the known fields are ignored (a later minor
-    /// version may append fields). `None` if the payload is short or malformed; the state
-    /// advances only on success.
+    /// version may append fields); fields an earlier minor version did not have yet — the
+    /// payload ends where one would start — are 0. `None` if the payload is cut inside a
+    /// field or malformed; the state advances only on success.
     pub fn decode(&mut self, kind: Kind, payload: &[u8]) -> Option<Record> {
         if kind == Kind::Tracks3d {
             // Batches go through `decode_tracks`, which may give several records.
@@ -402,6 +403,9 @@ impl Streams {
         let mut values = [0i64; MAX_FIELDS];
         let mut at = 0;
         for (k, slot) in values[..n].iter_mut().enumerate() {
+            if k > 0 && at == payload.len() && kind != Kind::Event {
+                break;
+            }
             *slot = unzigzag(get(payload, &mut at)?).wrapping_add(self.prediction(kind, k));
         }
         let text: &[u8] = if kind == Kind::Event {

@@ -31,8 +31,9 @@ use crc::{Crc, CRC_32_ISCSI};
 pub const MAGIC: [u8; 6] = *b"D2SLOG";
 /// Format major version.
 pub const VERSION_MAJOR: u8 = 1;
-/// Format minor version written (1.1 added `Detection3d` and `ClockOffset`).
-pub const VERSION_MINOR: u8 = 1;
+/// Format minor version written (1.1 added `Detection3d` and `ClockOffset`; 1.2 the VO
+/// session of a `VoPose` and `MountEstimate`).
+pub const VERSION_MINOR: u8 = 2;
 /// Header length in bytes (v1.0).
 pub const HEADER_LEN: usize = 48;
 /// Marks the start of every segment; a reader looks for it after damage.
@@ -418,6 +419,9 @@ records! {
         pitch_e4: DeltaDelta,
         /// Roll, 1e-4 rad.
         roll_e4: DeltaDelta,
+        /// The VO session the pose belongs to (v1.2; 0 in older logs): a VO that lost
+        /// track and started again has a new origin, orientation and scale.
+        session: Delta,
     }
     /// The anchored ego pose (rear axle) in the header's ENU frame.
     EgoPose = 0x13 {
@@ -572,6 +576,26 @@ records! {
         offset_us: Delta,
         /// Why: 0 first fix, 1 drift, 2 GNSS time step, 3 device clock reset.
         reason: Absolute,
+    }
+    /// The camera's mount on the car as calibrated so far (v1.2): rotation camera → body.
+    MountEstimate = 0x1D {
+        /// Time, µs.
+        t_us: Delta,
+        /// Yaw, 1e-6 rad.
+        yaw_e6: Absolute,
+        /// Pitch, 1e-6 rad.
+        pitch_e6: Absolute,
+        /// Roll, 1e-6 rad (the nominal mount's: not estimated).
+        roll_e6: Absolute,
+        /// 1-σ of the yaw, 1e-6 rad.
+        sigma_yaw_e6: Absolute,
+        /// 1-σ of the pitch, 1e-6 rad.
+        sigma_pitch_e6: Absolute,
+        /// Straight-driving frames the estimate rests on.
+        samples: Absolute,
+        /// 1 when calibrated (enough samples and σ small enough), 0 while the nominal
+        /// mount still weighs in.
+        calibrated: Absolute,
     }
 }
 

@@ -42,11 +42,13 @@ pub enum Issue {
     InputsDropped,
     /// The camera's frame numbers started again (its process restarted).
     CameraRestarted,
+    /// A VO session number lower than the one before (taken as a new session).
+    VoSessionBackwards,
 }
 
 impl Issue {
     /// Every reason, in counter order.
-    pub const ALL: [Issue; 17] = [
+    pub const ALL: [Issue; 18] = [
         Issue::VoNotFinite,
         Issue::VoOutOfOrder,
         Issue::SpeedRefused,
@@ -64,6 +66,7 @@ impl Issue {
         Issue::FramesMissing,
         Issue::InputsDropped,
         Issue::CameraRestarted,
+        Issue::VoSessionBackwards,
     ];
 
     /// How the event names it.
@@ -86,6 +89,7 @@ impl Issue {
             Issue::FramesMissing => "camera frames missing (frame numbers skipped)",
             Issue::InputsDropped => "inputs dropped before the pipeline (logger behind)",
             Issue::CameraRestarted => "camera process restarted (frame numbers started again)",
+            Issue::VoSessionBackwards => "VO session number went back (taken as a new session)",
         }
     }
 

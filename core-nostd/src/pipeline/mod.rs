@@ -30,6 +30,7 @@
 //! Nothing here panics on bad input: a refused input is counted, written as an event and
 //! leaves the state as it was. The only error a push returns is the log's own (`Io`).
 
+pub mod calibration;
 pub mod clock;
 pub mod issues;
 pub mod mount;
@@ -46,8 +47,8 @@ use nalgebra::Vector3;
 use crate::anchor::{gnss_sigma, AnchorConfig, Anchorer, Observability};
 use crate::binlog::{
     quantise, AnchorEstimate, ClockOffset, Detection3d as DetectionRecord, EgoPose, EventRecord, FrameMeta, GnssFix,
-    Header, Record, Track2d, Track3d, Tracks3d, VehicleSpeed, Verification, VoPose, WriteError, Writer, WriterConfig,
-    MAX_TEXT, MAX_TRACKS,
+    Header, MountEstimate as MountRecord, Record, Track2d, Track3d, Tracks3d, VehicleSpeed, Verification, VoPose,
+    WriteError, Writer, WriterConfig, MAX_TEXT, MAX_TRACKS,
 };
 use crate::box2d::Box2d;
 use crate::can::signal::Signal;
@@ -62,6 +63,7 @@ use crate::sim3::{Pose, Sim3};
 use crate::time::{Duration, Timestamp};
 use crate::track2d::{Detection, Tracker2d, TrackerConfig};
 use crate::track3d::{Config3d, Detection3d, Tracker3d};
+pub use calibration::{CalibrationConfig, MountCalibration, MountEstimate};
 pub use clock::{Clock, OffsetChange};
 pub use issues::{Issue, Issues};
 pub use mount::CameraMount;
@@ -122,8 +124,11 @@ pub struct PipelineConfig<'a> {
     pub origin: Geodetic,
     /// Who writes the log (the header's device id).
     pub device_id: [u8; 16],
-    /// The camera (and GNSS receiver) on the vehicle.
+    /// The camera (and GNSS receiver) on the vehicle as installed: the prior of the
+    /// online calibration ([`calibration`]).
     pub mount: CameraMount,
+    /// How the camera's yaw and pitch are calibrated online.
+    pub calibration: CalibrationConfig,
     /// Anchoring.
     pub anchor: AnchorConfig,
     /// GNSS σ model.
@@ -159,6 +164,7 @@ impl<'a> PipelineConfig<'a> {
             origin,
             device_id: *b"dash2sim\0\0\0\0\0\0\0\0",
             mount: CameraMount::default(),
+            calibration: CalibrationConfig::default(),
             anchor: AnchorConfig::default(),
             gnss: GnssErrorModel::default(),
             classes,
@@ -269,6 +275,7 @@ pub type PipelineError<E> = WriteError<E>;
 struct LastVo {
     t: Timestamp,
     frame: u64,
+    session: u32,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -326,6 +333,10 @@ struct State<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> {
     anchorer: Anchorer,
     observability: Observability,
     last_anchor_record: Option<Timestamp>,
+    calibration: MountCalibration,
+    /// The mount poses and detections are placed with (the calibration's estimate).
+    mount: MountEstimate,
+    last_mount_record: Option<Timestamp>,
     trackers: &'a mut Trackers<'a, T3, T2>,
     /// Internal frame number = the camera's + this (raised when the camera restarts).
     frame_offset: u64,
@@ -390,6 +401,9 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
                 anchorer: Anchorer::new(config.anchor),
                 observability: Observability::TooFewAnchors,
                 last_anchor_record: None,
+                calibration: MountCalibration::new(config.mount, config.calibration),
+                mount: MountCalibration::new(config.mount, config.calibration).estimate(),
+                last_mount_record: None,
                 trackers,
                 frame_offset: 0,
                 vo: None,
@@ -471,10 +485,23 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
     }
 
     /// The VO pose of camera frame `frame` (camera → VO frame, unknown scale), captured
-    /// at device time `t`.
-    pub fn push_vo(&mut self, t: Timestamp, frame: u64, pose: &Pose) -> Result<(), PipelineError<W::Error>> {
+    /// at device time `t`, in VO session `session`: a VO that lost track and started again
+    /// (new origin, orientation and scale) counts its sessions up, and each is anchored on
+    /// its own.
+    pub fn push_vo(
+        &mut self,
+        t: Timestamp,
+        frame: u64,
+        session: u32,
+        pose: &Pose,
+    ) -> Result<(), PipelineError<W::Error>> {
         let t = self.state.monotonic(t)?;
-        self.state.on_vo(t, frame, pose)
+        self.state.on_vo(t, frame, session, pose)
+    }
+
+    /// The camera mount as calibrated so far.
+    pub fn mount(&self) -> &MountEstimate {
+        &self.state.mount
     }
 
     /// The 3D detections of camera frame `frame` in the camera frame. At most `T3` are
@@ -546,6 +573,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
         }
         let now = state.now;
         state.close_window(now)?;
+        state.close_calibration(now)?;
         let tail: heapless::Vec<(Issue, u64), { Issue::ALL.len() }> = state.issues.unreported().collect();
         for (issue, count) in tail {
             state.event(now, 3, format_args!("{} ({count} in all)", issue.text()))?;
@@ -803,7 +831,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         Ok(())
     }
 
-    fn on_vo(&mut self, t: Timestamp, frame: u64, pose: &Pose) -> Result<(), PipelineError<W::Error>> {
+    fn on_vo(&mut self, t: Timestamp, frame: u64, session: u32, pose: &Pose) -> Result<(), PipelineError<W::Error>> {
         if !pose.is_finite() {
             return self.issue(t, Issue::VoNotFinite, 1);
         }
@@ -813,6 +841,9 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         let raw_frame = frame;
         let mut frame = raw_frame.saturating_add(self.frame_offset);
         let restarted = self.vo.is_some_and(|v| frame <= v.frame);
+        if let Some(v) = self.vo.filter(|v| v.session != session) {
+            self.new_session(t, &v, session)?;
+        }
         if self.anchorer.push_vo(t, pose.translation).is_err() {
             return self.issue(t, Issue::VoOutOfOrder, 1);
         }
@@ -833,7 +864,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
                 self.frame_interval = per_frame;
             }
         }
-        self.vo = Some(LastVo { t, frame });
+        self.vo = Some(LastVo { t, frame, session });
         self.stats.vo_poses = self.stats.vo_poses.saturating_add(1);
         let t_us = self.log_time(t);
         // The log keeps the camera's own numbers (sequence gaps and restarts show there).
@@ -849,10 +880,12 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             yaw_e4: quantise(yaw, 1e-4),
             pitch_e4: quantise(pitch, 1e-4),
             roll_e4: quantise(roll, 1e-4),
+            session: i64::from(session),
         }))?;
+        self.calibrate(t, session, pose)?;
         self.anchor_changes(t)?;
         let Some(anchor) = self.anchorer.estimate().copied() else { return Ok(()) };
-        let body = self.config.mount.body_pose(&mount::camera_in_world(&anchor, pose));
+        let body = self.mount.mount.body_pose(&mount::camera_in_world(&anchor, pose));
         let b = &body.translation;
         let ego = Ego { t, frame, pose: Pose2::new(b.x, b.y, mount::heading(&body.rotation)), z: b.z };
         if !(ego.pose.is_finite() && ego.z.is_finite()) {
@@ -868,6 +901,79 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             yaw_e4: quantise(ego.pose.heading, 1e-4),
         }))?;
         self.score(t, &ego.pose)
+    }
+
+    /// The VO started again under a new session number: anchoring starts afresh (the old
+    /// similarity says nothing of the new VO frame); until the new one is observable no
+    /// anchored ego is written.
+    fn new_session(&mut self, t: Timestamp, last: &LastVo, session: u32) -> Result<(), PipelineError<W::Error>> {
+        if session < last.session {
+            self.issue(t, Issue::VoSessionBackwards, 1)?;
+        }
+        self.anchorer.new_vo_session();
+        self.ego = None;
+        let gap = (t - last.t).as_secs_f64();
+        self.event(
+            t,
+            3,
+            format_args!(
+                "VO session {session} began {gap:.1} s after the last pose of session {}: anchoring starts again",
+                last.session
+            ),
+        )
+    }
+
+    /// The pose into the mount calibration; the estimate as a record when it is due, an
+    /// event when it is first calibrated.
+    fn calibrate(&mut self, t: Timestamp, session: u32, pose: &Pose) -> Result<(), PipelineError<W::Error>> {
+        if !self.calibration.push(t.as_secs_f64(), session, pose) {
+            return Ok(());
+        }
+        let was_calibrated = self.mount.calibrated;
+        self.mount = self.calibration.estimate();
+        if self.mount.calibrated && !was_calibrated {
+            let [_, pitch, yaw] = self.mount.mount.roll_pitch_yaw;
+            let [sy, sp] = self.mount.sigma;
+            let samples = self.mount.samples;
+            self.event(
+                t,
+                2,
+                format_args!(
+                    "camera mount calibrated from {} straight-driving frames: yaw {:+.2}° ±{:.2}°, pitch {:+.2}° ±{:.2}°",
+                    samples,
+                    yaw.to_degrees(),
+                    sy.to_degrees(),
+                    pitch.to_degrees(),
+                    sp.to_degrees()
+                ),
+            )?;
+        } else if self.last_mount_record.is_some_and(|last| t - last < self.config.anchor_interval) {
+            return Ok(());
+        }
+        self.last_mount_record = Some(t);
+        self.write(&Record::MountEstimate(mount_record(self.log_time(t), &self.mount)))
+    }
+
+    /// At the end: the last estimate, and an event when the drive never calibrated it.
+    fn close_calibration(&mut self, t: Timestamp) -> Result<(), PipelineError<W::Error>> {
+        let m = self.mount;
+        if m.samples > 0 {
+            self.write(&Record::MountEstimate(mount_record(self.log_time(t), &m)))?;
+        }
+        if m.calibrated {
+            return Ok(());
+        }
+        let kept = if m.samples == 0 { "the nominal mount was kept" } else { "the nominal mount still weighs in" };
+        self.event(
+            t,
+            3,
+            format_args!(
+                "camera mount not calibrated: {} straight-driving frames (yaw ±{:.2}°, pitch ±{:.2}°); {kept}",
+                m.samples,
+                m.sigma[0].to_degrees(),
+                m.sigma[1].to_degrees()
+            ),
+        )
     }
 
     /// Observability changes as events, the estimate as a record when it is due.
@@ -929,7 +1035,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         let mut placed: heapless::Vec<Detection3d, T3> = heapless::Vec::new();
         let mut excess = 0u64;
         for d in detections {
-            let world = mount::to_world(&ego.pose, &self.config.mount.to_body(d));
+            let world = mount::to_world(&ego.pose, &self.mount.mount.to_body(d));
             if placed.push(world).is_err() {
                 excess += 1;
             }
@@ -1149,6 +1255,21 @@ pub fn verification_record(t_us: i64, s: &Scores) -> Verification {
         comfort_e4: quantise(s.comfort, 1e-4),
         score_e2: quantise(s.score, 1e-2),
         worst_corner_mm: quantise(s.worst_corner.clamp(-1e6, 1e6), 1e-3),
+    }
+}
+
+/// The calibrated mount as a record.
+fn mount_record(t_us: i64, m: &MountEstimate) -> MountRecord {
+    let [roll, pitch, yaw] = m.mount.roll_pitch_yaw;
+    MountRecord {
+        t_us,
+        yaw_e6: quantise(yaw, 1e-6),
+        pitch_e6: quantise(pitch, 1e-6),
+        roll_e6: quantise(roll, 1e-6),
+        sigma_yaw_e6: quantise(m.sigma[0], 1e-6),
+        sigma_pitch_e6: quantise(m.sigma[1], 1e-6),
+        samples: i64::from(m.samples),
+        calibrated: i64::from(m.calibrated),
     }
 }
 

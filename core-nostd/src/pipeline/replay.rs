@@ -9,7 +9,7 @@
 //! |---|---|
 //! | 1 serial | the bytes as read from the port |
 //! | 2 CAN | id u32 (bit 31: 29-bit id), data length u8, data |
-//! | 3 VO pose | frame u64, position 3 × f64, rotation 9 × f64 (row-major, camera → VO) |
+//! | 3 VO pose | frame u64, position 3 × f64, rotation 9 × f64 (row-major, camera → VO), VO session u32 (absent in older streams: 0) |
 //! | 4 3D detections | frame u64, then per detection: class u16, score f32, x y z yaw l w h f32 (camera frame), covariance xx xy yy f32 (all zero: none) |
 //! | 5 2D detections | frame u64, then per detection: class u16, score f32, left top width height f32 |
 //!
@@ -40,7 +40,9 @@ pub const DETECTION3D_LEN: usize = 2 + 4 + 7 * 4 + 3 * 4;
 /// Bytes of one 2D detection.
 pub const DETECTION2D_LEN: usize = 2 + 4 + 4 * 4;
 /// Bytes of a VO entry's payload.
-pub const VO_LEN: usize = 8 + 12 * 8;
+pub const VO_LEN: usize = 8 + 12 * 8 + 4;
+/// Bytes of a VO entry's payload in streams written before the session was added.
+const VO_LEN_WITHOUT_SESSION: usize = 8 + 12 * 8;
 
 /// Entry kinds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -66,7 +68,7 @@ pub enum Input<'a> {
     /// A CAN frame.
     Can(CanFrame),
     /// A VO pose of a frame.
-    Vo(u64, Pose),
+    Vo(u64, u32, Pose),
     /// 3D detections of a frame (decode with [`detections3d`]).
     Detections3d(u64, &'a [u8]),
     /// 2D detections of a frame (decode with [`detections2d`]).
@@ -154,7 +156,7 @@ impl<'a> Reader<'a> {
         let input = match kind {
             1 => Some(Input::Serial(payload)),
             2 => can_frame(payload).map(Input::Can),
-            3 => vo(payload).map(|(frame, pose)| Input::Vo(frame, pose)),
+            3 => vo(payload).map(|(frame, session, pose)| Input::Vo(frame, session, pose)),
             4 => u64_at(payload, 0)
                 .filter(|_| (len - 8) % DETECTION3D_LEN == 0)
                 .map(|frame| Input::Detections3d(frame, &payload[8..])),
@@ -181,10 +183,12 @@ fn can_frame(p: &[u8]) -> Option<CanFrame> {
     CanFrame::data_frame(id, data)
 }
 
-fn vo(p: &[u8]) -> Option<(u64, Pose)> {
-    if p.len() != VO_LEN {
-        return None;
-    }
+fn vo(p: &[u8]) -> Option<(u64, u32, Pose)> {
+    let session = match p.len() {
+        VO_LEN => u32::from_le_bytes(p.get(VO_LEN_WITHOUT_SESSION..VO_LEN)?.try_into().ok()?),
+        VO_LEN_WITHOUT_SESSION => 0,
+        _ => return None,
+    };
     let frame = u64_at(p, 0)?;
     let v = |k: usize| f64_at(p, 8 + 8 * k);
     let translation = Vector3::new(v(0)?, v(1)?, v(2)?);
@@ -194,7 +198,7 @@ fn vo(p: &[u8]) -> Option<(u64, Pose)> {
             rotation[(r, c)] = v(3 + 3 * r + c)?;
         }
     }
-    Some((frame, Pose { rotation, translation }))
+    Some((frame, session, Pose { rotation, translation }))
 }
 
 /// Decode the 3D detections of an entry into `out` (as many as fit); returns how many
@@ -247,7 +251,7 @@ pub fn feed<W: Write, const T3: usize, const T2: usize, const BUF: usize>(
     match input {
         Input::Serial(bytes) => pipeline.push_serial(t, bytes),
         Input::Can(frame) => pipeline.push_can(t, frame),
-        Input::Vo(frame, pose) => pipeline.push_vo(t, *frame, pose),
+        Input::Vo(frame, session, pose) => pipeline.push_vo(t, *frame, *session, pose),
         Input::Detections3d(frame, bytes) => {
             let mut out: heapless::Vec<Detection3d, T3> = heapless::Vec::new();
             // Beyond T3 the pipeline would count them as refused; so do we.
@@ -307,14 +311,15 @@ impl<W: Write> Recorder<W> {
         self.entry(EntryKind::Can, t, &[&raw.to_le_bytes(), &[data.len() as u8], data])
     }
 
-    /// A VO pose.
-    pub fn vo(&mut self, t: Timestamp, frame: u64, pose: &Pose) -> Result<(), W::Error> {
+    /// A VO pose of VO session `session`.
+    pub fn vo(&mut self, t: Timestamp, frame: u64, session: u32, pose: &Pose) -> Result<(), W::Error> {
         let mut p = [0u8; VO_LEN];
         p[..8].copy_from_slice(&frame.to_le_bytes());
         let values = pose.translation.iter().copied().chain((0..9).map(|k| pose.rotation[(k / 3, k % 3)]));
         for (k, v) in values.enumerate() {
             p[8 + 8 * k..16 + 8 * k].copy_from_slice(&v.to_le_bytes());
         }
+        p[VO_LEN_WITHOUT_SESSION..].copy_from_slice(&session.to_le_bytes());
         self.entry(EntryKind::Vo, t, &[&p])
     }
 

@@ -137,6 +137,8 @@ struct Decoded {
     events: heapless::Vec<heapless::String<255>, 64>,
     clock_reasons: heapless::Vec<i64, 16>,
     last_ego: Option<EgoPose>,
+    /// The VO sessions, in the order they first appear.
+    sessions: heapless::Vec<i64, 8>,
 }
 
 fn decode(log: &[u8]) -> Decoded {
@@ -157,6 +159,9 @@ fn decode(log: &[u8]) -> Decoded {
                     let _ = out.clock_reasons.push(c.reason);
                 }
                 Record::EgoPose(p) => out.last_ego = Some(p),
+                Record::VoPose(p) if !out.sessions.contains(&p.session) => {
+                    let _ = out.sessions.push(p.session);
+                }
                 _ => {}
             }
         }
@@ -178,7 +183,17 @@ fn count(d: &Decoded, kind: Kind) -> u64 {
 fn drive(
     buffer: &mut [u8],
     seconds: i64,
+    tamper: impl FnMut(i64, &mut Pipeline<'_, &mut [u8], 8, 4, 4096>),
+) -> (usize, PipelineStats, Issues) {
+    drive_vo(buffer, seconds, tamper, |t| Some((0, vo_pose(t))))
+}
+
+/// [`drive`] with the VO (session and pose, or none: tracking lost) of each frame time.
+fn drive_vo(
+    buffer: &mut [u8],
+    seconds: i64,
     mut tamper: impl FnMut(i64, &mut Pipeline<'_, &mut [u8], 8, 4, 4096>),
+    vo: impl Fn(i64) -> Option<(u32, Pose)>,
 ) -> (usize, PipelineStats, Issues) {
     let classes = cone_class();
     let mut trackers = trackers(&classes);
@@ -195,12 +210,102 @@ fn drive(
         }
         if step % 5 == 0 {
             frame += 1;
-            let _ = p.push_vo(us(t), frame, &vo_pose(t));
+            if let Some((session, pose)) = vo(t) {
+                let _ = p.push_vo(us(t), frame, session, &pose);
+            }
             let _ = p.push_detections(us(t), frame, &[cone(t)]);
         }
     }
     let (rest, stats, issues) = p.finish().unwrap_or_else(|_| unreachable!());
     (total - rest.len(), stats, issues)
+}
+
+/// The VO of a camera turned on the car by `mount` (camera → VO = VO ← ENU · body → ENU ·
+/// camera → body; the car heads east, so body = ENU).
+fn vo_pose_mounted(t_us: i64, mount: &CameraMount) -> Pose {
+    let to_vo = rotation_z(-1.0);
+    Pose { rotation: to_vo * mount.rotation(), translation: to_vo * camera_at(t_us) * 2.0 }
+}
+
+#[test]
+fn a_new_vo_session_is_anchored_on_its_own() {
+    let mut buffer = [0u8; 262_144];
+    // After 15 s the VO loses track for a second and starts again elsewhere: another
+    // origin, heading and scale.
+    let restarted = |t: i64| {
+        let to_vo = rotation_z(2.2);
+        Pose { rotation: to_vo, translation: to_vo * (camera_at(t) - Vector3::new(150.0, 90.0, 0.0)) * 0.3 }
+    };
+    let vo = |t: i64| match t {
+        ..15_000_000 => Some((0, vo_pose(t))),
+        15_000_000..16_000_000 => None,
+        _ => Some((1, restarted(t))),
+    };
+    let (len, stats, issues) = drive_vo(&mut buffer, 40, |_, _| {}, vo);
+    let log = decode(&buffer[..len]);
+    // The lost second: ten frames without VO, their detections logged raw.
+    assert_eq!(issues.get(Issue::FramesMissing), 10);
+    assert_eq!(issues.get(Issue::DetectionsWithoutPose), 10);
+    assert_eq!(issues.total(), 20, "{issues:?}");
+    assert!(log.events.iter().any(|e| e.starts_with("VO session 1 began 1.1 s after")), "{:?}", log.events);
+    let observable = log.events.iter().filter(|e| e.starts_with("anchor: Observable")).count();
+    assert_eq!(observable, 2, "anchored once per session: {:?}", log.events);
+    // Without the new session the old similarity would put the car hundreds of metres off.
+    let ego = log.last_ego.unwrap_or_default();
+    assert!((ego.x_mm as f64 * 1e-3 - 399.0).abs() < 2.1 && (ego.y_mm - 100_000).abs() < 500, "{ego:?}");
+    assert!(stats.anchored_frames > 250, "{stats:?}");
+    assert_eq!(log.sessions, [0, 1], "the VO poses carry their session");
+
+    // A session number going back is taken as a new session, and said.
+    let back =
+        |t: i64| Some((if t < 15_000_000 { 3 } else { 1 }, if t < 15_000_000 { vo_pose(t) } else { restarted(t) }));
+    let (len, _, issues) = drive_vo(&mut buffer, 30, |_, _| {}, back);
+    assert_eq!(issues.get(Issue::VoSessionBackwards), 1);
+    let log = decode(&buffer[..len]);
+    let ego = log.last_ego.unwrap_or_default();
+    assert!((ego.x_mm as f64 * 1e-3 - 299.0).abs() < 2.1, "{ego:?}");
+}
+
+#[test]
+fn the_camera_mount_is_calibrated_online_and_detections_placed_through_it() {
+    let truth = CameraMount { roll_pitch_yaw: [0.0, -0.035, 0.045], ..CameraMount::default() };
+    // The cone as the turned camera sees it.
+    let seen = |t: i64| {
+        let d = cone(t);
+        let b = &d.bbox;
+        let body = CameraMount::default().rotation() * Vector3::new(b.x, b.y, b.z);
+        let camera = truth.rotation().transpose() * body;
+        Detection3d { bbox: Box3d { x: camera.x, y: camera.y, z: camera.z, ..*b }, ..d }
+    };
+    let classes = cone_class();
+    let mut trackers = trackers(&classes);
+    let mut buffer = [0u8; 262_144];
+    let total = buffer.len();
+    let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> = Pipeline::new(&mut buffer[..], config(), &mut trackers);
+    for step in 0..20 * 50 {
+        let t = step * 20_000;
+        let _ = p.push_can(us(t), &ccvs1(10.0));
+        if step % 10 == 0 {
+            let _ = p.push_serial(us(t + LATENCY_US), nmea(t, UTC0 + t).as_bytes());
+        }
+        if step % 5 == 0 {
+            let frame = step as u64 / 5 + 1;
+            let _ = p.push_vo(us(t), frame, 0, &vo_pose_mounted(t, &truth));
+            let _ = p.push_detections(us(t), frame, &[seen(t)]);
+        }
+    }
+    let m = *p.mount();
+    let [_, pitch, yaw] = m.mount.roll_pitch_yaw;
+    assert!(m.calibrated && (pitch + 0.035).abs() < 1e-4 && (yaw - 0.045).abs() < 1e-4, "{m:?}");
+    // The cone 30 m ahead is 1 m off the ground through the nominal pitch: refused. Through
+    // the calibrated one it is tracked.
+    assert_eq!(p.issues().get(Issue::DetectionsRefused), 0, "{:?}", p.issues());
+    let (rest, stats, _) = p.finish().unwrap_or_else(|_| unreachable!());
+    let len = total - rest.len();
+    assert!(stats.track_states > 100, "{stats:?}");
+    let log = decode(&buffer[..len]);
+    assert!(count(&log, Kind::MountEstimate) >= 10, "written about once a second");
+    assert!(log.events.iter().any(|e| e.starts_with("camera mount calibrated from")), "{:?}", log.events);
 }
 
 #[test]
@@ -239,8 +344,8 @@ fn bad_inputs_are_counted_written_as_events_and_lose_nothing_else() {
             }
             // NaN VO, and a VO pose out of order.
             2_000_000 => {
-                let _ = p.push_vo(us(t + 1), 1_000, &nan);
-                let _ = p.push_vo(us(t - 500_000), 1, &vo_pose(t));
+                let _ = p.push_vo(us(t + 1), 1_000, 0, &nan);
+                let _ = p.push_vo(us(t - 500_000), 1, 0, &vo_pose(t));
             }
             // 10 000 CAN frames in one burst: bad fast packets of PGN 129029.
             4_000_000 => {
@@ -305,7 +410,7 @@ fn a_device_clock_reset_keeps_the_log_going_in_utc() {
         }
         if step % 5 == 0 {
             frame += 1;
-            let _ = p.push_vo(us(device), frame, &vo_pose(t));
+            let _ = p.push_vo(us(device), frame, 0, &vo_pose(t));
         }
     }
     assert_eq!(p.issues().get(Issue::ClockReset), 1);
@@ -368,7 +473,7 @@ proptest! {
                 }
                 AnyInput::Vo(t, f, [x, y, z], yaw) => {
                     let pose = Pose { rotation: rotation_z(*yaw), translation: Vector3::new(*x, *y, *z) };
-                    p.push_vo(us(*t), *f, &pose)
+                    p.push_vo(us(*t), *f, 0, &pose)
                 }
                 AnyInput::Detections(t, f, boxes) => {
                     let dets: std::vec::Vec<Detection3d> = boxes
@@ -415,7 +520,7 @@ fn a_camera_restart_and_skipped_frames_are_events_and_tracking_goes_on_across_a_
                 frame = 1; // the camera process restarted
                 tracks_before = p.stats().track_states;
             }
-            let _ = p.push_vo(us(t), frame, &vo_pose(t));
+            let _ = p.push_vo(us(t), frame, 0, &vo_pose(t));
             let _ = p.push_detections(us(t), frame, &[cone(t)]);
         }
         if t == 12_000_000 {
@@ -469,7 +574,7 @@ fn gnss_from_dbc_signals_anchors_the_drive_and_puts_the_log_in_utc() {
             let _ = p.push_can(us(rx + 500), &canmod_position(g.lat_deg, g.lon_deg, t >= 1_000_000, 2));
         }
         if step % 5 == 0 {
-            let _ = p.push_vo(us(t), step as u64 / 5 + 1, &vo_pose(t));
+            let _ = p.push_vo(us(t), step as u64 / 5 + 1, 0, &vo_pose(t));
         }
     }
     let _ = p.push_can(us(20_000_000), &standard(3, &[0; 4]));

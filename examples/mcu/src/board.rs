@@ -17,7 +17,7 @@ use dash2sim_core::time::Timestamp;
 /// What the camera process sends.
 pub enum CameraMessage<'a> {
     /// The VO pose of a frame.
-    Vo(u64, Pose),
+    Vo(u64, u32, Pose),
     /// The 3D detections of a frame (replay encoding).
     Detections3d(u64, &'a [u8]),
     /// The 2D detections of a frame (replay encoding).
@@ -74,7 +74,7 @@ impl ReplayBoard {
     /// A message from the camera process, if one is waiting.
     pub fn camera(&mut self) -> Option<CameraMessage<'static>> {
         let message = match self.current? {
-            (_, Input::Vo(frame, pose)) => CameraMessage::Vo(frame, pose),
+            (_, Input::Vo(frame, session, pose)) => CameraMessage::Vo(frame, session, pose),
             (_, Input::Detections3d(frame, bytes)) => CameraMessage::Detections3d(frame, bytes),
             (_, Input::Detections2d(frame, bytes)) => CameraMessage::Detections2d(frame, bytes),
             _ => return None,

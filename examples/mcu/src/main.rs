@@ -291,9 +291,9 @@ fn record_drive(cost: &mut Cost) -> bool {
             (1, (pipeline.push_can(t, &frame), start))
         } else {
             match board.camera() {
-                Some(CameraMessage::Vo(frame, pose)) => {
+                Some(CameraMessage::Vo(frame, session, pose)) => {
                     let start = cortex_m::peripheral::SYST::get_current();
-                    (2, (pipeline.push_vo(t, frame, &pose), start))
+                    (2, (pipeline.push_vo(t, frame, session, &pose), start))
                 }
                 Some(CameraMessage::Detections3d(frame, bytes)) => {
                     replay::detections3d(bytes, &mut detections3d);

@@ -284,8 +284,8 @@ pub enum CameraInput {
         /// Bytes of the image sent with it (0: none).
         image_bytes: u32,
     },
-    /// The VO pose of a frame.
-    Vo(Timestamp, u64, Pose),
+    /// The VO pose of a frame: capture time, frame, VO session, pose.
+    Vo(Timestamp, u64, u32, Pose),
     /// The 3D detections of a frame.
     Detections3d(Timestamp, u64, Vec<Detection3d>),
     /// The 2D detections of a frame.
@@ -349,7 +349,7 @@ impl CameraSubscriber {
                 rotation: Matrix3::new(r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]),
                 translation: Vector3::from(s.position),
             };
-            on(CameraInput::Vo(Timestamp::from_micros(s.device_time_us), s.sequence, pose));
+            on(CameraInput::Vo(Timestamp::from_micros(s.device_time_us), s.sequence, s.session, pose));
             n += 1;
         }
         while let Some(s) = self.detections3d.receive().map_err(|e| iox("detections3d receive")(&e))? {

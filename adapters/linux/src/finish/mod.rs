@@ -8,6 +8,7 @@
 //! finished log in the same format, whose first event says what it was finished from.
 
 pub mod anchors;
+pub mod raw;
 pub mod solve;
 pub mod tracks;
 pub mod windows;
@@ -16,10 +17,10 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use clap::Args;
-use dash2sim_core::binlog::{quantise, AnchorEstimate, EgoPose, Header, Record};
+use dash2sim_core::binlog::{quantise, AnchorEstimate, EgoPose, Header, MountEstimate as MountRecord, Record};
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::nalgebra::{Rotation3, Vector3};
-use dash2sim_core::pipeline::CameraMount;
+use dash2sim_core::pipeline::{CalibrationConfig, CameraMount, MountCalibration, MountEstimate};
 use dash2sim_core::sim3::Pose;
 use serde_json::{json, Value};
 
@@ -63,8 +64,6 @@ const EGO_SMOOTHING: (f64, f64) = (0.05, 0.5);
 pub struct Finished {
     /// The finished log's records, in file order.
     pub records: Vec<Record>,
-    /// The re-anchoring.
-    pub solution: Solution,
     /// The report (`--json`).
     pub report: Value,
 }
@@ -82,6 +81,7 @@ fn drive(log: &LogContents, frame: &LocalFrame, uere: f64) -> Drive {
         match r {
             Record::VoPose(p) => vo.push(VoSample {
                 t: logfile::seconds(p.t_us),
+                session: u32::try_from(p.session).unwrap_or(u32::MAX),
                 position: Vector3::new(p.x as f64, p.y as f64, p.z as f64) * 1e-3,
                 rotation: Rotation3::from_euler_angles(
                     p.roll_e4 as f64 * 1e-4,
@@ -143,54 +143,52 @@ pub fn finish(
     let frame = logfile::frame(&header).ok_or_else(|| format!("{name}: the header's origin is not a position"))?;
     let drive = drive(log, &frame, uere);
     let anchors = anchor_file.map(|(_, f)| anchors_in(f, &frame)).unwrap_or_default();
+    let calibrated = calibrate_mount(&drive.vo, mount);
+    let mount = calibrated.mount;
     let lever = mount.rotation().transpose() * Vector3::from(mount.position);
-    let inputs = Inputs { vo: &drive.vo, fixes: &drive.fixes, speeds: &drive.speeds, anchors: &anchors, lever };
-    // Anchors are first checked against the drive anchored without them: one that is far
-    // from it (a wrong place-recognition match) is refused before it can pull.
-    let mut refused: Vec<(usize, String)> = anchor_file.map(|(_, f)| f.refused.clone()).unwrap_or_default();
-    let mut enabled = vec![true; anchors.len()];
-    if !drive.fixes.is_empty() && !anchors.is_empty() {
-        let without =
-            solve::solve(inputs, settings, &vec![false; anchors.len()]).map_err(|e| format!("{name}: {e}"))?;
-        let median_sigma = median(drive.fixes.iter().map(|f| f.sigma_h).collect());
-        let position_sigma = without.position_sigma_m.max(median_sigma);
-        for (k, a) in anchors.iter().enumerate() {
-            let limit = settings.gate * (a.sigma * a.sigma + position_sigma * position_sigma).sqrt();
-            match without.anchor_residual(&inputs, a) {
-                Some(r) if r > limit => {
-                    enabled[k] = false;
-                    refused.push((
-                        line_of(anchor_file, k),
-                        format!("{r:.1} m from the drive anchored by GNSS (limit {limit:.1} m)"),
-                    ));
+    let single_session = drive.vo.first().zip(drive.vo.last()).is_none_or(|(a, b)| a.session == b.session);
+    // Anchors no session could use, and why (the reason of the last session that refused it).
+    let mut verdicts: Vec<Option<String>> = vec![Some("outside the VO poses' time span".to_owned()); anchors.len()];
+    let mut sessions: Vec<SessionSolution> = Vec::new();
+    let mut unsolved: Vec<(u32, usize, String)> = Vec::new();
+    for range in session_ranges(&drive.vo) {
+        let vo = &drive.vo[range.clone()];
+        let session = vo[0].session;
+        let inputs = Inputs { vo, fixes: &drive.fixes, speeds: &drive.speeds, anchors: &anchors, lever };
+        match solve_session(inputs, settings, &drive.fixes, single_session) {
+            Ok((solution, session_verdicts)) => {
+                for (verdict, mine) in verdicts.iter_mut().zip(session_verdicts) {
+                    match mine {
+                        AnchorVerdict::Used => *verdict = None,
+                        AnchorVerdict::Refused(why) if verdict.is_some() => *verdict = Some(why),
+                        AnchorVerdict::Refused(_) | AnchorVerdict::Elsewhere => {}
+                    }
                 }
-                None => {
-                    enabled[k] = false;
-                    refused.push((line_of(anchor_file, k), "outside the VO poses' time span".to_owned()));
-                }
-                Some(_) => {}
+                sessions.push(SessionSolution { session, range, solution });
             }
+            Err(e) => unsolved.push((session, vo.len(), e.to_string())),
         }
     }
-    let settings = if enabled.iter().any(|&on| on) {
-        Settings { scale_walk: settings.anchored_walk.0, rotation_walk: settings.anchored_walk.1, ..settings }
-    } else {
-        settings
-    };
-    let solution = solve::solve(inputs, settings, &enabled).map_err(|e| format!("{name}: {e}"))?;
-    for (k, (&on, &used)) in enabled.iter().zip(&solution.anchor_used).enumerate() {
-        if on && !used {
-            refused.push((line_of(anchor_file, k), format!("residual beyond {}σ in the solution", settings.gate)));
-        }
+    if sessions.is_empty() {
+        let why = unsolved.first().map_or_else(|| solve::SolveError::NoVo.to_string(), |u| u.2.clone());
+        return Err(format!("{name}: {why}"));
     }
+    let used_anchors = verdicts.iter().filter(|v| v.is_none()).count();
+    let mut refused: Vec<(usize, String)> = anchor_file.map(|(_, f)| f.refused.clone()).unwrap_or_default();
+    refused.extend(
+        verdicts.iter().enumerate().filter_map(|(k, v)| v.as_ref().map(|why| (line_of(anchor_file, k), why.clone()))),
+    );
     refused.sort();
 
     // The finished ego: every VO pose's camera through the solution and the mount, its
     // planar track smoothed (the VO's frame-to-frame noise is not the car's motion).
     let mut bodies = Vec::new();
-    for s in &drive.vo {
-        let Some((c, rotation)) = solution.camera_at(&drive.vo, s.t) else { continue };
-        bodies.push((s.t, mount.body_pose(&Pose { rotation, translation: c })));
+    for solved in &sessions {
+        let vo = &drive.vo[solved.range.clone()];
+        for s in vo {
+            let Some((c, rotation)) = solved.solution.camera_at(vo, s.t) else { continue };
+            bodies.push((s.t, mount.body_pose(&Pose { rotation, translation: c })));
+        }
     }
     let mut planar: Vec<tracks::Sample> = bodies
         .iter()
@@ -218,41 +216,46 @@ pub fn finish(
             .get(&t)
             .map(|p| [p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3, p.z_mm as f64 * 1e-3, p.yaw_e4 as f64 * 1e-4])
     };
-    let (tracks, track_stats) = tracks::finish_tracks(&batches, &|t| ego_at(&online, t), &|t| ego_at(&ego, t));
+    let (mut tracks, track_stats) = tracks::finish_tracks(&batches, &|t| ego_at(&online, t), &|t| ego_at(&ego, t));
+    let raw: Vec<_> =
+        log.records.iter().filter_map(|r| if let Record::Detection3d(d) = r { Some(*d) } else { None }).collect();
+    let (raw_batches, raw_stats) = raw::track_raw(&raw, &ego, &mount);
+    // Already placed through the finished ego: re-expressed onto itself, then smoothed and
+    // merged as the device's tracks are.
+    let (raw_tracks, _) = tracks::finish_tracks(&raw_batches, &|t| ego_at(&ego, t), &|t| ego_at(&ego, t));
+    tracks.extend(raw_tracks);
 
     let mut records: Vec<Record> = log
         .records
         .iter()
         .filter(|r| {
-            !matches!(r, Record::EgoPose(_) | Record::AnchorEstimate(_) | Record::Tracks3d(_) | Record::Verification(_))
+            !matches!(
+                r,
+                Record::EgoPose(_)
+                    | Record::AnchorEstimate(_)
+                    | Record::MountEstimate(_)
+                    | Record::Tracks3d(_)
+                    | Record::Verification(_)
+            )
         })
         .cloned()
         .collect();
     records.extend(ego.values().map(|p| Record::EgoPose(*p)));
     records.extend(tracks.into_iter().map(Record::Tracks3d));
-    let used_anchors = solution.anchor_used.iter().filter(|&&u| u).count();
-    let mut last_estimate = f64::NEG_INFINITY;
-    for k in 0..solution.keyframe_t.len().saturating_sub(1) {
-        let t = solution.keyframe_t[k];
-        if t - last_estimate < 1.0 {
-            continue;
+    if let Some(first) = drive.vo.first() {
+        records.push(Record::MountEstimate(mount_record(quantise(first.t, 1e-6), &calibrated)));
+    }
+    for solved in &sessions {
+        let (vo, solution) = (&drive.vo[solved.range.clone()], &solved.solution);
+        let mut last_estimate = f64::NEG_INFINITY;
+        for k in 0..solution.keyframe_t.len().saturating_sub(1) {
+            let t = solution.keyframe_t[k];
+            if t - last_estimate < 1.0 {
+                continue;
+            }
+            last_estimate = t;
+            records.push(Record::AnchorEstimate(anchor_record(t, &solution.sim3(vo, k), solution, used_anchors)));
         }
-        last_estimate = t;
-        let sim3 = solution.sim3(&drive.vo, k);
-        let (roll, pitch, yaw) = Rotation3::from_matrix_unchecked(sim3.rotation).euler_angles();
-        records.push(Record::AnchorEstimate(AnchorEstimate {
-            t_us: quantise(t, 1e-6),
-            scale_e6: quantise(sim3.scale, 1e-6),
-            yaw_e6: quantise(yaw, 1e-6),
-            pitch_e6: quantise(pitch, 1e-6),
-            roll_e6: quantise(roll, 1e-6),
-            tx_mm: quantise(sim3.translation.x, 1e-3),
-            ty_mm: quantise(sim3.translation.y, 1e-3),
-            tz_mm: quantise(sim3.translation.z, 1e-3),
-            observability: 2,
-            anchors: (solution.fix_used.iter().filter(|&&u| u).count() + used_anchors) as i64,
-            rms_mm: quantise(solution.gnss_rms_m, 1e-3),
-        }));
     }
     records.sort_by_key(Record::t_us);
 
@@ -265,7 +268,26 @@ pub fn finish(
         records.sort_by_key(Record::t_us);
     }
 
-    let fixes_used = solution.fix_used.iter().filter(|&&u| u).count();
+    let fixes_used =
+        (0..drive.fixes.len()).filter(|&k| sessions.iter().any(|s| s.solution.fix_used.get(k) == Some(&true))).count();
+    // The longest session speaks for the drive's scale, latency and wheel factor.
+    let main = sessions.iter().max_by_key(|s| s.range.len()).map(|s| &s.solution).unwrap_or_else(|| unreachable!());
+    let [_, pitch, yaw] = calibrated.mount.roll_pitch_yaw;
+    let mount_text = format!(
+        "camera mount yaw {:+.2}° pitch {:+.2}° ({} from {} straight-driving frames)",
+        yaw.to_degrees(),
+        pitch.to_degrees(),
+        if calibrated.calibrated { "calibrated" } else { "not calibrated: the given mount weighs in" },
+        calibrated.samples
+    );
+    let sessions_text = match (sessions.len(), unsolved.len()) {
+        (1, 0) => String::new(),
+        (n, 0) => format!("; {n} VO sessions, each anchored on its own"),
+        (n, u) => format!(
+            "; {n} VO sessions anchored on their own, {u} could not be ({} poses without a finished pose)",
+            unsolved.iter().map(|u| u.1).sum::<usize>()
+        ),
+    };
     let anchor_text = match anchor_file {
         Some((path, _)) => format!("anchors {path} ({used_anchors} used, {} refused)", refused.len()),
         None => "no external anchors".to_owned(),
@@ -286,10 +308,10 @@ pub fn finish(
         drive.vo.len(),
         drive.fixes.len(),
         drive.speeds.len(),
-        mean_scale(&solution),
-        100.0 * solution.scale_sigma,
-        1000.0 * solution.latency_s,
-        solution.wheel_factor,
+        mean_scale(main),
+        100.0 * main.scale_sigma,
+        1000.0 * main.latency_s,
+        main.wheel_factor,
     );
     // A log is in UTC from its first clock offset on; a finished log is in UTC throughout,
     // so that record goes first (nothing before it to move) and the event next.
@@ -297,8 +319,10 @@ pub fn finish(
         let offset = records.remove(k);
         records.insert(0, offset);
         records.insert(1, event(first_t, 2, &summary));
+        records.insert(2, event(first_t, 2, &format!("{mount_text}{sessions_text}")));
     } else {
         records.insert(0, event(first_t, 2, &summary));
+        records.insert(1, event(first_t, 2, &format!("{mount_text}{sessions_text}")));
     }
 
     let anchors_report: Vec<Value> = refused.iter().map(|(line, why)| json!({"line": line, "reason": why})).collect();
@@ -307,16 +331,27 @@ pub fn finish(
         "records": records.len(),
         "vo_poses": drive.vo.len(),
         "ego_poses": ego.len(),
-        "anchoring": {
-            "keyframes": solution.keyframe_t.len(),
-            "iterations": solution.iterations,
-            "scale": mean_scale(&solution),
-            "scale_sigma_relative": solution.scale_sigma,
-            "position_sigma_m": solution.position_sigma_m,
-            "sigma0_squared": solution.sigma0_sq,
-            "gnss_latency_s": solution.latency_s,
-            "wheel_factor": solution.wheel_factor,
-            "gnss_rms_m": finite(solution.gnss_rms_m),
+        "anchoring": anchoring_report(main),
+        "sessions": sessions.iter().map(|s| {
+            let vo = &drive.vo[s.range.clone()];
+            json!({
+                "session": s.session,
+                "vo_poses": vo.len(),
+                "start_s": vo[0].t,
+                "end_s": vo[vo.len() - 1].t,
+                "anchoring": anchoring_report(&s.solution),
+            })
+        }).collect::<Vec<_>>(),
+        "unsolved_sessions": unsolved.iter().map(|(session, poses, why)| {
+            json!({"session": session, "vo_poses": poses, "reason": why})
+        }).collect::<Vec<_>>(),
+        "mount": {
+            "yaw_deg": yaw.to_degrees(),
+            "pitch_deg": pitch.to_degrees(),
+            "sigma_yaw_deg": calibrated.sigma[0].to_degrees(),
+            "sigma_pitch_deg": calibrated.sigma[1].to_degrees(),
+            "samples": calibrated.samples,
+            "calibrated": calibrated.calibrated,
         },
         "gnss": {"fixes": drive.fixes.len(), "used": fixes_used, "rejected": drive.fixes.len() - fixes_used},
         "speed_samples": drive.speeds.len(),
@@ -330,11 +365,155 @@ pub fn finish(
             "unplaced": track_stats.unplaced,
             "smoothed": track_stats.smoothed,
             "static_merged": track_stats.merged_static,
+            "raw_detections": raw_stats.detections,
+            "raw_placed": raw_stats.placed,
+            "raw_track_states": raw_stats.track_states,
         },
         "damage": {"stretches": log.damage.len(), "bytes": log.damage.iter().map(|d| d.1).sum::<u64>()},
         "verification": verification.as_ref().map(|v| v.report.clone()),
     });
-    Ok(Finished { records, solution, report })
+    Ok(Finished { records, report })
+}
+
+fn anchoring_report(solution: &Solution) -> Value {
+    json!({
+        "keyframes": solution.keyframe_t.len(),
+        "iterations": solution.iterations,
+        "scale": mean_scale(solution),
+        "scale_sigma_relative": solution.scale_sigma,
+        "position_sigma_m": solution.position_sigma_m,
+        "sigma0_squared": solution.sigma0_sq,
+        "gnss_latency_s": solution.latency_s,
+        "wheel_factor": solution.wheel_factor,
+        "gnss_rms_m": finite(solution.gnss_rms_m),
+    })
+}
+
+/// One VO session's re-anchoring: its poses (a range of the drive's) and its solution.
+struct SessionSolution {
+    session: u32,
+    range: std::ops::Range<usize>,
+    solution: Solution,
+}
+
+/// The runs of consecutive poses of one VO session.
+fn session_ranges(vo: &[VoSample]) -> Vec<std::ops::Range<usize>> {
+    let mut out = Vec::new();
+    let mut start = 0;
+    for k in 1..=vo.len() {
+        if k == vo.len() || vo[k].session != vo[start].session {
+            out.push(start..k);
+            start = k;
+        }
+    }
+    out
+}
+
+/// What one session made of an external anchor.
+enum AnchorVerdict {
+    /// Used in the solution.
+    Used,
+    /// Refused, and why.
+    Refused(String),
+    /// Not this session's: outside its time span.
+    Elsewhere,
+}
+
+/// Re-anchor one VO session. Anchors are first checked against the session anchored
+/// without them: one far from it (a wrong place-recognition match) is refused before it can
+/// pull. A VO-point anchor names a point of one VO frame, which a re-initialisation
+/// replaces: it is used only in a log of one session.
+fn solve_session(
+    inputs: Inputs<'_>,
+    settings: Settings,
+    fixes: &[Fix],
+    vo_points_valid: bool,
+) -> Result<(Solution, Vec<AnchorVerdict>), solve::SolveError> {
+    let anchors = inputs.anchors;
+    let (first, last) = (inputs.vo[0].t, inputs.vo[inputs.vo.len() - 1].t);
+    let mut verdicts: Vec<AnchorVerdict> = anchors
+        .iter()
+        .map(|a| match a.at {
+            AnchorAt::Time(t) if (first..=last).contains(&t) => AnchorVerdict::Used,
+            AnchorAt::VoPoint(_) if vo_points_valid => AnchorVerdict::Used,
+            AnchorAt::VoPoint(_) => AnchorVerdict::Refused(
+                "a VO point, but the VO re-initialised during the drive (give the anchor's time instead)".to_owned(),
+            ),
+            AnchorAt::Time(_) => AnchorVerdict::Elsewhere,
+        })
+        .collect();
+    let candidate = |v: &AnchorVerdict| matches!(v, AnchorVerdict::Used);
+    if !fixes.is_empty() && verdicts.iter().any(candidate) {
+        let without = solve::solve(inputs, settings, &vec![false; anchors.len()])?;
+        let median_sigma = median(fixes.iter().map(|f| f.sigma_h).collect());
+        let position_sigma = without.position_sigma_m.max(median_sigma);
+        for (a, verdict) in anchors.iter().zip(verdicts.iter_mut()).filter(|(_, v)| candidate(v)) {
+            let limit = settings.gate * (a.sigma * a.sigma + position_sigma * position_sigma).sqrt();
+            match without.anchor_residual(&inputs, a) {
+                Some(r) if r > limit => {
+                    *verdict =
+                        AnchorVerdict::Refused(format!("{r:.1} m from the drive anchored by GNSS (limit {limit:.1} m)"))
+                }
+                None => *verdict = AnchorVerdict::Elsewhere,
+                Some(_) => {}
+            }
+        }
+    }
+    let enabled: Vec<bool> = verdicts.iter().map(candidate).collect();
+    let settings = if enabled.iter().any(|&on| on) {
+        Settings { scale_walk: settings.anchored_walk.0, rotation_walk: settings.anchored_walk.1, ..settings }
+    } else {
+        settings
+    };
+    let solution = solve::solve(inputs, settings, &enabled)?;
+    for ((verdict, &on), &used) in verdicts.iter_mut().zip(&enabled).zip(&solution.anchor_used) {
+        if on && !used {
+            *verdict = AnchorVerdict::Refused(format!("residual beyond {}σ in the solution", settings.gate));
+        }
+    }
+    Ok((solution, verdicts))
+}
+
+/// The camera mount over the whole drive: the device's calibration run on every VO pose,
+/// from the mount given to `finish` (the device's nominal one).
+fn calibrate_mount(vo: &[VoSample], nominal: CameraMount) -> MountEstimate {
+    let mut calibration = MountCalibration::new(nominal, CalibrationConfig::default());
+    for s in vo {
+        let pose = Pose { rotation: s.rotation, translation: s.position };
+        calibration.push(s.t, s.session, &pose);
+    }
+    calibration.estimate()
+}
+
+fn mount_record(t_us: i64, m: &MountEstimate) -> MountRecord {
+    let [roll, pitch, yaw] = m.mount.roll_pitch_yaw;
+    MountRecord {
+        t_us,
+        yaw_e6: quantise(yaw, 1e-6),
+        pitch_e6: quantise(pitch, 1e-6),
+        roll_e6: quantise(roll, 1e-6),
+        sigma_yaw_e6: quantise(m.sigma[0], 1e-6),
+        sigma_pitch_e6: quantise(m.sigma[1], 1e-6),
+        samples: i64::from(m.samples),
+        calibrated: i64::from(m.calibrated),
+    }
+}
+
+fn anchor_record(t: f64, sim3: &dash2sim_core::sim3::Sim3, solution: &Solution, used_anchors: usize) -> AnchorEstimate {
+    let (roll, pitch, yaw) = Rotation3::from_matrix_unchecked(sim3.rotation).euler_angles();
+    AnchorEstimate {
+        t_us: quantise(t, 1e-6),
+        scale_e6: quantise(sim3.scale, 1e-6),
+        yaw_e6: quantise(yaw, 1e-6),
+        pitch_e6: quantise(pitch, 1e-6),
+        roll_e6: quantise(roll, 1e-6),
+        tx_mm: quantise(sim3.translation.x, 1e-3),
+        ty_mm: quantise(sim3.translation.y, 1e-3),
+        tz_mm: quantise(sim3.translation.z, 1e-3),
+        observability: 2,
+        anchors: (solution.fix_used.iter().filter(|&&u| u).count() + used_anchors) as i64,
+        rms_mm: quantise(solution.gnss_rms_m, 1e-3),
+    }
 }
 
 fn finite(x: f64) -> Value {

@@ -43,6 +43,8 @@ const OMEGA: usize = 1;
 pub struct VoSample {
     /// Time, s (log time).
     pub t: f64,
+    /// The VO session (a solve is given one session's samples).
+    pub session: u32,
     /// Camera position, VO units.
     pub position: Vector3<f64>,
     /// Camera → VO rotation.

@@ -274,7 +274,7 @@ pub fn run_into<S: embedded_io::Write>(
                             frames += 1;
                             Ok(())
                         }
-                        CameraInput::Vo(t, frame, pose) => pipeline.push_vo(t, frame, &pose),
+                        CameraInput::Vo(t, frame, session, pose) => pipeline.push_vo(t, frame, session, &pose),
                         CameraInput::Detections3d(t, frame, d) => pipeline.push_detections(t, frame, &d),
                         CameraInput::Detections2d(t, frame, d) => pipeline.push_detections2d(t, frame, &d),
                     };

@@ -31,7 +31,7 @@ use crate::trajectory::{Format, Trajectory};
 enum Input {
     Can(CanFrame),
     Serial(Vec<u8>),
-    Vo(u64, Pose),
+    Vo(u64, u32, Pose),
     Detections3d(u64, Vec<Detection3d>),
     Detections2d(u64, Vec<ImageDetection>),
 }
@@ -91,19 +91,24 @@ impl Inputs {
         self.items.insert(key, input);
     }
 
-    /// VO poses: TUM (frame k is the k-th pose, from 1), or the CSV a camera process that
-    /// loses track writes ([`read_vo_csv`]: each pose with its frame number).
+    /// VO poses: TUM (frame k is the k-th pose, from 1; one VO session), or the CSV a
+    /// camera process that loses track writes ([`read_vo_csv`]: each pose with its frame
+    /// number and VO session).
     pub fn vo(&mut self, path: &Path) -> Result<(), String> {
-        let poses: Vec<(u64, f64, Pose)> = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")) {
+        let poses: Vec<VoRow> = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")) {
             read_vo_csv(path)?
         } else {
             let traj = Trajectory::read(path, Format::Tum).map_err(|e| e.to_string())?;
-            (1..).zip(traj.stamps).zip(traj.poses).map(|((frame, t), pose)| (frame, t, pose)).collect()
+            (1..)
+                .zip(traj.stamps)
+                .zip(traj.poses)
+                .map(|((frame, t), pose)| VoRow { frame, t, session: 0, pose })
+                .collect()
         };
-        for (k, (frame, t, pose)) in poses.into_iter().enumerate() {
+        for (k, VoRow { frame, t, session, pose }) in poses.into_iter().enumerate() {
             let t_us = micros(t, &format!("{}:{}", path.display(), k + 1))?;
             self.frame_times.insert(frame, t_us);
-            self.push(t_us, Input::Vo(frame, pose));
+            self.push(t_us, Input::Vo(frame, session, pose));
             self.counts.vo += 1;
         }
         Ok(())
@@ -249,7 +254,7 @@ impl Inputs {
             let written = match input {
                 Input::Can(frame) => recorder.can(t, frame),
                 Input::Serial(bytes) => recorder.serial(t, bytes),
-                Input::Vo(frame, pose) => recorder.vo(t, *frame, pose),
+                Input::Vo(frame, session, pose) => recorder.vo(t, *frame, *session, pose),
                 Input::Detections3d(frame, d) => recorder.detections3d(t, *frame, d),
                 Input::Detections2d(frame, d) => recorder.detections2d(t, *frame, d),
             };
@@ -264,9 +269,9 @@ pub const VO_CSV_HEADER: &str = "frame,t_s,x,y,z,qx,qy,qz,qw,session";
 
 /// A VO CSV: `frame,t_s,x,y,z,qx,qy,qz,qw,session` — the frame number of each pose (frames
 /// where the VO had lost track have none), its device time, the camera's pose in the VO
-/// frame (TUM's order) and the VO session (0, then one more after each re-initialisation;
-/// `record` does not read it yet: issue #31). Frame numbers must increase.
-pub fn read_vo_csv(path: &Path) -> Result<Vec<(u64, f64, Pose)>, String> {
+/// frame (TUM's order) and the VO session (0, then one more after each re-initialisation).
+/// Frame numbers must increase; sessions must not go back.
+pub fn read_vo_csv(path: &Path) -> Result<Vec<VoRow>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
     match lines.next() {
@@ -276,7 +281,7 @@ pub fn read_vo_csv(path: &Path) -> Result<Vec<(u64, f64, Pose)>, String> {
         }
         None => return Err(format!("{}: empty: expected the header `{VO_CSV_HEADER}`", path.display())),
     }
-    let mut out: Vec<(u64, f64, Pose)> = Vec::new();
+    let mut out: Vec<VoRow> = Vec::new();
     for (n, line) in lines {
         let at = || format!("{}:{}", path.display(), n + 1);
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
@@ -293,17 +298,39 @@ pub fn read_vo_csv(path: &Path) -> Result<Vec<(u64, f64, Pose)>, String> {
                 .filter(|x: &f64| x.is_finite())
                 .ok_or_else(|| format!("{}: `{field}` is not a finite number", at()))?;
         }
-        if out.last().is_some_and(|(previous, _, _)| *previous >= frame) {
+        if out.last().is_some_and(|previous| previous.frame >= frame) {
             return Err(format!("{}: frame {frame} does not follow the frame before it", at()));
+        }
+        let session: u32 =
+            fields[9].parse().map_err(|_| format!("{}: session `{}` is not a session number", at(), fields[9]))?;
+        if let Some(previous) = out.last().filter(|p| p.session > session) {
+            return Err(format!(
+                "{}: session {session} after session {}: sessions only count up",
+                at(),
+                previous.session
+            ));
         }
         let [t, x, y, z, qx, qy, qz, qw] = v;
         if qw * qw + qx * qx + qy * qy + qz * qz < 1e-12 {
             return Err(format!("{}: the quaternion is zero, not a rotation", at()));
         }
         let pose = Pose::from_quaternion_wxyz([qw, qx, qy, qz], dash2sim_core::nalgebra::Vector3::new(x, y, z));
-        out.push((frame, t, pose));
+        out.push(VoRow { frame, t, session, pose });
     }
     Ok(out)
+}
+
+/// One pose of a VO file.
+#[derive(Clone, Copy, Debug)]
+pub struct VoRow {
+    /// The camera's frame number.
+    pub frame: u64,
+    /// Device time, s.
+    pub t: f64,
+    /// VO session.
+    pub session: u32,
+    /// Camera → VO frame.
+    pub pose: Pose,
 }
 
 #[cfg(test)]
