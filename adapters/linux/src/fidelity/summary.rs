@@ -123,7 +123,12 @@ pub struct Spreads {
     pub idf1_finished: Spread,
     /// Seconds to the device's first anchored pose.
     pub first_anchor_s: Spread,
+    /// The device's mount error at the end of the drive (the larger of yaw and pitch), °.
+    pub mount_error_deg: Spread,
 }
+
+/// Issue #31's target for the calibrated mount: yaw and pitch within this of the truth, °.
+pub const MOUNT_TARGET_DEG: f64 = 0.5;
 
 /// A drive whose finished verdict differs from the truth's, and why.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -217,6 +222,11 @@ pub struct Summary {
     pub never_anchored: usize,
     /// Drives whose VO re-initialised at least once.
     pub drives_with_vo_reinit: usize,
+    /// Fraction of drives whose device ended with its camera mount within
+    /// [`MOUNT_TARGET_DEG`] of the truth in yaw and pitch (none: no mount estimates).
+    pub mount_within_half_degree: Option<f64>,
+    /// Drives whose device called its mount calibrated.
+    pub mount_calibrated: usize,
     /// The confusion tables.
     pub confusion: Confusions,
     /// The spreads of the figures.
@@ -252,7 +262,10 @@ impl Summary {
             mota_finished: Spread::of(ok.iter().map(|r| r.finished_mota)),
             idf1_finished: Spread::of(ok.iter().map(|r| r.finished_idf1)),
             first_anchor_s: Spread::of(ok.iter().map(|r| r.first_anchor_s)),
+            mount_error_deg: Spread::of(ok.iter().map(|r| r.mount_error_deg)),
         };
+        let with_mount = ok.iter().filter(|r| r.mount_error_deg.is_some()).count();
+        let within = ok.iter().filter(|r| r.mount_error_deg.is_some_and(|e| e <= MOUNT_TARGET_DEG)).count();
         Summary {
             profile: args.profile.name(),
             receiver: args.receiver.name(),
@@ -282,6 +295,8 @@ impl Summary {
             ape_finished_median_m: spread.ape_finished_m.p50,
             never_anchored: ok.iter().filter(|r| r.first_anchor_s.is_none()).count(),
             drives_with_vo_reinit: ok.iter().filter(|r| r.vo_sessions > 1).count(),
+            mount_within_half_degree: (with_mount > 0).then(|| within as f64 / ok.len() as f64),
+            mount_calibrated: ok.iter().filter(|r| r.mount_calibrated).count(),
             confusion: Confusions { finished, finished_channel_sensitive: finished_cs, online, device_windows },
             spread,
             disagreements: ok.iter().filter_map(|r| disagreement(r)).collect(),
@@ -350,6 +365,7 @@ impl Summary {
         spread(&mut t, "MOTA online", &s.mota_online, 1.0, "");
         spread(&mut t, "MOTA finished", &s.mota_finished, 1.0, "");
         spread(&mut t, "first anchored after", &s.first_anchor_s, 1.0, "s");
+        spread(&mut t, "mount error (device, end)", &s.mount_error_deg, 1.0, "°");
         let _ = writeln!(
             t,
             "  finished agreement {} (false verified {}, false rejected {}); online window agreement {}; finished APE median {} m",
@@ -358,6 +374,12 @@ impl Summary {
             self.finished_false_rejected,
             pct(self.online_window_agreement),
             m(self.ape_finished_median_m)
+        );
+        let _ = writeln!(
+            t,
+            "  camera mount within {MOUNT_TARGET_DEG}° of the truth at the end on {} of drives ({} called calibrated)",
+            pct(self.mount_within_half_degree),
+            self.mount_calibrated
         );
         if !self.disagreements.is_empty() {
             let mut causes: Vec<(&str, usize)> = Vec::new();

@@ -16,12 +16,13 @@ use serde_json::Value;
 
 use super::drive::{assess, Anchors, Assessment, Recorded, WindowPair};
 use super::summary::Summary;
-use crate::logfile;
+use crate::logfile::{self, LogContents};
 use crate::record::{self, Setup};
 use crate::scenario::command::{config, MAX_DURATION_S};
 use crate::scenario::profile::{Profile, Receiver};
 use crate::scenario::write::{road_tile, write_scenario};
 use crate::scenario::{generate, Driver};
+use dash2sim_core::binlog::Record;
 
 /// Which drivers a sweep drives each seed with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -185,6 +186,11 @@ pub struct Row {
     pub first_anchor_s: Option<f64>,
     /// VO sessions in the drive (1: no re-initialisation).
     pub vo_sessions: u32,
+    /// The device's camera mount at the end of the drive against the true one: the larger
+    /// of the yaw and pitch errors, degrees (none when it wrote no estimate).
+    pub mount_error_deg: Option<f64>,
+    /// The device called its mount calibrated by the end of the drive.
+    pub mount_calibrated: bool,
     /// The device's 15 s windows beside the truth's.
     pub windows: Vec<WindowPair>,
 }
@@ -217,11 +223,13 @@ impl Row {
             finished_idf1: None,
             first_anchor_s: None,
             vo_sessions: 0,
+            mount_error_deg: None,
+            mount_calibrated: false,
             windows: Vec::new(),
         }
     }
 
-    fn with_assessment(mut self, a: &Assessment, vo_sessions: u32) -> Self {
+    fn with_assessment(mut self, a: &Assessment, facts: &DriveFacts) -> Self {
         let ape = |j: &crate::scenario::judge::LogJudgement| (!j.ego_errors.is_empty()).then_some(j.ego_rmse);
         self.truth = Some(Verdicts::of(&a.truth));
         self.online = a.online.verification.as_ref().map(Verdicts::of);
@@ -237,7 +245,9 @@ impl Row {
         self.finished_mota = finite(a.finished.judgement.tracks.0);
         self.finished_idf1 = finite(a.finished.judgement.tracks.1);
         self.first_anchor_s = a.online.judgement.first_anchored_s;
-        self.vo_sessions = vo_sessions;
+        self.vo_sessions = facts.vo_sessions;
+        self.mount_error_deg = facts.mount_error_deg;
+        self.mount_calibrated = facts.mount_calibrated;
         self.windows = a.windows.clone();
         self
     }
@@ -247,12 +257,33 @@ impl Row {
 fn run_drive(seed: u64, driver: Driver, args: &SweepArgs, work: &Path) -> Row {
     let row = Row::empty(seed, driver, args);
     match try_drive(seed, driver, args, work) {
-        Ok((assessment, sessions)) => row.with_assessment(&assessment, sessions),
+        Ok((assessment, facts)) => row.with_assessment(&assessment, &facts),
         Err(e) => Row { error: Some(e), ..row },
     }
 }
 
-fn try_drive(seed: u64, driver: Driver, args: &SweepArgs, work: &Path) -> Result<(Assessment, u32), String> {
+/// What a drive's row takes from the scenario and the device's log besides the assessment.
+struct DriveFacts {
+    vo_sessions: u32,
+    mount_error_deg: Option<f64>,
+    mount_calibrated: bool,
+}
+
+/// The device's last mount estimate against the scenario's true mount.
+fn mount_error(scenario: &crate::scenario::Scenario, log: &LogContents) -> (Option<f64>, bool) {
+    let Some(m) = log.records.iter().rev().find_map(|r| match r {
+        Record::MountEstimate(m) => Some(*m),
+        _ => None,
+    }) else {
+        return (None, false);
+    };
+    let truth = scenario.config.camera.true_mount().roll_pitch_yaw;
+    let yaw = (m.yaw_e6 as f64 * 1e-6 - truth[2]).to_degrees().abs();
+    let pitch = (m.pitch_e6 as f64 * 1e-6 - truth[1]).to_degrees().abs();
+    (Some(yaw.max(pitch)), m.calibrated == 1)
+}
+
+fn try_drive(seed: u64, driver: Driver, args: &SweepArgs, work: &Path) -> Result<(Assessment, DriveFacts), String> {
     let config =
         crate::scenario::ScenarioConfig { driver, ..config(seed, args.duration, args.profile, args.receiver)? };
     let scenario = generate(&config);
@@ -282,7 +313,8 @@ fn try_drive(seed: u64, driver: Driver, args: &SweepArgs, work: &Path) -> Result
         let finished = work.join("finished.d2slog");
         std::fs::write(&finished, &assessment.finished_bytes).map_err(|e| format!("{}: {e}", finished.display()))?;
     }
-    Ok((assessment, scenario.vo.reinits() + 1))
+    let (mount_error_deg, mount_calibrated) = mount_error(&scenario, &log);
+    Ok((assessment, DriveFacts { vo_sessions: scenario.vo.reinits() + 1, mount_error_deg, mount_calibrated }))
 }
 
 /// The columns of `runs.csv`.
@@ -290,7 +322,7 @@ const CSV_HEADER: &str = "seed,driver,profile,receiver,anchors,error,\
 truth_score,truth_verified,truth_failed,online_score,online_verified,online_failed,finished_score,finished_verified,finished_failed,\
 truth_score_cs,truth_verified_cs,online_score_cs,online_verified_cs,finished_score_cs,finished_verified_cs,finished_failed_cs,\
 online_ape_m,finished_ape_m,online_scale_error,finished_scale_error,online_mota,online_idf1,finished_mota,finished_idf1,\
-first_anchor_s,vo_sessions,windows,device_windows_verified,truth_windows_verified";
+first_anchor_s,vo_sessions,mount_error_deg,mount_calibrated,windows,device_windows_verified,truth_windows_verified";
 
 fn csv_row(r: &Row) -> String {
     let opt = |x: Option<f64>| x.map_or_else(String::new, |v| format!("{v:.6}"));
@@ -305,7 +337,7 @@ fn csv_row(r: &Row) -> String {
     let marks = |f: fn(&WindowPair) -> bool| r.windows.iter().map(|w| if f(w) { '1' } else { '0' }).collect::<String>();
     let error = r.error.as_deref().map_or_else(String::new, |e| format!("\"{}\"", e.replace('"', "'")));
     format!(
-        "{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        "{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
         r.seed,
         r.driver,
         r.profile,
@@ -327,6 +359,8 @@ fn csv_row(r: &Row) -> String {
         opt(r.finished_idf1),
         opt(r.first_anchor_s),
         r.vo_sessions,
+        opt(r.mount_error_deg),
+        u8::from(r.mount_calibrated),
         r.windows.len(),
         marks(|w| w.device_verified),
         marks(|w| w.truth_verified),

@@ -196,16 +196,25 @@ pub fn finish(
         .collect();
     tracks::smooth_planar(&mut planar, (0.0, 0.0), EGO_SMOOTHING.0, EGO_SMOOTHING.1);
     let mut ego: BTreeMap<i64, EgoPose> = BTreeMap::new();
+    let mut planar_poses: Vec<PlanarPose> = Vec::with_capacity(bodies.len());
     for ((t, body), p) in bodies.iter().zip(&planar) {
-        let t_us = quantise(*t, 1e-6);
-        let pose = EgoPose {
+        let heading = dash2sim_core::pipeline::mount::heading(&body.rotation);
+        planar_poses.push(PlanarPose { t: *t, x: p.x, y: p.y, z: body.translation.z, heading, vx: p.vx, vy: p.vy });
+    }
+    let bridged = bridge_gaps(&planar_poses, frame_interval(&drive.vo));
+    let bridged_s: f64 = bridged.iter().map(|g| g.seconds).sum();
+    for pose in planar_poses.iter().chain(bridged.iter().flat_map(|g| &g.poses)) {
+        let t_us = quantise(pose.t, 1e-6);
+        ego.insert(
             t_us,
-            x_mm: quantise(p.x, 1e-3),
-            y_mm: quantise(p.y, 1e-3),
-            z_mm: quantise(body.translation.z, 1e-3),
-            yaw_e4: quantise(dash2sim_core::pipeline::mount::heading(&body.rotation), 1e-4),
-        };
-        ego.insert(t_us, pose);
+            EgoPose {
+                t_us,
+                x_mm: quantise(pose.x, 1e-3),
+                y_mm: quantise(pose.y, 1e-3),
+                z_mm: quantise(pose.z, 1e-3),
+                yaw_e4: quantise(pose.heading, 1e-4),
+            },
+        );
     }
     let online: BTreeMap<i64, EgoPose> =
         log.records.iter().filter_map(|r| if let Record::EgoPose(p) = r { Some((p.t_us, *p)) } else { None }).collect();
@@ -222,7 +231,7 @@ pub fn finish(
     let (raw_batches, raw_stats) = raw::track_raw(&raw, &ego, &mount);
     // Already placed through the finished ego: re-expressed onto itself, then smoothed and
     // merged as the device's tracks are.
-    let (raw_tracks, _) = tracks::finish_tracks(&raw_batches, &|t| ego_at(&ego, t), &|t| ego_at(&ego, t));
+    let (raw_tracks, raw_track_stats) = tracks::finish_tracks(&raw_batches, &|t| ego_at(&ego, t), &|t| ego_at(&ego, t));
     tracks.extend(raw_tracks);
 
     let mut records: Vec<Record> = log
@@ -280,9 +289,14 @@ pub fn finish(
         if calibrated.calibrated { "calibrated" } else { "not calibrated: the given mount weighs in" },
         calibrated.samples
     );
+    let bridge_text = if bridged.is_empty() {
+        String::new()
+    } else {
+        format!("; the ego bridged across {} VO gaps ({bridged_s:.1} s, interpolated)", bridged.len())
+    };
     let sessions_text = match (sessions.len(), unsolved.len()) {
         (1, 0) => String::new(),
-        (n, 0) => format!("; {n} VO sessions, each anchored on its own"),
+        (n, 0) => format!("; {n} VO sessions, each anchored on its own{bridge_text}"),
         (n, u) => format!(
             "; {n} VO sessions anchored on their own, {u} could not be ({} poses without a finished pose)",
             unsolved.iter().map(|u| u.1).sum::<usize>()
@@ -331,6 +345,7 @@ pub fn finish(
         "records": records.len(),
         "vo_poses": drive.vo.len(),
         "ego_poses": ego.len(),
+        "ego_bridged": {"gaps": bridged.len(), "seconds": bridged_s},
         "anchoring": anchoring_report(main),
         "sessions": sessions.iter().map(|s| {
             let vo = &drive.vo[s.range.clone()];
@@ -365,6 +380,7 @@ pub fn finish(
             "unplaced": track_stats.unplaced,
             "smoothed": track_stats.smoothed,
             "static_merged": track_stats.merged_static,
+            "ghosts_dropped": track_stats.ghosts + raw_track_stats.ghosts,
             "raw_detections": raw_stats.detections,
             "raw_placed": raw_stats.placed,
             "raw_track_states": raw_stats.track_states,
@@ -387,6 +403,77 @@ fn anchoring_report(solution: &Solution) -> Value {
         "wheel_factor": solution.wheel_factor,
         "gnss_rms_m": finite(solution.gnss_rms_m),
     })
+}
+
+/// A finished ego pose in the plane, with its height and smoothed velocity.
+#[derive(Clone, Copy, Debug)]
+struct PlanarPose {
+    t: f64,
+    x: f64,
+    y: f64,
+    z: f64,
+    heading: f64,
+    vx: f64,
+    vy: f64,
+}
+
+/// Ego poses made for a gap in the VO.
+struct Bridge {
+    seconds: f64,
+    poses: Vec<PlanarPose>,
+}
+
+/// Longest gap in the VO the finished ego is carried across, s.
+const MAX_BRIDGE_S: f64 = 5.0;
+
+/// The VO's frame interval: the median spacing of its poses, s.
+fn frame_interval(vo: &[VoSample]) -> f64 {
+    let gaps: Vec<f64> = vo.windows(2).map(|w| w[1].t - w[0].t).filter(|d| *d > 0.0).collect();
+    let m = median(gaps);
+    if m.is_finite() {
+        m
+    } else {
+        0.1
+    }
+}
+
+/// Where the VO lost track (a re-initialisation, a stretch of dropped frames) the finished
+/// ego has no pose, and a hole reads as a stop and a start to the metrics. Gaps up to
+/// [`MAX_BRIDGE_S`] are filled at the frame rate by a cubic Hermite curve between the
+/// smoothed poses and velocities at their two ends (the heading and the height linearly).
+fn bridge_gaps(poses: &[PlanarPose], interval: f64) -> Vec<Bridge> {
+    let mut out = Vec::new();
+    for w in poses.windows(2) {
+        let (a, b) = (&w[0], &w[1]);
+        let gap = b.t - a.t;
+        if !(gap > 1.5 * interval && gap <= MAX_BRIDGE_S) {
+            continue;
+        }
+        let steps = (gap / interval).round().max(2.0) as usize;
+        let turn = dash2sim_core::track3d::wrap_angle(b.heading - a.heading);
+        let poses = (1..steps)
+            .map(|k| {
+                let u = k as f64 / steps as f64;
+                let (h00, h10, h01, h11) = (
+                    2.0 * u.powi(3) - 3.0 * u * u + 1.0,
+                    u.powi(3) - 2.0 * u * u + u,
+                    -2.0 * u.powi(3) + 3.0 * u * u,
+                    u.powi(3) - u * u,
+                );
+                PlanarPose {
+                    t: a.t + u * gap,
+                    x: h00 * a.x + h10 * gap * a.vx + h01 * b.x + h11 * gap * b.vx,
+                    y: h00 * a.y + h10 * gap * a.vy + h01 * b.y + h11 * gap * b.vy,
+                    z: a.z + u * (b.z - a.z),
+                    heading: dash2sim_core::track3d::wrap_angle(a.heading + u * turn),
+                    vx: f64::NAN,
+                    vy: f64::NAN,
+                }
+            })
+            .collect();
+        out.push(Bridge { seconds: gap, poses });
+    }
+    out
 }
 
 /// One VO session's re-anchoring: its poses (a range of the drive's) and its solution.

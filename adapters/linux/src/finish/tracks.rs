@@ -33,7 +33,15 @@ pub struct TrackStats {
     pub smoothed: usize,
     /// Static objects merged to one pose.
     pub merged_static: usize,
+    /// Tracks dropped as ghosts: fewer than [`MIN_SUPPORT`] states.
+    pub ghosts: usize,
 }
+
+/// A track with fewer states than this is not kept: the tracker confirms a track after
+/// three hits (`min_hits`), but reports every new one in the first frames it sees, so a single
+/// false detection at the start of a drive (or of a re-initialised VO session) becomes a
+/// one-state track — and a drum in the lane for the score.
+pub const MIN_SUPPORT: usize = 3;
 
 /// Re-express, smooth and merge. `online` and `finished` give the ego at a time (µs).
 pub fn finish_tracks(
@@ -53,6 +61,11 @@ pub fn finish_tracks(
         }
     }
     let mut by_time: BTreeMap<i64, Vec<Track3d>> = BTreeMap::new();
+    by_id.retain(|_, states| {
+        let kept = states.len() >= MIN_SUPPORT;
+        stats.ghosts += usize::from(!kept);
+        kept
+    });
     for states in by_id.values_mut() {
         states.sort_by_key(|s| s.0);
         let statics = states.iter().filter(|(_, s)| s.is_static == 1).count();
