@@ -7,10 +7,12 @@
 //! stack painting. Then the parts on their own: anchor a synthetic VO track (scale 0.4, rotated) to
 //! GNSS fixes and wheel speed on a Cortex-M7, then track a car passing a row of cones
 //! with the 3D track manager, verify two drives against an embedded map tile (the
-//! drivable-area check and the nuPlan-style score), write a drive as a 4D log into RAM and
-//! read it back, and report over semihosting. Exits with failure if the recovered scale or
-//! rotation is wrong, the tracks are, the verdicts are, or the log does not round-trip, so
-//! CI can run it under QEMU as a test of the bare-metal build.
+//! drivable-area check and the nuPlan-style score), and report over semihosting. Exits with
+//! failure if the recovered scale or rotation is wrong, the tracks are or the verdicts are,
+//! so CI can run it under QEMU as a test of the bare-metal build. (Reading a 4D log back is
+//! the host's work; the device only writes it, and CI compares what it wrote byte for byte.
+//! The decoder demonstration left to keep the flash budget when issue #31 added the mount
+//! calibration and VO sessions.)
 #![no_std]
 #![no_main]
 
@@ -29,7 +31,6 @@ use static_cell::ConstStaticCell;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
 use dash2sim_core::anchor::{AnchorConfig, Anchorer, Observability};
-use dash2sim_core::binlog::{self, Decoder, EgoPose, Record, Writer, WriterConfig};
 use dash2sim_core::box3d::Box3d;
 use dash2sim_core::drivable::{Channel, Checker};
 use dash2sim_core::map::MapView;
@@ -158,56 +159,6 @@ fn verify_drives() -> bool {
         off_road.drivable_area
     );
     in_lane.verified && in_lane.score == 100.0 && off_road.drivable_area == 0.0 && !off_road.verified
-}
-
-/// 20 s of ego poses at 20 Hz on a curve, written into a RAM buffer through the 4D log
-/// writer and read back with the push decoder in 100-byte chunks.
-#[inline(never)]
-fn log_round_trip() -> bool {
-    let header = binlog::Header { device_id: *b"mcu-example-0001", origin: [602_000_000, 249_000_000, 0] };
-    let pose = |k: i64| {
-        let t = k as f64 * 0.05;
-        let p = drive(t);
-        Record::EgoPose(EgoPose {
-            t_us: 1_000_000 + k * 50_000,
-            x_mm: libm::round(p.x * 1000.0) as i64,
-            y_mm: libm::round(p.y * 1000.0) as i64,
-            z_mm: 0,
-            yaw_e4: libm::round((10.0 * t + 0.25 * t * t) / 400.0 * 1e4) as i64,
-        })
-    };
-    let mut storage = [0u8; 16_384];
-    let total = storage.len();
-    let mut out: &mut [u8] = &mut storage;
-    let Ok(mut writer) = Writer::<_, 2304>::new(&mut out, &header, WriterConfig::default()) else { return false };
-    for k in 0..400 {
-        if writer.write(&pose(k)).is_err() {
-            return false;
-        }
-    }
-    if writer.finish().is_err() {
-        return false;
-    }
-    let written = total - out.len();
-    let mut decoder: Decoder = Decoder::new();
-    let (mut good, mut k) = (true, 0i64);
-    let mut on = |e: binlog::Event| {
-        if let binlog::Event::Record(r) = e {
-            good &= r == pose(k);
-            k += 1;
-        }
-    };
-    for chunk in storage[..written].chunks(100) {
-        decoder.push(chunk, &mut on);
-    }
-    decoder.finish(&mut on);
-    hprintln!(
-        "4D log: 400 ego poses in {} bytes ({} per pose with framing and segments), read back: {}",
-        written,
-        written as f64 / 400.0,
-        good && k == 400
-    );
-    good && k == 400 && decoder.stats().damaged == 0
 }
 
 /// A 20 s generated work-zone drive as the device saw it (tests/tests/mcu_drive.rs keeps
@@ -432,8 +383,7 @@ fn main() -> ! {
     let ok = anchor_a_synthetic_track();
     let tracked = track_cones_and_a_car();
     let verified = verify_drives();
-    let logged = log_round_trip();
-    exit(recorded && checked.is_some() && ok && tracked && verified && logged)
+    exit(recorded && checked.is_some() && ok && tracked && verified)
 }
 
 /// Anchor a synthetic VO track (scale 0.4, rotated) to GNSS fixes and wheel speed.
