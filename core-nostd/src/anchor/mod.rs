@@ -358,6 +358,12 @@ impl<const K: usize> Anchorer<K> {
         Some(self.estimate?.transform_point(&self.history.latest()?.position))
     }
 
+    /// The wheel factor (true distance / wheel distance) as calibrated against the GNSS
+    /// path so far.
+    pub fn wheel_factor(&self) -> Option<f64> {
+        self.wheel.calibration().map(|(f, _)| f)
+    }
+
     /// The VO lost track and started again (a new origin, orientation and scale): what
     /// was learnt about the old VO frame no longer holds, so the fit starts afresh; what
     /// concerns only the car and the receiver — the wheel factor, the odometer, the last

@@ -31,6 +31,7 @@
 //! leaves the state as it was. The only error a push returns is the log's own (`Io`).
 
 pub mod calibration;
+pub mod carry;
 pub mod clock;
 pub mod issues;
 pub mod mount;
@@ -227,6 +228,8 @@ pub struct PipelineStats {
     pub vo_poses: u64,
     /// Frames with an anchored ego pose.
     pub anchored_frames: u64,
+    /// Frames whose ego pose was carried across a VO re-initialisation (not anchored).
+    pub carried_frames: u64,
     /// GNSS fixes used (NMEA and CAN).
     pub fixes: u64,
     /// Speed samples used.
@@ -255,9 +258,10 @@ impl core::fmt::Display for PipelineStats {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         write!(
             f,
-            "{} VO poses ({} anchored), {} fixes, {} speeds, {} 3D track states, {} windows ({} verified), {} records",
+            "{} VO poses ({} anchored, {} carried), {} fixes, {} speeds, {} 3D track states, {} windows ({} verified), {} records",
             self.vo_poses,
             self.anchored_frames,
+            self.carried_frames,
             self.fixes,
             self.speeds,
             self.track_states,
@@ -334,6 +338,12 @@ struct State<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> {
     observability: Observability,
     last_anchor_record: Option<Timestamp>,
     calibration: MountCalibration,
+    /// The ego carried across a VO re-initialisation until the new session is anchored.
+    carry: Option<carry::Carry>,
+    /// The camera's world pose and the ego heading at the latest anchored frame.
+    last_camera: Option<(Timestamp, Pose, f64)>,
+    /// The latest vehicle speed, m/s.
+    last_speed: f64,
     /// The mount poses and detections are placed with (the calibration's estimate).
     mount: MountEstimate,
     last_mount_record: Option<Timestamp>,
@@ -402,6 +412,9 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
                 observability: Observability::TooFewAnchors,
                 last_anchor_record: None,
                 calibration: MountCalibration::new(config.mount, config.calibration),
+                carry: None,
+                last_camera: None,
+                last_speed: 0.0,
                 mount: MountCalibration::new(config.mount, config.calibration).estimate(),
                 last_mount_record: None,
                 trackers,
@@ -763,6 +776,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             return self.issue(t, Issue::SpeedRefused, 1);
         }
         self.stats.speeds = self.stats.speeds.saturating_add(1);
+        self.last_speed = mps;
         let record = VehicleSpeed { t_us: self.log_time(t), speed_mm_s: quantise(mps, 1e-3), source };
         self.write(&Record::VehicleSpeed(record))
     }
@@ -884,15 +898,42 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         }))?;
         self.calibrate(t, session, pose)?;
         self.anchor_changes(t)?;
-        let Some(anchor) = self.anchorer.estimate().copied() else { return Ok(()) };
-        let body = self.mount.mount.body_pose(&mount::camera_in_world(&anchor, pose));
+        let (anchor, carried) = match self.anchorer.estimate().copied() {
+            Some(anchor) => {
+                if let Some(c) = self.carry.take() {
+                    let after = t.as_secs_f64() - c.since();
+                    self.event(
+                        t,
+                        2,
+                        format_args!(
+                            "ego anchored again in VO session {session}, {after:.1} s after the last anchored pose"
+                        ),
+                    )?;
+                }
+                (anchor, false)
+            }
+            None => {
+                let speed = self.last_speed * self.anchorer.wheel_factor().unwrap_or(1.0);
+                match self.carry.as_mut().and_then(|c| c.push(t.as_secs_f64(), pose, speed)) {
+                    Some(anchor) => (anchor, true),
+                    None => return Ok(()),
+                }
+            }
+        };
+        let camera = mount::camera_in_world(&anchor, pose);
+        let body = self.mount.mount.body_pose(&camera);
         let b = &body.translation;
         let ego = Ego { t, frame, pose: Pose2::new(b.x, b.y, mount::heading(&body.rotation)), z: b.z };
         if !(ego.pose.is_finite() && ego.z.is_finite()) {
             return Ok(());
         }
         self.ego = Some(ego);
-        self.stats.anchored_frames = self.stats.anchored_frames.saturating_add(1);
+        if carried {
+            self.stats.carried_frames = self.stats.carried_frames.saturating_add(1);
+        } else {
+            self.last_camera = Some((t, camera, ego.pose.heading));
+            self.stats.anchored_frames = self.stats.anchored_frames.saturating_add(1);
+        }
         self.write(&Record::EgoPose(EgoPose {
             t_us,
             x_mm: quantise(b.x, 1e-3),
@@ -912,12 +953,18 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         }
         self.anchorer.new_vo_session();
         self.ego = None;
+        self.carry = self.last_camera.map(|(tc, camera, heading)| carry::Carry::new(camera, tc.as_secs_f64(), heading));
         let gap = (t - last.t).as_secs_f64();
+        let until = if self.carry.is_some() {
+            "; until it is observable (for at most 10 s) the ego is carried by the last anchored pose and wheel speed"
+        } else {
+            ""
+        };
         self.event(
             t,
             3,
             format_args!(
-                "VO session {session} began {gap:.1} s after the last pose of session {}: anchoring starts again",
+                "VO session {session} began {gap:.1} s after the last pose of session {}: anchoring starts again{until}",
                 last.session
             ),
         )

@@ -139,11 +139,15 @@ struct Decoded {
     last_ego: Option<EgoPose>,
     /// The VO sessions, in the order they first appear.
     sessions: heapless::Vec<i64, 8>,
+    /// Horizontal error of every ego pose of session 1 before its anchor was observable (the
+    /// carried ones), against [`camera_at`]'s drive, m.
+    carried_error_m: heapless::Vec<f64, 128>,
 }
 
 fn decode(log: &[u8]) -> Decoded {
     let mut out = Decoded::default();
     let mut decoder: Decoder = Decoder::default();
+    let mut carrying = false;
     let mut on = |e: LogEvent| match e {
         LogEvent::Record(r) => {
             if let Some(i) = Kind::ALL.iter().position(|k| *k == r.kind()) {
@@ -151,6 +155,12 @@ fn decode(log: &[u8]) -> Decoded {
             }
             match r {
                 Record::Event(e) => {
+                    if e.text.starts_with(b"VO session 1 began") {
+                        carrying = true;
+                    }
+                    if e.text.starts_with(b"ego anchored again") {
+                        carrying = false;
+                    }
                     let _ = out.events.push(
                         heapless::String::try_from(core::str::from_utf8(&e.text).unwrap_or("?")).unwrap_or_default(),
                     );
@@ -158,7 +168,15 @@ fn decode(log: &[u8]) -> Decoded {
                 Record::ClockOffset(c) => {
                     let _ = out.clock_reasons.push(c.reason);
                 }
-                Record::EgoPose(p) => out.last_ego = Some(p),
+                Record::EgoPose(p) => {
+                    if carrying {
+                        // The rear axle at device time t: 10 t m east, 100 m north.
+                        let t = (p.t_us - UTC0 + LATENCY_US) as f64 * 1e-6;
+                        let error = (p.x_mm as f64 * 1e-3 - 10.0 * t).hypot(p.y_mm as f64 * 1e-3 - 100.0);
+                        let _ = out.carried_error_m.push(error);
+                    }
+                    out.last_ego = Some(p);
+                }
                 Record::VoPose(p) if !out.sessions.contains(&p.session) => {
                     let _ = out.sessions.push(p.session);
                 }
@@ -250,6 +268,11 @@ fn a_new_vo_session_is_anchored_on_its_own() {
     assert!(log.events.iter().any(|e| e.starts_with("VO session 1 began 1.1 s after")), "{:?}", log.events);
     let observable = log.events.iter().filter(|e| e.starts_with("anchor: Observable")).count();
     assert_eq!(observable, 2, "anchored once per session: {:?}", log.events);
+    // Until then the ego was carried by the last anchored pose and the wheels.
+    assert!(stats.carried_frames > 10, "{stats:?}");
+    assert!(log.events.iter().any(|e| e.starts_with("ego anchored again in VO session 1, ")));
+    let carried = log.carried_error_m.iter().fold(0.0f64, |m, e| m.max(*e));
+    assert!(carried > 0.0 && carried < 0.5, "carried ego off by {carried} m");
     // Without the new session the old similarity would put the car hundreds of metres off.
     let ego = log.last_ego.unwrap_or_default();
     assert!((ego.x_mm as f64 * 1e-3 - 399.0).abs() < 2.1 && (ego.y_mm - 100_000).abs() < 500, "{ego:?}");

@@ -182,25 +182,32 @@ pub fn finish(
 
     // The finished ego: every VO pose's camera through the solution and the mount, its
     // planar track smoothed (the VO's frame-to-frame noise is not the car's motion).
-    let mut bodies = Vec::new();
+    // Each session smoothed on its own (a constant-velocity smoother across a gap would
+    // turn the two sessions' disagreement into a velocity), then the sessions joined.
+    let mut planar_poses: Vec<PlanarPose> = Vec::new();
+    let mut starts: Vec<usize> = Vec::new();
     for solved in &sessions {
         let vo = &drive.vo[solved.range.clone()];
-        for s in vo {
-            let Some((c, rotation)) = solved.solution.camera_at(vo, s.t) else { continue };
-            bodies.push((s.t, mount.body_pose(&Pose { rotation, translation: c })));
+        let bodies: Vec<(f64, Pose)> = vo
+            .iter()
+            .filter_map(|s| {
+                let (c, rotation) = solved.solution.camera_at(vo, s.t)?;
+                Some((s.t, mount.body_pose(&Pose { rotation, translation: c })))
+            })
+            .collect();
+        let mut planar: Vec<tracks::Sample> = bodies
+            .iter()
+            .map(|(t, b)| tracks::Sample { t: *t, x: b.translation.x, y: b.translation.y, vx: 0.0, vy: 0.0 })
+            .collect();
+        tracks::smooth_planar(&mut planar, (0.0, 0.0), EGO_SMOOTHING.0, EGO_SMOOTHING.1);
+        starts.push(planar_poses.len());
+        for ((t, body), p) in bodies.iter().zip(&planar) {
+            let heading = dash2sim_core::pipeline::mount::heading(&body.rotation);
+            planar_poses.push(PlanarPose { t: *t, x: p.x, y: p.y, z: body.translation.z, heading, vx: p.vx, vy: p.vy });
         }
     }
-    let mut planar: Vec<tracks::Sample> = bodies
-        .iter()
-        .map(|(t, b)| tracks::Sample { t: *t, x: b.translation.x, y: b.translation.y, vx: 0.0, vy: 0.0 })
-        .collect();
-    tracks::smooth_planar(&mut planar, (0.0, 0.0), EGO_SMOOTHING.0, EGO_SMOOTHING.1);
+    join_sessions(&mut planar_poses, &starts);
     let mut ego: BTreeMap<i64, EgoPose> = BTreeMap::new();
-    let mut planar_poses: Vec<PlanarPose> = Vec::with_capacity(bodies.len());
-    for ((t, body), p) in bodies.iter().zip(&planar) {
-        let heading = dash2sim_core::pipeline::mount::heading(&body.rotation);
-        planar_poses.push(PlanarPose { t: *t, x: p.x, y: p.y, z: body.translation.z, heading, vx: p.vx, vy: p.vy });
-    }
     let bridged = bridge_gaps(&planar_poses, frame_interval(&drive.vo));
     let bridged_s: f64 = bridged.iter().map(|g| g.seconds).sum();
     for pose in planar_poses.iter().chain(bridged.iter().flat_map(|g| &g.poses)) {
@@ -425,6 +432,40 @@ struct Bridge {
 
 /// Longest gap in the VO the finished ego is carried across, s.
 const MAX_BRIDGE_S: f64 = 5.0;
+/// How far from a gap the two sessions' disagreement is spread, s.
+const JOIN_RAMP_S: f64 = 5.0;
+
+/// Two sessions solved apart meet with the errors of their ends, independent of each other:
+/// across the gap the car went on at its speed, so the second session's first pose should be
+/// the first session's last one moved on by the mean of their velocities over the gap. Each
+/// end is moved by half of the disagreement (the mean of two independent estimates), the
+/// shift falling linearly to nothing [`JOIN_RAMP_S`] into each session, where its own GNSS
+/// and anchors hold it. `starts` are the indices where sessions begin.
+fn join_sessions(poses: &mut [PlanarPose], starts: &[usize]) {
+    let n = poses.len();
+    for &b in starts.iter().filter(|&&b| b > 0 && b < n) {
+        let (end, start) = (poses[b - 1], poses[b]);
+        let gap = start.t - end.t;
+        if !(gap > 0.0 && gap <= MAX_BRIDGE_S) {
+            continue;
+        }
+        let predicted_x = end.x + 0.5 * (end.vx + start.vx) * gap;
+        let predicted_y = end.y + 0.5 * (end.vy + start.vy) * gap;
+        let (dx, dy) = (0.5 * (start.x - predicted_x), 0.5 * (start.y - predicted_y));
+        if !(dx.is_finite() && dy.is_finite()) {
+            continue;
+        }
+        let weight = |from_gap: f64| (1.0 - from_gap / JOIN_RAMP_S).max(0.0);
+        for p in poses[..b].iter_mut().rev().take_while(|p| end.t - p.t < JOIN_RAMP_S) {
+            let w = weight(end.t - p.t);
+            (p.x, p.y) = (p.x + w * dx, p.y + w * dy);
+        }
+        for p in poses[b..].iter_mut().take_while(|p| p.t - start.t < JOIN_RAMP_S) {
+            let w = weight(p.t - start.t);
+            (p.x, p.y) = (p.x - w * dx, p.y - w * dy);
+        }
+    }
+}
 
 /// The VO's frame interval: the median spacing of its poses, s.
 fn frame_interval(vo: &[VoSample]) -> f64 {

@@ -266,12 +266,17 @@ mod tests {
             let cone_x = if k == 10 { 25.0 } else { 20.0 + 0.2 * ((k % 3) as f64 - 1.0) };
             let _ = b.tracks.push(track(1, cone_x, 3.0, 1));
             let _ = b.tracks.push(track(2, k as f64 + jitter, 0.0, 0));
+            // A ghost: a drum in the lane for two frames.
+            if k < 2 {
+                let _ = b.tracks.push(track(3, 8.0, 0.0, 1));
+            }
             batches.push(b);
         }
         let same = |_t: i64| Some([0.0; 4]);
         let none_late = |t: i64| if t < 4_900_000 { Some([0.0; 4]) } else { None };
         let (out, stats) = finish_tracks(&batches, &same, &none_late);
-        assert_eq!(stats, TrackStats { states: 100, unplaced: 2, smoothed: 1, merged_static: 1 });
+        assert_eq!(stats, TrackStats { states: 102, unplaced: 2, smoothed: 1, merged_static: 1, ghosts: 1 });
+        assert!(out.iter().all(|b| b.tracks.iter().all(|t| t.id != 3)), "the ghost is gone");
         let cones: Vec<&Track3d> = out.iter().flat_map(|b| b.tracks.iter()).filter(|t| t.id == 1).collect();
         assert_eq!(cones.len(), 49);
         assert!(cones.iter().all(|c| c == &cones[0]), "one pose");

@@ -575,6 +575,7 @@ pub fn stats_json(s: &PipelineStats) -> serde_json::Value {
         "records": s.records,
         "vo_poses": s.vo_poses,
         "anchored_frames": s.anchored_frames,
+        "carried_frames": s.carried_frames,
         "fixes": s.fixes,
         "speeds": s.speeds,
         "can_frames": s.can_frames,
@@ -623,8 +624,8 @@ fn report(output: &Path, recording: &Recording, counts: &sources::SourceCounts, 
         recording.inputs
     );
     println!(
-        "  {} VO poses ({} anchored), {} fixes, {} speeds, {} 3D detections placed ({} logged raw), {} 3D track states, {} 2D track states",
-        s.vo_poses, s.anchored_frames, s.fixes, s.speeds, s.detections_placed, s.detections_raw, s.track_states, s.track2d_states
+        "  {} VO poses ({} anchored, {} carried across VO re-initialisations), {} fixes, {} speeds, {} 3D detections placed ({} logged raw), {} 3D track states, {} 2D track states",
+        s.vo_poses, s.anchored_frames, s.carried_frames, s.fixes, s.speeds, s.detections_placed, s.detections_raw, s.track_states, s.track2d_states
     );
     if s.windows > 0 {
         println!("  verification: {} of {} windows verified", s.windows_verified, s.windows);
