@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The sweeps docs/fidelity.md reports: every profile with and without street-imagery anchors
 # (good receiver), the typical profile with a phone receiver, 200 drives each (held-out seeds
-# 1001-1100, careful and careless), the 24 careful drives on the ideal profile, and
+# 1001-1100, careful and careless), the 24 careful drives on the ideal profile,
+# 200 one-minute typical drives (the mount calibration's target is after 60 s of driving) and
 # 40 ten-minute drives on the ideal and typical profiles.
 # Usage: scripts/fidelity_sweeps.sh [DASH2SIM] [OUT]   (about 12 minutes on 2 cores)
 set -euo pipefail
@@ -19,6 +20,8 @@ for anchors in street none; do
     -o "$OUT/typical-phone-$anchors" -q > "$OUT/typical-phone-$anchors.txt"
 done
 "$D2S" scenario sweep --seeds 1-24 --driver careful --profile ideal -o "$OUT/ideal-1-24" -q > "$OUT/ideal-1-24.txt"
+"$D2S" scenario sweep --seeds 1001-1100 --driver both --profile typical --duration 60 \
+  -o "$OUT/typical-60s" -q > "$OUT/typical-60s.txt"
 for profile in ideal typical; do
   "$D2S" scenario sweep --seeds 1001-1020 --driver both --profile "$profile" --duration 600 \
     -o "$OUT/long-$profile" -q > "$OUT/long-$profile.txt"

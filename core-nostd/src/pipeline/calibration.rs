@@ -201,7 +201,7 @@ impl MountCalibration {
     fn forward_angles(&self, forward: &Vector3<f64>) -> Option<(f64, f64)> {
         let (s, c) = libm::sincos(self.nominal.roll_pitch_yaw[0]);
         let u = Vector3::new(forward.x, c * forward.y - s * forward.z, s * forward.y + c * forward.z);
-        if !(u.x > 0.0) {
+        if u.x.is_nan() || u.x <= 0.0 {
             return None;
         }
         Some((libm::asin((-u.y).clamp(-1.0, 1.0)), libm::atan2(u.z, u.x)))

@@ -33,7 +33,9 @@
 pub mod calibration;
 pub mod carry;
 pub mod clock;
+pub mod ease;
 pub mod issues;
+pub mod lag;
 pub mod mount;
 pub mod profile;
 pub mod replay;
@@ -70,6 +72,13 @@ pub use issues::{Issue, Issues};
 pub use mount::CameraMount;
 pub use signals::{FrameId, GnssFrame, GnssSignals};
 
+/// Agents the tracker stopped reporting are scored for this long after (s): the smoothed
+/// ego's lag ([`lag`]) and half a second.
+const KEEP_LOST_S: f64 = 1.5;
+/// At most this many of them.
+const KEPT_AGENTS: usize = 16;
+/// The default time constant of the ego's corrections, s ([`ease`]).
+pub const EASE_S: f64 = 1.0;
 /// nuPlan's scenario length, s: the verification window.
 pub const SCENARIO_SECONDS: f64 = 15.0;
 
@@ -155,6 +164,9 @@ pub struct PipelineConfig<'a> {
     pub max_pose_age: Duration,
     /// The anchor estimate is written at most this often (and on every observability change).
     pub anchor_interval: Duration,
+    /// Time constant with which the anchorer's corrections are eased into the ego the log
+    /// holds and the windows score, s (0: none; [`ease`]).
+    pub ease_s: f64,
 }
 
 impl<'a> PipelineConfig<'a> {
@@ -178,6 +190,7 @@ impl<'a> PipelineConfig<'a> {
             window_s: SCENARIO_SECONDS,
             max_pose_age: Duration::from_millis(50),
             anchor_interval: Duration::from_millis(1000),
+            ease_s: EASE_S,
         }
     }
 }
@@ -342,6 +355,12 @@ struct State<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> {
     carry: Option<carry::Carry>,
     /// The camera's world pose and the ego heading at the latest anchored frame.
     last_camera: Option<(Timestamp, Pose, f64)>,
+    /// The ego with the corrections eased in, and the VO session and pose it was last
+    /// given.
+    ease: ease::Ease,
+    eased_vo: Option<(u32, Pose)>,
+    /// The eased ego, smoothed a second late for the windows.
+    lag: lag::FixedLag,
     /// The latest vehicle speed, m/s.
     last_speed: f64,
     /// The mount poses and detections are placed with (the calibration's estimate).
@@ -358,6 +377,8 @@ struct State<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> {
     last_frame3d: Option<u64>,
     last_frame2d: Option<u64>,
     agents: heapless::Vec<Agent, T3>,
+    /// Of `agents`, those the tracker no longer reports, and since when (s).
+    lost: heapless::Vec<(u32, f64), KEPT_AGENTS>,
     agents_t: f64,
     window: Option<Window<'a>>,
     /// The latest HDOP from a full fix, for position-only CAN fixes.
@@ -414,6 +435,9 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
                 calibration: MountCalibration::new(config.mount, config.calibration),
                 carry: None,
                 last_camera: None,
+                ease: ease::Ease::new(config.ease_s),
+                eased_vo: None,
+                lag: lag::FixedLag::new(),
                 last_speed: 0.0,
                 mount: MountCalibration::new(config.mount, config.calibration).estimate(),
                 last_mount_record: None,
@@ -425,6 +449,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
                 last_frame3d: None,
                 last_frame2d: None,
                 agents: heapless::Vec::new(),
+                lost: heapless::Vec::new(),
                 agents_t: 0.0,
                 window: None,
                 hdop: None,
@@ -585,6 +610,9 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
             state.on_fix(rx, &nmea_fix(&fix))?;
         }
         let now = state.now;
+        for (at, smoothed) in state.lag.flush() {
+            state.score(at, &smoothed)?;
+        }
         state.close_window(now)?;
         state.close_calibration(now)?;
         let tail: heapless::Vec<(Issue, u64), { Issue::ALL.len() }> = state.issues.unreported().collect();
@@ -923,15 +951,24 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         let camera = mount::camera_in_world(&anchor, pose);
         let body = self.mount.mount.body_pose(&camera);
         let b = &body.translation;
-        let ego = Ego { t, frame, pose: Pose2::new(b.x, b.y, mount::heading(&body.rotation)), z: b.z };
-        if !(ego.pose.is_finite() && ego.z.is_finite()) {
+        let anchored = Pose2::new(b.x, b.y, mount::heading(&body.rotation));
+        if !(anchored.is_finite() && b.z.is_finite()) {
             return Ok(());
         }
+        // The previous eased frame's VO pose through this frame's similarity and mount: the
+        // VO's motion since, apart from the anchorer's correction.
+        let moved_from = self.eased_vo.filter(|(s, _)| *s == session).map(|(_, previous)| {
+            let body = self.mount.mount.body_pose(&mount::camera_in_world(&anchor, &previous));
+            Pose2::new(body.translation.x, body.translation.y, mount::heading(&body.rotation))
+        });
+        let eased = self.ease.push(t.as_secs_f64(), anchored, moved_from);
+        self.eased_vo = Some((session, *pose));
+        let ego = Ego { t, frame, pose: anchored, z: b.z };
         self.ego = Some(ego);
         if carried {
             self.stats.carried_frames = self.stats.carried_frames.saturating_add(1);
         } else {
-            self.last_camera = Some((t, camera, ego.pose.heading));
+            self.last_camera = Some((t, camera, anchored.heading));
             self.stats.anchored_frames = self.stats.anchored_frames.saturating_add(1);
         }
         self.write(&Record::EgoPose(EgoPose {
@@ -941,7 +978,10 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             z_mm: quantise(b.z, 1e-3),
             yaw_e4: quantise(ego.pose.heading, 1e-4),
         }))?;
-        self.score(t, &ego.pose)
+        for (at, smoothed) in self.lag.push(t, eased) {
+            self.score(at, &smoothed)?;
+        }
+        Ok(())
     }
 
     /// The VO started again under a new session number: anchoring starts afresh (the old
@@ -1150,8 +1190,28 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
     fn write_tracks(&mut self, t: Timestamp, ego: &Ego, outputs: &[TrackState]) -> Result<(), PipelineError<W::Error>> {
         let t_us = self.log_time(t);
         let per_second = 1.0 / self.frame_interval;
+        // Agents the tracker stopped reporting stay a while, moved on by their velocity: the
+        // windows score the ego a second back, when the cone the car passed was still
+        // beside it (most leave the camera's view, not the road).
+        let now = t.as_secs_f64();
+        let dt = now - self.agents_t;
+        let mut kept: heapless::Vec<(Agent, f64), KEPT_AGENTS> = heapless::Vec::new();
+        for a in &self.agents {
+            if outputs.iter().any(|o| o.id == a.id) {
+                continue;
+            }
+            let since = self.lost.iter().find(|(id, _)| *id == a.id).map_or(now, |l| l.1);
+            if now - since <= KEEP_LOST_S {
+                let mut a = *a;
+                a.bbox.centre.x += a.velocity.0 * dt;
+                a.bbox.centre.y += a.velocity.1 * dt;
+                // At most KEPT_AGENTS kept; beyond, the rest are forgotten.
+                let _ = kept.push((a, since));
+            }
+        }
         self.agents.clear();
-        self.agents_t = t.as_secs_f64();
+        self.lost.clear();
+        self.agents_t = now;
         for chunk in outputs.chunks(MAX_TRACKS) {
             let mut batch = Tracks3d { t_us, tracks: heapless::Vec::new() };
             for o in chunk {
@@ -1182,6 +1242,11 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
                 });
             }
             self.write(&Record::Tracks3d(batch))?;
+        }
+        for (a, since) in kept {
+            if self.agents.push(a).is_ok() {
+                let _ = self.lost.push((a.id, since));
+            }
         }
         self.stats.track_states = self.stats.track_states.saturating_add(outputs.len() as u64);
         Ok(())
@@ -1245,8 +1310,9 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         Ok(())
     }
 
-    /// One anchored ego pose into the open verification window (agents advanced to `t`
-    /// by their velocity); a window that reached its length is closed.
+    /// One smoothed ego pose (of `t`, a second back) into the open verification window: the
+    /// agents moved to `t` by their velocity (back, from their latest update); a window
+    /// that reached its length is closed at `t`.
     fn score(&mut self, t: Timestamp, ego: &Pose2) -> Result<(), PipelineError<W::Error>> {
         let Some(map) = self.config.map else { return Ok(()) };
         let ts = t.as_secs_f64();
@@ -1255,8 +1321,8 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             self.window =
                 Some(Window { start: ts, scorer: Scorer::new(checker, Channel::Insensitive, self.config.score) });
         }
-        // The latest tracks, moved on by their velocity to this pose's time (in place: a
-        // copy of 64 agents is 4.6 KB of a microcontroller's stack).
+        // The latest tracks, moved by their velocity to this pose's time (in place: a copy
+        // of 64 agents is 4.6 KB of a microcontroller's stack).
         let dt = ts - self.agents_t;
         for a in self.agents.iter_mut() {
             a.bbox.centre.x += a.velocity.0 * dt;
@@ -1305,8 +1371,8 @@ pub fn verification_record(t_us: i64, s: &Scores) -> Verification {
     }
 }
 
-/// The calibrated mount as a record.
-fn mount_record(t_us: i64, m: &MountEstimate) -> MountRecord {
+/// The calibrated mount as a record (the device's and `dash2sim finish`'s).
+pub fn mount_record(t_us: i64, m: &MountEstimate) -> MountRecord {
     let [roll, pitch, yaw] = m.mount.roll_pitch_yaw;
     MountRecord {
         t_us,
@@ -1322,6 +1388,17 @@ fn mount_record(t_us: i64, m: &MountEstimate) -> MountRecord {
 
 /// The anchor estimate as a record.
 fn anchor_record(t_us: i64, e: &Sim3, q: &crate::anchor::Quality) -> AnchorEstimate {
+    let observability = match q.observability {
+        Observability::Observable => 2,
+        Observability::Collinear => 1,
+        _ => 0,
+    };
+    similarity_record(t_us, e, observability, i64::from(q.anchors_used), q.rms_residual_m)
+}
+
+/// A VO → ENU similarity as an `AnchorEstimate` record (the device's and `dash2sim
+/// finish`'s): observability 0 none, 1 collinear, 2 observable; anchors used; RMS residual, m.
+pub fn similarity_record(t_us: i64, e: &Sim3, observability: i64, anchors: i64, rms_m: f64) -> AnchorEstimate {
     let [yaw, pitch, roll] = euler(&e.rotation);
     let t: &Vector3<f64> = &e.translation;
     AnchorEstimate {
@@ -1333,13 +1410,9 @@ fn anchor_record(t_us: i64, e: &Sim3, q: &crate::anchor::Quality) -> AnchorEstim
         tx_mm: quantise(t.x, 1e-3),
         ty_mm: quantise(t.y, 1e-3),
         tz_mm: quantise(t.z, 1e-3),
-        observability: match q.observability {
-            Observability::Observable => 2,
-            Observability::Collinear => 1,
-            _ => 0,
-        },
-        anchors: i64::from(q.anchors_used),
-        rms_mm: quantise(q.rms_residual_m, 1e-3),
+        observability,
+        anchors,
+        rms_mm: quantise(rms_m, 1e-3),
     }
 }
 

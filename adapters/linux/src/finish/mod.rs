@@ -17,10 +17,12 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use clap::Args;
-use dash2sim_core::binlog::{quantise, AnchorEstimate, EgoPose, Header, MountEstimate as MountRecord, Record};
+use dash2sim_core::binlog::{quantise, AnchorEstimate, EgoPose, Header, Record};
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::nalgebra::{Rotation3, Vector3};
-use dash2sim_core::pipeline::{CalibrationConfig, CameraMount, MountCalibration, MountEstimate};
+use dash2sim_core::pipeline::{
+    mount_record, similarity_record, CalibrationConfig, CameraMount, MountCalibration, MountEstimate,
+};
 use dash2sim_core::sim3::Pose;
 use serde_json::{json, Value};
 
@@ -146,29 +148,7 @@ pub fn finish(
     let calibrated = calibrate_mount(&drive.vo, mount);
     let mount = calibrated.mount;
     let lever = mount.rotation().transpose() * Vector3::from(mount.position);
-    let single_session = drive.vo.first().zip(drive.vo.last()).is_none_or(|(a, b)| a.session == b.session);
-    // Anchors no session could use, and why (the reason of the last session that refused it).
-    let mut verdicts: Vec<Option<String>> = vec![Some("outside the VO poses' time span".to_owned()); anchors.len()];
-    let mut sessions: Vec<SessionSolution> = Vec::new();
-    let mut unsolved: Vec<(u32, usize, String)> = Vec::new();
-    for range in session_ranges(&drive.vo) {
-        let vo = &drive.vo[range.clone()];
-        let session = vo[0].session;
-        let inputs = Inputs { vo, fixes: &drive.fixes, speeds: &drive.speeds, anchors: &anchors, lever };
-        match solve_session(inputs, settings, &drive.fixes, single_session) {
-            Ok((solution, session_verdicts)) => {
-                for (verdict, mine) in verdicts.iter_mut().zip(session_verdicts) {
-                    match mine {
-                        AnchorVerdict::Used => *verdict = None,
-                        AnchorVerdict::Refused(why) if verdict.is_some() => *verdict = Some(why),
-                        AnchorVerdict::Refused(_) | AnchorVerdict::Elsewhere => {}
-                    }
-                }
-                sessions.push(SessionSolution { session, range, solution });
-            }
-            Err(e) => unsolved.push((session, vo.len(), e.to_string())),
-        }
-    }
+    let Solved { sessions, unsolved, verdicts } = solve_sessions(&drive, &anchors, lever, settings);
     if sessions.is_empty() {
         let why = unsolved.first().map_or_else(|| solve::SolveError::NoVo.to_string(), |u| u.2.clone());
         return Err(format!("{name}: {why}"));
@@ -517,6 +497,39 @@ fn bridge_gaps(poses: &[PlanarPose], interval: f64) -> Vec<Bridge> {
     out
 }
 
+/// Every VO session solved: the solutions, the sessions that could not be, and per anchor
+/// why no session used it (`None`: used).
+struct Solved {
+    sessions: Vec<SessionSolution>,
+    unsolved: Vec<(u32, usize, String)>,
+    verdicts: Vec<Option<String>>,
+}
+
+fn solve_sessions(drive: &Drive, anchors: &[Anchor], lever: Vector3<f64>, settings: Settings) -> Solved {
+    let single_session = drive.vo.first().zip(drive.vo.last()).is_none_or(|(a, b)| a.session == b.session);
+    let mut verdicts: Vec<Option<String>> = vec![Some("outside the VO poses' time span".to_owned()); anchors.len()];
+    let (mut sessions, mut unsolved) = (Vec::new(), Vec::new());
+    for range in session_ranges(&drive.vo) {
+        let vo = &drive.vo[range.clone()];
+        let session = vo[0].session;
+        let inputs = Inputs { vo, fixes: &drive.fixes, speeds: &drive.speeds, anchors, lever };
+        match solve_session(inputs, settings, &drive.fixes, single_session) {
+            Ok((solution, session_verdicts)) => {
+                for (verdict, mine) in verdicts.iter_mut().zip(session_verdicts) {
+                    match mine {
+                        AnchorVerdict::Used => *verdict = None,
+                        AnchorVerdict::Refused(why) if verdict.is_some() => *verdict = Some(why),
+                        AnchorVerdict::Refused(_) | AnchorVerdict::Elsewhere => {}
+                    }
+                }
+                sessions.push(SessionSolution { session, range, solution });
+            }
+            Err(e) => unsolved.push((session, vo.len(), e.to_string())),
+        }
+    }
+    Solved { sessions, unsolved, verdicts }
+}
+
 /// One VO session's re-anchoring: its poses (a range of the drive's) and its solution.
 struct SessionSolution {
     session: u32,
@@ -613,35 +626,9 @@ fn calibrate_mount(vo: &[VoSample], nominal: CameraMount) -> MountEstimate {
     calibration.estimate()
 }
 
-fn mount_record(t_us: i64, m: &MountEstimate) -> MountRecord {
-    let [roll, pitch, yaw] = m.mount.roll_pitch_yaw;
-    MountRecord {
-        t_us,
-        yaw_e6: quantise(yaw, 1e-6),
-        pitch_e6: quantise(pitch, 1e-6),
-        roll_e6: quantise(roll, 1e-6),
-        sigma_yaw_e6: quantise(m.sigma[0], 1e-6),
-        sigma_pitch_e6: quantise(m.sigma[1], 1e-6),
-        samples: i64::from(m.samples),
-        calibrated: i64::from(m.calibrated),
-    }
-}
-
 fn anchor_record(t: f64, sim3: &dash2sim_core::sim3::Sim3, solution: &Solution, used_anchors: usize) -> AnchorEstimate {
-    let (roll, pitch, yaw) = Rotation3::from_matrix_unchecked(sim3.rotation).euler_angles();
-    AnchorEstimate {
-        t_us: quantise(t, 1e-6),
-        scale_e6: quantise(sim3.scale, 1e-6),
-        yaw_e6: quantise(yaw, 1e-6),
-        pitch_e6: quantise(pitch, 1e-6),
-        roll_e6: quantise(roll, 1e-6),
-        tx_mm: quantise(sim3.translation.x, 1e-3),
-        ty_mm: quantise(sim3.translation.y, 1e-3),
-        tz_mm: quantise(sim3.translation.z, 1e-3),
-        observability: 2,
-        anchors: (solution.fix_used.iter().filter(|&&u| u).count() + used_anchors) as i64,
-        rms_mm: quantise(solution.gnss_rms_m, 1e-3),
-    }
+    let anchors = (solution.fix_used.iter().filter(|&&u| u).count() + used_anchors) as i64;
+    similarity_record(quantise(t, 1e-6), sim3, 2, anchors, solution.gnss_rms_m)
 }
 
 fn finite(x: f64) -> Value {

@@ -1,0 +1,87 @@
+//! Issue #31, the device's verification windows: judged on the ego with the anchorer's
+//! corrections eased in and smoothed a second late, against agents that include those the
+//! tracker lost within the lag. On typical-profile drives (seeds the sweep never runs, both
+//! drivers) the raw anchored ego failed comfort in nearly every window; here it passes
+//! comfort in most, and no window in which the true drive collides is verified.
+
+use dash2sim_core::binlog::Record;
+use dash2sim_core::geo::Geodetic;
+use dash2sim_linux::fidelity::drive::{assess, Anchors, Recorded};
+use dash2sim_linux::logfile;
+use dash2sim_linux::record::{self, Setup};
+use dash2sim_linux::scenario::profile::{Profile, Receiver};
+use dash2sim_linux::scenario::write::{road_tile, write_scenario};
+use dash2sim_linux::scenario::{generate, Driver, ScenarioConfig};
+use dash2sim_tests::recorded::scratch;
+
+#[test]
+fn device_windows_verify_where_the_truth_does_and_never_over_a_collision() {
+    let (mut agree, mut total, mut truth_verified, mut both_verified) = (0, 0, 0, 0);
+    let (mut comfortable, mut windows) = (0, 0);
+    for seed in 2011..2017 {
+        for driver in [Driver::Careful, Driver::Careless] {
+            let config = ScenarioConfig { driver, ..ScenarioConfig::drive(seed, Profile::Typical, Receiver::Good) };
+            let scenario = generate(&config);
+            let work = scratch(&format!("device-windows-{seed}-{}", driver.name()));
+            let drive = work.join("drive");
+            write_scenario(&scenario, &drive).expect("write");
+            let [lat, lon, h] = config.origin;
+            let origin = Geodetic::new(lat, lon, h).expect("origin");
+            let tile = road_tile(&drive, origin).expect("tile");
+            let setup = Setup::work_zone(origin, Some(tile.clone()), *b"dash2sim-test\0\0\0");
+            let (stream, _) = record::read_sources(&record::Sources::scenario(&drive)).expect("sources");
+            let recording = record::run_stream(&stream, &setup).expect("record");
+            let log = logfile::decode(&recording.log, "windows").expect("log");
+
+            let judged: Vec<(i64, i64)> = log
+                .records
+                .iter()
+                .filter_map(
+                    |r| if let Record::Verification(v) = r { Some((v.comfort_e4, v.speed_limit_e4)) } else { None },
+                )
+                .collect();
+            println!("seed {seed} {}: comfort, speed limit ×1e4 {judged:?}", driver.name());
+            windows += judged.len();
+            comfortable += judged.iter().filter(|(comfort, _)| *comfort == 10_000).count();
+            let log_name = format!("windows-{seed}.d2slog");
+            let recorded = Recorded {
+                scenario: &scenario,
+                drive_dir: &drive,
+                log: &log,
+                log_name: &log_name,
+                tile: &tile,
+                setup: &setup,
+            };
+            let a = assess(&recorded, Anchors::None, &work.join("anchors.csv")).expect("assess");
+            for w in &a.windows {
+                println!(
+                    "seed {seed} {:8} {:5.1}–{:5.1} s: device {:6.2} truth {:6.2}{}",
+                    driver.name(),
+                    w.start_s,
+                    w.end_s,
+                    w.device_score,
+                    w.truth_score,
+                    if w.truth_collision { " (collision)" } else { "" }
+                );
+                assert!(!(w.truth_collision && w.device_verified), "seed {seed}: verified over a collision: {w:?}");
+                total += 1;
+                agree += usize::from(w.device_verified == w.truth_verified);
+                truth_verified += usize::from(w.truth_verified);
+                both_verified += usize::from(w.truth_verified && w.device_verified);
+            }
+        }
+    }
+    println!(
+        "{agree} of {total} windows agree; {both_verified} of the truth's {truth_verified} verified windows verified"
+    );
+    // The raw anchored ego's accelerations (a median of 1.5–3 m/s², peaks of 10–40) failed
+    // comfort in nearly every window; smoothed, the comfort of a drive the generator made
+    // comfortable is seen in most.
+    println!("{comfortable} of {windows} device windows comfortable");
+    assert!(total >= 24, "{total} windows");
+    assert!(comfortable * 4 >= windows * 3, "three in four windows comfortable: {comfortable} of {windows}");
+    // The windows' verdicts hang on the ego's 2 m error too (drivable area, the lane): the
+    // sweep states their agreement (docs/fidelity.md); here only that the smoothing made
+    // some of the truth's verified windows verified.
+    assert!(both_verified > 0);
+}
