@@ -82,8 +82,15 @@ pub struct Recorded {
 
 /// Generate drive `seed` (good receiver) and record it through the pipeline.
 pub fn record_scenario(seed: u64, duration_s: f64) -> Recorded {
-    let scenario = generate(&ScenarioConfig { seed, duration_s, gnss: GnssModel::good(), ..ScenarioConfig::default() });
-    let work = scratch(&format!("recorded-{seed}"));
+    let config = ScenarioConfig { seed, duration_s, gnss: GnssModel::good(), ..ScenarioConfig::default() };
+    record_config(&config, &format!("recorded-{seed}"))
+}
+
+/// Generate the drive `config` describes and record it through the pipeline (the demo's
+/// device, the road's tile as its map), in the scratch folder `name`.
+pub fn record_config(config: &ScenarioConfig, name: &str) -> Recorded {
+    let scenario = generate(config);
+    let work = scratch(name);
     let drive = work.join("drive");
     write_scenario(&scenario, &drive).expect("write scenario");
     let [lat, lon, h] = scenario.config.origin;
@@ -92,7 +99,7 @@ pub fn record_scenario(seed: u64, duration_s: f64) -> Recorded {
     let setup =
         Setup::work_zone(Geodetic::new(lat, lon, h).expect("origin"), Some(tile.clone()), *b"dash2sim-test\0\0\0");
     let recording = record::run_stream(&stream, &setup).expect("record");
-    let log = logfile::decode(&recording.log, "recorded").expect("log");
+    let log = logfile::decode(&recording.log, name).expect("log");
     Recorded { scenario, work, tile, recording, log, setup }
 }
 

@@ -77,12 +77,13 @@ fn record() -> impl Strategy<Value = Record> {
             samples: v[5],
             calibrated: v[6]
         })),
-        (t.clone(), prop::array::uniform4(value())).prop_map(|(t_us, v)| Record::EgoPose(EgoPose {
+        (t.clone(), prop::array::uniform5(value())).prop_map(|(t_us, v)| Record::EgoPose(EgoPose {
             t_us,
             x_mm: v[0],
             y_mm: v[1],
             z_mm: v[2],
-            yaw_e4: v[3]
+            yaw_e4: v[3],
+            sigma_mm: v[4]
         })),
         (t.clone(), prop::array::uniform10(value())).prop_map(|(t_us, v)| Record::AnchorEstimate(AnchorEstimate {
             t_us,

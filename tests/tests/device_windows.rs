@@ -5,14 +5,10 @@
 //! comfort in most, and no window in which the true drive collides is verified.
 
 use dash2sim_core::binlog::Record;
-use dash2sim_core::geo::Geodetic;
 use dash2sim_linux::fidelity::drive::{assess, Anchors, Recorded};
-use dash2sim_linux::logfile;
-use dash2sim_linux::record::{self, Setup};
 use dash2sim_linux::scenario::profile::{Profile, Receiver};
-use dash2sim_linux::scenario::write::{road_tile, write_scenario};
-use dash2sim_linux::scenario::{generate, Driver, ScenarioConfig};
-use dash2sim_tests::recorded::scratch;
+use dash2sim_linux::scenario::{Driver, ScenarioConfig};
+use dash2sim_tests::recorded::record_config;
 
 #[test]
 fn device_windows_verify_where_the_truth_does_and_never_over_a_collision() {
@@ -21,38 +17,32 @@ fn device_windows_verify_where_the_truth_does_and_never_over_a_collision() {
     for seed in 2011..2017 {
         for driver in [Driver::Careful, Driver::Careless] {
             let config = ScenarioConfig { driver, ..ScenarioConfig::drive(seed, Profile::Typical, Receiver::Good) };
-            let scenario = generate(&config);
-            let work = scratch(&format!("device-windows-{seed}-{}", driver.name()));
-            let drive = work.join("drive");
-            write_scenario(&scenario, &drive).expect("write");
-            let [lat, lon, h] = config.origin;
-            let origin = Geodetic::new(lat, lon, h).expect("origin");
-            let tile = road_tile(&drive, origin).expect("tile");
-            let setup = Setup::work_zone(origin, Some(tile.clone()), *b"dash2sim-test\0\0\0");
-            let (stream, _) = record::read_sources(&record::Sources::scenario(&drive)).expect("sources");
-            let recording = record::run_stream(&stream, &setup).expect("record");
-            let log = logfile::decode(&recording.log, "windows").expect("log");
-
+            let r = record_config(&config, &format!("device-windows-{seed}-{}", driver.name()));
+            let log = &r.log;
             let judged: Vec<(i64, i64)> = log
                 .records
                 .iter()
-                .filter_map(
-                    |r| if let Record::Verification(v) = r { Some((v.comfort_e4, v.speed_limit_e4)) } else { None },
-                )
+                .filter_map(|record| {
+                    if let Record::Verification(v) = record {
+                        Some((v.comfort_e4, v.speed_limit_e4))
+                    } else {
+                        None
+                    }
+                })
                 .collect();
             println!("seed {seed} {}: comfort, speed limit ×1e4 {judged:?}", driver.name());
             windows += judged.len();
             comfortable += judged.iter().filter(|(comfort, _)| *comfort == 10_000).count();
             let log_name = format!("windows-{seed}.d2slog");
             let recorded = Recorded {
-                scenario: &scenario,
-                drive_dir: &drive,
-                log: &log,
+                scenario: &r.scenario,
+                drive_dir: &r.work.join("drive"),
+                log,
                 log_name: &log_name,
-                tile: &tile,
-                setup: &setup,
+                tile: &r.tile,
+                setup: &r.setup,
             };
-            let a = assess(&recorded, Anchors::None, &work.join("anchors.csv")).expect("assess");
+            let a = assess(&recorded, Anchors::None, &r.work.join("anchors.csv")).expect("assess");
             for w in &a.windows {
                 println!(
                     "seed {seed} {:8} {:5.1}–{:5.1} s: device {:6.2} truth {:6.2}{}",

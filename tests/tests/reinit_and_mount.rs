@@ -7,16 +7,13 @@
 use std::collections::BTreeMap;
 
 use dash2sim_core::binlog::Record;
-use dash2sim_core::geo::Geodetic;
 use dash2sim_linux::fidelity::drive::{assess, Anchors, Recorded};
-use dash2sim_linux::logfile::{self, LogContents};
-use dash2sim_linux::record::{self, Setup};
+use dash2sim_linux::logfile::LogContents;
 use dash2sim_linux::scenario::judge::{judge_log, truth_at};
 use dash2sim_linux::scenario::profile::{Profile, Receiver};
 use dash2sim_linux::scenario::vo::Reinit;
-use dash2sim_linux::scenario::write::{road_tile, write_scenario};
-use dash2sim_linux::scenario::{generate, ScenarioConfig};
-use dash2sim_tests::recorded::scratch;
+use dash2sim_linux::scenario::ScenarioConfig;
+use dash2sim_tests::recorded::record_config;
 
 /// Drive time (s from frame 1) of every log time of a frame.
 fn frame_times(log: &LogContents) -> BTreeMap<i64, f64> {
@@ -45,20 +42,10 @@ fn each_vo_session_is_anchored_again_the_mount_calibrated_and_the_finished_ego_d
     let mut config =
         ScenarioConfig { duration_s: 200.0, ..ScenarioConfig::drive(2001, Profile::Typical, Receiver::Good) };
     config.vo.reinit = Some(Reinit { every_s: (60.0, 60.0), gap_s: (1.0, 1.0), scale_factor: (0.5, 2.0) });
-    let scenario = generate(&config);
+    let r = record_config(&config, "reinit-mount");
+    let (scenario, log, work) = (&r.scenario, &r.log, &r.work);
     let reinits = scenario.vo.reinits();
     assert!(reinits >= 3, "{reinits} re-initialisations in 200 s");
-
-    let work = scratch("reinit-mount");
-    let drive = work.join("drive");
-    write_scenario(&scenario, &drive).expect("write");
-    let [lat, lon, h] = config.origin;
-    let origin = Geodetic::new(lat, lon, h).expect("origin");
-    let tile = road_tile(&drive, origin).expect("tile");
-    let setup = Setup::work_zone(origin, Some(tile.clone()), *b"dash2sim-test\0\0\0");
-    let (stream, _) = record::read_sources(&record::Sources::scenario(&drive)).expect("sources");
-    let recording = record::run_stream(&stream, &setup).expect("record");
-    let log = logfile::decode(&recording.log, "reinit").expect("log");
     let first_frame_us = log
         .records
         .iter()
@@ -67,9 +54,9 @@ fn each_vo_session_is_anchored_again_the_mount_calibrated_and_the_finished_ego_d
 
     // The device: an event per new session; its ego carried by the last anchored pose and
     // the wheels from the session's first second until the anchorer is observable again.
-    let began = events(&log, "VO session", first_frame_us);
-    let observable = events(&log, "anchor: Observable", first_frame_us);
-    let errors = judge_log(&scenario, &log).ego_errors;
+    let began = events(log, "VO session", first_frame_us);
+    let observable = events(log, "anchor: Observable", first_frame_us);
+    let errors = judge_log(scenario, log).ego_errors;
     println!("VO sessions began at {began:.1?} s; observable at {observable:.1?} s");
     assert_eq!(began.len() as u32, reinits);
     for t in &began {
@@ -108,13 +95,25 @@ fn each_vo_session_is_anchored_again_the_mount_calibrated_and_the_finished_ego_d
     // the first after).
     let log_name = "reinit.d2slog".to_owned();
     let recorded =
-        Recorded { scenario: &scenario, drive_dir: &drive, log: &log, log_name: &log_name, tile: &tile, setup: &setup };
+        Recorded { scenario, drive_dir: &work.join("drive"), log, log_name: &log_name, tile: &r.tile, setup: &r.setup };
     let a = assess(&recorded, Anchors::Street, &work.join("anchors.csv")).expect("assess");
     assert_eq!(a.finish_report["sessions"].as_array().map(Vec::len), Some(reinits as usize + 1), "{}", a.finish_report);
+    // Every finished pose states its σ; most lie within 2σ of the truth (79 % on this drive
+    // of three joins; the target, 90 %, is not met yet: docs/fidelity.md).
+    let poses = a.finished_log.records.iter().filter(|r| matches!(r, Record::EgoPose(_))).count();
+    let sigma = a.finished.judgement.sigma;
+    println!(
+        "finished σ: {} of {poses} poses state one, {:.1} % within 2σ, mean NEES {:.2} (2 when right)",
+        sigma.poses,
+        100.0 * sigma.fraction(),
+        sigma.nees()
+    );
+    assert_eq!(sigma.poses, a.finished.judgement.ego_errors.len(), "every judged finished pose has a σ");
+    assert!(sigma.fraction() >= 0.75, "{sigma:?}");
     let times = frame_times(&a.finished_log);
     let error = |t_us: i64, x: f64, y: f64| {
         let t = *times.get(&t_us)?;
-        let truth = truth_at(&scenario, t)?;
+        let truth = truth_at(scenario, t)?;
         Some((t, x - truth.x, y - truth.y))
     };
     let errors: Vec<(f64, f64, f64)> = a
@@ -139,5 +138,5 @@ fn each_vo_session_is_anchored_again_the_mount_calibrated_and_the_finished_ego_d
     println!("finished ego across the gaps: {jumps:.2?} (error change m, at s)");
     assert_eq!(jumps.len() as u32, reinits);
     assert!(jumps.iter().all(|(j, _)| *j < 1.0), "{jumps:?}");
-    let _ = std::fs::remove_dir_all(&work);
+    let _ = std::fs::remove_dir_all(work);
 }

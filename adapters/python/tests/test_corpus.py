@@ -74,7 +74,9 @@ def test_every_log_is_recorded_with_the_command_line_s_verdict_or_reason(finishe
             assert (out / "dataset" / table / partition / f"{log_id}.parquet").exists(), (log_id, table)
         if plan["damage"]:
             assert row["damaged_bytes"] > 0 or plan["damage"] == "tail-cut", row
-        if plan["driver"] == "careless":
+        if plan["driver"] == "careless" and plan["damage"] != "tail-cut":
+            # A cut tail may take the conflict with it: drive-0009's careless driver comes too
+            # close to the taper after 13.5 s, and the truth's first 13.5 s verify too.
             assert row["status"] == "rejected"
     assert {r["region"] for r in rows.values() if r["region"]} == {job.geohash(*e["origin"][:2]) for e in corpus_plan.values() if e["damage"] not in FAILING}
 

@@ -373,8 +373,14 @@ impl Streams {
         let kind = record.kind();
         let mut values = [0i64; MAX_FIELDS];
         let n = record.fields(&mut values);
+        // Appended fields that are 0 are left out from the end (the decoder reads them as 0
+        // and its state follows the same values).
+        let mut written = n;
+        while written > kind.first_fields() && values.get(written - 1) == Some(&0) {
+            written -= 1;
+        }
         let mut at = 0;
-        for (k, &v) in values[..n].iter().enumerate() {
+        for (k, &v) in values[..written].iter().enumerate() {
             if !put(out, &mut at, zigzag(v.wrapping_sub(self.prediction(kind, k)))) {
                 return None;
             }

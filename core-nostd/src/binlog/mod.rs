@@ -32,8 +32,8 @@ pub const MAGIC: [u8; 6] = *b"D2SLOG";
 /// Format major version.
 pub const VERSION_MAJOR: u8 = 1;
 /// Format minor version written (1.1 added `Detection3d` and `ClockOffset`; 1.2 the VO
-/// session of a `VoPose` and `MountEstimate`).
-pub const VERSION_MINOR: u8 = 2;
+/// session of a `VoPose` and `MountEstimate`; 1.3 the σ of an `EgoPose`).
+pub const VERSION_MINOR: u8 = 3;
 /// Header length in bytes (v1.0).
 pub const HEADER_LEN: usize = 48;
 /// Marks the start of every segment; a reader looks for it after damage.
@@ -246,6 +246,18 @@ macro_rules! records {
                     Kind::Event => EVENT_MODES,
                 }
             }
+
+            /// Fields the kind had in the version that introduced it. The fields a later
+            /// minor version appended are left out of a payload, from the end, while they are
+            /// 0: a reader takes a missing field as 0, so a device that does not fill one
+            /// pays nothing for it (an `EgoPose` without σ stays 11 bytes).
+            pub const fn first_fields(self) -> usize {
+                match self {
+                    Kind::VoPose => 7,
+                    Kind::EgoPose => 5,
+                    _ => usize::MAX,
+                }
+            }
         }
 
         /// One record.
@@ -435,6 +447,10 @@ records! {
         z_mm: DeltaDelta,
         /// Heading, 1e-4 rad counter-clockwise from east.
         yaw_e4: DeltaDelta,
+        /// Horizontal 1-σ of the position (DRMS: √(σ_east² + σ_north²)), mm; 0 when not
+        /// estimated (v1.3; 0 in older logs; the device writes 0 today, `finish` the
+        /// solution's).
+        sigma_mm: Delta,
     }
     /// The current VO → ENU anchor (Sim(3)) and its quality.
     AnchorEstimate = 0x14 {

@@ -13,6 +13,7 @@ fn records(n: i64) -> heapless::Vec<Record, 224> {
             y_mm: -500 * k,
             z_mm: 12,
             yaw_e4: 100 + k,
+            sigma_mm: 0,
         }));
         let _ = out.push(Record::VehicleSpeed(VehicleSpeed { t_us: t + 3, speed_mm_s: 20_000 + k, source: 0 }));
         if k % 10 == 0 {
@@ -190,4 +191,26 @@ fn flipped_bits_lose_only_the_damaged_stretch_and_reading_resumes() {
         damaged_total += stats.damaged;
     }
     assert!(damaged_total >= 400);
+}
+
+#[test]
+fn an_appended_field_costs_nothing_while_it_is_zero_and_round_trips_when_it_is_not() {
+    let pose = |k: i64, sigma_mm: i64| {
+        Record::EgoPose(EgoPose { t_us: k * 100_000, x_mm: 1000 * k, y_mm: 0, z_mm: 5, yaw_e4: 0, sigma_mm })
+    };
+    let length = |sigma_mm: i64| {
+        let mut out = [0u8; 64];
+        Streams::default().encode(&pose(1, sigma_mm), &mut out).expect("fits")
+    };
+    // The σ (appended in v1.3) is left out while it is 0; the yaw, as 0 but of the first
+    // version, is not (a reader of that version needs it).
+    assert_eq!(length(0) + 1, length(7));
+    assert_eq!(length(0), 8, "t 3 bytes, x 2, y, z and yaw 1 each");
+    // σ going 0 → 250 → 0 → 0 → 300 round-trips: the decoder's state follows the values.
+    let input = [pose(1, 0), pose(2, 250), pose(3, 0), pose(4, 0), pose(5, 300)];
+    let mut buf = [0u8; 2048];
+    let n = write(&input, WriterConfig::default(), &mut buf);
+    let (got, stats, _) = read(&buf[..n], 7);
+    assert_eq!(got.as_slice(), &input);
+    assert_eq!(stats.damaged, 0);
 }

@@ -977,6 +977,8 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             y_mm: quantise(b.y, 1e-3),
             z_mm: quantise(b.z, 1e-3),
             yaw_e4: quantise(ego.pose.heading, 1e-4),
+            // The device's σ is not estimated yet (issue #31).
+            sigma_mm: 0,
         }))?;
         for (at, smoothed) in self.lag.push(t, eased) {
             self.score(at, &smoothed)?;

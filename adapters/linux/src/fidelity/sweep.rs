@@ -191,6 +191,17 @@ pub struct Row {
     pub mount_error_deg: Option<f64>,
     /// The device called its mount calibrated by the end of the drive.
     pub mount_calibrated: bool,
+    /// Finished poses stating a σ, and those of them within 2σ of the truth.
+    pub finished_sigma_poses: usize,
+    /// See `finished_sigma_poses`.
+    pub finished_within_2sigma: usize,
+    /// Mean horizontal NEES of the finished poses (2 when their σ is right).
+    pub finished_nees: Option<f64>,
+    /// `finish`'s GNSS latency against the receiver's true one, s.
+    pub latency_error_s: Option<f64>,
+    /// `finish`'s wheel factor (true distance / odometer distance) against the true one
+    /// (the inverse of the wheels' scale error), relative.
+    pub wheel_factor_error: Option<f64>,
     /// The device's 15 s windows beside the truth's.
     pub windows: Vec<WindowPair>,
 }
@@ -225,6 +236,11 @@ impl Row {
             vo_sessions: 0,
             mount_error_deg: None,
             mount_calibrated: false,
+            finished_sigma_poses: 0,
+            finished_within_2sigma: 0,
+            finished_nees: None,
+            latency_error_s: None,
+            wheel_factor_error: None,
             windows: Vec::new(),
         }
     }
@@ -248,6 +264,13 @@ impl Row {
         self.vo_sessions = facts.vo_sessions;
         self.mount_error_deg = facts.mount_error_deg;
         self.mount_calibrated = facts.mount_calibrated;
+        let sigma = a.finished.judgement.sigma;
+        self.finished_sigma_poses = sigma.poses;
+        self.finished_within_2sigma = sigma.within_2sigma;
+        self.finished_nees = finite(sigma.nees());
+        let anchoring = &a.finish_report["anchoring"];
+        self.latency_error_s = anchoring["gnss_latency_s"].as_f64().map(|l| l - facts.true_latency_s);
+        self.wheel_factor_error = anchoring["wheel_factor"].as_f64().map(|w| w * facts.true_wheel_scale - 1.0);
         self.windows = a.windows.clone();
         self
     }
@@ -267,6 +290,10 @@ struct DriveFacts {
     vo_sessions: u32,
     mount_error_deg: Option<f64>,
     mount_calibrated: bool,
+    /// The receiver's latency and the wheels' scale as the generator drew them (what the
+    /// estimates are judged against; never shown to them).
+    true_latency_s: f64,
+    true_wheel_scale: f64,
 }
 
 /// The device's last mount estimate against the scenario's true mount.
@@ -314,7 +341,14 @@ fn try_drive(seed: u64, driver: Driver, args: &SweepArgs, work: &Path) -> Result
         std::fs::write(&finished, &assessment.finished_bytes).map_err(|e| format!("{}: {e}", finished.display()))?;
     }
     let (mount_error_deg, mount_calibrated) = mount_error(&scenario, &log);
-    Ok((assessment, DriveFacts { vo_sessions: scenario.vo.reinits() + 1, mount_error_deg, mount_calibrated }))
+    let facts = DriveFacts {
+        vo_sessions: scenario.vo.reinits() + 1,
+        mount_error_deg,
+        mount_calibrated,
+        true_latency_s: config.gnss.latency_s,
+        true_wheel_scale: config.wheel.scale,
+    };
+    Ok((assessment, facts))
 }
 
 /// The columns of `runs.csv`.
@@ -322,7 +356,7 @@ const CSV_HEADER: &str = "seed,driver,profile,receiver,anchors,error,\
 truth_score,truth_verified,truth_failed,online_score,online_verified,online_failed,finished_score,finished_verified,finished_failed,\
 truth_score_cs,truth_verified_cs,online_score_cs,online_verified_cs,finished_score_cs,finished_verified_cs,finished_failed_cs,\
 online_ape_m,finished_ape_m,online_scale_error,finished_scale_error,online_mota,online_idf1,finished_mota,finished_idf1,\
-first_anchor_s,vo_sessions,mount_error_deg,mount_calibrated,windows,device_windows_verified,truth_windows_verified";
+first_anchor_s,vo_sessions,mount_error_deg,mount_calibrated,finished_within_2sigma,finished_nees,latency_error_s,wheel_factor_error,windows,device_windows_verified,truth_windows_verified";
 
 fn csv_row(r: &Row) -> String {
     let opt = |x: Option<f64>| x.map_or_else(String::new, |v| format!("{v:.6}"));
@@ -337,7 +371,7 @@ fn csv_row(r: &Row) -> String {
     let marks = |f: fn(&WindowPair) -> bool| r.windows.iter().map(|w| if f(w) { '1' } else { '0' }).collect::<String>();
     let error = r.error.as_deref().map_or_else(String::new, |e| format!("\"{}\"", e.replace('"', "'")));
     format!(
-        "{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        "{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
         r.seed,
         r.driver,
         r.profile,
@@ -361,6 +395,10 @@ fn csv_row(r: &Row) -> String {
         r.vo_sessions,
         opt(r.mount_error_deg),
         u8::from(r.mount_calibrated),
+        opt(finite(r.finished_within_2sigma as f64 / r.finished_sigma_poses as f64)),
+        opt(r.finished_nees),
+        opt(r.latency_error_s),
+        opt(r.wheel_factor_error),
         r.windows.len(),
         marks(|w| w.device_verified),
         marks(|w| w.truth_verified),

@@ -183,7 +183,17 @@ pub fn finish(
         starts.push(planar_poses.len());
         for ((t, body), p) in bodies.iter().zip(&planar) {
             let heading = dash2sim_core::pipeline::mount::heading(&body.rotation);
-            planar_poses.push(PlanarPose { t: *t, x: p.x, y: p.y, z: body.translation.z, heading, vx: p.vx, vy: p.vy });
+            let sigma = solved.solution.horizontal_sigma_at(*t);
+            planar_poses.push(PlanarPose {
+                t: *t,
+                x: p.x,
+                y: p.y,
+                z: body.translation.z,
+                heading,
+                vx: p.vx,
+                vy: p.vy,
+                sigma,
+            });
         }
     }
     join_sessions(&mut planar_poses, &starts);
@@ -200,6 +210,7 @@ pub fn finish(
                 y_mm: quantise(pose.y, 1e-3),
                 z_mm: quantise(pose.z, 1e-3),
                 yaw_e4: quantise(pose.heading, 1e-4),
+                sigma_mm: if pose.sigma.is_finite() { quantise(pose.sigma, 1e-3) } else { 0 },
             },
         );
     }
@@ -402,6 +413,8 @@ struct PlanarPose {
     heading: f64,
     vx: f64,
     vy: f64,
+    /// Horizontal 1-σ (DRMS), m.
+    sigma: f64,
 }
 
 /// Ego poses made for a gap in the VO.
@@ -410,6 +423,9 @@ struct Bridge {
     poses: Vec<PlanarPose>,
 }
 
+/// The speed error (m/s) a bridge's σ assumes: the ends' velocities are smoothed VO
+/// velocities, good to a few per cent at town speeds.
+const BRIDGE_SPEED_SIGMA: f64 = 0.5;
 /// Longest gap in the VO the finished ego is carried across, s.
 const MAX_BRIDGE_S: f64 = 5.0;
 /// How far from a gap the two sessions' disagreement is spread, s.
@@ -439,10 +455,13 @@ fn join_sessions(poses: &mut [PlanarPose], starts: &[usize]) {
         for p in poses[..b].iter_mut().rev().take_while(|p| end.t - p.t < JOIN_RAMP_S) {
             let w = weight(end.t - p.t);
             (p.x, p.y) = (p.x + w * dx, p.y + w * dy);
+            // The disagreement is an error of one session or the other: it counts in the σ.
+            p.sigma = p.sigma.hypot(w * dx.hypot(dy));
         }
         for p in poses[b..].iter_mut().take_while(|p| p.t - start.t < JOIN_RAMP_S) {
             let w = weight(p.t - start.t);
             (p.x, p.y) = (p.x - w * dx, p.y - w * dy);
+            p.sigma = p.sigma.hypot(w * dx.hypot(dy));
         }
     }
 }
@@ -489,6 +508,9 @@ fn bridge_gaps(poses: &[PlanarPose], interval: f64) -> Vec<Bridge> {
                     heading: dash2sim_core::track3d::wrap_angle(a.heading + u * turn),
                     vx: f64::NAN,
                     vy: f64::NAN,
+                    // The ends' σ, and what a curve through a gap may miss: the speed's
+                    // assumed error times the time to the nearer end.
+                    sigma: a.sigma.max(b.sigma).hypot(BRIDGE_SPEED_SIGMA * gap * u.min(1.0 - u)),
                 }
             })
             .collect();

@@ -151,7 +151,10 @@ mod tests {
         for frame in 1..=20i64 {
             let t_us = 1_000_000 + frame * 100_000;
             let north = 50.0 + frame as f64;
-            ego.insert(t_us, EgoPose { t_us, x_mm: 100_000, y_mm: quantise(north, 1e-3), z_mm: 0, yaw_e4: 15_708 });
+            ego.insert(
+                t_us,
+                EgoPose { t_us, x_mm: 100_000, y_mm: quantise(north, 1e-3), z_mm: 0, yaw_e4: 15_708, sigma_mm: 0 },
+            );
             // The drum at (103, 80): 80 − north ahead, 3 m right, 0.5 m up in the body frame.
             let body = dash2sim_core::nalgebra::Vector3::new(80.0 - north, -3.0, 0.5)
                 - dash2sim_core::nalgebra::Vector3::from(mount.position);

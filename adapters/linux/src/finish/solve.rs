@@ -212,6 +212,9 @@ pub struct Solution {
     pub scale_sigma: f64,
     /// RMS 1-σ of the camera positions, m (from keyframes sampled along the drive).
     pub position_sigma_m: f64,
+    /// Horizontal 1-σ (DRMS, m) of the camera position at up to 32 keyframes along the
+    /// drive, by time: [`Solution::horizontal_sigma_at`] interpolates it.
+    pub horizontal_sigma: Vec<(f64, f64)>,
     /// RMS horizontal residual of the used fixes, m.
     pub gnss_rms_m: f64,
 }
@@ -1008,6 +1011,14 @@ fn solve_from(
     let cov = llt.solve(&rhs);
     let trace: f64 = (0..samples.len() * 3).map(|c| cov[(samples[c / 3] * BLOCK + c % 3, c)]).sum();
     let position_var = trace / samples.len().max(1) as f64;
+    let horizontal_sigma: Vec<(f64, f64)> = samples
+        .iter()
+        .enumerate()
+        .map(|(j, &k)| {
+            let var = cov[(k * BLOCK, 3 * j)] + cov[(k * BLOCK + 1, 3 * j + 1)];
+            (state.keyframe_t[k], var.max(0.0).sqrt() * inflation_factor)
+        })
+        .collect();
     let mut sse = 0.0;
     let mut used = 0;
     for (fix, &ok) in inputs.fixes.iter().zip(&fix_used) {
@@ -1033,6 +1044,7 @@ fn solve_from(
         sigma0_sq,
         scale_sigma: scale_var.max(0.0).sqrt() * inflation_factor,
         position_sigma_m: position_var.max(0.0).sqrt() * inflation_factor,
+        horizontal_sigma,
         gnss_rms_m: if used > 0 { (sse / used as f64).sqrt() } else { f64::NAN },
         keyframe_t: state.keyframe_t,
         keyframe_vo: state.keyframe_vo,
@@ -1050,6 +1062,18 @@ fn nearest_keyframe(vo: &[VoSample], keyframe_vo: &[usize], x: &Vector3<f64>) ->
 }
 
 impl Solution {
+    /// The horizontal 1-σ (DRMS, m) of the camera position at `t`: linear between the
+    /// sampled keyframes, the nearest one's beyond them (NaN with none).
+    pub fn horizontal_sigma_at(&self, t: f64) -> f64 {
+        let s = &self.horizontal_sigma;
+        let k = s.partition_point(|(tk, _)| *tk <= t);
+        match (k.checked_sub(1).and_then(|i| s.get(i)), s.get(k)) {
+            (Some(&(t0, a)), Some(&(t1, b))) if t1 > t0 => a + (b - a) * (t - t0) / (t1 - t0),
+            (Some(&(_, a)), _) | (None, Some(&(_, a))) => a,
+            (None, None) => f64::NAN,
+        }
+    }
+
     /// The camera's world pose at `t` (None outside the VO's time span).
     pub fn camera_at(&self, vo: &[VoSample], t: f64) -> Option<(Vector3<f64>, Matrix3<f64>)> {
         let geometry = self.geometry(vo);

@@ -188,6 +188,7 @@ pub fn traj_records(path: &Path, out: &mut Vec<Record>) -> Result<(), String> {
             y_mm: quantise(p.translation.y, 1e-3),
             z_mm: quantise(p.translation.z, 1e-3),
             yaw_e4: quantise(p.rotation[(1, 0)].atan2(p.rotation[(0, 0)]), 1e-4),
+            sigma_mm: 0,
         }));
     }
     Ok(())

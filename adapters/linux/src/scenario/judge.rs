@@ -33,6 +33,32 @@ pub struct LogJudgement {
     pub tracks_relative: (f64, f64),
     /// Track states per class name.
     pub tracks_by_class: std::collections::BTreeMap<String, u64>,
+    /// How well the poses' stated σ covers their error, over the poses that state one.
+    pub sigma: SigmaCoverage,
+}
+
+/// The ego poses' stated horizontal σ (DRMS) against their error.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SigmaCoverage {
+    /// Poses with a σ.
+    pub poses: usize,
+    /// Of them, those within 2σ of the truth.
+    pub within_2sigma: usize,
+    /// Σ of each pose's normalised error squared, |e|² / (σ²/2): its mean is 2 (the
+    /// horizontal NEES, taking the two axes' σ equal) when the σ is right.
+    pub nees_sum: f64,
+}
+
+impl SigmaCoverage {
+    /// The fraction within 2σ (NaN with none).
+    pub fn fraction(&self) -> f64 {
+        self.within_2sigma as f64 / self.poses as f64
+    }
+
+    /// The mean NEES (NaN with none).
+    pub fn nees(&self) -> f64 {
+        self.nees_sum / self.poses as f64
+    }
 }
 
 /// The truth ego pose of the frame at device time `t`.
@@ -71,7 +97,14 @@ pub fn judge_log(scenario: &Scenario, log: &LogContents) -> LogJudgement {
             Record::EgoPose(p) => {
                 let Some(truth) = truth(frame) else { continue };
                 let (x, y) = (p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3);
-                j.ego_errors.insert(frame as usize - 1, (x - truth.x).hypot(y - truth.y));
+                let error = (x - truth.x).hypot(y - truth.y);
+                j.ego_errors.insert(frame as usize - 1, error);
+                if p.sigma_mm > 0 {
+                    let sigma = p.sigma_mm as f64 * 1e-3;
+                    j.sigma.poses += 1;
+                    j.sigma.within_2sigma += usize::from(error <= 2.0 * sigma);
+                    j.sigma.nees_sum += error * error / (0.5 * sigma * sigma);
+                }
                 j.first_anchored_s.get_or_insert(scenario.frames[frame as usize - 1].ego.t - t0);
                 ego_poses.insert(frame, (Pose2::new(x, y, p.yaw_e4 as f64 * 1e-4), truth));
             }
