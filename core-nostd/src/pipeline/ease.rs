@@ -1,5 +1,6 @@
-//! The ego the device writes and scores: the VO's motion at once, the anchorer's corrections
-//! eased in.
+//! The ego the device's verification windows score: the VO's motion at once, the
+//! anchorer's corrections eased in. (The log's `EgoPose` records and the detections'
+//! placement keep the anchored pose: eased, it arrived late at real corrections.)
 //!
 //! The anchored ego is the anchor similarity applied to the VO pose. The similarity changes
 //! at every GNSS fix, and a change of a tenth of a degree in its rotation moves a pose

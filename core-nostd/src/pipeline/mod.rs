@@ -7,7 +7,7 @@
 //! serial bytes ─ NMEA framer ─ epochs ─┐
 //! CAN frames ── N2K / J1939 / OBD-II / ├─ GNSS fixes, speeds ─ clock (device → UTC)
 //!               DBC signal ────────────┘                     └ anchorer (VO → ENU Sim(3))
-//! VO pose of a frame ───────────────────── anchored ego (rear axle, heading from VO) ─ score windows
+//! VO pose of a frame ───────────────────── anchored ego (rear axle, heading from VO) ─ eased, lagged ─ score windows
 //! 3D detections (camera frame) ─ mount ─ world (through the anchored ego) ─ 3D tracker
 //! 2D detections ───────────────────────── 2D tracker
 //!                                   └──────────── binlog Writer (embedded-io) ──────────┘
@@ -164,8 +164,9 @@ pub struct PipelineConfig<'a> {
     pub max_pose_age: Duration,
     /// The anchor estimate is written at most this often (and on every observability change).
     pub anchor_interval: Duration,
-    /// Time constant with which the anchorer's corrections are eased into the ego the log
-    /// holds and the windows score, s (0: none; [`ease`]).
+    /// Time constant with which the anchorer's corrections are eased into the ego the
+    /// verification windows score, s (0: none; [`ease`]); the log's ego stays the anchored
+    /// one.
     pub ease_s: f64,
 }
 
@@ -355,8 +356,8 @@ struct State<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> {
     carry: Option<carry::Carry>,
     /// The camera's world pose and the ego heading at the latest anchored frame.
     last_camera: Option<(Timestamp, Pose, f64)>,
-    /// The ego with the corrections eased in, and the VO session and pose it was last
-    /// given.
+    /// The ego the windows score, with the corrections eased in, and the VO session and
+    /// pose it was last given.
     ease: ease::Ease,
     eased_vo: Option<(u32, Pose)>,
     /// The eased ego, smoothed a second late for the windows.
