@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use dash2sim_linux::trajectory::{Format, Trajectory};
+use dash2sim_trajectory::{Format, Trajectory};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

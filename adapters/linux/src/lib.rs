@@ -1,8 +1,8 @@
 //! # dash2sim-linux
 //!
-//! std adapters around `dash2sim-core` and the `dash2sim` command line: trajectory files
-//! (TUM, KITTI, EuRoC), timestamp association, evaluation, offline anchoring, decoders for
-//! NMEA and CAN captures, MOT evaluation and the seeded work-zone scenario generator.
+//! std adapters around `dash2sim-core` and the `dash2sim` command line: timestamp
+//! association, evaluation, offline anchoring, decoders for NMEA and CAN captures,
+//! MOT evaluation and the seeded work-zone scenario generator.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
@@ -28,5 +28,6 @@ pub mod recordings;
 pub mod scenario;
 pub mod sync;
 pub mod track2d;
-pub mod trajectory;
+/// Trajectory files (TUM, KITTI, EuRoC): the `dash2sim-trajectory` crate.
+pub use dash2sim_trajectory as trajectory;
 pub mod verify;

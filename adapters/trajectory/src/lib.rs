@@ -8,6 +8,9 @@
 //! stamps carry sub-µs digits and evo's association compares them in `f64`; matching its
 //! pairs exactly needs the same arithmetic. Every error names the file and line.
 //!
+//! A crate of its own, a leaf beside the core: the fuzz target of the parser links this
+//! and not the whole Linux adapter. `dash2sim_linux::trajectory` re-exports it.
+//!
 //! [`Timestamp`]: dash2sim_core::time::Timestamp
 
 use std::fmt;
@@ -19,7 +22,8 @@ use dash2sim_core::nalgebra::{Matrix3, Vector3};
 use dash2sim_core::sim3::Pose;
 
 /// The trajectory file formats understood.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Format {
     /// `t x y z qx qy qz qw`
     Tum,
