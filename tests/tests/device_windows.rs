@@ -2,7 +2,9 @@
 //! corrections eased in and smoothed a second late, against agents that include those the
 //! tracker lost within the lag. On typical-profile drives (seeds the sweep never runs, both
 //! drivers) the raw anchored ego failed comfort in nearly every window; here it passes
-//! comfort in most, and no window in which the true drive collides is verified.
+//! comfort in most, and no window in which the true drive collides is verified. The same
+//! drives hold the device's stated σ to its error: every ego pose states one, and most
+//! lie within 2σ of the truth.
 
 use dash2sim_core::binlog::Record;
 use dash2sim_linux::fidelity::drive::{assess, Anchors, Recorded};
@@ -14,6 +16,7 @@ use dash2sim_tests::recorded::record_config;
 fn device_windows_verify_where_the_truth_does_and_never_over_a_collision() {
     let (mut agree, mut total, mut truth_verified, mut both_verified) = (0, 0, 0, 0);
     let (mut comfortable, mut windows) = (0, 0);
+    let (mut sigma_poses, mut within_2sigma) = (0, 0);
     for seed in 2011..2017 {
         for driver in [Driver::Careful, Driver::Careless] {
             let config = ScenarioConfig { driver, ..ScenarioConfig::drive(seed, Profile::Typical, Receiver::Good) };
@@ -43,6 +46,13 @@ fn device_windows_verify_where_the_truth_does_and_never_over_a_collision() {
                 setup: &r.setup,
             };
             let a = assess(&recorded, Anchors::None, &r.work.join("anchors.csv")).expect("assess");
+            for record in &log.records {
+                if let Record::EgoPose(p) = record {
+                    assert!(p.sigma_mm > 0, "seed {seed}: an ego pose without its σ: {p:?}");
+                }
+            }
+            sigma_poses += a.online.judgement.sigma.poses;
+            within_2sigma += a.online.judgement.sigma.within_2sigma;
             for w in &a.windows {
                 println!(
                     "seed {seed} {:8} {:5.1}–{:5.1} s: device {:6.2} truth {:6.2}{}",
@@ -74,4 +84,9 @@ fn device_windows_verify_where_the_truth_does_and_never_over_a_collision() {
     // sweep states their agreement (docs/fidelity.md); here only that the smoothing made
     // some of the truth's verified windows verified.
     assert!(both_verified > 0);
+    // Issue #31's target is 90 % over the sweep (94.7 % on 200 typical drives,
+    // docs/fidelity.md); on these twelve the bound leaves room for their spread.
+    println!("{within_2sigma} of {sigma_poses} device poses within 2σ of the truth");
+    assert!(sigma_poses > 1000, "{sigma_poses} poses with a σ");
+    assert!(within_2sigma * 100 >= sigma_poses * 85, "{within_2sigma} of {sigma_poses} within 2σ");
 }

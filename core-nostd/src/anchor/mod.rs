@@ -101,7 +101,10 @@ pub struct AnchorConfig {
     /// run along barely moves points near that axis, so a straight road is fine for
     /// positions while roll stays undetermined (see [`Quality::rotation_sigma_rad`]).
     pub max_geometry_sigma_m: f64,
-    /// Largest relative standard deviation of scale for "observable".
+    /// Largest relative standard deviation of scale for "observable". The default, 4 %,
+    /// admits the wheels alone before their factor is calibrated (1 ± 3 %, plus the VO's
+    /// path noise): a car's speed signal is a metric scale; what its error does to the
+    /// position is in the geometry's σ.
     pub max_scale_rel_sigma: f64,
     /// Minimum anchors before an estimate is reported observable.
     pub min_anchors: u32,
@@ -123,7 +126,7 @@ impl Default for AnchorConfig {
             gate_sigma: 6.0,
             gnss_correlation_time_s: 2.0,
             max_geometry_sigma_m: 1.0,
-            max_scale_rel_sigma: 0.02,
+            max_scale_rel_sigma: 0.04,
             min_anchors: 5,
             latency_step: Duration::from_millis(25),
             wheel_time_constant_s: 5.0,
@@ -168,6 +171,11 @@ pub struct Quality {
     pub geometry_sigma_m: f64,
     /// Relative standard deviation of the scale.
     pub scale_rel_sigma: f64,
+    /// Horizontal 1-σ error of the current position (DRMS, m): the latest fix's stated σ
+    /// scaled by the a-posteriori variance factor — the translation rests on the recent
+    /// fixes, whose errors are correlated far beyond its window, so no averaging is
+    /// credited — and the geometry's σ.
+    pub position_sigma_m: f64,
     /// Estimated GNSS latency, s (when latency estimation is on and data suffice).
     pub latency_s: Option<f64>,
     /// Calibrated wheel factor (true / odometer distance), when speed is fed.
@@ -331,6 +339,7 @@ impl<const K: usize> Anchorer<K> {
                 rotation_sigma_rad: f64::INFINITY,
                 geometry_sigma_m: f64::INFINITY,
                 scale_rel_sigma: f64::INFINITY,
+                position_sigma_m: f64::INFINITY,
                 latency_s: None,
                 wheel_factor: None,
             },
@@ -361,7 +370,7 @@ impl<const K: usize> Anchorer<K> {
     /// The wheel factor (true distance / wheel distance) as calibrated against the GNSS
     /// path so far.
     pub fn wheel_factor(&self) -> Option<f64> {
-        self.wheel.calibration().map(|(f, _)| f)
+        self.wheel.measured().map(|_| self.wheel.calibration(self.variance_factor).0)
     }
 
     /// The VO lost track and started again (a new origin, orientation and scale): what
@@ -541,18 +550,16 @@ impl<const K: usize> Anchorer<K> {
 
         let best = self.best_index();
         if let (_, Some(odo)) = paired[best] {
-            self.wheel.push_fix(fix.t, &fix.enu, odo);
+            self.wheel.push_fix(fix.t, &fix.enu, fix.sigma, odo, &x_best);
         }
         self.update_estimate(best, &x_best, fix.sigma);
     }
 
-    /// The wheel scale (metres per VO unit) and its variance, once calibrated.
-    fn wheel_prior(&self, fix_sigma: f64) -> Option<(f64, f64)> {
-        let scale = self.wheel.scale()?;
-        let (_, gnss_path) = self.wheel.calibration()?;
-        // GNSS errors telescope along the calibration path: √2·σ over its length.
-        let sigma = fix_sigma * libm::sqrt(self.variance_factor);
-        let rel = self.config.wheel_scale_rel_sigma + core::f64::consts::SQRT_2 * sigma / gnss_path;
+    /// The wheel scale (metres per VO unit) and its variance.
+    fn wheel_prior(&self) -> Option<(f64, f64)> {
+        let (factor, factor_rel_var) = self.wheel.calibration(self.variance_factor);
+        let scale = factor * self.wheel.uncalibrated_scale()?;
+        let rel = self.config.wheel_scale_rel_sigma + libm::sqrt(factor_rel_var);
         let var = (rel * scale) * (rel * scale);
         (var > 0.0 && var.is_finite()).then_some((scale, var))
     }
@@ -585,7 +592,7 @@ impl<const K: usize> Anchorer<K> {
     fn update_estimate(&mut self, best: usize, current: &Vector3<f64>, fix_sigma: f64) {
         let h = &self.hypotheses[best];
         self.quality.latency_s = self.latency_estimate(best);
-        self.quality.wheel_factor = self.wheel.calibration().map(|(f, _)| f);
+        self.quality.wheel_factor = self.wheel_factor();
         let Some(gnss_fit) = h.fit else {
             self.quality.observability = Observability::TooFewAnchors;
             return;
@@ -643,7 +650,7 @@ impl<const K: usize> Anchorer<K> {
                 (libm::sqrt(inflation / (c * c * info)), inflation * lever2 / info)
             }
         };
-        let (fused, scale_var) = fuse_wheel_scale(fit, m, inflation, self.wheel_prior(fix_sigma));
+        let (fused, scale_var) = fuse_wheel_scale(fit, m, inflation, self.wheel_prior());
         let Some(fit) = fused else {
             self.quality.observability = Observability::TooFewAnchors;
             return;
@@ -653,6 +660,8 @@ impl<const K: usize> Anchorer<K> {
         self.quality.rotation_sigma_rad = rotation_sigma;
         self.quality.geometry_sigma_m = geometry_sigma;
         self.quality.scale_rel_sigma = scale_rel_sigma;
+        self.quality.position_sigma_m =
+            libm::sqrt(2.0 * fix_sigma * fix_sigma * variance_factor + geometry_sigma * geometry_sigma);
         let long_window = Sim3 { translation: m.mean_y() - fit.rotation * m.mean_x() * fit.scale, ..fit };
         self.quality.rms_residual_m =
             if m.weight() > 0.0 { libm::sqrt(m.weighted_sse(&long_window) / m.weight()) } else { 0.0 };

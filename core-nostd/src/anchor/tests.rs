@@ -70,6 +70,10 @@ fn recovers_the_similarity_of_a_noise_free_drive() {
     assert!((est.translation - run.truth.translation).norm() < 1e-3);
     assert!(q.rms_residual_m < 1e-3);
     assert_eq!(q.latency_s, Some(0.0));
+    // The position rests on the latest fixes (σ 1 m stated, the residuals' variance
+    // factor at its floor of 0.01): √(2·0.01) m and the geometry's share.
+    assert!(q.position_sigma_m >= q.geometry_sigma_m, "{q:?}");
+    assert!((q.position_sigma_m - libm::sqrt(0.02 + q.geometry_sigma_m * q.geometry_sigma_m)).abs() < 1e-9, "{q:?}");
 }
 
 #[test]

@@ -24,6 +24,9 @@ const MIN_WHEEL_DISTANCE_M: f64 = 2.0;
 /// driven times its angle (on the typical profile's sweep the online APE's 90th percentile
 /// went from 3.3 m to 3.6 m with the carry unbounded).
 pub const MAX_CARRY_S: f64 = 10.0;
+/// Growth of a carried pose's σ, m per second since the last anchored pose: the wheels'
+/// few per cent of distance and the VO's heading over the gap (as `finish` bridges one).
+pub const CARRY_SPEED_SIGMA: f64 = 0.5;
 
 /// The provisional similarity of a new VO session.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -56,6 +56,7 @@ use crate::binlog::{
 use crate::box2d::Box2d;
 use crate::can::signal::Signal;
 use crate::can::{Decoded, Message};
+use crate::decimal::Decimal;
 use crate::drivable::{Channel, Checker};
 use crate::geo::{Geodetic, LocalFrame};
 use crate::map::MapView;
@@ -354,8 +355,9 @@ struct State<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> {
     calibration: MountCalibration,
     /// The ego carried across a VO re-initialisation until the new session is anchored.
     carry: Option<carry::Carry>,
-    /// The camera's world pose and the ego heading at the latest anchored frame.
-    last_camera: Option<(Timestamp, Pose, f64)>,
+    /// The camera's world pose, the ego heading and the position's σ (m) at the latest
+    /// anchored frame.
+    last_camera: Option<(Timestamp, Pose, f64, f64)>,
     /// The ego the windows score, with the corrections eased in, and the VO session and
     /// pose it was last given.
     ease: ease::Ease,
@@ -700,8 +702,8 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
                 t,
                 3,
                 format_args!(
-                    "device clock reset: went back {:.3} s; monotonic time goes on, UTC is taken again from the next fix",
-                    back as f64 * 1e-6
+                    "device clock reset: went back {} s; monotonic time goes on, UTC is taken again from the next fix",
+                    Decimal::new(back as f64 * 1e-6, 3)
                 ),
             )?;
         }
@@ -820,7 +822,10 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
                     self.event(
                         rx,
                         3,
-                        format_args!("GNSS time {:+.3} s off the clock: not used as time", by as f64 * 1e-6),
+                        format_args!(
+                            "GNSS time {} s off the clock: not used as time",
+                            Decimal::signed(by as f64 * 1e-6, 3)
+                        ),
                     )?;
                 }
                 change => {
@@ -935,7 +940,8 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
                         t,
                         2,
                         format_args!(
-                            "ego anchored again in VO session {session}, {after:.1} s after the last anchored pose"
+                            "ego anchored again in VO session {session}, {} s after the last anchored pose",
+                            Decimal::new(after, 1)
                         ),
                     )?;
                 }
@@ -964,12 +970,17 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         });
         let eased = self.ease.push(t.as_secs_f64(), anchored, moved_from);
         self.eased_vo = Some((session, *pose));
+        // A carried pose is the last anchored one's σ plus what dead reckoning may add.
+        let sigma = match self.last_camera.filter(|_| carried) {
+            Some((tc, _, _, sigma)) => sigma + carry::CARRY_SPEED_SIGMA * (t - tc).as_secs_f64(),
+            None => self.anchorer.quality().position_sigma_m,
+        };
         let ego = Ego { t, frame, pose: anchored, z: b.z };
         self.ego = Some(ego);
         if carried {
             self.stats.carried_frames = self.stats.carried_frames.saturating_add(1);
         } else {
-            self.last_camera = Some((t, camera, anchored.heading));
+            self.last_camera = Some((t, camera, anchored.heading, sigma));
             self.stats.anchored_frames = self.stats.anchored_frames.saturating_add(1);
         }
         self.write(&Record::EgoPose(EgoPose {
@@ -978,8 +989,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             y_mm: quantise(b.y, 1e-3),
             z_mm: quantise(b.z, 1e-3),
             yaw_e4: quantise(ego.pose.heading, 1e-4),
-            // The device's σ is not estimated yet (issue #31).
-            sigma_mm: 0,
+            sigma_mm: quantise(sigma.min(1e6), 1e-3),
         }))?;
         for (at, smoothed) in self.lag.push(t, eased) {
             self.score(at, &smoothed)?;
@@ -996,7 +1006,8 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         }
         self.anchorer.new_vo_session();
         self.ego = None;
-        self.carry = self.last_camera.map(|(tc, camera, heading)| carry::Carry::new(camera, tc.as_secs_f64(), heading));
+        self.carry =
+            self.last_camera.map(|(tc, camera, heading, _)| carry::Carry::new(camera, tc.as_secs_f64(), heading));
         let gap = (t - last.t).as_secs_f64();
         let until = if self.carry.is_some() {
             "; until it is observable (for at most 10 s) the ego is carried by the last anchored pose and wheel speed"
@@ -1007,7 +1018,8 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             t,
             3,
             format_args!(
-                "VO session {session} began {gap:.1} s after the last pose of session {}: anchoring starts again{until}",
+                "VO session {session} began {} s after the last pose of session {}: anchoring starts again{until}",
+                Decimal::new(gap, 1),
                 last.session
             ),
         )
@@ -1029,12 +1041,12 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
                 t,
                 2,
                 format_args!(
-                    "camera mount calibrated from {} straight-driving frames: yaw {:+.2}° ±{:.2}°, pitch {:+.2}° ±{:.2}°",
+                    "camera mount calibrated from {} straight-driving frames: yaw {}° ±{}°, pitch {}° ±{}°",
                     samples,
-                    yaw.to_degrees(),
-                    sy.to_degrees(),
-                    pitch.to_degrees(),
-                    sp.to_degrees()
+                    Decimal::signed(yaw.to_degrees(), 2),
+                    Decimal::new(sy.to_degrees(), 2),
+                    Decimal::signed(pitch.to_degrees(), 2),
+                    Decimal::new(sp.to_degrees(), 2)
                 ),
             )?;
         } else if self.last_mount_record.is_some_and(|last| t - last < self.config.anchor_interval) {
@@ -1058,10 +1070,10 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             t,
             3,
             format_args!(
-                "camera mount not calibrated: {} straight-driving frames (yaw ±{:.2}°, pitch ±{:.2}°); {kept}",
+                "camera mount not calibrated: {} straight-driving frames (yaw ±{}°, pitch ±{}°); {kept}",
                 m.samples,
-                m.sigma[0].to_degrees(),
-                m.sigma[1].to_degrees()
+                Decimal::new(m.sigma[0].to_degrees(), 2),
+                Decimal::new(m.sigma[1].to_degrees(), 2)
             ),
         )
     }
@@ -1077,12 +1089,12 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
                 t,
                 2,
                 format_args!(
-                    "anchor: {:?} after {} fixes (scale {:.4} ±{:.2} %, geometry σ {:.2} m)",
+                    "anchor: {:?} after {} fixes (scale {} ±{} %, geometry σ {} m)",
                     quality.observability,
                     quality.anchors_used,
-                    scale,
-                    100.0 * quality.scale_rel_sigma,
-                    quality.geometry_sigma_m
+                    Decimal::new(scale, 4),
+                    Decimal::new(100.0 * quality.scale_rel_sigma, 2),
+                    Decimal::new(quality.geometry_sigma_m, 2)
                 ),
             )?;
         }
@@ -1353,7 +1365,15 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         }
         self.write(&Record::Verification(verification_record(self.log_time(t), &s)))?;
         let verdict = if s.verified { "verified" } else { "not verified" };
-        self.event(t, 2, format_args!("verification window of {:.1} s: score {:.2}, {verdict}", s.duration, s.score))
+        self.event(
+            t,
+            2,
+            format_args!(
+                "verification window of {} s: score {}, {verdict}",
+                Decimal::new(s.duration, 1),
+                Decimal::new(s.score, 2)
+            ),
+        )
     }
 }
 

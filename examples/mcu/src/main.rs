@@ -32,6 +32,7 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
 use dash2sim_core::anchor::{AnchorConfig, Anchorer, Observability};
 use dash2sim_core::box3d::Box3d;
+use dash2sim_core::decimal::Decimal;
 use dash2sim_core::drivable::{Channel, Checker};
 use dash2sim_core::map::MapView;
 use dash2sim_core::nalgebra::Vector3;
@@ -117,7 +118,7 @@ fn track_cones_and_a_car() -> bool {
         "Tracker3d<16> ({} bytes): car ids {:#b}, car speed {} m/frame, cones static {}, {:?}",
         core::mem::size_of::<Tracker3d<'_, 16>>(),
         car_ids,
-        car_speed,
+        Decimal::new(car_speed, 4),
         cones_static,
         tracker.stats()
     );
@@ -153,10 +154,10 @@ fn verify_drives() -> bool {
         "verify ({} B tile, Scorer {} B): in lane {} (verified {}), off the road for 5 s {} (drivable {})",
         TILE.len(),
         core::mem::size_of::<Scorer<'_, '_, 1>>(),
-        in_lane.score,
+        Decimal::new(in_lane.score, 1),
         in_lane.verified,
-        off_road.score,
-        off_road.drivable_area
+        Decimal::new(off_road.score, 1),
+        Decimal::new(off_road.drivable_area, 1)
     );
     in_lane.verified && in_lane.score == 100.0 && off_road.drivable_area == 0.0 && !off_road.verified
 }
@@ -353,14 +354,14 @@ fn main() -> ! {
     let recorded = record_drive(&mut cost);
     let frames = f64::from(cost.kinds[2].0.max(1));
     let all: f64 = cost.kinds.iter().map(|k| k.1).sum();
-    hprintln!("instructions per frame (10 Hz; under QEMU -icount): {} on average", libm::round(all / frames));
+    hprintln!("instructions per frame (10 Hz; under QEMU -icount): {} on average", Decimal::new(all / frames, 0));
     for (name, (n, total, max)) in KINDS.iter().zip(cost.kinds) {
         hprintln!(
             "  {}: {} inputs, {} instructions on average, {} at most",
             name,
             n,
-            libm::round(total / f64::from(n.max(1))),
-            libm::round(max)
+            Decimal::new(total / f64::from(n.max(1)), 0),
+            Decimal::new(max, 0)
         );
     }
     let pipeline_stack = stack_high_water();
@@ -370,7 +371,7 @@ fn main() -> ! {
             "drivable check on the drive's map: {} poses ({} compliant), {} instructions per pose on average",
             poses,
             compliant,
-            libm::round(per_pose)
+            Decimal::new(per_pose, 0)
         );
     }
     let statics = core::ptr::addr_of!(__sheap) as usize - 0x2000_0000;
@@ -415,12 +416,15 @@ fn anchor_a_synthetic_track() -> bool {
     match anchorer.estimate() {
         Some(est) => {
             let q = anchorer.quality();
-            hprintln!("dash2sim-core on Cortex-M7: observable after {:?} s", first_observable);
+            match first_observable {
+                Some(t) => hprintln!("dash2sim-core on Cortex-M7: observable after {} s", Decimal::new(t, 2)),
+                None => hprintln!("dash2sim-core on Cortex-M7: an estimate, never observable"),
+            }
             hprintln!(
                 "scale {} (truth 0.4), anchors used {}, rms residual {} m",
-                est.scale,
+                Decimal::new(est.scale, 6),
                 q.anchors_used,
-                q.rms_residual_m
+                Decimal::new(q.rms_residual_m, 6)
             );
             libm::fabs(est.scale / 0.4 - 1.0) < 1e-4 && (est.rotation - truth.rotation).norm() < 1e-4
         }

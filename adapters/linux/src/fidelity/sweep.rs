@@ -191,6 +191,12 @@ pub struct Row {
     pub mount_error_deg: Option<f64>,
     /// The device called its mount calibrated by the end of the drive.
     pub mount_calibrated: bool,
+    /// The device's poses stating a σ, and those of them within 2σ of the truth.
+    pub online_sigma_poses: usize,
+    /// See `online_sigma_poses`.
+    pub online_within_2sigma: usize,
+    /// Mean horizontal NEES of the device's poses (2 when their σ is right).
+    pub online_nees: Option<f64>,
     /// Finished poses stating a σ, and those of them within 2σ of the truth.
     pub finished_sigma_poses: usize,
     /// See `finished_sigma_poses`.
@@ -236,6 +242,9 @@ impl Row {
             vo_sessions: 0,
             mount_error_deg: None,
             mount_calibrated: false,
+            online_sigma_poses: 0,
+            online_within_2sigma: 0,
+            online_nees: None,
             finished_sigma_poses: 0,
             finished_within_2sigma: 0,
             finished_nees: None,
@@ -264,6 +273,10 @@ impl Row {
         self.vo_sessions = facts.vo_sessions;
         self.mount_error_deg = facts.mount_error_deg;
         self.mount_calibrated = facts.mount_calibrated;
+        let sigma = a.online.judgement.sigma;
+        self.online_sigma_poses = sigma.poses;
+        self.online_within_2sigma = sigma.within_2sigma;
+        self.online_nees = finite(sigma.nees());
         let sigma = a.finished.judgement.sigma;
         self.finished_sigma_poses = sigma.poses;
         self.finished_within_2sigma = sigma.within_2sigma;
@@ -356,7 +369,7 @@ const CSV_HEADER: &str = "seed,driver,profile,receiver,anchors,error,\
 truth_score,truth_verified,truth_failed,online_score,online_verified,online_failed,finished_score,finished_verified,finished_failed,\
 truth_score_cs,truth_verified_cs,online_score_cs,online_verified_cs,finished_score_cs,finished_verified_cs,finished_failed_cs,\
 online_ape_m,finished_ape_m,online_scale_error,finished_scale_error,online_mota,online_idf1,finished_mota,finished_idf1,\
-first_anchor_s,vo_sessions,mount_error_deg,mount_calibrated,finished_within_2sigma,finished_nees,latency_error_s,wheel_factor_error,windows,device_windows_verified,truth_windows_verified";
+first_anchor_s,vo_sessions,mount_error_deg,mount_calibrated,online_within_2sigma,online_nees,finished_within_2sigma,finished_nees,latency_error_s,wheel_factor_error,windows,device_windows_verified,truth_windows_verified";
 
 fn csv_row(r: &Row) -> String {
     let opt = |x: Option<f64>| x.map_or_else(String::new, |v| format!("{v:.6}"));
@@ -371,7 +384,7 @@ fn csv_row(r: &Row) -> String {
     let marks = |f: fn(&WindowPair) -> bool| r.windows.iter().map(|w| if f(w) { '1' } else { '0' }).collect::<String>();
     let error = r.error.as_deref().map_or_else(String::new, |e| format!("\"{}\"", e.replace('"', "'")));
     format!(
-        "{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        "{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
         r.seed,
         r.driver,
         r.profile,
@@ -395,6 +408,8 @@ fn csv_row(r: &Row) -> String {
         r.vo_sessions,
         opt(r.mount_error_deg),
         u8::from(r.mount_calibrated),
+        opt(finite(r.online_within_2sigma as f64 / r.online_sigma_poses as f64)),
+        opt(r.online_nees),
         opt(finite(r.finished_within_2sigma as f64 / r.finished_sigma_poses as f64)),
         opt(r.finished_nees),
         opt(r.latency_error_s),
