@@ -448,8 +448,8 @@ records! {
         /// Heading, 1e-4 rad counter-clockwise from east.
         yaw_e4: DeltaDelta,
         /// Horizontal 1-σ of the position (DRMS: √(σ_east² + σ_north²)), mm; 0 when not
-        /// estimated (v1.3; 0 in older logs; the device writes 0 today, `finish` the
-        /// solution's).
+        /// estimated (v1.3; 0 in older logs; the device writes its anchorer's
+        /// `position_sigma_m`, `finish` the solution's).
         sigma_mm: Delta,
     }
     /// The current VO → ENU anchor (Sim(3)) and its quality.
