@@ -12,7 +12,13 @@
 //! Capacity is in the type: `Tracker3d<N>` keeps at most N tracks; when full, the track
 //! with the fewest hits makes room or the candidate is dropped, and it is counted.
 //!
+//! A detector's stated covariances are scaled by a factor learnt from the innovations
+//! ([`consistency`]): a detector too sure of itself would otherwise make every track too
+//! sure of itself too.
+//!
 //! Offline, [`smooth_track`] runs the RTS smoother over one track's reported states.
+
+pub mod consistency;
 
 use core::f64::consts::PI;
 
@@ -22,6 +28,7 @@ use crate::assign::Solver;
 use crate::box3d::Box3d;
 use crate::ekf::{rts_smooth, Kalman, SmoothStep};
 pub use crate::track2d::TrackError;
+use consistency::CovarianceScale;
 
 /// How detections of a class are matched to tracks.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -252,6 +259,8 @@ pub struct Tracker3d<'a, const N: usize> {
     /// solver reads a pair many times and a 3D GIoU is not cheap. f32 is ample for
     /// ranking GIoUs and distances and halves the buffer (16 KiB at N = 64).
     costs: [[f32; N]; N],
+    /// What the detections' stated covariances are scaled by, learnt from the innovations.
+    covariance_scale: CovarianceScale,
     stats: Stats3d,
 }
 
@@ -267,6 +276,7 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
             solver: Solver::new(),
             // Every entry a frame reads is written first in that frame.
             costs: [[0.0; N]; N],
+            covariance_scale: CovarianceScale::new(),
             stats: Stats3d {
                 frames: 0,
                 rejected: 0,
@@ -281,6 +291,11 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
     /// Counters so far.
     pub fn stats(&self) -> &Stats3d {
         &self.stats
+    }
+
+    /// The factor the detections' stated covariances are scaled by (1 until learnt).
+    pub fn covariance_scale(&self) -> f64 {
+        self.covariance_scale.factor()
     }
 
     /// Whether a detection is plausible for its class.
@@ -381,7 +396,11 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
             let Some(class) = classes.get(usize::from(d.class)) else { continue };
             let (h, mut r) = measurement_model(&class.measurement_noise);
             if let Some([xx, xy, yy]) = d.position_covariance {
-                (r[(0, 0)], r[(0, 1)], r[(1, 0)], r[(1, 1)]) = (xx, xy, xy, yy);
+                let k = self.covariance_scale.factor();
+                (r[(0, 0)], r[(0, 1)], r[(1, 0)], r[(1, 1)]) = (k * xx, k * xy, k * xy, k * yy);
+                let (x, p) = (&track.kf.x, &track.kf.p);
+                let innovation = [d.bbox.x - x[0], d.bbox.y - x[1]];
+                self.covariance_scale.push(innovation, p[(0, 0)] + p[(1, 1)], xx + yy);
             }
             // Turn the prediction by π when the detection points the other way.
             let mut z = state_of(&d.bbox);
@@ -616,6 +635,43 @@ mod tests {
         assert_eq!(smooth_track(&frames[1..], &mut steps, &AB3DMOT_PROCESS_NOISE), Err(SmoothError::LengthMismatch));
         frames.swap(3, 4);
         assert_eq!(smooth_track(&frames, &mut steps, &AB3DMOT_PROCESS_NOISE), Err(SmoothError::NotIncreasing));
+    }
+
+    #[test]
+    fn learns_that_the_detector_is_too_sure_of_itself() {
+        // A cone seen with ±0.6 m uniform noise (σ 0.35 m per axis, 0.12 m²) by a detector
+        // stating 0.03 m²: four times too sure. The tracker learns to scale it by about 4.
+        // (The factor rests on the filter's own prediction covariance being right: a static
+        // class with AB3DMOT's metre of process noise per frame would drown it.)
+        let still = ClassConfig {
+            process_noise: [1e-3, 1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4],
+            initial_velocity_variance: 0.01,
+            ..CLASSES[1]
+        };
+        let classes = [CLASSES[0], still];
+        let config = Config3d { classes: &classes, ..config() };
+        let mut tracker = Tracker3d::<2>::new(config);
+        let mut state = 7;
+        for _ in 0..400 {
+            let d = Detection3d {
+                position_covariance: Some([0.03, 0.0, 0.03]),
+                ..cone(5.0 + noise(&mut state, 0.6), noise(&mut state, 0.6))
+            };
+            frame(&mut tracker, &[d]);
+        }
+        let k = tracker.covariance_scale();
+        assert!((3.0..5.5).contains(&k), "learnt factor {k}");
+        // A detector that states its noise right is left alone.
+        let mut honest = Tracker3d::<2>::new(config);
+        for _ in 0..400 {
+            let d = Detection3d {
+                position_covariance: Some([0.12, 0.0, 0.12]),
+                ..cone(5.0 + noise(&mut state, 0.6), noise(&mut state, 0.6))
+            };
+            frame(&mut honest, &[d]);
+        }
+        let k = honest.covariance_scale();
+        assert!((0.7..1.4).contains(&k), "learnt factor {k}");
     }
 
     #[test]
