@@ -4,7 +4,7 @@
 //! modest (a monocular network's depth σ is a guess; on the typical profile it is off by
 //! up to 2× either way), and the tracks placed in the world inherit the ego's error on top.
 //! For an update with prediction covariance P and stated covariance R, the innovation ν
-//! has E[νᵀν] = tr P + α·tr R where α is the factor R should have been scaled by: each
+//! has E\[νᵀν\] = tr P + α·tr R where α is the factor R should have been scaled by: each
 //! update gives a sample (νᵀν − tr P) / tr R, their exponentially weighted mean is α, and
 //! the tracker scales the stated covariances by it (clamped to [`MIN_SCALE`, `MAX_SCALE`])
 //! once [`MIN_UPDATES`] samples are in. No parameter of any generator is read: only what
