@@ -650,27 +650,22 @@ mod tests {
         };
         let classes = [CLASSES[0], still];
         let config = Config3d { classes: &classes, ..config() };
-        let mut tracker = Tracker3d::<2>::new(config);
         let mut state = 7;
-        for _ in 0..400 {
-            let d = Detection3d {
-                position_covariance: Some([0.03, 0.0, 0.03]),
-                ..cone(5.0 + noise(&mut state, 0.6), noise(&mut state, 0.6))
-            };
-            frame(&mut tracker, &[d]);
-        }
-        let k = tracker.covariance_scale();
+        let mut learn = |stated: f64| {
+            let mut tracker = Tracker3d::<2>::new(config);
+            for _ in 0..400 {
+                let d = Detection3d {
+                    position_covariance: Some([stated, 0.0, stated]),
+                    ..cone(5.0 + noise(&mut state, 0.6), noise(&mut state, 0.6))
+                };
+                frame(&mut tracker, &[d]);
+            }
+            tracker.covariance_scale()
+        };
+        let k = learn(0.03);
         assert!((3.0..5.5).contains(&k), "learnt factor {k}");
         // A detector that states its noise right is left alone.
-        let mut honest = Tracker3d::<2>::new(config);
-        for _ in 0..400 {
-            let d = Detection3d {
-                position_covariance: Some([0.12, 0.0, 0.12]),
-                ..cone(5.0 + noise(&mut state, 0.6), noise(&mut state, 0.6))
-            };
-            frame(&mut honest, &[d]);
-        }
-        let k = honest.covariance_scale();
+        let k = learn(0.12);
         assert!((0.7..1.4).contains(&k), "learnt factor {k}");
     }
 
