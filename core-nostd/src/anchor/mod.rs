@@ -28,6 +28,12 @@
 //! * **Scale from the wheels.** Wheel distance over VO path length (recent window), with
 //!   the wheel factor calibrated online against the GNSS path, is fused with the GNSS
 //!   scale by inverse variance.
+//! * **A rotation prior.** When the VO starts a new session the old one's last camera
+//!   attitude, carried across the gap, says how the new frame is turned
+//!   ([`Anchorer::set_rotation_prior`]). It weighs in as one more observation of the
+//!   rotation (Wahba's problem with the fixes' cross-covariance), forgotten as the fixes
+//!   are, so a straight road anchors the new session in seconds instead of waiting for a
+//!   bend.
 //! * **Observability.** The weakest rotation axis and the scale get a standard deviation
 //!   from the moments (inflated for time-correlated GNSS error, scaled by the
 //!   a-posteriori variance factor) and are propagated to the current position; until
@@ -41,7 +47,7 @@ mod wheel;
 
 use nalgebra::Vector3;
 
-use crate::sim3::umeyama::MAX_DECOMPOSITION_ITERATIONS;
+use crate::sim3::umeyama::{umeyama_rotation, yaw_rotation, MAX_DECOMPOSITION_ITERATIONS};
 use crate::sim3::{AlignMode, Moments, Sim3};
 use crate::time::{Duration, Timestamp};
 use history::{Odometer, VoHistory, VoSample};
@@ -192,6 +198,8 @@ pub enum AnchorError {
     InvalidSigma,
     /// Timestamp earlier than the previous one of the same stream.
     OutOfOrder,
+    /// A matrix that is not a rotation (not orthonormal, or a reflection).
+    NotARotation,
 }
 
 impl core::fmt::Display for AnchorError {
@@ -200,6 +208,7 @@ impl core::fmt::Display for AnchorError {
             AnchorError::NonFinite => "value is NaN or infinite",
             AnchorError::InvalidSigma => "sigma must be positive and finite",
             AnchorError::OutOfOrder => "timestamp earlier than the previous sample",
+            AnchorError::NotARotation => "matrix is not a rotation",
         })
     }
 }
@@ -238,6 +247,14 @@ struct Hypothesis {
     /// what the fixes alone predict).
     fit: Option<Sim3>,
     prediction_sse: f64,
+}
+
+/// What was known of the VO → ENU rotation before the fixes: a rotation and its
+/// information (1/σ² per axis, rad⁻²), forgotten as the fixes are.
+#[derive(Clone, Copy, Debug)]
+struct RotationPrior {
+    rotation: nalgebra::Matrix3<f64>,
+    information: f64,
 }
 
 /// Exponentially weighted means of recent pairs.
@@ -293,6 +310,8 @@ pub struct Anchorer<const K: usize = 9> {
     weight_squares: f64,
     /// Rotation and scale of the latest observable fit.
     held: Option<(nalgebra::Matrix3<f64>, f64)>,
+    /// A prior on the rotation of this VO session ([`Anchorer::set_rotation_prior`]).
+    prior: Option<RotationPrior>,
     /// Information discount of the latest update (correlation × variance factor).
     inflation: f64,
     /// A-posteriori variance factor of the latest update.
@@ -327,6 +346,7 @@ impl<const K: usize> Anchorer<K> {
             mean_fix_interval_s: 0.0,
             weight_squares: 0.0,
             held: None,
+            prior: None,
             inflation: 1.0,
             variance_factor: 1.0,
             estimate: None,
@@ -388,6 +408,32 @@ impl<const K: usize> Anchorer<K> {
             mean_fix_interval_s: self.mean_fix_interval_s,
             ..Anchorer::new(self.config)
         };
+    }
+
+    /// What is known of the current VO session's rotation (VO → ENU) before its fixes —
+    /// on a re-initialisation, the old session's last camera attitude carried across the
+    /// gap through the new session's first — with its 1-σ error per axis (rad; only the
+    /// yaw counts in [`AnchorMode::GravityAligned`]). It is one more observation of the
+    /// rotation, forgotten as the fixes are, so it matters while they do not yet fix the
+    /// rotation and fades as they do. A prior replaces the previous one; refused (state
+    /// unchanged) unless `rotation` is a proper rotation and σ positive and finite.
+    pub fn set_rotation_prior(&mut self, rotation: nalgebra::Matrix3<f64>, sigma_rad: f64) -> Result<(), AnchorError> {
+        if !rotation.iter().all(|v| v.is_finite()) {
+            return Err(AnchorError::NonFinite);
+        }
+        if !(sigma_rad.is_finite() && sigma_rad > 0.0) {
+            return Err(AnchorError::InvalidSigma);
+        }
+        let orthonormal = (rotation.transpose() * rotation - nalgebra::Matrix3::identity()).norm() < 1e-6;
+        if !(orthonormal && rotation.determinant() > 0.0) {
+            return Err(AnchorError::NotARotation);
+        }
+        let information = 1.0 / (sigma_rad * sigma_rad);
+        if !information.is_finite() {
+            return Err(AnchorError::InvalidSigma);
+        }
+        self.prior = Some(RotationPrior { rotation, information });
+        Ok(())
     }
 
     /// A vehicle-speed sample (wheel-based or vehicle speed, m/s).
@@ -544,6 +590,9 @@ impl<const K: usize> Anchorer<K> {
             let _ = h.moments.push(&x, &fix.enu, weight);
             h.fit = h.moments.align(align_mode).ok();
         }
+        if let Some(prior) = &mut self.prior {
+            prior.information *= forget;
+        }
         self.weight_squares = self.weight_squares * forget * forget + weight * weight;
         self.quality.anchors_used = self.quality.anchors_used.saturating_add(1);
         self.last_accepted = Some((fix.t, fix.enu, odo_best));
@@ -616,15 +665,18 @@ impl<const K: usize> Anchorer<K> {
         let inflation = correlation * variance_factor;
         self.inflation = inflation;
         self.variance_factor = variance_factor;
+        let prior_information = self.prior.map_or(0.0, |p| p.information);
+        let fit = self.prior.and_then(|p| with_rotation_prior(fit, m, inflation, &p, self.config.mode)).unwrap_or(fit);
         let sxx = m.covariance_x() * m.weight();
         let trace = sxx.trace().max(0.0);
         // The translation is pinned at the recent centroid: rotation and scale errors act
         // through the lever arm from there to the current point.
         let offset = current - h.recent.mean_x;
         let c = fit.scale;
-        // Rotation information about unit axis a is c²·aᵀ(tr(S)·I − S)a (S = Σw x'x'ᵀ);
-        // its eigen-axes are those of S. A rotation error θ about a moves the current
-        // point by θ·c·‖a × offset‖, so c cancels in the position variance.
+        // Rotation information (rad⁻²) about unit axis a is c²·aᵀ(tr(S)·I − S)a / inflation
+        // (S = Σw x'x'ᵀ) from the fixes, plus the prior's, the same about every axis, so
+        // the eigen-axes are those of S. A rotation error θ about a moves the current point
+        // by θ·c·‖a × offset‖.
         let (rotation_sigma, rotation_var_m2) = match self.config.mode {
             AnchorMode::Full => {
                 let Some(eig) =
@@ -636,18 +688,18 @@ impl<const K: usize> Anchorer<K> {
                 let mut weakest = 0.0f64;
                 let mut var = 0.0;
                 for i in 0..3 {
-                    let info = (trace - eig.eigenvalues[i]).max(0.0);
+                    let info = c * c * (trace - eig.eigenvalues[i]).max(0.0) / inflation + prior_information;
                     let axis = eig.eigenvectors.column(i);
                     let lever2 = axis.cross(&offset).norm_squared();
-                    weakest = weakest.max(1.0 / (c * c * info));
-                    var += if lever2 > 0.0 { lever2 / info } else { 0.0 };
+                    weakest = weakest.max(1.0 / info);
+                    var += if lever2 > 0.0 { c * c * lever2 / info } else { 0.0 };
                 }
-                (libm::sqrt(inflation * weakest), inflation * var)
+                (libm::sqrt(weakest), var)
             }
             AnchorMode::GravityAligned => {
-                let info = sxx[(0, 0)] + sxx[(1, 1)];
+                let info = c * c * (sxx[(0, 0)] + sxx[(1, 1)]) / inflation + prior_information;
                 let lever2 = offset.x * offset.x + offset.y * offset.y;
-                (libm::sqrt(inflation / (c * c * info)), inflation * lever2 / info)
+                (libm::sqrt(1.0 / info), c * c * lever2 / info)
             }
         };
         let (fused, scale_var) = fuse_wheel_scale(fit, m, inflation, self.wheel_prior());
@@ -690,6 +742,31 @@ impl<const K: usize> Anchorer<K> {
             self.estimate = Some(t);
         }
     }
+}
+
+/// The fit's rotation with the prior's weighed in: the rotation maximising
+/// tr(Rᵀ·(c·Σw y'x'ᵀ / inflation + ½·prior information·R_prior)) — Wahba's problem with the
+/// fixes' cross-covariance (at the fit's scale, discounted as for observability) and the
+/// prior as one more observation — and the scale that goes with it.
+fn with_rotation_prior(
+    fit: Sim3,
+    moments: &Moments,
+    inflation: f64,
+    prior: &RotationPrior,
+    mode: AnchorMode,
+) -> Option<Sim3> {
+    let cross = moments.cross_covariance() * moments.weight();
+    let b = cross * (fit.scale / inflation) + prior.rotation * (0.5 * prior.information);
+    let rotation = match mode {
+        AnchorMode::Full => umeyama_rotation(&b),
+        AnchorMode::GravityAligned => yaw_rotation(&b),
+    }
+    .ok()?
+    .0;
+    let spread = (moments.covariance_x() * moments.weight()).trace();
+    let scale = rotation.component_mul(&cross).sum() / spread;
+    let fit = Sim3 { rotation, scale, translation: moments.mean_y() - rotation * moments.mean_x() * scale };
+    (fit.is_valid() && scale > 0.0).then_some(fit)
 }
 
 /// Fuse an Umeyama fit's scale with the wheel scale by inverse variance and move the

@@ -190,3 +190,79 @@ fn fuzz_regression_overflowing_translation() {
     // estimate (found by `cargo fuzz run anchor_inputs`).
     replay_anchor_input(include_bytes!("../../../fuzz/regressions/anchor_inputs-overflowing-translation.bin"));
 }
+
+/// A new VO session on a straight road at 10 m/s (gravity-aligned, turned by `yaw` and
+/// scaled by 1/4), fixes at 5 Hz with σ 1.5 m of deterministic noise and the wheels:
+/// the anchorer after `seconds`, with the time it first became observable.
+fn straight_session(prior: Option<(f64, f64)>, seconds: f64) -> (Anchorer, Option<f64>, Sim3) {
+    let truth = Sim3 { rotation: rotation_z(2.0), translation: Vector3::new(50.0, -20.0, 0.0), scale: 4.0 };
+    let inverse = truth.inverse();
+    let config = AnchorConfig { mode: AnchorMode::GravityAligned, ..AnchorConfig::default() };
+    let mut anchorer: Anchorer = Anchorer::new(config);
+    if let Some((yaw_error, sigma)) = prior {
+        anchorer.set_rotation_prior(rotation_z(2.0 + yaw_error), sigma).expect("a rotation");
+    }
+    let path = |t: f64| Vector3::new(10.0 * t * libm::cos(0.3), 10.0 * t * libm::sin(0.3), 0.0);
+    let mut observable = None;
+    for k in 0..=(seconds * 100.0) as usize {
+        let t = k as f64 * 0.01;
+        if k % 2 == 0 {
+            anchorer.push_speed(ts(t), 10.0).expect("valid speed");
+        }
+        if k % 20 == 0 && k > 0 {
+            // Noise of σ ≈ 1.5 m per axis, deterministic, uncorrelated from fix to fix.
+            let n = k as f64 / 20.0;
+            let noise = Vector3::new(2.1 * libm::sin(n * 12.9898), 2.1 * libm::sin(n * 78.233 + 1.0), 0.0);
+            anchorer.push_gnss(ts(t), path(t) + noise, 1.5).expect("valid fix");
+        }
+        if k % 10 == 0 {
+            anchorer.push_vo(ts(t), inverse.transform_point(&path(t))).expect("valid VO");
+        }
+        if observable.is_none() && anchorer.quality().observability == Observability::Observable {
+            observable = Some(t);
+        }
+    }
+    (anchorer, observable, truth)
+}
+
+fn yaw_error_deg(anchorer: &Anchorer, truth: &Sim3) -> f64 {
+    let r = anchorer.estimate().expect("an estimate").rotation * truth.rotation.transpose();
+    libm::atan2(r[(1, 0)], r[(0, 0)]).to_degrees()
+}
+
+#[test]
+fn a_rotation_prior_anchors_a_straight_session_in_seconds() {
+    let (without, observable_without, _) = straight_session(None, 3.0);
+    assert!(observable_without.is_none(), "three seconds of a straight road alone: {:?}", without.quality());
+    let (with, observable_with, truth) = straight_session(Some((0.5f64.to_radians(), 1f64.to_radians())), 3.0);
+    assert!(observable_with.is_some_and(|t| t <= 2.0), "{observable_with:?} {:?}", with.quality());
+    assert!(yaw_error_deg(&with, &truth).abs() < 1.0, "{}", yaw_error_deg(&with, &truth));
+    // About the prior's own σ, forgotten for three seconds (1° · e^(3/24)); the fixes alone
+    // say far less.
+    let (sigma_with, sigma_without) = (with.quality().rotation_sigma_rad, without.quality().rotation_sigma_rad);
+    assert!(sigma_with < 1.2f64.to_radians(), "{:?}", with.quality());
+    assert!(sigma_without > 2.0 * sigma_with, "{sigma_without} {sigma_with}");
+}
+
+#[test]
+fn a_wrong_prior_fades_as_the_fixes_come() {
+    // 5° off while claiming 1°: the fixes take over as the prior is forgotten.
+    let (early, _, truth) = straight_session(Some((5f64.to_radians(), 1f64.to_radians())), 3.0);
+    let (late, _, _) = straight_session(Some((5f64.to_radians(), 1f64.to_radians())), 60.0);
+    let (e0, e1) = (yaw_error_deg(&early, &truth), yaw_error_deg(&late, &truth));
+    assert!(e0 > 2.0, "early on the prior weighs in: {e0}");
+    assert!(e1.abs() < 0.5, "after a minute the fixes decide: {e1}");
+}
+
+#[test]
+fn a_prior_that_is_not_a_rotation_is_refused() {
+    let mut a: Anchorer = Anchorer::new(AnchorConfig::default());
+    let reflection = nalgebra::Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -1.0));
+    assert_eq!(a.set_rotation_prior(reflection, 0.01), Err(AnchorError::NotARotation));
+    assert_eq!(a.set_rotation_prior(rotation_z(1.0) * 1.1, 0.01), Err(AnchorError::NotARotation));
+    assert_eq!(a.set_rotation_prior(rotation_z(f64::NAN), 0.01), Err(AnchorError::NonFinite));
+    assert_eq!(a.set_rotation_prior(rotation_z(1.0), 0.0), Err(AnchorError::InvalidSigma));
+    assert_eq!(a.set_rotation_prior(rotation_z(1.0), f64::INFINITY), Err(AnchorError::InvalidSigma));
+    assert_eq!(a.set_rotation_prior(rotation_z(1.0), 1e-200), Err(AnchorError::InvalidSigma));
+    assert!(a.prior.is_none());
+}

@@ -12,10 +12,15 @@
 //! flagged by events, until the anchorer's own estimate takes over, for at most
 //! [`MAX_CARRY_S`]. Its error grows with the turn during the gap and the wheel factor's
 //! error; the anchorer's is bounded.
+//!
+//! The same carried attitude is the anchorer's prior on the new session's rotation
+//! ([`rotation_prior`]): with it the fixes need only a few seconds of a straight road to
+//! anchor the session, instead of a bend.
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
-use crate::sim3::{Pose, Sim3};
+use crate::sim3::{rotation_z, Pose, Sim3};
+use crate::track3d::wrap_angle;
 
 /// Wheel distance the scale is taken over before the first carried pose, m.
 const MIN_WHEEL_DISTANCE_M: f64 = 2.0;
@@ -27,6 +32,68 @@ pub const MAX_CARRY_S: f64 = 10.0;
 /// Growth of a carried pose's σ, m per second since the last anchored pose: the wheels'
 /// few per cent of distance and the VO's heading over the gap (as `finish` bridges one).
 pub const CARRY_SPEED_SIGMA: f64 = 0.5;
+
+/// Attitude error of one VO frame beyond what the anchorer knew of the old session's
+/// rotation, rad (0.5°): the floor of the carried rotation's σ.
+const FIRST_FRAME_SIGMA_RAD: f64 = 0.5 * core::f64::consts::PI / 180.0;
+/// Time constant of the ego's turn rate as [`TurnRate`] smooths it, s.
+const TURN_RATE_TIME_CONSTANT_S: f64 = 1.0;
+/// Anchored frames farther apart than this start the turn rate afresh, s.
+const TURN_RATE_MAX_STEP_S: f64 = 1.0;
+
+/// The ego's turn rate over its latest anchored frames (rad/s, smoothed over about a
+/// second): how far the car will have turned during a VO gap.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TurnRate {
+    last: Option<(f64, f64)>,
+    rate: f64,
+}
+
+impl TurnRate {
+    /// The anchored ego's heading (rad) at `t` s.
+    pub fn push(&mut self, t: f64, heading: f64) {
+        if let Some((t0, h0)) = self.last {
+            let dt = t - t0;
+            if dt > 0.0 && dt <= TURN_RATE_MAX_STEP_S {
+                let rate = wrap_angle(heading - h0) / dt;
+                self.rate += (rate - self.rate) * (dt / TURN_RATE_TIME_CONSTANT_S).min(1.0);
+            } else {
+                self.rate = 0.0;
+            }
+        }
+        if t.is_finite() && heading.is_finite() && self.rate.is_finite() {
+            self.last = Some((t, heading));
+        } else {
+            *self = TurnRate::default();
+        }
+    }
+
+    /// The smoothed turn rate, rad/s (left positive).
+    pub fn rate(&self) -> f64 {
+        self.rate
+    }
+}
+
+/// The new session's rotation (VO → ENU) as the carry sees it, and its 1-σ error (rad):
+/// the camera's world attitude `from` at the old session's last anchored frame, turned on
+/// about the vertical at the ego's `turn_rate` over the `gap_s`, through the new session's
+/// `first` VO pose. The error adds, to the old session's rotation σ, half the turn
+/// extrapolated over the gap and one frame's attitude error.
+pub fn rotation_prior(
+    from: &Pose,
+    gap_s: f64,
+    turn_rate: f64,
+    first: &Pose,
+    old_sigma_rad: f64,
+) -> (Matrix3<f64>, f64) {
+    let turn = turn_rate * gap_s.max(0.0);
+    let rotation = rotation_z(turn) * from.rotation * first.rotation.transpose();
+    let half_turn = 0.5 * turn;
+    let sigma = libm::sqrt(
+        old_sigma_rad * old_sigma_rad + half_turn * half_turn + FIRST_FRAME_SIGMA_RAD * FIRST_FRAME_SIGMA_RAD,
+    );
+    (rotation, sigma)
+}
 
 /// The provisional similarity of a new VO session.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -127,5 +194,37 @@ mod tests {
         assert!((s.rotation * to_vo - Matrix3::identity()).norm() < 1e-12);
         assert_eq!(carry.since(), 10.0);
         assert_eq!(carry.push(20.5, &vo(20.5), 10.0), None, "not carried beyond MAX_CARRY_S");
+    }
+
+    #[test]
+    fn the_turn_rate_follows_the_heading_and_restarts_after_a_gap() {
+        let mut turn = TurnRate::default();
+        // 0.2 rad/s to the left across ±π, frames at 10 Hz, for 10 s (ten time constants).
+        for k in 0..100 {
+            let t = 0.1 * f64::from(k);
+            turn.push(t, wrap_angle(3.0 + 0.2 * t));
+        }
+        assert!((turn.rate() - 0.2).abs() < 1e-3, "{}", turn.rate());
+        turn.push(16.0, 0.0);
+        assert_eq!(turn.rate(), 0.0, "frames 6 s apart say nothing of the rate");
+        turn.push(f64::NAN, 0.0);
+        turn.push(16.1, 0.01);
+        assert_eq!(turn.rate(), 0.0, "a non-finite input starts afresh");
+    }
+
+    #[test]
+    fn the_carried_rotation_turns_on_over_the_gap_and_says_how_sure_it_is() {
+        // The new VO frame is the world turned by 2 rad; the car turned at 0.1 rad/s, the
+        // gap 1 s: the camera's first attitude in the new frame maps to the world through
+        // the prior, with the turn extrapolated.
+        let to_vo = rotation_z(-2.0);
+        let from = Pose { rotation: rotation_z(0.5), translation: Vector3::zeros() };
+        let first = Pose { rotation: to_vo * rotation_z(0.6), translation: Vector3::zeros() };
+        let (rotation, sigma) = rotation_prior(&from, 1.0, 0.1, &first, 0.01);
+        assert!((rotation * to_vo - Matrix3::identity()).norm() < 1e-12, "{rotation}");
+        let expected = (0.01f64 * 0.01 + 0.05 * 0.05 + FIRST_FRAME_SIGMA_RAD * FIRST_FRAME_SIGMA_RAD).sqrt();
+        assert!((sigma - expected).abs() < 1e-15);
+        let (_, straight) = rotation_prior(&from, 1.0, 0.0, &first, 0.0);
+        assert_eq!(straight, FIRST_FRAME_SIGMA_RAD);
     }
 }

@@ -1,6 +1,10 @@
 //! The ego the device's verification windows score: the VO's motion at once, the
-//! anchorer's corrections eased in. (The log's `EgoPose` records and the detections'
-//! placement keep the anchored pose: eased, it arrived late at real corrections.)
+//! anchorer's corrections eased in. The detections are placed through it too, so that the
+//! windows score the ego and the agents it saw in one frame: through the anchored pose, a
+//! cone seen ahead was placed with one fix's error and passed with another's, and the
+//! difference put it in the ego's path. (The log's `EgoPose` records keep the anchored pose
+//! — eased, it arrives late at real corrections — and its tracks are moved onto it with
+//! [`Reframe`].)
 //!
 //! The anchored ego is the anchor similarity applied to the VO pose. The similarity changes
 //! at every GNSS fix, and a change of a tenth of a degree in its rotation moves a pose
@@ -32,6 +36,42 @@ pub const SNAP_M: f64 = 10.0;
 pub const SNAP_RAD: f64 = 0.35;
 /// Poses further apart than this (s) start afresh.
 pub const MAX_GAP_S: f64 = 1.0;
+
+/// Moves what was placed relative to one ego pose to the same place relative to another
+/// (the tracks, from the eased ego onto the anchored one for the log).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reframe {
+    from: Pose2,
+    to: Pose2,
+    turn: f64,
+    sin: f64,
+    cos: f64,
+}
+
+impl Reframe {
+    /// From pose `from` onto pose `to`.
+    pub fn new(from: Pose2, to: Pose2) -> Self {
+        let turn = wrap(to.heading - from.heading);
+        let (sin, cos) = libm::sincos(turn);
+        Reframe { from, to, turn, sin, cos }
+    }
+
+    /// A point (east, north, m).
+    pub fn point(&self, x: f64, y: f64) -> (f64, f64) {
+        let (dx, dy) = (x - self.from.x, y - self.from.y);
+        (self.to.x + self.cos * dx - self.sin * dy, self.to.y + self.sin * dx + self.cos * dy)
+    }
+
+    /// A heading, rad.
+    pub fn heading(&self, heading: f64) -> f64 {
+        wrap(heading + self.turn)
+    }
+
+    /// A vector (a velocity: east, north).
+    pub fn vector(&self, x: f64, y: f64) -> (f64, f64) {
+        (self.cos * x - self.sin * y, self.sin * x + self.cos * y)
+    }
+}
 
 /// The eased ego of the previous frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -111,6 +151,23 @@ impl Ease {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn reframing_keeps_what_was_placed_where_it_stood_to_the_ego() {
+        // A cone 10 m ahead and 2 m left of the eased ego (heading north); the anchored ego is
+        // 1 m east of it and turned 0.1 rad left.
+        let eased = Pose2::new(5.0, 5.0, core::f64::consts::FRAC_PI_2);
+        let anchored = Pose2::new(6.0, 5.0, core::f64::consts::FRAC_PI_2 + 0.1);
+        let to_log = Reframe::new(eased, anchored);
+        let (x, y) = to_log.point(3.0, 15.0);
+        let (forward, left) = anchored.offset(10.0, 2.0);
+        assert!((x - forward).abs() < 1e-12 && (y - left).abs() < 1e-12, "{x} {y} vs {forward} {left}");
+        assert!((to_log.heading(core::f64::consts::PI) - (-core::f64::consts::PI + 0.1)).abs() < 1e-12);
+        let (vx, vy) = to_log.vector(0.0, 1.0);
+        assert!((vx + libm::sin(0.1)).abs() < 1e-12 && (vy - libm::cos(0.1)).abs() < 1e-12);
+        let same = Reframe::new(eased, eased);
+        assert_eq!(same.point(3.0, 15.0), (3.0, 15.0));
+    }
 
     /// A car at 10 m/s due east, 10 Hz, whose anchored pose jumps 0.5 m north at 1 s.
     fn drive(ease: &mut Ease) -> ([f64; 60], f64) {

@@ -301,7 +301,10 @@ struct LastVo {
 struct Ego {
     t: Timestamp,
     frame: u64,
+    /// The anchored pose (the log's).
     pose: Pose2,
+    /// The eased pose (the windows', and the detections' placement: [`ease`]).
+    eased: Pose2,
     /// Height of the rear axle's ground point (ENU up), m.
     z: f64,
 }
@@ -358,6 +361,8 @@ struct State<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> {
     /// The camera's world pose, the ego heading and the position's σ (m) at the latest
     /// anchored frame.
     last_camera: Option<(Timestamp, Pose, f64, f64)>,
+    /// The anchored ego's turn rate, carried with the attitude across a VO gap.
+    turn_rate: carry::TurnRate,
     /// The ego the windows score, with the corrections eased in, and the VO session and
     /// pose it was last given.
     ease: ease::Ease,
@@ -438,6 +443,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
                 calibration: MountCalibration::new(config.mount, config.calibration),
                 carry: None,
                 last_camera: None,
+                turn_rate: carry::TurnRate::default(),
                 ease: ease::Ease::new(config.ease_s),
                 eased_vo: None,
                 lag: lag::FixedLag::new(),
@@ -890,7 +896,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         let mut frame = raw_frame.saturating_add(self.frame_offset);
         let restarted = self.vo.is_some_and(|v| frame <= v.frame);
         if let Some(v) = self.vo.filter(|v| v.session != session) {
-            self.new_session(t, &v, session)?;
+            self.new_session(t, &v, session, pose)?;
         }
         if self.anchorer.push_vo(t, pose.translation).is_err() {
             return self.issue(t, Issue::VoOutOfOrder, 1);
@@ -975,12 +981,13 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
             Some((tc, _, _, sigma)) => sigma + carry::CARRY_SPEED_SIGMA * (t - tc).as_secs_f64(),
             None => self.anchorer.quality().position_sigma_m,
         };
-        let ego = Ego { t, frame, pose: anchored, z: b.z };
+        let ego = Ego { t, frame, pose: anchored, eased, z: b.z };
         self.ego = Some(ego);
         if carried {
             self.stats.carried_frames = self.stats.carried_frames.saturating_add(1);
         } else {
             self.last_camera = Some((t, camera, anchored.heading, sigma));
+            self.turn_rate.push(t.as_secs_f64(), anchored.heading);
             self.stats.anchored_frames = self.stats.anchored_frames.saturating_add(1);
         }
         self.write(&Record::EgoPose(EgoPose {
@@ -997,14 +1004,29 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         Ok(())
     }
 
-    /// The VO started again under a new session number: anchoring starts afresh (the old
-    /// similarity says nothing of the new VO frame); until the new one is observable no
-    /// anchored ego is written.
-    fn new_session(&mut self, t: Timestamp, last: &LastVo, session: u32) -> Result<(), PipelineError<W::Error>> {
+    /// The VO started again under a new session number, `first` its first pose: anchoring
+    /// starts afresh (the old similarity's position and scale say nothing of the new VO
+    /// frame), with the camera's attitude carried across the gap as the prior on the new
+    /// rotation; until the new session is observable the ego is carried.
+    fn new_session(
+        &mut self,
+        t: Timestamp,
+        last: &LastVo,
+        session: u32,
+        first: &Pose,
+    ) -> Result<(), PipelineError<W::Error>> {
         if session < last.session {
             self.issue(t, Issue::VoSessionBackwards, 1)?;
         }
+        let old_rotation_sigma = self.anchorer.quality().rotation_sigma_rad;
         self.anchorer.new_vo_session();
+        if let Some((tc, camera, _, _)) = self.last_camera {
+            let gap = (t - tc).as_secs_f64();
+            let (rotation, sigma) =
+                carry::rotation_prior(&camera, gap, self.turn_rate.rate(), first, old_rotation_sigma);
+            // Refused only when the old session's rotation σ is not finite: then no prior.
+            let _ = self.anchorer.set_rotation_prior(rotation, sigma);
+        }
         self.ego = None;
         self.carry =
             self.last_camera.map(|(tc, camera, heading, _)| carry::Carry::new(camera, tc.as_secs_f64(), heading));
@@ -1137,7 +1159,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         let mut placed: heapless::Vec<Detection3d, T3> = heapless::Vec::new();
         let mut excess = 0u64;
         for d in detections {
-            let world = mount::to_world(&ego.pose, &self.mount.mount.to_body(d));
+            let world = mount::to_world(&ego.eased, &self.mount.mount.to_body(d));
             if placed.push(world).is_err() {
                 excess += 1;
             }
@@ -1227,25 +1249,29 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         self.agents.clear();
         self.lost.clear();
         self.agents_t = now;
+        // The tracks live in the eased ego's frame; the log has them beside its anchored one.
+        let to_log = ease::Reframe::new(ego.eased, ego.pose);
         for chunk in outputs.chunks(MAX_TRACKS) {
             let mut batch = Tracks3d { t_us, tracks: heapless::Vec::new() };
             for o in chunk {
                 let b = &o.bbox;
                 let (vx, vy) = (o.velocity[0] * per_second, o.velocity[1] * per_second);
                 let meta = self.config.classes.get(usize::from(o.class)).copied();
+                let (x, y) = to_log.point(b.x, b.y);
+                let (log_vx, log_vy) = to_log.vector(vx, vy);
                 // At most MAX_TRACKS per chunk.
                 let _ = batch.tracks.push(Track3d {
                     id: i64::from(o.id),
                     class: meta.map_or(255, |m| m.code),
-                    x_mm: quantise(b.x, 1e-3),
-                    y_mm: quantise(b.y, 1e-3),
+                    x_mm: quantise(x, 1e-3),
+                    y_mm: quantise(y, 1e-3),
                     z_mm: quantise(ego.z + b.z, 1e-3),
                     l_mm: quantise(b.l, 1e-3),
                     w_mm: quantise(b.w, 1e-3),
                     h_mm: quantise(b.h, 1e-3),
-                    yaw_e4: quantise(b.yaw, 1e-4),
-                    vx_mm_s: quantise(vx, 1e-3),
-                    vy_mm_s: quantise(vy, 1e-3),
+                    yaw_e4: quantise(to_log.heading(b.yaw), 1e-4),
+                    vx_mm_s: quantise(log_vx, 1e-3),
+                    vy_mm_s: quantise(log_vy, 1e-3),
                     is_static: i64::from(o.is_static),
                 });
                 let kind = meta.map_or(AgentKind::Object, |m| m.kind);

@@ -175,6 +175,15 @@ impl Moments {
         }
     }
 
+    /// Weighted cross-covariance of the pairs, (1/W)Σw(y−μy)(x−μx)ᵀ.
+    pub fn cross_covariance(&self) -> Matrix3<f64> {
+        if self.weight > 0.0 {
+            self.syx / self.weight
+        } else {
+            Matrix3::zeros()
+        }
+    }
+
     /// Weighted sum of squared residuals Σw‖y − T(x)‖² of a transform, from the
     /// moments alone.
     pub fn weighted_sse(&self, t: &Sim3) -> f64 {
@@ -214,7 +223,7 @@ impl Moments {
 }
 
 /// R = U S Vᵀ and tr(DS) from the cross-covariance (Umeyama eq. 39–43).
-fn umeyama_rotation(cov: &Matrix3<f64>) -> Result<(Matrix3<f64>, f64), AlignError> {
+pub(crate) fn umeyama_rotation(cov: &Matrix3<f64>) -> Result<(Matrix3<f64>, f64), AlignError> {
     if !cov.iter().all(|v| v.is_finite()) {
         return Err(AlignError::NonFinite);
     }
@@ -241,7 +250,7 @@ fn umeyama_rotation(cov: &Matrix3<f64>) -> Result<(Matrix3<f64>, f64), AlignErro
 }
 
 /// The rotation about z maximising tr(Rᵀ Σyx) and that maximum.
-fn yaw_rotation(cov: &Matrix3<f64>) -> Result<(Matrix3<f64>, f64), AlignError> {
+pub(crate) fn yaw_rotation(cov: &Matrix3<f64>) -> Result<(Matrix3<f64>, f64), AlignError> {
     let a = cov[(0, 0)] + cov[(1, 1)];
     let b = cov[(1, 0)] - cov[(0, 1)];
     let planar = libm::hypot(a, b);
