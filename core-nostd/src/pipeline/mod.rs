@@ -34,6 +34,7 @@ pub mod calibration;
 pub mod carry;
 pub mod clock;
 pub mod ease;
+pub mod edge;
 pub mod issues;
 pub mod lag;
 pub mod mount;
@@ -314,6 +315,8 @@ struct Ego {
 struct Window<'a> {
     start: f64,
     scorer: Scorer<'a, 'static, 1>,
+    /// The multiplier of a collision in the last second of the window before ([`edge`]).
+    inherited_collision: Option<f64>,
 }
 
 /// A reported 3D track, as the log and the score use it.
@@ -389,6 +392,8 @@ struct State<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> {
     lost: heapless::Vec<(u32, f64), KEPT_AGENTS>,
     agents_t: f64,
     window: Option<Window<'a>>,
+    /// The windows' latest at-fault collision, carried across a window's end ([`edge`]).
+    edge_collisions: edge::EdgeCollisions,
     /// The latest HDOP from a full fix, for position-only CAN fixes.
     hdop: Option<f64>,
     /// Receive time of the NMEA sentence before the current one (the epoch's last).
@@ -461,6 +466,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
                 lost: heapless::Vec::new(),
                 agents_t: 0.0,
                 window: None,
+                edge_collisions: edge::EdgeCollisions::default(),
                 hdop: None,
                 last_sentence: None,
                 signal_epoch: None,
@@ -1359,8 +1365,11 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         let ts = t.as_secs_f64();
         if self.window.is_none() {
             let checker = Checker::new(map, self.config.footprint);
-            self.window =
-                Some(Window { start: ts, scorer: Scorer::new(checker, Channel::Insensitive, self.config.score) });
+            self.window = Some(Window {
+                start: ts,
+                scorer: Scorer::new(checker, Channel::Insensitive, self.config.score),
+                inherited_collision: self.edge_collisions.carried_into(ts),
+            });
         }
         // The latest tracks, moved by their velocity to this pose's time (in place: a copy
         // of 64 agents is 4.6 KB of a microcontroller's stack).
@@ -1372,7 +1381,11 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
         self.agents_t = ts;
         let Some(window) = self.window.as_mut() else { return Ok(()) };
         // A refused pose (not finite, time not increasing) leaves the window as it was.
-        let _ = window.scorer.step(ts, ego, &self.agents);
+        if let Ok(report) = window.scorer.step(ts, ego, &self.agents) {
+            if let Some(collision) = &report.collision {
+                self.edge_collisions.push(ts, collision);
+            }
+        }
         if ts - window.start >= self.config.window_s {
             self.close_window(t)?;
         }
@@ -1381,7 +1394,8 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'a,
 
     fn close_window(&mut self, t: Timestamp) -> Result<(), PipelineError<W::Error>> {
         let Some(window) = self.window.take() else { return Ok(()) };
-        let s: Scores = window.scorer.finish(None);
+        let own: Scores = window.scorer.finish(None);
+        let s = window.inherited_collision.map_or(own, |m| edge::inherit(&own, m));
         if s.poses == 0 {
             return Ok(());
         }
