@@ -3,7 +3,7 @@
 //! The device anchors causally, from what it has seen so far. Finishing re-estimates the
 //! whole drive at once from everything the log holds — VO poses, GNSS fixes, wheel speed —
 //! and optional external anchors ([`anchors`]), as one sparse least-squares problem
-//! ([`solve`]); re-expresses and smooths the 3D tracks ([`tracks`]); verifies the finished
+//! ([`solve`], its drift prior learnt from the anchors by [`walk`]); re-expresses and smooths the 3D tracks ([`tracks`]); verifies the finished
 //! drive per window of nuPlan scenario length and as a whole ([`windows`]); and writes a
 //! finished log in the same format, whose first event says what it was finished from.
 
@@ -11,6 +11,7 @@ pub mod anchors;
 pub mod raw;
 pub mod solve;
 pub mod tracks;
+pub mod walk;
 pub mod windows;
 
 use std::collections::BTreeMap;
@@ -606,8 +607,10 @@ fn solve_session(
         })
         .collect();
     let candidate = |v: &AnchorVerdict| matches!(v, AnchorVerdict::Used);
+    let mut latency_s = settings.latency_prior.0;
     if !fixes.is_empty() && verdicts.iter().any(candidate) {
         let without = solve::solve(inputs, settings, &vec![false; anchors.len()])?;
+        latency_s = without.latency_s;
         let median_sigma = median(fixes.iter().map(|f| f.sigma_h).collect());
         let position_sigma = without.position_sigma_m.max(median_sigma);
         for (a, verdict) in anchors.iter().zip(verdicts.iter_mut()).filter(|(_, v)| candidate(v)) {
@@ -624,7 +627,8 @@ fn solve_session(
     }
     let enabled: Vec<bool> = verdicts.iter().map(candidate).collect();
     let settings = if enabled.iter().any(|&on| on) {
-        Settings { scale_walk: settings.anchored_walk.0, rotation_walk: settings.anchored_walk.1, ..settings }
+        let (scale_walk, rotation_walk) = walk::anchored_walk(inputs, settings, &enabled, latency_s)?;
+        Settings { scale_walk, rotation_walk, ..settings }
     } else {
         settings
     };

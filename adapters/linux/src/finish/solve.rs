@@ -116,7 +116,9 @@ pub struct Settings {
     /// is left looser so that it also absorbs the GNSS's slowly wandering error (on the
     /// comma2k19 minute: ATE 1.26 m against 1.75 m with the tighter walks, whose latency
     /// estimate collapses to 7 ms); with them it only has to follow the VO's drift and must
-    /// not follow the anchors' noise (`docs/finishing.md`).
+    /// not follow the anchors' noise. This is the tightest of the walks `finish` tries with
+    /// anchors; it keeps the one that predicts held-out anchors best ([`super::walk`],
+    /// `docs/finishing.md`).
     pub anchored_walk: (f64, f64),
     /// VO chord error: metres plus a fraction of the chord.
     pub vo_sigma: (f64, f64),
