@@ -89,7 +89,60 @@ fn best_predicting(tried: &[((f64, f64), Vec<f64>)]) -> Option<(f64, f64)> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::solve::{Anchor, AnchorAt, Fix, VoSample};
     use super::*;
+    use dash2sim_core::nalgebra::{Matrix3, Rotation3, Vector3};
+
+    /// Deterministic noise in [−1, 1] (no generator to share).
+    fn noise(state: &mut u64) -> f64 {
+        *state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+        ((*state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+
+    /// The walk chosen for an 80 s drive whose VO heading wanders by `wander` rad (a slow
+    /// sinusoid) on top of a fixed similarity; fixes of σ 1.5 m, anchors every 5 s of σ 0.3 m.
+    fn chosen_walk(wander: f64) -> (f64, f64) {
+        let mut state = 7;
+        let truth = |t: f64| Vector3::new(10.0 * t, 20.0 * (t / 10.0).sin(), 0.0);
+        let (scale, turn) = (2.0, Rotation3::from_axis_angle(&Vector3::z_axis(), 0.7));
+        let mut vo = Vec::new();
+        let mut position = Vector3::zeros();
+        for k in 0..=800 {
+            let t = k as f64 * 0.1;
+            if k > 0 {
+                let heading = wander * (std::f64::consts::TAU * t / 25.0).sin();
+                let step = truth(t) - truth(t - 0.1);
+                position += turn.inverse() * Rotation3::from_axis_angle(&Vector3::z_axis(), heading) * step / scale;
+            }
+            vo.push(VoSample { t, session: 0, position, rotation: Matrix3::identity() });
+        }
+        let fixes: Vec<Fix> = (0..=800)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                let error = Vector3::new(noise(&mut state), noise(&mut state), noise(&mut state)) * 1.5 * 3f64.sqrt();
+                Fix { t, enu: truth(t) + error, sigma_h: 1.5, sigma_v: 2.25 }
+            })
+            .collect();
+        let speeds: Vec<(f64, f64)> =
+            (0..=800).map(|k| k as f64 * 0.1).map(|t| (t, (truth(t + 0.05) - truth(t - 0.05)).norm() / 0.1)).collect();
+        let anchors: Vec<Anchor> = (1..16)
+            .map(|k| {
+                let t = k as f64 * 5.0;
+                let error = Vector3::new(noise(&mut state), noise(&mut state), 0.0) * 0.3 * 3f64.sqrt();
+                Anchor { at: AnchorAt::Time(t), enu: truth(t) + error, sigma: 0.3 }
+            })
+            .collect();
+        let inputs = Inputs { vo: &vo, fixes: &fixes, speeds: &speeds, anchors: &anchors, lever: Vector3::zeros() };
+        anchored_walk(inputs, Settings::default(), &[true; 15], 0.0).expect("solvable")
+    }
+
+    #[test]
+    fn a_wandering_vo_gets_looser_walks_and_a_steady_one_keeps_the_tight_ones() {
+        let tight = Settings::default().anchored_walk;
+        assert_eq!(chosen_walk(0.0), tight);
+        let wandering = chosen_walk(0.02);
+        assert!(wandering.0 > tight.0 && wandering.1 > tight.1, "{wandering:?}");
+    }
 
     #[test]
     fn the_walk_that_predicts_the_held_out_anchors_best_is_chosen() {
