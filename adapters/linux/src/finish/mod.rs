@@ -3,8 +3,9 @@
 //! The device anchors causally, from what it has seen so far. Finishing re-estimates the
 //! whole drive at once from everything the log holds — VO poses, GNSS fixes, wheel speed —
 //! and optional external anchors ([`anchors`]), as one sparse least-squares problem
-//! ([`solve`], its drift prior learnt from the anchors by [`walk`]); re-expresses and smooths the 3D tracks ([`tracks`]); verifies the finished
-//! drive per window of nuPlan scenario length and as a whole ([`windows`]); and writes a
+//! ([`solve`], its drift prior learnt from the anchors by [`walk`]); re-expresses and
+//! smooths the 3D tracks ([`tracks`]); verifies the finished drive per window of nuPlan
+//! scenario length and as a whole ([`windows`]); and writes a
 //! finished log in the same format, whose first event says what it was finished from.
 
 pub mod anchors;

@@ -20,8 +20,9 @@ const MIN_HELD_OUT: usize = 4;
 /// Iterations of each trial solve (it starts from the first alignment, as the real one).
 const TRIAL_ITERATIONS: usize = 20;
 
-/// The walks (scale, rotation per √s) that predict held-out anchors best, with the GNSS latency held at `latency_s`; the configured
-/// anchored walk when there are too few anchors to tell or no trial solves.
+/// The walks (scale, rotation per √s) that predict held-out anchors best, with the GNSS
+/// latency held at `latency_s`; the configured anchored walk when there are too few anchors
+/// to tell or no trial solves.
 pub fn anchored_walk(
     inputs: Inputs<'_>,
     settings: Settings,
@@ -133,6 +134,12 @@ mod tests {
             })
             .collect();
         let inputs = Inputs { vo: &vo, fixes: &fixes, speeds: &speeds, anchors: &anchors, lever: Vector3::zeros() };
+        // The tight walk's trial of the first fold solves: the tight walk kept below is a
+        // choice, not the fallback for trials that all failed.
+        let first_fold: Vec<bool> = (0..anchors.len()).map(|p| p % FOLDS != 0).collect();
+        let trial = Settings { latency_prior: (0.0, 1e-4), latency_search: (0.0, -1.0, 0.0), ..Settings::default() };
+        let trial = Settings { scale_walk: trial.anchored_walk.0, rotation_walk: trial.anchored_walk.1, ..trial };
+        assert!(solve::solve(inputs, trial, &first_fold).is_ok(), "the tight walk's trial solves");
         anchored_walk(inputs, Settings::default(), &[true; 15], 0.0).expect("solvable")
     }
 
