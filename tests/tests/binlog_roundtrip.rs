@@ -85,7 +85,7 @@ fn record() -> impl Strategy<Value = Record> {
             yaw_e4: v[3],
             sigma_mm: v[4]
         })),
-        (t.clone(), prop::array::uniform10(value())).prop_map(|(t_us, v)| Record::AnchorEstimate(AnchorEstimate {
+        (t.clone(), prop::array::uniform11(value())).prop_map(|(t_us, v)| Record::AnchorEstimate(AnchorEstimate {
             t_us,
             scale_e6: v[0],
             yaw_e6: v[1],
@@ -96,7 +96,8 @@ fn record() -> impl Strategy<Value = Record> {
             tz_mm: v[6],
             observability: v[7],
             anchors: v[8],
-            rms_mm: v[9]
+            rms_mm: v[9],
+            latency_us: v[10]
         })),
         (t.clone(), value(), value()).prop_map(|(t_us, frame, flags)| Record::FrameMeta(FrameMeta {
             t_us,

@@ -80,6 +80,15 @@ fn a_sweep_s_rows_are_the_demo_s_drives_and_its_summary_counts_them() {
         .map(|l| serde_json::from_str(l).expect("a JSON line"))
         .collect();
     assert_eq!(rows.len(), 4);
+    for row in &rows {
+        // The device's latency is judged where it anchored (the drive has fixes, so their
+        // mean error is stated); neither can be far off on a good receiver.
+        let anchored = row["online_ape_m"].is_f64();
+        let latency = row["online_latency_error_s"].as_f64();
+        assert_eq!(latency.is_some(), anchored, "{row}");
+        assert!(latency.is_none_or(|l| l.abs() < 0.3), "{row}");
+        assert!(row["gnss_mean_error_m"].as_f64().is_some_and(|e| (0.0..3.0).contains(&e)), "{row}");
+    }
     let on_disk: Value =
         serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).expect("summary.json")).expect("json");
     assert_eq!(on_disk, summary);

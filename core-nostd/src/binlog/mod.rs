@@ -32,8 +32,9 @@ pub const MAGIC: [u8; 6] = *b"D2SLOG";
 /// Format major version.
 pub const VERSION_MAJOR: u8 = 1;
 /// Format minor version written (1.1 added `Detection3d` and `ClockOffset`; 1.2 the VO
-/// session of a `VoPose` and `MountEstimate`; 1.3 the σ of an `EgoPose`).
-pub const VERSION_MINOR: u8 = 3;
+/// session of a `VoPose` and `MountEstimate`; 1.3 the σ of an `EgoPose`; 1.4 the GNSS
+/// latency of an `AnchorEstimate`).
+pub const VERSION_MINOR: u8 = 4;
 /// Header length in bytes (v1.0).
 pub const HEADER_LEN: usize = 48;
 /// Marks the start of every segment; a reader looks for it after damage.
@@ -255,6 +256,7 @@ macro_rules! records {
                 match self {
                     Kind::VoPose => 7,
                     Kind::EgoPose => 5,
+                    Kind::AnchorEstimate => 11,
                     _ => usize::MAX,
                 }
             }
@@ -476,6 +478,11 @@ records! {
         anchors: Absolute,
         /// RMS residual, mm.
         rms_mm: Absolute,
+        /// The GNSS receiver's latency (fix time → the VO time it describes) the solution
+        /// used, µs (v1.4; 0 in older logs, and when not estimated: a reader applies it the
+        /// same way). The device's is coarse (its hypotheses 25 ms apart, refined by a
+        /// parabola), `finish`'s the solution's.
+        latency_us: Absolute,
     }
     /// A camera frame.
     FrameMeta = 0x15 {

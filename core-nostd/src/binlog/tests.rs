@@ -214,3 +214,35 @@ fn an_appended_field_costs_nothing_while_it_is_zero_and_round_trips_when_it_is_n
     assert_eq!(got.as_slice(), &input);
     assert_eq!(stats.damaged, 0);
 }
+
+#[test]
+fn an_anchor_estimate_without_a_latency_is_as_long_as_in_v1_3() {
+    let anchor = |latency_us: i64| {
+        Record::AnchorEstimate(AnchorEstimate {
+            t_us: 1_000_000,
+            scale_e6: 1_000_000,
+            yaw_e6: 5,
+            pitch_e6: 0,
+            roll_e6: 0,
+            tx_mm: 10,
+            ty_mm: 20,
+            tz_mm: 0,
+            observability: 2,
+            anchors: 12,
+            rms_mm: 900,
+            latency_us,
+        })
+    };
+    let length = |latency_us: i64| {
+        let mut out = [0u8; 96];
+        Streams::default().encode(&anchor(latency_us), &mut out).expect("fits")
+    };
+    // The latency (appended in v1.4) is left out while it is 0; 62.5 ms takes three bytes.
+    assert_eq!(length(0) + 3, length(62_500));
+    let input = [anchor(0), anchor(62_500), anchor(0)];
+    let mut buf = [0u8; 2048];
+    let n = write(&input, WriterConfig::default(), &mut buf);
+    let (got, stats, _) = read(&buf[..n], 3);
+    assert_eq!(got.as_slice(), &input);
+    assert_eq!(stats.damaged, 0);
+}

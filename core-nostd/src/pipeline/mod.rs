@@ -1456,12 +1456,20 @@ fn anchor_record(t_us: i64, e: &Sim3, q: &crate::anchor::Quality) -> AnchorEstim
         Observability::Collinear => 1,
         _ => 0,
     };
-    similarity_record(t_us, e, observability, i64::from(q.anchors_used), q.rms_residual_m)
+    similarity_record(t_us, e, observability, i64::from(q.anchors_used), q.rms_residual_m, q.latency_s.unwrap_or(0.0))
 }
 
 /// A VO → ENU similarity as an `AnchorEstimate` record (the device's and `dash2sim
-/// finish`'s): observability 0 none, 1 collinear, 2 observable; anchors used; RMS residual, m.
-pub fn similarity_record(t_us: i64, e: &Sim3, observability: i64, anchors: i64, rms_m: f64) -> AnchorEstimate {
+/// finish`'s): observability 0 none, 1 collinear, 2 observable; anchors used; RMS residual, m;
+/// the GNSS latency the solution used, s.
+pub fn similarity_record(
+    t_us: i64,
+    e: &Sim3,
+    observability: i64,
+    anchors: i64,
+    rms_m: f64,
+    latency_s: f64,
+) -> AnchorEstimate {
     let [yaw, pitch, roll] = euler(&e.rotation);
     let t: &Vector3<f64> = &e.translation;
     AnchorEstimate {
@@ -1476,6 +1484,7 @@ pub fn similarity_record(t_us: i64, e: &Sim3, observability: i64, anchors: i64, 
         observability,
         anchors,
         rms_mm: quantise(rms_m, 1e-3),
+        latency_us: quantise(latency_s, 1e-6),
     }
 }
 

@@ -615,3 +615,13 @@ fn gnss_from_dbc_signals_anchors_the_drive_and_puts_the_log_in_utc() {
     assert!((ego.x_mm as f64 * 1e-3 - 199.0).abs() < 2.1, "{ego:?}");
     assert!((ego.t_us - (UTC0 + 19_900_000 - LATENCY_US)).abs() < 1_000, "{ego:?}");
 }
+
+#[test]
+fn the_anchor_record_carries_the_estimated_gnss_latency() {
+    let anchorer: Anchorer = Anchorer::new(AnchorConfig::default());
+    let quality = |latency_s| crate::anchor::Quality { latency_s, ..*anchorer.quality() };
+    let estimate = Sim3::identity();
+    assert_eq!(anchor_record(5, &estimate, &quality(Some(0.0625))).latency_us, 62_500);
+    // Not estimated yet: written as 0, which costs nothing in the payload.
+    assert_eq!(anchor_record(5, &estimate, &quality(None)).latency_us, 0);
+}

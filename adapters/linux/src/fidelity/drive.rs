@@ -116,6 +116,9 @@ pub struct Assessment {
     /// The device's anchor scale at its last observable estimate, and its error against the
     /// VO's true scale then.
     pub online_scale: Option<(f64, f64)>,
+    /// The GNSS latency of the device's last observable anchor estimate, s (0 when it had
+    /// none to give).
+    pub online_latency_s: Option<f64>,
     /// The finished scale, the VO's true scale averaged over its poses, and the error.
     pub finished_scale: (f64, f64, f64),
     /// The device's windows against the truth's.
@@ -146,6 +149,14 @@ fn online_scale(scenario: &Scenario, log: &LogContents) -> Option<(f64, f64)> {
     })?;
     let truth = true_scale_at(scenario, drive_time(log, t_us)?)?;
     Some((scale, scale / truth - 1.0))
+}
+
+/// The GNSS latency of the device's last observable anchor estimate, s.
+fn online_latency(log: &LogContents) -> Option<f64> {
+    log.records.iter().rev().find_map(|r| match r {
+        Record::AnchorEstimate(a) if a.observability == 2 => Some(a.latency_us as f64 * 1e-6),
+        _ => None,
+    })
 }
 
 /// The true ego of every frame, as `verify` replays it.
@@ -280,6 +291,7 @@ pub fn assess(recorded: &Recorded<'_>, anchors: Anchors, anchors_path: &Path) ->
     Ok(Assessment {
         truth,
         online_scale: online_scale(scenario, log),
+        online_latency_s: online_latency(log),
         online,
         finished: finished_judged,
         anchors_text,

@@ -131,6 +131,10 @@ pub struct Spreads {
     pub nees_finished: Spread,
     /// |finished GNSS latency − the receiver's true latency|, s.
     pub latency_error_finished_abs_s: Spread,
+    /// |the device's GNSS latency − the receiver's true latency|, s.
+    pub latency_error_online_abs_s: Spread,
+    /// The horizontal length of each drive's mean GNSS error, m (see the row's field).
+    pub gnss_mean_error_m: Spread,
     /// |finished wheel factor / the true one − 1|.
     pub wheel_factor_error_finished_abs: Spread,
 }
@@ -283,6 +287,8 @@ impl Summary {
             nees_online: Spread::of(ok.iter().map(|r| r.online_nees)),
             nees_finished: Spread::of(ok.iter().map(|r| r.finished_nees)),
             latency_error_finished_abs_s: Spread::of(ok.iter().map(|r| abs(r.latency_error_s))),
+            latency_error_online_abs_s: Spread::of(ok.iter().map(|r| abs(r.online_latency_error_s))),
+            gnss_mean_error_m: Spread::of(ok.iter().map(|r| r.gnss_mean_error_m)),
             wheel_factor_error_finished_abs: Spread::of(ok.iter().map(|r| abs(r.wheel_factor_error))),
         };
         let with_mount = ok.iter().filter(|r| r.mount_error_deg.is_some()).count();
@@ -401,7 +407,9 @@ impl Summary {
         spread(&mut t, "mount error (device, end)", &s.mount_error_deg, 1.0, "°");
         spread(&mut t, "NEES device (2: σ right)", &s.nees_online, 1.0, "");
         spread(&mut t, "NEES finished (2: σ right)", &s.nees_finished, 1.0, "");
+        spread(&mut t, "|GNSS latency error| device", &s.latency_error_online_abs_s, 1000.0, "ms");
         spread(&mut t, "|GNSS latency error| finished", &s.latency_error_finished_abs_s, 1000.0, "ms");
+        spread(&mut t, "fixes' weighted mean error", &s.gnss_mean_error_m, 1.0, "m");
         spread(&mut t, "|wheel factor error| finished", &s.wheel_factor_error_finished_abs, 100.0, "%");
         let _ = writeln!(
             t,

@@ -205,6 +205,13 @@ pub struct Row {
     pub finished_nees: Option<f64>,
     /// `finish`'s GNSS latency against the receiver's true one, s.
     pub latency_error_s: Option<f64>,
+    /// The device's (its last observable anchor estimate's) against the true one, s.
+    pub online_latency_error_s: Option<f64>,
+    /// The horizontal length of the fixes' mean error over the drive (weighted by their
+    /// stated σ, multipath left out), m: about what an estimate resting on these fixes
+    /// alone for its position can expect, since errors correlated for up to 30 s do not
+    /// average out within a drive (judged; never shown to the estimators).
+    pub gnss_mean_error_m: Option<f64>,
     /// `finish`'s wheel factor (true distance / odometer distance) against the true one
     /// (the inverse of the wheels' scale error), relative.
     pub wheel_factor_error: Option<f64>,
@@ -249,6 +256,8 @@ impl Row {
             finished_within_2sigma: 0,
             finished_nees: None,
             latency_error_s: None,
+            online_latency_error_s: None,
+            gnss_mean_error_m: None,
             wheel_factor_error: None,
             windows: Vec::new(),
         }
@@ -283,6 +292,8 @@ impl Row {
         self.finished_nees = finite(sigma.nees());
         let anchoring = &a.finish_report["anchoring"];
         self.latency_error_s = anchoring["gnss_latency_s"].as_f64().map(|l| l - facts.true_latency_s);
+        self.online_latency_error_s = a.online_latency_s.map(|l| l - facts.true_latency_s);
+        self.gnss_mean_error_m = facts.gnss_mean_error_m;
         self.wheel_factor_error = anchoring["wheel_factor"].as_f64().map(|w| w * facts.true_wheel_scale - 1.0);
         self.windows = a.windows.clone();
         self
@@ -307,6 +318,27 @@ struct DriveFacts {
     /// estimates are judged against; never shown to them).
     true_latency_s: f64,
     true_wheel_scale: f64,
+    gnss_mean_error_m: Option<f64>,
+}
+
+/// The horizontal length of the fixes' mean error (fix − the true camera position at the
+/// fix's time: the fixes describe the camera, as the scenario makes them), weighted by the
+/// receiver's stated σ as a solve weighs them, the multipath fixes left out as a solve's
+/// gate would, m; `None` without such fixes.
+fn gnss_mean_error(scenario: &crate::scenario::Scenario) -> Option<f64> {
+    let frames = &scenario.frames;
+    let [forward, left, _] = scenario.config.camera.true_mount().position;
+    let mut sum = [0.0; 3];
+    for g in scenario.gnss.iter().filter(|g| !g.multipath) {
+        let k = frames.partition_point(|f| f.ego.t < g.t_fix - 1e-6);
+        let Some(frame) = frames.get(k).filter(|f| (f.ego.t - g.t_fix).abs() < 1e-6) else { continue };
+        let ego = &frame.ego;
+        let (sin, cos) = ego.heading.sin_cos();
+        let camera = [ego.x + forward * cos - left * sin, ego.y + forward * sin + left * cos];
+        let w = g.reported_sigma.powi(-2);
+        sum = [sum[0] + w * (g.enu[0] - camera[0]), sum[1] + w * (g.enu[1] - camera[1]), sum[2] + w];
+    }
+    (sum[2] > 0.0).then(|| (sum[0] / sum[2]).hypot(sum[1] / sum[2]))
 }
 
 /// The device's last mount estimate against the scenario's true mount.
@@ -360,6 +392,7 @@ fn try_drive(seed: u64, driver: Driver, args: &SweepArgs, work: &Path) -> Result
         mount_calibrated,
         true_latency_s: config.gnss.latency_s,
         true_wheel_scale: config.wheel.scale,
+        gnss_mean_error_m: gnss_mean_error(&scenario),
     };
     Ok((assessment, facts))
 }
@@ -369,7 +402,7 @@ const CSV_HEADER: &str = "seed,driver,profile,receiver,anchors,error,\
 truth_score,truth_verified,truth_failed,online_score,online_verified,online_failed,finished_score,finished_verified,finished_failed,\
 truth_score_cs,truth_verified_cs,online_score_cs,online_verified_cs,finished_score_cs,finished_verified_cs,finished_failed_cs,\
 online_ape_m,finished_ape_m,online_scale_error,finished_scale_error,online_mota,online_idf1,finished_mota,finished_idf1,\
-first_anchor_s,vo_sessions,mount_error_deg,mount_calibrated,online_within_2sigma,online_nees,finished_within_2sigma,finished_nees,latency_error_s,wheel_factor_error,windows,device_windows_verified,truth_windows_verified";
+first_anchor_s,vo_sessions,mount_error_deg,mount_calibrated,online_within_2sigma,online_nees,finished_within_2sigma,finished_nees,latency_error_s,online_latency_error_s,gnss_mean_error_m,wheel_factor_error,windows,device_windows_verified,truth_windows_verified";
 
 fn csv_row(r: &Row) -> String {
     let opt = |x: Option<f64>| x.map_or_else(String::new, |v| format!("{v:.6}"));
@@ -384,7 +417,7 @@ fn csv_row(r: &Row) -> String {
     let marks = |f: fn(&WindowPair) -> bool| r.windows.iter().map(|w| if f(w) { '1' } else { '0' }).collect::<String>();
     let error = r.error.as_deref().map_or_else(String::new, |e| format!("\"{}\"", e.replace('"', "'")));
     format!(
-        "{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        "{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
         r.seed,
         r.driver,
         r.profile,
@@ -413,6 +446,8 @@ fn csv_row(r: &Row) -> String {
         opt(finite(r.finished_within_2sigma as f64 / r.finished_sigma_poses as f64)),
         opt(r.finished_nees),
         opt(r.latency_error_s),
+        opt(r.online_latency_error_s),
+        opt(r.gnss_mean_error_m),
         opt(r.wheel_factor_error),
         r.windows.len(),
         marks(|w| w.device_verified),

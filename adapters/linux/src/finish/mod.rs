@@ -655,7 +655,7 @@ fn calibrate_mount(vo: &[VoSample], nominal: CameraMount) -> MountEstimate {
 
 fn anchor_record(t: f64, sim3: &dash2sim_core::sim3::Sim3, solution: &Solution, used_anchors: usize) -> AnchorEstimate {
     let anchors = (solution.fix_used.iter().filter(|&&u| u).count() + used_anchors) as i64;
-    similarity_record(quantise(t, 1e-6), sim3, 2, anchors, solution.gnss_rms_m)
+    similarity_record(quantise(t, 1e-6), sim3, 2, anchors, solution.gnss_rms_m, solution.latency_s)
 }
 
 fn finite(x: f64) -> Value {

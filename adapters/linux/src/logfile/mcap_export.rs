@@ -103,7 +103,7 @@ fn schemas() -> Vec<(&'static str, String)> {
             schema(
                 "dash2sim.AnchorEstimate",
                 &format!(
-                    r#""timestamp":{TIME},"scale":{{"type":"number"}},"yaw_rad":{{"type":"number"}},"pitch_rad":{{"type":"number"}},"roll_rad":{{"type":"number"}},"translation":{v},"observability":{{"type":"string"}},"anchors":{{"type":"integer","minimum":0}},"rms_residual_m":{{"type":"number","minimum":0}}"#
+                    r#""timestamp":{TIME},"scale":{{"type":"number"}},"yaw_rad":{{"type":"number"}},"pitch_rad":{{"type":"number"}},"roll_rad":{{"type":"number"}},"translation":{v},"observability":{{"type":"string"}},"anchors":{{"type":"integer","minimum":0}},"rms_residual_m":{{"type":"number","minimum":0}},"gnss_latency_s":{{"type":"number"}}"#
                 ),
             ),
         ),
@@ -236,6 +236,7 @@ pub fn messages(log: &LogContents, map: Option<&MapView<'_>>) -> Vec<(&'static s
                     "observability": observability_name(a.observability),
                     "anchors": a.anchors.max(0),
                     "rms_residual_m": a.rms_mm.max(0) as f64 * 1e-3,
+                    "gnss_latency_s": a.latency_us as f64 * 1e-6,
                 }),
             )),
             Record::Verification(v) => {

@@ -220,7 +220,8 @@ pub fn tables(log: &LogContents, log_id: &str) -> Result<LogTables, String> {
         .f64("tz_m", column(&anchors, |a| a.tz_mm as f64 * 1e-3))
         .i64("observability", column(&anchors, |a| a.observability))
         .i64("anchors", column(&anchors, |a| a.anchors))
-        .f64("rms_m", column(&anchors, |a| a.rms_mm as f64 * 1e-3));
+        .f64("rms_m", column(&anchors, |a| a.rms_mm as f64 * 1e-3))
+        .f64("gnss_latency_s", column(&anchors, |a| a.latency_us as f64 * 1e-6));
     batches.push(("anchors", table.batch()?));
 
     let states: Vec<(i64, &dash2sim_core::binlog::Track3d)> = tracks(log).collect();
