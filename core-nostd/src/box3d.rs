@@ -1,5 +1,5 @@
 //! Oriented 3D boxes (yaw about the vertical axis) and their overlap: 3D IoU and 3D GIoU
-//! as AB3DMOT computes them (DESIGN §3) — bird's-eye-view polygons clipped exactly, the
+//! as AB3DMOT computes them (docs/tracking.md) — bird's-eye-view polygons clipped exactly, the
 //! enclosing volume from the convex hull of both footprints times the joint height.
 //!
 //! Frame: x, y horizontal, z up; `z` is the box centre; `yaw` turns the length axis from

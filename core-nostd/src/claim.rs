@@ -1,4 +1,4 @@
-//! Claim-and-suppress (Algorithm 1 of the Dash2Sim paper; DESIGN §3): turning per-frame
+//! Claim-and-suppress (Algorithm 1 of the Dash2Sim paper; docs/tracking.md): turning per-frame
 //! detections into object tracks with a video propagator (the paper's SAM3) that, given
 //! prompts in one frame, follows each prompted object through the clip.
 //!

@@ -1,5 +1,5 @@
 //! The nuPlan-style closed-loop score of a replayed drive, computed streaming, one pose at
-//! a time (DESIGN §3; nuPlan `planning/metrics/`, PDM's aggregation).
+//! a time (nuPlan `planning/metrics/`, PDM's aggregation; docs/verify.md).
 //!
 //! score = Π multipliers × Σ wᵢ sᵢ / Σ wᵢ × 100, with
 //! * multipliers: no at-fault collisions, drivable-area compliance, driving-direction

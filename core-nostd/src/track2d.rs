@@ -1,4 +1,4 @@
-//! Online 2D tracking-by-detection in the ByteTrack style (Zhang et al. 2022; DESIGN §3):
+//! Online 2D tracking-by-detection in the ByteTrack style (Zhang et al. 2022; docs/tracking.md):
 //! detections split by score, high ones matched first to every live track, low ones then
 //! rescue tracks the high ones missed, new tracks only from high detections, confirmed
 //! on their second hit. Box motion is a constant-velocity Kalman filter on

@@ -3,7 +3,7 @@
 //! The functions take already-associated pose slices (reference and estimate of equal
 //! length) and write one error per pair into a caller-provided buffer, so they run
 //! without allocation; [`Statistics::from_errors`] then sorts that buffer in place for
-//! the median. Conventions follow evo 1.38 (`evo/core/metrics.py`, DESIGN §3):
+//! the median. Conventions follow evo 1.38 (`evo/core/metrics.py`; docs/conformance.md):
 //!
 //! * APE: translation part `‖p_est − p_ref‖`; full transformation `‖E − I₄‖_F` and
 //!   rotation angle of `E = P_est⁻¹·P_ref`.

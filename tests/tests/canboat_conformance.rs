@@ -1,4 +1,4 @@
-//! NMEA 2000 GNSS PGNs against canboat's analyzer on real buses (DESIGN §3; the expected
+//! NMEA 2000 GNSS PGNs against canboat's analyzer on real buses (docs/conformance.md; the expected
 //! JSON was produced by canboat 8.0.0-beta3 — see `canboat/PROVENANCE.md`).
 //!
 //! For each capture, the 129025/129026/129029 messages `dash2sim can decode` prints

@@ -1,5 +1,5 @@
 //! `dash2sim can decode FILE [--dbc F.dbc]...`: a candump capture → one JSON object per
-//! decoded message, in the shape DESIGN §4 fixes:
+//! decoded message, in the shape docs/cli.md gives:
 //! `{"t": 1410714882.622188, "bus": "can0", "id": "0x09F80102", "src": 2, "pgn": 129025, "fields": {…}}`.
 //!
 //! NMEA 2000 messages carry canboat's field names and units (degrees, m/s, metres) and

@@ -1,4 +1,4 @@
-//! The `dash2sim` command line (DESIGN §4). `main.rs` only calls [`run`].
+//! The `dash2sim` command line (docs/cli.md). `main.rs` only calls [`run`].
 //!
 //! Every subcommand has `--help`; `--json` prints machine-readable JSON on stdout;
 //! errors go to stderr with a non-zero exit status.

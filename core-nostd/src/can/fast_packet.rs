@@ -1,6 +1,6 @@
-//! NMEA 2000 fast-packet reassembly (DESIGN §3): messages of up to 223 bytes sent as up to
-//! 32 frames. Byte 0 of every frame is `sequence << 5 | index`; frame 0 carries the total
-//! length in byte 1 and 6 payload bytes, later frames 7.
+//! NMEA 2000 fast-packet reassembly (as canboat does it; docs/conformance.md): messages of up
+//! to 223 bytes sent as up to 32 frames. Byte 0 of every frame is `sequence << 5 | index`;
+//! frame 0 carries the total length in byte 1 and 6 payload bytes, later frames 7.
 //!
 //! Messages are kept in a fixed number of slots keyed by (PGN, source, sequence), so two
 //! senders — or two messages of one sender — may interleave. Frames may arrive in any

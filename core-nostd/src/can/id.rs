@@ -1,4 +1,4 @@
-//! The 29-bit identifier of J1939 and NMEA 2000 (DESIGN §3): priority, PGN, source and
+//! The 29-bit identifier of J1939 and NMEA 2000 (docs/conformance.md): priority, PGN, source and
 //! destination share one extended CAN id.
 
 /// PDU format values below this address one device (PDU1); from it on they broadcast.

@@ -1,4 +1,4 @@
-//! J1939 vehicle speed and position (DESIGN §3, SAE J1939-71).
+//! J1939 vehicle speed and position (SAE J1939-71; docs/conformance.md).
 //!
 //! J1939 marks 0xFB00.. (16-bit) and 0xFB00_0000.. (32-bit) as error / not available
 //! rather than only all ones, so those ranges decode to `None`.

@@ -1,4 +1,4 @@
-//! NMEA 2000 GNSS messages (DESIGN §3, canboat's `canboat.json`). Angles in degrees as
+//! NMEA 2000 GNSS messages (canboat's `canboat.json`; docs/conformance.md). Angles in degrees as
 //! canboat prints them; `None` where the sender said "not available".
 //!
 //! Decimal resolutions are applied by dividing by an exact power of ten, never by

@@ -1,4 +1,4 @@
-//! OBD-II mode 01 ("show current data") responses (DESIGN §3, SAE J1979 / ISO 15765-4).
+//! OBD-II mode 01 ("show current data") responses (SAE J1979 / ISO 15765-4; docs/conformance.md).
 //!
 //! A tester asks `02 01 PID` on 0x7DF (or 0x18DB33F1); ECU `n` answers on 0x7E8 + n
 //! (or 0x18DAF1xx) with a single ISO-TP frame `len 41 PID A [B C D]`.

@@ -7,7 +7,7 @@
 //! exponentially forgotten (sliding behaviour on long drives). With unit weights and no
 //! forgetting the result equals evo's batch computation to rounding.
 //!
-//! Notation (DESIGN §3): x are source points (e.g. VO), y target points (e.g. ENU),
+//! Notation (docs/anchoring.md): x are source points (e.g. VO), y target points (e.g. ENU),
 //! Σxy = (1/W)Σwᵢ(yᵢ−μy)(xᵢ−μx)ᵀ, σx² = (1/W)Σwᵢ‖xᵢ−μx‖², U D Vᵀ = svd(Σxy),
 //! R = U S Vᵀ, c = tr(DS)/σx², t = μy − cRμx.
 

@@ -1,4 +1,4 @@
-//! 3D track manager in the AB3DMOT style (Weng et al. 2020; DESIGN §3): one constant-
+//! 3D track manager in the AB3DMOT style (Weng et al. 2020; docs/tracking.md): one constant-
 //! velocity Kalman filter per object on [x y z θ l w h vx vy vz], association per class by
 //! 3D GIoU or centre distance through the optimal solver, tracks reported after
 //! `min_hits` hits and dropped after `max_age` missed frames.

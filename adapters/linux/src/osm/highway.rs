@@ -1,6 +1,7 @@
 //! What a highway way means for driving: which ways carry cars, how many lanes each
 //! way, how wide, in which direction, how fast — from its tags with the defaults of
-//! DESIGN §3 (OSM wiki, osm2lanes, SUMO's typemap) where tags are missing or unreadable.
+//! the OSM wiki, osm2lanes and SUMO's typemap (docs/map-tile.md) where tags are missing or
+//! unreadable.
 
 use super::Way;
 
