@@ -1,0 +1,167 @@
+//! The module order of ARCHITECTURE.md holds (issue #32): within each crate, a module refers
+//! (`crate::module`, anywhere outside comments) only to modules before it in the order the
+//! file writes down, except for the arrows back up it lists as known — and each of those
+//! must still exist, so the list shrinks as they are removed. A new module must be placed in
+//! the order before it can be used.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The lines of the fenced block of ARCHITECTURE.md that follows the line `marker`.
+fn block(text: &str, marker: &str) -> Vec<String> {
+    text.lines()
+        .skip_while(|l| l.trim() != marker)
+        .skip(1)
+        .skip_while(|l| !l.trim_start().starts_with("```"))
+        .skip(1)
+        .take_while(|l| !l.trim_start().starts_with("```"))
+        .map(str::to_owned)
+        .collect()
+}
+
+/// The module order per crate source folder: `folder: a b c`.
+fn orders(text: &str) -> BTreeMap<String, Vec<String>> {
+    block(text, "<!-- module order -->")
+        .iter()
+        .filter_map(|l| l.split_once(':'))
+        .map(|(folder, modules)| (folder.trim().to_owned(), modules.split_whitespace().map(str::to_owned).collect()))
+        .collect()
+}
+
+/// The known arrows back up: `folder: from -> to`.
+fn exceptions(text: &str) -> BTreeSet<(String, String, String)> {
+    block(text, "<!-- known arrows back up -->")
+        .iter()
+        .filter_map(|l| {
+            let (folder, arrow) = l.split_once(':')?;
+            let (from, to) = arrow.split_once("->")?;
+            Some((folder.trim().to_owned(), from.trim().to_owned(), to.trim().to_owned()))
+        })
+        .collect()
+}
+
+/// The source without `//` comments (doc comments included).
+fn without_comments(source: &str) -> String {
+    source.lines().map(|l| l.split_once("//").map_or(l, |(code, _)| code)).collect::<Vec<_>>().join("\n")
+}
+
+/// The top-level names a source refers to as `crate::name` or inside `crate::{a, b::c}`.
+fn crate_references(source: &str) -> BTreeSet<String> {
+    let mut names = BTreeSet::new();
+    let ident = |s: &str| s.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect::<String>();
+    let mut rest = source;
+    while let Some(at) = rest.find("crate::") {
+        rest = &rest[at + "crate::".len()..];
+        if let Some(inner) = rest.strip_prefix('{') {
+            // The names right after the brace or a comma at depth one.
+            let (mut depth, mut expecting) = (1, true);
+            for (i, c) in inner.char_indices() {
+                match c {
+                    '{' => depth += 1,
+                    '}' if depth == 1 => {
+                        rest = &inner[i..];
+                        break;
+                    }
+                    '}' => depth -= 1,
+                    ',' if depth == 1 => expecting = true,
+                    c if c.is_whitespace() => {}
+                    _ if expecting && depth == 1 => {
+                        names.insert(ident(&inner[i..]));
+                        expecting = false;
+                    }
+                    _ => {}
+                }
+            }
+        } else {
+            names.insert(ident(rest));
+        }
+    }
+    names
+}
+
+/// Every module of a crate's source folder (files and folders but `lib.rs`/`main.rs`) and the
+/// modules each refers to.
+fn references(folder: &Path) -> BTreeMap<String, BTreeSet<String>> {
+    let module_of = |p: &Path| {
+        let first = p.strip_prefix(folder).expect("inside").components().next().expect("a component");
+        first.as_os_str().to_string_lossy().trim_end_matches(".rs").to_owned()
+    };
+    let mut out: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    let mut stack = vec![folder.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).expect("read_dir").flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                stack.push(path);
+                continue;
+            }
+            if path.extension().is_none_or(|e| e != "rs") {
+                continue;
+            }
+            let module = module_of(&path);
+            if module == "lib" || module == "main" {
+                continue;
+            }
+            let source = std::fs::read_to_string(&path).expect("source");
+            let refs = out.entry(module.clone()).or_default();
+            refs.extend(crate_references(&without_comments(&source)).into_iter().filter(|r| *r != module));
+        }
+    }
+    out
+}
+
+#[test]
+fn imports_follow_the_module_order_of_architecture_md() {
+    let text = std::fs::read_to_string(repo().join("ARCHITECTURE.md")).expect("ARCHITECTURE.md");
+    let orders = orders(&text);
+    assert!(orders.len() >= 3, "the module order block lost its crates: {orders:?}");
+    let known = exceptions(&text);
+    let mut problems = Vec::new();
+    let mut seen = BTreeSet::new();
+    for (folder, order) in &orders {
+        let position = |m: &str| order.iter().position(|o| o == m);
+        let refs = references(&repo().join(folder));
+        for module in refs.keys() {
+            if position(module).is_none() {
+                problems.push(format!("{folder}: module `{module}` is not in the order"));
+            }
+        }
+        for module in order {
+            if !refs.contains_key(module) {
+                problems.push(format!("{folder}: `{module}` is in the order but not in the crate"));
+            }
+        }
+        for (module, targets) in &refs {
+            let Some(at) = position(module) else { continue };
+            for target in targets.iter().filter(|t| refs.contains_key(*t)) {
+                let arrow = (folder.clone(), module.clone(), target.clone());
+                if position(target).is_some_and(|t| t > at) {
+                    if known.contains(&arrow) {
+                        seen.insert(arrow);
+                    } else {
+                        problems.push(format!("{folder}: `{module}` -> `{target}` points back up the order"));
+                    }
+                }
+            }
+        }
+    }
+    for arrow in known.difference(&seen) {
+        problems.push(format!(
+            "{}: `{} -> {}` is listed as known but is gone: take it off the list",
+            arrow.0, arrow.1, arrow.2
+        ));
+    }
+    assert!(problems.is_empty(), "ARCHITECTURE.md's module order:\n{}", problems.join("\n"));
+}
+
+#[test]
+fn references_inside_braces_are_found() {
+    let source = "use crate::{a::{B, C}, d, e::f};\nlet x = crate::g::h();";
+    let got: Vec<String> = crate_references(source).into_iter().collect();
+    assert_eq!(got, ["a", "d", "e", "g"]);
+    assert!(crate_references(&without_comments("// crate::x\nlet y = 1; // crate::z")).is_empty());
+}
