@@ -184,7 +184,7 @@ pub fn run(args: &AnchorArgs) -> Result<(), String> {
             "frames": vo.len(),
             "anchored_frames": anchored.len(),
             "observable_after_s": first_observable,
-            "estimate": last.estimate.as_ref().map(crate::cli::sim3_json),
+            "estimate": last.estimate.as_ref().map(crate::evaluate::sim3_json),
             "observability": format!("{:?}", q.observability),
             "anchors_used": q.anchors_used,
             "anchors_rejected": q.anchors_rejected,

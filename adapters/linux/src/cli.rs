@@ -7,7 +7,6 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use dash2sim_core::sim3::Sim3;
 use dash2sim_core::traj::{Delta, RpePairs, Statistics};
 use serde_json::json;
 
@@ -530,16 +529,6 @@ fn check_max_diff(max_diff: f64) -> Result<(), String> {
     }
 }
 
-/// The alignment as `{"R": [[..]], "t": [..], "s": ..}`.
-pub fn sim3_json(t: &Sim3) -> serde_json::Value {
-    let r = &t.rotation;
-    json!({
-        "R": (0..3).map(|i| (0..3).map(|j| r[(i, j)]).collect::<Vec<_>>()).collect::<Vec<_>>(),
-        "t": [t.translation.x, t.translation.y, t.translation.z],
-        "s": t.scale,
-    })
-}
-
 /// Statistics with evo's key names.
 pub fn stats_json(s: &Statistics) -> serde_json::Value {
     json!({"rmse": s.rmse, "mean": s.mean, "median": s.median, "std": s.std, "min": s.min, "max": s.max, "sse": s.sse})
@@ -553,7 +542,7 @@ fn report(metric: &str, c: &CommonArgs, eval: &Evaluation, rpe: Option<&RpeArgs>
             "metric": metric.to_lowercase(),
             "pose_relation": relation,
             "align": align,
-            "alignment": sim3_json(&eval.alignment),
+            "alignment": evaluate::sim3_json(&eval.alignment),
             "stats": stats_json(&eval.stats),
             "n": eval.n,
             "matched": eval.matched,

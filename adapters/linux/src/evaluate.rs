@@ -183,3 +183,13 @@ pub fn rpe(
         traj::rpe(&reference.poses, est, pairs, relation.core(), &mut scratch, errors)
     })
 }
+
+/// The alignment as `{"R": [[..]], "t": [..], "s": ..}`.
+pub fn sim3_json(t: &Sim3) -> serde_json::Value {
+    let r = &t.rotation;
+    serde_json::json!({
+        "R": (0..3).map(|i| (0..3).map(|j| r[(i, j)]).collect::<Vec<_>>()).collect::<Vec<_>>(),
+        "t": [t.translation.x, t.translation.y, t.translation.z],
+        "s": t.scale,
+    })
+}

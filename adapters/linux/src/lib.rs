@@ -12,6 +12,7 @@ pub mod can_decode;
 pub mod cli;
 pub mod demo;
 pub mod detections;
+pub mod ego;
 pub mod evaluate;
 pub mod fidelity;
 pub mod finish;

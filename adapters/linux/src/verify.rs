@@ -16,8 +16,6 @@ use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Footprint, OrientedBox, Pose2, CORNER_NAMES};
 use dash2sim_core::score::{Agent, AgentKind, ScoreConfig, Scorer, Scores, StepReport};
 
-use crate::trajectory::{Format, Trajectory};
-
 /// Objects farther in time than this from a pose are not its agents, s.
 pub const OBJECT_TIME_TOLERANCE: f64 = 0.05;
 /// Words of the channel lane set: maps of up to 32 × 8192 = 262 144 lanes.
@@ -159,22 +157,6 @@ fn agents_at(objects: &BTreeMap<i64, Vec<Agent>>, t: f64) -> &[Agent] {
         .map_or(&[], |(_, agents)| agents.as_slice())
 }
 
-/// Heading of a pose: its body x axis in the ENU plane.
-fn heading(pose: &dash2sim_core::sim3::Pose) -> f64 {
-    pose.rotation[(1, 0)].atan2(pose.rotation[(0, 0)])
-}
-
-/// Rear-axle poses from a TUM file in a map's ENU frame (heading from the body x axis).
-pub fn read_ego(path: &Path) -> Result<Vec<(f64, Pose2)>, String> {
-    let trajectory = Trajectory::read(path, Format::Tum).map_err(|e| e.to_string())?;
-    Ok(trajectory
-        .stamps
-        .iter()
-        .zip(&trajectory.poses)
-        .map(|(t, p)| (*t, Pose2::new(p.translation.x, p.translation.y, heading(p))))
-        .collect())
-}
-
 /// The outcome of a replay.
 #[derive(Debug)]
 pub struct Verification {
@@ -297,7 +279,7 @@ pub fn evaluate<'a>(request: &VerifyRequest<'a>) -> Result<(Verification, &'a Pa
     let bytes = std::fs::read(request.map).map_err(|e| format!("{}: {e}", request.map.display()))?;
     let map = MapView::parse(&bytes).map_err(|e| format!("{}: {e}", request.map.display()))?;
     let (poses, mut objects, name) = match request.ego {
-        EgoSource::Tum(path) => (read_ego(path)?, BTreeMap::new(), path),
+        EgoSource::Tum(path) => (crate::ego::read_ego(path)?, BTreeMap::new(), path),
         EgoSource::Log(path) => {
             let (poses, agents) = from_log(path, &map)?;
             (poses, agents, path)

@@ -17,7 +17,7 @@ pub fn run_check(map: &Path, poses: &Path, passes: u32, as_json: bool) -> Result
     }
     let bytes = std::fs::read(map).map_err(|e| format!("{}: {e}", map.display()))?;
     let view = MapView::parse(&bytes).map_err(|e| format!("{}: {e}", map.display()))?;
-    let poses = crate::verify::read_ego(poses)?;
+    let poses = crate::ego::read_ego(poses)?;
     if poses.is_empty() {
         return Err("no poses to check".to_owned());
     }

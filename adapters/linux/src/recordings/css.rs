@@ -213,3 +213,36 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
         ],
     }))
 }
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use dash2sim_core::pipeline::GnssSignals;
+
+    use super::GNSS_SIGNALS;
+    use crate::record::{gnss_signals, RecordArgs, Sources};
+
+    #[test]
+    fn gnss_signals_from_canmods_dbc_are_the_cores_canmod_preset() {
+        // gnss_time and gnss_pos as CSS's canmod-gps.dbc has them.
+        let dbc = "VERSION \"\"\n\nBS_:\n\nBU_:\n\n\
+            BO_ 3 gnss_pos: 8 Vector__XXX\n SG_ PositionAccuracy : 58|6@1+ (1,0) [0|63] \"m\" Vector__XXX\n \
+            SG_ Latitude : 1|28@1+ (1e-06,-90) [-90|90] \"deg\" Vector__XXX\n \
+            SG_ Longitude : 29|29@1+ (1e-06,-180) [-180|180] \"deg\" Vector__XXX\n \
+            SG_ PositionValid : 0|1@1+ (1,0) [0|1] \"\" Vector__XXX\n\n\
+            BO_ 2 gnss_time: 6 Vector__XXX\n SG_ TimeValid : 0|1@1+ (1,0) [0|1] \"\" Vector__XXX\n \
+            SG_ TimeConfirmed : 1|1@1+ (1,0) [0|1] \"\" Vector__XXX\n \
+            SG_ Epoch : 8|40@1+ (0.001,1577840400) [1577840400|2677352027] \"sec\" Vector__XXX\n";
+        let path = std::env::temp_dir().join(format!("dash2sim-canmod-{}.dbc", std::process::id()));
+        std::fs::write(&path, dbc).expect("write");
+        let args = RecordArgs {
+            dbc: vec![path.clone()],
+            gnss_signals: Some(GNSS_SIGNALS.to_owned()),
+            ..RecordArgs::from_files(Path::new("out.d2slog"), Sources::default()).expect("defaults")
+        };
+        let from_dbc = crate::can_decode::load_tables(&args.dbc).and_then(|table| gnss_signals(&args, &table));
+        let _ = std::fs::remove_file(&path);
+        assert_eq!(from_dbc.expect("signals"), GnssSignals::canmod_gps());
+    }
+}
