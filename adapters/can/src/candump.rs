@@ -10,7 +10,6 @@
 //! prints them. Timestamps are parsed exactly (integer microseconds, no float rounding).
 //! Remote frames (`#R`, `remote request`) are read; CAN FD (`##`) is reported as such.
 
-use std::fmt;
 use std::io::{BufRead, Write};
 
 use dash2sim_core::can::frame::{id_from_raw, raw_id};
@@ -18,55 +17,8 @@ use dash2sim_core::can::CanFrame;
 use dash2sim_core::time::Timestamp;
 use embedded_can::{Frame, Id};
 
+pub use crate::source::ParseError;
 use crate::source::{FrameSource, InterfaceName, Record, SourceError, SourceErrorKind};
-
-/// What is wrong with a line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ParseError {
-    /// `(seconds.micro)` malformed.
-    BadTimestamp,
-    /// Interface name missing or longer than 15 bytes.
-    BadInterface,
-    /// Identifier not hex or too large for its width.
-    BadId,
-    /// `[n]` malformed or above 8.
-    BadLength,
-    /// A data byte is not two hex digits.
-    BadData,
-    /// `[n]` disagrees with the bytes that follow.
-    LengthMismatch {
-        /// Announced.
-        announced: usize,
-        /// Present.
-        found: usize,
-    },
-    /// More than 8 data bytes.
-    TooManyBytes,
-    /// A CAN FD frame (`##`).
-    CanFd,
-    /// Not a candump line at all.
-    Unrecognized,
-}
-
-impl fmt::Display for ParseError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            ParseError::BadTimestamp => write!(f, "malformed timestamp"),
-            ParseError::BadInterface => write!(f, "missing or over-long interface name"),
-            ParseError::BadId => write!(f, "malformed CAN id"),
-            ParseError::BadLength => write!(f, "malformed data length"),
-            ParseError::BadData => write!(f, "malformed data byte"),
-            ParseError::LengthMismatch { announced, found } => {
-                write!(f, "length [{announced}] but {found} data bytes")
-            }
-            ParseError::TooManyBytes => write!(f, "more than 8 data bytes"),
-            ParseError::CanFd => write!(f, "CAN FD frames are not supported"),
-            ParseError::Unrecognized => write!(f, "not a candump line"),
-        }
-    }
-}
-
-impl std::error::Error for ParseError {}
 
 /// One parsed line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -22,6 +22,55 @@ pub struct Record {
     pub frame: CanFrame,
 }
 
+/// What is wrong with a line of a capture (candump text, [`crate::candump`]). It lives with
+/// the errors a source reports: the text format depends on the sources, not the other way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ParseError {
+    /// `(seconds.micro)` malformed.
+    BadTimestamp,
+    /// Interface name missing or longer than 15 bytes.
+    BadInterface,
+    /// Identifier not hex or too large for its width.
+    BadId,
+    /// `[n]` malformed or above 8.
+    BadLength,
+    /// A data byte is not two hex digits.
+    BadData,
+    /// `[n]` disagrees with the bytes that follow.
+    LengthMismatch {
+        /// Announced.
+        announced: usize,
+        /// Present.
+        found: usize,
+    },
+    /// More than 8 data bytes.
+    TooManyBytes,
+    /// A CAN FD frame (`##`).
+    CanFd,
+    /// Not a candump line at all.
+    Unrecognized,
+}
+
+impl fmt::Display for ParseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParseError::BadTimestamp => write!(f, "malformed timestamp"),
+            ParseError::BadInterface => write!(f, "missing or over-long interface name"),
+            ParseError::BadId => write!(f, "malformed CAN id"),
+            ParseError::BadLength => write!(f, "malformed data length"),
+            ParseError::BadData => write!(f, "malformed data byte"),
+            ParseError::LengthMismatch { announced, found } => {
+                write!(f, "length [{announced}] but {found} data bytes")
+            }
+            ParseError::TooManyBytes => write!(f, "more than 8 data bytes"),
+            ParseError::CanFd => write!(f, "CAN FD frames are not supported"),
+            ParseError::Unrecognized => write!(f, "not a candump line"),
+        }
+    }
+}
+
+impl std::error::Error for ParseError {}
+
 /// Why one frame could not be read. The source stays usable after it.
 #[derive(Debug)]
 pub struct SourceError {
@@ -35,7 +84,7 @@ pub struct SourceError {
 #[derive(Debug)]
 pub enum SourceErrorKind {
     /// A line that is not candump output.
-    Parse(crate::candump::ParseError),
+    Parse(ParseError),
     /// Reading failed.
     Io(std::io::Error),
     /// The socket delivered a frame this crate does not handle (CAN FD, error frame).
