@@ -81,7 +81,7 @@ enum Command {
     },
     /// Export a 4D log: MCAP with Foxglove schemas, TUM (evo), GeoJSON (QGIS), nuPlan
     /// (log database and map; docs/nuplan.md).
-    Export(Box<crate::logfile::export::ExportRequest>),
+    Export(Box<crate::exports::ExportRequest>),
     /// Replay a recorded ego trajectory against a map tile and score it as nuPlan would;
     /// a log is verified above 90 (docs/verify.md).
     Verify(VerifyArgs),
@@ -440,7 +440,7 @@ pub fn run() -> ExitCode {
         Command::Finish(args) => crate::finish::run(&args),
         Command::Plot(args) => crate::plot::run(&args),
         Command::Inspect { log, json } => crate::logfile::inspect::run(&log, json),
-        Command::Export(request) => crate::logfile::export::run(&request),
+        Command::Export(request) => crate::exports::run(&request),
         Command::Verify(a) => verify(&a),
     };
     match result {

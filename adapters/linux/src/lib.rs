@@ -14,6 +14,7 @@ pub mod demo;
 pub mod detections;
 pub mod ego;
 pub mod evaluate;
+pub mod exports;
 pub mod fidelity;
 pub mod finish;
 pub mod logfile;

@@ -11,8 +11,9 @@
 use std::path::PathBuf;
 
 use dash2sim_core::obb::{Footprint, PACIFICA};
+use dash2sim_linux::exports::ExportRequest;
 use dash2sim_linux::finish::FinishArgs;
-use dash2sim_linux::logfile::{self, export::ExportRequest, parquet_export};
+use dash2sim_linux::logfile::{self, parquet_export};
 use dash2sim_linux::record::{DeviceArgs, ModeArg};
 use dash2sim_linux::verify::{EgoSource, VerifyRequest};
 use pyo3::create_exception;
@@ -138,7 +139,7 @@ fn export(
 ) -> PyResult<(Option<String>, Vec<String>)> {
     let request =
         ExportRequest { log, mcap, tum, geojson, parquet, log_id, nuplan, map, scenario_seconds: 5.0, map_name: None };
-    let exported = py.detach(|| logfile::export::export(&request)).map_err(error)?;
+    let exported = py.detach(|| dash2sim_linux::exports::export(&request)).map_err(error)?;
     Ok((exported.warning, exported.written))
 }
 

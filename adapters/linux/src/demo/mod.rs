@@ -253,7 +253,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
         log: finished_log,
         log_name: &finished_path.display().to_string(),
         tile: &tile,
-        map_name: &logfile::export::map_name("road"),
+        map_name: &crate::nuplan::map_name("road"),
         out: &nuplan_dir,
         scene_s: 5.0,
     });

@@ -185,6 +185,14 @@ fn date_name(t_us: i64) -> String {
     crate::nmea_decode::iso8601(t_us).chars().take(19).map(|c| if c.is_ascii_digit() { c } else { '.' }).collect()
 }
 
+/// The nuPlan map name for a map file's stem: `dash2sim-`, then the stem in lower case with
+/// `-` for anything but letters and digits.
+pub fn map_name(stem: &str) -> String {
+    let clean: String =
+        stem.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect();
+    format!("dash2sim-{}", clean.trim_matches('-'))
+}
+
 #[cfg(test)]
 mod tests {
     #[test]
