@@ -11,7 +11,7 @@ minutes=${1:-10}
 laps=$(( (minutes * 60 + 49) / 50 ))
 root=$(cd "$(dirname "$0")/../../.." && pwd)
 cd "$root"
-cargo build --release -q -p dash2sim-linux -p dash2sim-examples --bin dash2sim --bin camera_sim
+cargo build --release -q -p dash2sim -p dash2sim-examples --bin dash2sim --bin camera_sim
 bin=$root/target/release
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

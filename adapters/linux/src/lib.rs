@@ -9,8 +9,6 @@
 pub mod anchoring;
 pub mod bridge;
 pub mod can_decode;
-pub mod cli;
-pub mod demo;
 pub mod detections;
 pub mod ego;
 pub mod evaluate;

@@ -19,7 +19,7 @@ def dash2sim_bin() -> Path:
     for candidate in candidates:
         if candidate and Path(candidate).is_file():
             return Path(candidate)
-    pytest.fail("no dash2sim binary: build it (cargo build --release -p dash2sim-linux) or set DASH2SIM_BIN")
+    pytest.fail("no dash2sim binary: build it (cargo build --release -p dash2sim) or set DASH2SIM_BIN")
 
 
 def run_cli(binary: Path, *args: str) -> subprocess.CompletedProcess:

@@ -10,14 +10,21 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use dash2sim_core::traj::{Delta, RpePairs, Statistics};
 use serde_json::json;
 
-use crate::anchoring::{self, AnchorArgs};
-use crate::evaluate::{self, Align, Evaluation, Relation};
-use crate::sync::DEFAULT_MAX_DIFF_S;
-use crate::trajectory::Format;
+use dash2sim_linux::anchoring::{self, AnchorArgs};
+use dash2sim_linux::evaluate::{self, Align, Evaluation, Relation};
+use dash2sim_linux::sync::DEFAULT_MAX_DIFF_S;
+use dash2sim_linux::trajectory::Format;
 
 /// dash2sim: metric, geo-referenced 4D driving logs from a dashcam.
 #[derive(Debug, Parser)]
-#[command(name = "dash2sim", version, about, long_about = None)]
+// The about line is the one `dash2sim-linux` described itself with when it held the binary
+// (the move into this crate changes no output; tests/golden).
+#[command(
+    name = "dash2sim",
+    version,
+    about = "std adapters and the dash2sim command line: trajectory files, exports, shared memory",
+    long_about = None
+)]
 pub struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -63,14 +70,14 @@ enum Command {
     Import(ImportArgs),
     /// Run the on-device pipeline over recorded inputs (VO, the GNSS serial capture, the
     /// vehicle bus, 3D and 2D detections) and write the 4D log (docs/pipeline.md).
-    Record(Box<crate::record::RecordArgs>),
+    Record(Box<dash2sim_linux::record::RecordArgs>),
     /// Finish a device's log offline: re-anchor the whole drive at once from VO, GNSS,
     /// wheel speed and optional external anchors, smooth the 3D tracks, verify per window
     /// (docs/finishing.md).
-    Finish(Box<crate::finish::FinishArgs>),
+    Finish(Box<dash2sim_linux::finish::FinishArgs>),
     /// Draw a drive: bird's-eye view (map lanes, GNSS fixes, online and finished ego, 3D
     /// tracks by class) above speed and verification over time (docs/plot.md).
-    Plot(crate::plot::PlotArgs),
+    Plot(dash2sim_linux::plot::PlotArgs),
     /// What a 4D log holds: header, records per type, time span, gaps, damage, bytes.
     Inspect {
         /// The log.
@@ -81,7 +88,7 @@ enum Command {
     },
     /// Export a 4D log: MCAP with Foxglove schemas, TUM (evo), GeoJSON (QGIS), nuPlan
     /// (log database and map; docs/nuplan.md).
-    Export(Box<crate::exports::ExportRequest>),
+    Export(Box<dash2sim_linux::exports::ExportRequest>),
     /// Replay a recorded ego trajectory against a map tile and score it as nuPlan would;
     /// a log is verified above 90 (docs/verify.md).
     Verify(VerifyArgs),
@@ -182,7 +189,7 @@ enum MapCommand {
         #[arg(long, value_name = "W,S,E,N")]
         bbox: Option<String>,
         /// Grid cell size, metres.
-        #[arg(long, default_value_t = crate::map_tile::DEFAULT_CELL_M)]
+        #[arg(long, default_value_t = dash2sim_linux::map_tile::DEFAULT_CELL_M)]
         cell: f64,
     },
     /// Describe a map tile: origin, source counts, lanes, lane-km, bytes.
@@ -232,25 +239,25 @@ enum ScenarioCommand {
         duration: f64,
         /// The GNSS receiver: `phone` (σ 3–10 m, multipath) or `good` (σ 1–2 m, the demo's).
         #[arg(long, value_enum, default_value = "phone")]
-        receiver: crate::scenario::profile::Receiver,
+        receiver: dash2sim_linux::scenario::profile::Receiver,
         /// How far the sensors are from ideal (docs/scenario.md): `ideal` (the old, kind
         /// simulator), `typical` (a consumer dashcam) or `hard`.
         #[arg(long, value_enum, default_value = "typical")]
-        profile: crate::scenario::profile::Profile,
+        profile: dash2sim_linux::scenario::profile::Profile,
     },
     /// Be the camera process: publish a generated drive over shared memory (iceoryx2) at its
     /// frame rate, and optionally the GNSS receiver's NMEA and the wheel-speed CAN frames
     /// to a serial device, FIFO or file (docs/bridge.md). Prints `N frames published`.
-    Publish(crate::scenario::publish::PublishArgs),
+    Publish(dash2sim_linux::scenario::publish::PublishArgs),
     /// Generate a corpus of device logs as a fleet uploads them: drives of several seeds,
     /// lengths, regions and drivers recorded through the pipeline, each with its map tile,
     /// some damaged on purpose (docs/fleet.md).
-    Corpus(crate::scenario::corpus::CorpusArgs),
+    Corpus(dash2sim_linux::scenario::corpus::CorpusArgs),
     /// Run many generated drives through the product (generate → record from the device's
     /// files → finish → verify truth, online and finished, both channel modes) in parallel
     /// and measure how often each log's verdict equals the truth's: runs.csv, runs.jsonl,
     /// summary.json, sweep.png (docs/fidelity.md).
-    Sweep(crate::fidelity::sweep::SweepArgs),
+    Sweep(dash2sim_linux::fidelity::sweep::SweepArgs),
     /// Run the 3D track manager over a generated drive and judge it: MOTA/IDF1 at 2 m,
     /// position RMSE of detections, filtered and smoothed tracks, static/dynamic accuracy.
     Eval {
@@ -262,7 +269,7 @@ enum ScenarioCommand {
         duration: f64,
         /// How far the sensors are from ideal: `ideal`, `typical` or `hard`.
         #[arg(long, value_enum, default_value = "typical")]
-        profile: crate::scenario::profile::Profile,
+        profile: dash2sim_linux::scenario::profile::Profile,
         /// Missed frames before a track is dropped (AB3DMOT: 2).
         #[arg(long, default_value_t = 4)]
         max_age: u32,
@@ -389,28 +396,28 @@ pub fn run() -> ExitCode {
         Command::Traj(TrajCommand::Ape(args)) => traj_ape(&args),
         Command::Traj(TrajCommand::Rpe(args)) => traj_rpe(&args),
         Command::Anchor(args) => anchoring::run(&args),
-        Command::Nmea(NmeaCommand::Decode { file, json }) => crate::nmea_decode::run(&file, json),
-        Command::Can(CanCommand::Decode { file, dbc, json }) => crate::can_decode::run(&file, &dbc, json),
-        Command::Track2d { detections, output } => crate::track2d::run(&detections, &output),
+        Command::Nmea(NmeaCommand::Decode { file, json }) => dash2sim_linux::nmea_decode::run(&file, json),
+        Command::Can(CanCommand::Decode { file, dbc, json }) => dash2sim_linux::can_decode::run(&file, &dbc, json),
+        Command::Track2d { detections, output } => dash2sim_linux::track2d::run(&detections, &output),
         Command::Mot(MotCommand::Eval { gt, test, max_distance, json }) => mot_eval(&gt, &test, max_distance, json),
         Command::Scenario(ScenarioCommand::Generate { output, seed, duration, receiver, profile }) => {
-            crate::scenario::command::run_generate(seed, duration, profile, receiver, &output)
+            dash2sim_linux::scenario::command::run_generate(seed, duration, profile, receiver, &output)
         }
         Command::Scenario(ScenarioCommand::Publish(args)) => {
-            crate::scenario::publish::run(&args).map(|n| println!("{n} frames published"))
+            dash2sim_linux::scenario::publish::run(&args).map(|n| println!("{n} frames published"))
         }
-        Command::Scenario(ScenarioCommand::Corpus(args)) => crate::scenario::corpus::run(&args),
-        Command::Scenario(ScenarioCommand::Sweep(args)) => crate::fidelity::sweep::run(&args),
+        Command::Scenario(ScenarioCommand::Corpus(args)) => dash2sim_linux::scenario::corpus::run(&args),
+        Command::Scenario(ScenarioCommand::Sweep(args)) => dash2sim_linux::fidelity::sweep::run(&args),
         Command::Scenario(ScenarioCommand::Eval { seed, duration, profile, max_age, json }) => {
-            crate::scenario::command::run_eval(seed, duration, profile, max_age, json)
+            dash2sim_linux::scenario::command::run_eval(seed, duration, profile, max_age, json)
         }
         Command::Map(MapCommand::Build { osm, output, origin, bbox, cell }) => {
-            crate::map_tile::run_build(&osm, &output, origin.as_deref(), bbox.as_deref(), cell)
+            dash2sim_linux::map_tile::run_build(&osm, &output, origin.as_deref(), bbox.as_deref(), cell)
         }
-        Command::Map(MapCommand::Info { map, json }) => crate::map_tile::run_info(&map, json),
-        Command::Map(MapCommand::Lanes { map }) => crate::map_tile::run_lanes(&map),
+        Command::Map(MapCommand::Info { map, json }) => dash2sim_linux::map_tile::run_info(&map, json),
+        Command::Map(MapCommand::Lanes { map }) => dash2sim_linux::map_tile::run_lanes(&map),
         Command::Map(MapCommand::Check { map, poses, passes, json }) => {
-            crate::map_tile::check::run_check(&map, &poses, passes, json)
+            dash2sim_linux::map_tile::check::run_check(&map, &poses, passes, json)
         }
         Command::Import(a) => {
             let speed_unit = match a.speed_unit.as_str() {
@@ -420,27 +427,29 @@ pub fn run() -> ExitCode {
                 _ => None,
             };
             match speed_unit {
-                Some(speed_unit) => crate::logfile::import::run(&crate::logfile::import::ImportRequest {
-                    output: a.output,
-                    nmea: a.nmea,
-                    nmea_offset_s: a.nmea_offset,
-                    can: a.can,
-                    dbc: a.dbc,
-                    speed_signal: a.speed_signal,
-                    speed_unit,
-                    traj: a.traj,
-                    objects: a.objects,
-                    origin: a.origin,
-                }),
+                Some(speed_unit) => {
+                    dash2sim_linux::logfile::import::run(&dash2sim_linux::logfile::import::ImportRequest {
+                        output: a.output,
+                        nmea: a.nmea,
+                        nmea_offset_s: a.nmea_offset,
+                        can: a.can,
+                        dbc: a.dbc,
+                        speed_signal: a.speed_signal,
+                        speed_unit,
+                        traj: a.traj,
+                        objects: a.objects,
+                        origin: a.origin,
+                    })
+                }
                 None => Err(format!("--speed-unit {:?}: expected km/h, m/s or mph", a.speed_unit)),
             }
         }
         Command::Demo(args) => crate::demo::run(&args),
-        Command::Record(args) => crate::record::run(&args),
-        Command::Finish(args) => crate::finish::run(&args),
-        Command::Plot(args) => crate::plot::run(&args),
-        Command::Inspect { log, json } => crate::logfile::inspect::run(&log, json),
-        Command::Export(request) => crate::exports::run(&request),
+        Command::Record(args) => dash2sim_linux::record::run(&args),
+        Command::Finish(args) => dash2sim_linux::finish::run(&args),
+        Command::Plot(args) => dash2sim_linux::plot::run(&args),
+        Command::Inspect { log, json } => dash2sim_linux::logfile::inspect::run(&log, json),
+        Command::Export(request) => dash2sim_linux::exports::run(&request),
         Command::Verify(a) => verify(&a),
     };
     match result {
@@ -458,11 +467,11 @@ fn verify(a: &VerifyArgs) -> Result<(), String> {
         && footprint.front + footprint.rear > 0.0
         && [footprint.width, footprint.front, footprint.rear].iter().all(|v| v.is_finite());
     let ego = match (&a.log, &a.ego) {
-        (Some(log), _) => crate::verify::EgoSource::Log(log),
-        (None, Some(tum)) => crate::verify::EgoSource::Tum(tum),
+        (Some(log), _) => dash2sim_linux::verify::EgoSource::Log(log),
+        (None, Some(tum)) => dash2sim_linux::verify::EgoSource::Tum(tum),
         (None, None) => return Err("give a LOG or --ego TRAJ.tum".to_owned()),
     };
-    let request = crate::verify::VerifyRequest {
+    let request = dash2sim_linux::verify::VerifyRequest {
         map: &a.map,
         ego,
         objects: a.objects.as_deref(),
@@ -472,7 +481,7 @@ fn verify(a: &VerifyArgs) -> Result<(), String> {
         window: (a.from.unwrap_or(f64::NEG_INFINITY), a.to.unwrap_or(f64::INFINITY)),
     };
     if valid {
-        crate::verify::run(&request, a.json)
+        dash2sim_linux::verify::run(&request, a.json)
     } else {
         Err("--width and --front + --rear must be positive".to_owned())
     }
@@ -509,8 +518,8 @@ fn mot_eval(gt: &std::path::Path, test: &std::path::Path, max_distance: f64, as_
     if !(0.0..=1.0).contains(&max_distance) {
         return Err(format!("--max-distance {max_distance} must be within [0, 1]"));
     }
-    let (gt, test) = (crate::mot::read_mot(gt)?, crate::mot::read_mot(test)?);
-    let summary = crate::mot::summarize(&crate::mot::compare(&gt, &test, max_distance));
+    let (gt, test) = (dash2sim_linux::mot::read_mot(gt)?, dash2sim_linux::mot::read_mot(test)?);
+    let summary = dash2sim_linux::mot::summarize(&dash2sim_linux::mot::compare(&gt, &test, max_distance));
     if as_json {
         println!("{}", summary.to_json());
     } else {

@@ -4,7 +4,7 @@
 //! own, so that the move changes nothing a user sees.
 //!
 //! A change meant to alter an output is blessed with `DASH2SIM_BLESS=1 cargo test --release
-//! -p dash2sim-linux --test golden`, and the diff of `tests/golden/` is its review.
+//! -p dash2sim --test golden`, and the diff of `tests/golden/` is its review.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;

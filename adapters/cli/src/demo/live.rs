@@ -12,10 +12,10 @@ use std::time::{Duration, Instant};
 
 use indicatif::ProgressBar;
 
-use crate::record::live::{self, FileSink, LiveReport, LiveRequest};
-use crate::record::Setup;
-use crate::scenario::profile::Profile;
-use crate::scenario::Driver;
+use dash2sim_linux::record::live::{self, FileSink, LiveReport, LiveRequest};
+use dash2sim_linux::record::Setup;
+use dash2sim_linux::scenario::profile::Profile;
+use dash2sim_linux::scenario::Driver;
 
 /// What to publish: the generated drive's seed, length, driver and sensor profile.
 #[derive(Clone, Copy, Debug)]

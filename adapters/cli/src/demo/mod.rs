@@ -17,7 +17,7 @@
 //! 7. `export`: MCAP (Foxglove), TUM (evo), GeoJSON (QGIS) and the nuPlan database and map;
 //! 8. `plot` the drive.
 //!
-//! `--data DIR` runs the real recordings of a data folder instead ([`crate::recordings`]).
+//! `--data DIR` runs the real recordings of a data folder instead ([`dash2sim_linux::recordings`]).
 //!
 //! The receiver is a good one (σ 1–2 m, errors correlated over 2 s, no multipath): with the
 //! generator's default phone-grade GNSS the anchorer rightly declines to commit within 40 s.
@@ -33,13 +33,13 @@ use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use serde_json::{json, Value};
 
-use crate::fidelity::drive::{assess, judged_json, Anchors, Recorded};
-use crate::logfile::{self, LogContents};
-use crate::record::{self, Setup};
-use crate::scenario::evaluate::evaluate_tracking;
-use crate::scenario::profile::{Profile, Receiver};
-use crate::scenario::write::{road_tile, write_scenario};
-use crate::scenario::{generate, tracker_classes, tracker_config, Driver, ScenarioConfig};
+use dash2sim_linux::fidelity::drive::{assess, judged_json, Anchors, Recorded};
+use dash2sim_linux::logfile::{self, LogContents};
+use dash2sim_linux::record::{self, Setup};
+use dash2sim_linux::scenario::evaluate::evaluate_tracking;
+use dash2sim_linux::scenario::profile::{Profile, Receiver};
+use dash2sim_linux::scenario::write::{road_tile, write_scenario};
+use dash2sim_linux::scenario::{generate, tracker_classes, tracker_config, Driver, ScenarioConfig};
 use progress::Progress;
 
 /// `dash2sim demo` arguments.
@@ -87,12 +87,12 @@ pub struct DemoArgs {
 /// `dash2sim demo`.
 pub fn run(args: &DemoArgs) -> Result<(), String> {
     let progress = Progress::new(args.quiet);
-    let longest = crate::scenario::command::MAX_DURATION_S;
+    let longest = dash2sim_linux::scenario::command::MAX_DURATION_S;
     if !(args.duration.is_finite() && (10.0..=longest).contains(&args.duration)) {
         return Err(format!("--duration {} must be between 10 and {longest} seconds", args.duration));
     }
     if let Some(dir) = &args.data {
-        let dir = dir.clone().unwrap_or_else(crate::recordings::default_dir);
+        let dir = dir.clone().unwrap_or_else(dash2sim_linux::recordings::default_dir);
         std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
         let summary = data::run(&dir, &args.output, &progress)?;
         write_file(&args.output.join("summary.json"), summary.to_string())?;
@@ -249,18 +249,18 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
     write_file(&out.join("drive.geojson"), logfile::export::geojson(&log)?.to_string())?;
     let nuplan_dir = out.join("nuplan");
     let _ = std::fs::remove_dir_all(&nuplan_dir);
-    let nuplan = crate::nuplan::export(&crate::nuplan::NuplanRequest {
+    let nuplan = dash2sim_linux::nuplan::export(&dash2sim_linux::nuplan::NuplanRequest {
         log: finished_log,
         log_name: &finished_path.display().to_string(),
         tile: &tile,
-        map_name: &crate::nuplan::map_name("road"),
+        map_name: &dash2sim_linux::nuplan::map_name("road"),
         out: &nuplan_dir,
         scene_s: 5.0,
     });
 
     progress.step(7, STEPS, "drawing the drive (plot.png, plot.svg)");
     for name in ["plot.png", "plot.svg"] {
-        crate::plot::plot(&crate::plot::PlotArgs {
+        dash2sim_linux::plot::plot(&dash2sim_linux::plot::PlotArgs {
             log: log_path.clone(),
             map: Some(map_path.clone()),
             finished: Some(finished_path.clone()),
@@ -304,7 +304,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
     let (online, finished) = (&assessed.online, &assessed.finished);
     let (finished_scale, true_mean_scale, finished_scale_error) = assessed.finished_scale;
     // A log without ego poses (never anchored) has nothing verified: null.
-    let both = |b: Option<&crate::fidelity::drive::BothModes>| {
+    let both = |b: Option<&dash2sim_linux::fidelity::drive::BothModes>| {
         b.map(|b| json!({"channel_insensitive": b.insensitive, "channel_sensitive": b.sensitive}))
             .unwrap_or_else(|| json!({"channel_insensitive": null, "channel_sensitive": null}))
     };
