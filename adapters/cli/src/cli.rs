@@ -10,7 +10,6 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use dash2sim_core::traj::{Delta, RpePairs, Statistics};
 use serde_json::json;
 
-use dash2sim_linux::anchoring::{self, AnchorArgs};
 use dash2sim_linux::evaluate::{self, Align, Evaluation, Relation};
 use dash2sim_linux::sync::DEFAULT_MAX_DIFF_S;
 use dash2sim_linux::trajectory::Format;
@@ -36,7 +35,7 @@ enum Command {
     #[command(subcommand)]
     Traj(TrajCommand),
     /// Anchor a VO trajectory (unknown scale) to GNSS positions and wheel speed.
-    Anchor(AnchorArgs),
+    Anchor(crate::anchor::AnchorArgs),
     /// NMEA 0183 captures.
     #[command(subcommand)]
     Nmea(NmeaCommand),
@@ -70,11 +69,11 @@ enum Command {
     Import(ImportArgs),
     /// Run the on-device pipeline over recorded inputs (VO, the GNSS serial capture, the
     /// vehicle bus, 3D and 2D detections) and write the 4D log (docs/pipeline.md).
-    Record(Box<dash2sim_linux::record::RecordArgs>),
+    Record(Box<crate::record::RecordArgs>),
     /// Finish a device's log offline: re-anchor the whole drive at once from VO, GNSS,
     /// wheel speed and optional external anchors, smooth the 3D tracks, verify per window
     /// (docs/finishing.md).
-    Finish(Box<dash2sim_linux::finish::FinishArgs>),
+    Finish(Box<crate::finish::FinishArgs>),
     /// Draw a drive: bird's-eye view (map lanes, GNSS fixes, online and finished ego, 3D
     /// tracks by class) above speed and verification over time (docs/plot.md).
     Plot(dash2sim_linux::plot::PlotArgs),
@@ -395,7 +394,7 @@ pub fn run() -> ExitCode {
     let result = match cli.command {
         Command::Traj(TrajCommand::Ape(args)) => traj_ape(&args),
         Command::Traj(TrajCommand::Rpe(args)) => traj_rpe(&args),
-        Command::Anchor(args) => anchoring::run(&args),
+        Command::Anchor(args) => crate::anchor::run(&args),
         Command::Nmea(NmeaCommand::Decode { file, json }) => dash2sim_linux::nmea_decode::run(&file, json),
         Command::Can(CanCommand::Decode { file, dbc, json }) => dash2sim_linux::can_decode::run(&file, &dbc, json),
         Command::Track2d { detections, output } => dash2sim_linux::track2d::run(&detections, &output),
@@ -445,8 +444,8 @@ pub fn run() -> ExitCode {
             }
         }
         Command::Demo(args) => crate::demo::run(&args),
-        Command::Record(args) => dash2sim_linux::record::run(&args),
-        Command::Finish(args) => dash2sim_linux::finish::run(&args),
+        Command::Record(args) => crate::record::run(&args),
+        Command::Finish(args) => crate::finish::run(&args),
         Command::Plot(args) => dash2sim_linux::plot::run(&args),
         Command::Inspect { log, json } => dash2sim_linux::logfile::inspect::run(&log, json),
         Command::Export(request) => dash2sim_linux::exports::run(&request),

@@ -1,8 +1,11 @@
 //! The `dash2sim` binary: the command line over `dash2sim-linux` ([`cli`] parses and
 //! dispatches; each command's module renders what the library returns).
 
+mod anchor;
 mod cli;
 mod demo;
+mod finish;
+mod record;
 
 fn main() -> std::process::ExitCode {
     // Output piped into `head` ends the process quietly, as for any Unix tool, instead of a

@@ -3,48 +3,69 @@
 
 use std::path::{Path, PathBuf};
 
-use clap::{Args, ValueEnum};
-use dash2sim_core::anchor::{AnchorConfig, AnchorMode, Anchorer, Observability, Quality};
+use dash2sim_core::anchor::{AnchorConfig, Anchorer, Observability, Quality};
 use dash2sim_core::sim3::Sim3;
 use dash2sim_core::time::Timestamp;
 use serde_json::json;
 
+use crate::record::VoFrame;
 use crate::trajectory::{self, Format, Trajectory};
 
-/// Arguments of `dash2sim anchor`.
-#[derive(Debug, Args)]
-pub struct AnchorArgs {
+/// Anchoring of trajectory files (`dash2sim anchor`).
+#[derive(Clone, Debug)]
+pub struct AnchorRequest {
     /// VO trajectory (TUM; any frame, unknown scale).
-    #[arg(long)]
-    vo: PathBuf,
+    pub vo: PathBuf,
     /// GNSS positions in the local ENU frame (TUM; orientation ignored).
-    #[arg(long)]
-    gnss: PathBuf,
+    pub gnss: PathBuf,
     /// Vehicle speed CSV: `t,speed_mps` per line (a header line is allowed).
-    #[arg(long)]
-    speed: Option<PathBuf>,
-    /// 1-σ horizontal GNSS error, m (HDOP × UERE when the receiver reports HDOP).
-    #[arg(long, default_value_t = 2.5)]
-    sigma: f64,
-    /// `full`: 7-DoF Sim(3); `gravity`: VO z is vertical, estimate yaw/scale/translation.
-    #[arg(long, value_enum, default_value = "full")]
-    mode: ModeArg,
+    pub speed: Option<PathBuf>,
+    /// 1-σ horizontal GNSS error, m.
+    pub sigma: f64,
+    /// The VO frame: any orientation (7-DoF Sim(3)) or gravity-aligned.
+    pub mode: VoFrame,
     /// Forgetting time constant, s (`inf` never forgets).
-    #[arg(long, default_value_t = 12.0)]
-    forget: f64,
-    /// Write the anchored trajectory (TUM) here; frames before the estimate is
-    /// observable are left out.
-    #[arg(long, short = 'o')]
-    output: Option<PathBuf>,
-    /// Print a JSON summary on stdout.
-    #[arg(long)]
-    json: bool,
+    pub forget: f64,
+    /// Write the anchored trajectory (TUM) here; frames before the estimate is observable
+    /// are left out.
+    pub output: Option<PathBuf>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum ModeArg {
-    Full,
-    Gravity,
+/// What anchoring the files gave.
+#[derive(Clone, Copy, Debug)]
+pub struct AnchorSummary {
+    /// VO frames.
+    pub frames: usize,
+    /// Frames with an anchored pose.
+    pub anchored_frames: usize,
+    /// Seconds from the first VO frame to the first observable estimate.
+    pub observable_after_s: Option<f64>,
+    /// The estimate at the last frame.
+    pub estimate: Option<Sim3>,
+    /// Its quality.
+    pub quality: Quality,
+}
+
+impl AnchorSummary {
+    /// The summary as `dash2sim anchor --json` prints it.
+    pub fn to_json(&self) -> serde_json::Value {
+        let q = &self.quality;
+        json!({
+            "frames": self.frames,
+            "anchored_frames": self.anchored_frames,
+            "observable_after_s": self.observable_after_s,
+            "estimate": self.estimate.as_ref().map(crate::evaluate::sim3_json),
+            "observability": format!("{:?}", q.observability),
+            "anchors_used": q.anchors_used,
+            "anchors_rejected": q.anchors_rejected,
+            "anchors_dropped": q.anchors_dropped,
+            "rms_residual_m": q.rms_residual_m,
+            "rotation_sigma_deg": q.rotation_sigma_rad.to_degrees(),
+            "scale_rel_sigma": q.scale_rel_sigma,
+            "latency_s": q.latency_s,
+            "wheel_factor": q.wheel_factor,
+        })
+    }
 }
 
 /// The estimate the device had at one VO frame.
@@ -151,8 +172,8 @@ pub fn anchored_trajectory(vo: &Trajectory, frames: &[FrameEstimate]) -> Traject
     out
 }
 
-/// `dash2sim anchor`.
-pub fn run(args: &AnchorArgs) -> Result<(), String> {
+/// Anchor the VO file to the GNSS (and speed) files, write the anchored trajectory if asked.
+pub fn anchor_files(args: &AnchorRequest) -> Result<AnchorSummary, String> {
     if !(args.sigma.is_finite() && args.sigma > 0.0) {
         return Err(format!("--sigma {} must be a positive number of metres", args.sigma));
     }
@@ -166,7 +187,7 @@ pub fn run(args: &AnchorArgs) -> Result<(), String> {
         None => Vec::new(),
     };
     let config = AnchorConfig {
-        mode: if args.mode == ModeArg::Gravity { AnchorMode::GravityAligned } else { AnchorMode::Full },
+        mode: args.mode.anchor_mode(),
         forgetting_time_constant_s: args.forget,
         ..AnchorConfig::default()
     };
@@ -175,43 +196,14 @@ pub fn run(args: &AnchorArgs) -> Result<(), String> {
     if let Some(out) = &args.output {
         trajectory::write_file(&anchored, out, Format::Tum).map_err(|e| format!("{}: {e}", out.display()))?;
     }
-    let first_observable =
+    let observable_after_s =
         frames.iter().find(|f| f.quality.observability == Observability::Observable).map(|f| f.t - vo.stamps[0]);
     let last = frames.last().ok_or("no VO frames")?;
-    let q = &last.quality;
-    if args.json {
-        let out = json!({
-            "frames": vo.len(),
-            "anchored_frames": anchored.len(),
-            "observable_after_s": first_observable,
-            "estimate": last.estimate.as_ref().map(crate::evaluate::sim3_json),
-            "observability": format!("{:?}", q.observability),
-            "anchors_used": q.anchors_used,
-            "anchors_rejected": q.anchors_rejected,
-            "anchors_dropped": q.anchors_dropped,
-            "rms_residual_m": q.rms_residual_m,
-            "rotation_sigma_deg": q.rotation_sigma_rad.to_degrees(),
-            "scale_rel_sigma": q.scale_rel_sigma,
-            "latency_s": q.latency_s,
-            "wheel_factor": q.wheel_factor,
-        });
-        println!("{out}");
-    } else {
-        println!("anchored {} of {} VO frames", anchored.len(), vo.len());
-        match first_observable {
-            Some(s) => println!("observable after {s:.2} s"),
-            None => println!("never observable: {:?}", q.observability),
-        }
-        if let Some(t) = &last.estimate {
-            println!("final scale {:.6} (±{:.3} %)", t.scale, 100.0 * q.scale_rel_sigma);
-        }
-        println!("anchors: {} used, {} rejected, {} dropped", q.anchors_used, q.anchors_rejected, q.anchors_dropped);
-        if let Some(l) = q.latency_s {
-            println!("GNSS latency estimate {:.0} ms", l * 1e3);
-        }
-        if let Some(f) = q.wheel_factor {
-            println!("wheel speed factor {f:.5}");
-        }
-    }
-    Ok(())
+    Ok(AnchorSummary {
+        frames: vo.len(),
+        anchored_frames: anchored.len(),
+        observable_after_s,
+        estimate: last.estimate,
+        quality: last.quality,
+    })
 }

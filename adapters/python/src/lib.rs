@@ -12,9 +12,9 @@ use std::path::PathBuf;
 
 use dash2sim_core::obb::{Footprint, PACIFICA};
 use dash2sim_linux::exports::ExportRequest;
-use dash2sim_linux::finish::FinishArgs;
+use dash2sim_linux::finish::FinishRequest;
 use dash2sim_linux::logfile::{self, parquet_export};
-use dash2sim_linux::record::{DeviceArgs, ModeArg};
+use dash2sim_linux::record::{Device, VoFrame};
 use dash2sim_linux::verify::{EgoSource, VerifyRequest};
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
@@ -82,11 +82,11 @@ fn finish(
     keyframe: f64,
 ) -> PyResult<String> {
     let mode = match mode {
-        "gravity" => ModeArg::Gravity,
-        "full" => ModeArg::Full,
+        "gravity" => VoFrame::Gravity,
+        "full" => VoFrame::Full,
         other => return Err(error(format!("mode {other:?}: give \"gravity\" or \"full\""))),
     };
-    let args = FinishArgs { log, output, anchors, map, device: DeviceArgs { mount, mode, uere }, keyframe, json: true };
+    let args = FinishRequest { log, output, anchors, map, device: Device { mount, mode, uere }, keyframe };
     py.detach(|| dash2sim_linux::finish::finish_file(&args)).map(|report| report.to_string()).map_err(error)
 }
 

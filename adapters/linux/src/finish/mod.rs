@@ -18,7 +18,6 @@ pub mod windows;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use clap::Args;
 use dash2sim_core::binlog::{quantise, AnchorEstimate, EgoPose, Header, Record};
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::nalgebra::{Rotation3, Vector3};
@@ -29,35 +28,30 @@ use dash2sim_core::sim3::Pose;
 use serde_json::{json, Value};
 
 use crate::logfile::{self, event, LogContents};
-use crate::record::{DeviceArgs, ModeArg};
+use crate::record::{Device, VoFrame};
 use anchors::AnchorForm;
 use solve::{Anchor, AnchorAt, Fix, Inputs, Settings, Solution, VoSample};
 
-/// `dash2sim finish`.
-#[derive(Debug, Args)]
-pub struct FinishArgs {
+/// A log to finish: `dash2sim finish` and the Python package's `finish` fill it.
+#[derive(Clone, Debug)]
+pub struct FinishRequest {
     /// The device's log.
     pub log: PathBuf,
     /// The finished log.
-    #[arg(short, long)]
     pub output: PathBuf,
     /// Geo-referenced anchors: CSV with the header `t,lat,lon,alt,sigma_m` (rear axle at log
     /// time t, UTC s) or `x,y,z,lat,lon,alt,sigma_m` (a VO-frame point).
-    #[arg(long)]
     pub anchors: Option<PathBuf>,
     /// A map tile: verify the finished drive per 15 s window and as a whole.
-    #[arg(long)]
     pub map: Option<PathBuf>,
     /// The dashcam as given to `record`.
-    #[command(flatten)]
-    pub device: DeviceArgs,
+    pub device: Device,
     /// Keyframe spacing of the re-anchoring, s.
-    #[arg(long, default_value_t = 0.5)]
     pub keyframe: f64,
-    /// Print the report as JSON on stdout.
-    #[arg(long)]
-    pub json: bool,
 }
+
+/// The keyframe spacing of the re-anchoring when none is named, s.
+pub const DEFAULT_KEYFRAME_S: f64 = 0.5;
 
 /// Smoothing of the finished ego's planar track: position σ of the VO-derived positions
 /// (m) and the car's white acceleration (m/s² per √s).
@@ -690,24 +684,9 @@ pub fn mean_scale(s: &Solution) -> f64 {
     }
 }
 
-/// `dash2sim finish`: [`finish_file`], the refused anchors on stderr, the report on stdout.
-pub fn run(args: &FinishArgs) -> Result<(), String> {
-    let report = finish_file(args)?;
-    let file = report["anchors"]["file"].as_str().unwrap_or_default();
-    for refused in report["anchors"]["refused"].as_array().into_iter().flatten() {
-        eprintln!("{file}:{}: {}", refused["line"], refused["reason"].as_str().unwrap_or_default());
-    }
-    if args.json {
-        println!("{report}");
-    } else {
-        print_report(&report);
-    }
-    Ok(())
-}
-
 /// Finish the log at `args.log` into `args.output` (the command line and the Python
 /// package's `finish`): the report (`--json`) with the output's path and size.
-pub fn finish_file(args: &FinishArgs) -> Result<Value, String> {
+pub fn finish_file(args: &FinishRequest) -> Result<Value, String> {
     if !(args.keyframe.is_finite() && (0.05..=10.0).contains(&args.keyframe)) {
         return Err(format!("--keyframe {} must be between 0.05 and 10 s", args.keyframe));
     }
@@ -719,7 +698,7 @@ pub fn finish_file(args: &FinishArgs) -> Result<Value, String> {
     let map = args.map.as_deref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
     let settings = Settings {
         keyframe_s: args.keyframe,
-        gravity_aligned: args.device.mode == ModeArg::Gravity,
+        gravity_aligned: args.device.mode == VoFrame::Gravity,
         ..Settings::default()
     };
     let finished =
@@ -731,47 +710,4 @@ pub fn finish_file(args: &FinishArgs) -> Result<Value, String> {
     report["output"] = json!(args.output.display().to_string());
     report["bytes"] = json!(bytes.len());
     Ok(report)
-}
-
-fn print_report(r: &Value) {
-    let a = &r["anchoring"];
-    println!(
-        "{} → {} ({} records, {} bytes)",
-        r["log"].as_str().unwrap_or_default(),
-        r["output"].as_str().unwrap_or_default(),
-        r["records"],
-        r["bytes"]
-    );
-    println!(
-        "  anchoring     {} keyframes, {} iterations: scale {:.6} ± {:.4} %, positions ± {:.2} m, GNSS latency {:.0} ms, wheel factor {:.4}",
-        a["keyframes"],
-        a["iterations"],
-        a["scale"].as_f64().unwrap_or(f64::NAN),
-        100.0 * a["scale_sigma_relative"].as_f64().unwrap_or(f64::NAN),
-        a["position_sigma_m"].as_f64().unwrap_or(f64::NAN),
-        1000.0 * a["gnss_latency_s"].as_f64().unwrap_or(f64::NAN),
-        a["wheel_factor"].as_f64().unwrap_or(f64::NAN),
-    );
-    println!(
-        "  inputs        GNSS {} of {} fixes used, {} speed samples, anchors {} used, {} refused",
-        r["gnss"]["used"],
-        r["gnss"]["fixes"],
-        r["speed_samples"],
-        r["anchors"]["used"],
-        r["anchors"]["refused"].as_array().map_or(0, Vec::len)
-    );
-    let t = &r["tracks"];
-    println!(
-        "  tracks        {} states: {} moving tracks smoothed, {} static objects merged, {} states without an ego pose dropped",
-        t["states"], t["smoothed"], t["static_merged"], t["unplaced"]
-    );
-    if let Some(v) = r["verification"].as_object() {
-        windows::print(v);
-    }
-    if r["damage"]["stretches"].as_u64().unwrap_or(0) > 0 {
-        println!(
-            "  damage        {} stretches ({} bytes) of the source log were lost",
-            r["damage"]["stretches"], r["damage"]["bytes"]
-        );
-    }
 }

@@ -8,7 +8,7 @@ use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Pose2, PACIFICA};
 use dash2sim_core::pipeline::verification_record;
 use dash2sim_core::score::Scores;
-use serde_json::{json, Map, Value};
+use serde_json::{json, Value};
 
 use crate::logfile::{event, LogContents};
 use crate::verify::{metrics_json, replay, AgentsByTime};
@@ -110,30 +110,4 @@ pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map
             "drive": {"channel_insensitive": scores_json(&insensitive), "channel_sensitive": scores_json(&sensitive)},
         }),
     })
-}
-
-/// The verification lines of the human report.
-pub fn print(v: &Map<String, Value>) {
-    let line = |s: &Value| {
-        format!(
-            "{:.2} ({})",
-            s["score"].as_f64().unwrap_or(f64::NAN),
-            if s["verified"].as_bool().unwrap_or(false) { "verified" } else { "not verified" }
-        )
-    };
-    let drive = &v["drive"];
-    println!(
-        "  verification  drive {} channel-insensitive, {} channel-sensitive",
-        line(&drive["channel_insensitive"]),
-        line(&drive["channel_sensitive"])
-    );
-    for w in v["windows"].as_array().into_iter().flatten() {
-        println!(
-            "                {:>6.1}–{:<6.1} s  {} / {}",
-            w["start_s"].as_f64().unwrap_or(f64::NAN),
-            w["end_s"].as_f64().unwrap_or(f64::NAN),
-            line(&w["channel_insensitive"]),
-            line(&w["channel_sensitive"])
-        );
-    }
 }

@@ -10,7 +10,7 @@
 //! (iceoryx2's safe overflow): what they lose shows as skipped frame numbers.
 
 use std::fs::File;
-use std::io::{IsTerminal, Read, Write as _};
+use std::io::{Read, Write as _};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
@@ -328,9 +328,4 @@ pub fn stop_on_signals() -> Result<Arc<AtomicBool>, String> {
         signal_hook::flag::register(signal, stop.clone()).map_err(|e| format!("signal handler: {e}"))?;
     }
     Ok(stop)
-}
-
-/// Whether stderr is a terminal (for the status line).
-pub fn on_terminal() -> bool {
-    std::io::stderr().is_terminal()
 }

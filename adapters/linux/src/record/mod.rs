@@ -9,7 +9,6 @@ pub mod sources;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use clap::{Args, ValueEnum};
 use dash2sim_can::SignalTable;
 use dash2sim_core::anchor::{AnchorConfig, AnchorMode};
 use dash2sim_core::can::signal::Signal;
@@ -24,25 +23,19 @@ use serde_json::json;
 
 use dash2sim_core::pipeline::profile::{self, work_zone_meta, work_zone_pipeline, work_zone_trackers};
 
-/// The recorded files `dash2sim record` reads (see [`sources`] for their forms).
-#[derive(Clone, Debug, Default, Args)]
+/// The recorded files `record` reads (see [`sources`] for their forms).
+#[derive(Clone, Debug, Default)]
 pub struct Sources {
     /// VO poses of the camera: TUM (device-clock stamps; frame k is the k-th pose), or a CSV
-    /// `frame,t_s,x,y,z,qx,qy,qz,qw,session` with each pose's frame number (docs/cli.md).
-    #[arg(long)]
+    /// `frame,t_s,x,y,z,qx,qy,qz,qw,session` with each pose's frame number.
     pub vo: Option<PathBuf>,
     /// The GNSS serial capture: `(device seconds) $SENTENCE*CS` per line.
-    #[arg(long)]
     pub nmea: Option<PathBuf>,
-    /// candump capture of the vehicle bus (device-clock stamps); repeat for a drive split
-    /// into several files.
-    #[arg(long)]
+    /// candump captures of the vehicle bus (device-clock stamps), in order.
     pub can: Vec<PathBuf>,
     /// 3D detections in the camera frame (the detections CSV).
-    #[arg(long)]
     pub detections: Option<PathBuf>,
     /// 2D detections, MOTChallenge CSV (frames numbered as the VO poses).
-    #[arg(long)]
     pub detections2d: Option<PathBuf>,
 }
 
@@ -59,97 +52,106 @@ impl Sources {
     }
 }
 
-/// Arguments of `dash2sim record` (file sources).
-#[derive(Debug, Args)]
-pub struct RecordArgs {
-    /// Output 4D log.
-    #[arg(short, long)]
+/// The unit of a DBC speed signal when none is named.
+pub const DEFAULT_SPEED_UNIT: &str = "km/h";
+/// The device id a recording's header gets when none is named.
+pub const DEFAULT_DEVICE_ID: &str = "dash2sim-record";
+/// The GNSS serial device's baud rate when none is named.
+pub const DEFAULT_BAUD: u32 = 115_200;
+/// A live recording's file length when none is named, minutes.
+pub const DEFAULT_SEGMENT_MINUTES: f64 = 10.0;
+/// The camera's place on the car when none is named (`FORWARD,LEFT,UP`, m).
+pub const DEFAULT_MOUNT: &str = "1.8,0,1.3";
+/// The GNSS error model's UERE when none is named, m.
+pub const DEFAULT_UERE_M: f64 = 2.5;
+
+/// A recording: where the log goes, what it is recorded from (files, a saved input stream,
+/// or live sources) and how the device is set up. `dash2sim record` fills it from its
+/// arguments; [`RecordRequest::from_files`] gives the defaults.
+#[derive(Clone, Debug)]
+pub struct RecordRequest {
+    /// The 4D log (a folder of segments when live).
     pub output: PathBuf,
     /// The recorded inputs.
-    #[command(flatten)]
     pub sources: Sources,
-    /// DBC files for `--speed-signal` and `--gnss-signals`.
-    #[arg(long)]
+    /// DBC files for `speed_signal` and `gnss_signals`.
     pub dbc: Vec<PathBuf>,
-    /// `MESSAGE.SIGNAL` of a DBC carrying the vehicle speed (else `--speed-source`).
-    #[arg(long)]
+    /// `MESSAGE.SIGNAL` of a DBC carrying the vehicle speed (else `speed_source`).
     pub speed_signal: Option<String>,
-    /// Unit of `--speed-signal`: km/h, m/s or mph.
-    #[arg(long, default_value = "km/h")]
+    /// Unit of `speed_signal`: km/h, m/s or mph.
     pub speed_unit: String,
-    /// Built-in speed message when no `--speed-signal` is given.
-    #[arg(long, value_enum, default_value = "ccvs1")]
-    pub speed_source: SpeedArg,
+    /// Built-in speed message when no `speed_signal` is given.
+    pub speed_source: SpeedMessage,
     /// GNSS from DBC signals (a CAN GNSS module):
-    /// `lat=MSG.SIG,lon=MSG.SIG[,valid=MSG.SIG][,accuracy=MSG.SIG][,time=MSG.SIG]` —
-    /// degrees; a valid flag (0 = no fix); accuracy in m, taken as 1-σ; UTC in seconds
-    /// since 1970. All but `time` from one message.
-    #[arg(long)]
+    /// `lat=MSG.SIG,lon=MSG.SIG[,valid=MSG.SIG][,accuracy=MSG.SIG][,time=MSG.SIG]`.
     pub gnss_signals: Option<String>,
     /// Map tile to verify against on the way (windows of 15 s); its origin is the log's.
-    #[arg(long)]
     pub map: Option<PathBuf>,
     /// ENU origin `LAT,LON[,H]` (default: the map's, else the first GNSS fix).
-    #[arg(long)]
     pub origin: Option<String>,
     /// The dashcam: mount, VO frame, GNSS error model.
-    #[command(flatten)]
-    pub device: DeviceArgs,
+    pub device: Device,
     /// Also write the merged input stream (the core's replay format) here.
-    #[arg(long)]
     pub save_inputs: Option<PathBuf>,
-    /// Read a saved input stream instead of the file sources (`--save-inputs`; the MCU
-    /// example replays the same bytes).
-    #[arg(long, conflicts_with_all = ["vo", "nmea", "can", "detections", "detections2d"])]
+    /// Read a saved input stream instead of the file sources.
     pub replay: Option<PathBuf>,
     /// The device id written into the log's header (at most 16 bytes).
-    #[arg(long, default_value = "dash2sim-record")]
     pub device_id: String,
     /// Live: subscribe to the camera process's services (shared memory) under this prefix.
-    #[arg(long, num_args = 0..=1, default_missing_value = crate::bridge::DEFAULT_PREFIX)]
     pub camera: Option<String>,
     /// Live: the GNSS receiver's serial device (raw mode), or a file of raw NMEA bytes.
-    #[arg(long)]
     pub serial: Option<PathBuf>,
     /// Live: the serial device's baud rate.
-    #[arg(long, default_value_t = 115_200)]
     pub baud: u32,
     /// Live: a SocketCAN interface.
-    #[arg(long, conflicts_with = "can_replay")]
     pub can_iface: Option<String>,
     /// Live: replay a candump capture as the vehicle bus.
-    #[arg(long)]
     pub can_replay: Option<PathBuf>,
     /// Live: replay the capture at its own pace.
-    #[arg(long)]
     pub realtime: bool,
-    /// Live: start a new log file every N minutes (`-o` is then a folder).
-    #[arg(long, default_value_t = 10.0)]
+    /// Live: start a new log file every N minutes (`output` is then a folder).
     pub segment_minutes: f64,
     /// Live: stop after S seconds (else on SIGINT / SIGTERM).
-    #[arg(long)]
     pub seconds: Option<f64>,
-    /// Print the summary as JSON.
-    #[arg(long)]
-    pub json: bool,
+    /// Live: print a status line on stderr twice a second.
+    pub status: bool,
 }
 
-impl RecordArgs {
-    /// A recording from `sources` into `output` with the command line's defaults for
-    /// everything else (taken from the parser, so that they cannot drift apart).
-    pub fn from_files(output: &Path, sources: Sources) -> Result<Self, String> {
-        use clap::FromArgMatches as _;
-        let command = RecordArgs::augment_args(clap::Command::new("record"));
-        let argv = [std::ffi::OsStr::new("record"), std::ffi::OsStr::new("-o"), output.as_os_str()];
-        let matches = command.try_get_matches_from(argv).map_err(|e| e.to_string())?;
-        let args = RecordArgs::from_arg_matches(&matches).map_err(|e| e.to_string())?;
-        Ok(RecordArgs { sources, ..args })
+impl RecordRequest {
+    /// A recording from `sources` into `output` with the defaults for everything else (the
+    /// command line's defaults are these constants).
+    pub fn from_files(output: &Path, sources: Sources) -> Self {
+        RecordRequest {
+            output: output.to_path_buf(),
+            sources,
+            dbc: Vec::new(),
+            speed_signal: None,
+            speed_unit: DEFAULT_SPEED_UNIT.to_owned(),
+            speed_source: SpeedMessage::Ccvs1,
+            gnss_signals: None,
+            map: None,
+            origin: None,
+            device: Device::default(),
+            save_inputs: None,
+            replay: None,
+            device_id: DEFAULT_DEVICE_ID.to_owned(),
+            camera: None,
+            serial: None,
+            baud: DEFAULT_BAUD,
+            can_iface: None,
+            can_replay: None,
+            realtime: false,
+            segment_minutes: DEFAULT_SEGMENT_MINUTES,
+            seconds: None,
+            status: false,
+        }
     }
 }
 
-/// `--speed-source`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum SpeedArg {
+/// The built-in vehicle-speed message (`--speed-source`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum SpeedMessage {
     /// J1939 CCVS1 wheel-based speed.
     Ccvs1,
     /// OBD-II PID 0x0D responses.
@@ -158,21 +160,24 @@ pub enum SpeedArg {
 
 /// How the dashcam is set up: `record` takes it, and `finish` needs the same (the log
 /// does not carry it).
-#[derive(Debug, Clone, clap::Args)]
-pub struct DeviceArgs {
+#[derive(Debug, Clone)]
+pub struct Device {
     /// Camera position on the vehicle: `FORWARD,LEFT,UP` from the rear axle on the
     /// ground (m), optionally `,ROLL,PITCH,YAW` (rad, camera → body).
-    #[arg(long, default_value = "1.8,0,1.3")]
     pub mount: String,
-    /// `gravity`: the VO frame's z is vertical (VIO, levelled VO); `full`: any orientation.
-    #[arg(long, value_enum, default_value = "gravity")]
-    pub mode: ModeArg,
+    /// The VO frame: gravity-aligned or any orientation.
+    pub mode: VoFrame,
     /// 1-σ GNSS error model: UERE, m (σ = HDOP × UERE unless the receiver sends GST).
-    #[arg(long, default_value_t = 2.5)]
     pub uere: f64,
 }
 
-impl DeviceArgs {
+impl Default for Device {
+    fn default() -> Self {
+        Device { mount: DEFAULT_MOUNT.to_owned(), mode: VoFrame::Gravity, uere: DEFAULT_UERE_M }
+    }
+}
+
+impl Device {
     /// The mount, and the UERE checked.
     pub fn parse(&self) -> Result<(CameraMount, f64), String> {
         if !(self.uere.is_finite() && self.uere > 0.0) {
@@ -182,13 +187,24 @@ impl DeviceArgs {
     }
 }
 
-/// `--mode`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ModeArg {
+/// What the VO frame is (`--mode`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum VoFrame {
     /// 7-DoF Sim(3).
     Full,
     /// Yaw, scale, translation.
     Gravity,
+}
+
+impl VoFrame {
+    /// The anchorer's mode for this frame.
+    pub fn anchor_mode(self) -> AnchorMode {
+        match self {
+            VoFrame::Full => AnchorMode::Full,
+            VoFrame::Gravity => AnchorMode::GravityAligned,
+        }
+    }
 }
 
 /// Parse `LAT,LON[,H]`.
@@ -322,15 +338,15 @@ pub fn run_stream(stream: &[u8], setup: &Setup) -> Result<Recording, String> {
 }
 
 /// The speed source the arguments name.
-fn speed_source(args: &RecordArgs, table: &SignalTable) -> Result<Option<SpeedSource>, String> {
+fn speed_source(args: &RecordRequest, table: &SignalTable) -> Result<Option<SpeedSource>, String> {
     let Some(name) = &args.speed_signal else {
         let bus = !args.sources.can.is_empty()
             || args.replay.is_some()
             || args.can_iface.is_some()
             || args.can_replay.is_some();
         return Ok(bus.then_some(match args.speed_source {
-            SpeedArg::Ccvs1 => SpeedSource::Ccvs1,
-            SpeedArg::Obd => SpeedSource::Obd,
+            SpeedMessage::Ccvs1 => SpeedSource::Ccvs1,
+            SpeedMessage::Obd => SpeedSource::Obd,
         }));
     };
     let to_mps = match args.speed_unit.as_str() {
@@ -363,7 +379,7 @@ fn dbc_signal(table: &SignalTable, name: &str, option: &str) -> Result<(FrameId,
 }
 
 /// `--gnss-signals`: `KEY=MESSAGE.SIGNAL` pairs, found in the DBC files.
-pub(crate) fn gnss_signals(args: &RecordArgs, table: &SignalTable) -> Result<Option<GnssSignals>, String> {
+pub(crate) fn gnss_signals(args: &RecordRequest, table: &SignalTable) -> Result<Option<GnssSignals>, String> {
     const OPTION: &str = "--gnss-signals";
     let Some(text) = &args.gnss_signals else { return Ok(None) };
     let mut found: BTreeMap<&str, (FrameId, Signal)> = BTreeMap::new();
@@ -426,8 +442,8 @@ pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts), 
     Ok((inputs.stream()?, inputs.counts))
 }
 
-/// The live sources the arguments name, if any.
-fn live_request(args: &RecordArgs) -> Result<Option<live::LiveRequest>, String> {
+/// The live sources the request names, if any.
+pub fn live_request(args: &RecordRequest) -> Result<Option<live::LiveRequest>, String> {
     let live = args.camera.is_some() || args.serial.is_some() || args.can_iface.is_some() || args.can_replay.is_some();
     if !live {
         return Ok(None);
@@ -456,24 +472,13 @@ fn live_request(args: &RecordArgs) -> Result<Option<live::LiveRequest>, String> 
         realtime: args.realtime,
         segment: std::time::Duration::from_secs_f64(args.segment_minutes * 60.0),
         duration,
-        status: live::on_terminal(),
+        status: args.status,
     }))
-}
-
-/// `dash2sim record`: from files, or live.
-pub fn run(args: &RecordArgs) -> Result<(), String> {
-    if let Some(request) = live_request(args)? {
-        return run_live(args, &request);
-    }
-    let (recording, counts) = record_files(args)?;
-    std::fs::write(&args.output, &recording.log).map_err(|e| format!("{}: {e}", args.output.display()))?;
-    report(&args.output, &recording, &counts, args.json);
-    Ok(())
 }
 
 /// `record` from files (or a saved input stream), without writing the log or reporting:
 /// the recording and what the files held.
-pub fn record_files(args: &RecordArgs) -> Result<(Recording, sources::SourceCounts), String> {
+pub fn record_files(args: &RecordRequest) -> Result<(Recording, sources::SourceCounts), String> {
     let (stream, counts) = match &args.replay {
         Some(path) => (std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?, Default::default()),
         None => read_sources(&args.sources)?,
@@ -493,7 +498,7 @@ pub fn record_files(args: &RecordArgs) -> Result<(Recording, sources::SourceCoun
 /// The recorder's setup from its arguments (both recorders): the origin is `--origin`, else
 /// the map's, else what `fallback` finds.
 fn setup_from_args(
-    args: &RecordArgs,
+    args: &RecordRequest,
     fallback: impl FnOnce(Option<&GnssSignals>) -> Result<Geodetic, String>,
 ) -> Result<Setup, String> {
     // The DBC files, read once for both signal options.
@@ -512,10 +517,7 @@ fn setup_from_args(
     Ok(Setup {
         origin,
         mount,
-        mode: match args.device.mode {
-            ModeArg::Full => AnchorMode::Full,
-            ModeArg::Gravity => AnchorMode::GravityAligned,
-        },
+        mode: args.device.mode.anchor_mode(),
         gnss: GnssErrorModel { uere_m: uere, ..GnssErrorModel::default() },
         speed: speed_source(args, &table)?,
         gnss_signals,
@@ -533,36 +535,28 @@ fn device_id(text: &str) -> Result<[u8; 16], String> {
     Ok(id)
 }
 
-/// The live logger.
-fn run_live(args: &RecordArgs, request: &live::LiveRequest) -> Result<(), String> {
+/// The live logger: records until the request's duration is over or SIGINT / SIGTERM.
+pub fn record_live(args: &RecordRequest, request: &live::LiveRequest) -> Result<live::LiveReport, String> {
     let setup = setup_from_args(args, |_| {
         Err("a live recording needs its ENU origin: give --origin LAT,LON[,H] or a --map".to_owned())
     })?;
     let stop = live::stop_on_signals()?;
-    let report = live::run(request, &setup, &stop)?;
-    let s = &report.stats;
-    if args.json {
-        let mut summary = stats_json(s);
-        for (key, value) in [
-            ("files", u64::from(report.files)),
-            ("frames", report.frames),
-            ("dropped", report.dropped),
-            ("issues", report.issues),
-        ] {
-            summary[key] = json!(value);
-        }
-        println!("{summary}");
-    } else {
-        println!(
-            "{}: {} files; {} camera frames, {s}; {} inputs dropped, {} issues",
-            args.output.display(),
-            report.files,
-            report.frames,
-            report.dropped,
-            report.issues
-        );
+    live::run(request, &setup, &stop)
+}
+
+/// A live recording's summary: the pipeline's totals, the files, frames, dropped inputs and
+/// issues.
+pub fn live_summary(report: &live::LiveReport) -> serde_json::Value {
+    let mut summary = stats_json(&report.stats);
+    for (key, value) in [
+        ("files", u64::from(report.files)),
+        ("frames", report.frames),
+        ("dropped", report.dropped),
+        ("issues", report.issues),
+    ] {
+        summary[key] = json!(value);
     }
-    Ok(())
+    summary
 }
 
 fn display(p: &Option<PathBuf>) -> String {
@@ -603,7 +597,8 @@ pub fn summary(recording: &Recording) -> serde_json::Value {
     summary
 }
 
-fn report(output: &Path, recording: &Recording, counts: &sources::SourceCounts, as_json: bool) {
+/// The summary of a recording from files, with what the files held.
+pub fn file_summary(recording: &Recording, counts: &sources::SourceCounts) -> serde_json::Value {
     let mut summary = summary(recording);
     summary["sources"] = json!({
         "vo_poses": counts.vo, "serial_lines": counts.serial_lines, "can_frames": counts.can_frames,
@@ -611,35 +606,5 @@ fn report(output: &Path, recording: &Recording, counts: &sources::SourceCounts, 
         "detection2d_frames": counts.detection2d_frames,
         "detection2d_frames_without_time": counts.detection2d_frames_without_time,
     });
-    if as_json {
-        println!("{summary}");
-        return;
-    }
-    let s = &recording.stats;
-    println!(
-        "{}: {} bytes, {} records from {} inputs",
-        output.display(),
-        recording.log.len(),
-        s.records,
-        recording.inputs
-    );
-    println!(
-        "  {} VO poses ({} anchored, {} carried across VO re-initialisations), {} fixes, {} speeds, {} 3D detections placed ({} logged raw), {} 3D track states, {} 2D track states",
-        s.vo_poses, s.anchored_frames, s.carried_frames, s.fixes, s.speeds, s.detections_placed, s.detections_raw, s.track_states, s.track2d_states
-    );
-    if s.windows > 0 {
-        println!("  verification: {} of {} windows verified", s.windows_verified, s.windows);
-    }
-    if counts.detection2d_frames_without_time > 0 {
-        println!(
-            "  {} frames of 2D detections skipped: no VO pose or 3D detection gives their time",
-            counts.detection2d_frames_without_time
-        );
-    }
-    for issue in Issue::ALL {
-        let n = recording.issues.get(issue);
-        if n > 0 {
-            println!("  {n} × {}", issue.text());
-        }
-    }
+    summary
 }

@@ -14,7 +14,7 @@ use serde_json::{json, Value};
 
 use super::{device_times, write};
 use crate::logfile::{self, LogContents};
-use crate::record::{self, DeviceArgs, ModeArg, RecordArgs};
+use crate::record::{self, Device, RecordRequest, VoFrame};
 use crate::scenario::vo::VoModel;
 use crate::trajectory::{Format, Trajectory};
 use rand::SeedableRng;
@@ -138,12 +138,12 @@ pub fn record_minute(dir: &Path, work: &Path, model: &VoModel, noise_seed: u64) 
         can: vec![dir.join("raw_can.candump.log")],
         ..record::Sources::default()
     };
-    let args = RecordArgs {
+    let args = RecordRequest {
         dbc: vec![dir.join("opendbc-toyota/_toyota_2017.dbc")],
         speed_signal: Some("SPEED.SPEED".to_owned()),
         origin: Some(format!("{lat},{lon},{h}")),
-        device: DeviceArgs { mount: mount(), mode: ModeArg::Full, uere: UERE },
-        ..RecordArgs::from_files(&work.join("comma.d2slog"), sources)?
+        device: Device { mount: mount(), mode: VoFrame::Full, uere: UERE },
+        ..RecordRequest::from_files(&work.join("comma.d2slog"), sources)
     };
     let (recording, _) = record::record_files(&args)?;
     write(&args.output, &recording.log)?;

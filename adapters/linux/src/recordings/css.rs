@@ -17,7 +17,7 @@ use serde_json::{json, Value};
 
 use super::write;
 use crate::logfile;
-use crate::record::{self, RecordArgs};
+use crate::record::{self, RecordRequest};
 
 /// The session's candump files start with this.
 pub const SPLITS: &str = "candump/3BA199E2_00000164_";
@@ -136,11 +136,11 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
     }
     let sources = record::Sources { can: files.clone(), ..record::Sources::default() };
     let log_path = out.join("css.d2slog");
-    let args = RecordArgs {
+    let args = RecordRequest {
         dbc: vec![dir.join("dbc/canmod-gps.dbc")],
         gnss_signals: Some(GNSS_SIGNALS.to_owned()),
-        speed_source: record::SpeedArg::Obd,
-        ..RecordArgs::from_files(&log_path, sources)?
+        speed_source: record::SpeedMessage::Obd,
+        ..RecordRequest::from_files(&log_path, sources)
     };
     let (recording, counts) = record::record_files(&args)?;
     write(&log_path, &recording.log)?;
@@ -221,7 +221,7 @@ mod tests {
     use dash2sim_core::pipeline::GnssSignals;
 
     use super::GNSS_SIGNALS;
-    use crate::record::{gnss_signals, RecordArgs, Sources};
+    use crate::record::{gnss_signals, RecordRequest, Sources};
 
     #[test]
     fn gnss_signals_from_canmods_dbc_are_the_cores_canmod_preset() {
@@ -236,10 +236,10 @@ mod tests {
             SG_ Epoch : 8|40@1+ (0.001,1577840400) [1577840400|2677352027] \"sec\" Vector__XXX\n";
         let path = std::env::temp_dir().join(format!("dash2sim-canmod-{}.dbc", std::process::id()));
         std::fs::write(&path, dbc).expect("write");
-        let args = RecordArgs {
+        let args = RecordRequest {
             dbc: vec![path.clone()],
             gnss_signals: Some(GNSS_SIGNALS.to_owned()),
-            ..RecordArgs::from_files(Path::new("out.d2slog"), Sources::default()).expect("defaults")
+            ..RecordRequest::from_files(Path::new("out.d2slog"), Sources::default())
         };
         let from_dbc = crate::can_decode::load_tables(&args.dbc).and_then(|table| gnss_signals(&args, &table));
         let _ = std::fs::remove_file(&path);

@@ -1,0 +1,128 @@
+//! `dash2sim finish`: the arguments, the refused anchors on stderr and the report rendered.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use dash2sim_linux::finish::{self, FinishRequest};
+use serde_json::{Map, Value};
+
+use crate::record::DeviceArgs;
+
+/// `dash2sim finish`.
+#[derive(Debug, Args)]
+pub struct FinishArgs {
+    /// The device's log.
+    pub log: PathBuf,
+    /// The finished log.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Geo-referenced anchors: CSV with the header `t,lat,lon,alt,sigma_m` (rear axle at log
+    /// time t, UTC s) or `x,y,z,lat,lon,alt,sigma_m` (a VO-frame point).
+    #[arg(long)]
+    pub anchors: Option<PathBuf>,
+    /// A map tile: verify the finished drive per 15 s window and as a whole.
+    #[arg(long)]
+    pub map: Option<PathBuf>,
+    /// The dashcam as given to `record`.
+    #[command(flatten)]
+    pub device: DeviceArgs,
+    /// Keyframe spacing of the re-anchoring, s.
+    #[arg(long, default_value_t = finish::DEFAULT_KEYFRAME_S)]
+    pub keyframe: f64,
+    /// Print the report as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `dash2sim finish`: [`finish::finish_file`], the refused anchors on stderr, the report on
+/// stdout.
+pub fn run(args: &FinishArgs) -> Result<(), String> {
+    let request = FinishRequest {
+        log: args.log.clone(),
+        output: args.output.clone(),
+        anchors: args.anchors.clone(),
+        map: args.map.clone(),
+        device: args.device.clone().into(),
+        keyframe: args.keyframe,
+    };
+    let report = finish::finish_file(&request)?;
+    let file = report["anchors"]["file"].as_str().unwrap_or_default();
+    for refused in report["anchors"]["refused"].as_array().into_iter().flatten() {
+        eprintln!("{file}:{}: {}", refused["line"], refused["reason"].as_str().unwrap_or_default());
+    }
+    if args.json {
+        println!("{report}");
+    } else {
+        print_report(&report);
+    }
+    Ok(())
+}
+
+fn print_report(r: &Value) {
+    let a = &r["anchoring"];
+    println!(
+        "{} → {} ({} records, {} bytes)",
+        r["log"].as_str().unwrap_or_default(),
+        r["output"].as_str().unwrap_or_default(),
+        r["records"],
+        r["bytes"]
+    );
+    println!(
+        "  anchoring     {} keyframes, {} iterations: scale {:.6} ± {:.4} %, positions ± {:.2} m, GNSS latency {:.0} ms, wheel factor {:.4}",
+        a["keyframes"],
+        a["iterations"],
+        a["scale"].as_f64().unwrap_or(f64::NAN),
+        100.0 * a["scale_sigma_relative"].as_f64().unwrap_or(f64::NAN),
+        a["position_sigma_m"].as_f64().unwrap_or(f64::NAN),
+        1000.0 * a["gnss_latency_s"].as_f64().unwrap_or(f64::NAN),
+        a["wheel_factor"].as_f64().unwrap_or(f64::NAN),
+    );
+    println!(
+        "  inputs        GNSS {} of {} fixes used, {} speed samples, anchors {} used, {} refused",
+        r["gnss"]["used"],
+        r["gnss"]["fixes"],
+        r["speed_samples"],
+        r["anchors"]["used"],
+        r["anchors"]["refused"].as_array().map_or(0, Vec::len)
+    );
+    let t = &r["tracks"];
+    println!(
+        "  tracks        {} states: {} moving tracks smoothed, {} static objects merged, {} states without an ego pose dropped",
+        t["states"], t["smoothed"], t["static_merged"], t["unplaced"]
+    );
+    if let Some(v) = r["verification"].as_object() {
+        print_verification(v);
+    }
+    if r["damage"]["stretches"].as_u64().unwrap_or(0) > 0 {
+        println!(
+            "  damage        {} stretches ({} bytes) of the source log were lost",
+            r["damage"]["stretches"], r["damage"]["bytes"]
+        );
+    }
+}
+
+/// The verification lines of the human report.
+fn print_verification(v: &Map<String, Value>) {
+    let line = |s: &Value| {
+        format!(
+            "{:.2} ({})",
+            s["score"].as_f64().unwrap_or(f64::NAN),
+            if s["verified"].as_bool().unwrap_or(false) { "verified" } else { "not verified" }
+        )
+    };
+    let drive = &v["drive"];
+    println!(
+        "  verification  drive {} channel-insensitive, {} channel-sensitive",
+        line(&drive["channel_insensitive"]),
+        line(&drive["channel_sensitive"])
+    );
+    for w in v["windows"].as_array().into_iter().flatten() {
+        println!(
+            "                {:>6.1}–{:<6.1} s  {} / {}",
+            w["start_s"].as_f64().unwrap_or(f64::NAN),
+            w["end_s"].as_f64().unwrap_or(f64::NAN),
+            line(&w["channel_insensitive"]),
+            line(&w["channel_sensitive"])
+        );
+    }
+}
