@@ -76,7 +76,7 @@ enum Command {
     Finish(Box<crate::finish::FinishArgs>),
     /// Draw a drive: bird's-eye view (map lanes, GNSS fixes, online and finished ego, 3D
     /// tracks by class) above speed and verification over time (docs/plot.md).
-    Plot(dash2sim_linux::plot::PlotArgs),
+    Plot(crate::plot::PlotArgs),
     /// What a 4D log holds: header, records per type, time span, gaps, damage, bytes.
     Inspect {
         /// The log.
@@ -87,7 +87,7 @@ enum Command {
     },
     /// Export a 4D log: MCAP with Foxglove schemas, TUM (evo), GeoJSON (QGIS), nuPlan
     /// (log database and map; docs/nuplan.md).
-    Export(Box<dash2sim_linux::exports::ExportRequest>),
+    Export(Box<crate::export::ExportArgs>),
     /// Replay a recorded ego trajectory against a map tile and score it as nuPlan would;
     /// a log is verified above 90 (docs/verify.md).
     Verify(VerifyArgs),
@@ -247,16 +247,16 @@ enum ScenarioCommand {
     /// Be the camera process: publish a generated drive over shared memory (iceoryx2) at its
     /// frame rate, and optionally the GNSS receiver's NMEA and the wheel-speed CAN frames
     /// to a serial device, FIFO or file (docs/bridge.md). Prints `N frames published`.
-    Publish(dash2sim_linux::scenario::publish::PublishArgs),
+    Publish(dash2sim_linux::scenario::publish::PublishRequest),
     /// Generate a corpus of device logs as a fleet uploads them: drives of several seeds,
     /// lengths, regions and drivers recorded through the pipeline, each with its map tile,
     /// some damaged on purpose (docs/fleet.md).
-    Corpus(dash2sim_linux::scenario::corpus::CorpusArgs),
+    Corpus(crate::scenario::CorpusArgs),
     /// Run many generated drives through the product (generate → record from the device's
     /// files → finish → verify truth, online and finished, both channel modes) in parallel
     /// and measure how often each log's verdict equals the truth's: runs.csv, runs.jsonl,
     /// summary.json, sweep.png (docs/fidelity.md).
-    Sweep(dash2sim_linux::fidelity::sweep::SweepArgs),
+    Sweep(crate::scenario::SweepArgs),
     /// Run the 3D track manager over a generated drive and judge it: MOTA/IDF1 at 2 m,
     /// position RMSE of detections, filtered and smoothed tracks, static/dynamic accuracy.
     Eval {
@@ -400,15 +400,15 @@ pub fn run() -> ExitCode {
         Command::Track2d { detections, output } => dash2sim_linux::track2d::run(&detections, &output),
         Command::Mot(MotCommand::Eval { gt, test, max_distance, json }) => mot_eval(&gt, &test, max_distance, json),
         Command::Scenario(ScenarioCommand::Generate { output, seed, duration, receiver, profile }) => {
-            dash2sim_linux::scenario::command::run_generate(seed, duration, profile, receiver, &output)
+            crate::scenario::generate_to(seed, duration, profile, receiver, &output)
         }
         Command::Scenario(ScenarioCommand::Publish(args)) => {
             dash2sim_linux::scenario::publish::run(&args).map(|n| println!("{n} frames published"))
         }
-        Command::Scenario(ScenarioCommand::Corpus(args)) => dash2sim_linux::scenario::corpus::run(&args),
-        Command::Scenario(ScenarioCommand::Sweep(args)) => dash2sim_linux::fidelity::sweep::run(&args),
+        Command::Scenario(ScenarioCommand::Corpus(args)) => crate::scenario::corpus(&args),
+        Command::Scenario(ScenarioCommand::Sweep(args)) => crate::scenario::sweep(&args),
         Command::Scenario(ScenarioCommand::Eval { seed, duration, profile, max_age, json }) => {
-            dash2sim_linux::scenario::command::run_eval(seed, duration, profile, max_age, json)
+            crate::scenario::eval(seed, duration, profile, max_age, json)
         }
         Command::Map(MapCommand::Build { osm, output, origin, bbox, cell }) => {
             dash2sim_linux::map_tile::run_build(&osm, &output, origin.as_deref(), bbox.as_deref(), cell)
@@ -446,9 +446,9 @@ pub fn run() -> ExitCode {
         Command::Demo(args) => crate::demo::run(&args),
         Command::Record(args) => crate::record::run(&args),
         Command::Finish(args) => crate::finish::run(&args),
-        Command::Plot(args) => dash2sim_linux::plot::run(&args),
+        Command::Plot(args) => crate::plot::run(args),
         Command::Inspect { log, json } => dash2sim_linux::logfile::inspect::run(&log, json),
-        Command::Export(request) => dash2sim_linux::exports::run(&request),
+        Command::Export(args) => crate::export::run(*args),
         Command::Verify(a) => verify(&a),
     };
     match result {

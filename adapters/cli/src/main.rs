@@ -4,8 +4,11 @@
 mod anchor;
 mod cli;
 mod demo;
+mod export;
 mod finish;
+mod plot;
 mod record;
+mod scenario;
 
 fn main() -> std::process::ExitCode {
     // Output piped into `head` ends the process quietly, as for any Unix tool, instead of a

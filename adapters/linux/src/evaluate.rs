@@ -12,7 +12,8 @@ use crate::trajectory::{Format, Trajectory, TrajectoryError};
 pub const MIN_MATCHED_POSES: usize = 3;
 
 /// How the estimate is aligned to the reference before measuring.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Align {
     /// No alignment.
     None,
@@ -25,7 +26,8 @@ pub enum Align {
 }
 
 /// Which pose error is measured (evo `-r`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Relation {
     /// Translation part, m.
     Trans,

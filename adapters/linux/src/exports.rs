@@ -10,39 +10,34 @@ use crate::logfile::{frame, mcap_export, parquet_export, read, LogContents};
 use crate::nuplan::map_name;
 
 /// What to export (`dash2sim export`).
-#[derive(Clone, Debug, Default, clap::Args)]
+#[derive(Clone, Debug)]
 pub struct ExportRequest {
     /// The log.
     pub log: PathBuf,
     /// MCAP output (zstd chunks, Foxglove JSON schemas).
-    #[arg(long)]
     pub mcap: Option<PathBuf>,
     /// TUM output: the ego poses.
-    #[arg(long)]
     pub tum: Option<PathBuf>,
     /// GeoJSON output: ego and GNSS tracks, objects as points.
-    #[arg(long)]
     pub geojson: Option<PathBuf>,
     /// Parquet output folder: one file per record kind (docs/parquet.md).
-    #[arg(long)]
     pub parquet: Option<PathBuf>,
     /// The log's id in the Parquet files (default: the log file's name without extension).
-    #[arg(long)]
     pub log_id: Option<String>,
     /// nuPlan output folder: `db/<log>.db` and `maps/` (needs --map).
-    #[arg(long)]
     pub nuplan: Option<PathBuf>,
     /// A map tile (`map build`) or an OpenStreetMap file (built into a tile around the
     /// log's origin): its lanes go into the MCAP as lines and are the nuPlan map.
-    #[arg(long)]
     pub map: Option<PathBuf>,
-    /// Length of a nuPlan scene, s (nuPlan drops the first two and the last of a log).
-    #[arg(long, default_value_t = 5.0)]
+    /// Length of a nuPlan scene, s (nuPlan drops the first two and the last of a log;
+    /// [`DEFAULT_SCENARIO_SECONDS`] is the command line's default).
     pub scenario_seconds: f64,
     /// The map's name in nuPlan (default: `dash2sim-` and the map file's name).
-    #[arg(long)]
     pub map_name: Option<String>,
 }
+
+/// The length of a nuPlan scene when none is named, s.
+pub const DEFAULT_SCENARIO_SECONDS: f64 = 5.0;
 
 /// A map tile from `path`: a tile as it is, an OpenStreetMap file (XML or PBF) built into
 /// one around the log's origin.
@@ -70,18 +65,6 @@ pub struct Exported {
     pub warning: Option<String>,
     /// One line per output written: its path and what it holds.
     pub written: Vec<String>,
-}
-
-/// `dash2sim export`: print what [`export`] wrote.
-pub fn run(request: &ExportRequest) -> Result<(), String> {
-    let exported = export(request)?;
-    if let Some(warning) = &exported.warning {
-        eprintln!("warning: {warning}");
-    }
-    for line in &exported.written {
-        println!("{line}");
-    }
-    Ok(())
 }
 
 /// Export a log as `request` says (the command line and the Python package's `export`).

@@ -137,8 +137,18 @@ fn export(
     nuplan: Option<PathBuf>,
     map: Option<PathBuf>,
 ) -> PyResult<(Option<String>, Vec<String>)> {
-    let request =
-        ExportRequest { log, mcap, tum, geojson, parquet, log_id, nuplan, map, scenario_seconds: 5.0, map_name: None };
+    let request = ExportRequest {
+        log,
+        mcap,
+        tum,
+        geojson,
+        parquet,
+        log_id,
+        nuplan,
+        map,
+        scenario_seconds: dash2sim_linux::exports::DEFAULT_SCENARIO_SECONDS,
+        map_name: None,
+    };
     let exported = py.detach(|| dash2sim_linux::exports::export(&request)).map_err(error)?;
     Ok((exported.warning, exported.written))
 }

@@ -11,14 +11,14 @@
 use std::process::ExitCode;
 
 use clap::Parser;
-use dash2sim_linux::scenario::publish::{self, PublishArgs};
+use dash2sim_linux::scenario::publish::{self, PublishRequest};
 
 /// Publish a generated work-zone drive as a camera process would.
 #[derive(Debug, Parser)]
 #[command(name = "camera_sim", version, about)]
 struct Args {
     #[command(flatten)]
-    publish: PublishArgs,
+    publish: PublishRequest,
 }
 
 fn main() -> ExitCode {

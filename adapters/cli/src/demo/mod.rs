@@ -260,7 +260,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
 
     progress.step(7, STEPS, "drawing the drive (plot.png, plot.svg)");
     for name in ["plot.png", "plot.svg"] {
-        dash2sim_linux::plot::plot(&dash2sim_linux::plot::PlotArgs {
+        dash2sim_linux::plot::plot(&dash2sim_linux::plot::PlotRequest {
             log: log_path.clone(),
             map: Some(map_path.clone()),
             finished: Some(finished_path.clone()),

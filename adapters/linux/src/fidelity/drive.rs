@@ -20,7 +20,8 @@ use crate::scenario::Scenario;
 use crate::verify::AgentsByTime;
 
 /// Which street-imagery anchors finishing is given.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Anchors {
     /// Every 50 m of the drive, simulated from the true path under the profile's anchor

@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 
 use serde::Serialize;
 
-use super::sweep::{Row, SweepArgs, Verdict, Verdicts};
+use super::sweep::{Row, SweepRequest, Verdict, Verdicts};
 
 /// A log's verdicts against the truth's: rows truth, columns the log.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -263,7 +263,7 @@ fn verdict_pair(row: &Row, mode: impl Fn(&Verdicts) -> &Verdict) -> Option<(bool
 
 impl Summary {
     /// The summary of `rows`, run as `args` says.
-    pub fn of(args: &SweepArgs, rows: &[Row]) -> Self {
+    pub fn of(args: &SweepRequest, rows: &[Row]) -> Self {
         let ok: Vec<&Row> = rows.iter().filter(|r| r.error.is_none()).collect();
         let finished = Confusion::of(ok.iter().filter_map(|r| verdict_pair(r, |v| &v.insensitive)));
         let finished_cs = Confusion::of(ok.iter().filter_map(|r| verdict_pair(r, |v| &v.sensitive)));

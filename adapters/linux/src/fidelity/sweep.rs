@@ -9,7 +9,6 @@ use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::geo::Geodetic;
-use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::Value;
@@ -25,7 +24,8 @@ use crate::scenario::{generate, Driver};
 use dash2sim_core::binlog::Record;
 
 /// Which drivers a sweep drives each seed with.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Drivers {
     /// Careful only: every drive should verify.
     Careful,
@@ -45,41 +45,26 @@ impl Drivers {
     }
 }
 
-/// `dash2sim scenario sweep` arguments.
-#[derive(Debug, Clone, clap::Args)]
-pub struct SweepArgs {
-    /// Seeds, `A-B` (both included) or one seed.
-    #[arg(long, value_parser = parse_seeds)]
+/// A sweep (`dash2sim scenario sweep`).
+#[derive(Debug, Clone)]
+pub struct SweepRequest {
+    /// Seeds, both ends included ([`parse_seeds`] reads `A-B` or `A`).
     pub seeds: RangeInclusive<u64>,
-    /// Drive each seed `careful`, `careless` or `both`.
-    #[arg(long, value_enum, default_value = "both")]
+    /// Drive each seed careful, careless or both.
     pub driver: Drivers,
-    /// How far the sensors are from ideal: `ideal`, `typical` or `hard` (docs/scenario.md).
-    #[arg(long, value_enum, default_value = "typical")]
+    /// How far the sensors are from ideal.
     pub profile: Profile,
-    /// The GNSS receiver: `good` (σ 1–2 m) or `phone` (σ 3–10 m).
-    #[arg(long, value_enum, default_value = "good")]
+    /// The GNSS receiver.
     pub receiver: Receiver,
-    /// Finishing's anchors: `street` (simulated from the true path every 50 m) or `none`.
-    #[arg(long, value_enum, default_value = "street")]
+    /// Finishing's anchors: street (simulated from the true path every 50 m) or none.
     pub anchors: Anchors,
     /// Length of each drive, s.
-    #[arg(long, default_value_t = 40.0)]
     pub duration: f64,
     /// Drives run at once (default: one per core).
-    #[arg(long)]
     pub jobs: Option<usize>,
     /// Output folder: runs.csv, runs.jsonl, summary.json, sweep.png.
-    #[arg(short, long)]
     pub output: PathBuf,
-    /// Print the summary as JSON on stdout.
-    #[arg(long)]
-    pub json: bool,
-    /// No progress on stderr.
-    #[arg(short, long)]
-    pub quiet: bool,
     /// Keep each drive's files (generated streams, logs, anchors) under `OUTPUT/drives/`.
-    #[arg(long)]
     pub keep: bool,
 }
 
@@ -224,7 +209,7 @@ fn finite(x: f64) -> Option<f64> {
 }
 
 impl Row {
-    fn empty(seed: u64, driver: Driver, args: &SweepArgs) -> Self {
+    fn empty(seed: u64, driver: Driver, args: &SweepRequest) -> Self {
         Row {
             seed,
             driver: driver.name(),
@@ -301,7 +286,7 @@ impl Row {
 }
 
 /// Generate drive `seed` with `driver`, record it from its files, judge it; its row.
-fn run_drive(seed: u64, driver: Driver, args: &SweepArgs, work: &Path) -> Row {
+fn run_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Row {
     let row = Row::empty(seed, driver, args);
     match try_drive(seed, driver, args, work) {
         Ok((assessment, facts)) => row.with_assessment(&assessment, &facts),
@@ -355,7 +340,7 @@ fn mount_error(scenario: &crate::scenario::Scenario, log: &LogContents) -> (Opti
     (Some(yaw.max(pitch)), m.calibrated == 1)
 }
 
-fn try_drive(seed: u64, driver: Driver, args: &SweepArgs, work: &Path) -> Result<(Assessment, DriveFacts), String> {
+fn try_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Result<(Assessment, DriveFacts), String> {
     let config =
         crate::scenario::ScenarioConfig { driver, ..config(seed, args.duration, args.profile, args.receiver)? };
     let scenario = generate(&config);
@@ -460,8 +445,9 @@ fn write(path: &Path, contents: impl AsRef<[u8]>) -> Result<(), String> {
 }
 
 /// Run the sweep `args` describes: its rows (in seed, driver order) and summary, written to
-/// the output folder.
-pub fn sweep(args: &SweepArgs) -> Result<(Vec<Row>, Summary), String> {
+/// the output folder. `progress` is told, as each drive ends (from the worker threads), how
+/// many have ended and how many there are.
+pub fn sweep(args: &SweepRequest, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<(Vec<Row>, Summary), String> {
     if !(args.duration.is_finite() && (10.0..=MAX_DURATION_S).contains(&args.duration)) {
         return Err(format!("--duration {} must be between 10 and {MAX_DURATION_S} seconds", args.duration));
     }
@@ -475,11 +461,7 @@ pub fn sweep(args: &SweepArgs) -> Result<(Vec<Row>, Summary), String> {
     let work_root = if args.keep { out.join("drives") } else { out.join(".work") };
     let drives: Vec<(u64, Driver)> =
         args.seeds.clone().flat_map(|seed| args.driver.list().iter().map(move |d| (seed, *d))).collect();
-    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(drives.len() as u64) };
-    bar.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} drives ({elapsed}, about {eta} left)")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let ended = std::sync::atomic::AtomicUsize::new(0);
     let jobs = args.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
     let pool = rayon::ThreadPoolBuilder::new().num_threads(jobs).build().map_err(|e| e.to_string())?;
     let rows: Vec<Row> = pool.install(|| {
@@ -491,12 +473,11 @@ pub fn sweep(args: &SweepArgs) -> Result<(Vec<Row>, Summary), String> {
                 if !args.keep {
                     let _ = std::fs::remove_dir_all(&work);
                 }
-                bar.inc(1);
+                progress(ended.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, drives.len());
                 row
             })
             .collect()
     });
-    bar.finish_and_clear();
     if !args.keep {
         let _ = std::fs::remove_dir(&work_root);
     }
@@ -513,22 +494,6 @@ pub fn sweep(args: &SweepArgs) -> Result<(Vec<Row>, Summary), String> {
     write(&out.join("summary.json"), text)?;
     super::plot::draw(&rows, &summary, &out.join("sweep.png"))?;
     Ok((rows, summary))
-}
-
-/// `dash2sim scenario sweep`.
-pub fn run(args: &SweepArgs) -> Result<(), String> {
-    let (_, summary) = sweep(args)?;
-    if args.json {
-        println!("{}", serde_json::to_string(&summary).map_err(|e| e.to_string())?);
-    } else {
-        print!("{}", summary.text());
-        println!(
-            "rows in {}, summary in {}",
-            args.output.join("runs.csv").display(),
-            args.output.join("summary.json").display()
-        );
-    }
-    Ok(())
 }
 
 #[cfg(test)]

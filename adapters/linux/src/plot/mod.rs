@@ -28,19 +28,16 @@ const VERIFIED: RGBColor = RGBColor(200, 235, 200);
 /// The font the PNG's text is drawn with.
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 
-/// `dash2sim plot` arguments.
-#[derive(Debug, Clone, clap::Args)]
-pub struct PlotArgs {
+/// A drive to draw (`dash2sim plot`).
+#[derive(Debug, Clone)]
+pub struct PlotRequest {
     /// The log (the device's, or a finished one).
     pub log: PathBuf,
     /// A map tile (`map build`): its lanes under the drive, in grey.
-    #[arg(long)]
     pub map: Option<PathBuf>,
     /// The finished log of the same drive (`finish`), drawn in blue over the online one.
-    #[arg(long)]
     pub finished: Option<PathBuf>,
     /// The picture: `.svg` or `.png`.
-    #[arg(short, long)]
     pub output: PathBuf,
 }
 
@@ -57,26 +54,8 @@ pub struct Drawn {
     pub windows: (usize, usize),
 }
 
-/// `dash2sim plot`.
-pub fn run(args: &PlotArgs) -> Result<(), String> {
-    let drawn = plot(args)?;
-    let classes: Vec<String> = drawn.tracks.iter().map(|(c, n)| format!("{n} {c}")).collect();
-    println!(
-        "{}: {} lanes, {} online and {} finished ego poses, {} GNSS fixes, tracks: {}; {} of {} windows verified",
-        args.output.display(),
-        drawn.lanes,
-        drawn.poses.0,
-        drawn.poses.1,
-        drawn.poses.2,
-        if classes.is_empty() { "none".to_owned() } else { classes.join(", ") },
-        drawn.windows.1,
-        drawn.windows.0
-    );
-    Ok(())
-}
-
 /// Draw `args.log` (and its map and finished log) to `args.output`.
-pub fn plot(args: &PlotArgs) -> Result<Drawn, String> {
+pub fn plot(args: &PlotRequest) -> Result<Drawn, String> {
     let read = |p: &Path| logfile::read(p).map_err(|e| format!("{}: {e}", p.display()));
     let log = read(&args.log)?;
     let finished = args.finished.as_deref().map(read).transpose()?;

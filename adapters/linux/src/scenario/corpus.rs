@@ -16,27 +16,30 @@ use super::write::{road_tile, write_scenario};
 use super::{generate, Driver, ScenarioConfig};
 use crate::record::{self, Setup, Sources};
 
-/// `dash2sim scenario corpus` arguments.
-#[derive(Debug, Clone, clap::Args)]
-pub struct CorpusArgs {
+/// A corpus to generate (`dash2sim scenario corpus`).
+#[derive(Debug, Clone)]
+pub struct CorpusRequest {
     /// Output folder: `drive-NNNN.d2slog` with `drive-NNNN.map` beside each, and `corpus.json`.
-    #[arg(short, long)]
     pub output: PathBuf,
     /// How many logs.
-    #[arg(long, default_value_t = 200)]
     pub logs: usize,
     /// Every this many logs, one is damaged (0: none), cycling through the kinds of damage.
-    #[arg(long, default_value_t = 10)]
     pub damaged_every: usize,
     /// Seed of the first drive; the others follow.
-    #[arg(long, default_value_t = 1)]
     pub first_seed: u64,
-    /// How far the sensors are from ideal: `ideal`, `typical` or `hard` (docs/scenario.md).
-    #[arg(long, value_enum, default_value = "typical")]
+    /// How far the sensors are from ideal.
     pub profile: Profile,
-    /// No progress on stderr.
-    #[arg(short, long)]
-    pub quiet: bool,
+}
+
+/// What [`make_corpus`] wrote.
+#[derive(Debug, Clone)]
+pub struct Corpus {
+    /// Logs written.
+    pub logs: usize,
+    /// Of them, damaged on purpose.
+    pub damaged: usize,
+    /// `corpus.json`, which says what each log is.
+    pub listing: PathBuf,
 }
 
 /// Where the drives are: the synthetic road is placed at each origin in turn.
@@ -94,7 +97,7 @@ struct Plan {
     profile: Profile,
 }
 
-fn plan(args: &CorpusArgs, i: usize) -> Plan {
+fn plan(args: &CorpusRequest, i: usize) -> Plan {
     let damaged = args.damaged_every > 0 && (i + 1).is_multiple_of(args.damaged_every);
     Plan {
         name_index: i + 1,
@@ -179,8 +182,9 @@ fn damaged(mut log: Vec<u8>, plan: &Plan) -> Vec<u8> {
     }
 }
 
-/// `dash2sim scenario corpus`.
-pub fn run(args: &CorpusArgs) -> Result<(), String> {
+/// Generate the corpus `args` asks for; `progress` is told how many logs are written so far
+/// (from the worker threads, in any order).
+pub fn make_corpus(args: &CorpusRequest, progress: &(dyn Fn(usize) + Sync)) -> Result<Corpus, String> {
     std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
     let plans: Vec<Plan> = (0..args.logs).map(|i| plan(args, i)).collect();
     let workers = std::thread::available_parallelism().map_or(1, usize::from);
@@ -196,9 +200,7 @@ pub fn run(args: &CorpusArgs) -> Result<(), String> {
                         .map(|p| {
                             let entry = make(p, out);
                             let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                            if !args.quiet && (n.is_multiple_of(25) || n == args.logs) {
-                                eprintln!("{n} of {} logs written", args.logs);
-                            }
+                            progress(n);
                             entry
                         })
                         .collect::<Vec<_>>()
@@ -213,13 +215,7 @@ pub fn run(args: &CorpusArgs) -> Result<(), String> {
     let path = args.output.join("corpus.json");
     let text = serde_json::to_string_pretty(&json!({"logs": entries})).map_err(|e| e.to_string())?;
     std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
-    println!(
-        "{}: {} logs ({damaged} damaged on purpose), listed in {}",
-        args.output.display(),
-        args.logs,
-        path.display()
-    );
-    Ok(())
+    Ok(Corpus { logs: args.logs, damaged, listing: path })
 }
 
 #[cfg(test)]
@@ -228,13 +224,12 @@ mod tests {
 
     #[test]
     fn the_plan_cycles_through_lengths_regions_drivers_and_damage() {
-        let args = CorpusArgs {
+        let args = CorpusRequest {
             output: PathBuf::new(),
             logs: 60,
             damaged_every: 10,
             first_seed: 5,
             profile: Profile::Typical,
-            quiet: true,
         };
         let plans: Vec<Plan> = (0..60).map(|i| plan(&args, i)).collect();
         assert_eq!(plans[0].seed, 5);

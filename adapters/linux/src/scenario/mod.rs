@@ -83,7 +83,8 @@ pub struct ScenarioConfig {
 }
 
 /// How the ego is driven through the work zone.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Driver {
     /// Changes into the open lane well before the taper (the drives of the Dash2Sim
     /// corpus: "the driver completed each route without any incidents").

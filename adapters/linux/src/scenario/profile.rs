@@ -21,7 +21,8 @@ use super::ScenarioConfig;
 use dash2sim_core::sim3::rotation_z;
 
 /// How far the sensors are from ideal.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Profile {
     /// The kind simulator of old: exact VO orientation, linear drifts, exact mount, every
@@ -50,7 +51,8 @@ impl Profile {
 }
 
 /// Which GNSS receiver the generated drive has.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Receiver {
     /// A phone-grade receiver: σ 3–10 m wandering, multipath jumps ([`GnssModel::default`]).

@@ -24,50 +24,52 @@ use super::road::Road;
 use super::write::{receiver_output, wheel_speed_frames};
 use super::{generate, Driver, Scenario, ScenarioConfig};
 use crate::bridge::messages::MAX_DETECTIONS;
-use crate::bridge::{device_now, CameraPublisher, DEFAULT_PREFIX, MAX_IMAGE_BYTES};
+use crate::bridge::{device_now, CameraPublisher, MAX_IMAGE_BYTES};
 
-/// What to publish and how fast.
-#[derive(Clone, Debug, clap::Args)]
-pub struct PublishArgs {
+/// What to publish and how fast. Two binaries take it as their arguments (`dash2sim scenario
+/// publish` and the `camera_sim` example), so it derives `clap::Args` under the `clap` feature.
+#[derive(Clone, Debug)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+pub struct PublishRequest {
     /// Seed of the generated drive.
-    #[arg(long, default_value_t = 1)]
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 1))]
     pub seed: u64,
     /// How the ego drives through the work zone.
-    #[arg(long, value_enum, default_value = "careful")]
+    #[cfg_attr(feature = "clap", arg(long, value_enum, default_value = "careful"))]
     pub driver: Driver,
     /// Length of the drive, s (1–600).
-    #[arg(long, default_value_t = 20.0)]
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 20.0))]
     pub seconds: f64,
     /// How far the sensors are from ideal: `ideal`, `typical` or `hard` (docs/scenario.md).
-    #[arg(long, value_enum, default_value = "typical")]
+    #[cfg_attr(feature = "clap", arg(long, value_enum, default_value = "typical"))]
     pub profile: Profile,
     /// The GNSS receiver: `good` (σ 1–2 m) or `phone` (σ 3–10 m).
-    #[arg(long, value_enum, default_value = "good")]
+    #[cfg_attr(feature = "clap", arg(long, value_enum, default_value = "good"))]
     pub receiver: Receiver,
     /// Frames per second (a multiple of the receiver's 5 Hz).
-    #[arg(long, default_value_t = 10)]
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 10))]
     pub fps: u32,
     /// Drive the road this many times (frame numbers and clocks go on; the road starts again).
-    #[arg(long, default_value_t = 1)]
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 1))]
     pub laps: u32,
     /// Report at least this many 3D detections a frame (up to 64), adding static cones beside
     /// the road where the drive has fewer: a load test's worst case.
-    #[arg(long, default_value_t = 0)]
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 0))]
     pub objects: usize,
     /// Publish this many times faster than real time.
-    #[arg(long, default_value_t = 1.0)]
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 1.0))]
     pub speedup: f64,
     /// Service prefix.
-    #[arg(long, default_value = DEFAULT_PREFIX)]
+    #[cfg_attr(feature = "clap", arg(long, default_value = crate::bridge::DEFAULT_PREFIX))]
     pub prefix: String,
     /// Also publish a 1920×1080×3 image per frame on the image service.
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub images: bool,
     /// Write the GNSS receiver's NMEA here at its rate (a pty, FIFO or file).
-    #[arg(long, value_name = "PATH")]
+    #[cfg_attr(feature = "clap", arg(long, value_name = "PATH"))]
     pub nmea_out: Option<PathBuf>,
     /// Write the wheel-speed CAN frames here as candump lines at their rate (a FIFO or file).
-    #[arg(long, value_name = "PATH")]
+    #[cfg_attr(feature = "clap", arg(long, value_name = "PATH"))]
     pub can_out: Option<PathBuf>,
 }
 
@@ -175,7 +177,7 @@ fn camera_detections(scenario: &Scenario, frame: usize, cones: &[[f64; 2]], obje
 }
 
 /// Publish the drive `args` names; the number of frames published.
-pub fn run(args: &PublishArgs) -> Result<u64, String> {
+pub fn run(args: &PublishRequest) -> Result<u64, String> {
     let longest = super::command::MAX_DURATION_S;
     if !(args.seconds.is_finite() && (1.0..=longest).contains(&args.seconds)) {
         return Err(format!("--seconds {} must be between 1 and {longest}", args.seconds));

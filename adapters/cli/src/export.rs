@@ -1,0 +1,65 @@
+//! `dash2sim export`: the arguments, and what was written listed.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use dash2sim_linux::exports::{self, ExportRequest};
+
+/// What to export (`dash2sim export`).
+#[derive(Clone, Debug, Args)]
+pub struct ExportArgs {
+    /// The log.
+    pub log: PathBuf,
+    /// MCAP output (zstd chunks, Foxglove JSON schemas).
+    #[arg(long)]
+    pub mcap: Option<PathBuf>,
+    /// TUM output: the ego poses.
+    #[arg(long)]
+    pub tum: Option<PathBuf>,
+    /// GeoJSON output: ego and GNSS tracks, objects as points.
+    #[arg(long)]
+    pub geojson: Option<PathBuf>,
+    /// Parquet output folder: one file per record kind (docs/parquet.md).
+    #[arg(long)]
+    pub parquet: Option<PathBuf>,
+    /// The log's id in the Parquet files (default: the log file's name without extension).
+    #[arg(long)]
+    pub log_id: Option<String>,
+    /// nuPlan output folder: `db/<log>.db` and `maps/` (needs --map).
+    #[arg(long)]
+    pub nuplan: Option<PathBuf>,
+    /// A map tile (`map build`) or an OpenStreetMap file (built into a tile around the
+    /// log's origin): its lanes go into the MCAP as lines and are the nuPlan map.
+    #[arg(long)]
+    pub map: Option<PathBuf>,
+    /// Length of a nuPlan scene, s (nuPlan drops the first two and the last of a log).
+    #[arg(long, default_value_t = exports::DEFAULT_SCENARIO_SECONDS)]
+    pub scenario_seconds: f64,
+    /// The map's name in nuPlan (default: `dash2sim-` and the map file's name).
+    #[arg(long)]
+    pub map_name: Option<String>,
+}
+
+/// `dash2sim export`: print what [`exports::export`] wrote, a damaged log's warning on
+/// stderr.
+pub fn run(args: ExportArgs) -> Result<(), String> {
+    let exported = exports::export(&ExportRequest {
+        log: args.log,
+        mcap: args.mcap,
+        tum: args.tum,
+        geojson: args.geojson,
+        parquet: args.parquet,
+        log_id: args.log_id,
+        nuplan: args.nuplan,
+        map: args.map,
+        scenario_seconds: args.scenario_seconds,
+        map_name: args.map_name,
+    })?;
+    if let Some(warning) = &exported.warning {
+        eprintln!("warning: {warning}");
+    }
+    for line in &exported.written {
+        println!("{line}");
+    }
+    Ok(())
+}
