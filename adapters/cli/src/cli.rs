@@ -395,9 +395,9 @@ pub fn run() -> ExitCode {
         Command::Traj(TrajCommand::Ape(args)) => traj_ape(&args),
         Command::Traj(TrajCommand::Rpe(args)) => traj_rpe(&args),
         Command::Anchor(args) => crate::anchor::run(&args),
-        Command::Nmea(NmeaCommand::Decode { file, json }) => dash2sim_linux::nmea_decode::run(&file, json),
-        Command::Can(CanCommand::Decode { file, dbc, json }) => dash2sim_linux::can_decode::run(&file, &dbc, json),
-        Command::Track2d { detections, output } => dash2sim_linux::track2d::run(&detections, &output),
+        Command::Nmea(NmeaCommand::Decode { file, json }) => crate::decode::nmea(&file, json),
+        Command::Can(CanCommand::Decode { file, dbc, json }) => crate::decode::can(&file, &dbc, json),
+        Command::Track2d { detections, output } => track2d(&detections, &output),
         Command::Mot(MotCommand::Eval { gt, test, max_distance, json }) => mot_eval(&gt, &test, max_distance, json),
         Command::Scenario(ScenarioCommand::Generate { output, seed, duration, receiver, profile }) => {
             crate::scenario::generate_to(seed, duration, profile, receiver, &output)
@@ -411,13 +411,11 @@ pub fn run() -> ExitCode {
             crate::scenario::eval(seed, duration, profile, max_age, json)
         }
         Command::Map(MapCommand::Build { osm, output, origin, bbox, cell }) => {
-            dash2sim_linux::map_tile::run_build(&osm, &output, origin.as_deref(), bbox.as_deref(), cell)
+            crate::map::build(&osm, &output, origin.as_deref(), bbox.as_deref(), cell)
         }
-        Command::Map(MapCommand::Info { map, json }) => dash2sim_linux::map_tile::run_info(&map, json),
-        Command::Map(MapCommand::Lanes { map }) => dash2sim_linux::map_tile::run_lanes(&map),
-        Command::Map(MapCommand::Check { map, poses, passes, json }) => {
-            dash2sim_linux::map_tile::check::run_check(&map, &poses, passes, json)
-        }
+        Command::Map(MapCommand::Info { map, json }) => crate::map::info(&map, json),
+        Command::Map(MapCommand::Lanes { map }) => crate::map::lanes(&map),
+        Command::Map(MapCommand::Check { map, poses, passes, json }) => crate::map::check(&map, &poses, passes, json),
         Command::Import(a) => {
             let speed_unit = match a.speed_unit.as_str() {
                 "km/h" | "kph" => Some(1.0 / 3.6),
@@ -526,6 +524,29 @@ fn mot_eval(gt: &std::path::Path, test: &std::path::Path, max_distance: f64, as_
             println!("{name:>20}  {value}");
         }
     }
+    Ok(())
+}
+
+/// `dash2sim track2d`: the problems of the file and the summary on stderr.
+fn track2d(detections: &std::path::Path, output: &std::path::Path) -> Result<(), String> {
+    let rows = dash2sim_linux::mot::read_mot(detections)?;
+    let (tracks, stats, skipped) = dash2sim_linux::track2d::track(&rows);
+    for (_, message) in &skipped {
+        eprintln!("{}: {message}", detections.display());
+    }
+    dash2sim_linux::track2d::write_mot(output, &tracks).map_err(|e| format!("{}: {e}", output.display()))?;
+    let ids: std::collections::BTreeSet<i64> = tracks.iter().map(|r| r.id).collect();
+    eprintln!(
+        "{} frames, {} detections → {} tracks, {} boxes; rejected {} detections, dropped {}, {} rows out of order, {} track candidates dropped",
+        stats.frames,
+        rows.len(),
+        ids.len(),
+        tracks.len(),
+        stats.rejected_detections,
+        stats.dropped_detections,
+        skipped.len(),
+        stats.dropped_tracks
+    );
     Ok(())
 }
 

@@ -3,9 +3,11 @@
 
 mod anchor;
 mod cli;
+mod decode;
 mod demo;
 mod export;
 mod finish;
+mod map;
 mod plot;
 mod record;
 mod scenario;

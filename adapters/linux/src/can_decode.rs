@@ -8,8 +8,8 @@
 //! precedence over the built-in decoders for that id. Every bad line, malformed frame
 //! and abandoned fast-packet message is reported on stderr with its line number.
 
-use std::io::{BufRead, Write};
-use std::path::{Path, PathBuf};
+use std::io::BufRead;
+use std::path::PathBuf;
 
 use dash2sim_can::candump::CandumpReader;
 use dash2sim_can::source::SourceErrorKind;
@@ -169,27 +169,11 @@ pub fn load_tables(paths: &[PathBuf]) -> Result<SignalTable, String> {
     Ok(table)
 }
 
-/// Run the subcommand.
-pub fn run(path: &Path, dbcs: &[PathBuf], as_json: bool) -> Result<(), String> {
-    let table = load_tables(dbcs)?;
-    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut source = CandumpReader::new(std::io::BufReader::new(file));
-    let mut decoder = CanDecoder::new(table);
-    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
-    let name = path.display();
-    let result = decode_source(
-        &mut source,
-        &mut decoder,
-        |value| writeln!(out, "{}", if as_json { value.to_string() } else { text_row(&value) }),
-        |line, problem| eprintln!("{name}:{line}: {problem}"),
-    );
-    let summary = match result {
-        Ok(summary) => summary,
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
-        Err(e) => return Err(format!("{name}: {e}")),
-    };
+/// A decode's summary as `dash2sim can decode` prints it (`class` `SUMMARY`), with the
+/// decoder's fast-packet and ignored-frame counts.
+pub fn summary_json(summary: &Summary, decoder: &CanDecoder) -> Value {
     let fp = decoder.decoder.fast_packet_stats();
-    let summary = json!({
+    json!({
         "class": "SUMMARY",
         "frames": summary.frames,
         "decoded": summary.decoded,
@@ -205,17 +189,7 @@ pub fn run(path: &Path, dbcs: &[PathBuf], as_json: bool) -> Result<(), String> {
             "timed_out": fp.timed_out,
             "evicted": fp.evicted,
         },
-    });
-    let written = if as_json {
-        writeln!(out, "{summary}").and_then(|()| out.flush())
-    } else {
-        eprintln!("{summary}");
-        out.flush()
-    };
-    match written {
-        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(format!("writing output: {e}")),
-        _ => Ok(()),
-    }
+    })
 }
 
 /// `t`, `bus` and `id` of every output object.
@@ -334,23 +308,6 @@ fn canboat_date(days: u16) -> String {
 fn canboat_time(units: u32) -> String {
     let secs = units / 10_000;
     format!("{:02}:{:02}:{:02}.{:04}", secs / 3600, secs / 60 % 60, secs % 60, units % 10_000)
-}
-
-/// One human-readable line per message.
-fn text_row(value: &Value) -> String {
-    let t = value.get("t").and_then(Value::as_f64).map_or_else(|| "-".to_owned(), |t| format!("{t:.6}"));
-    let what = value
-        .get("pgn")
-        .map(|p| format!("PGN {p}"))
-        .or_else(|| value.get("pid").map(|p| format!("PID {p}")))
-        .or_else(|| value.get("message").and_then(Value::as_str).map(str::to_owned))
-        .unwrap_or_default();
-    let fields = value
-        .get("fields")
-        .and_then(Value::as_object)
-        .map_or_else(String::new, |f| f.iter().map(|(k, v)| format!("{k}={v}")).collect::<Vec<_>>().join(" "));
-    let s = |k: &str| value.get(k).and_then(Value::as_str).unwrap_or_default().to_owned();
-    format!("{t:>18} {:6} {:>10} {what:12} {fields}", s("bus"), s("id"))
 }
 
 #[cfg(test)]

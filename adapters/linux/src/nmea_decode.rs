@@ -1,11 +1,8 @@
 //! `dash2sim nmea decode FILE`: an NMEA 0183 capture → one fix report per epoch.
 //!
-//! The bytes go through the core's framer and decoder exactly as on the device. Output
-//! uses gpsd's TPV field names; every rejected sentence is reported on stderr with its
-//! line number, and decoding continues after it.
-
-use std::io::Write;
-use std::path::Path;
+//! The bytes go through the core's framer and decoder exactly as on the device. Fixes come
+//! out with gpsd's TPV field names; every rejected sentence is reported with its line
+//! number, and decoding continues after it.
 
 use dash2sim_core::nmea::{Event, GnssFix, Stream, StreamEvent};
 use serde_json::{json, Map, Value};
@@ -71,43 +68,17 @@ pub fn tpv_json(fix: &GnssFix) -> Value {
     Value::Object(o)
 }
 
-fn table_row(fix: &GnssFix) -> String {
-    let t = fix.time().map_or_else(|| "-".to_owned(), |t| iso8601(t.micros()));
-    let f = |v: Option<f64>, p: usize| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.p$}"));
-    let position = |v: Option<f64>| f(v.filter(|_| fix.has_position()), 9);
-    format!(
-        "{t:24} mode {} lat {:>13} lon {:>14} alt {:>9} speed {:>7} track {:>8} hdop {:>5} sats {}",
-        fix.mode.gpsd(),
-        position(fix.lat),
-        position(fix.lon),
-        f(fix.alt_msl, 2),
-        f(fix.speed_mps, 3),
-        f(fix.track_deg, 2),
-        f(fix.hdop, 2),
-        fix.satellites_used.map_or_else(|| "-".to_owned(), |n| n.to_string())
-    )
-}
-
-/// Decode `path`; print fixes (JSON lines or a table) and a summary. A closed stdout
-/// (`| head`) ends the output quietly.
-pub fn run(path: &Path, as_json: bool) -> Result<(), String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
-    match decode(path, &bytes, as_json, &mut out).and_then(|()| out.flush()) {
-        Ok(()) => Ok(()),
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        Err(e) => Err(format!("writing output: {e}")),
-    }
-}
-
-fn decode(path: &Path, bytes: &[u8], as_json: bool, out: &mut impl Write) -> std::io::Result<()> {
+/// Decode a capture as the device would: `on_fix` gets each epoch's fix (stopping at its
+/// first error, which is returned), `on_problem` each rejected sentence or dropped bytes with
+/// its line number (decoding goes on after it). The summary, gpsd-style (`class`
+/// `SUMMARY`): fixes, sentences, what was rejected and why.
+pub fn decode(
+    bytes: &[u8],
+    mut on_fix: impl FnMut(&GnssFix) -> std::io::Result<()>,
+    mut on_problem: impl FnMut(usize, &dyn std::fmt::Display),
+) -> std::io::Result<Value> {
     let mut stream: Stream = Stream::new();
     let mut fixes = 0u64;
-    let mut write_fix = |fix: &GnssFix, out: &mut dyn Write| -> std::io::Result<()> {
-        fixes += 1;
-        writeln!(out, "{}", if as_json { tpv_json(fix).to_string() } else { table_row(fix) })
-    };
-    let name = path.display();
     let mut result = Ok(());
     // Feed line by line so problems can name their line.
     for (index, line) in bytes.split_inclusive(|&b| b == b'\n').enumerate() {
@@ -115,23 +86,25 @@ fn decode(path: &Path, bytes: &[u8], as_json: bool, out: &mut impl Write) -> std
         stream.feed(line, |event| match event {
             StreamEvent::Sentence(Event::Message { fix: Some(fix), .. }) => {
                 if result.is_ok() {
-                    result = write_fix(fix, out);
+                    fixes += 1;
+                    result = on_fix(fix);
                 }
             }
             StreamEvent::Sentence(Event::Message { .. }) => {}
-            StreamEvent::Sentence(Event::BadSentence(e)) => eprintln!("{name}:{line_no}: {e}"),
-            StreamEvent::Sentence(Event::BadFields(e)) => eprintln!("{name}:{line_no}: {e}"),
-            StreamEvent::Dropped(e) => eprintln!("{name}:{line_no}: {e}"),
+            StreamEvent::Sentence(Event::BadSentence(e)) => on_problem(line_no, &e),
+            StreamEvent::Sentence(Event::BadFields(e)) => on_problem(line_no, &e),
+            StreamEvent::Dropped(e) => on_problem(line_no, &e),
         });
         std::mem::replace(&mut result, Ok(()))?;
     }
     if let Some(fix) = stream.decoder.finish() {
-        write_fix(&fix, out)?;
+        fixes += 1;
+        on_fix(&fix)?;
     }
     let (decoder, framer) = (&stream.decoder, &stream.framer);
     let s = decoder.stats();
     let f = framer.stats();
-    let summary = json!({
+    Ok(json!({
         "class": "SUMMARY",
         "fixes": fixes,
         "sentences": f.sentences,
@@ -146,13 +119,7 @@ fn decode(path: &Path, bytes: &[u8], as_json: bool, out: &mut impl Write) -> std
             "interrupted": f.interrupted,
         },
         "junk_bytes": f.junk_bytes,
-    });
-    if as_json {
-        writeln!(out, "{summary}")
-    } else {
-        eprintln!("{summary}");
-        Ok(())
-    }
+    }))
 }
 
 #[cfg(test)]

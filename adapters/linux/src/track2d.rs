@@ -10,7 +10,7 @@ use std::path::Path;
 
 use dash2sim_core::track2d::{Detection, Stats, TrackOutput, Tracker2d, TrackerConfig};
 
-use crate::mot::{read_mot, MotRow};
+use crate::mot::MotRow;
 
 /// Tracks and detections per frame the CLI handles.
 pub const CAPACITY: usize = 256;
@@ -67,27 +67,4 @@ pub fn write_mot(path: &Path, rows: &[MotRow]) -> std::io::Result<()> {
         )?;
     }
     w.flush()
-}
-
-/// Run the subcommand.
-pub fn run(detections: &Path, output: &Path) -> Result<(), String> {
-    let rows = read_mot(detections)?;
-    let (tracks, stats, skipped) = track(&rows);
-    for (_, message) in &skipped {
-        eprintln!("{}: {message}", detections.display());
-    }
-    write_mot(output, &tracks).map_err(|e| format!("{}: {e}", output.display()))?;
-    let ids: std::collections::BTreeSet<i64> = tracks.iter().map(|r| r.id).collect();
-    eprintln!(
-        "{} frames, {} detections → {} tracks, {} boxes; rejected {} detections, dropped {}, {} rows out of order, {} track candidates dropped",
-        stats.frames,
-        rows.len(),
-        ids.len(),
-        tracks.len(),
-        stats.rejected_detections,
-        stats.dropped_detections,
-        skipped.len(),
-        stats.dropped_tracks
-    );
-    Ok(())
 }

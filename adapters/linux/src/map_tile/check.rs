@@ -10,8 +10,33 @@ use dash2sim_core::drivable::Channel;
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::PACIFICA;
 
+/// What checking a file of poses found, and how long it took.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Checked {
+    /// Poses checked.
+    pub poses: usize,
+    /// Of them, with the footprint inside the drivable area.
+    pub compliant: usize,
+    /// Footprint corners outside it.
+    pub corners_outside: usize,
+    /// Footprint corners with nothing drivable within 10 m.
+    pub corners_nothing_near: usize,
+    /// The fastest pass's time per pose, µs.
+    pub us_per_pose: f64,
+    /// Passes made.
+    pub passes: u32,
+}
+
+impl Checked {
+    /// As `dash2sim map check --json` prints it.
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({"poses": self.poses, "compliant": self.compliant, "corners_outside": self.corners_outside,
+                           "corners_nothing_near": self.corners_nothing_near, "us_per_pose": self.us_per_pose, "passes": self.passes})
+    }
+}
+
 /// Check every pose of `poses` (TUM, rear axle, the tile's ENU frame) `passes` times.
-pub fn run_check(map: &Path, poses: &Path, passes: u32, as_json: bool) -> Result<(), String> {
+pub fn check_file(map: &Path, poses: &Path, passes: u32) -> Result<Checked, String> {
     if passes == 0 {
         return Err("--passes must be at least 1".to_owned());
     }
@@ -38,18 +63,12 @@ pub fn run_check(map: &Path, poses: &Path, passes: u32, as_json: bool) -> Result
         fastest = fastest.min(start.elapsed().as_secs_f64());
         (compliant, outside, nothing_near) = (c, o, n);
     }
-    let us_per_pose = fastest / poses.len() as f64 * 1e6;
-    if as_json {
-        println!(
-            "{}",
-            serde_json::json!({"poses": poses.len(), "compliant": compliant, "corners_outside": outside,
-                               "corners_nothing_near": nothing_near, "us_per_pose": us_per_pose, "passes": passes})
-        );
-    } else {
-        println!(
-            "{} poses: {compliant} compliant, {outside} corners outside, {nothing_near} with nothing drivable within 10 m; {us_per_pose:.2} µs per pose (fastest of {passes} passes)",
-            poses.len()
-        );
-    }
-    Ok(())
+    Ok(Checked {
+        poses: poses.len(),
+        compliant,
+        corners_outside: outside,
+        corners_nothing_near: nothing_near,
+        us_per_pose: fastest / poses.len() as f64 * 1e6,
+        passes,
+    })
 }

@@ -13,7 +13,6 @@ pub mod lanelet2;
 pub mod polygon_index;
 
 use std::collections::HashMap;
-use std::io::Write as _;
 
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::map::{body_checksum, Header, CRC_AT, HEADER_LEN, NONE, POLYGON_BIT, VERSION_MAJOR};
@@ -416,14 +415,28 @@ fn parse_bbox(text: &str) -> Result<[f64; 4], String> {
     Ok([west, south, east, north])
 }
 
-/// `dash2sim map build`.
-pub fn run_build(
+/// What [`build_file`] wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Built {
+    /// Lanes in the tile.
+    pub lanes: usize,
+    /// Their length, km.
+    pub lane_km: f64,
+    /// The tile's size, bytes.
+    pub bytes: usize,
+    /// What was odd in the OSM file (ways skipped, tags not understood).
+    pub warnings: Vec<String>,
+}
+
+/// `dash2sim map build`: a tile from an OSM file (`origin` `LAT,LON`, `bbox`
+/// `WEST,SOUTH,EAST,NORTH` as the command line takes them), written to `output`.
+pub fn build_file(
     osm: &std::path::Path,
     output: &std::path::Path,
     origin: Option<&str>,
     bbox: Option<&str>,
     cell: f64,
-) -> Result<(), String> {
+) -> Result<Built, String> {
     if !(cell.is_finite() && (1.0..=10_000.0).contains(&cell)) {
         return Err(format!("--cell {cell} must be between 1 and 10000 metres"));
     }
@@ -438,32 +451,16 @@ pub fn run_build(
     let mut warnings = data.warnings.clone();
     let mut content = from_osm(&data, origin, &mut warnings);
     content.source_counts = source_counts;
-    const SHOWN: usize = 10;
-    for w in warnings.iter().take(SHOWN) {
-        eprintln!("warning: {w}");
-    }
-    if warnings.len() > SHOWN {
-        eprintln!("warning: … and {} more", warnings.len() - SHOWN);
-    }
     if content.lanes.is_empty() {
         return Err(format!("{}: no drivable highway ways or Lanelet2 lanelets", osm.display()));
     }
     let bytes = encode(&content, cell);
     std::fs::write(output, &bytes).map_err(|e| format!("{}: {e}", output.display()))?;
-    println!(
-        "{}: {} lanes, {:.2} lane-km, {} bytes ({:.0} bytes per lane-km), {} warnings",
-        output.display(),
-        content.lanes.len(),
-        content.lane_km(),
-        bytes.len(),
-        bytes.len() as f64 / content.lane_km().max(1e-9),
-        warnings.len()
-    );
-    Ok(())
+    Ok(Built { lanes: content.lanes.len(), lane_km: content.lane_km(), bytes: bytes.len(), warnings })
 }
 
 /// `dash2sim map lanes`: the lanes and free-standing polygons of a tile as JSON.
-pub fn run_lanes(path: &std::path::Path) -> Result<(), String> {
+pub fn lanes_json(path: &std::path::Path) -> Result<serde_json::Value, String> {
     let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let view = dash2sim_core::map::MapView::parse(&bytes).map_err(|e| format!("{}: {e}", path.display()))?;
     let ring = |i: u32| view.polygon(i).map(|p| p.map(|(x, y)| [x, y]).collect::<Vec<_>>());
@@ -486,18 +483,43 @@ pub fn run_lanes(path: &std::path::Path) -> Result<(), String> {
     let areas: std::collections::HashSet<u32> = (0..view.header().lanes).filter_map(|i| view.lane(i)?.area).collect();
     let polygons: Vec<_> = (0..view.header().polygons).filter(|i| !areas.contains(i)).filter_map(ring).collect();
     let h = view.header();
-    let json =
-        serde_json::json!({"origin": {"lat": h.origin[0], "lon": h.origin[1]}, "lanes": lanes, "polygons": polygons});
-    let mut out = std::io::stdout().lock();
-    match writeln!(out, "{json}") {
-        // A reader that stops early (`| head`) is not an error.
-        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(format!("stdout: {e}")),
-        _ => Ok(()),
+    Ok(serde_json::json!({"origin": {"lat": h.origin[0], "lon": h.origin[1]}, "lanes": lanes, "polygons": polygons}))
+}
+
+/// What a tile is (`dash2sim map info`).
+#[derive(Clone, Debug)]
+pub struct TileInfo {
+    /// The tile's header.
+    pub header: Header,
+    /// The format's major version.
+    pub version: u8,
+    /// Lanes' length, km.
+    pub lane_km: f64,
+    /// The tile's size, bytes.
+    pub bytes: usize,
+}
+
+impl TileInfo {
+    /// As `dash2sim map info --json` prints it.
+    pub fn to_json(&self) -> serde_json::Value {
+        let h = &self.header;
+        let [nodes, ways, highway_ways, relations] = h.source_counts;
+        serde_json::json!({
+            "origin": {"lat": h.origin[0], "lon": h.origin[1]},
+            "osm": {"nodes": nodes, "ways": ways, "highway_ways": highway_ways, "relations": relations},
+            "lanes": h.lanes,
+            "lane_km": self.lane_km,
+            "polygons": h.polygons,
+            "points": h.points,
+            "grid": {"cell_m": h.cell_size, "columns": h.grid_size[0], "rows": h.grid_size[1], "entries": h.grid_entries},
+            "bytes": self.bytes,
+            "bytes_per_lane_km": self.bytes as f64 / self.lane_km.max(1e-9),
+        })
     }
 }
 
-/// `dash2sim map info`.
-pub fn run_info(path: &std::path::Path, as_json: bool) -> Result<(), String> {
+/// Describe the tile at `path`.
+pub fn info(path: &std::path::Path) -> Result<TileInfo, String> {
     let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let view = dash2sim_core::map::MapView::parse(&bytes).map_err(|e| format!("{}: {e}", path.display()))?;
     let h = view.header();
@@ -509,32 +531,8 @@ pub fn run_info(path: &std::path::Path, as_json: bool) -> Result<(), String> {
         })
         .sum::<f64>()
         / 1000.0;
-    let [nodes, ways, highway_ways, relations] = h.source_counts;
-    let info = serde_json::json!({
-        "origin": {"lat": h.origin[0], "lon": h.origin[1]},
-        "osm": {"nodes": nodes, "ways": ways, "highway_ways": highway_ways, "relations": relations},
-        "lanes": h.lanes,
-        "lane_km": lane_km,
-        "polygons": h.polygons,
-        "points": h.points,
-        "grid": {"cell_m": h.cell_size, "columns": h.grid_size[0], "rows": h.grid_size[1], "entries": h.grid_entries},
-        "bytes": bytes.len(),
-        "bytes_per_lane_km": bytes.len() as f64 / lane_km.max(1e-9),
-    });
-    if as_json {
-        println!("{info}");
-    } else {
-        println!("map tile {} (format v{})", path.display(), if h.boxes { VERSION_MAJOR } else { 1 });
-        println!("  origin      {:.7}, {:.7}", h.origin[0], h.origin[1]);
-        println!("  source      {nodes} nodes, {ways} ways ({highway_ways} highway), {relations} relations");
-        println!("  lanes       {} ({lane_km:.2} lane-km), {} polygons, {} points", h.lanes, h.polygons, h.points);
-        println!(
-            "  grid        {} × {} cells of {} m, {} entries",
-            h.grid_size[0], h.grid_size[1], h.cell_size, h.grid_entries
-        );
-        println!("  size        {} bytes ({:.0} per lane-km)", bytes.len(), bytes.len() as f64 / lane_km.max(1e-9));
-    }
-    Ok(())
+    let version = if h.boxes { VERSION_MAJOR } else { 1 };
+    Ok(TileInfo { header: *h, version, lane_km, bytes: bytes.len() })
 }
 
 #[cfg(test)]

@@ -1,0 +1,75 @@
+//! `dash2sim map build|info|lanes|check`: the tiles' commands rendered.
+
+use std::io::Write as _;
+use std::path::Path;
+
+use dash2sim_linux::map_tile::{self, check};
+
+/// Warnings shown of a build; the rest are counted.
+const WARNINGS_SHOWN: usize = 10;
+
+/// `dash2sim map build`.
+pub fn build(osm: &Path, output: &Path, origin: Option<&str>, bbox: Option<&str>, cell: f64) -> Result<(), String> {
+    let built = map_tile::build_file(osm, output, origin, bbox, cell)?;
+    for w in built.warnings.iter().take(WARNINGS_SHOWN) {
+        eprintln!("warning: {w}");
+    }
+    if built.warnings.len() > WARNINGS_SHOWN {
+        eprintln!("warning: … and {} more", built.warnings.len() - WARNINGS_SHOWN);
+    }
+    println!(
+        "{}: {} lanes, {:.2} lane-km, {} bytes ({:.0} bytes per lane-km), {} warnings",
+        output.display(),
+        built.lanes,
+        built.lane_km,
+        built.bytes,
+        built.bytes as f64 / built.lane_km.max(1e-9),
+        built.warnings.len()
+    );
+    Ok(())
+}
+
+/// `dash2sim map lanes`.
+pub fn lanes(path: &Path) -> Result<(), String> {
+    let json = map_tile::lanes_json(path)?;
+    match writeln!(std::io::stdout().lock(), "{json}") {
+        // A reader that stops early (`| head`) is not an error.
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(format!("stdout: {e}")),
+        _ => Ok(()),
+    }
+}
+
+/// `dash2sim map info`.
+pub fn info(path: &Path, as_json: bool) -> Result<(), String> {
+    let info = map_tile::info(path)?;
+    if as_json {
+        println!("{}", info.to_json());
+        return Ok(());
+    }
+    let (h, lane_km) = (&info.header, info.lane_km);
+    let [nodes, ways, highway_ways, relations] = h.source_counts;
+    println!("map tile {} (format v{})", path.display(), info.version);
+    println!("  origin      {:.7}, {:.7}", h.origin[0], h.origin[1]);
+    println!("  source      {nodes} nodes, {ways} ways ({highway_ways} highway), {relations} relations");
+    println!("  lanes       {} ({lane_km:.2} lane-km), {} polygons, {} points", h.lanes, h.polygons, h.points);
+    println!(
+        "  grid        {} × {} cells of {} m, {} entries",
+        h.grid_size[0], h.grid_size[1], h.cell_size, h.grid_entries
+    );
+    println!("  size        {} bytes ({:.0} per lane-km)", info.bytes, info.bytes as f64 / lane_km.max(1e-9));
+    Ok(())
+}
+
+/// `dash2sim map check`.
+pub fn check(map: &Path, poses: &Path, passes: u32, as_json: bool) -> Result<(), String> {
+    let c = check::check_file(map, poses, passes)?;
+    if as_json {
+        println!("{}", c.to_json());
+    } else {
+        println!(
+            "{} poses: {} compliant, {} corners outside, {} with nothing drivable within 10 m; {:.2} µs per pose (fastest of {} passes)",
+            c.poses, c.compliant, c.corners_outside, c.corners_nothing_near, c.us_per_pose, c.passes
+        );
+    }
+    Ok(())
+}
