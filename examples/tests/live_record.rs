@@ -79,7 +79,7 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
         realtime: true,
         segment: Duration::from_secs(600),
         duration: Some(Duration::from_secs_f64(SECONDS + 2.5)),
-        status: false,
+        status: None,
     };
     let logger = std::thread::spawn(move || live::run(&request, &setup, &AtomicBool::new(false)));
     std::thread::sleep(Duration::from_millis(300));
@@ -162,7 +162,7 @@ fn the_camera_process_killed_and_restarted_is_a_gap_in_the_log_not_the_end_of_it
         realtime: false,
         segment: Duration::from_secs(600),
         duration: Some(Duration::from_secs(6)),
-        status: false,
+        status: None,
     };
     let logger = std::thread::spawn(move || live::run(&request, &setup, &AtomicBool::new(false)));
     std::thread::sleep(Duration::from_millis(300));

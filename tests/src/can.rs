@@ -8,7 +8,7 @@ use serde_json::Value;
 
 /// Every message the CLI would print for `capture`, the problems (line, text) and the summary.
 pub fn decode_capture(capture: &Path, dbcs: &[PathBuf]) -> (Vec<Value>, Vec<(u64, String)>, Summary) {
-    let table = load_tables(dbcs).unwrap_or_else(|e| panic!("{e}"));
+    let (table, _) = load_tables(dbcs).unwrap_or_else(|e| panic!("{e}"));
     let file = std::fs::File::open(capture).unwrap_or_else(|e| panic!("{}: {e}", capture.display()));
     let mut source = CandumpReader::new(std::io::BufReader::new(file));
     let mut decoder = CanDecoder::new(table);

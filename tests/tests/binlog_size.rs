@@ -64,7 +64,7 @@ fn the_comma2k19_minute_is_a_third_of_its_mcap() {
         objects: None,
         origin: Some(format!("{},{},{}", ORIGIN[0], ORIGIN[1], ORIGIN[2])),
     };
-    logfile::import::run(&request).expect("import");
+    logfile::import::import(&request, &mut |problem| panic!("{problem}")).expect("import");
     let log = logfile::read(&output).expect("log");
     let count = |kind: Kind| log.records.iter().filter(|r| r.kind() == kind).count();
     assert_eq!((count(Kind::GnssFix), count(Kind::VehicleSpeed), count(Kind::EgoPose)), (579, 2487, 1200));
@@ -79,7 +79,7 @@ fn a_work_zone_drive_with_3d_tracks_is_a_third_of_its_mcap() {
     write_scenario(&scenario, &drive).expect("scenario");
     let output = work.join("drive.d2slog");
     let request = import_request(&scenario, &drive, output.clone());
-    logfile::import::run(&request).expect("import");
+    logfile::import::import(&request, &mut |problem| panic!("{problem}")).expect("import");
     let log = logfile::read(&output).expect("log");
     let tracks = logfile::export::tracks(&log).count();
     assert!(tracks > 10_000, "{tracks} 3D track records");

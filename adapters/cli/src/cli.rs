@@ -90,7 +90,7 @@ enum Command {
     Export(Box<crate::export::ExportArgs>),
     /// Replay a recorded ego trajectory against a map tile and score it as nuPlan would;
     /// a log is verified above 90 (docs/verify.md).
-    Verify(VerifyArgs),
+    Verify(crate::verify::VerifyArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -125,49 +125,6 @@ struct ImportArgs {
     /// ENU origin `LAT,LON[,H]` of the header; default: the first GNSS fix.
     #[arg(long, value_name = "LAT,LON[,H]", allow_hyphen_values = true)]
     origin: Option<String>,
-}
-
-#[derive(Debug, clap::Args)]
-struct VerifyArgs {
-    /// A 4D log: its ego poses are replayed, its 3D tracks are the agents.
-    #[arg(required_unless_present = "ego", conflicts_with = "ego")]
-    log: Option<PathBuf>,
-    /// The map tile (`dash2sim map build`).
-    #[arg(long)]
-    map: PathBuf,
-    /// Instead of a log: an ego trajectory, TUM, in the map's ENU frame (x east, y north,
-    /// the pose at the rear axle, heading from the quaternion).
-    #[arg(long)]
-    ego: Option<PathBuf>,
-    /// Other road users and objects (the scenario `objects.csv` format), as non-reactive
-    /// agents (replaces a log's tracks).
-    #[arg(long)]
-    objects: Option<PathBuf>,
-    /// Only lanes near the route actually driven are drivable (not the opposing lanes or
-    /// side roads); default: every mapped lane.
-    #[arg(long)]
-    channel_sensitive: bool,
-    /// Ego width, m (default: nuPlan's Pacifica).
-    #[arg(long, default_value_t = dash2sim_core::obb::PACIFICA.width)]
-    width: f64,
-    /// Rear axle → front bumper, m.
-    #[arg(long, default_value_t = dash2sim_core::obb::PACIFICA.front)]
-    front: f64,
-    /// Rear axle → rear bumper, m.
-    #[arg(long, default_value_t = dash2sim_core::obb::PACIFICA.rear)]
-    rear: f64,
-    /// Write the per-pose checks (corner distances, lanes, speed, TTC) to this CSV.
-    #[arg(long)]
-    poses: Option<PathBuf>,
-    /// Only the poses from this time on (the log's time, s: UTC for a log).
-    #[arg(long, allow_hyphen_values = true)]
-    from: Option<f64>,
-    /// Only the poses up to this time.
-    #[arg(long, allow_hyphen_values = true)]
-    to: Option<f64>,
-    /// Print the report as JSON: each metric's score, the aggregate, `verified`.
-    #[arg(long)]
-    json: bool,
 }
 
 #[derive(Debug, Subcommand)]
@@ -424,20 +381,18 @@ pub fn run() -> ExitCode {
                 _ => None,
             };
             match speed_unit {
-                Some(speed_unit) => {
-                    dash2sim_linux::logfile::import::run(&dash2sim_linux::logfile::import::ImportRequest {
-                        output: a.output,
-                        nmea: a.nmea,
-                        nmea_offset_s: a.nmea_offset,
-                        can: a.can,
-                        dbc: a.dbc,
-                        speed_signal: a.speed_signal,
-                        speed_unit,
-                        traj: a.traj,
-                        objects: a.objects,
-                        origin: a.origin,
-                    })
-                }
+                Some(speed_unit) => import(&dash2sim_linux::logfile::import::ImportRequest {
+                    output: a.output,
+                    nmea: a.nmea,
+                    nmea_offset_s: a.nmea_offset,
+                    can: a.can,
+                    dbc: a.dbc,
+                    speed_signal: a.speed_signal,
+                    speed_unit,
+                    traj: a.traj,
+                    objects: a.objects,
+                    origin: a.origin,
+                }),
                 None => Err(format!("--speed-unit {:?}: expected km/h, m/s or mph", a.speed_unit)),
             }
         }
@@ -445,9 +400,9 @@ pub fn run() -> ExitCode {
         Command::Record(args) => crate::record::run(&args),
         Command::Finish(args) => crate::finish::run(&args),
         Command::Plot(args) => crate::plot::run(args),
-        Command::Inspect { log, json } => dash2sim_linux::logfile::inspect::run(&log, json),
+        Command::Inspect { log, json } => crate::inspect::run(&log, json),
         Command::Export(args) => crate::export::run(*args),
-        Command::Verify(a) => verify(&a),
+        Command::Verify(a) => crate::verify::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -455,32 +410,6 @@ pub fn run() -> ExitCode {
             eprintln!("dash2sim: error: {message}");
             ExitCode::FAILURE
         }
-    }
-}
-
-fn verify(a: &VerifyArgs) -> Result<(), String> {
-    let footprint = dash2sim_core::obb::Footprint { width: a.width, front: a.front, rear: a.rear };
-    let valid = footprint.width > 0.0
-        && footprint.front + footprint.rear > 0.0
-        && [footprint.width, footprint.front, footprint.rear].iter().all(|v| v.is_finite());
-    let ego = match (&a.log, &a.ego) {
-        (Some(log), _) => dash2sim_linux::verify::EgoSource::Log(log),
-        (None, Some(tum)) => dash2sim_linux::verify::EgoSource::Tum(tum),
-        (None, None) => return Err("give a LOG or --ego TRAJ.tum".to_owned()),
-    };
-    let request = dash2sim_linux::verify::VerifyRequest {
-        map: &a.map,
-        ego,
-        objects: a.objects.as_deref(),
-        channel_sensitive: a.channel_sensitive,
-        footprint,
-        poses: a.poses.as_deref(),
-        window: (a.from.unwrap_or(f64::NEG_INFINITY), a.to.unwrap_or(f64::INFINITY)),
-    };
-    if valid {
-        dash2sim_linux::verify::run(&request, a.json)
-    } else {
-        Err("--width and --front + --rear must be positive".to_owned())
     }
 }
 
@@ -546,6 +475,22 @@ fn track2d(detections: &std::path::Path, output: &std::path::Path) -> Result<(),
         stats.dropped_detections,
         skipped.len(),
         stats.dropped_tracks
+    );
+    Ok(())
+}
+
+/// `dash2sim import`: the captures' problems on stderr, what was written on stdout.
+fn import(request: &dash2sim_linux::logfile::import::ImportRequest) -> Result<(), String> {
+    let imported = dash2sim_linux::logfile::import::import(request, &mut |problem| eprintln!("{problem}"))?;
+    let counts: Vec<String> = imported.by_kind.iter().map(|(k, v)| format!("{v} {k}")).collect();
+    println!(
+        "{}: {} records ({}) over {:.1} s, {} bytes ({:.0} bytes per minute)",
+        request.output.display(),
+        imported.records,
+        counts.join(", "),
+        imported.span_s,
+        imported.bytes,
+        imported.bytes as f64 / (imported.span_s / 60.0).max(1e-9)
     );
     Ok(())
 }

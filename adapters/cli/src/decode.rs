@@ -34,7 +34,10 @@ pub fn nmea(path: &Path, as_json: bool) -> Result<(), String> {
 
 /// `dash2sim can decode FILE [--dbc F]... [--json]`.
 pub fn can(path: &Path, dbcs: &[PathBuf], as_json: bool) -> Result<(), String> {
-    let table = can_decode::load_tables(dbcs)?;
+    let (table, warnings) = can_decode::load_tables(dbcs)?;
+    for warning in &warnings {
+        eprintln!("{warning}");
+    }
     let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut source = CandumpReader::new(std::io::BufReader::new(file));
     let mut decoder = CanDecoder::new(table);

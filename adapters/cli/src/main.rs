@@ -7,10 +7,12 @@ mod decode;
 mod demo;
 mod export;
 mod finish;
+mod inspect;
 mod map;
 mod plot;
 mod record;
 mod scenario;
+mod verify;
 
 fn main() -> std::process::ExitCode {
     // Output piped into `head` ends the process quietly, as for any Unix tool, instead of a

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use dash2sim_core::pipeline::Issue;
+use dash2sim_linux::record::live::LiveStatus;
 use dash2sim_linux::record::{self, Device, RecordRequest, Sources, SpeedMessage, VoFrame};
 
 /// The recorded files `dash2sim record` reads.
@@ -135,7 +136,7 @@ impl RecordArgs {
             realtime: self.realtime,
             segment_minutes: self.segment_minutes,
             seconds: self.seconds,
-            status: std::io::stderr().is_terminal(),
+            status: std::io::stderr().is_terminal().then_some(status_line as fn(&LiveStatus)),
         }
     }
 }
@@ -166,7 +167,12 @@ impl From<DeviceArgs> for Device {
 pub fn run(args: &RecordArgs) -> Result<(), String> {
     let request = args.request();
     if let Some(live) = record::live_request(&request)? {
-        let report = record::record_live(&request, &live)?;
+        let report = record::record_live(&request, &live, &mut |warning| eprintln!("{warning}"));
+        if request.status.is_some() {
+            // The status line ends.
+            eprintln!();
+        }
+        let report = report?;
         if args.json {
             println!("{}", record::live_summary(&report));
         } else {
@@ -183,6 +189,9 @@ pub fn run(args: &RecordArgs) -> Result<(), String> {
         return Ok(());
     }
     let (recording, counts) = record::record_files(&request)?;
+    for problem in &counts.problems {
+        eprintln!("{problem}");
+    }
     std::fs::write(&args.output, &recording.log).map_err(|e| format!("{}: {e}", args.output.display()))?;
     if args.json {
         println!("{}", record::file_summary(&recording, &counts));
@@ -216,4 +225,21 @@ pub fn run(args: &RecordArgs) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+/// The live logger's status line on stderr, written over itself.
+fn status_line(s: &LiveStatus) {
+    use std::io::Write as _;
+    let mut err = std::io::stderr();
+    let _ = write!(
+        err,
+        "\r{} frames, {} fixes, {} speeds, {} 3D track states, {}, {} dropped   ",
+        s.frames,
+        s.stats.fixes,
+        s.stats.speeds,
+        s.stats.track_states,
+        if s.anchored { "anchored" } else { "not anchored yet" },
+        s.dropped
+    );
+    let _ = err.flush();
 }

@@ -137,7 +137,7 @@ fn a_sink_slower_than_the_input_drops_inputs_counts_them_and_logs_them() {
         realtime: false,
         segment: Duration::from_secs(600),
         duration: Some(Duration::from_secs(3)),
-        status: false,
+        status: None,
     };
     let origin = dash2sim_core::geo::Geodetic::new(60.2711, 24.8572, 20.0).expect("origin");
     let setup = Setup::work_zone(origin, None, *b"dash2sim-slow\0\0\0");

@@ -156,17 +156,17 @@ pub fn decode_source<R: BufRead>(
     Ok(decoder.summary())
 }
 
-/// Load and merge DBC files, printing their warnings on stderr.
-pub fn load_tables(paths: &[PathBuf]) -> Result<SignalTable, String> {
+/// Load and merge DBC files (later files win on equal ids); the warnings, `FILE: what`,
+/// of what was skipped in them.
+pub fn load_tables(paths: &[PathBuf]) -> Result<(SignalTable, Vec<String>), String> {
     let mut table = SignalTable::default();
+    let mut warnings = Vec::new();
     for path in paths {
-        let (one, warnings) = SignalTable::load(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        for warning in warnings {
-            eprintln!("{}: {warning}", path.display());
-        }
+        let (one, found) = SignalTable::load(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        warnings.extend(found.iter().map(|w| format!("{}: {w}", path.display())));
         table.extend(one);
     }
-    Ok(table)
+    Ok((table, warnings))
 }
 
 /// A decode's summary as `dash2sim can decode` prints it (`class` `SUMMARY`), with the

@@ -1,10 +1,15 @@
 //! # dash2sim-linux
 //!
-//! std adapters around `dash2sim-core` and the `dash2sim` command line: timestamp
-//! association, evaluation, offline anchoring, decoders for NMEA and CAN captures,
-//! MOT evaluation and the seeded work-zone scenario generator.
+//! The dash2sim library on std, around `dash2sim-core`: ingest (NMEA and CAN captures,
+//! trajectory and detection files, OpenStreetMap into map tiles), the host pipeline
+//! (`record`, from files or live over shared memory), finishing, verification and
+//! evaluation, the exports, and the seeded work-zone simulator with the sweep that measures
+//! the product on it. It takes requests and returns results; it never prints (the `dash2sim`
+//! command line renders them) and knows no command line (clap only under the `clap`
+//! feature, for the option enums). ARCHITECTURE.md maps the modules.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+#![deny(clippy::print_stdout, clippy::print_stderr)]
 
 pub mod anchoring;
 pub mod bridge;

@@ -13,7 +13,7 @@ use std::path::Path;
 
 use dash2sim_core::drivable::{Channel, LaneSet};
 use dash2sim_core::map::MapView;
-use dash2sim_core::obb::{Footprint, OrientedBox, Pose2, CORNER_NAMES};
+use dash2sim_core::obb::{Footprint, OrientedBox, Pose2};
 use dash2sim_core::score::{Agent, AgentKind, ScoreConfig, Scorer, Scores, StepReport};
 
 /// Objects farther in time than this from a pose are not its agents, s.
@@ -55,10 +55,15 @@ pub enum EgoSource<'a> {
 /// Ego poses and agents from a 4D log, moved from the log's ENU frame into the map's
 /// (through geodetic coordinates when the origins differ; headings are kept — the frames
 /// of nearby origins differ by well under a milliradian per kilometre).
-pub fn from_log(path: &Path, map: &MapView<'_>) -> Result<(Vec<(f64, Pose2)>, AgentsByTime), String> {
+/// A damaged log's stretches are skipped, and `warn` told so.
+pub fn from_log(
+    path: &Path,
+    map: &MapView<'_>,
+    warn: &mut dyn FnMut(&str),
+) -> Result<(Vec<(f64, Pose2)>, AgentsByTime), String> {
     let log = crate::logfile::read(path).map_err(|e| e.to_string())?;
     if log.stats.damaged > 0 {
-        eprintln!("warning: {}: {} damaged stretches skipped", path.display(), log.stats.damaged);
+        warn(&format!("{}: {} damaged stretches skipped", path.display(), log.stats.damaged));
     }
     from_contents(&log, &path.display().to_string(), map)
 }
@@ -275,13 +280,16 @@ pub fn report_json(v: &Verification, channel_sensitive: bool) -> serde_json::Val
 
 /// Replay the request's ego trajectory against its map (the command line and the Python
 /// package's `verify`): the verification, and the ego's source for messages.
-pub fn evaluate<'a>(request: &VerifyRequest<'a>) -> Result<(Verification, &'a Path), String> {
+pub fn evaluate<'a>(
+    request: &VerifyRequest<'a>,
+    warn: &mut dyn FnMut(&str),
+) -> Result<(Verification, &'a Path), String> {
     let bytes = std::fs::read(request.map).map_err(|e| format!("{}: {e}", request.map.display()))?;
     let map = MapView::parse(&bytes).map_err(|e| format!("{}: {e}", request.map.display()))?;
     let (poses, mut objects, name) = match request.ego {
         EgoSource::Tum(path) => (crate::ego::read_ego(path)?, BTreeMap::new(), path),
         EgoSource::Log(path) => {
-            let (poses, agents) = from_log(path, &map)?;
+            let (poses, agents) = from_log(path, &map, warn)?;
             (poses, agents, path)
         }
     };
@@ -298,43 +306,4 @@ pub fn evaluate<'a>(request: &VerifyRequest<'a>) -> Result<(Verification, &'a Pa
         std::fs::write(path, poses_csv(&v.steps)).map_err(|e| format!("{}: {e}", path.display()))?;
     }
     Ok((v, name))
-}
-
-/// `dash2sim verify`.
-pub fn run(request: &VerifyRequest<'_>, as_json: bool) -> Result<(), String> {
-    let (v, name) = evaluate(request)?;
-    if as_json {
-        println!("{}", report_json(&v, request.channel_sensitive));
-        return Ok(());
-    }
-    let s = &v.scores;
-    let mode = if request.channel_sensitive { "channel-sensitive" } else { "channel-insensitive" };
-    println!("{}: {} poses over {:.1} s, {mode}", name.display(), s.poses, s.duration);
-    let rows = [
-        ("no at-fault collisions", s.no_at_fault_collisions, "multiplier"),
-        ("drivable-area compliance", s.drivable_area, "multiplier"),
-        ("driving-direction compliance", s.driving_direction, "multiplier"),
-        ("ego is making progress", s.making_progress, "multiplier"),
-        ("progress along expert route", s.progress, "weight 5"),
-        ("time to collision within bound", s.ttc, "weight 5"),
-        ("speed-limit compliance", s.speed_limit, "weight 4"),
-        ("comfort", s.comfort, "weight 2"),
-    ];
-    for (name, value, role) in rows {
-        println!("  {name:<32} {value:>6.3}  ({role})");
-    }
-    if let Some((t, _, r)) = v.steps.iter().find(|(_, _, r)| !r.check.compliant()) {
-        let worst = r
-            .check
-            .corners
-            .iter()
-            .enumerate()
-            .max_by(|a, b| a.1.unwrap_or(f64::INFINITY).total_cmp(&b.1.unwrap_or(f64::INFINITY)));
-        if let Some((k, d)) = worst {
-            let d = d.map_or_else(|| "nothing drivable within 10 m".to_owned(), |d| format!("{d:.2} m outside"));
-            println!("  first off the drivable area at t = {t:.2} s: {} corner {d}", CORNER_NAMES[k]);
-        }
-    }
-    println!("score {:.2} → {}", s.score, if s.verified { "verified" } else { "NOT verified (needs > 90)" });
-    Ok(())
 }

@@ -116,7 +116,8 @@ fn verify(
         window: (start.unwrap_or(f64::NEG_INFINITY), end.unwrap_or(f64::INFINITY)),
     };
     py.detach(|| {
-        let (verification, _) = dash2sim_linux::verify::evaluate(&request)?;
+        let (verification, _) =
+            dash2sim_linux::verify::evaluate(&request, &mut |warning| eprintln!("warning: {warning}"))?;
         Ok(dash2sim_linux::verify::report_json(&verification, channel_sensitive).to_string())
     })
     .map_err(error)

@@ -72,7 +72,7 @@ pub fn record(
         segment: Duration::from_secs(24 * 3600),
         // A bound in case the camera process hangs; it normally ends the run.
         duration: Some(Duration::from_secs_f64(drive.seconds + 60.0)),
-        status: false,
+        status: None,
     };
     let stop = AtomicBool::new(false);
     let started = Instant::now();

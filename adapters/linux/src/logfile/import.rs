@@ -83,7 +83,12 @@ pub fn parse_origin(text: &str) -> Result<[f64; 3], String> {
 }
 
 /// Records from one source (as `import` reads it).
-pub fn nmea_records(path: &Path, offset_s: f64, out: &mut Vec<Record>) -> Result<Option<[f64; 3]>, String> {
+pub fn nmea_records(
+    path: &Path,
+    offset_s: f64,
+    out: &mut Vec<Record>,
+    problem: &mut dyn FnMut(&str),
+) -> Result<Option<[f64; 3]>, String> {
     let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut stream: Stream = Stream::new();
     let mut first = None;
@@ -107,9 +112,9 @@ pub fn nmea_records(path: &Path, offset_s: f64, out: &mut Vec<Record>) -> Result
     for (index, line) in bytes.split_inclusive(|&b| b == b'\n').enumerate() {
         stream.feed(line, |event| match event {
             StreamEvent::Sentence(NmeaEvent::Message { fix: Some(fix), .. }) => push(fix, out),
-            StreamEvent::Sentence(NmeaEvent::BadSentence(e)) => eprintln!("{name}:{}: {e}", index + 1),
-            StreamEvent::Sentence(NmeaEvent::BadFields(e)) => eprintln!("{name}:{}: {e}", index + 1),
-            StreamEvent::Dropped(e) => eprintln!("{name}:{}: {e}", index + 1),
+            StreamEvent::Sentence(NmeaEvent::BadSentence(e)) => problem(&format!("{name}:{}: {e}", index + 1)),
+            StreamEvent::Sentence(NmeaEvent::BadFields(e)) => problem(&format!("{name}:{}: {e}", index + 1)),
+            StreamEvent::Dropped(e) => problem(&format!("{name}:{}: {e}", index + 1)),
             StreamEvent::Sentence(NmeaEvent::Message { .. }) => {}
         });
     }
@@ -119,8 +124,14 @@ pub fn nmea_records(path: &Path, offset_s: f64, out: &mut Vec<Record>) -> Result
     Ok(first)
 }
 
-fn can_records(request: &ImportRequest, path: &Path, out: &mut Vec<Record>) -> Result<(), String> {
-    let table = crate::can_decode::load_tables(&request.dbc)?;
+fn can_records(
+    request: &ImportRequest,
+    path: &Path,
+    out: &mut Vec<Record>,
+    problem: &mut dyn FnMut(&str),
+) -> Result<(), String> {
+    let (table, warnings) = crate::can_decode::load_tables(&request.dbc)?;
+    warnings.iter().for_each(|w| problem(w));
     let (message, signal) = match &request.speed_signal {
         Some(s) => match s.split_once('.') {
             Some((m, g)) => (Some(m.to_owned()), Some(g.to_owned())),
@@ -164,16 +175,16 @@ fn can_records(request: &ImportRequest, path: &Path, out: &mut Vec<Record>) -> R
             }
             Ok(())
         },
-        |line, problem| {
+        |line, text| {
             problems += 1;
             if problems <= 10 {
-                eprintln!("{name}:{line}: {problem}");
+                problem(&format!("{name}:{line}: {text}"));
             }
         },
     )
     .map_err(|e| format!("{name}: {e}"))?;
     if problems > 10 {
-        eprintln!("{name}: … and {} more problems", problems - 10);
+        problem(&format!("{name}: … and {} more problems", problems - 10));
     }
     Ok(())
 }
@@ -243,16 +254,30 @@ pub fn encode_in_order(header: &Header, records: &[Record]) -> Result<Vec<u8>, S
     writer.finish().map_err(|e| e.to_string())
 }
 
-/// `dash2sim import`.
-pub fn run(request: &ImportRequest) -> Result<(), String> {
+/// What [`import`] wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Imported {
+    /// Records written.
+    pub records: usize,
+    /// Records by kind (name → count), in name order.
+    pub by_kind: std::collections::BTreeMap<&'static str, u64>,
+    /// From the first record to the last, s.
+    pub span_s: f64,
+    /// The log's size, bytes.
+    pub bytes: usize,
+}
+
+/// `dash2sim import`: the sources of `request` into one log; `problem` hears each line of
+/// a capture that could not be read (the import goes on) and the DBC files' warnings.
+pub fn import(request: &ImportRequest, problem: &mut dyn FnMut(&str)) -> Result<Imported, String> {
     let mut records = Vec::new();
     let mut origin = request.origin.as_deref().map(parse_origin).transpose()?;
     if let Some(path) = &request.nmea {
-        let first = nmea_records(path, request.nmea_offset_s, &mut records)?;
+        let first = nmea_records(path, request.nmea_offset_s, &mut records, problem)?;
         origin = origin.or(first);
     }
     if let Some(path) = &request.can {
-        can_records(request, path, &mut records)?;
+        can_records(request, path, &mut records, problem)?;
     }
     if let Some(path) = &request.traj {
         if origin.is_none() {
@@ -281,22 +306,13 @@ pub fn run(request: &ImportRequest) -> Result<(), String> {
     };
     let bytes = encode(&header, &mut records)?;
     std::fs::write(&request.output, &bytes).map_err(|e| format!("{}: {e}", request.output.display()))?;
-    let span = match (records.first(), records.last()) {
+    let span_s = match (records.first(), records.last()) {
         (Some(a), Some(b)) => (b.t_us() - a.t_us()) as f64 * 1e-6,
         _ => 0.0,
     };
-    let mut counts = std::collections::BTreeMap::new();
+    let mut by_kind = std::collections::BTreeMap::new();
     for r in &records {
-        *counts.entry(r.kind().name()).or_insert(0u64) += 1;
+        *by_kind.entry(r.kind().name()).or_insert(0u64) += 1;
     }
-    let counts: Vec<String> = counts.iter().map(|(k, v)| format!("{v} {k}")).collect();
-    println!(
-        "{}: {} records ({}) over {span:.1} s, {} bytes ({:.0} bytes per minute)",
-        request.output.display(),
-        records.len(),
-        counts.join(", "),
-        bytes.len(),
-        bytes.len() as f64 / (span / 60.0).max(1e-9)
-    );
-    Ok(())
+    Ok(Imported { records: records.len(), by_kind, span_s, bytes: bytes.len() })
 }

@@ -99,8 +99,21 @@ pub struct LiveRequest {
     pub segment: Duration,
     /// Stop after this long (else only on a signal).
     pub duration: Option<Duration>,
-    /// Print a status line (stderr) twice a second.
-    pub status: bool,
+    /// Told how the recording goes twice a second (a status line), if set.
+    pub status: Option<fn(&LiveStatus)>,
+}
+
+/// How a live recording goes, for a status line.
+#[derive(Clone, Copy, Debug)]
+pub struct LiveStatus {
+    /// Camera frames received.
+    pub frames: u64,
+    /// Inputs dropped for want of queue space.
+    pub dropped: u64,
+    /// Whether the pipeline has an anchored estimate.
+    pub anchored: bool,
+    /// The pipeline's totals.
+    pub stats: PipelineStats,
 }
 
 enum BusInput {
@@ -212,19 +225,6 @@ fn new_file(dir: &Path, started: u128, index: u32) -> Result<FileSink, String> {
     FileSink::create(&dir.join(format!("dash2sim-{started}-{index:04}.d2slog")))
 }
 
-fn status_line(stats: &PipelineStats, frames: u64, dropped: u64, anchored: bool) {
-    let mut err = std::io::stderr();
-    let _ = write!(
-        err,
-        "\r{frames} frames, {} fixes, {} speeds, {} 3D track states, {}, {dropped} dropped   ",
-        stats.fixes,
-        stats.speeds,
-        stats.track_states,
-        if anchored { "anchored" } else { "not anchored yet" }
-    );
-    let _ = err.flush();
-}
-
 /// Run until `stop` is set (a signal) or the duration is over; then close the log cleanly.
 /// The log goes to rotating files in `request.dir`.
 pub fn run(request: &LiveRequest, setup: &Setup, stop: &AtomicBool) -> Result<LiveReport, String> {
@@ -300,8 +300,13 @@ pub fn run_into<S: embedded_io::Write>(
             pipeline.rotate(open(index)?).map_err(log_error)?;
             file_started = Instant::now();
         }
-        if request.status && last_status.elapsed() >= Duration::from_millis(500) {
-            status_line(pipeline.stats(), frames, lost, pipeline.anchorer().estimate().is_some());
+        if let Some(status) = request.status.filter(|_| last_status.elapsed() >= Duration::from_millis(500)) {
+            status(&LiveStatus {
+                frames,
+                dropped: lost,
+                anchored: pipeline.anchorer().estimate().is_some(),
+                stats: *pipeline.stats(),
+            });
             last_status = Instant::now();
         }
         let over = request.duration.is_some_and(|d| begun.elapsed() >= d);
@@ -311,9 +316,6 @@ pub fn run_into<S: embedded_io::Write>(
         if !busy {
             std::thread::sleep(Duration::from_millis(1));
         }
-    }
-    if request.status {
-        eprintln!();
     }
     let issues = pipeline.issues().total();
     let (_, stats, _) = pipeline.finish().map_err(log_error)?;

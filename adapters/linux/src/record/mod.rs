@@ -113,8 +113,8 @@ pub struct RecordRequest {
     pub segment_minutes: f64,
     /// Live: stop after S seconds (else on SIGINT / SIGTERM).
     pub seconds: Option<f64>,
-    /// Live: print a status line on stderr twice a second.
-    pub status: bool,
+    /// Live: told how the recording goes twice a second (a status line), if set.
+    pub status: Option<fn(&live::LiveStatus)>,
 }
 
 impl RecordRequest {
@@ -143,7 +143,7 @@ impl RecordRequest {
             realtime: false,
             segment_minutes: DEFAULT_SEGMENT_MINUTES,
             seconds: None,
-            status: false,
+            status: None,
         }
     }
 }
@@ -477,16 +477,17 @@ pub fn live_request(args: &RecordRequest) -> Result<Option<live::LiveRequest>, S
 }
 
 /// `record` from files (or a saved input stream), without writing the log or reporting:
-/// the recording and what the files held.
+/// the recording and what the files held (with the problems of the captures and the DBC
+/// files' warnings).
 pub fn record_files(args: &RecordRequest) -> Result<(Recording, sources::SourceCounts), String> {
-    let (stream, counts) = match &args.replay {
+    let (stream, mut counts) = match &args.replay {
         Some(path) => (std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?, Default::default()),
         None => read_sources(&args.sources)?,
     };
     if let Some(path) = &args.save_inputs {
         std::fs::write(path, &stream).map_err(|e| format!("{}: {e}", path.display()))?;
     }
-    let setup = setup_from_args(args, |gnss| {
+    let setup = setup_from_args(args, &mut counts.problems, |gnss| {
         first_fix(&stream, gnss).ok_or_else(|| {
             "no ENU origin: give --origin LAT,LON[,H], a --map, or GNSS with a fix (--nmea, or --can with --gnss-signals)"
                 .to_owned()
@@ -496,13 +497,15 @@ pub fn record_files(args: &RecordRequest) -> Result<(Recording, sources::SourceC
 }
 
 /// The recorder's setup from its arguments (both recorders): the origin is `--origin`, else
-/// the map's, else what `fallback` finds.
+/// the map's, else what `fallback` finds. The DBC files' warnings go to `warnings`.
 fn setup_from_args(
     args: &RecordRequest,
+    warnings: &mut Vec<String>,
     fallback: impl FnOnce(Option<&GnssSignals>) -> Result<Geodetic, String>,
 ) -> Result<Setup, String> {
     // The DBC files, read once for both signal options.
-    let table = crate::can_decode::load_tables(&args.dbc)?;
+    let (table, dbc_warnings) = crate::can_decode::load_tables(&args.dbc)?;
+    warnings.extend(dbc_warnings);
     let gnss_signals = gnss_signals(args, &table)?;
     let map = args.map.as_ref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
     let origin = match (&args.origin, &map) {
@@ -536,10 +539,18 @@ fn device_id(text: &str) -> Result<[u8; 16], String> {
 }
 
 /// The live logger: records until the request's duration is over or SIGINT / SIGTERM.
-pub fn record_live(args: &RecordRequest, request: &live::LiveRequest) -> Result<live::LiveReport, String> {
-    let setup = setup_from_args(args, |_| {
+/// `warn` hears the DBC files' warnings before the recording starts.
+pub fn record_live(
+    args: &RecordRequest,
+    request: &live::LiveRequest,
+    warn: &mut dyn FnMut(&str),
+) -> Result<live::LiveReport, String> {
+    let mut warnings = Vec::new();
+    let setup = setup_from_args(args, &mut warnings, |_| {
         Err("a live recording needs its ENU origin: give --origin LAT,LON[,H] or a --map".to_owned())
-    })?;
+    });
+    warnings.iter().for_each(|w| warn(w));
+    let setup = setup?;
     let stop = live::stop_on_signals()?;
     live::run(request, &setup, &stop)
 }

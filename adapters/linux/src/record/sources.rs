@@ -48,8 +48,8 @@ impl Input {
     }
 }
 
-/// Counts of what the files held.
-#[derive(Clone, Copy, Debug, Default)]
+/// Counts of what the files held, and what was wrong in them.
+#[derive(Clone, Debug, Default)]
 pub struct SourceCounts {
     /// VO poses.
     pub vo: u64,
@@ -66,6 +66,9 @@ pub struct SourceCounts {
     /// Frames with 2D detections skipped because no other input gives their time (no VO
     /// pose, no 3D detections: the VO had lost track and nothing was seen in 3D).
     pub detection2d_frames_without_time: u64,
+    /// Lines of the captures that could not be read, `FILE: what` (at most ten per file,
+    /// then how many more); reading went on after each.
+    pub problems: Vec<String>,
 }
 
 /// The inputs of the files, to be merged by time.
@@ -166,13 +169,13 @@ impl Inputs {
                 Err(e) => {
                     problems += 1;
                     if problems <= 10 {
-                        eprintln!("{}: {e}", path.display());
+                        self.counts.problems.push(format!("{}: {e}", path.display()));
                     }
                 }
             }
         }
         if problems > 10 {
-            eprintln!("{}: … and {} more problems", path.display(), problems - 10);
+            self.counts.problems.push(format!("{}: … and {} more problems", path.display(), problems - 10));
         }
         Ok(())
     }

@@ -241,7 +241,7 @@ mod tests {
             gnss_signals: Some(GNSS_SIGNALS.to_owned()),
             ..RecordRequest::from_files(Path::new("out.d2slog"), Sources::default())
         };
-        let from_dbc = crate::can_decode::load_tables(&args.dbc).and_then(|table| gnss_signals(&args, &table));
+        let from_dbc = crate::can_decode::load_tables(&args.dbc).and_then(|(table, _)| gnss_signals(&args, &table));
         let _ = std::fs::remove_file(&path);
         assert_eq!(from_dbc.expect("signals"), GnssSignals::canmod_gps());
     }

@@ -1,0 +1,114 @@
+//! `dash2sim verify`: the arguments, and the report rendered.
+
+use std::path::{Path, PathBuf};
+
+use dash2sim_core::obb::CORNER_NAMES;
+use dash2sim_linux::verify::{self, Verification};
+
+#[derive(Debug, clap::Args)]
+pub struct VerifyArgs {
+    /// A 4D log: its ego poses are replayed, its 3D tracks are the agents.
+    #[arg(required_unless_present = "ego", conflicts_with = "ego")]
+    log: Option<PathBuf>,
+    /// The map tile (`dash2sim map build`).
+    #[arg(long)]
+    map: PathBuf,
+    /// Instead of a log: an ego trajectory, TUM, in the map's ENU frame (x east, y north,
+    /// the pose at the rear axle, heading from the quaternion).
+    #[arg(long)]
+    ego: Option<PathBuf>,
+    /// Other road users and objects (the scenario `objects.csv` format), as non-reactive
+    /// agents (replaces a log's tracks).
+    #[arg(long)]
+    objects: Option<PathBuf>,
+    /// Only lanes near the route actually driven are drivable (not the opposing lanes or
+    /// side roads); default: every mapped lane.
+    #[arg(long)]
+    channel_sensitive: bool,
+    /// Ego width, m (default: nuPlan's Pacifica).
+    #[arg(long, default_value_t = dash2sim_core::obb::PACIFICA.width)]
+    width: f64,
+    /// Rear axle → front bumper, m.
+    #[arg(long, default_value_t = dash2sim_core::obb::PACIFICA.front)]
+    front: f64,
+    /// Rear axle → rear bumper, m.
+    #[arg(long, default_value_t = dash2sim_core::obb::PACIFICA.rear)]
+    rear: f64,
+    /// Write the per-pose checks (corner distances, lanes, speed, TTC) to this CSV.
+    #[arg(long)]
+    poses: Option<PathBuf>,
+    /// Only the poses from this time on (the log's time, s: UTC for a log).
+    #[arg(long, allow_hyphen_values = true)]
+    from: Option<f64>,
+    /// Only the poses up to this time.
+    #[arg(long, allow_hyphen_values = true)]
+    to: Option<f64>,
+    /// Print the report as JSON: each metric's score, the aggregate, `verified`.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `dash2sim verify`: a damaged log's warning on stderr, the report on stdout.
+pub fn run(a: &VerifyArgs) -> Result<(), String> {
+    let footprint = dash2sim_core::obb::Footprint { width: a.width, front: a.front, rear: a.rear };
+    let valid = footprint.width > 0.0
+        && footprint.front + footprint.rear > 0.0
+        && [footprint.width, footprint.front, footprint.rear].iter().all(|v| v.is_finite());
+    let ego = match (&a.log, &a.ego) {
+        (Some(log), _) => verify::EgoSource::Log(log),
+        (None, Some(tum)) => verify::EgoSource::Tum(tum),
+        (None, None) => return Err("give a LOG or --ego TRAJ.tum".to_owned()),
+    };
+    let request = verify::VerifyRequest {
+        map: &a.map,
+        ego,
+        objects: a.objects.as_deref(),
+        channel_sensitive: a.channel_sensitive,
+        footprint,
+        poses: a.poses.as_deref(),
+        window: (a.from.unwrap_or(f64::NEG_INFINITY), a.to.unwrap_or(f64::INFINITY)),
+    };
+    if !valid {
+        return Err("--width and --front + --rear must be positive".to_owned());
+    }
+    let (v, name) = verify::evaluate(&request, &mut |warning| eprintln!("warning: {warning}"))?;
+    if a.json {
+        println!("{}", verify::report_json(&v, request.channel_sensitive));
+        return Ok(());
+    }
+    render(&v, name, request.channel_sensitive);
+    Ok(())
+}
+
+/// The report, one metric a line.
+fn render(v: &Verification, name: &Path, channel_sensitive: bool) {
+    let s = &v.scores;
+    let mode = if channel_sensitive { "channel-sensitive" } else { "channel-insensitive" };
+    println!("{}: {} poses over {:.1} s, {mode}", name.display(), s.poses, s.duration);
+    let rows = [
+        ("no at-fault collisions", s.no_at_fault_collisions, "multiplier"),
+        ("drivable-area compliance", s.drivable_area, "multiplier"),
+        ("driving-direction compliance", s.driving_direction, "multiplier"),
+        ("ego is making progress", s.making_progress, "multiplier"),
+        ("progress along expert route", s.progress, "weight 5"),
+        ("time to collision within bound", s.ttc, "weight 5"),
+        ("speed-limit compliance", s.speed_limit, "weight 4"),
+        ("comfort", s.comfort, "weight 2"),
+    ];
+    for (name, value, role) in rows {
+        println!("  {name:<32} {value:>6.3}  ({role})");
+    }
+    if let Some((t, _, r)) = v.steps.iter().find(|(_, _, r)| !r.check.compliant()) {
+        let worst = r
+            .check
+            .corners
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.unwrap_or(f64::INFINITY).total_cmp(&b.1.unwrap_or(f64::INFINITY)));
+        if let Some((k, d)) = worst {
+            let d = d.map_or_else(|| "nothing drivable within 10 m".to_owned(), |d| format!("{d:.2} m outside"));
+            println!("  first off the drivable area at t = {t:.2} s: {} corner {d}", CORNER_NAMES[k]);
+        }
+    }
+    println!("score {:.2} → {}", s.score, if s.verified { "verified" } else { "NOT verified (needs > 90)" });
+}
