@@ -5,9 +5,9 @@ use std::collections::BTreeMap;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use dash2sim_linux::bridge::{CameraInput, CameraSubscriber};
-use dash2sim_linux::scenario::sensors::GnssModel;
-use dash2sim_linux::scenario::{generate, ScenarioConfig};
+use dash2sim_linux::record::bridge::{CameraInput, CameraSubscriber};
+use dash2sim_linux::sim::scenario::sensors::GnssModel;
+use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
 
 fn prefix(name: &str) -> String {
     format!("dash2sim-test/{name}/{}", std::process::id())
@@ -85,7 +85,7 @@ fn a_publisher_of_another_layout_is_refused_with_a_message() {
 
 #[test]
 fn a_message_of_another_layout_version_is_refused_with_a_message() {
-    use dash2sim_linux::bridge::messages::FrameMetaMsg;
+    use dash2sim_linux::record::bridge::messages::FrameMetaMsg;
     use iceoryx2::prelude::*;
     let prefix = prefix("version");
     let subscriber = CameraSubscriber::new(&prefix).expect("subscriber");
@@ -94,7 +94,7 @@ fn a_message_of_another_layout_version_is_refused_with_a_message() {
     let service = node
         .service_builder(&name)
         .publish_subscribe::<FrameMetaMsg>()
-        .subscriber_max_buffer_size(dash2sim_linux::bridge::SUBSCRIBER_BUFFER)
+        .subscriber_max_buffer_size(dash2sim_linux::record::bridge::SUBSCRIBER_BUFFER)
         .enable_safe_overflow(true)
         .open_or_create()
         .expect("service");

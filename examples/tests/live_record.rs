@@ -9,13 +9,13 @@ use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use dash2sim_core::binlog::Record;
-use dash2sim_linux::logfile;
+use dash2sim_linux::log;
 use dash2sim_linux::record::live::{self, LiveRequest};
 use dash2sim_linux::record::{self, Setup, Sources};
-use dash2sim_linux::scenario::judge::judge_log;
-use dash2sim_linux::scenario::sensors::GnssModel;
-use dash2sim_linux::scenario::write::write_scenario;
-use dash2sim_linux::scenario::{generate, ScenarioConfig};
+use dash2sim_linux::sim::scenario::judge::judge_log;
+use dash2sim_linux::sim::scenario::sensors::GnssModel;
+use dash2sim_linux::sim::scenario::write::write_scenario;
+use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
 
 const SECONDS: f64 = 8.0;
 
@@ -48,9 +48,9 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
     write_scenario(&scenario, &drive).expect("scenario");
     let [lat, lon, h] = scenario.config.origin;
     let origin = dash2sim_core::geo::Geodetic::new(lat, lon, h).expect("origin");
-    let osm = dash2sim_linux::osm::read(&drive.join("road.osm")).expect("osm");
-    let tile = dash2sim_linux::map_tile::encode(
-        &dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
+    let osm = dash2sim_linux::ingest::osm::read(&drive.join("road.osm")).expect("osm");
+    let tile = dash2sim_linux::ingest::map_tile::encode(
+        &dash2sim_linux::ingest::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
         50.0,
     );
     let setup = Setup::work_zone(origin, Some(tile), *b"dash2sim-live\0\0\0");
@@ -58,7 +58,7 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
     // The same drive recorded from its files, for comparison.
     let (stream, _) = record::read_sources(&Sources::scenario(&drive)).expect("sources");
     let from_files = record::run_stream(&stream, &setup).expect("file record");
-    let from_files = judge_log(&scenario, &logfile::decode(&from_files.log, "files").expect("log"));
+    let from_files = judge_log(&scenario, &log::decode(&from_files.log, "files").expect("log"));
 
     // The receiver: the camera process writes the NMEA at its receive times, on the clock
     // its frames are paced by, into a FIFO; this test forwards it as it comes to a pty
@@ -113,7 +113,7 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
     let files: Vec<_> =
         std::fs::read_dir(dir.join("log")).expect("log dir").map(|e| e.expect("entry").path()).collect();
     assert_eq!(files.len(), 1);
-    let log = logfile::read(&files[0]).expect("log");
+    let log = log::read(&files[0]).expect("log");
     assert_eq!(log.stats.damaged, 0);
     let logged: Vec<i64> =
         log.records.iter().filter_map(|r| if let Record::FrameMeta(f) = r { Some(f.frame) } else { None }).collect();
@@ -138,7 +138,8 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
     // be as many and of the same kind of quality.
     assert!(live.ego_errors.len().abs_diff(from_files.ego_errors.len()) <= 8);
     assert!((live.ego_rmse - from_files.ego_rmse).abs() < 0.25 * from_files.ego_rmse + 0.1);
-    let states = |j: &dash2sim_linux::scenario::judge::LogJudgement| j.tracks_by_class.values().sum::<u64>() as f64;
+    let states =
+        |j: &dash2sim_linux::sim::scenario::judge::LogJudgement| j.tracks_by_class.values().sum::<u64>() as f64;
     assert!((states(&live) - states(&from_files)).abs() <= 0.3 * states(&from_files));
     assert!(live.tracks_relative.1 > 0.5, "IDF1 seen from the ego {}", live.tracks_relative.1);
     let _ = std::fs::remove_dir_all(&dir);
@@ -182,8 +183,8 @@ fn the_camera_process_killed_and_restarted_is_a_gap_in_the_log_not_the_end_of_it
     assert!(second.success());
     let report = logger.join().expect("logger thread").expect("the logger kept running");
     let files: Vec<_> = std::fs::read_dir(&dir).expect("log dir").map(|e| e.expect("entry").path()).collect();
-    let log = logfile::read(&files[0]).expect("log");
-    let frames = logfile::inspect::frames(&log);
+    let log = log::read(&files[0]).expect("log");
+    let frames = log::inspect::frames(&log);
     println!("{report:?}; {frames:?}");
     assert_eq!(frames.restarts, 1, "the restart is in the frame numbers");
     assert!(frames.logged > 31 + 10, "frames of both runs: {frames:?}");

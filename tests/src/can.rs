@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use dash2sim_can::candump::CandumpReader;
-use dash2sim_linux::can_decode::{decode_source, load_tables, CanDecoder, Summary};
+use dash2sim_linux::ingest::can::{decode_source, load_tables, CanDecoder, Summary};
 use serde_json::Value;
 
 /// Every message the CLI would print for `capture`, the problems (line, text) and the summary.

@@ -9,13 +9,13 @@ use std::path::{Path, PathBuf};
 use dash2sim_core::anchor::{AnchorConfig, AnchorMode};
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::pipeline::mount::camera_in_world;
-use dash2sim_linux::logfile::{self, LogContents};
+use dash2sim_linux::log::{self, LogContents};
 use dash2sim_linux::record::{self, Recording, Setup};
-use dash2sim_linux::scenario::evaluate::evaluate_tracking;
-use dash2sim_linux::scenario::judge::{judge_log, truth_at, LogJudgement};
-use dash2sim_linux::scenario::sensors::GnssModel;
-use dash2sim_linux::scenario::write::write_scenario;
-use dash2sim_linux::scenario::{generate, tracker_classes, tracker_config, Scenario, ScenarioConfig};
+use dash2sim_linux::sim::scenario::evaluate::evaluate_tracking;
+use dash2sim_linux::sim::scenario::judge::{judge_log, truth_at, LogJudgement};
+use dash2sim_linux::sim::scenario::sensors::GnssModel;
+use dash2sim_linux::sim::scenario::write::write_scenario;
+use dash2sim_linux::sim::scenario::{generate, tracker_classes, tracker_config, Scenario, ScenarioConfig};
 use dash2sim_linux::trajectory::Trajectory;
 
 /// A fresh scratch folder.
@@ -29,11 +29,11 @@ pub fn scratch(name: &str) -> PathBuf {
 /// The road's map tile in the scenario's ENU frame.
 pub fn road_tile(scenario: &Scenario, drive: &Path) -> Vec<u8> {
     let [lat, lon, h] = scenario.config.origin;
-    let osm = dash2sim_linux::osm::read(&drive.join("road.osm")).expect("road.osm");
+    let osm = dash2sim_linux::ingest::osm::read(&drive.join("road.osm")).expect("road.osm");
     let origin = Geodetic::new(lat, lon, h).expect("origin");
-    dash2sim_linux::map_tile::encode(
-        &dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
-        dash2sim_linux::map_tile::DEFAULT_CELL_M,
+    dash2sim_linux::ingest::map_tile::encode(
+        &dash2sim_linux::ingest::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
+        dash2sim_linux::ingest::map_tile::DEFAULT_CELL_M,
     )
 }
 
@@ -99,7 +99,7 @@ pub fn record_config(config: &ScenarioConfig, name: &str) -> Recorded {
     let setup =
         Setup::work_zone(Geodetic::new(lat, lon, h).expect("origin"), Some(tile.clone()), *b"dash2sim-test\0\0\0");
     let recording = record::run_stream(&stream, &setup).expect("record");
-    let log = logfile::decode(&recording.log, name).expect("log");
+    let log = log::decode(&recording.log, name).expect("log");
     Recorded { scenario, work, tile, recording, log, setup }
 }
 
@@ -119,9 +119,14 @@ pub fn record_drive(seed: u64, duration_s: f64) -> Outcome {
     // The receiver's σ as the NMEA capture states it: HDOP (one decimal) × the UERE.
     let sigmas: Vec<f64> = scenario.gnss.iter().map(|f| (f.reported_sigma / 2.5 * 10.0).round() / 10.0 * 2.5).collect();
     let config = AnchorConfig { mode: AnchorMode::GravityAligned, ..AnchorConfig::default() };
-    let frames =
-        dash2sim_linux::anchoring::replay_with_sigmas(&scenario.vo.poses, &gnss, &sigmas, &scenario.speed, config)
-            .expect("replay");
+    let frames = dash2sim_linux::verify::anchoring::replay_with_sigmas(
+        &scenario.vo.poses,
+        &gnss,
+        &sigmas,
+        &scenario.speed,
+        config,
+    )
+    .expect("replay");
     let mut offline = HashMap::new();
     for (k, ((t, pose), f)) in scenario.vo.poses.stamps.iter().zip(&scenario.vo.poses.poses).zip(&frames).enumerate() {
         let Some(anchor) = f.estimate else { continue };

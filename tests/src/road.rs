@@ -4,7 +4,7 @@
 
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::nalgebra::Vector3;
-use dash2sim_linux::map_tile::{encode, from_osm};
+use dash2sim_linux::ingest::map_tile::{encode, from_osm};
 
 /// The tiles' ENU origin (latitude, longitude).
 pub const ORIGIN: (f64, f64) = (60.2, 24.9);
@@ -48,11 +48,11 @@ pub fn tile_of_ways(ways: &[WaySpec<'_>]) -> Vec<u8> {
     }
     xml += &way_xml;
     xml += "</osm>\n";
-    let data = dash2sim_linux::osm::parse_xml(&xml, "test.osm").expect("valid OSM");
+    let data = dash2sim_linux::ingest::osm::parse_xml(&xml, "test.osm").expect("valid OSM");
     let mut warnings = Vec::new();
     let content = from_osm(&data, Some(origin), &mut warnings);
     assert!(warnings.is_empty(), "{warnings:?}");
-    encode(&content, dash2sim_linux::map_tile::DEFAULT_CELL_M)
+    encode(&content, dash2sim_linux::ingest::map_tile::DEFAULT_CELL_M)
 }
 
 /// 500 m east from the origin, a node every 5 m.

@@ -8,7 +8,7 @@ use dash2sim_core::binlog::{
     MountEstimate, Record, Track2d, Track3d, Tracks3d, VehicleSpeed, Verification, VoPose, Writer, WriterConfig,
     MAX_TRACKS,
 };
-use dash2sim_linux::logfile::quantise;
+use dash2sim_linux::log::quantise;
 use proptest::prelude::*;
 
 fn value() -> impl Strategy<Value = i64> + Clone {

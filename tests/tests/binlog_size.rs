@@ -11,10 +11,10 @@
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::binlog::Kind;
-use dash2sim_linux::logfile::{self, import::ImportRequest, mcap_export};
-use dash2sim_linux::recordings::comma::{ublox_nmea, ORIGIN};
-use dash2sim_linux::scenario::write::{import_request, write_scenario};
-use dash2sim_linux::scenario::{generate, ScenarioConfig};
+use dash2sim_linux::datasets::comma::{ublox_nmea, ORIGIN};
+use dash2sim_linux::log::{self, import::ImportRequest, mcap_export};
+use dash2sim_linux::sim::scenario::write::{import_request, write_scenario};
+use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("dash2sim-binlog-size-{}-{name}", std::process::id()));
@@ -25,7 +25,7 @@ fn scratch(name: &str) -> PathBuf {
 /// Measure the log at `log_path` against the same content as MCAP (written to
 /// `mcap_path`), print the figures and assert the targets.
 fn check_size(name: &str, log_path: &Path, mcap_path: &Path) {
-    let log = logfile::read(log_path).expect("a log");
+    let log = log::read(log_path).expect("a log");
     assert_eq!(log.stats.damaged, 0);
     mcap_export::write(&log, None, mcap_path, Some(&mcap_export::ONE_TOPIC_PER_KIND)).expect("mcap");
     let (a, b) = log.stats.time_span.expect("records");
@@ -64,8 +64,8 @@ fn the_comma2k19_minute_is_a_third_of_its_mcap() {
         objects: None,
         origin: Some(format!("{},{},{}", ORIGIN[0], ORIGIN[1], ORIGIN[2])),
     };
-    logfile::import::import(&request, &mut |problem| panic!("{problem}")).expect("import");
-    let log = logfile::read(&output).expect("log");
+    log::import::import(&request, &mut |problem| panic!("{problem}")).expect("import");
+    let log = log::read(&output).expect("log");
     let count = |kind: Kind| log.records.iter().filter(|r| r.kind() == kind).count();
     assert_eq!((count(Kind::GnssFix), count(Kind::VehicleSpeed), count(Kind::EgoPose)), (579, 2487, 1200));
     check_size("comma2k19", &output, &work.join("same.mcap"));
@@ -79,9 +79,9 @@ fn a_work_zone_drive_with_3d_tracks_is_a_third_of_its_mcap() {
     write_scenario(&scenario, &drive).expect("scenario");
     let output = work.join("drive.d2slog");
     let request = import_request(&scenario, &drive, output.clone());
-    logfile::import::import(&request, &mut |problem| panic!("{problem}")).expect("import");
-    let log = logfile::read(&output).expect("log");
-    let tracks = logfile::export::tracks(&log).count();
+    log::import::import(&request, &mut |problem| panic!("{problem}")).expect("import");
+    let log = log::read(&output).expect("log");
+    let tracks = log::export::tracks(&log).count();
     assert!(tracks > 10_000, "{tracks} 3D track records");
     check_size(&format!("work zone ({tracks} tracks)"), &output, &work.join("same.mcap"));
 }

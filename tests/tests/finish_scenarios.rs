@@ -7,9 +7,9 @@ use dash2sim_core::obb::{Pose2, PACIFICA};
 use dash2sim_core::pipeline::CameraMount;
 use dash2sim_linux::finish::solve::Settings;
 use dash2sim_linux::finish::{anchors, finish, Finished};
-use dash2sim_linux::logfile::{self, LogContents};
-use dash2sim_linux::scenario::judge::judge_log;
-use dash2sim_linux::scenario::street::street_anchors;
+use dash2sim_linux::log::{self, LogContents};
+use dash2sim_linux::sim::scenario::judge::judge_log;
+use dash2sim_linux::sim::scenario::street::street_anchors;
 use dash2sim_linux::verify::{from_contents, read_objects, replay};
 use dash2sim_tests::recorded::{record_scenario, Recorded};
 
@@ -89,8 +89,8 @@ fn finished_work_zones_verify_like_their_ground_truth() {
         }
         // The finished log reads back: its first records say what it was finished from.
         let bytes =
-            logfile::import::encode_in_order(&recorded.log.header.expect("header"), &finished.records).expect("encode");
-        let back = logfile::decode(&bytes, "finished").expect("decode");
+            log::import::encode_in_order(&recorded.log.header.expect("header"), &finished.records).expect("encode");
+        let back = log::decode(&bytes, "finished").expect("decode");
         assert!(matches!(back.records[0], Record::ClockOffset(_)));
         let Record::Event(e) = &back.records[1] else { panic!("{:?}", back.records[1]) };
         assert!(String::from_utf8_lossy(&e.text).starts_with("dash2sim finish: from drive"));
@@ -115,7 +115,7 @@ fn bad_input_is_refused_with_its_reason() {
     assert!(error.contains("nothing to anchor to"), "{error}");
 
     // Anchors: one right, one 1 km off, a NaN and a duplicate.
-    let frame = logfile::frame(&log.header.expect("header")).expect("frame");
+    let frame = log::frame(&log.header.expect("header")).expect("frame");
     let at = |index: usize, east: f64| {
         let f = &recorded.scenario.frames[index].ego;
         let truth = Pose2::new(f.x, f.y, f.heading);
@@ -152,7 +152,7 @@ fn bad_input_is_refused_with_its_reason() {
     for b in &mut bytes[middle..middle + 64] {
         *b ^= 0x5A;
     }
-    let damaged = logfile::decode(&bytes, "damaged").expect("still a log");
+    let damaged = log::decode(&bytes, "damaged").expect("still a log");
     assert!(damaged.stats.damaged > 0);
     let finished = run(&damaged, None, None).expect("finish what was recovered");
     assert!(finished.report["damage"]["stretches"].as_u64().unwrap_or(0) > 0);

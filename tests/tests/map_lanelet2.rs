@@ -5,8 +5,8 @@
 //! start, neighbours sit a lane width apart.
 
 use dash2sim_core::map::{segment_distance, MapView};
-use dash2sim_linux::map_tile::{encode, from_osm, lanelet2::LANELET_CLASS};
-use dash2sim_linux::osm;
+use dash2sim_linux::ingest::map_tile::{encode, from_osm, lanelet2::LANELET_CLASS};
+use dash2sim_linux::ingest::osm;
 
 #[test]
 fn the_lanelet2_example_becomes_consistent_lanes() {
@@ -23,7 +23,7 @@ fn the_lanelet2_example_becomes_consistent_lanes() {
     let mut warnings = Vec::new();
     let content = from_osm(&data, None, &mut warnings);
     assert!(warnings.is_empty(), "{warnings:?}");
-    let bytes = encode(&content, dash2sim_linux::map_tile::DEFAULT_CELL_M);
+    let bytes = encode(&content, dash2sim_linux::ingest::map_tile::DEFAULT_CELL_M);
     let map = MapView::parse(&bytes).expect("valid tile");
     println!(
         "{} vehicle lanelets ({two_way} two-way) → {} lanes, {} bytes",
@@ -95,7 +95,7 @@ fn the_lanelet2_example_becomes_consistent_lanes() {
 fn example_tile() -> Option<Vec<u8>> {
     let dir = dash2sim_tests::data_dir("osm/lanelet2")?;
     let data = osm::read(&dir.join("mapping_example.osm")).unwrap_or_else(|e| panic!("{e}"));
-    Some(encode(&from_osm(&data, None, &mut Vec::new()), dash2sim_linux::map_tile::DEFAULT_CELL_M))
+    Some(encode(&from_osm(&data, None, &mut Vec::new()), dash2sim_linux::ingest::map_tile::DEFAULT_CELL_M))
 }
 
 /// The drivable check through the fine polygon index gives the plain check's answers bit for
@@ -109,7 +109,7 @@ fn the_polygon_index_gives_the_checks_answers_on_the_lanelet2_example() {
 
     let Some(bytes) = example_tile() else { return };
     let map = MapView::parse(&bytes).expect("valid tile");
-    let arrays = dash2sim_linux::map_tile::polygon_index::build(&map).expect("Lanelet2 lanes are polygons");
+    let arrays = dash2sim_linux::ingest::map_tile::polygon_index::build(&map).expect("Lanelet2 lanes are polygons");
     let (plain, indexed) = (Checker::new(map, PACIFICA), Checker::new(map, PACIFICA).with_index(arrays.view()));
     let points: Vec<(f64, f64)> = (0..map.header().lanes)
         .filter_map(|i| map.lane(i))
@@ -177,7 +177,7 @@ fn the_polygon_index_lists_the_nearest_edges_of_every_cell() {
 
     let Some(bytes) = example_tile() else { return };
     let map = MapView::parse(&bytes).expect("valid tile");
-    let arrays = dash2sim_linux::map_tile::polygon_index::build(&map).expect("Lanelet2 lanes are polygons");
+    let arrays = dash2sim_linux::ingest::map_tile::polygon_index::build(&map).expect("Lanelet2 lanes are polygons");
     let index = arrays.view();
     let rings: Vec<Vec<[f32; 4]>> = (0..map.header().polygons)
         .map(|p| {

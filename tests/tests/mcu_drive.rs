@@ -6,9 +6,9 @@
 
 use dash2sim_core::geo::Geodetic;
 use dash2sim_linux::record::{self, Setup, Sources};
-use dash2sim_linux::scenario::sensors::GnssModel;
-use dash2sim_linux::scenario::write::write_scenario;
-use dash2sim_linux::scenario::{generate, ScenarioConfig};
+use dash2sim_linux::sim::scenario::sensors::GnssModel;
+use dash2sim_linux::sim::scenario::write::write_scenario;
+use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
 use dash2sim_tests::recorded::scratch;
 
 const REBUILD: &str =
@@ -27,11 +27,11 @@ fn the_mcu_example_drive_is_todays_and_records_on_the_host() {
     let (stream, _) = record::read_sources(&Sources::scenario(&work)).expect("sources");
     let committed = std::fs::read(root.join("drive.d2sin")).expect("drive.d2sin");
     assert!(stream == committed, "examples/mcu/drive.d2sin is stale; {REBUILD}");
-    let osm = dash2sim_linux::osm::read(&work.join("road.osm")).expect("osm");
+    let osm = dash2sim_linux::ingest::osm::read(&work.join("road.osm")).expect("osm");
     let origin = Geodetic::new(60.2711, 24.8572, 0.0).expect("origin");
-    let tile = dash2sim_linux::map_tile::encode(
-        &dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
-        dash2sim_linux::map_tile::DEFAULT_CELL_M,
+    let tile = dash2sim_linux::ingest::map_tile::encode(
+        &dash2sim_linux::ingest::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
+        dash2sim_linux::ingest::map_tile::DEFAULT_CELL_M,
     );
     let committed_tile = std::fs::read(root.join("drive.d2smap")).expect("drive.d2smap");
     assert!(tile == committed_tile, "examples/mcu/drive.d2smap is stale; {REBUILD}");

@@ -1,7 +1,8 @@
 //! `dash2sim mot eval` against motmetrics 1.4.0 on MOTChallenge TUD-Campus (see
 //! `motmetrics/PROVENANCE.md`): every summary metric, and the event list frame by frame.
 
-use dash2sim_linux::mot::{compare, read_mot, summarize, EventKind};
+use dash2sim_linux::ingest::motchallenge::read_mot;
+use dash2sim_linux::verify::mot::{compare, summarize, EventKind};
 use dash2sim_tests::data_dir;
 
 #[test]
@@ -83,7 +84,7 @@ fn track2d_on_tud_campus_beats_the_supplied_tracker() {
     for d in &mut detections {
         d.id = -1;
     }
-    let (tracks, stats, skipped) = dash2sim_linux::track2d::track(&detections);
+    let (tracks, stats, skipped) = dash2sim_linux::record::track2d::track(&detections);
     assert!(skipped.is_empty());
     assert_eq!((stats.frames, stats.rejected_detections), (71, 0));
     let summary = summarize(&compare(&gt, &tracks, 0.5));

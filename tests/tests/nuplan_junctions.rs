@@ -9,10 +9,10 @@
 
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
-use dash2sim_linux::nuplan::geometry::contains;
-use dash2sim_linux::nuplan::gpkg::Layer;
-use dash2sim_linux::nuplan::map::layers;
-use dash2sim_linux::nuplan::projection::Projection;
+use dash2sim_linux::export::nuplan::geometry::contains;
+use dash2sim_linux::export::nuplan::gpkg::Layer;
+use dash2sim_linux::export::nuplan::map::layers;
+use dash2sim_linux::export::nuplan::projection::Projection;
 use dash2sim_tests::{data_dir, workspace_root};
 
 const ORIGIN: (f64, f64) = (48.135_704_8, 10.069_590_1);
@@ -59,10 +59,10 @@ fn shared_points(rings: &[&[(f64, f64)]]) -> Vec<(usize, usize, usize)> {
 #[test]
 fn village_lanes_never_overlap_and_connectors_carry_the_drive_through_its_junctions() {
     let Some(dir) = data_dir("osm/osmnx") else { return };
-    let osm = dash2sim_linux::osm::read(&dir.join("planet_10.068_48.135_10.071_48.137.osm")).expect("osm");
+    let osm = dash2sim_linux::ingest::osm::read(&dir.join("planet_10.068_48.135_10.071_48.137.osm")).expect("osm");
     let origin = Geodetic::new(ORIGIN.0, ORIGIN.1, 0.0).expect("origin");
-    let content = dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new());
-    let tile = dash2sim_linux::map_tile::encode(&content, dash2sim_linux::map_tile::DEFAULT_CELL_M);
+    let content = dash2sim_linux::ingest::map_tile::from_osm(&osm, Some(origin), &mut Vec::new());
+    let tile = dash2sim_linux::ingest::map_tile::encode(&content, dash2sim_linux::ingest::map_tile::DEFAULT_CELL_M);
     let view = MapView::parse(&tile).expect("tile");
     let projection = Projection::new(origin).expect("projection");
     let (all, ids) = layers(&view, &projection).expect("layers");

@@ -5,7 +5,7 @@
 
 use std::collections::BTreeMap;
 
-use dash2sim_linux::osm;
+use dash2sim_linux::ingest::osm;
 use serde_json::{json, Value};
 
 fn histogram<'a>(values: impl Iterator<Item = &'a str>) -> Value {

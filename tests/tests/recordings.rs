@@ -3,7 +3,7 @@
 //! (GNSS over CAN through `canmod-gps.dbc`), evo's GNSS error and comma's fused poses for
 //! the comma2k19 minute.
 
-use dash2sim_linux::recordings::{comma, css};
+use dash2sim_linux::datasets::{comma, css};
 use dash2sim_tests::recorded::scratch;
 use serde_json::Value;
 

@@ -10,9 +10,9 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use dash2sim_core::traj::{Delta, RpePairs, Statistics};
 use serde_json::json;
 
-use dash2sim_linux::evaluate::{self, Align, Evaluation, Relation};
 use dash2sim_linux::sync::DEFAULT_MAX_DIFF_S;
 use dash2sim_linux::trajectory::Format;
+use dash2sim_linux::verify::evaluate::{self, Align, Evaluation, Relation};
 
 /// dash2sim: metric, geo-referenced 4D driving logs from a dashcam.
 #[derive(Debug, Parser)]
@@ -145,7 +145,7 @@ enum MapCommand {
         #[arg(long, value_name = "W,S,E,N")]
         bbox: Option<String>,
         /// Grid cell size, metres.
-        #[arg(long, default_value_t = dash2sim_linux::map_tile::DEFAULT_CELL_M)]
+        #[arg(long, default_value_t = dash2sim_linux::ingest::map_tile::DEFAULT_CELL_M)]
         cell: f64,
     },
     /// Describe a map tile: origin, source counts, lanes, lane-km, bytes.
@@ -195,16 +195,16 @@ enum ScenarioCommand {
         duration: f64,
         /// The GNSS receiver: `phone` (σ 3–10 m, multipath) or `good` (σ 1–2 m, the demo's).
         #[arg(long, value_enum, default_value = "phone")]
-        receiver: dash2sim_linux::scenario::profile::Receiver,
+        receiver: dash2sim_linux::sim::scenario::profile::Receiver,
         /// How far the sensors are from ideal (docs/scenario.md): `ideal` (the old, kind
         /// simulator), `typical` (a consumer dashcam) or `hard`.
         #[arg(long, value_enum, default_value = "typical")]
-        profile: dash2sim_linux::scenario::profile::Profile,
+        profile: dash2sim_linux::sim::scenario::profile::Profile,
     },
     /// Be the camera process: publish a generated drive over shared memory (iceoryx2) at its
     /// frame rate, and optionally the GNSS receiver's NMEA and the wheel-speed CAN frames
     /// to a serial device, FIFO or file (docs/bridge.md). Prints `N frames published`.
-    Publish(dash2sim_linux::scenario::publish::PublishRequest),
+    Publish(dash2sim_linux::sim::scenario::publish::PublishRequest),
     /// Generate a corpus of device logs as a fleet uploads them: drives of several seeds,
     /// lengths, regions and drivers recorded through the pipeline, each with its map tile,
     /// some damaged on purpose (docs/fleet.md).
@@ -225,7 +225,7 @@ enum ScenarioCommand {
         duration: f64,
         /// How far the sensors are from ideal: `ideal`, `typical` or `hard`.
         #[arg(long, value_enum, default_value = "typical")]
-        profile: dash2sim_linux::scenario::profile::Profile,
+        profile: dash2sim_linux::sim::scenario::profile::Profile,
         /// Missed frames before a track is dropped (AB3DMOT: 2).
         #[arg(long, default_value_t = 4)]
         max_age: u32,
@@ -360,7 +360,7 @@ pub fn run() -> ExitCode {
             crate::scenario::generate_to(seed, duration, profile, receiver, &output)
         }
         Command::Scenario(ScenarioCommand::Publish(args)) => {
-            dash2sim_linux::scenario::publish::run(&args).map(|n| println!("{n} frames published"))
+            dash2sim_linux::sim::scenario::publish::run(&args).map(|n| println!("{n} frames published"))
         }
         Command::Scenario(ScenarioCommand::Corpus(args)) => crate::scenario::corpus(&args),
         Command::Scenario(ScenarioCommand::Sweep(args)) => crate::scenario::sweep(&args),
@@ -381,7 +381,7 @@ pub fn run() -> ExitCode {
                 _ => None,
             };
             match speed_unit {
-                Some(speed_unit) => import(&dash2sim_linux::logfile::import::ImportRequest {
+                Some(speed_unit) => import(&dash2sim_linux::log::import::ImportRequest {
                     output: a.output,
                     nmea: a.nmea,
                     nmea_offset_s: a.nmea_offset,
@@ -444,8 +444,10 @@ fn mot_eval(gt: &std::path::Path, test: &std::path::Path, max_distance: f64, as_
     if !(0.0..=1.0).contains(&max_distance) {
         return Err(format!("--max-distance {max_distance} must be within [0, 1]"));
     }
-    let (gt, test) = (dash2sim_linux::mot::read_mot(gt)?, dash2sim_linux::mot::read_mot(test)?);
-    let summary = dash2sim_linux::mot::summarize(&dash2sim_linux::mot::compare(&gt, &test, max_distance));
+    let (gt, test) =
+        (dash2sim_linux::ingest::motchallenge::read_mot(gt)?, dash2sim_linux::ingest::motchallenge::read_mot(test)?);
+    let summary =
+        dash2sim_linux::verify::mot::summarize(&dash2sim_linux::verify::mot::compare(&gt, &test, max_distance));
     if as_json {
         println!("{}", summary.to_json());
     } else {
@@ -458,12 +460,13 @@ fn mot_eval(gt: &std::path::Path, test: &std::path::Path, max_distance: f64, as_
 
 /// `dash2sim track2d`: the problems of the file and the summary on stderr.
 fn track2d(detections: &std::path::Path, output: &std::path::Path) -> Result<(), String> {
-    let rows = dash2sim_linux::mot::read_mot(detections)?;
-    let (tracks, stats, skipped) = dash2sim_linux::track2d::track(&rows);
+    let rows = dash2sim_linux::ingest::motchallenge::read_mot(detections)?;
+    let (tracks, stats, skipped) = dash2sim_linux::record::track2d::track(&rows);
     for (_, message) in &skipped {
         eprintln!("{}: {message}", detections.display());
     }
-    dash2sim_linux::track2d::write_mot(output, &tracks).map_err(|e| format!("{}: {e}", output.display()))?;
+    dash2sim_linux::ingest::motchallenge::write_mot(output, &tracks)
+        .map_err(|e| format!("{}: {e}", output.display()))?;
     let ids: std::collections::BTreeSet<i64> = tracks.iter().map(|r| r.id).collect();
     eprintln!(
         "{} frames, {} detections → {} tracks, {} boxes; rejected {} detections, dropped {}, {} rows out of order, {} track candidates dropped",
@@ -480,8 +483,8 @@ fn track2d(detections: &std::path::Path, output: &std::path::Path) -> Result<(),
 }
 
 /// `dash2sim import`: the captures' problems on stderr, what was written on stdout.
-fn import(request: &dash2sim_linux::logfile::import::ImportRequest) -> Result<(), String> {
-    let imported = dash2sim_linux::logfile::import::import(request, &mut |problem| eprintln!("{problem}"))?;
+fn import(request: &dash2sim_linux::log::import::ImportRequest) -> Result<(), String> {
+    let imported = dash2sim_linux::log::import::import(request, &mut |problem| eprintln!("{problem}"))?;
     let counts: Vec<String> = imported.by_kind.iter().map(|(k, v)| format!("{v} {k}")).collect();
     println!(
         "{}: {} records ({}) over {:.1} s, {} bytes ({:.0} bytes per minute)",

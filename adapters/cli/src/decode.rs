@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 
 use dash2sim_can::candump::CandumpReader;
 use dash2sim_core::nmea::GnssFix;
-use dash2sim_linux::can_decode::{self, CanDecoder};
-use dash2sim_linux::nmea_decode::{self, iso8601, tpv_json};
+use dash2sim_linux::ingest::can::{self, CanDecoder};
+use dash2sim_linux::ingest::nmea::{self, iso8601, tpv_json};
 use serde_json::Value;
 
 /// `dash2sim nmea decode FILE [--json]`.
@@ -16,7 +16,7 @@ pub fn nmea(path: &Path, as_json: bool) -> Result<(), String> {
     let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     let name = path.display();
-    let decoded = nmea_decode::decode(
+    let decoded = nmea::decode(
         &bytes,
         |fix| writeln!(out, "{}", if as_json { tpv_json(fix).to_string() } else { fix_row(fix) }),
         |line, problem| eprintln!("{name}:{line}: {problem}"),
@@ -34,7 +34,7 @@ pub fn nmea(path: &Path, as_json: bool) -> Result<(), String> {
 
 /// `dash2sim can decode FILE [--dbc F]... [--json]`.
 pub fn can(path: &Path, dbcs: &[PathBuf], as_json: bool) -> Result<(), String> {
-    let (table, warnings) = can_decode::load_tables(dbcs)?;
+    let (table, warnings) = can::load_tables(dbcs)?;
     for warning in &warnings {
         eprintln!("{warning}");
     }
@@ -43,13 +43,13 @@ pub fn can(path: &Path, dbcs: &[PathBuf], as_json: bool) -> Result<(), String> {
     let mut decoder = CanDecoder::new(table);
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     let name = path.display();
-    let summary = match can_decode::decode_source(
+    let summary = match can::decode_source(
         &mut source,
         &mut decoder,
         |value| writeln!(out, "{}", if as_json { value.to_string() } else { message_row(&value) }),
         |line, problem| eprintln!("{name}:{line}: {problem}"),
     ) {
-        Ok(summary) => can_decode::summary_json(&summary, &decoder),
+        Ok(summary) => can::summary_json(&summary, &decoder),
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
         Err(e) => return Err(format!("{name}: {e}")),
     };

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use dash2sim_linux::exports::{self, ExportRequest};
+use dash2sim_linux::export::{self, ExportRequest};
 
 /// What to export (`dash2sim export`).
 #[derive(Clone, Debug, Args)]
@@ -33,17 +33,17 @@ pub struct ExportArgs {
     #[arg(long)]
     pub map: Option<PathBuf>,
     /// Length of a nuPlan scene, s (nuPlan drops the first two and the last of a log).
-    #[arg(long, default_value_t = exports::DEFAULT_SCENARIO_SECONDS)]
+    #[arg(long, default_value_t = export::DEFAULT_SCENARIO_SECONDS)]
     pub scenario_seconds: f64,
     /// The map's name in nuPlan (default: `dash2sim-` and the map file's name).
     #[arg(long)]
     pub map_name: Option<String>,
 }
 
-/// `dash2sim export`: print what [`exports::export`] wrote, a damaged log's warning on
+/// `dash2sim export`: print what [`export::export`] wrote, a damaged log's warning on
 /// stderr.
 pub fn run(args: ExportArgs) -> Result<(), String> {
-    let exported = exports::export(&ExportRequest {
+    let exported = export::export(&ExportRequest {
         log: args.log,
         mcap: args.mcap,
         tum: args.tum,

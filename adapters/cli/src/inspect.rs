@@ -3,8 +3,8 @@
 use std::path::Path;
 
 use dash2sim_core::binlog::Kind;
-use dash2sim_linux::logfile::inspect::{dropped_inputs, frames, gaps, report};
-use dash2sim_linux::logfile::read;
+use dash2sim_linux::log::inspect::{dropped_inputs, frames, gaps, report};
+use dash2sim_linux::log::read;
 use serde_json::Value;
 
 /// `dash2sim inspect`.

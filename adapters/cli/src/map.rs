@@ -3,7 +3,7 @@
 use std::io::Write as _;
 use std::path::Path;
 
-use dash2sim_linux::map_tile::{self, check};
+use dash2sim_linux::ingest::map_tile::{self, check};
 
 /// Warnings shown of a build; the rest are counted.
 const WARNINGS_SHOWN: usize = 10;

@@ -83,7 +83,7 @@ pub struct RecordArgs {
     #[arg(long, default_value = record::DEFAULT_DEVICE_ID)]
     pub device_id: String,
     /// Live: subscribe to the camera process's services (shared memory) under this prefix.
-    #[arg(long, num_args = 0..=1, default_missing_value = dash2sim_linux::bridge::DEFAULT_PREFIX)]
+    #[arg(long, num_args = 0..=1, default_missing_value = dash2sim_linux::record::bridge::DEFAULT_PREFIX)]
     pub camera: Option<String>,
     /// Live: the GNSS receiver's serial device (raw mode), or a file of raw NMEA bytes.
     #[arg(long)]

@@ -5,14 +5,14 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 use dash2sim_core::track3d::Config3d;
-use dash2sim_linux::fidelity::drive::Anchors;
-use dash2sim_linux::fidelity::sweep::{self, Drivers, SweepRequest};
-use dash2sim_linux::scenario::command::config;
-use dash2sim_linux::scenario::corpus::{self, CorpusRequest};
-use dash2sim_linux::scenario::evaluate::evaluate_tracking;
-use dash2sim_linux::scenario::profile::{Profile, Receiver};
-use dash2sim_linux::scenario::write::write_scenario;
-use dash2sim_linux::scenario::{generate, tracker_classes, tracker_config, Frame};
+use dash2sim_linux::sim::fidelity::drive::Anchors;
+use dash2sim_linux::sim::fidelity::sweep::{self, Drivers, SweepRequest};
+use dash2sim_linux::sim::scenario::command::config;
+use dash2sim_linux::sim::scenario::corpus::{self, CorpusRequest};
+use dash2sim_linux::sim::scenario::evaluate::evaluate_tracking;
+use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
+use dash2sim_linux::sim::scenario::write::write_scenario;
+use dash2sim_linux::sim::scenario::{generate, tracker_classes, tracker_config, Frame};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 

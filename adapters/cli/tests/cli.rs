@@ -954,7 +954,7 @@ fn live_record_closes_its_log_cleanly_on_sigterm() {
     assert!(status.success(), "SIGTERM ends the recording cleanly: {status:?}");
     let files: Vec<_> = std::fs::read_dir(&out).expect("log dir").map(|e| e.expect("entry").path()).collect();
     assert_eq!(files.len(), 1);
-    let log = dash2sim_linux::logfile::read(&files[0]).expect("a log");
+    let log = dash2sim_linux::log::read(&files[0]).expect("a log");
     assert_eq!(log.stats.damaged, 0);
     let last = log.records.last().expect("records");
     assert!(

@@ -6,16 +6,16 @@ use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use dash2sim_core::binlog::Record;
-use dash2sim_linux::bridge::{device_now, CameraPublisher};
-use dash2sim_linux::logfile;
+use dash2sim_linux::log;
+use dash2sim_linux::record::bridge::{device_now, CameraPublisher};
 use dash2sim_linux::record::live::{self, LiveRequest};
 use dash2sim_linux::record::Setup;
-use dash2sim_linux::scenario::{generate, ScenarioConfig};
+use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
 
 /// Longest a killed logger can lose (`docs/cli.md`): the open log segment, 5 s.
 const FLUSH_INTERVAL_S: f64 = 5.0;
 
-fn frames_in(log: &logfile::LogContents) -> Vec<i64> {
+fn frames_in(log: &log::LogContents) -> Vec<i64> {
     log.records.iter().filter_map(|r| if let Record::FrameMeta(f) = r { Some(f.frame) } else { None }).collect()
 }
 
@@ -77,7 +77,7 @@ fn a_logger_killed_and_restarted_leaves_its_flushed_log_and_the_camera_unaffecte
     assert_eq!(files.len(), 2, "one file per logger run: {files:?}");
     // The killed logger's file reads back to its last flush: no damage, frames in order from
     // the first, and nothing older than the flush interval before the kill is missing.
-    let killed = logfile::read(&files[0]).expect("the killed logger's file reads back");
+    let killed = log::read(&files[0]).expect("the killed logger's file reads back");
     assert_eq!(killed.stats.damaged, 0, "{:?}", killed.stats);
     let before = frames_in(&killed);
     let last = *before.last().expect("frames before the kill");
@@ -85,7 +85,7 @@ fn a_logger_killed_and_restarted_leaves_its_flushed_log_and_the_camera_unaffecte
     let must_have = killed_at - (FLUSH_INTERVAL_S * 10.0) as i64 - 1;
     assert!(last >= must_have, "frames up to {last} of {killed_at} (at least {must_have})");
     // The restarted logger picks the stream up and closes cleanly.
-    let restarted = logfile::read(&files[1]).expect("the restarted logger's file");
+    let restarted = log::read(&files[1]).expect("the restarted logger's file");
     assert_eq!(restarted.stats.damaged, 0);
     let after = frames_in(&restarted);
     let first_after = *after.first().expect("frames after the restart");
@@ -150,8 +150,8 @@ fn a_sink_slower_than_the_input_drops_inputs_counts_them_and_logs_them() {
     // The queue is bounded: with the sink this slow, most of the burst cannot wait in it.
     assert!(report.dropped >= (FRAMES - 2 * live::QUEUE) as u64, "{report:?}");
     assert_eq!(report.stats.can_frames + report.dropped, FRAMES as u64, "every frame used or counted as dropped");
-    let log = logfile::decode(&bytes.lock().expect("sink"), "slow sink").expect("the log");
-    assert_eq!(logfile::inspect::dropped_inputs(&log), report.dropped, "the drops are in the log");
+    let log = log::decode(&bytes.lock().expect("sink"), "slow sink").expect("the log");
+    assert_eq!(log::inspect::dropped_inputs(&log), report.dropped, "the drops are in the log");
     let speeds = log.records.iter().filter(|r| matches!(r, Record::VehicleSpeed(_))).count() as u64;
     assert_eq!(speeds, report.stats.speeds);
     let _ = std::fs::remove_dir_all(&dir);

@@ -5,19 +5,18 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use dash2sim_core::binlog::{Decoder, Event};
-use dash2sim_linux::logfile;
-use dash2sim_linux::scenario::write::{import_request, write_scenario};
-use dash2sim_linux::scenario::{generate, ScenarioConfig};
+use dash2sim_linux::log;
+use dash2sim_linux::sim::scenario::write::{import_request, write_scenario};
+use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
 
 fn throughput(c: &mut Criterion) {
     let dir = std::env::temp_dir().join(format!("d2s-bench-binlog-{}", std::process::id()));
     let scenario = generate(&ScenarioConfig { duration_s: 40.0, ..ScenarioConfig::default() });
     write_scenario(&scenario, &dir.join("drive")).expect("scenario");
     let output = dir.join("drive.d2slog");
-    logfile::import::import(&import_request(&scenario, &dir.join("drive"), output.clone()), &mut |_| {})
-        .expect("import");
+    log::import::import(&import_request(&scenario, &dir.join("drive"), output.clone()), &mut |_| {}).expect("import");
     let bytes = std::fs::read(&output).expect("log");
-    let log = logfile::decode(&bytes, "bench").expect("log");
+    let log = log::decode(&bytes, "bench").expect("log");
     let header = log.header.expect("header");
     let records = log.records.len() as u64;
     eprintln!("{records} records, {} bytes", bytes.len());
@@ -27,7 +26,7 @@ fn throughput(c: &mut Criterion) {
     group.bench_function("encode (records)", |b| {
         b.iter(|| {
             let mut copy = log.records.clone();
-            logfile::import::encode(&header, &mut copy).expect("encodes").len()
+            log::import::encode(&header, &mut copy).expect("encodes").len()
         })
     });
     group.bench_function("decode (records)", |b| {

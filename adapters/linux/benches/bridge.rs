@@ -18,7 +18,7 @@ use std::os::unix::net::{UnixDatagram, UnixStream};
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use dash2sim_linux::bridge::{device_now, CameraInput, CameraPublisher, CameraSubscriber, MAX_IMAGE_BYTES};
+use dash2sim_linux::record::bridge::{device_now, CameraInput, CameraPublisher, CameraSubscriber, MAX_IMAGE_BYTES};
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory;
 

@@ -10,7 +10,7 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use dash2sim_can::candump::CandumpReader;
 use dash2sim_can::{FrameSource, SignalTable};
 use dash2sim_core::can::{Decoder, Event};
-use dash2sim_linux::can_decode::{decode_source, CanDecoder};
+use dash2sim_linux::ingest::can::{decode_source, CanDecoder};
 
 fn data(path: &str) -> Option<Vec<u8>> {
     let path = common::data(path)?;

@@ -11,7 +11,7 @@ use dash2sim_core::nalgebra::{Rotation3, Vector3};
 use dash2sim_core::pipeline::CameraMount;
 use dash2sim_linux::finish::finish;
 use dash2sim_linux::finish::solve::Settings;
-use dash2sim_linux::logfile::{self, LogContents};
+use dash2sim_linux::log::{self, LogContents};
 
 const ORIGIN: [f64; 3] = [60.17, 24.94, 20.0];
 
@@ -96,12 +96,12 @@ fn drive(minutes: f64) -> (Header, Vec<Record>) {
 
 fn contents(minutes: f64) -> LogContents {
     let (header, mut records) = drive(minutes);
-    let bytes = logfile::import::encode(&header, &mut records).expect("encode");
+    let bytes = log::import::encode(&header, &mut records).expect("encode");
     if minutes >= 60.0 {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/finish-60min.d2slog");
         std::fs::write(&path, &bytes).expect("write the 60-minute log");
     }
-    logfile::decode(&bytes, "bench").expect("decode")
+    log::decode(&bytes, "bench").expect("decode")
 }
 
 fn finishing(c: &mut Criterion) {

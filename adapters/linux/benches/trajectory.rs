@@ -11,8 +11,8 @@ use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use dash2sim_core::traj::{Delta, RpePairs};
-use dash2sim_linux::evaluate::{self, Align, Relation};
 use dash2sim_linux::trajectory::Format;
+use dash2sim_linux::verify::evaluate::{self, Align, Relation};
 
 fn evo_dir() -> Option<PathBuf> {
     common::data("evo")

@@ -16,14 +16,14 @@ use dash2sim_core::drivable::{Channel, Checker};
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Pose2, PACIFICA};
-use dash2sim_linux::map_tile::{encode, from_osm};
-use dash2sim_linux::scenario::{generate, write::write_scenario, ScenarioConfig};
+use dash2sim_linux::ingest::map_tile::{encode, from_osm};
+use dash2sim_linux::sim::scenario::{generate, write::write_scenario, ScenarioConfig};
 use dash2sim_linux::verify::{read_objects, replay};
 use rand::{Rng, SeedableRng};
 
 fn tile(osm: &std::path::Path, origin: Option<Geodetic>) -> Vec<u8> {
-    let data = dash2sim_linux::osm::read(osm).expect("OSM file");
-    encode(&from_osm(&data, origin, &mut Vec::new()), dash2sim_linux::map_tile::DEFAULT_CELL_M)
+    let data = dash2sim_linux::ingest::osm::read(osm).expect("OSM file");
+    encode(&from_osm(&data, origin, &mut Vec::new()), dash2sim_linux::ingest::map_tile::DEFAULT_CELL_M)
 }
 
 /// 1000 poses: half within 8 m of a lane point, half anywhere in the lanes' box + 20 m.
@@ -57,7 +57,7 @@ fn drivable(c: &mut Criterion) {
         let Some(path) = data(sub) else { continue };
         let bytes = tile(&path, None);
         let map = MapView::parse(&bytes).expect("tile");
-        let index = dash2sim_linux::map_tile::polygon_index::build(&map);
+        let index = dash2sim_linux::ingest::map_tile::polygon_index::build(&map);
         let poses = poses(&map);
         eprintln!("{name}: {} lanes, {} bytes", map.header().lanes, bytes.len());
         let mut checkers = vec![(name.to_owned(), Checker::new(map, PACIFICA))];

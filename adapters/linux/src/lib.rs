@@ -11,28 +11,15 @@
 #![deny(missing_docs)]
 #![deny(clippy::print_stdout, clippy::print_stderr)]
 
-pub mod anchoring;
-pub mod bridge;
-pub mod can_decode;
-pub mod detections;
-pub mod ego;
-pub mod evaluate;
-pub mod exports;
-pub mod fidelity;
+pub mod datasets;
+pub mod export;
 pub mod finish;
-pub mod logfile;
-pub mod map_tile;
-pub mod mot;
-pub mod nmea_decode;
-pub mod nuplan;
-pub mod objects;
-pub mod osm;
+pub mod ingest;
+pub mod log;
 pub mod plot;
 pub mod record;
-pub mod recordings;
-pub mod scenario;
+pub mod sim;
 pub mod sync;
-pub mod track2d;
 /// Trajectory files (TUM, KITTI, EuRoC): the `dash2sim-trajectory` crate.
 pub use dash2sim_trajectory as trajectory;
 pub mod verify;

@@ -11,9 +11,9 @@
 use std::path::PathBuf;
 
 use dash2sim_core::obb::{Footprint, PACIFICA};
-use dash2sim_linux::exports::ExportRequest;
+use dash2sim_linux::export::ExportRequest;
 use dash2sim_linux::finish::FinishRequest;
-use dash2sim_linux::logfile::{self, parquet_export};
+use dash2sim_linux::log::{self, parquet_export};
 use dash2sim_linux::record::{Device, VoFrame};
 use dash2sim_linux::verify::{EgoSource, VerifyRequest};
 use pyo3::create_exception;
@@ -44,7 +44,7 @@ fn id_of(path: &std::path::Path, log_id: Option<String>) -> String {
 fn read_log(py: Python<'_>, path: PathBuf, log_id: Option<String>) -> PyResult<Vec<(String, Py<PyBytes>)>> {
     let streams = py
         .detach(|| -> Result<Vec<(&'static str, Vec<u8>)>, String> {
-            let log = logfile::read(&path).map_err(|e| e.to_string())?;
+            let log = log::read(&path).map_err(|e| e.to_string())?;
             let tables = parquet_export::tables(&log, &id_of(&path, log_id))?;
             tables
                 .tables
@@ -60,8 +60,8 @@ fn read_log(py: Python<'_>, path: PathBuf, log_id: Option<String>) -> PyResult<V
 #[pyfunction]
 fn inspect(py: Python<'_>, path: PathBuf) -> PyResult<String> {
     py.detach(|| {
-        let log = logfile::read(&path).map_err(|e| e.to_string())?;
-        Ok(logfile::inspect::report(&log).to_string())
+        let log = log::read(&path).map_err(|e| e.to_string())?;
+        Ok(log::inspect::report(&log).to_string())
     })
     .map_err(error)
 }
@@ -147,10 +147,10 @@ fn export(
         log_id,
         nuplan,
         map,
-        scenario_seconds: dash2sim_linux::exports::DEFAULT_SCENARIO_SECONDS,
+        scenario_seconds: dash2sim_linux::export::DEFAULT_SCENARIO_SECONDS,
         map_name: None,
     };
-    let exported = py.detach(|| dash2sim_linux::exports::export(&request)).map_err(error)?;
+    let exported = py.detach(|| dash2sim_linux::export::export(&request)).map_err(error)?;
     Ok((exported.warning, exported.written))
 }
 

@@ -1,5 +1,5 @@
 //! `dash2sim demo --data DIR`: the real recordings of a data folder through the product
-//! ([`dash2sim_linux::recordings`]). A recording whose files are missing is named with what is
+//! ([`dash2sim_linux::datasets`]). A recording whose files are missing is named with what is
 //! missing, and the others run.
 
 use std::path::{Path, PathBuf};
@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use serde_json::{json, Value};
 
 use super::progress::Progress;
-use dash2sim_linux::recordings::{self, comma, css};
+use dash2sim_linux::datasets::{self, comma, css};
 
 /// One recording the demo knows: its folder, the files it needs, how it runs.
 struct Known {
@@ -22,7 +22,7 @@ const KNOWN: [Known; 2] = [
     Known {
         name: "comma2k19",
         folder: "comma2k19",
-        missing: |dir| recordings::missing(dir, &comma::REQUIRED),
+        missing: |dir| datasets::missing(dir, &comma::REQUIRED),
         run: comma::run,
         doing: "comma2k19: recording the u-blox NMEA, Toyota CAN and VO made from the fused poses; finishing; comparing with the fused poses",
     },
@@ -30,7 +30,7 @@ const KNOWN: [Known; 2] = [
         name: "css",
         folder: "css-electronics-canedge",
         missing: |dir| {
-            let mut missing = recordings::missing(dir, &css::REQUIRED);
+            let mut missing = datasets::missing(dir, &css::REQUIRED);
             if dir.is_dir() && css::splits(dir).is_empty() {
                 missing.push(dir.join(format!("{}*.log", css::SPLITS)));
             }

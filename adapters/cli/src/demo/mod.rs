@@ -17,7 +17,7 @@
 //! 7. `export`: MCAP (Foxglove), TUM (evo), GeoJSON (QGIS) and the nuPlan database and map;
 //! 8. `plot` the drive.
 //!
-//! `--data DIR` runs the real recordings of a data folder instead ([`dash2sim_linux::recordings`]).
+//! `--data DIR` runs the real recordings of a data folder instead ([`dash2sim_linux::datasets`]).
 //!
 //! The receiver is a good one (σ 1–2 m, errors correlated over 2 s, no multipath): with the
 //! generator's default phone-grade GNSS the anchorer rightly declines to commit within 40 s.
@@ -33,13 +33,13 @@ use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use serde_json::{json, Value};
 
-use dash2sim_linux::fidelity::drive::{assess, judged_json, Anchors, Recorded};
-use dash2sim_linux::logfile::{self, LogContents};
+use dash2sim_linux::log::{self, LogContents};
 use dash2sim_linux::record::{self, Setup};
-use dash2sim_linux::scenario::evaluate::evaluate_tracking;
-use dash2sim_linux::scenario::profile::{Profile, Receiver};
-use dash2sim_linux::scenario::write::{road_tile, write_scenario};
-use dash2sim_linux::scenario::{generate, tracker_classes, tracker_config, Driver, ScenarioConfig};
+use dash2sim_linux::sim::fidelity::drive::{assess, judged_json, Anchors, Recorded};
+use dash2sim_linux::sim::scenario::evaluate::evaluate_tracking;
+use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
+use dash2sim_linux::sim::scenario::write::{road_tile, write_scenario};
+use dash2sim_linux::sim::scenario::{generate, tracker_classes, tracker_config, Driver, ScenarioConfig};
 use progress::Progress;
 
 /// `dash2sim demo` arguments.
@@ -87,12 +87,12 @@ pub struct DemoArgs {
 /// `dash2sim demo`.
 pub fn run(args: &DemoArgs) -> Result<(), String> {
     let progress = Progress::new(args.quiet);
-    let longest = dash2sim_linux::scenario::command::MAX_DURATION_S;
+    let longest = dash2sim_linux::sim::scenario::command::MAX_DURATION_S;
     if !(args.duration.is_finite() && (10.0..=longest).contains(&args.duration)) {
         return Err(format!("--duration {} must be between 10 and {longest} seconds", args.duration));
     }
     if let Some(dir) = &args.data {
-        let dir = dir.clone().unwrap_or_else(dash2sim_linux::recordings::default_dir);
+        let dir = dir.clone().unwrap_or_else(dash2sim_linux::datasets::default_dir);
         std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
         let summary = data::run(&dir, &args.output, &progress)?;
         write_file(&args.output.join("summary.json"), summary.to_string())?;
@@ -126,8 +126,8 @@ fn write_file(path: &Path, contents: impl AsRef<[u8]>) -> Result<(), String> {
 /// Distinct 3D tracks per class name.
 fn tracks_by_class(log: &LogContents) -> std::collections::BTreeMap<&'static str, usize> {
     let mut ids: std::collections::BTreeMap<&'static str, std::collections::BTreeSet<i64>> = Default::default();
-    for (_, track) in logfile::export::tracks(log) {
-        ids.entry(logfile::export::class_name(track.class)).or_default().insert(track.id);
+    for (_, track) in log::export::tracks(log) {
+        ids.entry(log::export::class_name(track.class)).or_default().insert(track.id);
     }
     ids.into_iter().map(|(class, set)| (class, set.len())).collect()
 }
@@ -205,7 +205,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
                "inputs_dropped": r.dropped, "issues": r.issues, "wall_s": live.seconds,
                "pipeline": record::stats_json(&r.stats)})
     };
-    let log = logfile::read(&log_path).map_err(|e| e.to_string())?;
+    let log = log::read(&log_path).map_err(|e| e.to_string())?;
     let log_bytes = log.bytes;
 
     progress.step(
@@ -241,19 +241,19 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
 
     progress.step(6, STEPS, "exporting MCAP (Foxglove), TUM (evo), GeoJSON (QGIS) and the nuPlan database and map");
     let mcap_path = out.join("drive.mcap");
-    let messages: u64 = logfile::mcap_export::write(&log, Some(&map), &mcap_path, None)?.values().sum();
+    let messages: u64 = log::mcap_export::write(&log, Some(&map), &mcap_path, None)?.values().sum();
     let finished_mcap = out.join("finished.mcap");
-    logfile::mcap_export::write(finished_log, Some(&map), &finished_mcap, None)?;
-    write_file(&out.join("ego.tum"), logfile::export::tum(&log))?;
-    write_file(&out.join("finished.tum"), logfile::export::tum(finished_log))?;
-    write_file(&out.join("drive.geojson"), logfile::export::geojson(&log)?.to_string())?;
+    log::mcap_export::write(finished_log, Some(&map), &finished_mcap, None)?;
+    write_file(&out.join("ego.tum"), log::export::tum(&log))?;
+    write_file(&out.join("finished.tum"), log::export::tum(finished_log))?;
+    write_file(&out.join("drive.geojson"), log::export::geojson(&log)?.to_string())?;
     let nuplan_dir = out.join("nuplan");
     let _ = std::fs::remove_dir_all(&nuplan_dir);
-    let nuplan = dash2sim_linux::nuplan::export(&dash2sim_linux::nuplan::NuplanRequest {
+    let nuplan = dash2sim_linux::export::nuplan::export(&dash2sim_linux::export::nuplan::NuplanRequest {
         log: finished_log,
         log_name: &finished_path.display().to_string(),
         tile: &tile,
-        map_name: &dash2sim_linux::nuplan::map_name("road"),
+        map_name: &dash2sim_linux::export::nuplan::map_name("road"),
         out: &nuplan_dir,
         scene_s: 5.0,
     });
@@ -304,7 +304,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
     let (online, finished) = (&assessed.online, &assessed.finished);
     let (finished_scale, true_mean_scale, finished_scale_error) = assessed.finished_scale;
     // A log without ego poses (never anchored) has nothing verified: null.
-    let both = |b: Option<&dash2sim_linux::fidelity::drive::BothModes>| {
+    let both = |b: Option<&dash2sim_linux::sim::fidelity::drive::BothModes>| {
         b.map(|b| json!({"channel_insensitive": b.insensitive, "channel_sensitive": b.sensitive}))
             .unwrap_or_else(|| json!({"channel_insensitive": null, "channel_sensitive": null}))
     };

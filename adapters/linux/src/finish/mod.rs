@@ -27,7 +27,7 @@ use dash2sim_core::pipeline::{
 use dash2sim_core::sim3::Pose;
 use serde_json::{json, Value};
 
-use crate::logfile::{self, event, LogContents};
+use crate::log::{self, event, LogContents};
 use crate::record::{Device, VoFrame};
 use anchors::AnchorForm;
 use solve::{Anchor, AnchorAt, Fix, Inputs, Settings, Solution, VoSample};
@@ -78,7 +78,7 @@ fn drive(log: &LogContents, frame: &LocalFrame, uere: f64) -> Drive {
     for r in &log.records {
         match r {
             Record::VoPose(p) => vo.push(VoSample {
-                t: logfile::seconds(p.t_us),
+                t: log::seconds(p.t_us),
                 session: u32::try_from(p.session).unwrap_or(u32::MAX),
                 position: Vector3::new(p.x as f64, p.y as f64, p.z as f64) * 1e-3,
                 rotation: Rotation3::from_euler_angles(
@@ -97,9 +97,9 @@ fn drive(log: &LogContents, frame: &LocalFrame, uere: f64) -> Drive {
                 let sigma_h = hdop * uere;
                 // A 2D fix's height is a guess.
                 let sigma_v = if f.mode >= 3 { 1.5 * sigma_h } else { 1e3 };
-                fixes.push(Fix { t: logfile::seconds(f.t_us), enu: frame.geodetic_to_enu(&g), sigma_h, sigma_v });
+                fixes.push(Fix { t: log::seconds(f.t_us), enu: frame.geodetic_to_enu(&g), sigma_h, sigma_v });
             }
-            Record::VehicleSpeed(s) => speeds.push((logfile::seconds(s.t_us), s.speed_mm_s as f64 * 1e-3)),
+            Record::VehicleSpeed(s) => speeds.push((log::seconds(s.t_us), s.speed_mm_s as f64 * 1e-3)),
             _ => {}
         }
     }
@@ -138,7 +138,7 @@ pub fn finish(
     uere: f64,
 ) -> Result<Finished, String> {
     let header = log.header.ok_or_else(|| format!("{name}: the header is damaged: no ENU origin to finish in"))?;
-    let frame = logfile::frame(&header).ok_or_else(|| format!("{name}: the header's origin is not a position"))?;
+    let frame = log::frame(&header).ok_or_else(|| format!("{name}: the header's origin is not a position"))?;
     let drive = drive(log, &frame, uere);
     let anchors = anchor_file.map(|(_, f)| anchors_in(f, &frame)).unwrap_or_default();
     let calibrated = calibrate_mount(&drive.vo, mount);
@@ -691,7 +691,7 @@ pub fn finish_file(args: &FinishRequest) -> Result<Value, String> {
         return Err(format!("--keyframe {} must be between 0.05 and 10 s", args.keyframe));
     }
     let (mount, uere) = args.device.parse()?;
-    let log = logfile::read(&args.log).map_err(|e| e.to_string())?;
+    let log = log::read(&args.log).map_err(|e| e.to_string())?;
     let name = args.log.display().to_string();
     let anchor_file = args.anchors.as_deref().map(anchors::read).transpose()?;
     let anchor_name = args.anchors.as_deref().map(Path::display).map(|d| d.to_string());
@@ -704,7 +704,7 @@ pub fn finish_file(args: &FinishRequest) -> Result<Value, String> {
     let finished =
         finish(&log, &name, anchor_name.as_deref().zip(anchor_file.as_ref()), map.as_deref(), mount, settings, uere)?;
     let header = log.header.unwrap_or(Header { device_id: [0; 16], origin: [0; 3] });
-    let bytes = logfile::import::encode_in_order(&header, &finished.records)?;
+    let bytes = log::import::encode_in_order(&header, &finished.records)?;
     std::fs::write(&args.output, &bytes).map_err(|e| format!("{}: {e}", args.output.display()))?;
     let mut report = finished.report;
     report["output"] = json!(args.output.display().to_string());

@@ -10,7 +10,7 @@ use dash2sim_core::pipeline::verification_record;
 use dash2sim_core::score::Scores;
 use serde_json::{json, Value};
 
-use crate::logfile::{event, LogContents};
+use crate::log::{event, LogContents};
 use crate::verify::{metrics_json, replay, AgentsByTime};
 
 /// nuPlan's scenario length, s.

@@ -13,7 +13,7 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::logfile;
+use crate::log;
 use scene::Scene;
 
 /// Picture size, px: the map on top, speed and scores below.
@@ -56,7 +56,7 @@ pub struct Drawn {
 
 /// Draw `args.log` (and its map and finished log) to `args.output`.
 pub fn plot(args: &PlotRequest) -> Result<Drawn, String> {
-    let read = |p: &Path| logfile::read(p).map_err(|e| format!("{}: {e}", p.display()));
+    let read = |p: &Path| log::read(p).map_err(|e| format!("{}: {e}", p.display()));
     let log = read(&args.log)?;
     let finished = args.finished.as_deref().map(read).transpose()?;
     let tile =

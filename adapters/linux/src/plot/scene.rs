@@ -7,9 +7,9 @@ use dash2sim_core::geo::LocalFrame;
 use dash2sim_core::map::MapView;
 use dash2sim_core::nalgebra::Vector3;
 
-use crate::logfile::export::{class_name, last_tracks};
-use crate::logfile::{frame, LogContents};
-use crate::nuplan::geometry::capsule;
+use crate::export::nuplan::geometry::capsule;
+use crate::log::export::{class_name, last_tracks};
+use crate::log::{frame, LogContents};
 
 /// The eight nuPlan metrics of a `Verification` record, in its field order.
 pub const METRICS: [&str; 8] = [
@@ -99,7 +99,7 @@ impl Reframe {
 }
 
 fn ego(log: &LogContents, reframe: &Reframe, t0_us: i64, label: &'static str) -> Series {
-    let points = crate::logfile::export::ego_poses(log)
+    let points = crate::log::export::ego_poses(log)
         .filter_map(|p| {
             let (x, y) = reframe.point(p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3)?;
             Some(((p.t_us - t0_us) as f64 * 1e-6, x, y))
@@ -161,7 +161,7 @@ impl Scene {
     pub fn new(log: &LogContents, finished: Option<&LogContents>, tile: Option<&[u8]>) -> Result<Self, String> {
         let header = log.header.ok_or("the header is damaged: no geodetic origin to draw in")?;
         let here = frame(&header).ok_or("the log's origin is not a valid position")?;
-        let t0_us = crate::logfile::export::ego_poses(log)
+        let t0_us = crate::log::export::ego_poses(log)
             .next()
             .map(|p| p.t_us)
             .ok_or("no ego poses to plot (a log with GNSS and speed only has no anchored trajectory)")?;

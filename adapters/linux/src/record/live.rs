@@ -24,7 +24,7 @@ use dash2sim_core::pipeline::{Pipeline, PipelineStats, Trackers};
 use dash2sim_core::time::Timestamp;
 
 use super::Setup;
-use crate::bridge::{device_now, CameraInput, CameraSubscriber};
+use crate::record::bridge::{device_now, CameraInput, CameraSubscriber};
 
 /// Inputs waiting between the reader threads and the pipeline.
 pub const QUEUE: usize = 4096;

@@ -3,8 +3,10 @@
 //! stream format a microcontroller replays (`--save-inputs` writes it), so the host and the
 //! device run the very same code on the very same bytes.
 
+pub mod bridge;
 pub mod live;
 pub mod sources;
+pub mod track2d;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -209,7 +211,7 @@ impl VoFrame {
 
 /// Parse `LAT,LON[,H]`.
 pub fn parse_origin(text: &str) -> Result<Geodetic, String> {
-    let [lat, lon, h] = crate::logfile::import::parse_origin(text)?;
+    let [lat, lon, h] = crate::log::import::parse_origin(text)?;
     Geodetic::new(lat, lon, h).map_err(|e| format!("--origin {text:?}: {e}"))
 }
 
@@ -504,7 +506,7 @@ fn setup_from_args(
     fallback: impl FnOnce(Option<&GnssSignals>) -> Result<Geodetic, String>,
 ) -> Result<Setup, String> {
     // The DBC files, read once for both signal options.
-    let (table, dbc_warnings) = crate::can_decode::load_tables(&args.dbc)?;
+    let (table, dbc_warnings) = crate::ingest::can::load_tables(&args.dbc)?;
     warnings.extend(dbc_warnings);
     let gnss_signals = gnss_signals(args, &table)?;
     let map = args.map.as_ref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;

@@ -184,7 +184,7 @@ impl Inputs {
     /// an id the tracker refuses, so they are counted, not dropped silently).
     pub fn detections(&mut self, path: &Path, class_id: impl Fn(&str) -> Option<u16>) -> Result<(), String> {
         let mut frames: BTreeMap<u64, (f64, Vec<Detection3d>)> = BTreeMap::new();
-        for row in crate::detections::read(path)? {
+        for row in crate::ingest::detections::read(path)? {
             let entry = frames.entry(row.frame).or_insert((row.t, Vec::new()));
             entry.1.push(Detection3d {
                 class: class_id(&row.class).unwrap_or(u16::MAX),

@@ -1,0 +1,302 @@
+//! comma2k19's minute (`comma2k19/` of the data folder) in the forms a dashcam sees: the
+//! real u-blox fixes as the NMEA a receiver would send (from comma's CSV: UTC, position,
+//! speed, course, stamped with the device's receive time `t_boot`), the real Toyota CAN
+//! through its DBC (0xB4 SPEED), and VO made from comma's fused camera poses through an
+//! unknown Sim(3) with drift ([`VoModel::arbitrary`]) — the recording has no VO of its
+//! own. Recorded, finished, and measured against the fused poses.
+
+use std::path::{Path, PathBuf};
+
+use dash2sim_core::binlog::Record;
+use dash2sim_core::nalgebra::Vector3;
+use dash2sim_core::sim3::{AlignMode, Moments};
+use serde_json::{json, Value};
+
+use super::{device_times, write};
+use crate::log::{self, LogContents};
+use crate::record::{self, Device, RecordRequest, VoFrame};
+use crate::sim::scenario::vo::VoModel;
+use crate::trajectory::{Format, Trajectory};
+use rand::SeedableRng;
+
+/// The files the minute needs, relative to its folder.
+pub const REQUIRED: [&str; 5] = [
+    "expected/global_pose_camera_enu.tum",
+    "expected/live_gnss_ublox.csv",
+    "expected/evo_ape_gnss_vs_pose.json",
+    "raw_can.candump.log",
+    "opendbc-toyota/_toyota_2017.dbc",
+];
+
+/// The ENU origin of comma's poses.
+pub const ORIGIN: [f64; 3] = [37.721000009, -122.472299089, 31.6392];
+
+/// HDOP 0.9 × 2.78 m = the anchoring test's σ of 2.5 m.
+pub const UERE: f64 = 2.5 / 0.9;
+
+/// The mount for these poses: the camera's axes (x forward, y right, z down), and the ego
+/// taken at the camera so that positions compare with the poses.
+pub fn mount() -> String {
+    format!("0,0,0,{},0,0", std::f64::consts::PI)
+}
+
+fn nmea_line(body: &str) -> String {
+    let checksum = body.bytes().fold(0u8, |a, b| a ^ b);
+    format!("${body}*{checksum:02X}\r\n")
+}
+
+fn angle(deg: f64, width: usize, hemispheres: [char; 2]) -> (String, char) {
+    let a = deg.abs();
+    let whole = a.floor();
+    let minutes = (a - whole) * 60.0;
+    (format!("{:0width$}{minutes:09.6}", whole as u32), if deg >= 0.0 { hemispheres[0] } else { hemispheres[1] })
+}
+
+/// The u-blox fixes as NMEA.
+#[derive(Debug)]
+pub struct UbloxNmea {
+    /// The raw NMEA text, as the receiver sends it.
+    pub raw: String,
+    /// The same as a serial capture: `(t_boot) sentence` per line.
+    pub stamped: String,
+    /// Boot time − UTC of the first fix, s.
+    pub offset_s: f64,
+    /// Fixes (CSV rows).
+    pub fixes: usize,
+}
+
+/// comma's u-blox CSV as GGA + RMC sentences (UTC from its millisecond stamps, HDOP 0.9).
+pub fn ublox_nmea(csv: &Path) -> Result<UbloxNmea, String> {
+    let text = std::fs::read_to_string(csv).map_err(|e| format!("{}: {e}", csv.display()))?;
+    let (mut raw, mut stamped) = (String::new(), String::new());
+    let (mut offset, mut fixes) = (None, 0);
+    for (n, line) in text.lines().enumerate().skip(1) {
+        let at = || format!("{}:{}", csv.display(), n + 1);
+        let v: Vec<f64> = line
+            .split(',')
+            .map(|x| x.trim().parse())
+            .collect::<Result<_, _>>()
+            .map_err(|e| format!("{}: {e}", at()))?;
+        let [t_boot, lat, lon, speed, utc_ms, alt, bearing] = v[..] else {
+            return Err(format!("{}: expected 7 columns, found {}", at(), v.len()));
+        };
+        offset.get_or_insert(t_boot - utc_ms / 1000.0);
+        let secs = utc_ms / 1000.0;
+        let tod = secs - (secs / 86_400.0).floor() * 86_400.0;
+        let hms = format!("{:02}{:02}{:05.2}", (tod / 3600.0) as u32, ((tod % 3600.0) / 60.0) as u32, tod % 60.0);
+        let (la, ns) = angle(lat, 2, ['N', 'S']);
+        let (lo, ew) = angle(lon, 3, ['E', 'W']);
+        // 2018-08-02 (the drive's date), as ddmmyy.
+        for sentence in [
+            nmea_line(&format!("GPGGA,{hms},{la},{ns},{lo},{ew},1,10,0.9,{alt:.2},M,0.0,M,,")),
+            nmea_line(&format!("GPRMC,{hms},A,{la},{ns},{lo},{ew},{:.3},{bearing:.2},020818,,,A", speed / 0.514_444)),
+        ] {
+            stamped += &format!("({t_boot:.6}) {sentence}");
+            raw += &sentence;
+        }
+        fixes += 1;
+    }
+    let offset_s = offset.ok_or_else(|| format!("{}: no fixes", csv.display()))?;
+    Ok(UbloxNmea { raw, stamped, offset_s, fixes })
+}
+
+/// The minute recorded by the on-device pipeline.
+#[derive(Debug)]
+pub struct RecordedMinute {
+    /// comma's fused camera poses (ENU around [`ORIGIN`]).
+    pub truth: Trajectory,
+    /// The log file.
+    pub path: PathBuf,
+    /// The log as read.
+    pub log: LogContents,
+    /// Device time of every record (see [`device_times`]).
+    pub device: Vec<f64>,
+    /// The pipeline's summary (`record --json`).
+    pub summary: Value,
+    /// u-blox fixes the CSV holds.
+    pub fixes_in_csv: usize,
+}
+
+/// Record the minute from `dir` into `work` (`vo.csv`, `ublox.serial.log`, `comma.d2slog`)
+/// with VO made by `model`, its noise drawn from `noise_seed` (a model without noise draws
+/// nothing: the seed does not matter then).
+pub fn record_minute(dir: &Path, work: &Path, model: &VoModel, noise_seed: u64) -> Result<RecordedMinute, String> {
+    let truth = Trajectory::read(&dir.join("expected/global_pose_camera_enu.tum"), Format::Tum)
+        .map_err(|e| format!("comma2k19 poses: {e}"))?;
+    let vo = model.generate(&truth, &mut rand_chacha::ChaCha8Rng::seed_from_u64(noise_seed));
+    let vo_path = work.join("vo.csv");
+    let mut text = Vec::new();
+    crate::sim::scenario::write::write_vo_csv(&mut text, &vo).map_err(|e| e.to_string())?;
+    write(&vo_path, &text)?;
+    let nmea = ublox_nmea(&dir.join("expected/live_gnss_ublox.csv"))?;
+    let nmea_path = work.join("ublox.serial.log");
+    write(&nmea_path, &nmea.stamped)?;
+    let [lat, lon, h] = ORIGIN;
+    let sources = record::Sources {
+        vo: Some(vo_path),
+        nmea: Some(nmea_path),
+        can: vec![dir.join("raw_can.candump.log")],
+        ..record::Sources::default()
+    };
+    let args = RecordRequest {
+        dbc: vec![dir.join("opendbc-toyota/_toyota_2017.dbc")],
+        speed_signal: Some("SPEED.SPEED".to_owned()),
+        origin: Some(format!("{lat},{lon},{h}")),
+        device: Device { mount: mount(), mode: VoFrame::Full, uere: UERE },
+        ..RecordRequest::from_files(&work.join("comma.d2slog"), sources)
+    };
+    let (recording, _) = record::record_files(&args)?;
+    write(&args.output, &recording.log)?;
+    let log = log::read(&args.output).map_err(|e| e.to_string())?;
+    let device = device_times(&log.records)?;
+    Ok(RecordedMinute {
+        truth,
+        path: args.output,
+        log,
+        device,
+        summary: record::summary(&recording),
+        fixes_in_csv: nmea.fixes,
+    })
+}
+
+/// The fused camera position at `t`, interpolated between the poses around it (None
+/// outside them or across a gap of more than 0.1 s).
+pub fn truth_at(truth: &Trajectory, t: f64) -> Option<Vector3<f64>> {
+    let k = truth.stamps.partition_point(|s| *s < t);
+    let (b, tb) = (truth.poses.get(k)?, *truth.stamps.get(k)?);
+    if (tb - t).abs() < 1e-6 {
+        return Some(b.translation);
+    }
+    let (a, ta) = (truth.poses.get(k.checked_sub(1)?)?, *truth.stamps.get(k - 1)?);
+    if tb - ta > 0.1 {
+        return None;
+    }
+    Some(a.translation + (b.translation - a.translation) * ((t - ta) / (tb - ta)))
+}
+
+/// How a log's ego track compares with the fused poses.
+#[derive(Debug, Clone, Copy)]
+pub struct Compared {
+    /// Ego poses with a fused pose at their time.
+    pub matched: usize,
+    /// Seconds from the first fused pose to the first ego pose.
+    pub first_s: f64,
+    /// Absolute position error (no alignment), RMS and largest, m.
+    pub ape_rmse: f64,
+    /// See `ape_rmse`.
+    pub ape_max: f64,
+    /// The same after the best Sim(3) alignment, m.
+    pub ape_aligned: f64,
+    /// Scale of that Sim(3) minus one.
+    pub scale_error: f64,
+}
+
+/// The ego poses of `records` (at device times `device`) against the fused poses.
+pub fn compare(records: &[Record], device: &[f64], truth: &Trajectory) -> Result<Compared, String> {
+    let t0 = *truth.stamps.first().ok_or("no fused poses")?;
+    let mut pairs = Vec::new();
+    let mut first = None;
+    for (r, &t) in records.iter().zip(device) {
+        if let Record::EgoPose(p) = r {
+            if let Some(x) = truth_at(truth, t) {
+                first.get_or_insert(t - t0);
+                pairs.push((Vector3::new(p.x_mm as f64, p.y_mm as f64, p.z_mm as f64) * 1e-3, x));
+            }
+        }
+    }
+    let mut moments = Moments::default();
+    for (x, y) in &pairs {
+        moments.push(x, y, 1.0).map_err(|e| format!("alignment: {e}"))?;
+    }
+    let sim3 = moments.align(AlignMode::Sim3).map_err(|e| format!("alignment: {e}"))?;
+    let rms = |e: &mut dyn Iterator<Item = f64>| {
+        let (s, n) = e.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
+        (s / n.max(1) as f64).sqrt()
+    };
+    Ok(Compared {
+        matched: pairs.len(),
+        first_s: first.unwrap_or(f64::NAN),
+        ape_rmse: rms(&mut pairs.iter().map(|(x, y)| (x - y).norm())),
+        ape_max: pairs.iter().map(|(x, y)| (x - y).norm()).fold(0.0, f64::max),
+        ape_aligned: rms(&mut pairs.iter().map(|(x, y)| (sim3.transform_point(x) - y).norm())),
+        scale_error: sim3.scale - 1.0,
+    })
+}
+
+fn compared_json(c: &Compared) -> Value {
+    json!({"ego_poses_compared": c.matched, "observable_after_s": c.first_s, "ape_rmse_m": c.ape_rmse,
+           "ape_max_m": c.ape_max, "ape_after_sim3_m": c.ape_aligned, "scale_error": c.scale_error})
+}
+
+/// The minute through the product into `out`: recorded, finished (GNSS and wheel speed,
+/// no anchors), exported, and compared with the fused poses. The summary.
+pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let model = VoModel::arbitrary();
+    let minute = record_minute(dir, out, &model, 1)?;
+    let (log, truth) = (&minute.log, &minute.truth);
+    let online = compare(&log.records, &minute.device, truth)?;
+    let t0 = truth.stamps.first().copied().unwrap_or_default();
+    let online_scale = log.records.iter().zip(&minute.device).rev().find_map(|(r, t)| match r {
+        Record::AnchorEstimate(a) if a.observability == 2 => {
+            Some(a.scale_e6 as f64 * 1e-6 / model.scale_at(t - t0) - 1.0)
+        }
+        _ => None,
+    });
+
+    let mount = record::parse_mount(&mount())?;
+    let name = minute.path.display().to_string();
+    let finished = crate::finish::finish(log, &name, None, None, mount, Default::default(), UERE)?;
+    let finished_device = device_times(&finished.records)?;
+    let finished_compared = compare(&finished.records, &finished_device, truth)?;
+    let header = log.header.ok_or("the recorded log has no header")?;
+    let finished_bytes = log::import::encode_in_order(&header, &finished.records)?;
+    let finished_path = out.join("finished.d2slog");
+    write(&finished_path, &finished_bytes)?;
+    let finished_log = log::decode(&finished_bytes, "finished").map_err(|e| e.to_string())?;
+
+    write(&out.join("ego.tum"), log::export::tum(log))?;
+    write(&out.join("finished.tum"), log::export::tum(&finished_log))?;
+    write(&out.join("drive.geojson"), log::export::geojson(&finished_log)?.to_string())?;
+    log::mcap_export::write(&finished_log, None, &out.join("finished.mcap"), None)?;
+
+    let evo_path = dir.join("expected/evo_ape_gnss_vs_pose.json");
+    let evo: Value =
+        serde_json::from_str(&std::fs::read_to_string(&evo_path).map_err(|e| format!("{}: {e}", evo_path.display()))?)
+            .map_err(|e| format!("{}: {e}", evo_path.display()))?;
+    let gnss_alone = &evo["cases"]["maxdiff0.01_none"]["ape_translation_stats"];
+    let span = truth.stamps.last().copied().unwrap_or_default() - t0;
+    let a = &finished.report["anchoring"];
+    let file = |name: &str| out.join(name).display().to_string();
+    Ok(json!({
+        "name": "comma2k19",
+        "what": "one minute of a Toyota RAV4 in San Francisco: real u-blox NMEA and Toyota CAN (0xB4 SPEED through opendbc)",
+        "vo": "none recorded: VO made from comma's fused camera poses through an unknown Sim(3) (scale 3.7, arbitrary rotation) with 1 %/min scale and 1°/min yaw drift",
+        "duration_s": span,
+        "recording": {
+            "pipeline": minute.summary,
+            "fixes_in_csv": minute.fixes_in_csv,
+            "log_bytes": log.bytes,
+            "bytes_per_minute": log.bytes as f64 / (span / 60.0),
+        },
+        "gnss_alone": {"ape_rmse_m": gnss_alone["rmse"], "ape_max_m": gnss_alone["max"],
+                       "source": "evo 1.38.1, u-blox fixes vs fused poses, no alignment (expected/evo_ape_gnss_vs_pose.json)"},
+        "online": {"compared": compared_json(&online), "anchor_scale_error_at_end": online_scale},
+        "finished": {
+            "compared": compared_json(&finished_compared),
+            "scale_sigma_relative": a["scale_sigma_relative"],
+            "gnss_latency_s": a["gnss_latency_s"],
+            "wheel_factor": a["wheel_factor"],
+        },
+        "files": [
+            {"what": "VO made from the fused poses (frame, pose, VO session)", "path": file("vo.csv")},
+            {"what": "the u-blox fixes as a serial capture", "path": file("ublox.serial.log")},
+            {"what": "the device's 4D log", "path": file("comma.d2slog")},
+            {"what": "the finished 4D log", "path": file("finished.d2slog")},
+            {"what": "TUM for evo (the device's log)", "path": file("ego.tum")},
+            {"what": "TUM for evo (finished)", "path": file("finished.tum")},
+            {"what": "GeoJSON for QGIS (finished)", "path": file("drive.geojson")},
+            {"what": "MCAP for Foxglove (finished)", "path": file("finished.mcap")},
+        ],
+    }))
+}

@@ -1,0 +1,151 @@
+//! `dash2sim export LOG [--mcap F] [--tum F] [--geojson F] [--parquet DIR] [--nuplan DIR]
+//! [--map MAP|OSM]`: one log into every format asked for — Foxglove (MCAP), evo (TUM), QGIS
+//! (GeoJSON), DuckDB/pandas/Spark (Parquet), nuPlan. The exporters are in `logfile` and
+//! `nuplan`; this module only reads the request and calls them.
+
+pub mod nuplan;
+
+use std::path::{Path, PathBuf};
+
+use crate::export::nuplan::map_name;
+use crate::log::export::{ego_poses, geojson, tum};
+use crate::log::{frame, mcap_export, parquet_export, read, LogContents};
+
+/// What to export (`dash2sim export`).
+#[derive(Clone, Debug)]
+pub struct ExportRequest {
+    /// The log.
+    pub log: PathBuf,
+    /// MCAP output (zstd chunks, Foxglove JSON schemas).
+    pub mcap: Option<PathBuf>,
+    /// TUM output: the ego poses.
+    pub tum: Option<PathBuf>,
+    /// GeoJSON output: ego and GNSS tracks, objects as points.
+    pub geojson: Option<PathBuf>,
+    /// Parquet output folder: one file per record kind (docs/parquet.md).
+    pub parquet: Option<PathBuf>,
+    /// The log's id in the Parquet files (default: the log file's name without extension).
+    pub log_id: Option<String>,
+    /// nuPlan output folder: `db/<log>.db` and `maps/` (needs --map).
+    pub nuplan: Option<PathBuf>,
+    /// A map tile (`map build`) or an OpenStreetMap file (built into a tile around the
+    /// log's origin): its lanes go into the MCAP as lines and are the nuPlan map.
+    pub map: Option<PathBuf>,
+    /// Length of a nuPlan scene, s (nuPlan drops the first two and the last of a log;
+    /// [`DEFAULT_SCENARIO_SECONDS`] is the command line's default).
+    pub scenario_seconds: f64,
+    /// The map's name in nuPlan (default: `dash2sim-` and the map file's name).
+    pub map_name: Option<String>,
+}
+
+/// The length of a nuPlan scene when none is named, s.
+pub const DEFAULT_SCENARIO_SECONDS: f64 = 5.0;
+
+/// A map tile from `path`: a tile as it is, an OpenStreetMap file (XML or PBF) built into
+/// one around the log's origin.
+fn map_tile(path: &Path, log: &LogContents) -> Result<Vec<u8>, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    if bytes.starts_with(b"D2SMAP") {
+        return Ok(bytes);
+    }
+    let origin = log.header.as_ref().and_then(frame).map(|f| f.origin());
+    let osm = crate::ingest::osm::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(crate::ingest::map_tile::encode(
+        &crate::ingest::map_tile::from_osm(&osm, origin, &mut Vec::new()),
+        crate::ingest::map_tile::DEFAULT_CELL_M,
+    ))
+}
+
+fn write(path: &Path, text: &str) -> Result<(), String> {
+    std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// What [`export`] wrote: one line per output, and a warning when the log was damaged.
+#[derive(Debug, Default)]
+pub struct Exported {
+    /// What was skipped while reading the log, if anything.
+    pub warning: Option<String>,
+    /// One line per output written: its path and what it holds.
+    pub written: Vec<String>,
+}
+
+/// Export a log as `request` says (the command line and the Python package's `export`).
+pub fn export(request: &ExportRequest) -> Result<Exported, String> {
+    if request.mcap.is_none()
+        && request.tum.is_none()
+        && request.geojson.is_none()
+        && request.parquet.is_none()
+        && request.nuplan.is_none()
+    {
+        return Err("nothing to export: give --mcap, --tum, --geojson, --parquet and/or --nuplan".to_owned());
+    }
+    let log = read(&request.log).map_err(|e| e.to_string())?;
+    let mut exported = Exported::default();
+    if log.stats.damaged > 0 {
+        exported.warning = Some(format!(
+            "{}: {} damaged stretches ({} bytes) skipped; exporting the {} intact records",
+            request.log.display(),
+            log.stats.damaged,
+            log.stats.damaged_bytes,
+            log.records.len()
+        ));
+    }
+    if let Some(path) = &request.tum {
+        let n = ego_poses(&log).count();
+        if n == 0 {
+            return Err(format!("{}: no ego poses to write as TUM", request.log.display()));
+        }
+        write(path, &tum(&log))?;
+        exported.written.push(format!("{}: {n} ego poses", path.display()));
+    }
+    if let Some(path) = &request.geojson {
+        let g = geojson(&log)?;
+        write(path, &g.to_string())?;
+        exported.written.push(format!("{}: {} features", path.display(), g["features"].as_array().map_or(0, Vec::len)));
+    }
+    if let Some(dir) = &request.parquet {
+        let stem = request.log.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let id = request.log_id.clone().unwrap_or(stem);
+        let rows = parquet_export::write(&log, &id, dir)?;
+        let each: Vec<String> = rows.iter().map(|(name, n)| format!("{n} {name}")).collect();
+        exported.written.push(format!("{}: {} (log id {id:?})", dir.display(), each.join(", ")));
+    }
+    let map = request.map.as_deref().map(|p| map_tile(p, &log)).transpose()?;
+    if let Some(dir) = &request.nuplan {
+        let (Some(tile), Some(map_path)) = (&map, &request.map) else {
+            return Err("--nuplan needs --map (a tile or an OpenStreetMap file)".to_owned());
+        };
+        let stem = map_path.file_stem().and_then(|s| s.to_str()).unwrap_or("map");
+        let name = request.map_name.clone().unwrap_or_else(|| map_name(stem));
+        let log_name = request.log.display().to_string();
+        let started = std::time::Instant::now();
+        let out = nuplan::export(&nuplan::NuplanRequest {
+            log: &log,
+            log_name: &log_name,
+            tile,
+            map_name: &name,
+            out: dir,
+            scene_s: request.scenario_seconds,
+        })?;
+        let layers: Vec<String> = out.layers.iter().filter(|l| l.1 > 0).map(|(n, c)| format!("{c} {n}")).collect();
+        exported.written.push(format!(
+            "{}: {} ego states at 20 Hz, {} scenes (EPSG:{}); map {} `{name}`: {} ({:.2} s)",
+            out.db.display(),
+            out.ego_states,
+            out.scenes,
+            out.epsg,
+            out.gpkg.display(),
+            layers.join(", "),
+            started.elapsed().as_secs_f64()
+        ));
+    }
+    if let Some(path) = &request.mcap {
+        let view =
+            map.as_deref().map(dash2sim_core::map::MapView::parse).transpose().map_err(|e| format!("--map: {e}"))?;
+        let counts = mcap_export::write(&log, view.as_ref(), path, None)?;
+        let total: u64 = counts.values().sum();
+        let detail: Vec<String> = counts.iter().map(|(topic, n)| format!("{n} {topic}")).collect();
+        exported.written.push(format!("{}: {total} messages ({})", path.display(), detail.join(", ")));
+    }
+    Ok(exported)
+}

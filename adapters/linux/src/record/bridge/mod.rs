@@ -1,0 +1,392 @@
+//! The shared-memory bridge between the camera process and the logger (iceoryx2).
+//!
+//! On a dashcam the camera process (video, VO, detectors) and the logger are separate
+//! processes. The camera process publishes, per frame, its metadata (and optionally the
+//! image, zero-copy), the VO pose and the 3D and 2D detections on four iceoryx2
+//! publish-subscribe services under one prefix (default [`DEFAULT_PREFIX`]); the logger
+//! subscribes and feeds the on-device pipeline. The message types ([`messages`]) are
+//! `#[repr(C)]` and defined once here for both sides; iceoryx2 refuses to connect two sides
+//! whose payload types differ in name, size or alignment, and every message carries
+//! [`messages::LAYOUT_VERSION`], which the subscriber checks, so that a publisher built from
+//! another layout is refused with a message rather than misread.
+//!
+//! ```no_run
+//! use dash2sim_core::time::Timestamp;
+//! use dash2sim_linux::record::bridge::CameraPublisher;
+//! # fn main() -> Result<(), dash2sim_linux::record::bridge::BridgeError> {
+//! let camera = CameraPublisher::new(dash2sim_linux::record::bridge::DEFAULT_PREFIX, false)?;
+//! # let (t, pose, boxes3d, boxes2d) = (Timestamp::ZERO, dash2sim_core::sim3::Pose::identity(), [], []);
+//! // per frame, in this order:
+//! camera.frame(42, t, 8_000, None)?;
+//! camera.vo(42, t, &pose, 0)?;
+//! camera.detections3d(42, t, &boxes3d)?;
+//! camera.detections2d(42, t, &boxes2d)?;
+//! # Ok(()) }
+//! ```
+
+pub mod messages;
+
+use dash2sim_core::box2d::Box2d;
+use dash2sim_core::box3d::Box3d;
+use dash2sim_core::nalgebra::{Matrix3, Vector3};
+use dash2sim_core::pipeline::ImageDetection;
+use dash2sim_core::sim3::Pose;
+use dash2sim_core::time::Timestamp;
+use dash2sim_core::track2d::Detection;
+use dash2sim_core::track3d::Detection3d;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+
+use messages::{
+    Detection2dItem, Detection3dItem, Detections2dMsg, Detections3dMsg, FrameMetaMsg, VoPoseMsg, LAYOUT_VERSION,
+    MAX_DETECTIONS,
+};
+
+/// The services' prefix unless told otherwise.
+pub const DEFAULT_PREFIX: &str = "dash2sim/camera";
+/// The largest image the image service carries: 1920 × 1080 × 3 bytes.
+pub const MAX_IMAGE_BYTES: usize = 1920 * 1080 * 3;
+/// Samples a subscriber keeps per service before the oldest is overwritten (3.2 s at 20 Hz).
+pub const SUBSCRIBER_BUFFER: usize = 64;
+
+/// What went wrong on the bridge.
+#[derive(Debug)]
+pub enum BridgeError {
+    /// iceoryx2 refused (creating, opening, loaning, sending or receiving); the text says what.
+    Iceoryx(String),
+    /// A message of another layout version arrived.
+    Layout {
+        /// The service.
+        service: &'static str,
+        /// The version in the message.
+        found: u32,
+    },
+}
+
+impl std::fmt::Display for BridgeError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            BridgeError::Iceoryx(e) => write!(f, "shared memory: {e}"),
+            BridgeError::Layout { service, found } => write!(
+                f,
+                "{service}: the publisher sends message layout {found}, this logger reads layout {LAYOUT_VERSION} — rebuild the camera process against this dash2sim"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for BridgeError {}
+
+fn iox(what: &str) -> impl Fn(&dyn std::fmt::Debug) -> BridgeError + '_ {
+    move |e| BridgeError::Iceoryx(format!("{what}: {e:?}"))
+}
+
+fn service_name(prefix: &str, leaf: &str) -> Result<ServiceName, BridgeError> {
+    let name = format!("{prefix}/{leaf}");
+    ServiceName::new(&name).map_err(|e| BridgeError::Iceoryx(format!("service name {name:?}: {e:?}")))
+}
+
+/// Opens (or creates) the service `prefix/leaf` for messages of type `T`.
+macro_rules! service {
+    ($node:expr, $prefix:expr, $leaf:literal, $t:ty) => {
+        $node
+            .service_builder(&service_name($prefix, $leaf)?)
+            .publish_subscribe::<$t>()
+            .subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
+            .enable_safe_overflow(true)
+            .open_or_create()
+            .map_err(|e| {
+                BridgeError::Iceoryx(format!(
+                    "{}/{}: {e:?} (a publisher or logger of another dash2sim message layout?)",
+                    $prefix, $leaf
+                ))
+            })?
+    };
+}
+
+fn micros(t: Timestamp) -> i64 {
+    t.micros()
+}
+
+/// The device clock the camera process and the logger share: `CLOCK_MONOTONIC`, the same
+/// value in every process of the machine (unlike `std::time::Instant`, whose origin is not
+/// exposed).
+pub fn device_now() -> Timestamp {
+    let t = rustix::time::clock_gettime(rustix::time::ClockId::Monotonic);
+    Timestamp::from_micros(t.tv_sec.saturating_mul(1_000_000).saturating_add(t.tv_nsec / 1_000))
+}
+
+/// The camera process's side: a publisher per service.
+#[derive(Debug)]
+pub struct CameraPublisher {
+    _node: Node<ipc::Service>,
+    frame: Publisher<ipc::Service, FrameMetaMsg, ()>,
+    vo: Publisher<ipc::Service, VoPoseMsg, ()>,
+    detections3d: Publisher<ipc::Service, Detections3dMsg, ()>,
+    detections2d: Publisher<ipc::Service, Detections2dMsg, ()>,
+    image: Option<Publisher<ipc::Service, [u8], ()>>,
+}
+
+impl CameraPublisher {
+    /// Publishers on the services under `prefix`; `images` adds the image service.
+    pub fn new(prefix: &str, images: bool) -> Result<Self, BridgeError> {
+        set_log_level_from_env_or(LogLevel::Error);
+        let node = NodeBuilder::new().create::<ipc::Service>().map_err(|e| iox("node")(&e))?;
+        let frame = service!(node, prefix, "frame", FrameMetaMsg).publisher_builder().create();
+        let vo = service!(node, prefix, "vo", VoPoseMsg).publisher_builder().create();
+        let detections3d = service!(node, prefix, "detections3d", Detections3dMsg).publisher_builder().create();
+        let detections2d = service!(node, prefix, "detections2d", Detections2dMsg).publisher_builder().create();
+        let image = if images {
+            let service = node
+                .service_builder(&service_name(prefix, "image")?)
+                .publish_subscribe::<[u8]>()
+                .subscriber_max_buffer_size(2)
+                .enable_safe_overflow(true)
+                .open_or_create()
+                .map_err(|e| iox("image service")(&e))?;
+            Some(
+                service
+                    .publisher_builder()
+                    .initial_max_slice_len(MAX_IMAGE_BYTES)
+                    .create()
+                    .map_err(|e| iox("image publisher")(&e))?,
+            )
+        } else {
+            None
+        };
+        Ok(CameraPublisher {
+            _node: node,
+            frame: frame.map_err(|e| iox("frame publisher")(&e))?,
+            vo: vo.map_err(|e| iox("vo publisher")(&e))?,
+            detections3d: detections3d.map_err(|e| iox("detections3d publisher")(&e))?,
+            detections2d: detections2d.map_err(|e| iox("detections2d publisher")(&e))?,
+            image,
+        })
+    }
+
+    /// A frame's metadata and, when the image service is on, its image (written straight
+    /// into shared memory: the subscriber reads it where it lies).
+    pub fn frame(
+        &self,
+        sequence: u64,
+        t: Timestamp,
+        exposure_us: u32,
+        image: Option<&[u8]>,
+    ) -> Result<(), BridgeError> {
+        let mut image_bytes = 0u32;
+        if let (Some(publisher), Some(bytes)) = (&self.image, image) {
+            let n = bytes.len().min(MAX_IMAGE_BYTES);
+            let sample = publisher.loan_slice_uninit(n).map_err(|e| iox("image loan")(&e))?;
+            let sample = sample.write_from_slice(&bytes[..n]);
+            sample.send().map_err(|e| iox("image send")(&e))?;
+            image_bytes = n as u32;
+        }
+        let message = FrameMetaMsg {
+            version: LAYOUT_VERSION,
+            exposure_us,
+            sequence,
+            device_time_us: micros(t),
+            image_bytes,
+            reserved: 0,
+        };
+        let sample = self.frame.loan_uninit().map_err(|e| iox("frame loan")(&e))?;
+        sample.write_payload(message).send().map_err(|e| iox("frame send")(&e))?;
+        Ok(())
+    }
+
+    /// The VO pose of frame `sequence` (camera → VO frame) in VO session `session` (0 until
+    /// the VO first re-initialises).
+    pub fn vo(&self, sequence: u64, t: Timestamp, pose: &Pose, session: u32) -> Result<(), BridgeError> {
+        let mut rotation = [0.0; 9];
+        for (k, r) in rotation.iter_mut().enumerate() {
+            *r = pose.rotation[(k / 3, k % 3)];
+        }
+        let message = VoPoseMsg {
+            version: LAYOUT_VERSION,
+            session,
+            sequence,
+            device_time_us: micros(t),
+            position: [pose.translation.x, pose.translation.y, pose.translation.z],
+            rotation,
+        };
+        let sample = self.vo.loan_uninit().map_err(|e| iox("vo loan")(&e))?;
+        sample.write_payload(message).send().map_err(|e| iox("vo send")(&e))?;
+        Ok(())
+    }
+
+    /// The 3D detections of frame `sequence` in the camera frame (at most
+    /// [`MAX_DETECTIONS`]; more is an error, so that none is lost silently).
+    pub fn detections3d(&self, sequence: u64, t: Timestamp, detections: &[Detection3d]) -> Result<(), BridgeError> {
+        if detections.len() > MAX_DETECTIONS {
+            return Err(BridgeError::Iceoryx(format!("{} 3D detections: at most {MAX_DETECTIONS}", detections.len())));
+        }
+        let mut message = Detections3dMsg {
+            version: LAYOUT_VERSION,
+            count: detections.len() as u32,
+            sequence,
+            device_time_us: micros(t),
+            items: [Detection3dItem::default(); MAX_DETECTIONS],
+        };
+        for (item, d) in message.items.iter_mut().zip(detections) {
+            let b = &d.bbox;
+            *item = Detection3dItem {
+                class: d.class,
+                reserved: 0,
+                score: d.score as f32,
+                bbox: [b.x, b.y, b.z, b.yaw, b.l, b.w, b.h].map(|v| v as f32),
+                covariance: d.position_covariance.unwrap_or([0.0; 3]).map(|v| v as f32),
+            };
+        }
+        let sample = self.detections3d.loan_uninit().map_err(|e| iox("detections3d loan")(&e))?;
+        sample.write_payload(message).send().map_err(|e| iox("detections3d send")(&e))?;
+        Ok(())
+    }
+
+    /// The 2D detections of frame `sequence` (at most [`MAX_DETECTIONS`]).
+    pub fn detections2d(&self, sequence: u64, t: Timestamp, detections: &[ImageDetection]) -> Result<(), BridgeError> {
+        if detections.len() > MAX_DETECTIONS {
+            return Err(BridgeError::Iceoryx(format!("{} 2D detections: at most {MAX_DETECTIONS}", detections.len())));
+        }
+        let mut message = Detections2dMsg {
+            version: LAYOUT_VERSION,
+            count: detections.len() as u32,
+            sequence,
+            device_time_us: micros(t),
+            items: [Detection2dItem::default(); MAX_DETECTIONS],
+        };
+        for (item, d) in message.items.iter_mut().zip(detections) {
+            let b = &d.detection.bbox;
+            *item = Detection2dItem {
+                class: d.class,
+                reserved: 0,
+                score: d.detection.score as f32,
+                bbox: [b.x, b.y, b.w, b.h].map(|v| v as f32),
+            };
+        }
+        let sample = self.detections2d.loan_uninit().map_err(|e| iox("detections2d loan")(&e))?;
+        sample.write_payload(message).send().map_err(|e| iox("detections2d send")(&e))?;
+        Ok(())
+    }
+}
+
+/// What the logger receives, converted for the pipeline.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CameraInput {
+    /// A frame's metadata.
+    Frame {
+        /// Frame sequence number.
+        sequence: u64,
+        /// Capture time (device clock).
+        t: Timestamp,
+        /// Exposure, µs.
+        exposure_us: u32,
+        /// Bytes of the image sent with it (0: none).
+        image_bytes: u32,
+    },
+    /// The VO pose of a frame: capture time, frame, VO session, pose.
+    Vo(Timestamp, u64, u32, Pose),
+    /// The 3D detections of a frame.
+    Detections3d(Timestamp, u64, Vec<Detection3d>),
+    /// The 2D detections of a frame.
+    Detections2d(Timestamp, u64, Vec<ImageDetection>),
+}
+
+/// The logger's side: a subscriber per service.
+#[derive(Debug)]
+pub struct CameraSubscriber {
+    _node: Node<ipc::Service>,
+    frame: Subscriber<ipc::Service, FrameMetaMsg, ()>,
+    vo: Subscriber<ipc::Service, VoPoseMsg, ()>,
+    detections3d: Subscriber<ipc::Service, Detections3dMsg, ()>,
+    detections2d: Subscriber<ipc::Service, Detections2dMsg, ()>,
+}
+
+fn check(service: &'static str, version: u32) -> Result<(), BridgeError> {
+    if version == LAYOUT_VERSION {
+        Ok(())
+    } else {
+        Err(BridgeError::Layout { service, found: version })
+    }
+}
+
+impl CameraSubscriber {
+    /// Subscribers on the services under `prefix` (created if no publisher exists yet).
+    pub fn new(prefix: &str) -> Result<Self, BridgeError> {
+        set_log_level_from_env_or(LogLevel::Error);
+        let node = NodeBuilder::new().create::<ipc::Service>().map_err(|e| iox("node")(&e))?;
+        let frame = service!(node, prefix, "frame", FrameMetaMsg).subscriber_builder().create();
+        let vo = service!(node, prefix, "vo", VoPoseMsg).subscriber_builder().create();
+        let detections3d = service!(node, prefix, "detections3d", Detections3dMsg).subscriber_builder().create();
+        let detections2d = service!(node, prefix, "detections2d", Detections2dMsg).subscriber_builder().create();
+        Ok(CameraSubscriber {
+            _node: node,
+            frame: frame.map_err(|e| iox("frame subscriber")(&e))?,
+            vo: vo.map_err(|e| iox("vo subscriber")(&e))?,
+            detections3d: detections3d.map_err(|e| iox("detections3d subscriber")(&e))?,
+            detections2d: detections2d.map_err(|e| iox("detections2d subscriber")(&e))?,
+        })
+    }
+
+    /// Everything waiting, service by service (frames, VO poses, 3D, 2D detections: within
+    /// one frame the pose comes before its detections); returns how many.
+    pub fn receive(&self, mut on: impl FnMut(CameraInput)) -> Result<usize, BridgeError> {
+        let mut n = 0;
+        while let Some(s) = self.frame.receive().map_err(|e| iox("frame receive")(&e))? {
+            check("frame", s.version)?;
+            on(CameraInput::Frame {
+                sequence: s.sequence,
+                t: Timestamp::from_micros(s.device_time_us),
+                exposure_us: s.exposure_us,
+                image_bytes: s.image_bytes,
+            });
+            n += 1;
+        }
+        while let Some(s) = self.vo.receive().map_err(|e| iox("vo receive")(&e))? {
+            check("vo", s.version)?;
+            let r = &s.rotation;
+            let pose = Pose {
+                rotation: Matrix3::new(r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]),
+                translation: Vector3::from(s.position),
+            };
+            on(CameraInput::Vo(Timestamp::from_micros(s.device_time_us), s.sequence, s.session, pose));
+            n += 1;
+        }
+        while let Some(s) = self.detections3d.receive().map_err(|e| iox("detections3d receive")(&e))? {
+            check("detections3d", s.version)?;
+            let count = (s.count as usize).min(MAX_DETECTIONS);
+            let detections = s.items[..count]
+                .iter()
+                .map(|d| {
+                    let [x, y, z, yaw, l, w, h] = d.bbox.map(f64::from);
+                    let cov = d.covariance.map(f64::from);
+                    Detection3d {
+                        class: d.class,
+                        bbox: Box3d { x, y, z, yaw, l, w, h },
+                        score: f64::from(d.score),
+                        position_covariance: (cov != [0.0; 3]).then_some(cov),
+                    }
+                })
+                .collect();
+            on(CameraInput::Detections3d(Timestamp::from_micros(s.device_time_us), s.sequence, detections));
+            n += 1;
+        }
+        while let Some(s) = self.detections2d.receive().map_err(|e| iox("detections2d receive")(&e))? {
+            check("detections2d", s.version)?;
+            let count = (s.count as usize).min(MAX_DETECTIONS);
+            let detections = s.items[..count]
+                .iter()
+                .map(|d| {
+                    let [x, y, w, h] = d.bbox.map(f64::from);
+                    ImageDetection {
+                        class: d.class,
+                        detection: Detection { bbox: Box2d { x, y, w, h }, score: f64::from(d.score) },
+                    }
+                })
+                .collect();
+            on(CameraInput::Detections2d(Timestamp::from_micros(s.device_time_us), s.sequence, detections));
+            n += 1;
+        }
+        Ok(n)
+    }
+}

@@ -1,0 +1,321 @@
+//! One recorded drive judged against the truth its generator knows: finished (with or
+//! without street-imagery anchors), verified three ways (the true drive, the online log,
+//! the finished log; both channel modes), the device's verification windows set against
+//! the truth's over the same stretches, the anchoring's error and scale, the tracks'
+//! MOTA/IDF1. `dash2sim demo` and `dash2sim scenario sweep` both judge their drives here, so
+//! a sweep's row and a demo's summary of the same drive agree.
+
+use std::path::Path;
+
+use dash2sim_core::binlog::Record;
+use dash2sim_core::map::MapView;
+use dash2sim_core::obb::{Pose2, PACIFICA};
+use serde_json::{json, Value};
+
+use crate::log::{self, LogContents};
+use crate::record::Setup;
+use crate::sim::scenario::judge::{judge_log, LogJudgement};
+use crate::sim::scenario::street::street_anchors;
+use crate::sim::scenario::Scenario;
+use crate::verify::AgentsByTime;
+
+/// Which street-imagery anchors finishing is given.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum Anchors {
+    /// Every 50 m of the drive, simulated from the true path under the profile's anchor
+    /// model (σ 0.3 m per axis; wrong matches in the typical and hard profiles).
+    #[default]
+    Street,
+    /// None: finishing has GNSS and wheel speed only.
+    None,
+}
+
+impl Anchors {
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Anchors::Street => "street",
+            Anchors::None => "none",
+        }
+    }
+}
+
+/// Street-imagery anchors are simulated this far apart along the drive, m.
+pub const ANCHOR_SPACING_M: f64 = 50.0;
+
+/// Every metric of `verify` on an ego trajectory, channel-insensitive and channel-sensitive
+/// (`verify --json`'s objects).
+#[derive(Clone, Debug)]
+pub struct BothModes {
+    /// Every lane drivable, as the device verifies.
+    pub insensitive: Value,
+    /// Only the lanes along the driven route.
+    pub sensitive: Value,
+}
+
+impl BothModes {
+    fn of(map: MapView<'_>, ego: &[(f64, Pose2)], agents: &AgentsByTime) -> Result<Self, String> {
+        let mode = |sensitive| -> Result<Value, String> {
+            let v = crate::verify::replay(map, ego, agents, sensitive, PACIFICA)?;
+            Ok(crate::verify::report_json(&v, sensitive))
+        };
+        Ok(BothModes { insensitive: mode(false)?, sensitive: mode(true)? })
+    }
+}
+
+/// A log judged: against the truth, and verified both ways.
+#[derive(Clone, Debug)]
+pub struct Judged {
+    /// Ego error and tracks against the truth.
+    pub judgement: LogJudgement,
+    /// Its verification; none when the log has no ego pose (the device never anchored):
+    /// nothing to verify, so nothing verified.
+    pub verification: Option<BothModes>,
+    /// Its ego verified against the true objects instead of its tracks: where this agrees
+    /// with the truth and `verification` does not, the tracks made the difference.
+    pub ego_with_true_agents: Option<BothModes>,
+}
+
+/// One of the device's verification windows and the truth's over the same stretch.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct WindowPair {
+    /// Drive time of its first and last pose, s from the first frame.
+    pub start_s: f64,
+    /// See `start_s`.
+    pub end_s: f64,
+    /// The device's score and verdict (channel-insensitive).
+    pub device_score: f64,
+    /// See `device_score`.
+    pub device_verified: bool,
+    /// The true drive's score and verdict over the frames of the same stretch.
+    pub truth_score: f64,
+    /// See `truth_score`.
+    pub truth_verified: bool,
+    /// Whether the truth's window has an at-fault collision.
+    pub truth_collision: bool,
+}
+
+/// What a recorded drive came to.
+#[derive(Debug)]
+pub struct Assessment {
+    /// The true drive verified against the true objects.
+    pub truth: BothModes,
+    /// The device's log.
+    pub online: Judged,
+    /// The finished log.
+    pub finished: Judged,
+    /// The anchors CSV finishing was given, if any.
+    pub anchors_text: Option<String>,
+    /// `finish`'s report.
+    pub finish_report: Value,
+    /// The finished log.
+    pub finished_log: LogContents,
+    /// Its bytes.
+    pub finished_bytes: Vec<u8>,
+    /// The device's anchor scale at its last observable estimate, and its error against the
+    /// VO's true scale then.
+    pub online_scale: Option<(f64, f64)>,
+    /// The GNSS latency of the device's last observable anchor estimate, s (0 when it had
+    /// none to give).
+    pub online_latency_s: Option<f64>,
+    /// The finished scale, the VO's true scale averaged over its poses, and the error.
+    pub finished_scale: (f64, f64, f64),
+    /// The device's windows against the truth's.
+    pub windows: Vec<WindowPair>,
+}
+
+/// The drive time (s from its first frame) of log time `t_us`, through the frame numbers.
+pub fn drive_time(log: &LogContents, t_us: i64) -> Option<f64> {
+    let first = log.records.iter().find_map(|r| match r {
+        Record::FrameMeta(f) if f.frame == 1 => Some(f.t_us),
+        _ => None,
+    })?;
+    Some((t_us - first) as f64 * 1e-6)
+}
+
+/// The VO's true scale at drive time `t` (the pose of the nearest earlier tracked frame).
+fn true_scale_at(scenario: &Scenario, t: f64) -> Option<f64> {
+    let frame = (t * scenario.config.frame_rate_hz).round() as usize;
+    let k = scenario.vo.samples.partition_point(|s| s.frame <= frame);
+    scenario.vo.samples.get(k.checked_sub(1)?).map(|s| s.scale)
+}
+
+/// The online anchor's scale at the end of the drive against the VO's true scale then.
+fn online_scale(scenario: &Scenario, log: &LogContents) -> Option<(f64, f64)> {
+    let (t_us, scale) = log.records.iter().rev().find_map(|r| match r {
+        Record::AnchorEstimate(a) if a.observability == 2 => Some((a.t_us, a.scale_e6 as f64 * 1e-6)),
+        _ => None,
+    })?;
+    let truth = true_scale_at(scenario, drive_time(log, t_us)?)?;
+    Some((scale, scale / truth - 1.0))
+}
+
+/// The GNSS latency of the device's last observable anchor estimate, s.
+fn online_latency(log: &LogContents) -> Option<f64> {
+    log.records.iter().rev().find_map(|r| match r {
+        Record::AnchorEstimate(a) if a.observability == 2 => Some(a.latency_us as f64 * 1e-6),
+        _ => None,
+    })
+}
+
+/// The true ego of every frame, as `verify` replays it.
+pub fn truth_ego(scenario: &Scenario) -> Vec<(f64, Pose2)> {
+    scenario.frames.iter().map(|f| (f.ego.t, Pose2::new(f.ego.x, f.ego.y, f.ego.heading))).collect()
+}
+
+/// The device's verification windows beside the truth's over the same stretches: window k
+/// holds the anchored poses after window k − 1's last, up to its own record's time.
+fn window_pairs(
+    scenario: &Scenario,
+    log: &LogContents,
+    map: MapView<'_>,
+    agents: &AgentsByTime,
+) -> Result<Vec<WindowPair>, String> {
+    let truth = truth_ego(scenario);
+    let mut previous_end: Option<f64> = None;
+    let first_pose = log.records.iter().find_map(|r| match r {
+        Record::EgoPose(p) => drive_time(log, p.t_us),
+        _ => None,
+    });
+    let mut pairs = Vec::new();
+    for record in &log.records {
+        let Record::Verification(v) = record else { continue };
+        let Some(end) = drive_time(log, v.t_us) else { continue };
+        let start = match previous_end {
+            Some(e) => truth.iter().map(|(t, _)| *t).find(|t| *t > e + 1e-6).unwrap_or(end),
+            None => first_pose.unwrap_or(end),
+        };
+        previous_end = Some(end);
+        let stretch: Vec<(f64, Pose2)> =
+            truth.iter().copied().filter(|(t, _)| *t >= start - 1e-6 && *t <= end + 1e-6).collect();
+        if stretch.is_empty() {
+            continue;
+        }
+        let s = crate::verify::replay(map, &stretch, agents, false, PACIFICA)?.scores;
+        pairs.push(WindowPair {
+            start_s: start,
+            end_s: end,
+            device_score: v.score_e2 as f64 / 100.0,
+            device_verified: v.score_e2 > 9000,
+            truth_score: s.score,
+            truth_verified: s.verified,
+            truth_collision: s.no_at_fault_collisions < 1.0,
+        });
+    }
+    Ok(pairs)
+}
+
+fn judge(
+    scenario: &Scenario,
+    log: &LogContents,
+    name: &str,
+    map: MapView<'_>,
+    true_agents: &AgentsByTime,
+) -> Result<Judged, String> {
+    let judgement = judge_log(scenario, log);
+    if !log.records.iter().any(|r| matches!(r, Record::EgoPose(_))) {
+        return Ok(Judged { judgement, verification: None, ego_with_true_agents: None });
+    }
+    let (ego, agents) = crate::verify::from_contents(log, name, &map)?;
+    // The true objects are on the drive's clock (0 at the first frame), the log's ego on
+    // the log's: move the objects onto the log's clock.
+    let first_frame_ms = drive_time(log, 0).map_or(0, |t| (-t * 1000.0).round() as i64);
+    let true_agents: AgentsByTime = true_agents.iter().map(|(ms, a)| (ms + first_frame_ms, a.clone())).collect();
+    Ok(Judged {
+        judgement,
+        verification: Some(BothModes::of(map, &ego, &agents)?),
+        ego_with_true_agents: Some(BothModes::of(map, &ego, &true_agents)?),
+    })
+}
+
+/// A generated drive and the device's log of it.
+#[derive(Clone, Copy, Debug)]
+pub struct Recorded<'a> {
+    /// The drive, with its truth.
+    pub scenario: &'a Scenario,
+    /// Where its files were written (`objects.csv` is the truth verify reads).
+    pub drive_dir: &'a Path,
+    /// The device's log.
+    pub log: &'a LogContents,
+    /// The log's name in messages.
+    pub log_name: &'a str,
+    /// The map tile of its road.
+    pub tile: &'a [u8],
+    /// The device setup it was recorded with (finishing takes its mount and UERE).
+    pub setup: &'a Setup,
+}
+
+/// Judge a recorded drive: finish it with `anchors` (the anchors CSV written to
+/// `anchors_path`), verify the truth, the online and the finished log on the drive's map
+/// tile, and set the device's windows against the truth's.
+pub fn assess(recorded: &Recorded<'_>, anchors: Anchors, anchors_path: &Path) -> Result<Assessment, String> {
+    let Recorded { scenario, drive_dir, log, log_name, tile, setup } = *recorded;
+    let map = MapView::parse(tile).map_err(|e| e.to_string())?;
+    let anchors_text = match anchors {
+        Anchors::Street => {
+            let text = street_anchors(scenario, log, ANCHOR_SPACING_M, scenario.config.seed);
+            std::fs::write(anchors_path, &text).map_err(|e| format!("{}: {e}", anchors_path.display()))?;
+            Some(text)
+        }
+        Anchors::None => None,
+    };
+    let anchor_file = anchors_text
+        .as_deref()
+        .map(crate::finish::anchors::parse)
+        .transpose()
+        .map_err(|(line, why)| format!("{}:{line}: {why}", anchors_path.display()))?;
+    let anchors_name = anchors_path.display().to_string();
+    let finished = crate::finish::finish(
+        log,
+        log_name,
+        anchor_file.as_ref().map(|f| (anchors_name.as_str(), f)),
+        Some(tile),
+        setup.mount,
+        crate::finish::solve::Settings { gravity_aligned: true, ..Default::default() },
+        setup.gnss.uere_m,
+    )?;
+    let header = log.header.ok_or("the recorded log has no header")?;
+    let finished_bytes = log::import::encode_in_order(&header, &finished.records)?;
+    let finished_log = log::decode(&finished_bytes, "finished").map_err(|e| e.to_string())?;
+
+    let truth_agents = crate::verify::read_objects(&drive_dir.join("objects.csv"))?;
+    let truth = BothModes::of(map, &truth_ego(scenario), &truth_agents)?;
+    let online = judge(scenario, log, "the online log", map, &truth_agents)?;
+    let finished_judged = judge(scenario, &finished_log, "the finished log", map, &truth_agents)?;
+    let windows = window_pairs(scenario, log, map, &truth_agents)?;
+
+    let samples = &scenario.vo.samples;
+    let true_mean_scale = samples.iter().map(|s| s.scale).sum::<f64>() / samples.len().max(1) as f64;
+    let scale = finished.report["anchoring"]["scale"].as_f64().unwrap_or(f64::NAN);
+    Ok(Assessment {
+        truth,
+        online_scale: online_scale(scenario, log),
+        online_latency_s: online_latency(log),
+        online,
+        finished: finished_judged,
+        anchors_text,
+        finish_report: finished.report,
+        finished_log,
+        finished_bytes,
+        finished_scale: (scale, true_mean_scale, scale / true_mean_scale - 1.0),
+        windows,
+    })
+}
+
+/// A judgement's figures as the demo's summary and the sweep's rows give them.
+pub fn judged_json(t: &LogJudgement) -> Value {
+    json!({
+        "ape_rmse_m": t.ego_rmse,
+        "ape_max_m": t.ego_max,
+        "observable_after_s": t.first_anchored_s,
+        "anchored_frames": t.ego_errors.len(),
+        "mota": t.tracks.0,
+        "idf1": t.tracks.1,
+        "mota_anchored_frames": t.tracks_anchored.0,
+        "idf1_anchored_frames": t.tracks_anchored.1,
+        "mota_seen_from_ego": t.tracks_relative.0,
+        "idf1_seen_from_ego": t.tracks_relative.1,
+    })
+}

@@ -1,0 +1,313 @@
+//! `dash2sim verify`: replay a recorded ego trajectory against a map tile, with the
+//! recorded objects as non-reactive agents, and score it as nuPlan would
+//! (`dash2sim_core::score`).
+//!
+//! Inputs: a TUM trajectory in the map's ENU frame (x east, y north, the pose at the rear
+//! axle, heading from the quaternion's body x axis) and optionally an objects CSV in the
+//! scenario format (`frame,t_s,id,class,x,y,z,yaw,l,w,h,vx,vy,static,visible`); the
+//! objects of the frame nearest each pose (within [`OBJECT_TIME_TOLERANCE`]) are its agents.
+
+pub mod anchoring;
+pub mod evaluate;
+pub mod mot;
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use dash2sim_core::drivable::{Channel, LaneSet};
+use dash2sim_core::map::MapView;
+use dash2sim_core::obb::{Footprint, OrientedBox, Pose2};
+use dash2sim_core::score::{Agent, AgentKind, ScoreConfig, Scorer, Scores, StepReport};
+
+/// Objects farther in time than this from a pose are not its agents, s.
+pub const OBJECT_TIME_TOLERANCE: f64 = 0.05;
+/// Words of the channel lane set: maps of up to 32 × 8192 = 262 144 lanes.
+const CHANNEL_WORDS: usize = 8192;
+
+/// What `verify` was asked.
+#[derive(Clone, Debug)]
+pub struct VerifyRequest<'a> {
+    /// The map tile.
+    pub map: &'a Path,
+    /// Where the ego comes from.
+    pub ego: EgoSource<'a>,
+    /// Objects CSV.
+    pub objects: Option<&'a Path>,
+    /// Only lanes near the driven route are drivable.
+    pub channel_sensitive: bool,
+    /// The ego's outline.
+    pub footprint: Footprint,
+    /// Per-pose CSV to write.
+    pub poses: Option<&'a Path>,
+    /// Only the poses within this time window, s (a nuPlan scenario's, for the cross-check).
+    pub window: (f64, f64),
+}
+
+/// Agents by time (ms).
+pub type AgentsByTime = BTreeMap<i64, Vec<Agent>>;
+
+/// The recorded drive to replay.
+#[derive(Clone, Copy, Debug)]
+pub enum EgoSource<'a> {
+    /// A TUM trajectory of the rear axle in the map's ENU frame.
+    Tum(&'a Path),
+    /// A 4D log: its ego poses, and its 3D tracks as agents.
+    Log(&'a Path),
+}
+
+/// Ego poses and agents from a 4D log, moved from the log's ENU frame into the map's
+/// (through geodetic coordinates when the origins differ; headings are kept — the frames
+/// of nearby origins differ by well under a milliradian per kilometre).
+/// A damaged log's stretches are skipped, and `warn` told so.
+pub fn from_log(
+    path: &Path,
+    map: &MapView<'_>,
+    warn: &mut dyn FnMut(&str),
+) -> Result<(Vec<(f64, Pose2)>, AgentsByTime), String> {
+    let log = crate::log::read(path).map_err(|e| e.to_string())?;
+    if log.stats.damaged > 0 {
+        warn(&format!("{}: {} damaged stretches skipped", path.display(), log.stats.damaged));
+    }
+    from_contents(&log, &path.display().to_string(), map)
+}
+
+/// [`from_log`] on a log already read (`name` for messages).
+pub fn from_contents(
+    log: &crate::log::LogContents,
+    name: &str,
+    map: &MapView<'_>,
+) -> Result<(Vec<(f64, Pose2)>, AgentsByTime), String> {
+    use crate::log::export::{class_name, ego_enu, ego_poses, tracks};
+    use dash2sim_core::geo::{Geodetic, LocalFrame};
+    use dash2sim_core::nalgebra::Vector3;
+    let header = log.header.ok_or_else(|| format!("{name}: the header is damaged (no origin)"))?;
+    let log_frame = crate::log::frame(&header).ok_or_else(|| format!("{name}: invalid origin"))?;
+    let [lat, lon, h] = map.header().origin;
+    let map_frame = LocalFrame::new(Geodetic::new(lat, lon, h).map_err(|e| format!("map origin: {e}"))?);
+    let same = (f64::from(header.origin[0]) * 1e-7 - lat).abs() < 1e-7
+        && (f64::from(header.origin[1]) * 1e-7 - lon).abs() < 1e-7;
+    let to_map = |v: Vector3<f64>| -> (f64, f64) {
+        if same {
+            return (v.x, v.y);
+        }
+        match log_frame.enu_to_geodetic(&v) {
+            Ok(g) => {
+                let m = map_frame.geodetic_to_enu(&g);
+                (m.x, m.y)
+            }
+            Err(_) => (f64::NAN, f64::NAN),
+        }
+    };
+    let poses: Vec<(f64, Pose2)> = ego_poses(log)
+        .map(|p| {
+            let (v, yaw) = ego_enu(p);
+            let (x, y) = to_map(v);
+            (p.t_us as f64 * 1e-6, Pose2::new(x, y, yaw))
+        })
+        .collect();
+    if poses.is_empty() {
+        return Err(format!("{name}: no ego poses to verify"));
+    }
+    let mut agents: BTreeMap<i64, Vec<Agent>> = BTreeMap::new();
+    for (t_us, t) in tracks(log) {
+        let (x, y) = to_map(Vector3::new(t.x_mm as f64, t.y_mm as f64, t.z_mm as f64) * 1e-3);
+        agents.entry((t_us as f64 / 1000.0).round() as i64).or_default().push(Agent {
+            id: u32::try_from(t.id).unwrap_or(u32::MAX),
+            kind: agent_kind(class_name(t.class)),
+            bbox: OrientedBox {
+                centre: Pose2::new(x, y, t.yaw_e4 as f64 * 1e-4),
+                length: t.l_mm as f64 * 1e-3,
+                width: t.w_mm as f64 * 1e-3,
+            },
+            velocity: (t.vx_mm_s as f64 * 1e-3, t.vy_mm_s as f64 * 1e-3),
+        });
+    }
+    Ok((poses, agents))
+}
+
+/// Agent kind of a class name: vehicles, vulnerable road users, or static objects.
+pub fn agent_kind(class: &str) -> AgentKind {
+    match class {
+        "car" | "truck" | "bus" | "van" | "trailer" | "vehicle" | "motorcycle" | "construction_vehicle" => {
+            AgentKind::Vehicle
+        }
+        "pedestrian" | "cyclist" | "bicycle" | "person" | "flagger" | "worker" => AgentKind::Vru,
+        _ => AgentKind::Object,
+    }
+}
+
+/// Objects by time (ms), from an objects CSV (`crate::ingest::objects`).
+pub fn read_objects(path: &Path) -> Result<BTreeMap<i64, Vec<Agent>>, String> {
+    let mut by_time: BTreeMap<i64, Vec<Agent>> = BTreeMap::new();
+    for row in crate::ingest::objects::read(path)? {
+        let agent = Agent {
+            id: row.id,
+            kind: agent_kind(&row.class),
+            bbox: OrientedBox {
+                centre: Pose2::new(row.centre[0], row.centre[1], row.yaw),
+                length: row.size[0],
+                width: row.size[1],
+            },
+            velocity: (row.velocity[0], row.velocity[1]),
+        };
+        by_time.entry((row.t * 1000.0).round() as i64).or_default().push(agent);
+    }
+    Ok(by_time)
+}
+
+/// The agents of the object frame nearest `t`, if within [`OBJECT_TIME_TOLERANCE`].
+fn agents_at(objects: &BTreeMap<i64, Vec<Agent>>, t: f64) -> &[Agent] {
+    let ms = (t * 1000.0).round() as i64;
+    let tolerance = (OBJECT_TIME_TOLERANCE * 1000.0) as i64;
+    objects
+        .range(ms - tolerance..=ms + tolerance)
+        .min_by_key(|(k, _)| (**k - ms).abs())
+        .map_or(&[], |(_, agents)| agents.as_slice())
+}
+
+/// The outcome of a replay.
+#[derive(Debug)]
+pub struct Verification {
+    /// Final scores.
+    pub scores: Scores,
+    /// Per-pose reports, with the pose's time and rear-axle pose.
+    pub steps: Vec<(f64, Pose2, StepReport)>,
+    /// Lanes on the channel (channel-sensitive mode).
+    pub channel_lanes: Option<usize>,
+}
+
+/// Replay `poses` (time, rear-axle pose) on `map`.
+pub fn replay(
+    map: MapView<'_>,
+    poses: &[(f64, Pose2)],
+    objects: &BTreeMap<i64, Vec<Agent>>,
+    channel_sensitive: bool,
+    footprint: Footprint,
+) -> Result<Verification, String> {
+    // A map of polygons (Lanelet2) is checked through its fine index (channel-insensitive).
+    let index = if channel_sensitive { None } else { crate::ingest::map_tile::polygon_index::build(&map) };
+    let checker = crate::ingest::map_tile::polygon_index::checker(map, footprint, index.as_ref());
+    let mut channel_set: Box<LaneSet<CHANNEL_WORDS>> = Box::default();
+    if channel_sensitive {
+        if map.header().lanes as usize > LaneSet::<CHANNEL_WORDS>::capacity() {
+            return Err(format!("the map has more than {} lanes", LaneSet::<CHANNEL_WORDS>::capacity()));
+        }
+        for (_, pose) in poses {
+            channel_set.add_route_pose(&map, &footprint, pose);
+        }
+    }
+    let channel = if channel_sensitive { Channel::Sensitive(&*channel_set) } else { Channel::Insensitive };
+    let mut scorer = Scorer::new(checker, channel, ScoreConfig::default());
+    let mut steps = Vec::with_capacity(poses.len());
+    for (k, (t, pose)) in poses.iter().enumerate() {
+        let report = scorer.step(*t, pose, agents_at(objects, *t)).map_err(|e| format!("pose {}: {e}", k + 1))?;
+        steps.push((*t, *pose, report));
+    }
+    Ok(Verification { scores: scorer.finish(None), steps, channel_lanes: channel_sensitive.then(|| channel_set.len()) })
+}
+
+fn poses_csv(steps: &[(f64, Pose2, StepReport)]) -> String {
+    let mut out = String::from(
+        "t_s,x,y,heading,front_left_m,front_right_m,rear_right_m,rear_left_m,compliant,occupied_lanes,centre_lane,speed_mps,ttc_s,direction_progress_m\n",
+    );
+    for (t, p, r) in steps {
+        let corner = |c: Option<f64>| c.map_or_else(|| "inf".to_owned(), |d| format!("{d:.4}"));
+        let occupied: Vec<String> = r.check.occupied.iter().map(u32::to_string).collect();
+        let _ = writeln!(
+            out,
+            "{t:.3},{:.3},{:.3},{:.5},{},{},{},{},{},{},{},{:.3},{},{:.3}",
+            p.x,
+            p.y,
+            p.heading,
+            corner(r.check.corners[0]),
+            corner(r.check.corners[1]),
+            corner(r.check.corners[2]),
+            corner(r.check.corners[3]),
+            u8::from(r.check.compliant()),
+            occupied.join(" "),
+            r.check.centre_lane.map_or_else(String::new, |c| c.lane.to_string()),
+            r.speed,
+            r.ttc.map_or_else(String::new, |v| format!("{v:.1}")),
+            r.direction_progress
+        );
+    }
+    out
+}
+
+/// Each metric's score under nuPlan's name.
+pub fn metrics_json(s: &Scores) -> serde_json::Value {
+    serde_json::json!({
+        "no_at_fault_collisions": s.no_at_fault_collisions,
+        "drivable_area_compliance": s.drivable_area,
+        "driving_direction_compliance": s.driving_direction,
+        "ego_is_making_progress": s.making_progress,
+        "ego_progress_along_expert_route": s.progress,
+        "time_to_collision_within_bound": s.ttc,
+        "speed_limit_compliance": s.speed_limit,
+        "ego_is_comfortable": s.comfort,
+    })
+}
+
+/// The JSON report of `dash2sim verify --json`.
+pub fn report_json(v: &Verification, channel_sensitive: bool) -> serde_json::Value {
+    let s = &v.scores;
+    let finite = |x: f64| if x.is_finite() { serde_json::json!(x) } else { serde_json::Value::Null };
+    let e = &s.comfort_extremes;
+    serde_json::json!({
+        "metrics": metrics_json(s),
+        "score": s.score,
+        "verified": s.verified,
+        "channel_sensitive": channel_sensitive,
+        "channel_lanes": v.channel_lanes,
+        "poses": s.poses,
+        "duration_s": s.duration,
+        "details": {
+            "noncompliant_poses": s.noncompliant_poses,
+            "worst_corner_outside_m": finite(s.worst_corner),
+            "min_progress_along_lane_direction_m": s.min_direction_progress,
+            "min_ttc_s": finite(s.min_ttc),
+            "collisions": {"at_fault_agents": s.collisions.0, "at_fault_objects": s.collisions.1, "all": s.collisions.2},
+            "overspeed_integral_m": s.overspeed_integral,
+            "ego_progress_m": s.ego_progress,
+            "comfort": {
+                "lon_accel_mps2": [finite(e.lon_accel.0), finite(e.lon_accel.1)],
+                "max_abs_lat_accel_mps2": e.lat_accel,
+                "max_abs_jerk_mps3": e.jerk,
+                "max_abs_lon_jerk_mps3": e.lon_jerk,
+                "max_abs_yaw_rate_radps": e.yaw_rate,
+                "max_abs_yaw_accel_radps2": e.yaw_accel,
+            },
+        },
+    })
+}
+
+/// Replay the request's ego trajectory against its map (the command line and the Python
+/// package's `verify`): the verification, and the ego's source for messages.
+pub fn evaluate<'a>(
+    request: &VerifyRequest<'a>,
+    warn: &mut dyn FnMut(&str),
+) -> Result<(Verification, &'a Path), String> {
+    let bytes = std::fs::read(request.map).map_err(|e| format!("{}: {e}", request.map.display()))?;
+    let map = MapView::parse(&bytes).map_err(|e| format!("{}: {e}", request.map.display()))?;
+    let (poses, mut objects, name) = match request.ego {
+        EgoSource::Tum(path) => (crate::ingest::ego::read_ego(path)?, BTreeMap::new(), path),
+        EgoSource::Log(path) => {
+            let (poses, agents) = from_log(path, &map, warn)?;
+            (poses, agents, path)
+        }
+    };
+    if let Some(path) = request.objects {
+        objects = read_objects(path)?;
+    }
+    let (from, to) = request.window;
+    let poses: Vec<(f64, Pose2)> = poses.into_iter().filter(|(t, _)| *t >= from && *t <= to).collect();
+    if poses.is_empty() {
+        return Err(format!("{}: no ego poses between {from} and {to} s", name.display()));
+    }
+    let v = replay(map, &poses, &objects, request.channel_sensitive, request.footprint)?;
+    if let Some(path) = request.poses {
+        std::fs::write(path, poses_csv(&v.steps)).map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok((v, name))
+}
