@@ -1,0 +1,387 @@
+//! The `dash2sim` binary end to end — a log's life after recording: `import`, `inspect`, `finish`, `export` (TUM, GeoJSON, MCAP, nuPlan, Parquet) and `plot`: output shape, exit status and error messages.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::*;
+
+#[test]
+fn import_inspect_export_a_drive_and_report_damage_without_failing() {
+    let dir = scratch("binlog");
+    let drive = dir.join("drive");
+    let out = generate_ideal(&drive, "2", "12");
+    assert!(out.status.success(), "{}", stderr(&out));
+    let file = |name: &str| drive.join(name).display().to_string();
+    let log = dir.join("drive.d2slog").display().to_string();
+    let out = dash2sim(&[
+        "import",
+        "-o",
+        &log,
+        "--nmea",
+        &file("gnss.nmea"),
+        "--nmea-offset",
+        "-1780300800",
+        "--traj",
+        &file("ego.tum"),
+        "--objects",
+        &file("objects.csv"),
+        "--origin",
+        "60.2711,24.8572",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let out = dash2sim(&["inspect", &log, "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(report["by_type"]["EgoPose"], 121, "{report}");
+    assert_eq!(report["by_type"]["GnssFix"], 61, "{report}");
+    assert_eq!(report["damaged"], 0);
+    assert!(report["t_start"].as_f64().is_some_and(|t| t.abs() < 0.2), "{report}");
+    assert!(report["records"].as_u64().is_some_and(|n| n > 121 + 61));
+
+    let (tum, geojson, mcap) = (
+        dir.join("ego.tum").display().to_string(),
+        dir.join("drive.geojson").display().to_string(),
+        dir.join("drive.mcap").display().to_string(),
+    );
+    let map = dir.join("road.map").display().to_string();
+    let out = dash2sim(&["map", "build", &file("road.osm"), "-o", &map, "--origin", "60.2711,24.8572"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let out = dash2sim(&["export", &log, "--tum", &tum, "--geojson", &geojson, "--mcap", &mcap, "--map", &map]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    // The exported TUM is the imported one, to the millimetre.
+    let out = dash2sim(&["traj", "ape", &file("ego.tum"), &tum, "--json"]);
+    let ape: serde_json::Value = serde_json::from_slice(&out.stdout).expect("ape json");
+    assert!(ape["stats"]["max"].as_f64().is_some_and(|m| m < 1e-3), "{ape}");
+    let g: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&geojson).expect("geojson")).expect("json");
+    let features = g["features"].as_array().expect("features");
+    assert_eq!(features[0]["geometry"]["type"], "LineString");
+    assert!(features.iter().filter(|f| f["geometry"]["type"] == "Point").count() > 20, "the work zone's objects");
+    // verify LOG replays the log's ego poses with its tracks as agents: the same verdict
+    // as the trajectory and objects it was imported from.
+    let score = |args: &[&str]| -> serde_json::Value {
+        let out = dash2sim(args);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+        v["metrics"].clone()
+    };
+    let from_log = score(&["verify", &log, "--map", &map, "--json"]);
+    let from_files =
+        score(&["verify", "--map", &map, "--ego", &file("ego.tum"), "--objects", &file("objects.csv"), "--json"]);
+    assert_eq!(from_log, from_files);
+    let mcap_bytes = std::fs::read(&mcap).expect("mcap");
+    assert!(mcap_bytes.starts_with(b"\x89MCAP0\r\n") && mcap_bytes.ends_with(b"\x89MCAP0\r\n"));
+
+    // Damage: cut the tail and flip a byte in the middle — reported, exit status 0.
+    let mut bytes = std::fs::read(&log).expect("log");
+    bytes.truncate(bytes.len() - 7);
+    let middle = bytes.len() / 2;
+    bytes[middle] ^= 0x40;
+    let damaged = write(&dir, "damaged.d2slog", "");
+    std::fs::write(&damaged, &bytes).expect("write");
+    let out = dash2sim(&["inspect", &damaged, "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert!(r["damaged"].as_u64().is_some_and(|d| d >= 2), "{r}");
+    assert!(r["records"].as_u64() < report["records"].as_u64() && r["records"].as_u64() > Some(100), "{r}");
+    // Not a log at all: an error.
+    let out = dash2sim(&["inspect", &file("ego.tum")]);
+    assert!(!out.status.success() && stderr(&out).contains("not a dash2sim log"), "{}", stderr(&out));
+    let out = dash2sim(&["import", "-o", &log]);
+    assert!(!out.status.success() && stderr(&out).contains("nothing to import"), "{}", stderr(&out));
+}
+
+#[test]
+fn finish_reports_bad_anchor_lines_verifies_per_window_and_refuses_a_log_without_vo() {
+    let dir = scratch("finish");
+    let out = demo_ideal_offline(&dir, "20");
+    assert!(out.status.success(), "{}", stderr(&out));
+    let anchors = dir.join("anchors.csv");
+    let mut text = std::fs::read_to_string(&anchors).expect("anchors");
+    let good = text.lines().filter(|l| !l.starts_with('#')).count() - 1;
+    text += "12.5,nan,24.9,10,0.3\n";
+    std::fs::write(&anchors, &text).expect("write");
+    let (log, map, finished) = (dir.join("drive.d2slog"), dir.join("road.map"), dir.join("again.d2slog"));
+    let path = |p: &Path| p.display().to_string();
+    let out = dash2sim(&[
+        "finish",
+        &path(&log),
+        "-o",
+        &path(&finished),
+        "--anchors",
+        &path(&anchors),
+        "--map",
+        &path(&map),
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let bad_line = text.lines().count();
+    assert!(stderr(&out).contains(&format!("anchors.csv:{bad_line}: field 2 `nan` is not finite")), "{}", stderr(&out));
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(r["anchors"]["used"], good, "{r}");
+    assert_eq!(r["anchors"]["refused"][0]["line"], bad_line, "{r}");
+    let windows = r["verification"]["windows"].as_array().expect("windows");
+    assert!(!windows.is_empty() && windows.iter().all(|w| w["channel_sensitive"]["score"].is_number()), "{r}");
+    // The finished log is a log: inspect reads it, verify scores it as finish did.
+    let inspect: serde_json::Value =
+        serde_json::from_slice(&dash2sim(&["inspect", &path(&finished), "--json"]).stdout).expect("json");
+    assert!(inspect["by_type"]["EgoPose"].as_u64().is_some_and(|n| n > 150), "{inspect}");
+    let verify: serde_json::Value =
+        serde_json::from_slice(&dash2sim(&["verify", &path(&finished), "--map", &path(&map), "--json"]).stdout)
+            .expect("json");
+    let drive = &r["verification"]["drive"]["channel_insensitive"]["score"];
+    assert!((verify["score"].as_f64().expect("score") - drive.as_f64().expect("score")).abs() < 1e-9, "{verify}");
+    // Human output.
+    let out = dash2sim(&["finish", &path(&log), "-o", &path(&finished), "--map", &path(&map)]);
+    assert!(out.status.success() && String::from_utf8_lossy(&out.stdout).contains("verification  drive"));
+    // A log without VO poses: nothing to re-anchor.
+    let gnss_only = dir.join("gnss-only.d2slog");
+    let nmea = dir.join("drive/gnss.nmea");
+    assert!(dash2sim(&["import", "-o", &path(&gnss_only), "--nmea", &path(&nmea)]).status.success());
+    let out = dash2sim(&["finish", &path(&gnss_only), "-o", &path(&finished)]);
+    assert!(!out.status.success() && stderr(&out).contains("no trajectory to re-anchor"), "{}", stderr(&out));
+    // A bad anchors header names the line.
+    std::fs::write(&anchors, "lat,lon\n").expect("write");
+    let out = dash2sim(&["finish", &path(&log), "-o", &path(&finished), "--anchors", &path(&anchors)]);
+    assert!(!out.status.success() && stderr(&out).contains("anchors.csv:1: header"), "{}", stderr(&out));
+}
+
+#[test]
+fn export_nuplan_writes_the_devkits_tables_and_layers_and_refuses_bad_input() {
+    let dir = scratch("nuplan");
+    let out = demo_ideal_offline(&dir, "30");
+    assert!(out.status.success(), "{}", stderr(&out));
+    let path = |p: &Path| p.display().to_string();
+    let (log, map, nuplan) = (dir.join("finished.d2slog"), dir.join("road.map"), dir.join("nuplan"));
+    let out = dash2sim(&["export", &path(&log), "--nuplan", &path(&nuplan), "--map", &path(&map)]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let dbs: Vec<PathBuf> =
+        std::fs::read_dir(nuplan.join("db")).expect("db").map(|e| e.expect("entry").path()).collect();
+    assert_eq!(dbs.len(), 1, "{dbs:?}");
+    let name = dbs[0].file_name().and_then(|n| n.to_str()).unwrap_or_default().to_owned();
+    assert!(name.starts_with("2026.06.01.07.59") && name.ends_with("_dash2sim_finished.db"), "{name}");
+    let db = rusqlite::Connection::open(&dbs[0]).expect("sqlite");
+    let one = |sql: &str| -> i64 { db.query_row(sql, [], |r| r.get(0)).expect(sql) };
+    // The clock: exactly 20 Hz, one ego pose per tick, 30 s of drive.
+    let ticks = one("SELECT COUNT(*) FROM lidar_pc");
+    assert_eq!(ticks, one("SELECT COUNT(*) FROM ego_pose"));
+    assert!((590..=602).contains(&ticks), "{ticks}");
+    assert_eq!(one("SELECT MAX(timestamp) - MIN(timestamp) FROM lidar_pc"), (ticks - 1) * 50_000);
+    assert_eq!(one("SELECT COUNT(DISTINCT timestamp) FROM lidar_pc"), ticks);
+    assert_eq!(one("SELECT COUNT(*) FROM lidar_pc WHERE next_token IS NULL"), 1);
+    assert_eq!(one("SELECT COUNT(*) FROM scene"), 6);
+    assert_eq!(one("SELECT LENGTH(token) FROM scene LIMIT 1"), 8);
+    assert_eq!(one("SELECT COUNT(*) FROM lidar WHERE channel = 'MergedPointCloud'"), 1);
+    // The work zone's objects, by nuPlan category, every box on a tick of the clock.
+    for category in ["traffic_cone", "barrier", "czone_sign"] {
+        let n = one(&format!(
+            "SELECT COUNT(*) FROM track t JOIN category c ON t.category_token = c.token WHERE c.name = '{category}'"
+        ));
+        assert!(n > 0, "{category}");
+    }
+    assert_eq!(
+        one(
+            "SELECT COUNT(*) FROM lidar_box b LEFT JOIN lidar_pc p ON b.lidar_pc_token = p.token WHERE p.token IS NULL"
+        ),
+        0
+    );
+    // Every scene has a route of real roadblocks.
+    let routes: Vec<String> = db
+        .prepare("SELECT roadblock_ids FROM scene ORDER BY name")
+        .expect("query")
+        .query_map([], |r| r.get(0))
+        .expect("rows")
+        .collect::<Result<_, _>>()
+        .expect("routes");
+    assert!(
+        routes.iter().all(|r| r.split(' ').all(|id| id.parse::<i64>().is_ok_and(|id| id >= 1_000_000))),
+        "{routes:?}"
+    );
+    // The map: a GeoPackage with the layers nuPlan reads, in UTM 35N, lanes' ids apart from
+    // roadblocks'.
+    let gpkg = rusqlite::Connection::open(nuplan.join("maps/dash2sim-road/9.17.1964/map.gpkg")).expect("gpkg");
+    let g = |sql: &str| -> i64 { gpkg.query_row(sql, [], |r| r.get(0)).expect(sql) };
+    assert_eq!(g("PRAGMA application_id"), 0x4750_4B47);
+    assert_eq!(g("SELECT COUNT(*) FROM gpkg_contents WHERE data_type = 'features'"), 14);
+    assert_eq!(g("SELECT srs_id FROM gpkg_geometry_columns WHERE table_name = 'lanes_polygons'"), 32635);
+    assert!(g("SELECT MAX(fid) FROM lanes_polygons") < 1_000_000);
+    assert!(g("SELECT MIN(fid) FROM lane_groups_polygons") > 1_000_000);
+    assert!(g("SELECT COUNT(*) FROM generic_drivable_areas") > 100);
+    let maps: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(nuplan.join("maps/nuplan-maps-v1.0.json")).expect("json"))
+            .expect("json");
+    assert_eq!(maps["dash2sim-road"]["version"], "9.17.1964");
+
+    // `verify --from/--to` scores one scenario's window, as the nuPlan cross-check asks it.
+    let all: serde_json::Value =
+        serde_json::from_slice(&dash2sim(&["verify", &path(&log), "--map", &path(&map), "--json"]).stdout)
+            .expect("json");
+    let start = one("SELECT MIN(timestamp) FROM lidar_pc") as f64 * 1e-6;
+    let (from, to) = (format!("{:.3}", start + 5.0), format!("{:.3}", start + 20.0));
+    let window: serde_json::Value = serde_json::from_slice(
+        &dash2sim(&["verify", &path(&log), "--map", &path(&map), "--json", "--from", &from, "--to", &to]).stdout,
+    )
+    .expect("json");
+    let (n_all, n_window) = (all["poses"].as_u64().expect("poses"), window["poses"].as_u64().expect("poses"));
+    assert!(n_window < n_all && (140..=160).contains(&n_window), "{n_window} of {n_all}");
+    let out = dash2sim(&["verify", &path(&log), "--map", &path(&map), "--from", "0", "--to", "1"]);
+    assert!(!out.status.success() && stderr(&out).contains("no ego poses between"), "{}", stderr(&out));
+
+    // Bad input: nothing is left behind.
+    let fresh = dir.join("refused");
+    let out =
+        dash2sim(&["export", &path(&log), "--nuplan", &path(&fresh), "--map", &path(&map), "--scenario-seconds", "10"]);
+    assert!(!out.status.success() && stderr(&out).contains("nuPlan needs at least 5"), "{}", stderr(&out));
+    let far = write(
+        &dir,
+        "far.osm",
+        r#"<osm version="0.6"><node id="1" lat="0.0" lon="0.0"/><node id="2" lat="0.001" lon="0.0"/>
+<way id="3"><nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/></way></osm>"#,
+    );
+    let out = dash2sim(&["export", &path(&log), "--nuplan", &path(&fresh), "--map", &far]);
+    assert!(!out.status.success() && stderr(&out).contains("the map does not cover the drive"), "{}", stderr(&out));
+    let gnss_only = dir.join("gnss-only.d2slog");
+    assert!(dash2sim(&["import", "-o", &path(&gnss_only), "--nmea", &path(&dir.join("drive/gnss.nmea"))])
+        .status
+        .success());
+    let out = dash2sim(&["export", &path(&gnss_only), "--nuplan", &path(&fresh), "--map", &path(&map)]);
+    assert!(!out.status.success() && stderr(&out).contains("no ego poses"), "{}", stderr(&out));
+    let out = dash2sim(&["export", &path(&log), "--nuplan", &path(&fresh)]);
+    assert!(!out.status.success() && stderr(&out).contains("--nuplan needs --map"), "{}", stderr(&out));
+    let left: Vec<_> = walk(&fresh).into_iter().filter(|p| p.is_file()).collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+#[test]
+fn plot_draws_the_map_the_three_trajectories_and_the_objects_and_refuses_a_log_without_poses() {
+    let dir = scratch("plot");
+    let out = demo_ideal_offline(&dir, "30");
+    assert!(out.status.success(), "{}", stderr(&out));
+    let path = |p: &Path| p.display().to_string();
+    // The demo drew its drive.
+    let png = std::fs::read(dir.join("plot.png")).expect("the demo's plot.png");
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let (w, h) = (
+        u32::from_be_bytes([png[16], png[17], png[18], png[19]]),
+        u32::from_be_bytes([png[20], png[21], png[22], png[23]]),
+    );
+    assert_eq!((w, h), (1200, 1400));
+
+    let svg_path = dir.join("again.svg");
+    let (log, finished, map) = (dir.join("drive.d2slog"), dir.join("finished.d2slog"), dir.join("road.map"));
+    let out =
+        dash2sim(&["plot", &path(&log), "--map", &path(&map), "--finished", &path(&finished), "-o", &path(&svg_path)]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let said = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(said.contains("online and") && said.contains("cone"), "{said}");
+    let svg = std::fs::read_to_string(&svg_path).expect("svg");
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    // The layers a person looks for, each named in a legend; the panels; scale bar, north.
+    let texts: Vec<String> = svg
+        .split("<text")
+        .skip(1)
+        .filter_map(|t| Some(t.split_once('>')?.1.split_once("</text>")?.0.trim().to_owned()))
+        .collect();
+    for label in [
+        "map lanes (drivable area)",
+        "GNSS fixes (raw)",
+        "online anchored ego",
+        "finished ego",
+        "cone",
+        "drum",
+        "barricade",
+        "car",
+        "vehicle speed (wheel / CAN)",
+        "time to collision",
+        "score / 100",
+        "speed",
+        "N",
+    ] {
+        assert!(texts.iter().any(|t| t == label), "no {label:?} among {texts:?}");
+    }
+    assert!(
+        texts.iter().any(|t| t.strip_suffix(" m").is_some_and(|n| n.parse::<u32>().is_ok_and(|n| n >= 10))),
+        "no scale bar among {texts:?}"
+    );
+    // Grey lane areas, red fixes, orange and blue lines are all there.
+    for colour in ["#CDCDCD", "#D62728", "#FF7F0E", "#1F77B4"] {
+        assert!(svg.contains(colour), "no {colour} in the SVG");
+    }
+    // Without a map or a finished log, those layers are absent, not empty.
+    let bare = dir.join("bare.svg");
+    assert!(dash2sim(&["plot", &path(&log), "-o", &path(&bare)]).status.success());
+    let bare = std::fs::read_to_string(&bare).expect("svg");
+    assert!(!bare.contains("map lanes") && !bare.contains("finished ego") && bare.contains("online anchored ego"));
+
+    // Bad input: a log without ego poses, an unknown picture format.
+    let gnss_only = dir.join("gnss-only.d2slog");
+    assert!(dash2sim(&["import", "-o", &path(&gnss_only), "--nmea", &path(&dir.join("drive/gnss.nmea"))])
+        .status
+        .success());
+    let out = dash2sim(&["plot", &path(&gnss_only), "-o", &path(&dir.join("x.svg"))]);
+    assert!(!out.status.success() && stderr(&out).contains("no ego poses to plot"), "{}", stderr(&out));
+    let out = dash2sim(&["plot", &path(&log), "-o", &path(&dir.join("x.gif"))]);
+    assert!(!out.status.success() && stderr(&out).contains("must end in .svg or .png"), "{}", stderr(&out));
+}
+
+#[test]
+fn export_parquet_writes_a_table_per_record_kind_in_si_units_and_utc() {
+    use arrow_array::cast::AsArray;
+    use arrow_array::types::{Float64Type, TimestampMicrosecondType};
+    let dir = scratch("parquet");
+    let demo = dir.join("demo");
+    let out = dash2sim(&[
+        "demo",
+        "--profile",
+        "ideal",
+        "--offline",
+        "-q",
+        "--duration",
+        "20",
+        "-o",
+        &demo.display().to_string(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let log = demo.join("finished.d2slog").display().to_string();
+    let out_dir = dir.join("pq");
+    let out = dash2sim(&["export", &log, "--parquet", &out_dir.display().to_string(), "--log-id", "seed-1"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let inspect: serde_json::Value =
+        serde_json::from_slice(&dash2sim(&["inspect", &log, "--json"]).stdout).expect("json");
+    let by_type = &inspect["by_type"];
+    for (table, kind) in [
+        ("ego", "EgoPose"),
+        ("gnss", "GnssFix"),
+        ("speed", "VehicleSpeed"),
+        ("anchors", "AnchorEstimate"),
+        ("verification", "Verification"),
+        ("events", "Event"),
+    ] {
+        let (rows, _) = parquet_table(&out_dir.join(format!("{table}.parquet")));
+        assert_eq!(rows as u64, by_type[kind].as_u64().unwrap_or(0), "{table}");
+    }
+    let (states, _) = parquet_table(&out_dir.join("tracks3d.parquet"));
+    assert!(states as u64 >= by_type["Tracks3d"].as_u64().unwrap_or(0) && states > 0);
+    // The ego in metres and UTC: the TUM export's first pose.
+    let tum_path = dir.join("ego.tum");
+    assert!(dash2sim(&["export", &log, "--tum", &tum_path.display().to_string()]).status.success());
+    let tum = std::fs::read_to_string(&tum_path).expect("tum");
+    let first: Vec<f64> = tum
+        .lines()
+        .find(|l| !l.starts_with('#'))
+        .expect("a pose")
+        .split(' ')
+        .map(|x| x.parse().expect("number"))
+        .collect();
+    let (_, batches) = parquet_table(&out_dir.join("ego.parquet"));
+    let b = &batches[0];
+    let t = b.column_by_name("t").expect("t").as_primitive::<TimestampMicrosecondType>().value(0);
+    let x = b.column_by_name("x_m").expect("x").as_primitive::<Float64Type>().value(0);
+    assert!((t as f64 * 1e-6 - first[0]).abs() < 1e-6 && (x - first[1]).abs() < 1e-9, "{t} {x} vs {first:?}");
+    assert_eq!(b.column_by_name("log_id").expect("id").as_string::<i32>().value(0), "seed-1");
+    // A folder that cannot be made is named.
+    let blocker = write(&dir, "file", "");
+    let out = dash2sim(&["export", &log, "--parquet", &format!("{blocker}/pq")]);
+    assert!(!out.status.success() && stderr(&out).contains(&blocker), "{}", stderr(&out));
+}
