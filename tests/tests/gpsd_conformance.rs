@@ -12,7 +12,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use dash2sim_core::nmea::{Decoder, Event, GnssFix, Stream, StreamEvent};
-use dash2sim_linux::ingest::nmea::iso8601;
+use dash2sim_linux::utc::iso8601;
 use dash2sim_tests::data_dir;
 
 /// The raw text of `"key":value` in a JSON line.

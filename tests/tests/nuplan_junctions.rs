@@ -9,10 +9,10 @@
 
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
-use dash2sim_linux::export::nuplan::geometry::contains;
 use dash2sim_linux::export::nuplan::gpkg::Layer;
 use dash2sim_linux::export::nuplan::map::layers;
 use dash2sim_linux::export::nuplan::projection::Projection;
+use dash2sim_linux::geometry::contains;
 use dash2sim_tests::{data_dir, workspace_root};
 
 const ORIGIN: (f64, f64) = (48.135_704_8, 10.069_590_1);

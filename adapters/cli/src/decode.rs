@@ -8,7 +8,8 @@ use std::path::{Path, PathBuf};
 use dash2sim_can::candump::CandumpReader;
 use dash2sim_core::nmea::GnssFix;
 use dash2sim_linux::ingest::can::{self, CanDecoder};
-use dash2sim_linux::ingest::nmea::{self, iso8601, tpv_json};
+use dash2sim_linux::ingest::nmea::{self, tpv_json};
+use dash2sim_linux::utc::iso8601;
 use serde_json::Value;
 
 /// `dash2sim nmea decode FILE [--json]`.

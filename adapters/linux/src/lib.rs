@@ -14,12 +14,14 @@
 pub mod datasets;
 pub mod export;
 pub mod finish;
+pub mod geometry;
 pub mod ingest;
 pub mod log;
 pub mod plot;
 pub mod record;
 pub mod sim;
 pub mod sync;
+pub mod utc;
 /// Trajectory files (TUM, KITTI, EuRoC): the `dash2sim-trajectory` crate.
 pub use dash2sim_trajectory as trajectory;
 pub mod verify;

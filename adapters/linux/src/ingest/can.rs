@@ -300,7 +300,7 @@ fn gnss_position_fields(m: &GnssPosition, put: &mut impl FnMut(&str, Value)) -> 
 
 /// Days since 1970 as canboat prints them: `2013.03.01`.
 fn canboat_date(days: u16) -> String {
-    let iso = crate::ingest::nmea::iso8601(i64::from(days) * 86_400_000_000);
+    let iso = crate::utc::iso8601(i64::from(days) * 86_400_000_000);
     iso.get(..10).unwrap_or_default().replace('-', ".")
 }
 

@@ -7,7 +7,7 @@ use dash2sim_core::geo::LocalFrame;
 use dash2sim_core::map::MapView;
 use dash2sim_core::nalgebra::Vector3;
 
-use crate::export::nuplan::geometry::capsule;
+use crate::geometry::capsule;
 use crate::log::export::{class_name, last_tracks};
 use crate::log::{frame, LogContents};
 

@@ -14,7 +14,7 @@
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
-use super::geometry::{band, cut, heading_at, is_simple, nearest_arc, point_at, segment_distance};
+use crate::geometry::{band, cut, heading_at, is_simple, nearest_arc, point_at, segment_distance};
 
 /// Sampling step along a centreline when looking for overlaps, m.
 const STEP_M: f64 = 0.5;

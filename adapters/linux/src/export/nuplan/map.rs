@@ -22,10 +22,10 @@ use std::collections::BTreeMap;
 
 use dash2sim_core::map::MapView;
 
-use super::geometry::{band, bezier, capsule, contains, cut, heading_at, hull, is_simple, length, point_at, Line};
 use super::gpkg::{Geometry, Layer, Value};
 use super::junctions::{layout, DisjointSets, LaneShape};
 use super::projection::Projection;
+use crate::geometry::{band, bezier, capsule, contains, cut, heading_at, hull, is_simple, length, point_at, Line};
 
 const ROADBLOCK_BASE: i64 = 1_000_000;
 const CONNECTOR_BASE: i64 = 2_000_000;

@@ -6,7 +6,6 @@
 //! zone of the map's origin ([`projection`]). Everything is written under temporary names
 //! and renamed at the end: a refused input leaves nothing behind.
 
-pub mod geometry;
 pub mod gpkg;
 pub mod junctions;
 pub mod logdb;
@@ -180,9 +179,9 @@ pub fn export(request: &NuplanRequest<'_>) -> Result<NuplanExport, String> {
 }
 
 /// nuPlan's log names start with the date and time: `YYYY.MM.DD.HH.MM.SS` (the UTC of
-/// `crate::ingest::nmea::iso8601`, re-punctuated).
+/// `crate::utc::iso8601`, re-punctuated).
 fn date_name(t_us: i64) -> String {
-    crate::ingest::nmea::iso8601(t_us).chars().take(19).map(|c| if c.is_ascii_digit() { c } else { '.' }).collect()
+    crate::utc::iso8601(t_us).chars().take(19).map(|c| if c.is_ascii_digit() { c } else { '.' }).collect()
 }
 
 /// The nuPlan map name for a map file's stem: `dash2sim-`, then the stem in lower case with

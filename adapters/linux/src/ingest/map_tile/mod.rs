@@ -17,6 +17,7 @@ use std::collections::HashMap;
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::map::{body_checksum, Header, CRC_AT, HEADER_LEN, NONE, POLYGON_BIT, VERSION_MAJOR};
 
+use crate::geometry::offset_polyline;
 use crate::ingest::osm::highway::{interpret, RoadSpec};
 use crate::ingest::osm::OsmData;
 
@@ -85,38 +86,6 @@ impl TileContent {
             .sum::<f64>()
             / 1000.0
     }
-}
-
-/// The polyline `points` moved `offset` metres to its left (miter joins, limited to 4×).
-pub fn offset_polyline(points: &[(f64, f64)], offset: f64) -> Vec<(f64, f64)> {
-    let normal = |a: (f64, f64), b: (f64, f64)| {
-        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-        let len = dx.hypot(dy).max(1e-12);
-        (-dy / len, dx / len)
-    };
-    (0..points.len())
-        .map(|k| {
-            let before = k.checked_sub(1).map(|j| normal(points[j], points[k]));
-            let after = points.get(k + 1).map(|&n| normal(points[k], n));
-            let (nx, ny) = match (before, after) {
-                (Some(a), Some(b)) => {
-                    let (sx, sy) = (a.0 + b.0, a.1 + b.1);
-                    let len = sx.hypot(sy);
-                    if len < 1e-9 {
-                        a
-                    } else {
-                        // Scale so that both neighbouring segments sit at `offset`.
-                        let cos_half = (sx * a.0 + sy * a.1) / len;
-                        let scale = 1.0 / cos_half.max(0.25);
-                        (sx / len * scale, sy / len * scale)
-                    }
-                }
-                (Some(a), None) | (None, Some(a)) => a,
-                (None, None) => (0.0, 0.0),
-            };
-            (points[k].0 + nx * offset, points[k].1 + ny * offset)
-        })
-        .collect()
 }
 
 /// What `data` holds: nodes, ways, highway ways, relations (the tile's source counts).

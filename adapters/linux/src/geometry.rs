@@ -1,7 +1,38 @@
-//! Plane geometry of the nuPlan map: polylines cut, offset and measured; bands, capsules,
-//! hulls; point-in-polygon. Projected metres throughout.
+//! Plane geometry of lanes and map layers: polylines offset, cut and measured; bands,
+//! capsules, hulls; point-in-polygon. Metres in a plane (a tile's ENU frame, nuPlan's UTM).
+//! A leaf: map tiles, the nuPlan export and the plot share it.
 
-use crate::ingest::map_tile::offset_polyline;
+/// The polyline `points` moved `offset` metres to its left (miter joins, limited to 4×).
+pub fn offset_polyline(points: &[(f64, f64)], offset: f64) -> Vec<(f64, f64)> {
+    let normal = |a: (f64, f64), b: (f64, f64)| {
+        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+        let len = dx.hypot(dy).max(1e-12);
+        (-dy / len, dx / len)
+    };
+    (0..points.len())
+        .map(|k| {
+            let before = k.checked_sub(1).map(|j| normal(points[j], points[k]));
+            let after = points.get(k + 1).map(|&n| normal(points[k], n));
+            let (nx, ny) = match (before, after) {
+                (Some(a), Some(b)) => {
+                    let (sx, sy) = (a.0 + b.0, a.1 + b.1);
+                    let len = sx.hypot(sy);
+                    if len < 1e-9 {
+                        a
+                    } else {
+                        // Scale so that both neighbouring segments sit at `offset`.
+                        let cos_half = (sx * a.0 + sy * a.1) / len;
+                        let scale = 1.0 / cos_half.max(0.25);
+                        (sx / len * scale, sy / len * scale)
+                    }
+                }
+                (Some(a), None) | (None, Some(a)) => a,
+                (None, None) => (0.0, 0.0),
+            };
+            (points[k].0 + nx * offset, points[k].1 + ny * offset)
+        })
+        .collect()
+}
 
 /// Points on a half circle of a capsule.
 const CAP_POINTS: usize = 16;
