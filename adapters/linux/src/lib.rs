@@ -17,6 +17,7 @@ pub mod finish;
 pub mod geometry;
 pub mod ingest;
 pub mod log;
+#[cfg(feature = "plot")]
 pub mod plot;
 pub mod record;
 pub mod sim;

@@ -3,13 +3,13 @@
 //! (GeoJSON), DuckDB/pandas/Spark (Parquet), nuPlan. The exporters are in `logfile` and
 //! `nuplan`; this module only reads the request and calls them.
 
+#[cfg(feature = "nuplan")]
 pub mod nuplan;
 
 use std::path::{Path, PathBuf};
 
-use crate::export::nuplan::map_name;
 use crate::log::export::{ego_poses, geojson, tum};
-use crate::log::{frame, mcap_export, parquet_export, read, LogContents};
+use crate::log::{frame, mcap_export, read, LogContents};
 
 /// What to export (`dash2sim export`).
 #[derive(Clone, Debug)]
@@ -104,40 +104,14 @@ pub fn export(request: &ExportRequest) -> Result<Exported, String> {
         exported.written.push(format!("{}: {} features", path.display(), g["features"].as_array().map_or(0, Vec::len)));
     }
     if let Some(dir) = &request.parquet {
-        let stem = request.log.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-        let id = request.log_id.clone().unwrap_or(stem);
-        let rows = parquet_export::write(&log, &id, dir)?;
-        let each: Vec<String> = rows.iter().map(|(name, n)| format!("{n} {name}")).collect();
-        exported.written.push(format!("{}: {} (log id {id:?})", dir.display(), each.join(", ")));
+        exported.written.push(parquet(&log, request, dir)?);
     }
     let map = request.map.as_deref().map(|p| map_tile(p, &log)).transpose()?;
     if let Some(dir) = &request.nuplan {
         let (Some(tile), Some(map_path)) = (&map, &request.map) else {
             return Err("--nuplan needs --map (a tile or an OpenStreetMap file)".to_owned());
         };
-        let stem = map_path.file_stem().and_then(|s| s.to_str()).unwrap_or("map");
-        let name = request.map_name.clone().unwrap_or_else(|| map_name(stem));
-        let log_name = request.log.display().to_string();
-        let started = std::time::Instant::now();
-        let out = nuplan::export(&nuplan::NuplanRequest {
-            log: &log,
-            log_name: &log_name,
-            tile,
-            map_name: &name,
-            out: dir,
-            scene_s: request.scenario_seconds,
-        })?;
-        let layers: Vec<String> = out.layers.iter().filter(|l| l.1 > 0).map(|(n, c)| format!("{c} {n}")).collect();
-        exported.written.push(format!(
-            "{}: {} ego states at 20 Hz, {} scenes (EPSG:{}); map {} `{name}`: {} ({:.2} s)",
-            out.db.display(),
-            out.ego_states,
-            out.scenes,
-            out.epsg,
-            out.gpkg.display(),
-            layers.join(", "),
-            started.elapsed().as_secs_f64()
-        ));
+        exported.written.push(nuplan(&log, request, tile, map_path, dir)?);
     }
     if let Some(path) = &request.mcap {
         let view =
@@ -148,4 +122,58 @@ pub fn export(request: &ExportRequest) -> Result<Exported, String> {
         exported.written.push(format!("{}: {total} messages ({})", path.display(), detail.join(", ")));
     }
     Ok(exported)
+}
+
+/// The Parquet folder written: what it holds.
+#[cfg(feature = "parquet")]
+fn parquet(log: &LogContents, request: &ExportRequest, dir: &Path) -> Result<String, String> {
+    let stem = request.log.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let id = request.log_id.clone().unwrap_or(stem);
+    let rows = crate::log::parquet_export::write(log, &id, dir)?;
+    let each: Vec<String> = rows.iter().map(|(name, n)| format!("{n} {name}")).collect();
+    Ok(format!("{}: {} (log id {id:?})", dir.display(), each.join(", ")))
+}
+
+#[cfg(not(feature = "parquet"))]
+fn parquet(_: &LogContents, _: &ExportRequest, _: &Path) -> Result<String, String> {
+    Err("--parquet: this build of dash2sim-linux has no Parquet export (its `parquet` feature)".to_owned())
+}
+
+/// The nuPlan log database and map written: what they hold.
+#[cfg(feature = "nuplan")]
+fn nuplan(
+    log: &LogContents,
+    request: &ExportRequest,
+    tile: &[u8],
+    map_path: &Path,
+    dir: &Path,
+) -> Result<String, String> {
+    let stem = map_path.file_stem().and_then(|s| s.to_str()).unwrap_or("map");
+    let name = request.map_name.clone().unwrap_or_else(|| nuplan::map_name(stem));
+    let log_name = request.log.display().to_string();
+    let started = std::time::Instant::now();
+    let out = nuplan::export(&nuplan::NuplanRequest {
+        log,
+        log_name: &log_name,
+        tile,
+        map_name: &name,
+        out: dir,
+        scene_s: request.scenario_seconds,
+    })?;
+    let layers: Vec<String> = out.layers.iter().filter(|l| l.1 > 0).map(|(n, c)| format!("{c} {n}")).collect();
+    Ok(format!(
+        "{}: {} ego states at 20 Hz, {} scenes (EPSG:{}); map {} `{name}`: {} ({:.2} s)",
+        out.db.display(),
+        out.ego_states,
+        out.scenes,
+        out.epsg,
+        out.gpkg.display(),
+        layers.join(", "),
+        started.elapsed().as_secs_f64()
+    ))
+}
+
+#[cfg(not(feature = "nuplan"))]
+fn nuplan(_: &LogContents, _: &ExportRequest, _: &[u8], _: &Path, _: &Path) -> Result<String, String> {
+    Err("--nuplan: this build of dash2sim-linux has no nuPlan export (its `nuplan` feature)".to_owned())
 }

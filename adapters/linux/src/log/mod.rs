@@ -6,6 +6,7 @@ pub mod export;
 pub mod import;
 pub mod inspect;
 pub mod mcap_export;
+#[cfg(feature = "parquet")]
 pub mod parquet_export;
 
 use std::path::Path;

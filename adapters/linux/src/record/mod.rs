@@ -3,7 +3,9 @@
 //! stream format a microcontroller replays (`--save-inputs` writes it), so the host and the
 //! device run the very same code on the very same bytes.
 
+#[cfg(feature = "bridge")]
 pub mod bridge;
+#[cfg(feature = "bridge")]
 pub mod live;
 pub mod sources;
 pub mod track2d;
@@ -116,6 +118,7 @@ pub struct RecordRequest {
     /// Live: stop after S seconds (else on SIGINT / SIGTERM).
     pub seconds: Option<f64>,
     /// Live: told how the recording goes twice a second (a status line), if set.
+    #[cfg(feature = "bridge")]
     pub status: Option<fn(&live::LiveStatus)>,
 }
 
@@ -145,6 +148,7 @@ impl RecordRequest {
             realtime: false,
             segment_minutes: DEFAULT_SEGMENT_MINUTES,
             seconds: None,
+            #[cfg(feature = "bridge")]
             status: None,
         }
     }
@@ -445,6 +449,7 @@ pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts), 
 }
 
 /// The live sources the request names, if any.
+#[cfg(feature = "bridge")]
 pub fn live_request(args: &RecordRequest) -> Result<Option<live::LiveRequest>, String> {
     let live = args.camera.is_some() || args.serial.is_some() || args.can_iface.is_some() || args.can_replay.is_some();
     if !live {
@@ -542,6 +547,7 @@ fn device_id(text: &str) -> Result<[u8; 16], String> {
 
 /// The live logger: records until the request's duration is over or SIGINT / SIGTERM.
 /// `warn` hears the DBC files' warnings before the recording starts.
+#[cfg(feature = "bridge")]
 pub fn record_live(
     args: &RecordRequest,
     request: &live::LiveRequest,
@@ -559,6 +565,7 @@ pub fn record_live(
 
 /// A live recording's summary: the pipeline's totals, the files, frames, dropped inputs and
 /// issues.
+#[cfg(feature = "bridge")]
 pub fn live_summary(report: &live::LiveReport) -> serde_json::Value {
     let mut summary = stats_json(&report.stats);
     for (key, value) in [

@@ -4,6 +4,7 @@
 //! and their picture ([`plot`]). `docs/fidelity.md` holds the figures.
 
 pub mod drive;
+#[cfg(feature = "plot")]
 pub mod plot;
 pub mod summary;
 pub mod sweep;

@@ -492,6 +492,8 @@ pub fn sweep(args: &SweepRequest, progress: &(dyn Fn(usize, usize) + Sync)) -> R
     let summary = Summary::of(args, &rows);
     let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
     write(&out.join("summary.json"), text)?;
+    // The picture needs the `plot` feature; without it the tables are all there is.
+    #[cfg(feature = "plot")]
     super::plot::draw(&rows, &summary, &out.join("sweep.png"))?;
     Ok((rows, summary))
 }

@@ -21,6 +21,7 @@ pub mod corpus;
 pub mod evaluate;
 pub mod judge;
 pub mod profile;
+#[cfg(feature = "bridge")]
 pub mod publish;
 pub mod road;
 pub mod sensors;
