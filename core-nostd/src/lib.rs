@@ -46,6 +46,7 @@ pub mod claim;
 pub mod decimal;
 pub mod drivable;
 pub mod ekf;
+pub mod frame_order;
 pub mod geo;
 pub mod map;
 pub mod nmea;

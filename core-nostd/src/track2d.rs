@@ -77,26 +77,8 @@ pub struct Stats {
     pub dropped_tracks: u64,
 }
 
-/// Why a frame was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum TrackError {
-    /// The frame number is not after the previous one.
-    OutOfOrder {
-        /// Previous frame.
-        previous: u64,
-        /// This frame.
-        frame: u64,
-    },
-}
-
-impl core::fmt::Display for TrackError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            TrackError::OutOfOrder { previous, frame } => write!(f, "frame {frame} is not after frame {previous}"),
-        }
-    }
-}
+use crate::frame_order::FrameOrder;
+pub use crate::frame_order::TrackError;
 
 impl core::error::Error for TrackError {}
 
@@ -197,7 +179,7 @@ pub struct Tracker2d<const N: usize> {
     config: TrackerConfig,
     tracks: heapless::Vec<Track, N>,
     next_id: u32,
-    frame: Option<u64>,
+    frames: FrameOrder,
     solver: Solver<N>,
     stats: Stats,
 }
@@ -212,7 +194,7 @@ impl<const N: usize> Tracker2d<N> {
             config,
             tracks: heapless::Vec::new(),
             next_id: 1,
-            frame: None,
+            frames: FrameOrder::new(),
             solver: Solver::new(),
             stats: Stats {
                 frames: 0,
@@ -237,16 +219,8 @@ impl<const N: usize> Tracker2d<N> {
         detections: &[Detection],
         mut emit: impl FnMut(TrackOutput),
     ) -> Result<(), TrackError> {
-        let steps = match self.frame {
-            Some(previous) if frame <= previous => {
-                self.stats.out_of_order_frames += 1;
-                return Err(TrackError::OutOfOrder { previous, frame });
-            }
-            Some(previous) => frame - previous,
-            None => 1,
-        };
-        let first_frame = self.frame.is_none();
-        self.frame = Some(frame);
+        let first_frame = self.frames.last().is_none();
+        let steps = self.frames.advance(frame).inspect_err(|_| self.stats.out_of_order_frames += 1)?;
         self.stats.frames += 1;
 
         let (mut high, mut low) = (Picked::<N>::new(), Picked::<N>::new());

@@ -9,9 +9,10 @@ use nalgebra::{Matrix3, Vector3};
 use proptest::prelude::*;
 
 use super::*;
-use crate::binlog::{Decoder, Event as LogEvent, Kind};
+use crate::binlog::{Decoder, EgoPose, Event as LogEvent, Kind};
 use crate::box3d::Box3d;
 use crate::can::CanFrame;
+use crate::geo::LocalFrame;
 use crate::score::AgentKind;
 use crate::sim3::rotation_z;
 use crate::track2d::TrackerConfig;

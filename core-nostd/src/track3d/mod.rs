@@ -27,6 +27,7 @@ use nalgebra::{SMatrix, SVector};
 use crate::assign::Solver;
 use crate::box3d::Box3d;
 use crate::ekf::{rts_smooth, Kalman, SmoothStep};
+use crate::frame_order::FrameOrder;
 pub use crate::track2d::TrackError;
 use consistency::CovarianceScale;
 
@@ -253,7 +254,7 @@ pub struct Tracker3d<'a, const N: usize> {
     tracks: heapless::Vec<Track, N>,
     next_id: u32,
     /// The last frame number processed.
-    frame: Option<u64>,
+    frames: FrameOrder,
     solver: Solver<N>,
     /// Association costs of one frame (NaN: may not pair), computed once per pair: the
     /// solver reads a pair many times and a 3D GIoU is not cheap. f32 is ample for
@@ -272,7 +273,7 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
             config,
             tracks: heapless::Vec::new(),
             next_id: 1,
-            frame: None,
+            frames: FrameOrder::new(),
             solver: Solver::new(),
             // Every entry a frame reads is written first in that frame.
             costs: [[0.0; N]; N],
@@ -323,15 +324,7 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
         detections: &[Detection3d],
         mut emit: impl FnMut(Track3dOutput),
     ) -> Result<(), TrackError> {
-        let steps = match self.frame {
-            Some(previous) if frame <= previous => {
-                self.stats.out_of_order_frames += 1;
-                return Err(TrackError::OutOfOrder { previous, frame });
-            }
-            Some(previous) => frame - previous,
-            None => 1,
-        };
-        self.frame = Some(frame);
+        let steps = self.frames.advance(frame).inspect_err(|_| self.stats.out_of_order_frames += 1)?;
         self.stats.frames += 1;
         let classes = self.config.classes;
         // Past max_age + 1 missed frames a track is retired anyway: no need to predict further.

@@ -1,0 +1,267 @@
+//! Tracking: 3D detections placed in the world by the anchored ego and the mount, into the
+//! EKF track manager; 2D detections into the IoU tracker; the tracks written to the log and
+//! handed to the windows as agents.
+
+use embedded_io::Write;
+
+use super::anchoring::Ego;
+use super::issues::Issue;
+use super::windows::{KEEP_LOST_S, KEPT_AGENTS};
+use super::{ease, mount, quantise, ImageDetection, PipelineError, State, Trackers};
+use crate::binlog::{Detection3d as DetectionRecord, Record, Track2d, Track3d, Tracks3d, MAX_TRACKS};
+use crate::box2d::Box2d;
+use crate::frame_order::FrameOrder;
+use crate::obb::{OrientedBox, Pose2};
+use crate::score::{Agent, AgentKind};
+use crate::time::Timestamp;
+use crate::track2d::Detection;
+use crate::track3d::Detection3d;
+
+/// What tracking keeps between frames: the caller-kept trackers and the latest frame of
+/// each kind.
+#[derive(Debug)]
+pub(super) struct Tracking<'a, const T3: usize, const T2: usize> {
+    pub(super) trackers: &'a mut Trackers<'a, T3, T2>,
+    /// The latest frame of 3D detections (those without a pose too, written raw).
+    pub(super) frames3d: FrameOrder,
+    /// The latest frame of 2D detections.
+    pub(super) frames2d: FrameOrder,
+}
+
+impl<'a, const T3: usize, const T2: usize> Tracking<'a, T3, T2> {
+    pub(super) fn new(trackers: &'a mut Trackers<'a, T3, T2>) -> Self {
+        Tracking { trackers, frames3d: FrameOrder::new(), frames2d: FrameOrder::new() }
+    }
+}
+
+/// A reported 3D track, as the log and the score use it.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct TrackState {
+    pub(super) id: u32,
+    pub(super) class: u16,
+    pub(super) bbox: crate::box3d::Box3d,
+    /// Velocity (x, y) per frame.
+    pub(super) velocity: [f64; 2],
+    pub(super) is_static: bool,
+}
+
+impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, T3, T2, BUF> {
+    pub(super) fn on_detections(
+        &mut self,
+        t: Timestamp,
+        frame: u64,
+        detections: &[Detection3d],
+    ) -> Result<(), PipelineError<W::Error>> {
+        let frame = frame.saturating_add(self.anchoring.frame_offset);
+        if self.tracking.frames3d.advance(frame).is_err() {
+            return self.log.issue(t, Issue::DetectionsOutOfOrder, 1);
+        }
+        let (has_vo, ego) = self.pose_for(t, frame);
+        let Some(ego) = ego else {
+            if !has_vo {
+                self.log.issue(t, Issue::DetectionsWithoutPose, detections.len().max(1) as u64)?;
+            }
+            return self.write_raw(t, frame, detections);
+        };
+        let mut placed: heapless::Vec<Detection3d, T3> = heapless::Vec::new();
+        let mut excess = 0u64;
+        for d in detections {
+            let world = mount::to_world(&ego.eased, &self.anchoring.mount.mount.to_body(d));
+            if placed.push(world).is_err() {
+                excess += 1;
+            }
+        }
+        self.log.stats.detections_placed = self.log.stats.detections_placed.saturating_add(placed.len() as u64);
+        let rejected_before = self.tracking.trackers.tracker3d.stats().rejected;
+        // Only what the log needs of each track: the filter's posterior is 0.9 KB a track,
+        // too much to keep 64 of on a microcontroller's stack.
+        let mut outputs: heapless::Vec<TrackState, T3> = heapless::Vec::new();
+        if self
+            .tracking
+            .trackers
+            .tracker3d
+            .update(frame, &placed, |o| {
+                // At most T3 tracks exist.
+                let _ = outputs.push(TrackState {
+                    id: o.id,
+                    class: o.class,
+                    bbox: o.bbox,
+                    velocity: [o.velocity[0], o.velocity[1]],
+                    is_static: o.is_static,
+                });
+            })
+            .is_err()
+        {
+            return self.log.issue(t, Issue::DetectionsOutOfOrder, 1);
+        }
+        let refused =
+            self.tracking.trackers.tracker3d.stats().rejected.saturating_sub(rejected_before).saturating_add(excess);
+        if refused > 0 {
+            self.log.issue(t, Issue::DetectionsRefused, refused)?;
+        }
+        self.write_tracks(t, &ego, &outputs)
+    }
+
+    pub(super) fn write_raw(
+        &mut self,
+        t: Timestamp,
+        frame: u64,
+        detections: &[Detection3d],
+    ) -> Result<(), PipelineError<W::Error>> {
+        let t_us = self.log.time(t);
+        for d in detections.iter().take(T3) {
+            let b = &d.bbox;
+            let [xx, xy, yy] = d.position_covariance.unwrap_or([0.0; 3]);
+            self.log.write(&Record::Detection3d(DetectionRecord {
+                t_us,
+                frame: i64::try_from(frame).unwrap_or(i64::MAX),
+                class: self.config.classes.get(usize::from(d.class)).map_or(255, |m| m.code),
+                score_e3: quantise(d.score, 1e-3),
+                x_mm: quantise(b.x, 1e-3),
+                y_mm: quantise(b.y, 1e-3),
+                z_mm: quantise(b.z, 1e-3),
+                yaw_e4: quantise(b.yaw, 1e-4),
+                l_mm: quantise(b.l, 1e-3),
+                w_mm: quantise(b.w, 1e-3),
+                h_mm: quantise(b.h, 1e-3),
+                cov_xx_mm2: quantise(xx, 1e-6),
+                cov_xy_mm2: quantise(xy, 1e-6),
+                cov_yy_mm2: quantise(yy, 1e-6),
+            }))?;
+            self.log.stats.detections_raw = self.log.stats.detections_raw.saturating_add(1);
+        }
+        Ok(())
+    }
+
+    pub(super) fn write_tracks(
+        &mut self,
+        t: Timestamp,
+        ego: &Ego,
+        outputs: &[TrackState],
+    ) -> Result<(), PipelineError<W::Error>> {
+        let t_us = self.log.time(t);
+        let per_second = 1.0 / self.anchoring.frame_interval;
+        // Agents the tracker stopped reporting stay a while, moved on by their velocity: the
+        // windows score the ego a second back, when the cone the car passed was still
+        // beside it (most leave the camera's view, not the road).
+        let now = t.as_secs_f64();
+        let dt = now - self.windows.agents_t;
+        let mut kept: heapless::Vec<(Agent, f64), KEPT_AGENTS> = heapless::Vec::new();
+        for a in &self.windows.agents {
+            if outputs.iter().any(|o| o.id == a.id) {
+                continue;
+            }
+            let since = self.windows.lost.iter().find(|(id, _)| *id == a.id).map_or(now, |l| l.1);
+            if now - since <= KEEP_LOST_S {
+                let mut a = *a;
+                a.bbox.centre.x += a.velocity.0 * dt;
+                a.bbox.centre.y += a.velocity.1 * dt;
+                // At most KEPT_AGENTS kept; beyond, the rest are forgotten.
+                let _ = kept.push((a, since));
+            }
+        }
+        self.windows.agents.clear();
+        self.windows.lost.clear();
+        self.windows.agents_t = now;
+        // The tracks live in the eased ego's frame; the log has them beside its anchored one.
+        let to_log = ease::Reframe::new(ego.eased, ego.pose);
+        for chunk in outputs.chunks(MAX_TRACKS) {
+            let mut batch = Tracks3d { t_us, tracks: heapless::Vec::new() };
+            for o in chunk {
+                let b = &o.bbox;
+                let (vx, vy) = (o.velocity[0] * per_second, o.velocity[1] * per_second);
+                let meta = self.config.classes.get(usize::from(o.class)).copied();
+                let (x, y) = to_log.point(b.x, b.y);
+                let (log_vx, log_vy) = to_log.vector(vx, vy);
+                // At most MAX_TRACKS per chunk.
+                let _ = batch.tracks.push(Track3d {
+                    id: i64::from(o.id),
+                    class: meta.map_or(255, |m| m.code),
+                    x_mm: quantise(x, 1e-3),
+                    y_mm: quantise(y, 1e-3),
+                    z_mm: quantise(ego.z + b.z, 1e-3),
+                    l_mm: quantise(b.l, 1e-3),
+                    w_mm: quantise(b.w, 1e-3),
+                    h_mm: quantise(b.h, 1e-3),
+                    yaw_e4: quantise(to_log.heading(b.yaw), 1e-4),
+                    vx_mm_s: quantise(log_vx, 1e-3),
+                    vy_mm_s: quantise(log_vy, 1e-3),
+                    is_static: i64::from(o.is_static),
+                });
+                let kind = meta.map_or(AgentKind::Object, |m| m.kind);
+                let _ = self.windows.agents.push(Agent {
+                    id: o.id,
+                    kind,
+                    bbox: OrientedBox { centre: Pose2::new(b.x, b.y, b.yaw), length: b.l, width: b.w },
+                    velocity: (vx, vy),
+                });
+            }
+            self.log.write(&Record::Tracks3d(batch))?;
+        }
+        for (a, since) in kept {
+            if self.windows.agents.push(a).is_ok() {
+                let _ = self.windows.lost.push((a.id, since));
+            }
+        }
+        self.log.stats.track_states = self.log.stats.track_states.saturating_add(outputs.len() as u64);
+        Ok(())
+    }
+
+    pub(super) fn on_detections2d(
+        &mut self,
+        t: Timestamp,
+        frame: u64,
+        detections: &[ImageDetection],
+    ) -> Result<(), PipelineError<W::Error>> {
+        let frame = frame.saturating_add(self.anchoring.frame_offset);
+        if self.tracking.frames2d.advance(frame).is_err() {
+            return self.log.issue(t, Issue::DetectionsOutOfOrder, 1);
+        }
+        let mut boxes: heapless::Vec<Detection, T2> = heapless::Vec::new();
+        let mut excess = 0;
+        for d in detections {
+            if boxes.push(d.detection).is_err() {
+                excess += 1;
+            }
+        }
+        if excess > 0 {
+            self.log.issue(t, Issue::DetectionsRefused, excess)?;
+        }
+        let mut outputs: heapless::Vec<crate::track2d::TrackOutput, T2> = heapless::Vec::new();
+        if self
+            .tracking
+            .trackers
+            .tracker2d
+            .update(frame, &boxes, |o| {
+                let _ = outputs.push(o);
+            })
+            .is_err()
+        {
+            return self.log.issue(t, Issue::DetectionsOutOfOrder, 1);
+        }
+        let t_us = self.log.time(t);
+        for o in &outputs {
+            // The class of the detection that fits the track's box best.
+            let class = detections
+                .iter()
+                .take(T2)
+                .map(|d| (d.class, o.bbox.iou(&d.detection.bbox)))
+                .fold((None, 0.0), |best, (c, iou)| if iou > best.1 { (Some(c), iou) } else { best })
+                .0
+                .map_or(-1, i64::from);
+            let b: &Box2d = &o.bbox;
+            self.log.write(&Record::Track2d(Track2d {
+                t_us,
+                id: i64::from(o.id),
+                class,
+                score_e3: quantise(o.score, 1e-3),
+                x_e1: quantise(b.x, 0.1),
+                y_e1: quantise(b.y, 0.1),
+                w_e1: quantise(b.w, 0.1),
+                h_e1: quantise(b.h, 0.1),
+            }))?;
+        }
+        self.log.stats.track2d_states = self.log.stats.track2d_states.saturating_add(outputs.len() as u64);
+        Ok(())
+    }
+}
