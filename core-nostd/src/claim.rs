@@ -96,6 +96,16 @@ pub enum ClaimError {
     TooMany,
 }
 
+impl core::fmt::Display for ClaimError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ClaimError::TooMany => write!(f, "more detections than the claimer holds"),
+        }
+    }
+}
+
+impl core::error::Error for ClaimError {}
+
 /// Counters of one run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ClaimStats {

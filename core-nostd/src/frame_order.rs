@@ -22,6 +22,8 @@ impl core::fmt::Display for TrackError {
     }
 }
 
+impl core::error::Error for TrackError {}
+
 /// The latest frame accepted.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -62,3 +62,48 @@ pub mod track3d;
 pub mod traj;
 
 pub use nalgebra;
+
+/// Every error the core returns is a `core::error::Error` whose message reads the same way:
+/// a lower-case phrase, no full stop (the adapters put it after a file name or a colon).
+#[cfg(all(test, feature = "std"))]
+mod error_messages {
+    extern crate std;
+    use std::string::ToString;
+
+    fn message(e: &dyn core::error::Error) -> std::string::String {
+        e.to_string()
+    }
+
+    #[test]
+    fn read_alike() {
+        let errors: [&dyn core::error::Error; 21] = [
+            &crate::geo::GeoError::OutOfRange,
+            &crate::traj::TrajError::LengthMismatch,
+            &crate::anchor::AnchorError::InvalidSigma,
+            &crate::ekf::KalmanError::Singular,
+            &crate::can::fast_packet::FrameError::TooShort,
+            &crate::can::signal::SignalError::NotFinite,
+            &crate::can::decoder::Error::FastPacket(crate::can::fast_packet::FrameError::BadLength(9)),
+            &crate::nmea::framer::FrameError::TooLong,
+            &crate::nmea::sentence::SentenceError::MissingChecksum,
+            &crate::pipeline::replay::ReplayError::Truncated(12),
+            &crate::assign::AssignError::TooLarge,
+            &crate::box2d::BoxError::Empty,
+            &crate::score::ScoreError::TimeNotIncreasing,
+            &crate::binlog::HeaderError::NotALog,
+            &crate::sim3::AlignError::Degenerate,
+            &crate::map::MapError::BadChecksum,
+            &crate::frame_order::TrackError::OutOfOrder { previous: 4, frame: 3 },
+            &crate::claim::ClaimError::TooMany,
+            &crate::track3d::SmoothError::NotIncreasing,
+            &crate::binlog::WriteError::<()>::RecordTooLarge,
+            &crate::nmea::messages::MessageError::OutOfRange { index: 3 },
+        ];
+        for e in errors {
+            let m = message(e);
+            let first = m.chars().next().unwrap_or('.');
+            assert!(!first.is_uppercase() || m.starts_with("CRC") || m.starts_with("NMEA"), "{m:?}");
+            assert!(!m.is_empty() && !m.ends_with('.'), "{m:?}");
+        }
+    }
+}

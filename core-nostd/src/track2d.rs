@@ -80,8 +80,6 @@ pub struct Stats {
 use crate::frame_order::FrameOrder;
 pub use crate::frame_order::TrackError;
 
-impl core::error::Error for TrackError {}
-
 /// A confirmed track in this frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TrackOutput {

@@ -64,6 +64,8 @@ impl<E: core::fmt::Debug> core::fmt::Display for WriteError<E> {
     }
 }
 
+impl<E: core::fmt::Debug> core::error::Error for WriteError<E> {}
+
 #[derive(Clone, Copy, Debug)]
 struct OpenSegment {
     seq: u32,

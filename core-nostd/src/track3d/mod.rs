@@ -199,6 +199,17 @@ pub enum SmoothError {
     NotIncreasing,
 }
 
+impl core::fmt::Display for SmoothError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            SmoothError::LengthMismatch => write!(f, "frames and states differ in number"),
+            SmoothError::NotIncreasing => write!(f, "frame numbers do not increase"),
+        }
+    }
+}
+
+impl core::error::Error for SmoothError {}
+
 /// Longest gap between two reports of one track that is bridged by prediction; a track is
 /// retired after `max_age` missed frames, so real gaps are short.
 const MAX_SMOOTH_GAP: u64 = 1024;
