@@ -152,16 +152,16 @@ fn finishing_the_comma2k19_minute_beats_the_online_anchorer_and_meets_the_papers
     for (name, log, anchor_text) in &variants {
         let finished = run(log, *anchor_text);
         let j = judge(&finished.records, truth, &model);
-        let a = &finished.report["anchoring"];
+        let a = &finished.report.anchoring;
         println!(
             "| {name} | {:+.3} % | {:.3} | {:.3} | {:.3} % | {} | {:.3} % | {:.2} |",
             100.0 * j.scale_error,
             j.ate,
             j.ate_aligned,
             100.0 * j.segment_scale_rms,
-            finished.report["anchors"]["used"],
-            100.0 * a["scale_sigma_relative"].as_f64().unwrap_or(f64::NAN),
-            a["position_sigma_m"].as_f64().unwrap_or(f64::NAN),
+            finished.report.anchors.used,
+            100.0 * a.scale_sigma_relative,
+            a.position_sigma_m,
         );
         judged.push(j);
     }
@@ -182,7 +182,7 @@ fn finishing_the_comma2k19_minute_beats_the_online_anchorer_and_meets_the_papers
 }
 
 fn finished_anchors_used(log: &LogContents, anchors: &str) -> usize {
-    run(log, Some(anchors)).report["anchors"]["used"].as_u64().unwrap_or(0) as usize
+    run(log, Some(anchors)).report.anchors.used
 }
 
 fn log_clone(log: &LogContents) -> LogContents {

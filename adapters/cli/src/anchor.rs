@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use clap::Args;
 use dash2sim_linux::record::VoFrame;
 use dash2sim_linux::verify::anchoring::{self, AnchorRequest};
+use dash2sim_linux::Result;
 
 /// Arguments of `dash2sim anchor`.
 #[derive(Debug, Args)]
@@ -37,7 +38,7 @@ pub struct AnchorArgs {
 }
 
 /// `dash2sim anchor`.
-pub fn run(args: &AnchorArgs) -> Result<(), String> {
+pub fn run(args: &AnchorArgs) -> Result<()> {
     let summary = anchoring::anchor_files(&AnchorRequest {
         vo: args.vo.clone(),
         gnss: args.gnss.clone(),

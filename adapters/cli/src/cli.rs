@@ -13,6 +13,7 @@ use serde_json::json;
 use dash2sim_linux::sync::DEFAULT_MAX_DIFF_S;
 use dash2sim_linux::trajectory::Format;
 use dash2sim_linux::verify::evaluate::{self, Align, Evaluation, Relation};
+use dash2sim_linux::{Error, Result};
 
 /// dash2sim: metric, geo-referenced 4D driving logs from a dashcam.
 #[derive(Debug, Parser)]
@@ -393,7 +394,7 @@ pub fn run() -> ExitCode {
                     objects: a.objects,
                     origin: a.origin,
                 }),
-                None => Err(format!("--speed-unit {:?}: expected km/h, m/s or mph", a.speed_unit)),
+                None => Err(Error::invalid(format!("--speed-unit {:?}: expected km/h, m/s or mph", a.speed_unit))),
             }
         }
         Command::Demo(args) => crate::demo::run(&args),
@@ -413,36 +414,38 @@ pub fn run() -> ExitCode {
     }
 }
 
-fn traj_ape(args: &ApeArgs) -> Result<(), String> {
+fn traj_ape(args: &ApeArgs) -> Result<()> {
     let c = &args.common;
     check_max_diff(c.max_diff)?;
-    let (r, e) = evaluate::load_pair(&c.reference, &c.estimate, c.format, c.max_diff).map_err(|e| e.to_string())?;
-    let eval = evaluate::ape(&r, &e, c.align, c.pose_relation).map_err(|e| e.to_string())?;
+    let (r, e) = evaluate::load_pair(&c.reference, &c.estimate, c.format, c.max_diff).map_err(Error::other)?;
+    let eval = evaluate::ape(&r, &e, c.align, c.pose_relation).map_err(Error::other)?;
     report("APE", c, &eval, None);
     Ok(())
 }
 
-fn traj_rpe(args: &RpeArgs) -> Result<(), String> {
+fn traj_rpe(args: &RpeArgs) -> Result<()> {
     let c = &args.common;
     check_max_diff(c.max_diff)?;
     let delta = match args.unit {
         DeltaUnit::Frames if args.delta >= 1.0 && args.delta.fract() == 0.0 && args.delta < 1e9 => {
             Delta::Frames(args.delta as usize)
         }
-        DeltaUnit::Frames => return Err(format!("--delta {} is not a whole number of frames ≥ 1", args.delta)),
+        DeltaUnit::Frames => {
+            return Err(Error::invalid(format!("--delta {} is not a whole number of frames ≥ 1", args.delta)))
+        }
         DeltaUnit::M if args.delta.is_finite() && args.delta > 0.0 => Delta::Metres(args.delta),
-        DeltaUnit::M => return Err(format!("--delta {} m must be positive", args.delta)),
+        DeltaUnit::M => return Err(Error::invalid(format!("--delta {} m must be positive", args.delta))),
     };
     let pairs = RpePairs { delta, all_pairs: args.all_pairs, from_reference: args.pairs_from_reference };
-    let (r, e) = evaluate::load_pair(&c.reference, &c.estimate, c.format, c.max_diff).map_err(|e| e.to_string())?;
-    let eval = evaluate::rpe(&r, &e, c.align, c.pose_relation, pairs).map_err(|e| e.to_string())?;
+    let (r, e) = evaluate::load_pair(&c.reference, &c.estimate, c.format, c.max_diff).map_err(Error::other)?;
+    let eval = evaluate::rpe(&r, &e, c.align, c.pose_relation, pairs).map_err(Error::other)?;
     report("RPE", c, &eval, Some(args));
     Ok(())
 }
 
-fn mot_eval(gt: &std::path::Path, test: &std::path::Path, max_distance: f64, as_json: bool) -> Result<(), String> {
+fn mot_eval(gt: &std::path::Path, test: &std::path::Path, max_distance: f64, as_json: bool) -> Result<()> {
     if !(0.0..=1.0).contains(&max_distance) {
-        return Err(format!("--max-distance {max_distance} must be within [0, 1]"));
+        return Err(Error::invalid(format!("--max-distance {max_distance} must be within [0, 1]")));
     }
     let (gt, test) =
         (dash2sim_linux::ingest::motchallenge::read_mot(gt)?, dash2sim_linux::ingest::motchallenge::read_mot(test)?);
@@ -459,14 +462,13 @@ fn mot_eval(gt: &std::path::Path, test: &std::path::Path, max_distance: f64, as_
 }
 
 /// `dash2sim track2d`: the problems of the file and the summary on stderr.
-fn track2d(detections: &std::path::Path, output: &std::path::Path) -> Result<(), String> {
+fn track2d(detections: &std::path::Path, output: &std::path::Path) -> Result<()> {
     let rows = dash2sim_linux::ingest::motchallenge::read_mot(detections)?;
     let (tracks, stats, skipped) = dash2sim_linux::record::track2d::track(&rows);
     for (_, message) in &skipped {
         eprintln!("{}: {message}", detections.display());
     }
-    dash2sim_linux::ingest::motchallenge::write_mot(output, &tracks)
-        .map_err(|e| format!("{}: {e}", output.display()))?;
+    dash2sim_linux::ingest::motchallenge::write_mot(output, &tracks).map_err(|e| Error::file(output, e))?;
     let ids: std::collections::BTreeSet<i64> = tracks.iter().map(|r| r.id).collect();
     eprintln!(
         "{} frames, {} detections → {} tracks, {} boxes; rejected {} detections, dropped {}, {} rows out of order, {} track candidates dropped",
@@ -483,7 +485,7 @@ fn track2d(detections: &std::path::Path, output: &std::path::Path) -> Result<(),
 }
 
 /// `dash2sim import`: the captures' problems on stderr, what was written on stdout.
-fn import(request: &dash2sim_linux::log::import::ImportRequest) -> Result<(), String> {
+fn import(request: &dash2sim_linux::log::import::ImportRequest) -> Result<()> {
     let imported = dash2sim_linux::log::import::import(request, &mut |problem| eprintln!("{problem}"))?;
     let counts: Vec<String> = imported.by_kind.iter().map(|(k, v)| format!("{v} {k}")).collect();
     println!(
@@ -498,11 +500,11 @@ fn import(request: &dash2sim_linux::log::import::ImportRequest) -> Result<(), St
     Ok(())
 }
 
-fn check_max_diff(max_diff: f64) -> Result<(), String> {
+fn check_max_diff(max_diff: f64) -> Result<()> {
     if max_diff.is_finite() && max_diff >= 0.0 {
         Ok(())
     } else {
-        Err(format!("--max-diff {max_diff} must be a non-negative number of seconds"))
+        Err(Error::invalid(format!("--max-diff {max_diff} must be a non-negative number of seconds")))
     }
 }
 

@@ -10,11 +10,12 @@ use dash2sim_core::nmea::GnssFix;
 use dash2sim_linux::ingest::can::{self, CanDecoder};
 use dash2sim_linux::ingest::nmea::{self, tpv_json};
 use dash2sim_linux::utc::iso8601;
+use dash2sim_linux::{Error, Result};
 use serde_json::Value;
 
 /// `dash2sim nmea decode FILE [--json]`.
-pub fn nmea(path: &Path, as_json: bool) -> Result<(), String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+pub fn nmea(path: &Path, as_json: bool) -> Result<()> {
+    let bytes = std::fs::read(path).map_err(|e| Error::file(path, e))?;
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     let name = path.display();
     let decoded = nmea::decode(
@@ -34,12 +35,12 @@ pub fn nmea(path: &Path, as_json: bool) -> Result<(), String> {
 }
 
 /// `dash2sim can decode FILE [--dbc F]... [--json]`.
-pub fn can(path: &Path, dbcs: &[PathBuf], as_json: bool) -> Result<(), String> {
+pub fn can(path: &Path, dbcs: &[PathBuf], as_json: bool) -> Result<()> {
     let (table, warnings) = can::load_tables(dbcs)?;
     for warning in &warnings {
         eprintln!("{warning}");
     }
-    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let file = std::fs::File::open(path).map_err(|e| Error::file(path, e))?;
     let mut source = CandumpReader::new(std::io::BufReader::new(file));
     let mut decoder = CanDecoder::new(table);
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
@@ -52,7 +53,7 @@ pub fn can(path: &Path, dbcs: &[PathBuf], as_json: bool) -> Result<(), String> {
     ) {
         Ok(summary) => can::summary_json(&summary, &decoder),
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
-        Err(e) => return Err(format!("{name}: {e}")),
+        Err(e) => return Err(Error::invalid(format!("{name}: {e}"))),
     };
     let written = if as_json {
         writeln!(out, "{summary}").and_then(|()| out.flush())
@@ -64,9 +65,9 @@ pub fn can(path: &Path, dbcs: &[PathBuf], as_json: bool) -> Result<(), String> {
 }
 
 /// A write's outcome: a closed pipe is the reader's choice, not an error.
-fn ended(written: std::io::Result<()>) -> Result<(), String> {
+fn ended(written: std::io::Result<()>) -> Result<()> {
     match written {
-        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(format!("writing output: {e}")),
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(Error::invalid(format!("writing output: {e}"))),
         _ => Ok(()),
     }
 }

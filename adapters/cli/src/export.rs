@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use dash2sim_linux::export::{self, ExportRequest};
+use dash2sim_linux::Result;
 
 /// What to export (`dash2sim export`).
 #[derive(Clone, Debug, Args)]
@@ -42,7 +43,7 @@ pub struct ExportArgs {
 
 /// `dash2sim export`: print what [`export::export`] wrote, a damaged log's warning on
 /// stderr.
-pub fn run(args: ExportArgs) -> Result<(), String> {
+pub fn run(args: ExportArgs) -> Result<()> {
     let exported = export::export(&ExportRequest {
         log: args.log,
         mcap: args.mcap,

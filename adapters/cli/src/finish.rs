@@ -7,6 +7,7 @@ use dash2sim_linux::finish::{self, FinishRequest};
 use serde_json::{Map, Value};
 
 use crate::record::DeviceArgs;
+use dash2sim_linux::{Error, Result};
 
 /// `dash2sim finish`.
 #[derive(Debug, Args)]
@@ -36,7 +37,7 @@ pub struct FinishArgs {
 
 /// `dash2sim finish`: [`finish::finish_file`], the refused anchors on stderr, the report on
 /// stdout.
-pub fn run(args: &FinishArgs) -> Result<(), String> {
+pub fn run(args: &FinishArgs) -> Result<()> {
     let request = FinishRequest {
         log: args.log.clone(),
         output: args.output.clone(),
@@ -45,11 +46,13 @@ pub fn run(args: &FinishArgs) -> Result<(), String> {
         device: args.device.clone().into(),
         keyframe: args.keyframe,
     };
-    let report = finish::finish_file(&request)?;
-    let file = report["anchors"]["file"].as_str().unwrap_or_default();
-    for refused in report["anchors"]["refused"].as_array().into_iter().flatten() {
-        eprintln!("{file}:{}: {}", refused["line"], refused["reason"].as_str().unwrap_or_default());
+    let finished = finish::finish_file(&request)?;
+    let anchors = &finished.report.anchors;
+    for refused in &anchors.refused {
+        eprintln!("{}:{}: {}", anchors.file.as_deref().unwrap_or_default(), refused.line, refused.reason);
     }
+    // Rendered through `Value`, whose keys are sorted (the output's order since the start).
+    let report = serde_json::to_value(&finished).map_err(Error::other)?;
     if args.json {
         println!("{report}");
     } else {

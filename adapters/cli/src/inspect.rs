@@ -5,22 +5,33 @@ use std::path::Path;
 use dash2sim_core::binlog::Kind;
 use dash2sim_linux::log::inspect::{dropped_inputs, frames, gaps, report};
 use dash2sim_linux::log::read;
-use serde_json::Value;
+use dash2sim_linux::{Error, Result};
+use serde_json::json;
 
 /// `dash2sim inspect`.
-pub fn run(path: &Path, as_json: bool) -> Result<(), String> {
-    let log = read(path).map_err(|e| e.to_string())?;
+pub fn run(path: &Path, as_json: bool) -> Result<()> {
+    let log = read(path).map_err(Error::other)?;
     let r = report(&log);
     if as_json {
-        println!("{r}");
+        // Through `Value`, whose keys are sorted: the output's order is the JSON's, not the
+        // struct's.
+        println!("{}", serde_json::to_value(&r).map_err(Error::other)?);
         return Ok(());
     }
     println!("log {} ({} bytes, format v1)", path.display(), log.bytes);
-    match &r["header"] {
-        Value::Null => println!("  header      damaged"),
-        h => println!("  header      device {}, origin {}, {}", h["device_id"], h["origin"]["lat"], h["origin"]["lon"]),
+    match &r.header {
+        None => println!("  header      damaged"),
+        // Rendered as JSON values, as the report gives them.
+        Some(h) => {
+            println!(
+                "  header      device {}, origin {}, {}",
+                json!(h.device_id),
+                json!(h.origin.lat),
+                json!(h.origin.lon)
+            )
+        }
     }
-    if let (Some(a), Some(b)) = (r["t_start"].as_f64(), r["t_end"].as_f64()) {
+    if let (Some(a), Some(b)) = (r.t_start, r.t_end) {
         println!("  time        {a:.6} … {b:.6} s ({:.1} s), {} segments", b - a, log.stats.segments);
     }
     println!("  records     {}", log.stats.total());

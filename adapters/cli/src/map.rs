@@ -4,12 +4,13 @@ use std::io::Write as _;
 use std::path::Path;
 
 use dash2sim_linux::ingest::map_tile::{self, check};
+use dash2sim_linux::{Error, Result};
 
 /// Warnings shown of a build; the rest are counted.
 const WARNINGS_SHOWN: usize = 10;
 
 /// `dash2sim map build`.
-pub fn build(osm: &Path, output: &Path, origin: Option<&str>, bbox: Option<&str>, cell: f64) -> Result<(), String> {
+pub fn build(osm: &Path, output: &Path, origin: Option<&str>, bbox: Option<&str>, cell: f64) -> Result<()> {
     let built = map_tile::build_file(osm, output, origin, bbox, cell)?;
     for w in built.warnings.iter().take(WARNINGS_SHOWN) {
         eprintln!("warning: {w}");
@@ -30,17 +31,17 @@ pub fn build(osm: &Path, output: &Path, origin: Option<&str>, bbox: Option<&str>
 }
 
 /// `dash2sim map lanes`.
-pub fn lanes(path: &Path) -> Result<(), String> {
+pub fn lanes(path: &Path) -> Result<()> {
     let json = map_tile::lanes_json(path)?;
     match writeln!(std::io::stdout().lock(), "{json}") {
         // A reader that stops early (`| head`) is not an error.
-        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(format!("stdout: {e}")),
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(Error::invalid(format!("stdout: {e}"))),
         _ => Ok(()),
     }
 }
 
 /// `dash2sim map info`.
-pub fn info(path: &Path, as_json: bool) -> Result<(), String> {
+pub fn info(path: &Path, as_json: bool) -> Result<()> {
     let info = map_tile::info(path)?;
     if as_json {
         println!("{}", info.to_json());
@@ -61,7 +62,7 @@ pub fn info(path: &Path, as_json: bool) -> Result<(), String> {
 }
 
 /// `dash2sim map check`.
-pub fn check(map: &Path, poses: &Path, passes: u32, as_json: bool) -> Result<(), String> {
+pub fn check(map: &Path, poses: &Path, passes: u32, as_json: bool) -> Result<()> {
     let c = check::check_file(map, poses, passes)?;
     if as_json {
         println!("{}", c.to_json());

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use dash2sim_linux::plot::{self, PlotRequest};
+use dash2sim_linux::Result;
 
 /// `dash2sim plot` arguments.
 #[derive(Debug, Clone, clap::Args)]
@@ -21,7 +22,7 @@ pub struct PlotArgs {
 }
 
 /// `dash2sim plot`.
-pub fn run(args: PlotArgs) -> Result<(), String> {
+pub fn run(args: PlotArgs) -> Result<()> {
     let request = PlotRequest { log: args.log, map: args.map, finished: args.finished, output: args.output };
     let drawn = plot::plot(&request)?;
     let classes: Vec<String> = drawn.tracks.iter().map(|(c, n)| format!("{n} {c}")).collect();

@@ -7,6 +7,7 @@ use clap::Args;
 use dash2sim_core::pipeline::Issue;
 use dash2sim_linux::record::live::LiveStatus;
 use dash2sim_linux::record::{self, Device, RecordRequest, Sources, SpeedMessage, VoFrame};
+use dash2sim_linux::{Error, Result};
 
 /// The recorded files `dash2sim record` reads.
 #[derive(Clone, Debug, Default, Args)]
@@ -164,7 +165,7 @@ impl From<DeviceArgs> for Device {
 }
 
 /// `dash2sim record`: from files, or live.
-pub fn run(args: &RecordArgs) -> Result<(), String> {
+pub fn run(args: &RecordArgs) -> Result<()> {
     let request = args.request();
     if let Some(live) = record::live_request(&request)? {
         let report = record::record_live(&request, &live, &mut |warning| eprintln!("{warning}"));
@@ -192,7 +193,7 @@ pub fn run(args: &RecordArgs) -> Result<(), String> {
     for problem in &counts.problems {
         eprintln!("{problem}");
     }
-    std::fs::write(&args.output, &recording.log).map_err(|e| format!("{}: {e}", args.output.display()))?;
+    std::fs::write(&args.output, &recording.log).map_err(|e| Error::file(&args.output, e))?;
     if args.json {
         println!("{}", record::file_summary(&recording, &counts));
         return Ok(());

@@ -13,6 +13,7 @@ use dash2sim_linux::sim::scenario::evaluate::evaluate_tracking;
 use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
 use dash2sim_linux::sim::scenario::write::write_scenario;
 use dash2sim_linux::sim::scenario::{generate, tracker_classes, tracker_config, Frame};
+use dash2sim_linux::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
@@ -78,9 +79,9 @@ pub struct SweepArgs {
 }
 
 /// `dash2sim scenario generate`: drive `seed` written to `dir`, and what it holds.
-pub fn generate_to(seed: u64, duration_s: f64, profile: Profile, receiver: Receiver, dir: &Path) -> Result<(), String> {
+pub fn generate_to(seed: u64, duration_s: f64, profile: Profile, receiver: Receiver, dir: &Path) -> Result<()> {
     let scenario = generate(&config(seed, duration_s, profile, receiver)?);
-    let files = write_scenario(&scenario, dir).map_err(|e| format!("writing {}: {e}", dir.display()))?;
+    let files = write_scenario(&scenario, dir).map_err(|e| Error::refused(format!("writing {}", dir.display()), e))?;
     let count = |f: fn(&Frame) -> usize| scenario.frames.iter().map(f).sum::<usize>();
     println!(
         "scenario {seed} ({} profile, {} receiver): {} frames, {} objects, {} 3D and {} 2D detections, {} GNSS fixes ({} in multipath), {} speed samples, {} VO session(s)",
@@ -102,7 +103,7 @@ pub fn generate_to(seed: u64, duration_s: f64, profile: Profile, receiver: Recei
 }
 
 /// `dash2sim scenario eval`: drive `seed` through the 3D tracker, judged.
-pub fn eval(seed: u64, duration_s: f64, profile: Profile, max_age: u32, as_json: bool) -> Result<(), String> {
+pub fn eval(seed: u64, duration_s: f64, profile: Profile, max_age: u32, as_json: bool) -> Result<()> {
     let scenario = generate(&config(seed, duration_s, profile, Receiver::Phone)?);
     let classes = tracker_classes();
     let report = evaluate_tracking::<64>(&scenario, Config3d { max_age, ..tracker_config(&classes) });
@@ -153,7 +154,7 @@ pub fn eval(seed: u64, duration_s: f64, profile: Profile, max_age: u32, as_json:
 }
 
 /// `dash2sim scenario corpus`: progress every 25 logs on stderr unless `--quiet`.
-pub fn corpus(args: &CorpusArgs) -> Result<(), String> {
+pub fn corpus(args: &CorpusArgs) -> Result<()> {
     let request = CorpusRequest {
         output: args.output.clone(),
         logs: args.logs,
@@ -179,7 +180,7 @@ pub fn corpus(args: &CorpusArgs) -> Result<(), String> {
 
 /// `dash2sim scenario sweep`: a progress bar on stderr unless `--quiet`, the summary on
 /// stdout.
-pub fn sweep(args: &SweepArgs) -> Result<(), String> {
+pub fn sweep(args: &SweepArgs) -> Result<()> {
     let request = SweepRequest {
         seeds: args.seeds.clone(),
         driver: args.driver,
@@ -205,7 +206,7 @@ pub fn sweep(args: &SweepArgs) -> Result<(), String> {
     bar.finish_and_clear();
     let (_, summary) = result?;
     if args.json {
-        println!("{}", serde_json::to_string(&summary).map_err(|e| e.to_string())?);
+        println!("{}", serde_json::to_string(&summary).map_err(Error::other)?);
     } else {
         print!("{}", summary.text());
         println!(

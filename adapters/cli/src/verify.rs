@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use dash2sim_core::obb::CORNER_NAMES;
 use dash2sim_linux::verify::{self, Verification};
+use dash2sim_linux::{Error, Result};
 
 #[derive(Debug, clap::Args)]
 pub struct VerifyArgs {
@@ -49,7 +50,7 @@ pub struct VerifyArgs {
 }
 
 /// `dash2sim verify`: a damaged log's warning on stderr, the report on stdout.
-pub fn run(a: &VerifyArgs) -> Result<(), String> {
+pub fn run(a: &VerifyArgs) -> Result<()> {
     let footprint = dash2sim_core::obb::Footprint { width: a.width, front: a.front, rear: a.rear };
     let valid = footprint.width > 0.0
         && footprint.front + footprint.rear > 0.0
@@ -57,7 +58,7 @@ pub fn run(a: &VerifyArgs) -> Result<(), String> {
     let ego = match (&a.log, &a.ego) {
         (Some(log), _) => verify::EgoSource::Log(log),
         (None, Some(tum)) => verify::EgoSource::Tum(tum),
-        (None, None) => return Err("give a LOG or --ego TRAJ.tum".to_owned()),
+        (None, None) => return Err(Error::invalid("give a LOG or --ego TRAJ.tum")),
     };
     let request = verify::VerifyRequest {
         map: &a.map,
@@ -69,11 +70,12 @@ pub fn run(a: &VerifyArgs) -> Result<(), String> {
         window: (a.from.unwrap_or(f64::NEG_INFINITY), a.to.unwrap_or(f64::INFINITY)),
     };
     if !valid {
-        return Err("--width and --front + --rear must be positive".to_owned());
+        return Err(Error::invalid("--width and --front + --rear must be positive"));
     }
     let (v, name) = verify::evaluate(&request, &mut |warning| eprintln!("warning: {warning}"))?;
     if a.json {
-        println!("{}", verify::report_json(&v, request.channel_sensitive));
+        // Through `Value`, whose keys are sorted (the output's order since the start).
+        println!("{}", serde_json::to_value(verify::report(&v, request.channel_sensitive)).map_err(Error::other)?);
         return Ok(());
     }
     render(&v, name, request.channel_sensitive);

@@ -12,6 +12,7 @@
 #![deny(clippy::print_stdout, clippy::print_stderr)]
 
 pub mod datasets;
+pub mod error;
 pub mod export;
 pub mod finish;
 pub mod geometry;
@@ -25,4 +26,5 @@ pub mod sync;
 pub mod utc;
 /// Trajectory files (TUM, KITTI, EuRoC): the `dash2sim-trajectory` crate.
 pub use dash2sim_trajectory as trajectory;
+pub use error::{Error, Result};
 pub mod verify;

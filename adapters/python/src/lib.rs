@@ -28,8 +28,8 @@ create_exception!(
     "An error from dash2sim: the message is the command line's, naming the file and what was wrong."
 );
 
-fn error(message: String) -> PyErr {
-    Dash2SimError::new_err(message)
+fn error(e: impl std::fmt::Display) -> PyErr {
+    Dash2SimError::new_err(e.to_string())
 }
 
 /// The log's id: `log_id` if given, else the file's name without its extension (as
@@ -43,8 +43,8 @@ fn id_of(path: &std::path::Path, log_id: Option<String>) -> String {
 #[pyo3(signature = (path, log_id = None))]
 fn read_log(py: Python<'_>, path: PathBuf, log_id: Option<String>) -> PyResult<Vec<(String, Py<PyBytes>)>> {
     let streams = py
-        .detach(|| -> Result<Vec<(&'static str, Vec<u8>)>, String> {
-            let log = log::read(&path).map_err(|e| e.to_string())?;
+        .detach(|| -> dash2sim_linux::Result<Vec<(&'static str, Vec<u8>)>> {
+            let log = log::read(&path).map_err(dash2sim_linux::Error::other)?;
             let tables = parquet_export::tables(&log, &id_of(&path, log_id))?;
             tables
                 .tables
@@ -60,8 +60,9 @@ fn read_log(py: Python<'_>, path: PathBuf, log_id: Option<String>) -> PyResult<V
 #[pyfunction]
 fn inspect(py: Python<'_>, path: PathBuf) -> PyResult<String> {
     py.detach(|| {
-        let log = log::read(&path).map_err(|e| e.to_string())?;
-        Ok(log::inspect::report(&log).to_string())
+        let log = log::read(&path).map_err(dash2sim_linux::Error::other)?;
+        let report = serde_json::to_value(log::inspect::report(&log)).map_err(dash2sim_linux::Error::other)?;
+        Ok::<_, dash2sim_linux::Error>(report.to_string())
     })
     .map_err(error)
 }
@@ -87,7 +88,11 @@ fn finish(
         other => return Err(error(format!("mode {other:?}: give \"gravity\" or \"full\""))),
     };
     let args = FinishRequest { log, output, anchors, map, device: Device { mount, mode, uere }, keyframe };
-    py.detach(|| dash2sim_linux::finish::finish_file(&args)).map(|report| report.to_string()).map_err(error)
+    py.detach(|| {
+        let finished = dash2sim_linux::finish::finish_file(&args)?;
+        serde_json::to_value(finished).map(|report| report.to_string()).map_err(dash2sim_linux::Error::other)
+    })
+    .map_err(error)
 }
 
 /// Replay a log's ego against a map tile and score it (`dash2sim verify --json`).
@@ -118,7 +123,11 @@ fn verify(
     py.detach(|| {
         let (verification, _) =
             dash2sim_linux::verify::evaluate(&request, &mut |warning| eprintln!("warning: {warning}"))?;
-        Ok(dash2sim_linux::verify::report_json(&verification, channel_sensitive).to_string())
+        Ok::<_, dash2sim_linux::Error>(
+            serde_json::to_value(dash2sim_linux::verify::report(&verification, channel_sensitive))
+                .map_err(dash2sim_linux::Error::other)?
+                .to_string(),
+        )
     })
     .map_err(error)
 }

@@ -8,13 +8,14 @@ use serde_json::{json, Value};
 
 use super::progress::Progress;
 use dash2sim_linux::datasets::{self, comma, css};
+use dash2sim_linux::{Error, Result};
 
 /// One recording the demo knows: its folder, the files it needs, how it runs.
 struct Known {
     name: &'static str,
     folder: &'static str,
     missing: fn(&Path) -> Vec<PathBuf>,
-    run: fn(&Path, &Path) -> Result<Value, String>,
+    run: fn(&Path, &Path) -> Result<Value>,
     doing: &'static str,
 }
 
@@ -43,7 +44,7 @@ const KNOWN: [Known; 2] = [
 
 /// Run every recording found in `dir` into `out`; the summary. An error only when none
 /// could run.
-pub fn run(dir: &Path, out: &Path, progress: &Progress) -> Result<Value, String> {
+pub fn run(dir: &Path, out: &Path, progress: &Progress) -> Result<Value> {
     let mut results = Vec::new();
     let mut ran = 0;
     for (n, known) in KNOWN.iter().enumerate() {
@@ -66,14 +67,19 @@ pub fn run(dir: &Path, out: &Path, progress: &Progress) -> Result<Value, String>
             }
             Err(e) => {
                 eprintln!("dash2sim demo: {}: {e}", known.name);
-                results.push(json!({"name": known.name, "folder": folder.display().to_string(), "error": e}));
+                results
+                    .push(json!({"name": known.name, "folder": folder.display().to_string(), "error": e.to_string()}));
             }
         }
     }
     if ran == 0 {
         let names: Vec<String> =
             KNOWN.iter().map(|k| format!("{} ({})", k.name, dir.join(k.folder).display())).collect();
-        return Err(format!("no recording could run from {}: looked for {}", dir.display(), names.join(" and ")));
+        return Err(Error::invalid(format!(
+            "no recording could run from {}: looked for {}",
+            dir.display(),
+            names.join(" and ")
+        )));
     }
     Ok(json!({"data": dir.display().to_string(), "recordings": results}))
 }

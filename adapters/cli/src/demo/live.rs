@@ -16,6 +16,7 @@ use dash2sim_linux::record::live::{self, FileSink, LiveReport, LiveRequest};
 use dash2sim_linux::record::Setup;
 use dash2sim_linux::sim::scenario::profile::Profile;
 use dash2sim_linux::sim::scenario::Driver;
+use dash2sim_linux::{Error, Result};
 
 /// What to publish: the generated drive's seed, length, driver and sensor profile.
 #[derive(Clone, Copy, Debug)]
@@ -42,20 +43,14 @@ pub struct LiveRecording {
 }
 
 /// A FIFO at `path` (an old file of that name is replaced).
-fn fifo(path: &Path) -> Result<(), String> {
+fn fifo(path: &Path) -> Result<()> {
     let _ = std::fs::remove_file(path);
     rustix::fs::mkfifoat(rustix::fs::CWD, path, rustix::fs::Mode::RUSR | rustix::fs::Mode::WUSR)
-        .map_err(|e| format!("mkfifo {}: {e}", path.display()))
+        .map_err(|e| Error::refused(format!("mkfifo {}", path.display()), e))
 }
 
 /// Record `drive` live into `log_path`; `bar` counts the drive's seconds.
-pub fn record(
-    drive: Drive,
-    dir: &Path,
-    log_path: &Path,
-    setup: &Setup,
-    bar: &ProgressBar,
-) -> Result<LiveRecording, String> {
+pub fn record(drive: Drive, dir: &Path, log_path: &Path, setup: &Setup, bar: &ProgressBar) -> Result<LiveRecording> {
     let (gnss, can) = (dir.join("gnss.fifo"), dir.join("can.fifo"));
     fifo(&gnss)?;
     fifo(&can)?;
@@ -80,7 +75,7 @@ pub fn record(
         let logger = scope.spawn(|| {
             live::run_into(&request, setup, &stop, |index| match index {
                 0 => FileSink::create(log_path),
-                _ => Err("the demo's log does not rotate".to_owned()),
+                _ => Err(Error::invalid("the demo's log does not rotate")),
             })
         });
         // The logger subscribes before the camera publishes its first frame.
@@ -96,8 +91,8 @@ pub fn record(
         // What the camera published last is still in the bridge's buffers: let it drain.
         std::thread::sleep(Duration::from_millis(500));
         stop.store(true, Ordering::Relaxed);
-        let report = logger.join().map_err(|_| "the logger thread panicked".to_owned()).and_then(|r| r);
-        Ok::<_, String>((camera, report))
+        let report = logger.join().map_err(|_| Error::invalid("the logger thread panicked")).and_then(|r| r);
+        Ok::<_, Error>((camera, report))
     });
     for path in [&gnss, &can] {
         let _ = std::fs::remove_file(path);
@@ -109,15 +104,8 @@ pub fn record(
 }
 
 /// Run the camera process until it ends; the frames it published.
-fn publish(
-    drive: Drive,
-    prefix: &str,
-    gnss: &Path,
-    can: &Path,
-    bar: &ProgressBar,
-    started: Instant,
-) -> Result<u64, String> {
-    let exe = std::env::current_exe().map_err(|e| format!("the dash2sim executable: {e}"))?;
+fn publish(drive: Drive, prefix: &str, gnss: &Path, can: &Path, bar: &ProgressBar, started: Instant) -> Result<u64> {
+    let exe = std::env::current_exe().map_err(|e| Error::refused("the dash2sim executable", e))?;
     let mut child = Command::new(exe)
         .args(["scenario", "publish", "--seed", &drive.seed.to_string(), "--seconds", &drive.seconds.to_string()])
         .args(["--driver", drive.driver.name(), "--profile", drive.profile.name(), "--prefix", prefix])
@@ -129,27 +117,25 @@ fn publish(
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .map_err(|e| format!("starting the camera process: {e}"))?;
+        .map_err(|e| Error::refused("starting the camera process", e))?;
     loop {
         bar.set_position(started.elapsed().as_secs().min(drive.seconds as u64));
         match child.try_wait() {
             Ok(Some(_)) => break,
             Ok(None) => std::thread::sleep(Duration::from_millis(100)),
-            Err(e) => return Err(format!("the camera process: {e}")),
+            Err(e) => return Err(Error::invalid(format!("the camera process: {e}"))),
         }
     }
-    let output = child.wait_with_output().map_err(|e| format!("the camera process: {e}"))?;
+    let output = child.wait_with_output().map_err(|e| Error::refused("the camera process", e))?;
     let stdout = String::from_utf8_lossy(&output.stdout);
     if !output.status.success() {
-        return Err(format!(
+        return Err(Error::invalid(format!(
             "the camera process failed ({}): {}",
             output.status,
             String::from_utf8_lossy(&output.stderr).trim()
-        ));
+        )));
     }
-    stdout
-        .split_whitespace()
-        .next()
-        .and_then(|n| n.parse().ok())
-        .ok_or_else(|| format!("the camera process said {:?}, not how many frames it published", stdout.trim()))
+    stdout.split_whitespace().next().and_then(|n| n.parse().ok()).ok_or_else(|| {
+        Error::invalid(format!("the camera process said {:?}, not how many frames it published", stdout.trim()))
+    })
 }

@@ -33,6 +33,7 @@ use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use serde_json::{json, Value};
 
+use dash2sim_linux::finish::FinishReport;
 use dash2sim_linux::log::{self, LogContents};
 use dash2sim_linux::record::{self, Setup};
 use dash2sim_linux::sim::fidelity::drive::{assess, judged_json, Anchors, Recorded};
@@ -40,6 +41,7 @@ use dash2sim_linux::sim::scenario::evaluate::evaluate_tracking;
 use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
 use dash2sim_linux::sim::scenario::write::{road_tile, write_scenario};
 use dash2sim_linux::sim::scenario::{generate, tracker_classes, tracker_config, Driver, ScenarioConfig};
+use dash2sim_linux::{Error, Result};
 use progress::Progress;
 
 /// `dash2sim demo` arguments.
@@ -85,15 +87,15 @@ pub struct DemoArgs {
 }
 
 /// `dash2sim demo`.
-pub fn run(args: &DemoArgs) -> Result<(), String> {
+pub fn run(args: &DemoArgs) -> Result<()> {
     let progress = Progress::new(args.quiet);
     let longest = dash2sim_linux::sim::scenario::command::MAX_DURATION_S;
     if !(args.duration.is_finite() && (10.0..=longest).contains(&args.duration)) {
-        return Err(format!("--duration {} must be between 10 and {longest} seconds", args.duration));
+        return Err(Error::invalid(format!("--duration {} must be between 10 and {longest} seconds", args.duration)));
     }
     if let Some(dir) = &args.data {
         let dir = dir.clone().unwrap_or_else(dash2sim_linux::datasets::default_dir);
-        std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
+        std::fs::create_dir_all(&args.output).map_err(|e| Error::file(&args.output, e))?;
         let summary = data::run(&dir, &args.output, &progress)?;
         write_file(&args.output.join("summary.json"), summary.to_string())?;
         if args.json {
@@ -107,7 +109,7 @@ pub fn run(args: &DemoArgs) -> Result<(), String> {
             .flatten()
             .filter_map(|r| Some(format!("{}: {}", r["name"].as_str()?, r["error"].as_str()?)))
             .collect();
-        return if failed.is_empty() { Ok(()) } else { Err(failed.join("; ")) };
+        return if failed.is_empty() { Ok(()) } else { Err(Error::invalid(failed.join("; "))) };
     }
     let summary = generated(args, &progress)?;
     write_file(&args.output.join("summary.json"), summary.to_string())?;
@@ -119,8 +121,8 @@ pub fn run(args: &DemoArgs) -> Result<(), String> {
     Ok(())
 }
 
-fn write_file(path: &Path, contents: impl AsRef<[u8]>) -> Result<(), String> {
-    std::fs::write(path, contents).map_err(|e| format!("{}: {e}", path.display()))
+fn write_file(path: &Path, contents: impl AsRef<[u8]>) -> Result<()> {
+    std::fs::write(path, contents).map_err(|e| Error::file(path, e))
 }
 
 /// Distinct 3D tracks per class name.
@@ -133,31 +135,24 @@ fn tracks_by_class(log: &LogContents) -> std::collections::BTreeMap<&'static str
 }
 
 /// `finish`'s windows in the same form (channel-insensitive, as the device scores them).
-fn finished_windows(report: &Value) -> Vec<Value> {
-    report["verification"]["windows"]
-        .as_array()
-        .map(|windows| {
-            windows
-                .iter()
-                .map(|w| {
-                    let v = &w["channel_insensitive"];
-                    json!({"score": v["score"], "verified": v["verified"]})
-                })
-                .collect()
-        })
-        .unwrap_or_default()
+fn finished_windows(report: &FinishReport) -> Vec<Value> {
+    let windows = report.verification.as_ref().map_or(&[][..], |v| &v.windows[..]);
+    windows
+        .iter()
+        .map(|w| json!({"score": w.channel_insensitive.score, "verified": w.channel_insensitive.verified}))
+        .collect()
 }
 
 /// The generated drive through the product; the summary.
-fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
+fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value> {
     const STEPS: u32 = 7;
     let (out, seed, duration_s) = (&args.output, args.seed, args.duration);
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    std::fs::create_dir_all(out).map_err(|e| Error::file(out, e))?;
     let drive_dir = out.join("drive");
     let config =
         ScenarioConfig { duration_s, driver: args.driver, ..ScenarioConfig::drive(seed, args.profile, Receiver::Good) };
     let [lat, lon, height] = config.origin;
-    let origin = Geodetic::new(lat, lon, height).map_err(|e| e.to_string())?;
+    let origin = Geodetic::new(lat, lon, height).map_err(Error::other)?;
 
     progress.step(
         1,
@@ -169,13 +164,13 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
         ),
     );
     let scenario = generate(&config);
-    write_scenario(&scenario, &drive_dir).map_err(|e| format!("{}: {e}", drive_dir.display()))?;
+    write_scenario(&scenario, &drive_dir).map_err(|e| Error::file(&drive_dir, e))?;
 
     progress.step(2, STEPS, "building the map tile from the road's OpenStreetMap");
     let tile = road_tile(&drive_dir, origin)?;
     let map_path = out.join("road.map");
     write_file(&map_path, &tile)?;
-    let map = MapView::parse(&tile).map_err(|e| e.to_string())?;
+    let map = MapView::parse(&tile).map_err(Error::other)?;
 
     let log_path = out.join("drive.d2slog");
     let _ = std::fs::remove_file(&log_path);
@@ -205,7 +200,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
                "inputs_dropped": r.dropped, "issues": r.issues, "wall_s": live.seconds,
                "pipeline": record::stats_json(&r.stats)})
     };
-    let log = log::read(&log_path).map_err(|e| e.to_string())?;
+    let log = log::read(&log_path).map_err(Error::other)?;
     let log_bytes = log.bytes;
 
     progress.step(
@@ -298,7 +293,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
                    "ego_states": n.ego_states})
         }
         // A short drive makes too few scenes: said, not fatal.
-        Err(e) => json!({"error": e}),
+        Err(e) => json!({"error": e.to_string()}),
     };
     let (online_scale, online_scale_error) = assessed.online_scale.map_or((None, None), |(s, e)| (Some(s), Some(e)));
     let (online, finished) = (&assessed.online, &assessed.finished);
@@ -326,11 +321,11 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value, String> {
                 "scale_error": online_scale_error,
             },
             "finished": {
-                "anchors_used": assessed.finish_report["anchors"]["used"],
+                "anchors_used": assessed.finish_report.anchors.used,
                 "ape_rmse_m": finished.judgement.ego_rmse,
                 "ape_max_m": finished.judgement.ego_max,
                 "scale": finished_scale,
-                "scale_sigma_relative": assessed.finish_report["anchoring"]["scale_sigma_relative"],
+                "scale_sigma_relative": assessed.finish_report.anchoring.scale_sigma_relative,
                 "true_mean_scale": true_mean_scale,
                 "scale_error": finished_scale_error,
             },

@@ -17,6 +17,7 @@ use crate::log::{self, LogContents};
 use crate::record::{self, Device, RecordRequest, VoFrame};
 use crate::sim::scenario::vo::VoModel;
 use crate::trajectory::{Format, Trajectory};
+use crate::{Error, Result};
 use rand::SeedableRng;
 
 /// The files the minute needs, relative to its folder.
@@ -66,19 +67,19 @@ pub struct UbloxNmea {
 }
 
 /// comma's u-blox CSV as GGA + RMC sentences (UTC from its millisecond stamps, HDOP 0.9).
-pub fn ublox_nmea(csv: &Path) -> Result<UbloxNmea, String> {
-    let text = std::fs::read_to_string(csv).map_err(|e| format!("{}: {e}", csv.display()))?;
+pub fn ublox_nmea(csv: &Path) -> Result<UbloxNmea> {
+    let text = std::fs::read_to_string(csv).map_err(|e| Error::file(csv, e))?;
     let (mut raw, mut stamped) = (String::new(), String::new());
     let (mut offset, mut fixes) = (None, 0);
     for (n, line) in text.lines().enumerate().skip(1) {
-        let at = || format!("{}:{}", csv.display(), n + 1);
+        let at = |message: String| Error::line(csv, n + 1, message);
         let v: Vec<f64> = line
             .split(',')
             .map(|x| x.trim().parse())
             .collect::<Result<_, _>>()
-            .map_err(|e| format!("{}: {e}", at()))?;
+            .map_err(|e: std::num::ParseFloatError| at(e.to_string()))?;
         let [t_boot, lat, lon, speed, utc_ms, alt, bearing] = v[..] else {
-            return Err(format!("{}: expected 7 columns, found {}", at(), v.len()));
+            return Err(at(format!("expected 7 columns, found {}", v.len())));
         };
         offset.get_or_insert(t_boot - utc_ms / 1000.0);
         let secs = utc_ms / 1000.0;
@@ -96,7 +97,7 @@ pub fn ublox_nmea(csv: &Path) -> Result<UbloxNmea, String> {
         }
         fixes += 1;
     }
-    let offset_s = offset.ok_or_else(|| format!("{}: no fixes", csv.display()))?;
+    let offset_s = offset.ok_or_else(|| Error::file(csv, "no fixes"))?;
     Ok(UbloxNmea { raw, stamped, offset_s, fixes })
 }
 
@@ -120,13 +121,13 @@ pub struct RecordedMinute {
 /// Record the minute from `dir` into `work` (`vo.csv`, `ublox.serial.log`, `comma.d2slog`)
 /// with VO made by `model`, its noise drawn from `noise_seed` (a model without noise draws
 /// nothing: the seed does not matter then).
-pub fn record_minute(dir: &Path, work: &Path, model: &VoModel, noise_seed: u64) -> Result<RecordedMinute, String> {
+pub fn record_minute(dir: &Path, work: &Path, model: &VoModel, noise_seed: u64) -> Result<RecordedMinute> {
     let truth = Trajectory::read(&dir.join("expected/global_pose_camera_enu.tum"), Format::Tum)
-        .map_err(|e| format!("comma2k19 poses: {e}"))?;
+        .map_err(|e| Error::refused("comma2k19 poses", e))?;
     let vo = model.generate(&truth, &mut rand_chacha::ChaCha8Rng::seed_from_u64(noise_seed));
     let vo_path = work.join("vo.csv");
     let mut text = Vec::new();
-    crate::sim::scenario::write::write_vo_csv(&mut text, &vo).map_err(|e| e.to_string())?;
+    crate::sim::scenario::write::write_vo_csv(&mut text, &vo).map_err(Error::other)?;
     write(&vo_path, &text)?;
     let nmea = ublox_nmea(&dir.join("expected/live_gnss_ublox.csv"))?;
     let nmea_path = work.join("ublox.serial.log");
@@ -147,7 +148,7 @@ pub fn record_minute(dir: &Path, work: &Path, model: &VoModel, noise_seed: u64) 
     };
     let (recording, _) = record::record_files(&args)?;
     write(&args.output, &recording.log)?;
-    let log = log::read(&args.output).map_err(|e| e.to_string())?;
+    let log = log::read(&args.output).map_err(Error::other)?;
     let device = device_times(&log.records)?;
     Ok(RecordedMinute {
         truth,
@@ -192,8 +193,8 @@ pub struct Compared {
 }
 
 /// The ego poses of `records` (at device times `device`) against the fused poses.
-pub fn compare(records: &[Record], device: &[f64], truth: &Trajectory) -> Result<Compared, String> {
-    let t0 = *truth.stamps.first().ok_or("no fused poses")?;
+pub fn compare(records: &[Record], device: &[f64], truth: &Trajectory) -> Result<Compared> {
+    let t0 = *truth.stamps.first().ok_or_else(|| Error::invalid("no fused poses"))?;
     let mut pairs = Vec::new();
     let mut first = None;
     for (r, &t) in records.iter().zip(device) {
@@ -206,9 +207,9 @@ pub fn compare(records: &[Record], device: &[f64], truth: &Trajectory) -> Result
     }
     let mut moments = Moments::default();
     for (x, y) in &pairs {
-        moments.push(x, y, 1.0).map_err(|e| format!("alignment: {e}"))?;
+        moments.push(x, y, 1.0).map_err(|e| Error::refused("alignment", e))?;
     }
-    let sim3 = moments.align(AlignMode::Sim3).map_err(|e| format!("alignment: {e}"))?;
+    let sim3 = moments.align(AlignMode::Sim3).map_err(|e| Error::refused("alignment", e))?;
     let rms = |e: &mut dyn Iterator<Item = f64>| {
         let (s, n) = e.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
         (s / n.max(1) as f64).sqrt()
@@ -230,8 +231,8 @@ fn compared_json(c: &Compared) -> Value {
 
 /// The minute through the product into `out`: recorded, finished (GNSS and wheel speed,
 /// no anchors), exported, and compared with the fused poses. The summary.
-pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+pub fn run(dir: &Path, out: &Path) -> Result<Value> {
+    std::fs::create_dir_all(out).map_err(|e| Error::file(out, e))?;
     let model = VoModel::arbitrary();
     let minute = record_minute(dir, out, &model, 1)?;
     let (log, truth) = (&minute.log, &minute.truth);
@@ -249,11 +250,11 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
     let finished = crate::finish::finish(log, &name, None, None, mount, Default::default(), UERE)?;
     let finished_device = device_times(&finished.records)?;
     let finished_compared = compare(&finished.records, &finished_device, truth)?;
-    let header = log.header.ok_or("the recorded log has no header")?;
+    let header = log.header.ok_or_else(|| Error::invalid("the recorded log has no header"))?;
     let finished_bytes = log::import::encode_in_order(&header, &finished.records)?;
     let finished_path = out.join("finished.d2slog");
     write(&finished_path, &finished_bytes)?;
-    let finished_log = log::decode(&finished_bytes, "finished").map_err(|e| e.to_string())?;
+    let finished_log = log::decode(&finished_bytes, "finished").map_err(Error::other)?;
 
     write(&out.join("ego.tum"), log::export::tum(log))?;
     write(&out.join("finished.tum"), log::export::tum(&finished_log))?;
@@ -261,12 +262,11 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
     log::mcap_export::write(&finished_log, None, &out.join("finished.mcap"), None)?;
 
     let evo_path = dir.join("expected/evo_ape_gnss_vs_pose.json");
-    let evo: Value =
-        serde_json::from_str(&std::fs::read_to_string(&evo_path).map_err(|e| format!("{}: {e}", evo_path.display()))?)
-            .map_err(|e| format!("{}: {e}", evo_path.display()))?;
+    let evo: Value = serde_json::from_str(&std::fs::read_to_string(&evo_path).map_err(|e| Error::file(&evo_path, e))?)
+        .map_err(|e| Error::file(&evo_path, e))?;
     let gnss_alone = &evo["cases"]["maxdiff0.01_none"]["ape_translation_stats"];
     let span = truth.stamps.last().copied().unwrap_or_default() - t0;
-    let a = &finished.report["anchoring"];
+    let a = &finished.report.anchoring;
     let file = |name: &str| out.join(name).display().to_string();
     Ok(json!({
         "name": "comma2k19",
@@ -284,9 +284,9 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
         "online": {"compared": compared_json(&online), "anchor_scale_error_at_end": online_scale},
         "finished": {
             "compared": compared_json(&finished_compared),
-            "scale_sigma_relative": a["scale_sigma_relative"],
-            "gnss_latency_s": a["gnss_latency_s"],
-            "wheel_factor": a["wheel_factor"],
+            "scale_sigma_relative": a.scale_sigma_relative,
+            "gnss_latency_s": a.gnss_latency_s,
+            "wheel_factor": a.wheel_factor,
         },
         "files": [
             {"what": "VO made from the fused poses (frame, pose, VO session)", "path": file("vo.csv")},

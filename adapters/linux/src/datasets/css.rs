@@ -18,6 +18,7 @@ use serde_json::{json, Value};
 use super::write;
 use crate::log;
 use crate::record::{self, RecordRequest};
+use crate::{Error, Result};
 
 /// The session's candump files start with this.
 pub const SPLITS: &str = "candump/3BA199E2_00000164_";
@@ -58,26 +59,26 @@ struct Csv {
 }
 
 impl Csv {
-    fn read(path: &Path) -> Result<Self, String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    fn read(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
         let mut lines = text.lines().map(|l| l.split(',').map(str::to_owned).collect::<Vec<_>>());
         let header = lines.next().unwrap_or_default();
         Ok(Csv { path: path.to_path_buf(), header, rows: lines.collect() })
     }
 
-    fn column(&self, name: &str) -> Result<usize, String> {
-        self.header.iter().position(|h| h == name).ok_or_else(|| format!("{}: no column {name}", self.path.display()))
+    fn column(&self, name: &str) -> Result<usize> {
+        self.header.iter().position(|h| h == name).ok_or_else(|| Error::file(&self.path, format!("no column {name}")))
     }
 
     /// Rows whose `name` column is `value`.
-    fn count(&self, name: &str, value: &str) -> Result<usize, String> {
+    fn count(&self, name: &str, value: &str) -> Result<usize> {
         let i = self.column(name)?;
         Ok(self.rows.iter().filter(|r| r.get(i).map(String::as_str) == Some(value)).count())
     }
 }
 
 /// The module's own trip odometer at the end (the last valid `DistanceTrip`), m.
-fn odometer_m(odo: &Csv) -> Result<Option<f64>, String> {
+fn odometer_m(odo: &Csv) -> Result<Option<f64>> {
     let (valid, trip) = (odo.column("DistanceValid")?, odo.column("DistanceTrip")?);
     Ok(odo
         .rows
@@ -128,11 +129,11 @@ fn speed_pairs(records: &[Record], fixes: &[(f64, Vector3<f64>)]) -> Vec<(f64, f
 
 /// The drive through the product into `out`: recorded from its candump splits, exported,
 /// and measured. The summary.
-pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+pub fn run(dir: &Path, out: &Path) -> Result<Value> {
+    std::fs::create_dir_all(out).map_err(|e| Error::file(out, e))?;
     let files = splits(dir);
     if files.is_empty() {
-        return Err(format!("{}: no candump files {SPLITS}*.log", dir.display()));
+        return Err(Error::file(dir, format!("no candump files {SPLITS}*.log")));
     }
     let sources = record::Sources { can: files.clone(), ..record::Sources::default() };
     let log_path = out.join("css.d2slog");
@@ -144,9 +145,9 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value, String> {
     };
     let (recording, counts) = record::record_files(&args)?;
     write(&log_path, &recording.log)?;
-    let log = log::read(&log_path).map_err(|e| e.to_string())?;
-    let header = log.header.ok_or("the recorded log has no header")?;
-    let frame = log::frame(&header).ok_or("the log's origin is not a position")?;
+    let log = log::read(&log_path).map_err(Error::other)?;
+    let header = log.header.ok_or_else(|| Error::invalid("the recorded log has no header"))?;
+    let frame = log::frame(&header).ok_or_else(|| Error::invalid("the log's origin is not a position"))?;
 
     let offsets: Vec<f64> = log
         .records

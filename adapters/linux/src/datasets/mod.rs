@@ -8,6 +8,7 @@
 pub mod comma;
 pub mod css;
 
+use crate::{Error, Result};
 use std::path::{Path, PathBuf};
 
 /// The data folder `--data` defaults to: `$DASH2SIM_DATA`, else `../shared/data`.
@@ -27,12 +28,12 @@ pub fn missing(dir: &Path, required: &[&str]) -> Vec<PathBuf> {
 /// Device time of every record of a log: its UTC minus the clock offset in force when it
 /// was written (records before the first offset were moved onto UTC with it by the
 /// reader). An error when the log never learnt UTC.
-pub fn device_times(records: &[dash2sim_core::binlog::Record]) -> Result<Vec<f64>, String> {
+pub fn device_times(records: &[dash2sim_core::binlog::Record]) -> Result<Vec<f64>> {
     use dash2sim_core::binlog::Record;
     let mut offset = records
         .iter()
         .find_map(|r| if let Record::ClockOffset(c) = r { Some(c.offset_us) } else { None })
-        .ok_or("the log has no clock offset: no GNSS time reached it")?;
+        .ok_or_else(|| Error::invalid("the log has no clock offset: no GNSS time reached it"))?;
     Ok(records
         .iter()
         .map(|r| {
@@ -44,6 +45,6 @@ pub fn device_times(records: &[dash2sim_core::binlog::Record]) -> Result<Vec<f64
         .collect())
 }
 
-fn write(path: &Path, contents: impl AsRef<[u8]>) -> Result<(), String> {
-    std::fs::write(path, contents).map_err(|e| format!("{}: {e}", path.display()))
+fn write(path: &Path, contents: impl AsRef<[u8]>) -> Result<()> {
+    std::fs::write(path, contents).map_err(|e| Error::file(path, e))
 }

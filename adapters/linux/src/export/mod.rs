@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 use crate::log::export::{ego_poses, geojson, tum};
 use crate::log::{frame, mcap_export, read, LogContents};
+use crate::{Error, Result};
 
 /// What to export (`dash2sim export`).
 #[derive(Clone, Debug)]
@@ -43,21 +44,21 @@ pub const DEFAULT_SCENARIO_SECONDS: f64 = 5.0;
 
 /// A map tile from `path`: a tile as it is, an OpenStreetMap file (XML or PBF) built into
 /// one around the log's origin.
-fn map_tile(path: &Path, log: &LogContents) -> Result<Vec<u8>, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+fn map_tile(path: &Path, log: &LogContents) -> Result<Vec<u8>> {
+    let bytes = std::fs::read(path).map_err(|e| Error::file(path, e))?;
     if bytes.starts_with(b"D2SMAP") {
         return Ok(bytes);
     }
     let origin = log.header.as_ref().and_then(frame).map(|f| f.origin());
-    let osm = crate::ingest::osm::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let osm = crate::ingest::osm::read(path).map_err(|e| Error::file(path, e))?;
     Ok(crate::ingest::map_tile::encode(
         &crate::ingest::map_tile::from_osm(&osm, origin, &mut Vec::new()),
         crate::ingest::map_tile::DEFAULT_CELL_M,
     ))
 }
 
-fn write(path: &Path, text: &str) -> Result<(), String> {
-    std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))
+fn write(path: &Path, text: &str) -> Result<()> {
+    std::fs::write(path, text).map_err(|e| Error::file(path, e))
 }
 
 /// What [`export`] wrote: one line per output, and a warning when the log was damaged.
@@ -70,16 +71,16 @@ pub struct Exported {
 }
 
 /// Export a log as `request` says (the command line and the Python package's `export`).
-pub fn export(request: &ExportRequest) -> Result<Exported, String> {
+pub fn export(request: &ExportRequest) -> Result<Exported> {
     if request.mcap.is_none()
         && request.tum.is_none()
         && request.geojson.is_none()
         && request.parquet.is_none()
         && request.nuplan.is_none()
     {
-        return Err("nothing to export: give --mcap, --tum, --geojson, --parquet and/or --nuplan".to_owned());
+        return Err(Error::invalid("nothing to export: give --mcap, --tum, --geojson, --parquet and/or --nuplan"));
     }
-    let log = read(&request.log).map_err(|e| e.to_string())?;
+    let log = read(&request.log).map_err(Error::other)?;
     let mut exported = Exported::default();
     if log.stats.damaged > 0 {
         exported.warning = Some(format!(
@@ -93,7 +94,7 @@ pub fn export(request: &ExportRequest) -> Result<Exported, String> {
     if let Some(path) = &request.tum {
         let n = ego_poses(&log).count();
         if n == 0 {
-            return Err(format!("{}: no ego poses to write as TUM", request.log.display()));
+            return Err(Error::file(&request.log, "no ego poses to write as TUM"));
         }
         write(path, &tum(&log))?;
         exported.written.push(format!("{}: {n} ego poses", path.display()));
@@ -109,13 +110,16 @@ pub fn export(request: &ExportRequest) -> Result<Exported, String> {
     let map = request.map.as_deref().map(|p| map_tile(p, &log)).transpose()?;
     if let Some(dir) = &request.nuplan {
         let (Some(tile), Some(map_path)) = (&map, &request.map) else {
-            return Err("--nuplan needs --map (a tile or an OpenStreetMap file)".to_owned());
+            return Err(Error::invalid("--nuplan needs --map (a tile or an OpenStreetMap file)"));
         };
         exported.written.push(nuplan(&log, request, tile, map_path, dir)?);
     }
     if let Some(path) = &request.mcap {
-        let view =
-            map.as_deref().map(dash2sim_core::map::MapView::parse).transpose().map_err(|e| format!("--map: {e}"))?;
+        let view = map
+            .as_deref()
+            .map(dash2sim_core::map::MapView::parse)
+            .transpose()
+            .map_err(|e| Error::refused("--map", e))?;
         let counts = mcap_export::write(&log, view.as_ref(), path, None)?;
         let total: u64 = counts.values().sum();
         let detail: Vec<String> = counts.iter().map(|(topic, n)| format!("{n} {topic}")).collect();
@@ -126,7 +130,7 @@ pub fn export(request: &ExportRequest) -> Result<Exported, String> {
 
 /// The Parquet folder written: what it holds.
 #[cfg(feature = "parquet")]
-fn parquet(log: &LogContents, request: &ExportRequest, dir: &Path) -> Result<String, String> {
+fn parquet(log: &LogContents, request: &ExportRequest, dir: &Path) -> Result<String> {
     let stem = request.log.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let id = request.log_id.clone().unwrap_or(stem);
     let rows = crate::log::parquet_export::write(log, &id, dir)?;
@@ -135,19 +139,13 @@ fn parquet(log: &LogContents, request: &ExportRequest, dir: &Path) -> Result<Str
 }
 
 #[cfg(not(feature = "parquet"))]
-fn parquet(_: &LogContents, _: &ExportRequest, _: &Path) -> Result<String, String> {
-    Err("--parquet: this build of dash2sim-linux has no Parquet export (its `parquet` feature)".to_owned())
+fn parquet(_: &LogContents, _: &ExportRequest, _: &Path) -> Result<String> {
+    Err(Error::FeatureMissing { option: "--parquet", part: "Parquet export", feature: "parquet" })
 }
 
 /// The nuPlan log database and map written: what they hold.
 #[cfg(feature = "nuplan")]
-fn nuplan(
-    log: &LogContents,
-    request: &ExportRequest,
-    tile: &[u8],
-    map_path: &Path,
-    dir: &Path,
-) -> Result<String, String> {
+fn nuplan(log: &LogContents, request: &ExportRequest, tile: &[u8], map_path: &Path, dir: &Path) -> Result<String> {
     let stem = map_path.file_stem().and_then(|s| s.to_str()).unwrap_or("map");
     let name = request.map_name.clone().unwrap_or_else(|| nuplan::map_name(stem));
     let log_name = request.log.display().to_string();
@@ -174,6 +172,6 @@ fn nuplan(
 }
 
 #[cfg(not(feature = "nuplan"))]
-fn nuplan(_: &LogContents, _: &ExportRequest, _: &[u8], _: &Path, _: &Path) -> Result<String, String> {
-    Err("--nuplan: this build of dash2sim-linux has no nuPlan export (its `nuplan` feature)".to_owned())
+fn nuplan(_: &LogContents, _: &ExportRequest, _: &[u8], _: &Path, _: &Path) -> Result<String> {
+    Err(Error::FeatureMissing { option: "--nuplan", part: "nuPlan export", feature: "nuplan" })
 }

@@ -14,6 +14,7 @@
 
 use std::path::Path;
 
+use crate::{Error, Result};
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::nalgebra::Vector3;
 
@@ -53,9 +54,9 @@ const POINT_HEADER: &str = "x,y,z,lat,lon,alt,sigma_m";
 
 /// Read an anchors file. The error (a file that cannot be read or has no valid header) is
 /// `FILE:LINE: reason`; refused lines are in [`AnchorFile::refused`].
-pub fn read(path: &Path) -> Result<AnchorFile, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    parse(&text).map_err(|(line, why)| format!("{}:{line}: {why}", path.display()))
+pub fn read(path: &Path) -> Result<AnchorFile> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+    parse(&text).map_err(|(line, why)| Error::line(path, line, why))
 }
 
 /// Parse an anchors file's text (errors as `(line, reason)`).
@@ -83,22 +84,22 @@ pub fn parse(text: &str) -> Result<AnchorFile, (usize, String)> {
                     file.anchors.push(AnchorLine { line, at, position, sigma });
                 }
             }
-            Err(why) => file.refused.push((line, why)),
+            Err(why) => file.refused.push((line, why.to_string())),
         }
     }
     Ok(file)
 }
 
-fn parse_line(text: &str, fields: usize, by_time: bool) -> Result<(AnchorForm, Geodetic, f64), String> {
+fn parse_line(text: &str, fields: usize, by_time: bool) -> Result<(AnchorForm, Geodetic, f64)> {
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
     if parts.len() != fields {
-        return Err(format!("{} fields, expected {fields}", parts.len()));
+        return Err(Error::invalid(format!("{} fields, expected {fields}", parts.len())));
     }
     let mut v = Vec::with_capacity(fields);
     for (k, p) in parts.iter().enumerate() {
-        let x: f64 = p.parse().map_err(|_| format!("field {} `{p}` is not a number", k + 1))?;
+        let x: f64 = p.parse().map_err(|_| Error::invalid(format!("field {} `{p}` is not a number", k + 1)))?;
         if !x.is_finite() {
-            return Err(format!("field {} `{p}` is not finite", k + 1));
+            return Err(Error::invalid(format!("field {} `{p}` is not finite", k + 1)));
         }
         v.push(x);
     }
@@ -107,10 +108,10 @@ fn parse_line(text: &str, fields: usize, by_time: bool) -> Result<(AnchorForm, G
     } else {
         (AnchorForm::VoPoint(Vector3::new(v[0], v[1], v[2])), &v[3..])
     };
-    let [lat, lon, alt, sigma] = rest else { return Err("internal: field count".to_owned()) };
-    let position = Geodetic::new(*lat, *lon, *alt).map_err(|e| format!("position {lat},{lon}: {e}"))?;
+    let [lat, lon, alt, sigma] = rest else { return Err(Error::invalid("internal: field count")) };
+    let position = Geodetic::new(*lat, *lon, *alt).map_err(|e| Error::refused(format!("position {lat},{lon}"), e))?;
     if *sigma <= 0.0 {
-        return Err(format!("sigma_m {sigma} must be positive"));
+        return Err(Error::invalid(format!("sigma_m {sigma} must be positive")));
     }
     Ok((at, position, *sigma))
 }

@@ -25,10 +25,11 @@ use dash2sim_core::pipeline::{
     mount_record, similarity_record, CalibrationConfig, CameraMount, MountCalibration, MountEstimate,
 };
 use dash2sim_core::sim3::Pose;
-use serde_json::{json, Value};
+use serde::Serialize;
 
 use crate::log::{self, event, LogContents};
 use crate::record::{Device, VoFrame};
+use crate::{Error, Result};
 use anchors::AnchorForm;
 use solve::{Anchor, AnchorAt, Fix, Inputs, Settings, Solution, VoSample};
 
@@ -63,7 +64,190 @@ pub struct Finished {
     /// The finished log's records, in file order.
     pub records: Vec<Record>,
     /// The report (`--json`).
-    pub report: Value,
+    pub report: FinishReport,
+}
+
+/// What `finish` did (`dash2sim finish --json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct FinishReport {
+    /// The log's name.
+    pub log: String,
+    /// Records in the finished log.
+    pub records: usize,
+    /// VO poses read.
+    pub vo_poses: usize,
+    /// Ego poses written.
+    pub ego_poses: usize,
+    /// Gaps in the VO bridged by GNSS and wheel speed.
+    pub ego_bridged: Bridged,
+    /// The main session's solution.
+    pub anchoring: AnchoringReport,
+    /// Every solved VO session.
+    pub sessions: Vec<SessionReport>,
+    /// VO sessions that could not be solved, and why.
+    pub unsolved_sessions: Vec<UnsolvedSession>,
+    /// The camera mount, calibrated over the whole drive.
+    pub mount: MountReport,
+    /// GNSS fixes read, used, rejected.
+    pub gnss: GnssReport,
+    /// Wheel-speed samples read.
+    pub speed_samples: usize,
+    /// The street-imagery anchors.
+    pub anchors: AnchorsReport,
+    /// 3D tracks smoothed and raw detections tracked.
+    pub tracks: TracksReport,
+    /// Damage the log had.
+    pub damage: DamageReport,
+    /// The finished log replayed against the map, when one was given (the windows' report).
+    pub verification: Option<windows::DriveVerification>,
+}
+
+/// VO gaps bridged.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Bridged {
+    /// Gaps.
+    pub gaps: usize,
+    /// Their total length, s.
+    pub seconds: f64,
+}
+
+/// One similarity chain's solution.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct AnchoringReport {
+    /// Keyframes.
+    pub keyframes: usize,
+    /// Gauss–Newton iterations.
+    pub iterations: usize,
+    /// The drive's scale (segments weighted by duration).
+    pub scale: f64,
+    /// The scale's relative σ.
+    pub scale_sigma_relative: f64,
+    /// Position σ, m.
+    pub position_sigma_m: f64,
+    /// The a-posteriori variance factor.
+    pub sigma0_squared: f64,
+    /// The GNSS latency solved for, s.
+    pub gnss_latency_s: f64,
+    /// The wheel-speed factor solved for.
+    pub wheel_factor: f64,
+    /// RMS of the GNSS residuals, m (null when none).
+    pub gnss_rms_m: f64,
+}
+
+/// A solved VO session.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct SessionReport {
+    /// The session number.
+    pub session: u32,
+    /// Its VO poses.
+    pub vo_poses: usize,
+    /// Its first pose's time, s.
+    pub start_s: f64,
+    /// Its last pose's time, s.
+    pub end_s: f64,
+    /// Its solution.
+    pub anchoring: AnchoringReport,
+}
+
+/// A VO session that could not be solved.
+#[derive(Clone, Debug, Serialize)]
+pub struct UnsolvedSession {
+    /// The session number.
+    pub session: u32,
+    /// Its VO poses.
+    pub vo_poses: usize,
+    /// Why.
+    pub reason: String,
+}
+
+/// The camera mount as calibrated.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct MountReport {
+    /// Yaw, degrees.
+    pub yaw_deg: f64,
+    /// Pitch, degrees.
+    pub pitch_deg: f64,
+    /// Yaw σ, degrees.
+    pub sigma_yaw_deg: f64,
+    /// Pitch σ, degrees.
+    pub sigma_pitch_deg: f64,
+    /// Straight-driving frames used.
+    pub samples: u32,
+    /// Whether it is calibrated.
+    pub calibrated: bool,
+}
+
+/// GNSS fixes.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct GnssReport {
+    /// Read.
+    pub fixes: usize,
+    /// Used by the solution.
+    pub used: usize,
+    /// Rejected as outliers.
+    pub rejected: usize,
+}
+
+/// The anchors file.
+#[derive(Clone, Debug, Serialize)]
+pub struct AnchorsReport {
+    /// Its name, if one was given.
+    pub file: Option<String>,
+    /// Anchors used.
+    pub used: usize,
+    /// Lines refused, and why.
+    pub refused: Vec<RefusedAnchor>,
+}
+
+/// A refused anchors line.
+#[derive(Clone, Debug, Serialize)]
+pub struct RefusedAnchor {
+    /// The line.
+    pub line: usize,
+    /// Why.
+    pub reason: String,
+}
+
+/// Tracks.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct TracksReport {
+    /// 3D track states read.
+    pub states: usize,
+    /// Of them, not placed (no pose).
+    pub unplaced: usize,
+    /// Smoothed tracks.
+    pub smoothed: usize,
+    /// Static tracks merged.
+    pub static_merged: usize,
+    /// Ghost tracks dropped.
+    pub ghosts_dropped: usize,
+    /// Raw detections read.
+    pub raw_detections: usize,
+    /// Of them, placed.
+    pub raw_placed: usize,
+    /// Track states made from them.
+    pub raw_track_states: usize,
+}
+
+/// Damage.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct DamageReport {
+    /// Damaged stretches.
+    pub stretches: usize,
+    /// Bytes in them.
+    pub bytes: u64,
+}
+
+/// `finish_file`'s report: the finish report with the output's path and size.
+#[derive(Clone, Debug, Serialize)]
+pub struct FinishedFile {
+    /// What finishing did.
+    #[serde(flatten)]
+    pub report: FinishReport,
+    /// The finished log's path.
+    pub output: String,
+    /// Its size.
+    pub bytes: usize,
 }
 
 /// A log's drive as the solver reads it, in the log's ENU frame.
@@ -136,9 +320,12 @@ pub fn finish(
     mount: CameraMount,
     settings: Settings,
     uere: f64,
-) -> Result<Finished, String> {
-    let header = log.header.ok_or_else(|| format!("{name}: the header is damaged: no ENU origin to finish in"))?;
-    let frame = log::frame(&header).ok_or_else(|| format!("{name}: the header's origin is not a position"))?;
+) -> Result<Finished> {
+    let header = log
+        .header
+        .ok_or_else(|| Error::invalid(format!("{name}: the header is damaged: no ENU origin to finish in")))?;
+    let frame =
+        log::frame(&header).ok_or_else(|| Error::invalid(format!("{name}: the header's origin is not a position")))?;
     let drive = drive(log, &frame, uere);
     let anchors = anchor_file.map(|(_, f)| anchors_in(f, &frame)).unwrap_or_default();
     let calibrated = calibrate_mount(&drive.vo, mount);
@@ -147,7 +334,7 @@ pub fn finish(
     let Solved { sessions, unsolved, verdicts } = solve_sessions(&drive, &anchors, lever, settings);
     if sessions.is_empty() {
         let why = unsolved.first().map_or_else(|| solve::SolveError::NoVo.to_string(), |u| u.2.clone());
-        return Err(format!("{name}: {why}"));
+        return Err(Error::invalid(format!("{name}: {why}")));
     }
     let used_anchors = verdicts.iter().filter(|v| v.is_none()).count();
     let mut refused: Vec<(usize, String)> = anchor_file.map(|(_, f)| f.refused.clone()).unwrap_or_default();
@@ -333,70 +520,73 @@ pub fn finish(
         records.insert(1, event(first_t, 2, &format!("{mount_text}{sessions_text}")));
     }
 
-    let anchors_report: Vec<Value> = refused.iter().map(|(line, why)| json!({"line": line, "reason": why})).collect();
-    let report = json!({
-        "log": name,
-        "records": records.len(),
-        "vo_poses": drive.vo.len(),
-        "ego_poses": ego.len(),
-        "ego_bridged": {"gaps": bridged.len(), "seconds": bridged_s},
-        "anchoring": anchoring_report(main),
-        "sessions": sessions.iter().map(|s| {
-            let vo = &drive.vo[s.range.clone()];
-            json!({
-                "session": s.session,
-                "vo_poses": vo.len(),
-                "start_s": vo[0].t,
-                "end_s": vo[vo.len() - 1].t,
-                "anchoring": anchoring_report(&s.solution),
+    let report = FinishReport {
+        log: name.to_owned(),
+        records: records.len(),
+        vo_poses: drive.vo.len(),
+        ego_poses: ego.len(),
+        ego_bridged: Bridged { gaps: bridged.len(), seconds: bridged_s },
+        anchoring: anchoring_report(main),
+        sessions: sessions
+            .iter()
+            .map(|s| {
+                let vo = &drive.vo[s.range.clone()];
+                SessionReport {
+                    session: s.session,
+                    vo_poses: vo.len(),
+                    start_s: vo[0].t,
+                    end_s: vo[vo.len() - 1].t,
+                    anchoring: anchoring_report(&s.solution),
+                }
             })
-        }).collect::<Vec<_>>(),
-        "unsolved_sessions": unsolved.iter().map(|(session, poses, why)| {
-            json!({"session": session, "vo_poses": poses, "reason": why})
-        }).collect::<Vec<_>>(),
-        "mount": {
-            "yaw_deg": yaw.to_degrees(),
-            "pitch_deg": pitch.to_degrees(),
-            "sigma_yaw_deg": calibrated.sigma[0].to_degrees(),
-            "sigma_pitch_deg": calibrated.sigma[1].to_degrees(),
-            "samples": calibrated.samples,
-            "calibrated": calibrated.calibrated,
+            .collect(),
+        unsolved_sessions: unsolved
+            .iter()
+            .map(|(session, poses, why)| UnsolvedSession { session: *session, vo_poses: *poses, reason: why.clone() })
+            .collect(),
+        mount: MountReport {
+            yaw_deg: yaw.to_degrees(),
+            pitch_deg: pitch.to_degrees(),
+            sigma_yaw_deg: calibrated.sigma[0].to_degrees(),
+            sigma_pitch_deg: calibrated.sigma[1].to_degrees(),
+            samples: calibrated.samples,
+            calibrated: calibrated.calibrated,
         },
-        "gnss": {"fixes": drive.fixes.len(), "used": fixes_used, "rejected": drive.fixes.len() - fixes_used},
-        "speed_samples": drive.speeds.len(),
-        "anchors": {
-            "file": anchor_file.map(|(p, _)| p),
-            "used": used_anchors,
-            "refused": anchors_report,
+        gnss: GnssReport { fixes: drive.fixes.len(), used: fixes_used, rejected: drive.fixes.len() - fixes_used },
+        speed_samples: drive.speeds.len(),
+        anchors: AnchorsReport {
+            file: anchor_file.map(|(p, _)| p.to_owned()),
+            used: used_anchors,
+            refused: refused.iter().map(|(line, why)| RefusedAnchor { line: *line, reason: why.clone() }).collect(),
         },
-        "tracks": {
-            "states": track_stats.states,
-            "unplaced": track_stats.unplaced,
-            "smoothed": track_stats.smoothed,
-            "static_merged": track_stats.merged_static,
-            "ghosts_dropped": track_stats.ghosts + raw_track_stats.ghosts,
-            "raw_detections": raw_stats.detections,
-            "raw_placed": raw_stats.placed,
-            "raw_track_states": raw_stats.track_states,
+        tracks: TracksReport {
+            states: track_stats.states,
+            unplaced: track_stats.unplaced,
+            smoothed: track_stats.smoothed,
+            static_merged: track_stats.merged_static,
+            ghosts_dropped: track_stats.ghosts + raw_track_stats.ghosts,
+            raw_detections: raw_stats.detections,
+            raw_placed: raw_stats.placed,
+            raw_track_states: raw_stats.track_states,
         },
-        "damage": {"stretches": log.damage.len(), "bytes": log.damage.iter().map(|d| d.1).sum::<u64>()},
-        "verification": verification.as_ref().map(|v| v.report.clone()),
-    });
+        damage: DamageReport { stretches: log.damage.len(), bytes: log.damage.iter().map(|d| d.1).sum::<u64>() },
+        verification: verification.as_ref().map(|v| v.report.clone()),
+    };
     Ok(Finished { records, report })
 }
 
-fn anchoring_report(solution: &Solution) -> Value {
-    json!({
-        "keyframes": solution.keyframe_t.len(),
-        "iterations": solution.iterations,
-        "scale": mean_scale(solution),
-        "scale_sigma_relative": solution.scale_sigma,
-        "position_sigma_m": solution.position_sigma_m,
-        "sigma0_squared": solution.sigma0_sq,
-        "gnss_latency_s": solution.latency_s,
-        "wheel_factor": solution.wheel_factor,
-        "gnss_rms_m": finite(solution.gnss_rms_m),
-    })
+fn anchoring_report(solution: &Solution) -> AnchoringReport {
+    AnchoringReport {
+        keyframes: solution.keyframe_t.len(),
+        iterations: solution.iterations,
+        scale: mean_scale(solution),
+        scale_sigma_relative: solution.scale_sigma,
+        position_sigma_m: solution.position_sigma_m,
+        sigma0_squared: solution.sigma0_sq,
+        gnss_latency_s: solution.latency_s,
+        wheel_factor: solution.wheel_factor,
+        gnss_rms_m: solution.gnss_rms_m,
+    }
 }
 
 /// A finished ego pose in the plane, with its height and smoothed velocity.
@@ -652,14 +842,6 @@ fn anchor_record(t: f64, sim3: &dash2sim_core::sim3::Sim3, solution: &Solution, 
     similarity_record(quantise(t, 1e-6), sim3, 2, anchors, solution.gnss_rms_m, solution.latency_s)
 }
 
-fn finite(x: f64) -> Value {
-    if x.is_finite() {
-        json!(x)
-    } else {
-        Value::Null
-    }
-}
-
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
@@ -686,16 +868,16 @@ pub fn mean_scale(s: &Solution) -> f64 {
 
 /// Finish the log at `args.log` into `args.output` (the command line and the Python
 /// package's `finish`): the report (`--json`) with the output's path and size.
-pub fn finish_file(args: &FinishRequest) -> Result<Value, String> {
+pub fn finish_file(args: &FinishRequest) -> Result<FinishedFile> {
     if !(args.keyframe.is_finite() && (0.05..=10.0).contains(&args.keyframe)) {
-        return Err(format!("--keyframe {} must be between 0.05 and 10 s", args.keyframe));
+        return Err(Error::invalid(format!("--keyframe {} must be between 0.05 and 10 s", args.keyframe)));
     }
     let (mount, uere) = args.device.parse()?;
-    let log = log::read(&args.log).map_err(|e| e.to_string())?;
+    let log = log::read(&args.log).map_err(Error::other)?;
     let name = args.log.display().to_string();
     let anchor_file = args.anchors.as_deref().map(anchors::read).transpose()?;
     let anchor_name = args.anchors.as_deref().map(Path::display).map(|d| d.to_string());
-    let map = args.map.as_deref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
+    let map = args.map.as_deref().map(|p| std::fs::read(p).map_err(|e| Error::file(p, e))).transpose()?;
     let settings = Settings {
         keyframe_s: args.keyframe,
         gravity_aligned: args.device.mode == VoFrame::Gravity,
@@ -705,9 +887,6 @@ pub fn finish_file(args: &FinishRequest) -> Result<Value, String> {
         finish(&log, &name, anchor_name.as_deref().zip(anchor_file.as_ref()), map.as_deref(), mount, settings, uere)?;
     let header = log.header.unwrap_or(Header { device_id: [0; 16], origin: [0; 3] });
     let bytes = log::import::encode_in_order(&header, &finished.records)?;
-    std::fs::write(&args.output, &bytes).map_err(|e| format!("{}: {e}", args.output.display()))?;
-    let mut report = finished.report;
-    report["output"] = json!(args.output.display().to_string());
-    report["bytes"] = json!(bytes.len());
-    Ok(report)
+    std::fs::write(&args.output, &bytes).map_err(|e| Error::file(&args.output, e))?;
+    Ok(FinishedFile { report: finished.report, output: args.output.display().to_string(), bytes: bytes.len() })
 }

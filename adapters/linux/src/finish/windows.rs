@@ -8,10 +8,11 @@ use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Pose2, PACIFICA};
 use dash2sim_core::pipeline::verification_record;
 use dash2sim_core::score::Scores;
-use serde_json::{json, Value};
+use serde::Serialize;
 
 use crate::log::{event, LogContents};
-use crate::verify::{metrics_json, replay, AgentsByTime};
+use crate::verify::{replay, AgentsByTime, Metrics};
+use crate::{Error, Result};
 
 /// nuPlan's scenario length, s.
 pub const WINDOW_S: f64 = 15.0;
@@ -23,15 +24,60 @@ pub struct Verified {
     /// them) and an event per window and for the drive with both modes.
     pub records: Vec<Record>,
     /// The `verification` object of the report.
-    pub report: Value,
+    pub report: DriveVerification,
+}
+
+/// The finished drive verified: per window and whole.
+#[derive(Clone, Debug, Serialize)]
+pub struct DriveVerification {
+    /// The windows' length, s.
+    pub window_s: f64,
+    /// Each window.
+    pub windows: Vec<WindowVerdicts>,
+    /// The whole drive.
+    pub drive: BothVerdicts,
+}
+
+/// One window of the finished drive.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct WindowVerdicts {
+    /// Its start from the drive's first pose, s.
+    pub start_s: f64,
+    /// Its end, s.
+    pub end_s: f64,
+    /// Every lane drivable (as the device verifies).
+    pub channel_insensitive: Verdict,
+    /// Only the lanes along the route.
+    pub channel_sensitive: Verdict,
+}
+
+/// A stretch verified both ways.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct BothVerdicts {
+    /// Every lane drivable.
+    pub channel_insensitive: Verdict,
+    /// Only the lanes along the route.
+    pub channel_sensitive: Verdict,
 }
 
 /// Score, verdict and the metrics (`verify --json`'s `metrics`).
-fn scores_json(s: &Scores) -> Value {
-    json!({"score": s.score, "verified": s.verified, "metrics": metrics_json(s)})
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Verdict {
+    /// The score, 0–100.
+    pub score: f64,
+    /// Score > 90.
+    pub verified: bool,
+    /// The eight metrics.
+    pub metrics: Metrics,
 }
 
-fn both(map: MapView<'_>, poses: &[(f64, Pose2)], agents: &AgentsByTime) -> Result<(Scores, Scores), String> {
+impl Verdict {
+    fn of(s: &Scores) -> Self {
+        Verdict { score: s.score, verified: s.verified, metrics: Metrics::of(s) }
+    }
+}
+
+fn both(map: MapView<'_>, poses: &[(f64, Pose2)], agents: &AgentsByTime) -> Result<(Scores, Scores)> {
     Ok((replay(map, poses, agents, false, PACIFICA)?.scores, replay(map, poses, agents, true, PACIFICA)?.scores))
 }
 
@@ -45,8 +91,8 @@ fn verdict(s: &Scores) -> &'static str {
 
 /// Verify the finished `records` (ego poses and tracks; `source` gives the header) on the
 /// map tile `map`.
-pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map: &[u8]) -> Result<Verified, String> {
-    let view = MapView::parse(map).map_err(|e| format!("map: {e}"))?;
+pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map: &[u8]) -> Result<Verified> {
+    let view = MapView::parse(map).map_err(|e| Error::refused("map", e))?;
     let contents = LogContents {
         header: source.header,
         records: records.to_vec(),
@@ -79,12 +125,12 @@ pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map
                     verdict(&sensitive)
                 ),
             ));
-            windows.push(json!({
-                "start_s": t0 - poses[0].0,
-                "end_s": poses[end - 1].0 - poses[0].0,
-                "channel_insensitive": scores_json(&insensitive),
-                "channel_sensitive": scores_json(&sensitive),
-            }));
+            windows.push(WindowVerdicts {
+                start_s: t0 - poses[0].0,
+                end_s: poses[end - 1].0 - poses[0].0,
+                channel_insensitive: Verdict::of(&insensitive),
+                channel_sensitive: Verdict::of(&sensitive),
+            });
         }
         start = end;
     }
@@ -104,10 +150,13 @@ pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map
     }
     Ok(Verified {
         records: out,
-        report: json!({
-            "window_s": WINDOW_S,
-            "windows": windows,
-            "drive": {"channel_insensitive": scores_json(&insensitive), "channel_sensitive": scores_json(&sensitive)},
-        }),
+        report: DriveVerification {
+            window_s: WINDOW_S,
+            windows,
+            drive: BothVerdicts {
+                channel_insensitive: Verdict::of(&insensitive),
+                channel_sensitive: Verdict::of(&sensitive),
+            },
+        },
     })
 }

@@ -11,6 +11,7 @@
 use std::io::BufRead;
 use std::path::PathBuf;
 
+use crate::{Error, Result};
 use dash2sim_can::candump::CandumpReader;
 use dash2sim_can::source::SourceErrorKind;
 use dash2sim_can::{FrameSource, Record, SignalTable};
@@ -158,11 +159,11 @@ pub fn decode_source<R: BufRead>(
 
 /// Load and merge DBC files (later files win on equal ids); the warnings, `FILE: what`,
 /// of what was skipped in them.
-pub fn load_tables(paths: &[PathBuf]) -> Result<(SignalTable, Vec<String>), String> {
+pub fn load_tables(paths: &[PathBuf]) -> Result<(SignalTable, Vec<String>)> {
     let mut table = SignalTable::default();
     let mut warnings = Vec::new();
     for path in paths {
-        let (one, found) = SignalTable::load(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let (one, found) = SignalTable::load(path).map_err(|e| Error::file(path, e))?;
         warnings.extend(found.iter().map(|w| format!("{}: {w}", path.display())));
         table.extend(one);
     }

@@ -6,6 +6,7 @@
 
 use std::path::Path;
 
+use crate::{Error, Result};
 use dash2sim_core::box3d::Box3d;
 
 /// The header line.
@@ -38,20 +39,20 @@ pub struct DetectionRow {
 }
 
 /// Read every row; a bad line is an error naming the file and line.
-pub fn read(path: &Path) -> Result<Vec<DetectionRow>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+pub fn read(path: &Path) -> Result<Vec<DetectionRow>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
     let mut rows = Vec::new();
     for (n, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() || (n == 0 && line.starts_with("frame")) {
             continue;
         }
-        let at = |what: &str| format!("{}:{}: {what}", path.display(), n + 1);
+        let at = |what: &str| Error::line(path, n + 1, what);
         let f: Vec<&str> = line.split(',').map(str::trim).collect();
         if f.len() != 11 && f.len() != 14 {
             return Err(at(&format!("expected 11 or 14 columns ({HEADER}), found {}", f.len())));
         }
-        let number = |k: usize, name: &str| -> Result<f64, String> {
+        let number = |k: usize, name: &str| -> Result<f64> {
             f[k].parse::<f64>()
                 .ok()
                 .filter(|v| v.is_finite())

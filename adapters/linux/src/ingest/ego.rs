@@ -6,6 +6,7 @@ use std::path::Path;
 use dash2sim_core::obb::Pose2;
 
 use crate::trajectory::{Format, Trajectory};
+use crate::{Error, Result};
 
 /// Heading of a pose: its body x axis in the ENU plane.
 fn heading(pose: &dash2sim_core::sim3::Pose) -> f64 {
@@ -13,8 +14,8 @@ fn heading(pose: &dash2sim_core::sim3::Pose) -> f64 {
 }
 
 /// Rear-axle poses from a TUM file in a map's ENU frame (heading from the body x axis).
-pub fn read_ego(path: &Path) -> Result<Vec<(f64, Pose2)>, String> {
-    let trajectory = Trajectory::read(path, Format::Tum).map_err(|e| e.to_string())?;
+pub fn read_ego(path: &Path) -> Result<Vec<(f64, Pose2)>> {
+    let trajectory = Trajectory::read(path, Format::Tum).map_err(Error::other)?;
     Ok(trajectory
         .stamps
         .iter()

@@ -4,6 +4,7 @@
 use std::io::Write as _;
 use std::path::Path;
 
+use crate::{Error, Result};
 use dash2sim_core::box2d::Box2d;
 
 /// One row of a MOTChallenge file: `frame,id,left,top,width,height,conf,...`.
@@ -20,34 +21,34 @@ pub struct MotRow {
 }
 
 /// Read a MOTChallenge CSV (comma or whitespace separated). Errors name file and line.
-pub fn read_mot(path: &Path) -> Result<Vec<MotRow>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+pub fn read_mot(path: &Path) -> Result<Vec<MotRow>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
     let mut rows = Vec::new();
     for (index, line) in text.lines().enumerate() {
-        let at = || format!("{}:{}", path.display(), index + 1);
+        let at = |message: String| Error::line(path, index + 1, message);
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
         let cells: Vec<&str> = line.split(|c: char| c == ',' || c.is_whitespace()).filter(|c| !c.is_empty()).collect();
         if cells.len() < 6 {
-            return Err(format!("{}: expected at least 6 columns, found {}", at(), cells.len()));
+            return Err(at(format!("expected at least 6 columns, found {}", cells.len())));
         }
-        let number = |i: usize| -> Result<f64, String> {
+        let number = |i: usize| -> Result<f64> {
             cells.get(i).map_or(Ok(-1.0), |c| {
-                c.parse::<f64>().map_err(|_| format!("{}: column {} {c:?} is not a number", at(), i + 1))
+                c.parse::<f64>().map_err(|_| at(format!("column {} {c:?} is not a number", i + 1)))
             })
         };
-        let integer = |i: usize| -> Result<i64, String> {
+        let integer = |i: usize| -> Result<i64> {
             let v = number(i)?;
             if v.fract() == 0.0 && v.abs() < 1e15 {
                 Ok(v as i64)
             } else {
-                Err(format!("{}: column {} must be a whole number", at(), i + 1))
+                Err(at(format!("column {} must be a whole number", i + 1)))
             }
         };
-        let bbox = Box2d::new(number(2)? - 1.0, number(3)? - 1.0, number(4)?, number(5)?)
-            .map_err(|e| format!("{}: {e}", at()))?;
+        let bbox =
+            Box2d::new(number(2)? - 1.0, number(3)? - 1.0, number(4)?, number(5)?).map_err(|e| at(e.to_string()))?;
         rows.push(MotRow { frame: integer(0)?, id: integer(1)?, bbox, confidence: number(6)? });
     }
     Ok(rows)

@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use crate::{Error, Result};
 use dash2sim_core::box3d::Box3d;
 
 /// The header line the writers use.
@@ -61,13 +62,14 @@ impl ObjectRow {
 }
 
 /// Read every row; the error names the file, line and column.
-pub fn read(path: &Path) -> Result<Vec<ObjectRow>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+pub fn read(path: &Path) -> Result<Vec<ObjectRow>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
     let mut lines = text.lines().enumerate();
     let header = lines.next().map(|(_, l)| l.trim()).unwrap_or_default();
     let columns: Vec<&str> = header.split(',').map(str::trim).collect();
     let find = |name: &str| columns.iter().position(|c| *c == name);
-    let need = |name: &str| find(name).ok_or_else(|| format!("{}:1: no column {name:?}", path.display()));
+    let need =
+        |name: &str| find(name).ok_or_else(|| Error::invalid(format!("{}:1: no column {name:?}", path.display())));
     let [t, id, class, x, y, yaw, l, w, vx, vy] =
         ["t_s", "id", "class", "x", "y", "yaw", "l", "w", "vx", "vy"].map(need);
     let (t, id, class, x, y, yaw, l, w, vx, vy) = (t?, id?, class?, x?, y?, yaw?, l?, w?, vx?, vy?);
@@ -78,21 +80,21 @@ pub fn read(path: &Path) -> Result<Vec<ObjectRow>, String> {
             continue;
         }
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        let number = |k: usize, name: &str| -> Result<f64, String> {
+        let number = |k: usize, name: &str| -> Result<f64> {
             fields
                 .get(k)
                 .and_then(|v| v.parse::<f64>().ok())
                 .filter(|v| v.is_finite())
-                .ok_or_else(|| format!("{}:{}: {name} is not a finite number", path.display(), n + 1))
+                .ok_or_else(|| Error::line(path, n + 1, format!("{name} is not a finite number")))
         };
         let optional = |k: Option<usize>, name: &str| k.map_or(Ok(0.0), |k| number(k, name));
         let object_id = fields
             .get(id)
             .and_then(|v| v.parse::<u32>().ok())
-            .ok_or_else(|| format!("{}:{}: id is not a non-negative integer", path.display(), n + 1))?;
+            .ok_or_else(|| Error::line(path, n + 1, "id is not a non-negative integer"))?;
         let size = [number(l, "l")?, number(w, "w")?, optional(h, "h")?];
         if size.iter().any(|v| *v < 0.0) {
-            return Err(format!("{}:{}: negative size", path.display(), n + 1));
+            return Err(Error::line(path, n + 1, "negative size"));
         }
         rows.push(ObjectRow {
             t: number(t, "t_s")?,

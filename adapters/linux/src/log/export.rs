@@ -11,6 +11,7 @@ use serde_json::{json, Value};
 
 use super::import::CLASSES;
 use super::{frame, seconds, LogContents};
+use crate::{Error, Result};
 
 /// The ego poses of a log.
 pub fn ego_poses(log: &LogContents) -> impl Iterator<Item = &EgoPose> {
@@ -59,9 +60,9 @@ pub fn last_tracks(log: &LogContents) -> BTreeMap<i64, (i64, &Track3d)> {
 
 /// GeoJSON: the ego trajectory and the GNSS fixes as LineStrings, every 3D track's last
 /// position as a Point with its properties.
-pub fn geojson(log: &LogContents) -> Result<Value, String> {
-    let header = log.header.ok_or("the log's header is damaged: no geodetic origin")?;
-    let frame = frame(&header).ok_or("the log's origin is not a valid position")?;
+pub fn geojson(log: &LogContents) -> Result<Value> {
+    let header = log.header.ok_or_else(|| Error::invalid("the log's header is damaged: no geodetic origin"))?;
+    let frame = frame(&header).ok_or_else(|| Error::invalid("the log's origin is not a valid position"))?;
     let to_lonlat = |x: f64, y: f64, z: f64| -> Option<[f64; 2]> {
         frame.enu_to_geodetic(&Vector3::new(x, y, z)).ok().map(|g| [g.lon_deg, g.lat_deg])
     };

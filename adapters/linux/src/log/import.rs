@@ -20,6 +20,7 @@ use dash2sim_core::nmea::{Event as NmeaEvent, Stream, StreamEvent};
 
 use super::quantise;
 use crate::trajectory::{Format, Trajectory};
+use crate::{Error, Result};
 
 /// Object class codes in `Track3d` records (docs/binlog.md).
 pub const CLASSES: [&str; 12] = [
@@ -68,17 +69,19 @@ pub struct ImportRequest {
 }
 
 /// Parse `--origin LAT,LON[,H]` (height 0 when absent).
-pub fn parse_origin(text: &str) -> Result<[f64; 3], String> {
+pub fn parse_origin(text: &str) -> Result<[f64; 3]> {
     let values: Vec<f64> = text
         .split(',')
         .map(|v| v.trim().parse::<f64>())
         .collect::<Result<_, _>>()
-        .map_err(|_| format!("--origin {text:?}: expected LAT,LON[,H] numbers"))?;
+        .map_err(|_| Error::invalid(format!("--origin {text:?}: expected LAT,LON[,H] numbers")))?;
     match values[..] {
         [lat, lon] | [lat, lon, _] if (-90.0..=90.0).contains(&lat) && (-180.0..=180.0).contains(&lon) => {
             Ok([lat, lon, values.get(2).copied().unwrap_or(0.0)])
         }
-        _ => Err(format!("--origin {text:?}: expected LAT,LON[,H] with a valid latitude and longitude")),
+        _ => {
+            Err(Error::invalid(format!("--origin {text:?}: expected LAT,LON[,H] with a valid latitude and longitude")))
+        }
     }
 }
 
@@ -88,8 +91,8 @@ pub fn nmea_records(
     offset_s: f64,
     out: &mut Vec<Record>,
     problem: &mut dyn FnMut(&str),
-) -> Result<Option<[f64; 3]>, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+) -> Result<Option<[f64; 3]>> {
+    let bytes = std::fs::read(path).map_err(|e| Error::file(path, e))?;
     let mut stream: Stream = Stream::new();
     let mut first = None;
     let mut push = |fix: &dash2sim_core::nmea::GnssFix, out: &mut Vec<Record>| {
@@ -129,17 +132,17 @@ fn can_records(
     path: &Path,
     out: &mut Vec<Record>,
     problem: &mut dyn FnMut(&str),
-) -> Result<(), String> {
+) -> Result<()> {
     let (table, warnings) = crate::ingest::can::load_tables(&request.dbc)?;
     warnings.iter().for_each(|w| problem(w));
     let (message, signal) = match &request.speed_signal {
         Some(s) => match s.split_once('.') {
             Some((m, g)) => (Some(m.to_owned()), Some(g.to_owned())),
-            None => return Err(format!("--speed-signal {s:?}: expected MESSAGE.SIGNAL")),
+            None => return Err(Error::invalid(format!("--speed-signal {s:?}: expected MESSAGE.SIGNAL"))),
         },
         None => (None, None),
     };
-    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let file = std::fs::File::open(path).map_err(|e| Error::file(path, e))?;
     let mut source = dash2sim_can::candump::CandumpReader::new(std::io::BufReader::new(file));
     let mut decoder = crate::ingest::can::CanDecoder::new(table);
     let name = path.display();
@@ -182,7 +185,7 @@ fn can_records(
             }
         },
     )
-    .map_err(|e| format!("{name}: {e}"))?;
+    .map_err(|e| Error::file(path, e))?;
     if problems > 10 {
         problem(&format!("{name}: … and {} more problems", problems - 10));
     }
@@ -190,8 +193,8 @@ fn can_records(
 }
 
 /// Records from one source (as `import` reads it).
-pub fn traj_records(path: &Path, out: &mut Vec<Record>) -> Result<(), String> {
-    let traj = Trajectory::read(path, Format::Tum).map_err(|e| e.to_string())?;
+pub fn traj_records(path: &Path, out: &mut Vec<Record>) -> Result<()> {
+    let traj = Trajectory::read(path, Format::Tum).map_err(Error::other)?;
     for (t, p) in traj.stamps.iter().zip(&traj.poses) {
         out.push(Record::EgoPose(EgoPose {
             t_us: quantise(*t, 1e-6),
@@ -206,7 +209,7 @@ pub fn traj_records(path: &Path, out: &mut Vec<Record>) -> Result<(), String> {
 }
 
 /// Records from one source (as `import` reads it).
-pub fn object_records(path: &Path, out: &mut Vec<Record>) -> Result<(), String> {
+pub fn object_records(path: &Path, out: &mut Vec<Record>) -> Result<()> {
     // One batch per time (split into records of at most MAX_TRACKS).
     let mut by_time: std::collections::BTreeMap<i64, Vec<Track3d>> = std::collections::BTreeMap::new();
     for row in crate::ingest::objects::read(path)? {
@@ -239,19 +242,19 @@ pub fn object_records(path: &Path, out: &mut Vec<Record>) -> Result<(), String> 
 }
 
 /// Encode `records` (sorted by time here) as a log with `header`.
-pub fn encode(header: &Header, records: &mut [Record]) -> Result<Vec<u8>, String> {
+pub fn encode(header: &Header, records: &mut [Record]) -> Result<Vec<u8>> {
     records.sort_by_key(Record::t_us);
     encode_in_order(header, records)
 }
 
 /// Encode `records` as a log with `header`, in the order given.
-pub fn encode_in_order(header: &Header, records: &[Record]) -> Result<Vec<u8>, String> {
+pub fn encode_in_order(header: &Header, records: &[Record]) -> Result<Vec<u8>> {
     let mut writer: Box<Writer<Vec<u8>, 65_536>> =
-        Box::new(Writer::new(Vec::new(), header, WriterConfig::default()).map_err(|e| e.to_string())?);
+        Box::new(Writer::new(Vec::new(), header, WriterConfig::default()).map_err(Error::other)?);
     for r in records.iter() {
-        writer.write(r).map_err(|e| format!("{} record at {} µs: {e}", r.kind().name(), r.t_us()))?;
+        writer.write(r).map_err(|e| Error::refused(format!("{} record at {} µs", r.kind().name(), r.t_us()), e))?;
     }
-    writer.finish().map_err(|e| e.to_string())
+    writer.finish().map_err(Error::other)
 }
 
 /// What [`import`] wrote.
@@ -269,7 +272,7 @@ pub struct Imported {
 
 /// `dash2sim import`: the sources of `request` into one log; `problem` hears each line of
 /// a capture that could not be read (the import goes on) and the DBC files' warnings.
-pub fn import(request: &ImportRequest, problem: &mut dyn FnMut(&str)) -> Result<Imported, String> {
+pub fn import(request: &ImportRequest, problem: &mut dyn FnMut(&str)) -> Result<Imported> {
     let mut records = Vec::new();
     let mut origin = request.origin.as_deref().map(parse_origin).transpose()?;
     if let Some(path) = &request.nmea {
@@ -281,7 +284,7 @@ pub fn import(request: &ImportRequest, problem: &mut dyn FnMut(&str)) -> Result<
     }
     if let Some(path) = &request.traj {
         if origin.is_none() {
-            return Err("--traj needs the ENU origin: give --origin LAT,LON[,H] or an --nmea capture".to_owned());
+            return Err(Error::invalid("--traj needs the ENU origin: give --origin LAT,LON[,H] or an --nmea capture"));
         }
         traj_records(path, &mut records)?;
     }
@@ -289,7 +292,9 @@ pub fn import(request: &ImportRequest, problem: &mut dyn FnMut(&str)) -> Result<
         object_records(path, &mut records)?;
     }
     if records.is_empty() {
-        return Err("nothing to import: give --nmea, --can, --traj or --objects (with records in them)".to_owned());
+        return Err(Error::invalid(
+            "nothing to import: give --nmea, --can, --traj or --objects (with records in them)",
+        ));
     }
     // Say where the log came from, as its first event.
     let sources: Vec<String> =
@@ -305,7 +310,7 @@ pub fn import(request: &ImportRequest, problem: &mut dyn FnMut(&str)) -> Result<
         origin: [quantise(lat, 1e-7) as i32, quantise(lon, 1e-7) as i32, quantise(h, 1e-3) as i32],
     };
     let bytes = encode(&header, &mut records)?;
-    std::fs::write(&request.output, &bytes).map_err(|e| format!("{}: {e}", request.output.display()))?;
+    std::fs::write(&request.output, &bytes).map_err(|e| Error::file(&request.output, e))?;
     let span_s = match (records.first(), records.last()) {
         (Some(a), Some(b)) => (b.t_us() - a.t_us()) as f64 * 1e-6,
         _ => 0.0,

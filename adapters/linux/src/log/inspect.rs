@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 
 use dash2sim_core::binlog::{Kind, Record};
-use serde_json::{json, Value};
+use serde::Serialize;
 
 use super::{seconds, LogContents};
 
@@ -30,11 +30,12 @@ pub fn gaps(log: &LogContents) -> Vec<(Kind, f64, f64)> {
 
 /// Camera frames in a log: how many were logged, the gaps in their sequence numbers and how
 /// many frames those skipped, and how often the numbering started again (a camera restart).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct Frames {
     /// `FrameMeta` records.
     pub logged: u64,
     /// Places where the frame number jumped by more than one.
+    #[serde(rename = "sequence_gaps")]
     pub gaps: u64,
     /// Frames those jumps skipped.
     pub missing: u64,
@@ -80,45 +81,128 @@ pub fn dropped_inputs(log: &LogContents) -> u64 {
         .unwrap_or(0)
 }
 
-/// The JSON report.
-pub fn report(log: &LogContents) -> Value {
+/// What a log holds (`dash2sim inspect --json`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Report {
+    /// The header, if it survived.
+    pub header: Option<HeaderReport>,
+    /// The file's length.
+    pub bytes: u64,
+    /// Records decoded.
+    pub records: u64,
+    /// Records per kind (kinds with none left out).
+    pub by_type: BTreeMap<&'static str, u64>,
+    /// Bytes per kind, and per record.
+    pub bytes_by_type: BTreeMap<&'static str, KindBytes>,
+    /// Segments.
+    pub segments: u64,
+    /// Damaged stretches.
+    pub damaged: u64,
+    /// Bytes in them.
+    pub damaged_bytes: u64,
+    /// Each damaged stretch.
+    pub damage: Vec<Damage>,
+    /// Records lost with the damage.
+    pub lost: u64,
+    /// Records of kinds this reader does not know.
+    pub unknown: u64,
+    /// The first record's time, s.
+    pub t_start: Option<f64>,
+    /// The last record's time, s.
+    pub t_end: Option<f64>,
+    /// Gaps longer than [`GAP_S`] between records of one kind.
+    pub gaps: Vec<Gap>,
+    /// The camera frames.
+    pub frames: Frames,
+    /// Inputs the recorder dropped before its pipeline.
+    pub dropped_inputs: u64,
+}
+
+/// A log's header as the report gives it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct HeaderReport {
+    /// The device's name.
+    pub device_id: String,
+    /// The ENU origin.
+    pub origin: Origin,
+    /// The format's version.
+    pub version: &'static str,
+}
+
+/// A geodetic origin: degrees, metres.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Origin {
+    /// Latitude, degrees.
+    pub lat: f64,
+    /// Longitude, degrees.
+    pub lon: f64,
+    /// Height, m.
+    pub height: f64,
+}
+
+/// The bytes of one kind of record.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct KindBytes {
+    /// Bytes in all.
+    pub bytes: u64,
+    /// Bytes per record.
+    pub per_record: f64,
+}
+
+/// A damaged stretch of the file.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Damage {
+    /// Where it starts.
+    pub offset: u64,
+    /// Its length.
+    pub len: u64,
+}
+
+/// A gap between records of one kind.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Gap {
+    /// The kind.
+    #[serde(rename = "type")]
+    pub kind: &'static str,
+    /// The record before it, s.
+    pub from: f64,
+    /// The record after it, s.
+    pub to: f64,
+}
+
+/// The report on `log`.
+pub fn report(log: &LogContents) -> Report {
     let s = &log.stats;
-    let by_type: serde_json::Map<String, Value> =
-        Kind::ALL.iter().zip(s.records).filter(|(_, n)| *n > 0).map(|(k, n)| (k.name().to_owned(), json!(n))).collect();
-    let bytes_by_type: serde_json::Map<String, Value> = Kind::ALL
-        .iter()
-        .zip(s.records.iter().zip(s.bytes))
-        .filter(|(_, (n, _))| **n > 0)
-        .map(|(k, (n, b))| (k.name().to_owned(), json!({"bytes": b, "per_record": b as f64 / *n as f64})))
-        .collect();
-    let (t_start, t_end) =
-        s.time_span.map_or((Value::Null, Value::Null), |(a, b)| (json!(seconds(a)), json!(seconds(b))));
-    let f = frames(log);
-    let header = log.header.map(|h| {
-        json!({
-            "device_id": String::from_utf8_lossy(&h.device_id).trim_end_matches('\0'),
-            "origin": {"lat": f64::from(h.origin[0]) * 1e-7, "lon": f64::from(h.origin[1]) * 1e-7, "height": f64::from(h.origin[2]) * 1e-3},
-            "version": "1",
-        })
+    let kinds = || Kind::ALL.iter().zip(s.records.iter().zip(s.bytes)).filter(|(_, (n, _))| **n > 0);
+    let header = log.header.map(|h| HeaderReport {
+        device_id: String::from_utf8_lossy(&h.device_id).trim_end_matches('\0').to_owned(),
+        origin: Origin {
+            lat: f64::from(h.origin[0]) * 1e-7,
+            lon: f64::from(h.origin[1]) * 1e-7,
+            height: f64::from(h.origin[2]) * 1e-3,
+        },
+        version: "1",
     });
-    json!({
-        "header": header,
-        "bytes": log.bytes,
-        "records": s.total(),
-        "by_type": by_type,
-        "bytes_by_type": bytes_by_type,
-        "segments": s.segments,
-        "damaged": s.damaged,
-        "damaged_bytes": s.damaged_bytes,
-        "damage": log.damage.iter().map(|(o, l)| json!({"offset": o, "len": l})).collect::<Vec<_>>(),
-        "lost": s.lost,
-        "unknown": s.unknown,
-        "t_start": t_start,
-        "t_end": t_end,
-        "gaps": gaps(log).iter().map(|(k, a, b)| json!({"type": k.name(), "from": a, "to": b})).collect::<Vec<_>>(),
-        "frames": {"logged": f.logged, "sequence_gaps": f.gaps, "missing": f.missing, "restarts": f.restarts},
-        "dropped_inputs": dropped_inputs(log),
-    })
+    Report {
+        header,
+        bytes: log.bytes,
+        records: s.total(),
+        by_type: kinds().map(|(k, (n, _))| (k.name(), *n)).collect(),
+        bytes_by_type: kinds()
+            .map(|(k, (n, b))| (k.name(), KindBytes { bytes: b, per_record: b as f64 / *n as f64 }))
+            .collect(),
+        segments: s.segments,
+        damaged: s.damaged,
+        damaged_bytes: s.damaged_bytes,
+        damage: log.damage.iter().map(|&(offset, len)| Damage { offset, len }).collect(),
+        lost: s.lost,
+        unknown: s.unknown,
+        t_start: s.time_span.map(|(a, _)| seconds(a)),
+        t_end: s.time_span.map(|(_, b)| seconds(b)),
+        gaps: gaps(log).into_iter().map(|(k, from, to)| Gap { kind: k.name(), from, to }).collect(),
+        frames: frames(log),
+        dropped_inputs: dropped_inputs(log),
+    }
 }
 
 #[cfg(test)]
@@ -137,7 +221,9 @@ mod tests {
         let log = crate::log::decode(&bytes, "test").expect("a log");
         assert_eq!(gaps(&log), vec![(Kind::EgoPose, 0.1, 1.6)]);
         let r = report(&log);
-        assert_eq!((r["records"].as_u64(), r["by_type"]["EgoPose"].as_u64()), (Some(6), Some(3)), "{r}");
+        assert_eq!((r.records, r.by_type.get("EgoPose")), (6, Some(&3)), "{r:?}");
+        let json = serde_json::to_value(&r).expect("serialises");
+        assert_eq!((json["records"].as_u64(), json["gaps"][0]["type"].as_str()), (Some(6), Some("EgoPose")), "{json}");
     }
 
     #[test]
@@ -161,6 +247,7 @@ mod tests {
         let log = crate::log::decode(&bytes, "test").expect("a log");
         assert_eq!(frames(&log), Frames { logged: 6, gaps: 1, missing: 2, restarts: 1 });
         assert_eq!(dropped_inputs(&log), 17);
-        assert_eq!(report(&log)["frames"]["missing"], 2);
+        let json = serde_json::to_value(report(&log)).expect("serialises");
+        assert_eq!((json["frames"]["missing"].as_u64(), json["frames"]["sequence_gaps"].as_u64()), (Some(2), Some(1)));
     }
 }

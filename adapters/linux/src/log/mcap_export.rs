@@ -27,6 +27,7 @@ use serde_json::{json, Value};
 
 use super::export::{class_name, ego_enu};
 use super::{frame, LogContents};
+use crate::{Error, Result};
 
 /// JSON schemas for the messages written (the fields used, typed as Foxglove defines them).
 const TIME: &str = r#"{"type":"object","properties":{"sec":{"type":"integer","minimum":0},"nsec":{"type":"integer","minimum":0,"maximum":999999999}}}"#;
@@ -319,9 +320,9 @@ pub fn write(
     map: Option<&MapView<'_>>,
     path: &Path,
     topics: Option<&[&str]>,
-) -> Result<BTreeMap<&'static str, u64>, String> {
-    let err = |e: mcap::McapError| format!("{}: {e}", path.display());
-    let file = std::fs::File::create(path).map_err(|e| format!("{}: {e}", path.display()))?;
+) -> Result<BTreeMap<&'static str, u64>> {
+    let err = |e: mcap::McapError| Error::file(path, e);
+    let file = std::fs::File::create(path).map_err(|e| Error::file(path, e))?;
     let options = mcap::WriteOptions::new().compression(Some(mcap::Compression::Zstd)).profile("");
     let mut writer = mcap::Writer::with_options(BufWriter::new(file), options).map_err(err)?;
     let mut schema_ids = BTreeMap::new();

@@ -30,21 +30,20 @@ pub struct LogContents {
 }
 
 /// Why a file could not be read as a log at all.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum LogError {
     /// It could not be read.
-    Io(String),
-    /// It is not a dash2sim log.
-    NotALog(String, HeaderError),
-}
-
-impl std::fmt::Display for LogError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            LogError::Io(e) => f.write_str(e),
-            LogError::NotALog(path, e) => write!(f, "{path}: {e}"),
-        }
-    }
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// It is not a dash2sim log (its name, and what its header says).
+    #[error("{0}: {1}")]
+    NotALog(String, #[source] HeaderError),
 }
 
 /// Decode `bytes` completely.
@@ -95,7 +94,7 @@ fn retime_before_utc(records: &mut [Record]) {
 
 /// Read and decode a log file.
 pub fn read(path: &Path) -> Result<LogContents, LogError> {
-    let bytes = std::fs::read(path).map_err(|e| LogError::Io(format!("{}: {e}", path.display())))?;
+    let bytes = std::fs::read(path).map_err(|source| LogError::Io { path: path.to_path_buf(), source })?;
     decode(&bytes, &path.display().to_string())
 }
 

@@ -21,6 +21,7 @@ use parquet::file::properties::WriterProperties;
 
 use super::export::{class_name, tracks};
 use super::LogContents;
+use crate::{Error, Result};
 
 /// The version of the schema in `docs/parquet.md`, in every file's metadata.
 pub const SCHEMA_VERSION: &str = "1";
@@ -79,8 +80,8 @@ impl Table {
         self
     }
 
-    fn batch(self) -> Result<RecordBatch, String> {
-        RecordBatch::try_new(Arc::new(Schema::new(self.fields)), self.arrays).map_err(|e| e.to_string())
+    fn batch(self) -> Result<RecordBatch> {
+        RecordBatch::try_new(Arc::new(Schema::new(self.fields)), self.arrays).map_err(Error::other)
     }
 }
 
@@ -95,32 +96,31 @@ pub struct LogTables {
 }
 
 /// Write `batch` to `path` as Parquet (zstd) with `metadata` as the file's key-value metadata.
-fn write_parquet(path: &Path, batch: &RecordBatch, metadata: &[(String, String)]) -> Result<(), String> {
-    let at = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+fn write_parquet(path: &Path, batch: &RecordBatch, metadata: &[(String, String)]) -> Result<()> {
     let metadata = metadata.iter().map(|(k, v)| KeyValue::new(k.clone(), v.clone())).collect();
     let properties = WriterProperties::builder()
         .set_compression(Compression::ZSTD(ZstdLevel::default()))
         .set_key_value_metadata(Some(metadata))
         .build();
-    let file = std::fs::File::create(path).map_err(|e| at(&e))?;
-    let mut writer = ArrowWriter::try_new(file, batch.schema(), Some(properties)).map_err(|e| at(&e))?;
-    writer.write(batch).map_err(|e| at(&e))?;
-    writer.close().map_err(|e| at(&e))?;
+    let file = std::fs::File::create(path).map_err(|e| Error::file(path, e))?;
+    let mut writer = ArrowWriter::try_new(file, batch.schema(), Some(properties)).map_err(|e| Error::file(path, e))?;
+    writer.write(batch).map_err(|e| Error::file(path, e))?;
+    writer.close().map_err(|e| Error::file(path, e))?;
     Ok(())
 }
 
 /// `batch` as an Arrow IPC stream with `metadata` on its schema: the form a Python caller
 /// reads without a copy through `pyarrow.ipc.open_stream`.
-pub fn ipc_stream(batch: &RecordBatch, metadata: &[(String, String)]) -> Result<Vec<u8>, String> {
+pub fn ipc_stream(batch: &RecordBatch, metadata: &[(String, String)]) -> Result<Vec<u8>> {
     let schema = batch
         .schema()
         .as_ref()
         .clone()
         .with_metadata(metadata.iter().cloned().collect::<std::collections::HashMap<String, String>>());
-    let batch = batch.clone().with_schema(Arc::new(schema.clone())).map_err(|e| e.to_string())?;
-    let mut writer = StreamWriter::try_new(Vec::new(), &schema).map_err(|e| e.to_string())?;
-    writer.write(&batch).map_err(|e| e.to_string())?;
-    writer.into_inner().map_err(|e| e.to_string())
+    let batch = batch.clone().with_schema(Arc::new(schema.clone())).map_err(Error::other)?;
+    let mut writer = StreamWriter::try_new(Vec::new(), &schema).map_err(Error::other)?;
+    writer.write(&batch).map_err(Error::other)?;
+    writer.into_inner().map_err(Error::other)
 }
 
 /// The rows of one record kind.
@@ -148,9 +148,9 @@ fn speed_source(code: i64) -> String {
 }
 
 /// Write `log` as Parquet files into `dir` (created); rows per table, in [`TABLES`] order.
-pub fn write(log: &LogContents, log_id: &str, dir: &Path) -> Result<Vec<(&'static str, usize)>, String> {
+pub fn write(log: &LogContents, log_id: &str, dir: &Path) -> Result<Vec<(&'static str, usize)>> {
     let tables = tables(log, log_id)?;
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    std::fs::create_dir_all(dir).map_err(|e| Error::file(dir, e))?;
     let mut written = Vec::new();
     for (name, batch) in &tables.tables {
         write_parquet(&dir.join(format!("{name}.parquet")), batch, &tables.metadata)?;
@@ -160,9 +160,9 @@ pub fn write(log: &LogContents, log_id: &str, dir: &Path) -> Result<Vec<(&'stati
 }
 
 /// `log` as Arrow tables, `log_id` in every row.
-pub fn tables(log: &LogContents, log_id: &str) -> Result<LogTables, String> {
-    let header = log.header.ok_or("the log's header is damaged: no origin to place it")?;
-    let frame = super::frame(&header).ok_or("the header's origin is not a position")?;
+pub fn tables(log: &LogContents, log_id: &str) -> Result<LogTables> {
+    let header = log.header.ok_or_else(|| Error::invalid("the log's header is damaged: no origin to place it"))?;
+    let frame = super::frame(&header).ok_or_else(|| Error::invalid("the header's origin is not a position"))?;
     let [lat0, lon0, h0] =
         [header.origin[0] as f64 * 1e-7, header.origin[1] as f64 * 1e-7, header.origin[2] as f64 * 1e-3];
     let device = String::from_utf8_lossy(&header.device_id).trim_end_matches('\0').to_owned();

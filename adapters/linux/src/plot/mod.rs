@@ -14,6 +14,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use crate::log;
+use crate::{Error, Result};
 use scene::Scene;
 
 /// Picture size, px: the map on top, speed and scores below.
@@ -55,20 +56,18 @@ pub struct Drawn {
 }
 
 /// Draw `args.log` (and its map and finished log) to `args.output`.
-pub fn plot(args: &PlotRequest) -> Result<Drawn, String> {
-    let read = |p: &Path| log::read(p).map_err(|e| format!("{}: {e}", p.display()));
+pub fn plot(args: &PlotRequest) -> Result<Drawn> {
+    let read = |p: &Path| log::read(p).map_err(|e| Error::file(p, e));
     let log = read(&args.log)?;
     let finished = args.finished.as_deref().map(read).transpose()?;
-    let tile =
-        args.map.as_deref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
-    let scene =
-        Scene::new(&log, finished.as_ref(), tile.as_deref()).map_err(|e| format!("{}: {e}", args.log.display()))?;
+    let tile = args.map.as_deref().map(|p| std::fs::read(p).map_err(|e| Error::file(p, e))).transpose()?;
+    let scene = Scene::new(&log, finished.as_ref(), tile.as_deref()).map_err(|e| Error::file(&args.log, e))?;
     register_font()?;
     let extension = args.output.extension().and_then(|e| e.to_str()).unwrap_or_default().to_ascii_lowercase();
     match extension.as_str() {
         "svg" => draw(SVGBackend::new(&args.output, SIZE).into_drawing_area(), &scene),
         "png" => draw(BitMapBackend::new(&args.output, SIZE).into_drawing_area(), &scene),
-        _ => Err(format!("{}: the picture must end in .svg or .png", args.output.display())),
+        _ => Err(Error::file(&args.output, "the picture must end in .svg or .png")),
     }?;
     Ok(scene.drawn())
 }
@@ -76,16 +75,16 @@ pub fn plot(args: &PlotRequest) -> Result<Drawn, String> {
 /// Make the shipped font the `sans-serif` of every picture. Both backends measure text with
 /// it (SVG to lay out the legend). Registering twice is harmless; a font that does not
 /// parse is a build fault.
-pub(crate) fn register_font() -> Result<(), String> {
+pub(crate) fn register_font() -> Result<()> {
     plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
-        .map_err(|_| "the shipped font does not parse".to_owned())
+        .map_err(|_| Error::invalid("the shipped font does not parse"))
 }
 
-pub(crate) fn err<E: std::fmt::Debug>(e: E) -> String {
-    format!("drawing: {e:?}")
+pub(crate) fn err<E: std::fmt::Debug>(e: E) -> Error {
+    Error::other(format!("drawing: {e:?}"))
 }
 
-fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, scene: &Scene) -> Result<(), String> {
+fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, scene: &Scene) -> Result<()> {
     root.fill(&WHITE).map_err(err)?;
     let (map_area, rest) = root.split_vertically(MAP_HEIGHT);
     let (speed_area, score_area) = rest.split_vertically((SIZE.1 - MAP_HEIGHT) / 2);
@@ -100,7 +99,7 @@ fn legend<'a, DB: DrawingBackend + 'a>(
     chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
     position: SeriesLabelPosition,
     font_size: u32,
-) -> Result<(), String> {
+) -> Result<()> {
     chart
         .configure_series_labels()
         .position(position)
@@ -118,7 +117,7 @@ fn scale_bar_length(span: f64) -> f64 {
     [1.0, 2.0, 5.0, 10.0].into_iter().map(|m| m * magnitude).rfind(|&l| l <= target).unwrap_or(magnitude)
 }
 
-fn draw_map<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, scene: &Scene) -> Result<(), String> {
+fn draw_map<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, scene: &Scene) -> Result<()> {
     let (w, h) = area.dim_in_pixel();
     // Equal scale in x and y: widen the shorter side of the drive's box.
     let [x0, y0, x1, y1] = scene.bounds;
@@ -235,7 +234,7 @@ fn time_range(scene: &Scene) -> std::ops::Range<f64> {
     0.0..scene.duration_s.max(1.0)
 }
 
-fn draw_speed<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, scene: &Scene) -> Result<(), String> {
+fn draw_speed<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, scene: &Scene) -> Result<()> {
     let top = scene.speeds.iter().flat_map(|s| s.points.iter().map(|&(_, v, _)| v)).fold(1.0f64, f64::max) * 1.1;
     let mut chart = ChartBuilder::on(area)
         .caption("speed", ("sans-serif", 20))
@@ -263,7 +262,7 @@ fn shade_verified<DB: DrawingBackend>(
     chart: &mut ChartContext<'_, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
     scene: &Scene,
     top: f64,
-) -> Result<(), String> {
+) -> Result<()> {
     let verified: Vec<(f64, f64)> =
         scene.windows.iter().filter(|w| w.score > 90.0).map(|w| (w.from_s, w.to_s)).collect();
     if verified.is_empty() {
@@ -289,7 +288,7 @@ const METRIC_COLOURS: [RGBColor; 8] = [
     RGBColor(44, 160, 44),
 ];
 
-fn draw_scores<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, scene: &Scene) -> Result<(), String> {
+fn draw_scores<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, scene: &Scene) -> Result<()> {
     let mut chart = ChartBuilder::on(area)
         .caption("verification per window (nuPlan metrics, score / 100)", ("sans-serif", 20))
         .margin(10)

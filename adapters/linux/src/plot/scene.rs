@@ -10,6 +10,7 @@ use dash2sim_core::nalgebra::Vector3;
 use crate::geometry::capsule;
 use crate::log::export::{class_name, last_tracks};
 use crate::log::{frame, LogContents};
+use crate::{Error, Result};
 
 /// The eight nuPlan metrics of a `Verification` record, in its field order.
 pub const METRICS: [&str; 8] = [
@@ -158,18 +159,19 @@ fn window(v: &Verification, from_s: f64, to_s: f64) -> Window {
 
 impl Scene {
     /// The scene of `log`, its finished log and map tile.
-    pub fn new(log: &LogContents, finished: Option<&LogContents>, tile: Option<&[u8]>) -> Result<Self, String> {
-        let header = log.header.ok_or("the header is damaged: no geodetic origin to draw in")?;
-        let here = frame(&header).ok_or("the log's origin is not a valid position")?;
-        let t0_us = crate::log::export::ego_poses(log)
-            .next()
-            .map(|p| p.t_us)
-            .ok_or("no ego poses to plot (a log with GNSS and speed only has no anchored trajectory)")?;
+    pub fn new(log: &LogContents, finished: Option<&LogContents>, tile: Option<&[u8]>) -> Result<Self> {
+        let header =
+            log.header.ok_or_else(|| Error::invalid("the header is damaged: no geodetic origin to draw in"))?;
+        let here = frame(&header).ok_or_else(|| Error::invalid("the log's origin is not a valid position"))?;
+        let t0_us = crate::log::export::ego_poses(log).next().map(|p| p.t_us).ok_or_else(|| {
+            Error::invalid("no ego poses to plot (a log with GNSS and speed only has no anchored trajectory)")
+        })?;
         let online = ego(log, &Reframe::new(here, here, true), t0_us, "online anchored ego");
         let finished_series = match finished {
             Some(f) => {
-                let h = f.header.ok_or("the finished log's header is damaged")?;
-                let there = frame(&h).ok_or("the finished log's origin is not a valid position")?;
+                let h = f.header.ok_or_else(|| Error::invalid("the finished log's header is damaged"))?;
+                let there =
+                    frame(&h).ok_or_else(|| Error::invalid("the finished log's origin is not a valid position"))?;
                 ego(f, &Reframe::new(there, here, h.origin == header.origin), t0_us, "finished ego")
             }
             None => Series::default(),
@@ -256,10 +258,10 @@ impl Scene {
 
 /// The tile's lanes within 50 m of the view as capsules (the drivable area's shape), and its
 /// polygons; how many lanes.
-fn map_lanes(bytes: &[u8], here: LocalFrame, bounds: [f64; 4]) -> Result<(Vec<Ring>, usize), String> {
-    let view = MapView::parse(bytes).map_err(|e| format!("map: {e}"))?;
+fn map_lanes(bytes: &[u8], here: LocalFrame, bounds: [f64; 4]) -> Result<(Vec<Ring>, usize)> {
+    let view = MapView::parse(bytes).map_err(|e| Error::refused("map", e))?;
     let [lat, lon, h] = view.header().origin;
-    let origin = dash2sim_core::geo::Geodetic::new(lat, lon, h).map_err(|e| format!("map origin: {e}"))?;
+    let origin = dash2sim_core::geo::Geodetic::new(lat, lon, h).map_err(|e| Error::refused("map origin", e))?;
     let reframe = Reframe::new(LocalFrame::new(origin), here, false);
     let near = |p: &(f64, f64)| {
         p.0 >= bounds[0] - 50.0 && p.0 <= bounds[2] + 50.0 && p.1 >= bounds[1] - 50.0 && p.1 <= bounds[3] + 50.0

@@ -25,6 +25,7 @@ use dash2sim_core::time::Timestamp;
 
 use super::Setup;
 use crate::record::bridge::{device_now, CameraInput, CameraSubscriber};
+use crate::{Error, Result};
 
 /// Inputs waiting between the reader threads and the pipeline.
 pub const QUEUE: usize = 4096;
@@ -36,13 +37,8 @@ pub struct FileSink(File);
 
 impl FileSink {
     /// A new file at `path` (an existing one is not overwritten).
-    pub fn create(path: &Path) -> Result<FileSink, String> {
-        File::options()
-            .write(true)
-            .create_new(true)
-            .open(path)
-            .map(FileSink)
-            .map_err(|e| format!("{}: {e}", path.display()))
+    pub fn create(path: &Path) -> Result<FileSink> {
+        File::options().write(true).create_new(true).open(path).map(FileSink).map_err(|e| Error::file(path, e))
     }
 }
 
@@ -148,15 +144,15 @@ fn send(queue: &SyncSender<(Timestamp, BusInput)>, dropped: &AtomicU64, input: B
 }
 
 /// Raw mode and the baud rate, when `file` is a terminal.
-fn raw_mode(file: &File, baud: u32) -> Result<(), String> {
+fn raw_mode(file: &File, baud: u32) -> Result<()> {
     if !rustix::termios::isatty(file) {
         return Ok(());
     }
-    let mut termios = rustix::termios::tcgetattr(file).map_err(|e| format!("tcgetattr: {e}"))?;
+    let mut termios = rustix::termios::tcgetattr(file).map_err(|e| Error::refused("tcgetattr", e))?;
     termios.make_raw();
-    termios.set_speed(baud).map_err(|e| format!("baud {baud}: {e}"))?;
+    termios.set_speed(baud).map_err(|e| Error::refused(format!("baud {baud}"), e))?;
     rustix::termios::tcsetattr(file, rustix::termios::OptionalActions::Now, &termios)
-        .map_err(|e| format!("tcsetattr: {e}"))
+        .map_err(|e| Error::refused("tcsetattr", e))
 }
 
 fn serial_reader(
@@ -164,9 +160,9 @@ fn serial_reader(
     baud: u32,
     queue: SyncSender<(Timestamp, BusInput)>,
     dropped: Arc<AtomicU64>,
-) -> Result<std::thread::JoinHandle<()>, String> {
-    let mut file = File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    raw_mode(&file, baud).map_err(|e| format!("{}: {e}", path.display()))?;
+) -> Result<std::thread::JoinHandle<()>> {
+    let mut file = File::open(path).map_err(|e| Error::file(path, e))?;
+    raw_mode(&file, baud).map_err(|e| Error::file(path, e))?;
     Ok(std::thread::spawn(move || {
         let mut buffer = [0u8; 1024];
         // A pty whose writer closed reads as an error (EIO), a file as its end: both end input.
@@ -182,10 +178,10 @@ fn can_reader(
     request: &LiveRequest,
     queue: SyncSender<(Timestamp, BusInput)>,
     dropped: Arc<AtomicU64>,
-) -> Result<Option<std::thread::JoinHandle<()>>, String> {
+) -> Result<Option<std::thread::JoinHandle<()>>> {
     if let Some(interface) = &request.can_interface {
         let mut source = dash2sim_can::source::SocketCanSource::open(interface).map_err(|e| {
-            format!("CAN interface {interface}: {e} (no such interface, or a kernel without SocketCAN)")
+            Error::invalid(format!("CAN interface {interface}: {e} (no such interface, or a kernel without SocketCAN)"))
         })?;
         return Ok(Some(std::thread::spawn(move || {
             while let Some(Ok(record)) = source.next_frame() {
@@ -196,7 +192,7 @@ fn can_reader(
         })));
     }
     let Some(path) = request.can_replay.clone() else { return Ok(None) };
-    let file = File::open(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let file = File::open(&path).map_err(|e| Error::file(&path, e))?;
     let realtime = request.realtime;
     Ok(Some(std::thread::spawn(move || {
         let mut source = dash2sim_can::candump::CandumpReader::new(std::io::BufReader::new(file));
@@ -221,14 +217,14 @@ fn can_reader(
 /// The `index`th file of a run started at `started` (Unix milliseconds): names sort by
 /// time, and an existing file is never overwritten (a logger restarted at once gets a new
 /// start time).
-fn new_file(dir: &Path, started: u128, index: u32) -> Result<FileSink, String> {
+fn new_file(dir: &Path, started: u128, index: u32) -> Result<FileSink> {
     FileSink::create(&dir.join(format!("dash2sim-{started}-{index:04}.d2slog")))
 }
 
 /// Run until `stop` is set (a signal) or the duration is over; then close the log cleanly.
 /// The log goes to rotating files in `request.dir`.
-pub fn run(request: &LiveRequest, setup: &Setup, stop: &AtomicBool) -> Result<LiveReport, String> {
-    std::fs::create_dir_all(&request.dir).map_err(|e| format!("{}: {e}", request.dir.display()))?;
+pub fn run(request: &LiveRequest, setup: &Setup, stop: &AtomicBool) -> Result<LiveReport> {
+    std::fs::create_dir_all(&request.dir).map_err(|e| Error::file(&request.dir, e))?;
     let started = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_millis());
     run_into(request, setup, stop, |index| new_file(&request.dir, started, index))
 }
@@ -239,9 +235,9 @@ pub fn run_into<S: embedded_io::Write>(
     request: &LiveRequest,
     setup: &Setup,
     stop: &AtomicBool,
-    mut open: impl FnMut(u32) -> Result<S, String>,
-) -> Result<LiveReport, String> {
-    let camera = request.camera_prefix.as_deref().map(CameraSubscriber::new).transpose().map_err(|e| e.to_string())?;
+    mut open: impl FnMut(u32) -> Result<S>,
+) -> Result<LiveReport> {
+    let camera = request.camera_prefix.as_deref().map(CameraSubscriber::new).transpose().map_err(Error::other)?;
     let (queue, inputs): (SyncSender<_>, Receiver<_>) = sync_channel(QUEUE);
     let dropped = Arc::new(AtomicU64::new(0));
     let mut readers = Vec::new();
@@ -258,7 +254,7 @@ pub fn run_into<S: embedded_io::Write>(
     let mut pipeline: Box<Pipeline<'_, S>> = Box::new(Pipeline::new(open(index)?, config, &mut trackers));
     let (begun, mut file_started, mut last_status) = (Instant::now(), Instant::now(), Instant::now());
     let (mut frames, mut dropped_noted) = (0u64, 0u64);
-    let log_error = |e: dash2sim_core::binlog::WriteError<S::Error>| format!("log: {e}");
+    let log_error = |e: dash2sim_core::binlog::WriteError<S::Error>| Error::other(format!("log: {e}"));
     loop {
         let mut busy = false;
         if let Some(camera) = &camera {
@@ -279,7 +275,7 @@ pub fn run_into<S: embedded_io::Write>(
                         CameraInput::Detections2d(t, frame, d) => pipeline.push_detections2d(t, frame, &d),
                     };
                 })
-                .map_err(|e| e.to_string())?;
+                .map_err(Error::other)?;
             result.map_err(log_error)?;
         }
         while let Ok((t, input)) = inputs.try_recv() {
@@ -324,10 +320,10 @@ pub fn run_into<S: embedded_io::Write>(
 }
 
 /// Stop on SIGINT and SIGTERM: the flag the loop checks.
-pub fn stop_on_signals() -> Result<Arc<AtomicBool>, String> {
+pub fn stop_on_signals() -> Result<Arc<AtomicBool>> {
     let stop = Arc::new(AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(signal, stop.clone()).map_err(|e| format!("signal handler: {e}"))?;
+        signal_hook::flag::register(signal, stop.clone()).map_err(|e| Error::refused("signal handler", e))?;
     }
     Ok(stop)
 }

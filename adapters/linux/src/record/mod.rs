@@ -25,6 +25,7 @@ use dash2sim_core::pipeline::{
 };
 use serde_json::json;
 
+use crate::{Error, Result};
 use dash2sim_core::pipeline::profile::{self, work_zone_meta, work_zone_pipeline, work_zone_trackers};
 
 /// The recorded files `record` reads (see [`sources`] for their forms).
@@ -185,9 +186,9 @@ impl Default for Device {
 
 impl Device {
     /// The mount, and the UERE checked.
-    pub fn parse(&self) -> Result<(CameraMount, f64), String> {
+    pub fn parse(&self) -> Result<(CameraMount, f64)> {
         if !(self.uere.is_finite() && self.uere > 0.0) {
-            return Err(format!("--uere {} must be a positive number of metres", self.uere));
+            return Err(Error::invalid(format!("--uere {} must be a positive number of metres", self.uere)));
         }
         Ok((parse_mount(&self.mount)?, self.uere))
     }
@@ -214,22 +215,21 @@ impl VoFrame {
 }
 
 /// Parse `LAT,LON[,H]`.
-pub fn parse_origin(text: &str) -> Result<Geodetic, String> {
+pub fn parse_origin(text: &str) -> Result<Geodetic> {
     let [lat, lon, h] = crate::log::import::parse_origin(text)?;
-    Geodetic::new(lat, lon, h).map_err(|e| format!("--origin {text:?}: {e}"))
+    Geodetic::new(lat, lon, h).map_err(|e| Error::refused(format!("--origin {text:?}"), e))
 }
 
 /// Parse `--mount`: `FORWARD,LEFT,UP[,ROLL,PITCH,YAW]`.
-pub fn parse_mount(text: &str) -> Result<CameraMount, String> {
-    let v: Vec<f64> = text
-        .split(',')
-        .map(|x| x.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("--mount {text:?}: expected FORWARD,LEFT,UP[,ROLL,PITCH,YAW] numbers"))?;
+pub fn parse_mount(text: &str) -> Result<CameraMount> {
+    let v: Vec<f64> =
+        text.split(',').map(|x| x.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| {
+            Error::invalid(format!("--mount {text:?}: expected FORWARD,LEFT,UP[,ROLL,PITCH,YAW] numbers"))
+        })?;
     match v[..] {
         [f, l, u] => Ok(CameraMount { position: [f, l, u], roll_pitch_yaw: [0.0; 3] }),
         [f, l, u, r, p, y] => Ok(CameraMount { position: [f, l, u], roll_pitch_yaw: [r, p, y] }),
-        _ => Err(format!("--mount {text:?}: expected 3 or 6 numbers")),
+        _ => Err(Error::invalid(format!("--mount {text:?}: expected 3 or 6 numbers"))),
     }
 }
 
@@ -295,8 +295,8 @@ pub struct Setup {
 impl Setup {
     /// The pipeline's configuration: the work-zone profile with this setup's mount,
     /// anchoring mode, GNSS σ model, speed source, map and device id.
-    pub fn config<'a>(&'a self, meta: &'a [ClassMeta]) -> Result<PipelineConfig<'a>, String> {
-        let map = self.map.as_deref().map(MapView::parse).transpose().map_err(|e| format!("map: {e}"))?;
+    pub fn config<'a>(&'a self, meta: &'a [ClassMeta]) -> Result<PipelineConfig<'a>> {
+        let map = self.map.as_deref().map(MapView::parse).transpose().map_err(|e| Error::refused("map", e))?;
         let base = work_zone_pipeline(self.origin, meta);
         Ok(PipelineConfig {
             device_id: self.device_id,
@@ -327,24 +327,24 @@ impl Setup {
 }
 
 /// Run the pipeline over an input stream (the core's replay format).
-pub fn run_stream(stream: &[u8], setup: &Setup) -> Result<Recording, String> {
+pub fn run_stream(stream: &[u8], setup: &Setup) -> Result<Recording> {
     let meta = work_zone_meta();
     let config = setup.config(&meta)?;
     let mut trackers: Box<Trackers<'_, 64, 32>> = Box::new(work_zone_trackers());
     let mut pipeline: Box<Pipeline<'_, Vec<u8>>> = Box::new(Pipeline::new(Vec::new(), config, &mut trackers));
-    let mut reader = Reader::new(stream).map_err(|e| e.to_string())?;
+    let mut reader = Reader::new(stream).map_err(Error::other)?;
     let mut inputs = 0u64;
     while let Some(entry) = reader.next_input() {
-        let (t, input) = entry.map_err(|e| format!("input stream: {e}"))?;
-        feed(&mut pipeline, t, &input).map_err(|e| format!("log: {e}"))?;
+        let (t, input) = entry.map_err(|e| Error::refused("input stream", e))?;
+        feed(&mut pipeline, t, &input).map_err(|e| Error::refused("log", e))?;
         inputs += 1;
     }
-    let (log, stats, issues) = pipeline.finish().map_err(|e| format!("log: {e}"))?;
+    let (log, stats, issues) = pipeline.finish().map_err(|e| Error::refused("log", e))?;
     Ok(Recording { log, stats, issues, inputs })
 }
 
 /// The speed source the arguments name.
-fn speed_source(args: &RecordRequest, table: &SignalTable) -> Result<Option<SpeedSource>, String> {
+fn speed_source(args: &RecordRequest, table: &SignalTable) -> Result<Option<SpeedSource>> {
     let Some(name) = &args.speed_signal else {
         let bus = !args.sources.can.is_empty()
             || args.replay.is_some()
@@ -359,24 +359,26 @@ fn speed_source(args: &RecordRequest, table: &SignalTable) -> Result<Option<Spee
         "km/h" | "kph" => 1.0 / 3.6,
         "m/s" => 1.0,
         "mph" => 0.44704,
-        other => return Err(format!("--speed-unit {other:?}: expected km/h, m/s or mph")),
+        other => return Err(Error::invalid(format!("--speed-unit {other:?}: expected km/h, m/s or mph"))),
     };
     let (frame, signal) = dbc_signal(table, name, "--speed-signal")?;
     Ok(Some(SpeedSource::Signal { frame, signal, to_mps }))
 }
 
 /// The frame and signal `MESSAGE.SIGNAL` names in the DBC files; `option` says who asked.
-fn dbc_signal(table: &SignalTable, name: &str, option: &str) -> Result<(FrameId, Signal), String> {
+fn dbc_signal(table: &SignalTable, name: &str, option: &str) -> Result<(FrameId, Signal)> {
     let (message, signal) =
-        name.split_once('.').ok_or_else(|| format!("{option} {name:?}: expected MESSAGE.SIGNAL"))?;
+        name.split_once('.').ok_or_else(|| Error::invalid(format!("{option} {name:?}: expected MESSAGE.SIGNAL")))?;
     let m = table.message_by_name(message).ok_or_else(|| {
-        if table.is_empty() {
+        Error::invalid(if table.is_empty() {
             format!("{option}: no DBC files given (--dbc FILE)")
         } else {
             format!("{option}: no message {message:?} in the DBC files")
-        }
+        })
     })?;
-    let i = m.signal_index(signal).ok_or_else(|| format!("{option}: message {message} has no signal {signal:?}"))?;
+    let i = m
+        .signal_index(signal)
+        .ok_or_else(|| Error::invalid(format!("{option}: message {message} has no signal {signal:?}")))?;
     let frame = match m.id {
         embedded_can::Id::Standard(s) => FrameId { id: u32::from(s.as_raw()), extended: false },
         embedded_can::Id::Extended(e) => FrameId { id: e.as_raw(), extended: true },
@@ -385,31 +387,33 @@ fn dbc_signal(table: &SignalTable, name: &str, option: &str) -> Result<(FrameId,
 }
 
 /// `--gnss-signals`: `KEY=MESSAGE.SIGNAL` pairs, found in the DBC files.
-pub(crate) fn gnss_signals(args: &RecordRequest, table: &SignalTable) -> Result<Option<GnssSignals>, String> {
+pub(crate) fn gnss_signals(args: &RecordRequest, table: &SignalTable) -> Result<Option<GnssSignals>> {
     const OPTION: &str = "--gnss-signals";
     let Some(text) = &args.gnss_signals else { return Ok(None) };
     let mut found: BTreeMap<&str, (FrameId, Signal)> = BTreeMap::new();
     for pair in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-        let (key, name) =
-            pair.split_once('=').ok_or_else(|| format!("{OPTION}: {pair:?} is not KEY=MESSAGE.SIGNAL"))?;
+        let (key, name) = pair
+            .split_once('=')
+            .ok_or_else(|| Error::invalid(format!("{OPTION}: {pair:?} is not KEY=MESSAGE.SIGNAL")))?;
         if !matches!(key, "lat" | "lon" | "valid" | "accuracy" | "time") {
-            return Err(format!("{OPTION}: unknown key {key:?} (lat, lon, valid, accuracy, time)"));
+            return Err(Error::invalid(format!("{OPTION}: unknown key {key:?} (lat, lon, valid, accuracy, time)")));
         }
         if found.insert(key, dbc_signal(table, name, OPTION)?).is_some() {
-            return Err(format!("{OPTION}: {key} given twice"));
+            return Err(Error::invalid(format!("{OPTION}: {key} given twice")));
         }
     }
-    let required =
-        |key: &str| found.get(key).copied().ok_or_else(|| format!("{OPTION}: {key}=MESSAGE.SIGNAL is required"));
+    let required = |key: &str| {
+        found.get(key).copied().ok_or_else(|| Error::invalid(format!("{OPTION}: {key}=MESSAGE.SIGNAL is required")))
+    };
     let ((position, latitude), (lon_frame, longitude)) = (required("lat")?, required("lon")?);
     let in_position = |key: &str| match found.get(key) {
-        Some((frame, _)) if *frame != position => {
-            Err(format!("{OPTION}: {key} must be in the latitude's message (the fix is read from one frame)"))
-        }
+        Some((frame, _)) if *frame != position => Err(Error::invalid(format!(
+            "{OPTION}: {key} must be in the latitude's message (the fix is read from one frame)"
+        ))),
         other => Ok(other.map(|(_, s)| *s)),
     };
     if lon_frame != position {
-        return Err(format!("{OPTION}: lat and lon must be in one message"));
+        return Err(Error::invalid(format!("{OPTION}: lat and lon must be in one message")));
     }
     Ok(Some(GnssSignals {
         position,
@@ -422,7 +426,7 @@ pub(crate) fn gnss_signals(args: &RecordRequest, table: &SignalTable) -> Result<
 }
 
 /// Read the file sources into one input stream.
-pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts), String> {
+pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts)> {
     let mut inputs = sources::Inputs::default();
     if let Some(p) = &args.vo {
         inputs.vo(p)?;
@@ -438,35 +442,39 @@ pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts), 
     }
     if let Some(p) = &args.detections2d {
         if args.vo.is_none() {
-            return Err("--detections2d needs --vo: 2D detections are stamped with their frame's VO time".to_owned());
+            return Err(Error::invalid(
+                "--detections2d needs --vo: 2D detections are stamped with their frame's VO time",
+            ));
         }
         inputs.detections2d(p)?;
     }
     if inputs.is_empty() {
-        return Err("nothing to record: give --vo, --nmea, --can or --detections (with inputs in them)".to_owned());
+        return Err(Error::invalid(
+            "nothing to record: give --vo, --nmea, --can or --detections (with inputs in them)",
+        ));
     }
     Ok((inputs.stream()?, inputs.counts))
 }
 
 /// The live sources the request names, if any.
 #[cfg(feature = "bridge")]
-pub fn live_request(args: &RecordRequest) -> Result<Option<live::LiveRequest>, String> {
+pub fn live_request(args: &RecordRequest) -> Result<Option<live::LiveRequest>> {
     let live = args.camera.is_some() || args.serial.is_some() || args.can_iface.is_some() || args.can_replay.is_some();
     if !live {
         return Ok(None);
     }
     let s = &args.sources;
     if s.vo.is_some() || s.nmea.is_some() || !s.can.is_empty() || s.detections.is_some() || args.replay.is_some() {
-        return Err(
-            "live sources (--camera, --serial, --can-iface, --can-replay) and file sources do not mix".to_owned()
-        );
+        return Err(Error::invalid(
+            "live sources (--camera, --serial, --can-iface, --can-replay) and file sources do not mix",
+        ));
     }
     if !(args.segment_minutes.is_finite() && args.segment_minutes > 0.0) {
-        return Err(format!("--segment-minutes {} must be positive", args.segment_minutes));
+        return Err(Error::invalid(format!("--segment-minutes {} must be positive", args.segment_minutes)));
     }
     let duration = match args.seconds {
         Some(s) if s.is_finite() && s > 0.0 => Some(std::time::Duration::from_secs_f64(s)),
-        Some(s) => return Err(format!("--seconds {s} must be positive")),
+        Some(s) => return Err(Error::invalid(format!("--seconds {s} must be positive"))),
         None => None,
     };
     Ok(Some(live::LiveRequest {
@@ -486,18 +494,19 @@ pub fn live_request(args: &RecordRequest) -> Result<Option<live::LiveRequest>, S
 /// `record` from files (or a saved input stream), without writing the log or reporting:
 /// the recording and what the files held (with the problems of the captures and the DBC
 /// files' warnings).
-pub fn record_files(args: &RecordRequest) -> Result<(Recording, sources::SourceCounts), String> {
+pub fn record_files(args: &RecordRequest) -> Result<(Recording, sources::SourceCounts)> {
     let (stream, mut counts) = match &args.replay {
-        Some(path) => (std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?, Default::default()),
+        Some(path) => (std::fs::read(path).map_err(|e| Error::file(path, e))?, Default::default()),
         None => read_sources(&args.sources)?,
     };
     if let Some(path) = &args.save_inputs {
-        std::fs::write(path, &stream).map_err(|e| format!("{}: {e}", path.display()))?;
+        std::fs::write(path, &stream).map_err(|e| Error::file(path, e))?;
     }
     let setup = setup_from_args(args, &mut counts.problems, |gnss| {
         first_fix(&stream, gnss).ok_or_else(|| {
-            "no ENU origin: give --origin LAT,LON[,H], a --map, or GNSS with a fix (--nmea, or --can with --gnss-signals)"
-                .to_owned()
+            Error::invalid(
+                "no ENU origin: give --origin LAT,LON[,H], a --map, or GNSS with a fix (--nmea, or --can with --gnss-signals)",
+            )
         })
     })?;
     Ok((run_stream(&stream, &setup)?, counts))
@@ -508,18 +517,19 @@ pub fn record_files(args: &RecordRequest) -> Result<(Recording, sources::SourceC
 fn setup_from_args(
     args: &RecordRequest,
     warnings: &mut Vec<String>,
-    fallback: impl FnOnce(Option<&GnssSignals>) -> Result<Geodetic, String>,
-) -> Result<Setup, String> {
+    fallback: impl FnOnce(Option<&GnssSignals>) -> Result<Geodetic>,
+) -> Result<Setup> {
     // The DBC files, read once for both signal options.
     let (table, dbc_warnings) = crate::ingest::can::load_tables(&args.dbc)?;
     warnings.extend(dbc_warnings);
     let gnss_signals = gnss_signals(args, &table)?;
-    let map = args.map.as_ref().map(|p| std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))).transpose()?;
+    let map = args.map.as_ref().map(|p| std::fs::read(p).map_err(|e| Error::file(p, e))).transpose()?;
     let origin = match (&args.origin, &map) {
         (Some(text), _) => parse_origin(text)?,
         (None, Some(bytes)) => {
-            let h = MapView::parse(bytes).map_err(|e| format!("{}: {e}", display(&args.map)))?.header().origin;
-            Geodetic::new(h[0], h[1], h[2]).map_err(|e| format!("map origin: {e}"))?
+            let h =
+                MapView::parse(bytes).map_err(|e| Error::refused(display(&args.map).to_string(), e))?.header().origin;
+            Geodetic::new(h[0], h[1], h[2]).map_err(|e| Error::refused("map origin", e))?
         }
         (None, None) => fallback(gnss_signals.as_ref())?,
     };
@@ -536,9 +546,9 @@ fn setup_from_args(
     })
 }
 
-fn device_id(text: &str) -> Result<[u8; 16], String> {
+fn device_id(text: &str) -> Result<[u8; 16]> {
     if text.len() > 16 {
-        return Err(format!("--device-id {text:?} is longer than 16 bytes"));
+        return Err(Error::invalid(format!("--device-id {text:?} is longer than 16 bytes")));
     }
     let mut id = [0u8; 16];
     id[..text.len()].copy_from_slice(text.as_bytes());
@@ -552,10 +562,10 @@ pub fn record_live(
     args: &RecordRequest,
     request: &live::LiveRequest,
     warn: &mut dyn FnMut(&str),
-) -> Result<live::LiveReport, String> {
+) -> Result<live::LiveReport> {
     let mut warnings = Vec::new();
     let setup = setup_from_args(args, &mut warnings, |_| {
-        Err("a live recording needs its ENU origin: give --origin LAT,LON[,H] or a --map".to_owned())
+        Err(Error::invalid("a live recording needs its ENU origin: give --origin LAT,LON[,H] or a --map"))
     });
     warnings.iter().for_each(|w| warn(w));
     let setup = setup?;

@@ -24,6 +24,7 @@ use dash2sim_core::track2d::Detection;
 use dash2sim_core::track3d::Detection3d;
 
 use crate::trajectory::{Format, Trajectory};
+use crate::{Error, Result};
 
 /// One input before it is written to the stream. The order of the variants is the order
 /// among inputs of the same time (bus and serial before the frame they belong with).
@@ -83,8 +84,14 @@ pub struct Inputs {
     pub counts: SourceCounts,
 }
 
-fn micros(t: f64, what: &str) -> Result<i64, String> {
-    Timestamp::from_secs_f64(t).map(Timestamp::micros).ok_or_else(|| format!("{what}: time {t} is out of range"))
+/// `t` seconds in microseconds, if a timestamp holds it.
+fn micros(t: f64) -> Option<i64> {
+    Timestamp::from_secs_f64(t).map(Timestamp::micros)
+}
+
+/// Why a time was refused.
+fn out_of_range(t: f64) -> String {
+    format!("time {t} is out of range")
 }
 
 impl Inputs {
@@ -97,11 +104,11 @@ impl Inputs {
     /// VO poses: TUM (frame k is the k-th pose, from 1; one VO session), or the CSV a
     /// camera process that loses track writes ([`read_vo_csv`]: each pose with its frame
     /// number and VO session).
-    pub fn vo(&mut self, path: &Path) -> Result<(), String> {
+    pub fn vo(&mut self, path: &Path) -> Result<()> {
         let poses: Vec<VoRow> = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")) {
             read_vo_csv(path)?
         } else {
-            let traj = Trajectory::read(path, Format::Tum).map_err(|e| e.to_string())?;
+            let traj = Trajectory::read(path, Format::Tum).map_err(Error::other)?;
             (1..)
                 .zip(traj.stamps)
                 .zip(traj.poses)
@@ -109,7 +116,7 @@ impl Inputs {
                 .collect()
         };
         for (k, VoRow { frame, t, session, pose }) in poses.into_iter().enumerate() {
-            let t_us = micros(t, &format!("{}:{}", path.display(), k + 1))?;
+            let t_us = micros(t).ok_or_else(|| Error::line(path, k + 1, out_of_range(t)))?;
             self.frame_times.insert(frame, t_us);
             self.push(t_us, Input::Vo(frame, session, pose));
             self.counts.vo += 1;
@@ -118,37 +125,38 @@ impl Inputs {
     }
 
     /// The serial capture: `(seconds) sentence` per line.
-    pub fn serial(&mut self, path: &Path) -> Result<(), String> {
-        let text = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    pub fn serial(&mut self, path: &Path) -> Result<()> {
+        let text = std::fs::read(path).map_err(|e| Error::file(path, e))?;
         for (n, line) in text.split(|&b| b == b'\n').enumerate() {
             let line = line.strip_suffix(b"\r").unwrap_or(line);
             if line.iter().all(u8::is_ascii_whitespace) {
                 continue;
             }
-            let at = || format!("{}:{}", path.display(), n + 1);
+            let at = |message: String| Error::line(path, n + 1, message);
             let stamped = line
                 .strip_prefix(b"(")
                 .and_then(|rest| rest.iter().position(|&b| b == b')').map(|end| (&rest[..end], &rest[end + 1..])));
             let Some((stamp, sentence)) = stamped else {
-                return Err(format!(
-                    "{}: expected `(seconds) $SENTENCE` — the receive time of each line is needed (a raw NMEA capture has none)",
-                    at()
+                return Err(at(
+                    "expected `(seconds) $SENTENCE` — the receive time of each line is needed (a raw NMEA capture has none)"
+                        .to_owned(),
                 ));
             };
-            let t: f64 = std::str::from_utf8(stamp).ok().and_then(|s| s.trim().parse().ok()).ok_or_else(|| {
-                format!("{}: receive time {:?} is not a number", at(), String::from_utf8_lossy(stamp))
-            })?;
+            let t: f64 = std::str::from_utf8(stamp)
+                .ok()
+                .and_then(|s| s.trim().parse().ok())
+                .ok_or_else(|| at(format!("receive time {:?} is not a number", String::from_utf8_lossy(stamp))))?;
             let mut bytes = sentence.trim_ascii_start().to_vec();
             bytes.extend_from_slice(b"\r\n");
-            self.push(micros(t, &at())?, Input::Serial(bytes));
+            self.push(micros(t).ok_or_else(|| at(out_of_range(t)))?, Input::Serial(bytes));
             self.counts.serial_lines += 1;
         }
         Ok(())
     }
 
     /// A candump capture; lines that are not frames are reported and skipped.
-    pub fn can(&mut self, path: &Path) -> Result<(), String> {
-        let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    pub fn can(&mut self, path: &Path) -> Result<()> {
+        let file = std::fs::File::open(path).map_err(|e| Error::file(path, e))?;
         let mut reader = dash2sim_can::candump::CandumpReader::new(std::io::BufReader::new(file));
         let mut problems = 0u64;
         while let Some(record) = reader.next_frame() {
@@ -159,10 +167,10 @@ impl Inputs {
                         self.counts.can_frames += 1;
                     }
                     None => {
-                        return Err(format!(
-                            "{}:{}: a candump line without a timestamp",
-                            path.display(),
-                            reader.line_number()
+                        return Err(Error::line(
+                            path,
+                            reader.line_number() as usize,
+                            "a candump line without a timestamp",
                         ))
                     }
                 },
@@ -182,7 +190,7 @@ impl Inputs {
 
     /// 3D detections; `class_id` names the tracker's class of a name (unknown names get
     /// an id the tracker refuses, so they are counted, not dropped silently).
-    pub fn detections(&mut self, path: &Path, class_id: impl Fn(&str) -> Option<u16>) -> Result<(), String> {
+    pub fn detections(&mut self, path: &Path, class_id: impl Fn(&str) -> Option<u16>) -> Result<()> {
         let mut frames: BTreeMap<u64, (f64, Vec<Detection3d>)> = BTreeMap::new();
         for row in crate::ingest::detections::read(path)? {
             let entry = frames.entry(row.frame).or_insert((row.t, Vec::new()));
@@ -196,7 +204,7 @@ impl Inputs {
         for (frame, (t, detections)) in frames {
             self.counts.detection_frames += 1;
             self.counts.detections += detections.len() as u64;
-            let t_us = micros(t, &path.display().to_string())?;
+            let t_us = micros(t).ok_or_else(|| Error::file(path, out_of_range(t)))?;
             // A frame the VO lost keeps its time for the 2D detections.
             self.frame_times.entry(frame).or_insert(t_us);
             self.push(t_us, Input::Detections3d(frame, detections));
@@ -207,26 +215,26 @@ impl Inputs {
     /// 2D detections (MOTChallenge); each frame at its VO stamp (or, where the VO lost
     /// track, its 3D detections' time), so read those first. A frame with neither is
     /// skipped and counted.
-    pub fn detections2d(&mut self, path: &Path) -> Result<(), String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    pub fn detections2d(&mut self, path: &Path) -> Result<()> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
         let mut frames: BTreeMap<u64, Vec<ImageDetection>> = BTreeMap::new();
         for (n, line) in text.lines().enumerate() {
             if line.trim().is_empty() {
                 continue;
             }
-            let at = || format!("{}:{}", path.display(), n + 1);
+            let at = |message: String| Error::line(path, n + 1, message);
             let f: Vec<f64> = line
                 .split(',')
                 .take(7)
                 .map(|v| v.trim().parse::<f64>())
                 .collect::<Result<_, _>>()
-                .map_err(|_| format!("{}: expected frame,id,left,top,width,height,score numbers", at()))?;
+                .map_err(|_| at("expected frame,id,left,top,width,height,score numbers".to_string()))?;
             let [frame, _, x, y, w, h, score] = f[..] else {
-                return Err(format!("{}: expected at least 7 columns", at()));
+                return Err(at("expected at least 7 columns".to_string()));
             };
-            let bbox = Box2d::new(x, y, w, h).map_err(|e| format!("{}: {e}", at()))?;
+            let bbox = Box2d::new(x, y, w, h).map_err(|e| at(e.to_string()))?;
             if !(frame >= 1.0 && frame.fract() == 0.0) {
-                return Err(format!("{}: frame {frame} is not a frame number", at()));
+                return Err(at(format!("frame {frame} is not a frame number")));
             }
             frames
                 .entry(frame as u64)
@@ -250,8 +258,8 @@ impl Inputs {
     }
 
     /// The merged stream in the core's replay format.
-    pub fn stream(&self) -> Result<Vec<u8>, String> {
-        let mut recorder = Recorder::new(Vec::new()).map_err(|e| e.to_string())?;
+    pub fn stream(&self) -> Result<Vec<u8>> {
+        let mut recorder = Recorder::new(Vec::new()).map_err(Error::other)?;
         for (&(t_us, _, _), input) in &self.items {
             let t = Timestamp::from_micros(t_us);
             let written = match input {
@@ -261,9 +269,9 @@ impl Inputs {
                 Input::Detections3d(frame, d) => recorder.detections3d(t, *frame, d),
                 Input::Detections2d(frame, d) => recorder.detections2d(t, *frame, d),
             };
-            written.map_err(|e| e.to_string())?;
+            written.map_err(Error::other)?;
         }
-        recorder.finish().map_err(|e| e.to_string())
+        recorder.finish().map_err(Error::other)
     }
 }
 
@@ -274,48 +282,43 @@ pub const VO_CSV_HEADER: &str = "frame,t_s,x,y,z,qx,qy,qz,qw,session";
 /// where the VO had lost track have none), its device time, the camera's pose in the VO
 /// frame (TUM's order) and the VO session (0, then one more after each re-initialisation).
 /// Frame numbers must increase; sessions must not go back.
-pub fn read_vo_csv(path: &Path) -> Result<Vec<VoRow>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+pub fn read_vo_csv(path: &Path) -> Result<Vec<VoRow>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
     let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
     match lines.next() {
         Some((_, header)) if header.trim() == VO_CSV_HEADER => {}
         Some((n, header)) => {
-            return Err(format!("{}:{}: header `{}`: expected `{VO_CSV_HEADER}`", path.display(), n + 1, header.trim()))
+            return Err(Error::line(path, n + 1, format!("header `{}`: expected `{VO_CSV_HEADER}`", header.trim())))
         }
-        None => return Err(format!("{}: empty: expected the header `{VO_CSV_HEADER}`", path.display())),
+        None => return Err(Error::file(path, format!("empty: expected the header `{VO_CSV_HEADER}`"))),
     }
     let mut out: Vec<VoRow> = Vec::new();
     for (n, line) in lines {
-        let at = || format!("{}:{}", path.display(), n + 1);
+        let at = |message: String| Error::line(path, n + 1, message);
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
         if fields.len() != 10 {
-            return Err(format!("{}: {} fields, expected 10 ({VO_CSV_HEADER})", at(), fields.len()));
+            return Err(at(format!("{} fields, expected 10 ({VO_CSV_HEADER})", fields.len())));
         }
-        let frame: u64 =
-            fields[0].parse().map_err(|_| format!("{}: frame `{}` is not a frame number", at(), fields[0]))?;
+        let frame: u64 = fields[0].parse().map_err(|_| at(format!("frame `{}` is not a frame number", fields[0])))?;
         let mut v = [0.0f64; 8];
         for (slot, field) in v.iter_mut().zip(&fields[1..9]) {
             *slot = field
                 .parse()
                 .ok()
                 .filter(|x: &f64| x.is_finite())
-                .ok_or_else(|| format!("{}: `{field}` is not a finite number", at()))?;
+                .ok_or_else(|| at(format!("`{field}` is not a finite number")))?;
         }
         if out.last().is_some_and(|previous| previous.frame >= frame) {
-            return Err(format!("{}: frame {frame} does not follow the frame before it", at()));
+            return Err(at(format!("frame {frame} does not follow the frame before it")));
         }
         let session: u32 =
-            fields[9].parse().map_err(|_| format!("{}: session `{}` is not a session number", at(), fields[9]))?;
+            fields[9].parse().map_err(|_| at(format!("session `{}` is not a session number", fields[9])))?;
         if let Some(previous) = out.last().filter(|p| p.session > session) {
-            return Err(format!(
-                "{}: session {session} after session {}: sessions only count up",
-                at(),
-                previous.session
-            ));
+            return Err(at(format!("session {session} after session {}: sessions only count up", previous.session)));
         }
         let [t, x, y, z, qx, qy, qz, qw] = v;
         if qw * qw + qx * qx + qy * qy + qz * qz < 1e-12 {
-            return Err(format!("{}: the quaternion is zero, not a rotation", at()));
+            return Err(at("the quaternion is zero, not a rotation".to_string()));
         }
         let pose = Pose::from_quaternion_wxyz([qw, qx, qy, qz], dash2sim_core::nalgebra::Vector3::new(x, y, z));
         out.push(VoRow { frame, t, session, pose });
@@ -367,12 +370,13 @@ mod tests {
         ] {
             let path = vo_csv(name, body);
             let e = read_vo_csv(&path).expect_err(name);
-            assert!(e.contains(expected), "{name}: {e}");
+            assert!(matches!(e, Error::Line { .. }), "{name}: {e:?}");
+            assert!(e.to_string().contains(expected), "{name}: {e}");
             let _ = std::fs::remove_file(path);
         }
         let path = std::env::temp_dir().join(format!("dash2sim-vo-{}-header.csv", std::process::id()));
         std::fs::write(&path, "t,x,y\n").expect("write");
-        assert!(read_vo_csv(&path).expect_err("header").contains(":1: header `t,x,y`"));
+        assert!(read_vo_csv(&path).expect_err("header").to_string().contains(":1: header `t,x,y`"));
         let _ = std::fs::remove_file(path);
     }
 }

@@ -10,6 +10,7 @@ use serde_json::json;
 
 use crate::record::VoFrame;
 use crate::trajectory::{self, Format, Trajectory};
+use crate::{Error, Result};
 
 /// Anchoring of trajectory files (`dash2sim anchor`).
 #[derive(Clone, Debug)]
@@ -80,8 +81,8 @@ pub struct FrameEstimate {
 }
 
 /// Read a `t,value` CSV (first line may be a header); errors name the line.
-pub fn read_speed_csv(path: &Path) -> Result<Vec<(f64, f64)>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+pub fn read_speed_csv(path: &Path) -> Result<Vec<(f64, f64)>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
     let mut rows = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let line = line.trim();
@@ -93,26 +94,22 @@ pub fn read_speed_csv(path: &Path) -> Result<Vec<(f64, f64)>, String> {
         match parsed {
             (Some(Ok(t)), Some(Ok(v))) if t.is_finite() && v.is_finite() => {
                 if rows.last().is_some_and(|&(prev, _)| t < prev) {
-                    return Err(format!(
-                        "{}:{}: timestamp {t} is earlier than the previous one",
-                        path.display(),
-                        i + 1
-                    ));
+                    return Err(Error::line(path, i + 1, format!("timestamp {t} is earlier than the previous one")));
                 }
                 rows.push((t, v));
             }
             _ if i == 0 => {} // header
-            _ => return Err(format!("{}:{}: expected `t,speed` with finite numbers", path.display(), i + 1)),
+            _ => return Err(Error::line(path, i + 1, "expected `t,speed` with finite numbers")),
         }
     }
     if rows.is_empty() {
-        return Err(format!("{}: no speed samples", path.display()));
+        return Err(Error::file(path, "no speed samples"));
     }
     Ok(rows)
 }
 
-fn stamp(t: f64) -> Result<Timestamp, String> {
-    Timestamp::from_secs_f64(t).ok_or_else(|| format!("timestamp {t} is out of range"))
+fn stamp(t: f64) -> Result<Timestamp> {
+    Timestamp::from_secs_f64(t).ok_or_else(|| Error::invalid(format!("timestamp {t} is out of range")))
 }
 
 /// Feed the three streams through an anchorer in time order; one estimate per VO frame.
@@ -122,7 +119,7 @@ pub fn replay(
     speed: &[(f64, f64)],
     sigma_m: f64,
     config: AnchorConfig,
-) -> Result<Vec<FrameEstimate>, String> {
+) -> Result<Vec<FrameEstimate>> {
     replay_with_sigmas(vo, gnss, &vec![sigma_m; gnss.len()], speed, config)
 }
 
@@ -133,12 +130,12 @@ pub fn replay_with_sigmas(
     sigmas: &[f64],
     speed: &[(f64, f64)],
     config: AnchorConfig,
-) -> Result<Vec<FrameEstimate>, String> {
+) -> Result<Vec<FrameEstimate>> {
     if sigmas.len() != gnss.len() {
-        return Err(format!("{} σ for {} fixes", sigmas.len(), gnss.len()));
+        return Err(Error::invalid(format!("{} σ for {} fixes", sigmas.len(), gnss.len())));
     }
     if vo.stamps.is_empty() || gnss.stamps.is_empty() {
-        return Err("VO and GNSS trajectories need timestamps (TUM format)".into());
+        return Err(Error::invalid("VO and GNSS trajectories need timestamps (TUM format)"));
     }
     let mut anchorer: Anchorer = Anchorer::new(config);
     let (mut i_speed, mut i_gnss) = (0, 0);
@@ -146,15 +143,15 @@ pub fn replay_with_sigmas(
     for (&t_vo, pose) in vo.stamps.iter().zip(&vo.poses) {
         // Everything that happened up to this frame, speed before GNSS at equal times.
         while let Some(&(t, v)) = speed.get(i_speed).filter(|(t, _)| *t <= t_vo) {
-            anchorer.push_speed(stamp(t)?, v).map_err(|e| format!("speed at {t}: {e}"))?;
+            anchorer.push_speed(stamp(t)?, v).map_err(|e| Error::refused(format!("speed at {t}"), e))?;
             i_speed += 1;
         }
         while let Some(&t) = gnss.stamps.get(i_gnss).filter(|&&t| t <= t_vo) {
             let p = gnss.poses[i_gnss].translation;
-            anchorer.push_gnss(stamp(t)?, p, sigmas[i_gnss]).map_err(|e| format!("GNSS at {t}: {e}"))?;
+            anchorer.push_gnss(stamp(t)?, p, sigmas[i_gnss]).map_err(|e| Error::refused(format!("GNSS at {t}"), e))?;
             i_gnss += 1;
         }
-        anchorer.push_vo(stamp(t_vo)?, pose.translation).map_err(|e| format!("VO at {t_vo}: {e}"))?;
+        anchorer.push_vo(stamp(t_vo)?, pose.translation).map_err(|e| Error::refused(format!("VO at {t_vo}"), e))?;
         frames.push(FrameEstimate { t: t_vo, estimate: anchorer.estimate().copied(), quality: *anchorer.quality() });
     }
     Ok(frames)
@@ -173,15 +170,15 @@ pub fn anchored_trajectory(vo: &Trajectory, frames: &[FrameEstimate]) -> Traject
 }
 
 /// Anchor the VO file to the GNSS (and speed) files, write the anchored trajectory if asked.
-pub fn anchor_files(args: &AnchorRequest) -> Result<AnchorSummary, String> {
+pub fn anchor_files(args: &AnchorRequest) -> Result<AnchorSummary> {
     if !(args.sigma.is_finite() && args.sigma > 0.0) {
-        return Err(format!("--sigma {} must be a positive number of metres", args.sigma));
+        return Err(Error::invalid(format!("--sigma {} must be a positive number of metres", args.sigma)));
     }
     if args.forget.is_nan() || args.forget <= 0.0 {
-        return Err(format!("--forget {} must be positive (or inf)", args.forget));
+        return Err(Error::invalid(format!("--forget {} must be positive (or inf)", args.forget)));
     }
-    let vo = Trajectory::read(&args.vo, Format::Tum).map_err(|e| e.to_string())?;
-    let gnss = Trajectory::read(&args.gnss, Format::Tum).map_err(|e| e.to_string())?;
+    let vo = Trajectory::read(&args.vo, Format::Tum).map_err(Error::other)?;
+    let gnss = Trajectory::read(&args.gnss, Format::Tum).map_err(Error::other)?;
     let speed = match &args.speed {
         Some(p) => read_speed_csv(p)?,
         None => Vec::new(),
@@ -194,11 +191,11 @@ pub fn anchor_files(args: &AnchorRequest) -> Result<AnchorSummary, String> {
     let frames = replay(&vo, &gnss, &speed, args.sigma, config)?;
     let anchored = anchored_trajectory(&vo, &frames);
     if let Some(out) = &args.output {
-        trajectory::write_file(&anchored, out, Format::Tum).map_err(|e| format!("{}: {e}", out.display()))?;
+        trajectory::write_file(&anchored, out, Format::Tum).map_err(|e| Error::file(out, e))?;
     }
     let observable_after_s =
         frames.iter().find(|f| f.quality.observability == Observability::Observable).map(|f| f.t - vo.stamps[0]);
-    let last = frames.last().ok_or("no VO frames")?;
+    let last = frames.last().ok_or_else(|| Error::invalid("no VO frames"))?;
     Ok(AnchorSummary {
         frames: vo.len(),
         anchored_frames: anchored.len(),

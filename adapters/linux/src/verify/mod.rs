@@ -11,10 +11,12 @@ pub mod anchoring;
 pub mod evaluate;
 pub mod mot;
 
+use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
+use crate::{Error, Result};
 use dash2sim_core::drivable::{Channel, LaneSet};
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Footprint, OrientedBox, Pose2};
@@ -64,8 +66,8 @@ pub fn from_log(
     path: &Path,
     map: &MapView<'_>,
     warn: &mut dyn FnMut(&str),
-) -> Result<(Vec<(f64, Pose2)>, AgentsByTime), String> {
-    let log = crate::log::read(path).map_err(|e| e.to_string())?;
+) -> Result<(Vec<(f64, Pose2)>, AgentsByTime)> {
+    let log = crate::log::read(path).map_err(Error::other)?;
     if log.stats.damaged > 0 {
         warn(&format!("{}: {} damaged stretches skipped", path.display(), log.stats.damaged));
     }
@@ -77,14 +79,14 @@ pub fn from_contents(
     log: &crate::log::LogContents,
     name: &str,
     map: &MapView<'_>,
-) -> Result<(Vec<(f64, Pose2)>, AgentsByTime), String> {
+) -> Result<(Vec<(f64, Pose2)>, AgentsByTime)> {
     use crate::log::export::{class_name, ego_enu, ego_poses, tracks};
     use dash2sim_core::geo::{Geodetic, LocalFrame};
     use dash2sim_core::nalgebra::Vector3;
-    let header = log.header.ok_or_else(|| format!("{name}: the header is damaged (no origin)"))?;
-    let log_frame = crate::log::frame(&header).ok_or_else(|| format!("{name}: invalid origin"))?;
+    let header = log.header.ok_or_else(|| Error::invalid(format!("{name}: the header is damaged (no origin)")))?;
+    let log_frame = crate::log::frame(&header).ok_or_else(|| Error::invalid(format!("{name}: invalid origin")))?;
     let [lat, lon, h] = map.header().origin;
-    let map_frame = LocalFrame::new(Geodetic::new(lat, lon, h).map_err(|e| format!("map origin: {e}"))?);
+    let map_frame = LocalFrame::new(Geodetic::new(lat, lon, h).map_err(|e| Error::refused("map origin", e))?);
     let same = (f64::from(header.origin[0]) * 1e-7 - lat).abs() < 1e-7
         && (f64::from(header.origin[1]) * 1e-7 - lon).abs() < 1e-7;
     let to_map = |v: Vector3<f64>| -> (f64, f64) {
@@ -107,7 +109,7 @@ pub fn from_contents(
         })
         .collect();
     if poses.is_empty() {
-        return Err(format!("{name}: no ego poses to verify"));
+        return Err(Error::invalid(format!("{name}: no ego poses to verify")));
     }
     let mut agents: BTreeMap<i64, Vec<Agent>> = BTreeMap::new();
     for (t_us, t) in tracks(log) {
@@ -138,7 +140,7 @@ pub fn agent_kind(class: &str) -> AgentKind {
 }
 
 /// Objects by time (ms), from an objects CSV (`crate::ingest::objects`).
-pub fn read_objects(path: &Path) -> Result<BTreeMap<i64, Vec<Agent>>, String> {
+pub fn read_objects(path: &Path) -> Result<BTreeMap<i64, Vec<Agent>>> {
     let mut by_time: BTreeMap<i64, Vec<Agent>> = BTreeMap::new();
     for row in crate::ingest::objects::read(path)? {
         let agent = Agent {
@@ -184,14 +186,17 @@ pub fn replay(
     objects: &BTreeMap<i64, Vec<Agent>>,
     channel_sensitive: bool,
     footprint: Footprint,
-) -> Result<Verification, String> {
+) -> Result<Verification> {
     // A map of polygons (Lanelet2) is checked through its fine index (channel-insensitive).
     let index = if channel_sensitive { None } else { crate::ingest::map_tile::polygon_index::build(&map) };
     let checker = crate::ingest::map_tile::polygon_index::checker(map, footprint, index.as_ref());
     let mut channel_set: Box<LaneSet<CHANNEL_WORDS>> = Box::default();
     if channel_sensitive {
         if map.header().lanes as usize > LaneSet::<CHANNEL_WORDS>::capacity() {
-            return Err(format!("the map has more than {} lanes", LaneSet::<CHANNEL_WORDS>::capacity()));
+            return Err(Error::invalid(format!(
+                "the map has more than {} lanes",
+                LaneSet::<CHANNEL_WORDS>::capacity()
+            )));
         }
         for (_, pose) in poses {
             channel_set.add_route_pose(&map, &footprint, pose);
@@ -201,7 +206,8 @@ pub fn replay(
     let mut scorer = Scorer::new(checker, channel, ScoreConfig::default());
     let mut steps = Vec::with_capacity(poses.len());
     for (k, (t, pose)) in poses.iter().enumerate() {
-        let report = scorer.step(*t, pose, agents_at(objects, *t)).map_err(|e| format!("pose {}: {e}", k + 1))?;
+        let report =
+            scorer.step(*t, pose, agents_at(objects, *t)).map_err(|e| Error::refused(format!("pose {}", k + 1), e))?;
         steps.push((*t, *pose, report));
     }
     Ok(Verification { scores: scorer.finish(None), steps, channel_lanes: channel_sensitive.then(|| channel_set.len()) })
@@ -235,61 +241,168 @@ fn poses_csv(steps: &[(f64, Pose2, StepReport)]) -> String {
     out
 }
 
-/// Each metric's score under nuPlan's name.
-pub fn metrics_json(s: &Scores) -> serde_json::Value {
-    serde_json::json!({
-        "no_at_fault_collisions": s.no_at_fault_collisions,
-        "drivable_area_compliance": s.drivable_area,
-        "driving_direction_compliance": s.driving_direction,
-        "ego_is_making_progress": s.making_progress,
-        "ego_progress_along_expert_route": s.progress,
-        "time_to_collision_within_bound": s.ttc,
-        "speed_limit_compliance": s.speed_limit,
-        "ego_is_comfortable": s.comfort,
-    })
+/// The eight metrics, by nuPlan's names.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Metrics {
+    /// Multiplier.
+    pub no_at_fault_collisions: f64,
+    /// Multiplier.
+    pub drivable_area_compliance: f64,
+    /// Multiplier.
+    pub driving_direction_compliance: f64,
+    /// Multiplier.
+    pub ego_is_making_progress: f64,
+    /// Weight 5.
+    pub ego_progress_along_expert_route: f64,
+    /// Weight 5.
+    pub time_to_collision_within_bound: f64,
+    /// Weight 4.
+    pub speed_limit_compliance: f64,
+    /// Weight 2.
+    pub ego_is_comfortable: f64,
 }
 
-/// The JSON report of `dash2sim verify --json`.
-pub fn report_json(v: &Verification, channel_sensitive: bool) -> serde_json::Value {
+impl Metrics {
+    /// The metrics of `s`.
+    pub fn of(s: &Scores) -> Self {
+        Metrics {
+            no_at_fault_collisions: s.no_at_fault_collisions,
+            drivable_area_compliance: s.drivable_area,
+            driving_direction_compliance: s.driving_direction,
+            ego_is_making_progress: s.making_progress,
+            ego_progress_along_expert_route: s.progress,
+            time_to_collision_within_bound: s.ttc,
+            speed_limit_compliance: s.speed_limit,
+            ego_is_comfortable: s.comfort,
+        }
+    }
+
+    /// Each metric with its name, the names in alphabetical order (the JSON's).
+    pub fn named(&self) -> [(&'static str, f64); 8] {
+        [
+            ("drivable_area_compliance", self.drivable_area_compliance),
+            ("driving_direction_compliance", self.driving_direction_compliance),
+            ("ego_is_comfortable", self.ego_is_comfortable),
+            ("ego_is_making_progress", self.ego_is_making_progress),
+            ("ego_progress_along_expert_route", self.ego_progress_along_expert_route),
+            ("no_at_fault_collisions", self.no_at_fault_collisions),
+            ("speed_limit_compliance", self.speed_limit_compliance),
+            ("time_to_collision_within_bound", self.time_to_collision_within_bound),
+        ]
+    }
+}
+
+/// `dash2sim verify --json`: the score, the metrics and what lies behind them.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct VerifyReport {
+    /// The eight metrics.
+    pub metrics: Metrics,
+    /// The score, 0–100.
+    pub score: f64,
+    /// Score > 90.
+    pub verified: bool,
+    /// Whether only the lanes along the route were drivable.
+    pub channel_sensitive: bool,
+    /// Those lanes, when channel-sensitive.
+    pub channel_lanes: Option<usize>,
+    /// Ego poses scored.
+    pub poses: u32,
+    /// Their span, s.
+    pub duration_s: f64,
+    /// What lies behind the metrics.
+    pub details: Details,
+}
+
+/// What lies behind the metrics (non-finite values are null in JSON).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Details {
+    /// Poses off the drivable area.
+    pub noncompliant_poses: u32,
+    /// The farthest a footprint corner got outside, m.
+    pub worst_corner_outside_m: f64,
+    /// The least progress along the lane's direction, m.
+    pub min_progress_along_lane_direction_m: f64,
+    /// The least time to collision, s.
+    pub min_ttc_s: f64,
+    /// At-fault collisions.
+    pub collisions: Collisions,
+    /// Speed over the limit, integrated, m.
+    pub overspeed_integral_m: f64,
+    /// The ego's progress, m.
+    pub ego_progress_m: f64,
+    /// The comfort extremes.
+    pub comfort: ComfortReport,
+}
+
+/// Collisions.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Collisions {
+    /// With agents, at fault.
+    pub at_fault_agents: u32,
+    /// With objects, at fault.
+    pub at_fault_objects: u32,
+    /// All.
+    pub all: u32,
+}
+
+/// The comfort extremes.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ComfortReport {
+    /// Least and greatest longitudinal acceleration, m/s².
+    pub lon_accel_mps2: [f64; 2],
+    /// Greatest |lateral acceleration|, m/s².
+    pub max_abs_lat_accel_mps2: f64,
+    /// Greatest |jerk|, m/s³.
+    pub max_abs_jerk_mps3: f64,
+    /// Greatest |longitudinal jerk|, m/s³.
+    pub max_abs_lon_jerk_mps3: f64,
+    /// Greatest |yaw rate|, rad/s.
+    pub max_abs_yaw_rate_radps: f64,
+    /// Greatest |yaw acceleration|, rad/s².
+    pub max_abs_yaw_accel_radps2: f64,
+}
+
+/// The report of `v` (`dash2sim verify --json`).
+pub fn report(v: &Verification, channel_sensitive: bool) -> VerifyReport {
     let s = &v.scores;
-    let finite = |x: f64| if x.is_finite() { serde_json::json!(x) } else { serde_json::Value::Null };
     let e = &s.comfort_extremes;
-    serde_json::json!({
-        "metrics": metrics_json(s),
-        "score": s.score,
-        "verified": s.verified,
-        "channel_sensitive": channel_sensitive,
-        "channel_lanes": v.channel_lanes,
-        "poses": s.poses,
-        "duration_s": s.duration,
-        "details": {
-            "noncompliant_poses": s.noncompliant_poses,
-            "worst_corner_outside_m": finite(s.worst_corner),
-            "min_progress_along_lane_direction_m": s.min_direction_progress,
-            "min_ttc_s": finite(s.min_ttc),
-            "collisions": {"at_fault_agents": s.collisions.0, "at_fault_objects": s.collisions.1, "all": s.collisions.2},
-            "overspeed_integral_m": s.overspeed_integral,
-            "ego_progress_m": s.ego_progress,
-            "comfort": {
-                "lon_accel_mps2": [finite(e.lon_accel.0), finite(e.lon_accel.1)],
-                "max_abs_lat_accel_mps2": e.lat_accel,
-                "max_abs_jerk_mps3": e.jerk,
-                "max_abs_lon_jerk_mps3": e.lon_jerk,
-                "max_abs_yaw_rate_radps": e.yaw_rate,
-                "max_abs_yaw_accel_radps2": e.yaw_accel,
+    VerifyReport {
+        metrics: Metrics::of(s),
+        score: s.score,
+        verified: s.verified,
+        channel_sensitive,
+        channel_lanes: v.channel_lanes,
+        poses: s.poses,
+        duration_s: s.duration,
+        details: Details {
+            noncompliant_poses: s.noncompliant_poses,
+            worst_corner_outside_m: s.worst_corner,
+            min_progress_along_lane_direction_m: s.min_direction_progress,
+            min_ttc_s: s.min_ttc,
+            collisions: Collisions {
+                at_fault_agents: s.collisions.0,
+                at_fault_objects: s.collisions.1,
+                all: s.collisions.2,
+            },
+            overspeed_integral_m: s.overspeed_integral,
+            ego_progress_m: s.ego_progress,
+            comfort: ComfortReport {
+                lon_accel_mps2: [e.lon_accel.0, e.lon_accel.1],
+                max_abs_lat_accel_mps2: e.lat_accel,
+                max_abs_jerk_mps3: e.jerk,
+                max_abs_lon_jerk_mps3: e.lon_jerk,
+                max_abs_yaw_rate_radps: e.yaw_rate,
+                max_abs_yaw_accel_radps2: e.yaw_accel,
             },
         },
-    })
+    }
 }
 
 /// Replay the request's ego trajectory against its map (the command line and the Python
 /// package's `verify`): the verification, and the ego's source for messages.
-pub fn evaluate<'a>(
-    request: &VerifyRequest<'a>,
-    warn: &mut dyn FnMut(&str),
-) -> Result<(Verification, &'a Path), String> {
-    let bytes = std::fs::read(request.map).map_err(|e| format!("{}: {e}", request.map.display()))?;
-    let map = MapView::parse(&bytes).map_err(|e| format!("{}: {e}", request.map.display()))?;
+pub fn evaluate<'a>(request: &VerifyRequest<'a>, warn: &mut dyn FnMut(&str)) -> Result<(Verification, &'a Path)> {
+    let bytes = std::fs::read(request.map).map_err(|e| Error::file(request.map, e))?;
+    let map = MapView::parse(&bytes).map_err(|e| Error::file(request.map, e))?;
     let (poses, mut objects, name) = match request.ego {
         EgoSource::Tum(path) => (crate::ingest::ego::read_ego(path)?, BTreeMap::new(), path),
         EgoSource::Log(path) => {
@@ -303,11 +416,11 @@ pub fn evaluate<'a>(
     let (from, to) = request.window;
     let poses: Vec<(f64, Pose2)> = poses.into_iter().filter(|(t, _)| *t >= from && *t <= to).collect();
     if poses.is_empty() {
-        return Err(format!("{}: no ego poses between {from} and {to} s", name.display()));
+        return Err(Error::file(name, format!("no ego poses between {from} and {to} s")));
     }
     let v = replay(map, &poses, &objects, request.channel_sensitive, request.footprint)?;
     if let Some(path) = request.poses {
-        std::fs::write(path, poses_csv(&v.steps)).map_err(|e| format!("{}: {e}", path.display()))?;
+        std::fs::write(path, poses_csv(&v.steps)).map_err(|e| Error::file(path, e))?;
     }
     Ok((v, name))
 }

@@ -4,6 +4,7 @@
 //! Enough for GDAL (`ogrinfo`), geopandas and nuPlan's map reader; no spatial index (R-tree
 //! triggers need SQLite functions that only GDAL registers) and no extensions.
 
+use crate::{Error, Result};
 use rusqlite::{params, Connection};
 
 /// A geometry in the layer's projected coordinates.
@@ -125,14 +126,14 @@ pub struct GeoPackage {
     srs_id: i32,
 }
 
-fn sql_err(e: rusqlite::Error) -> String {
-    format!("GeoPackage: {e}")
+fn sql_err(e: rusqlite::Error) -> Error {
+    Error::refused("GeoPackage", e)
 }
 
 impl GeoPackage {
     /// Create `path` (which must not exist) with the projected CRS `srs_id` (an EPSG code)
     /// defined by `wkt`.
-    pub fn create(path: &std::path::Path, srs_id: i32, srs_name: &str, wkt: &str) -> Result<Self, String> {
+    pub fn create(path: &std::path::Path, srs_id: i32, srs_name: &str, wkt: &str) -> Result<Self> {
         let db = Connection::open(path).map_err(sql_err)?;
         db.execute_batch(
             "PRAGMA application_id = 1196444487; PRAGMA user_version = 10200;
@@ -174,7 +175,7 @@ impl GeoPackage {
     }
 
     /// Write a feature layer.
-    pub fn write_layer(&mut self, layer: &Layer) -> Result<(), String> {
+    pub fn write_layer(&mut self, layer: &Layer) -> Result<()> {
         let columns: String = layer.columns.iter().map(|(n, t)| format!(", \"{n}\" {t}")).collect();
         let tx = self.db.transaction().map_err(sql_err)?;
         tx.execute_batch(&format!(
@@ -218,7 +219,7 @@ impl GeoPackage {
     }
 
     /// Write a table without geometry (`data_type` `attributes`).
-    pub fn write_attributes(&mut self, name: &str, rows: &[(&str, &str)]) -> Result<(), String> {
+    pub fn write_attributes(&mut self, name: &str, rows: &[(&str, &str)]) -> Result<()> {
         let tx = self.db.transaction().map_err(sql_err)?;
         tx.execute_batch(&format!(
             "CREATE TABLE \"{name}\" (fid INTEGER PRIMARY KEY AUTOINCREMENT NOT NULL, key TEXT, value TEXT);"

@@ -14,6 +14,7 @@ use super::map::MapIds;
 use super::projection::Projection;
 use crate::log::export::class_name;
 use crate::log::LogContents;
+use crate::{Error, Result};
 
 /// nuPlan's clock, Hz (the devkit hard-codes 0.05 s).
 pub const RATE_HZ: f64 = 20.0;
@@ -64,7 +65,7 @@ fn wrap(a: f64) -> f64 {
 /// The log's ego poses resampled at exactly 20 Hz (linear in position, shortest-way in
 /// heading), projected, with body-frame velocities and accelerations by central
 /// differences.
-pub fn ego_ticks(log: &LogContents, projection: &Projection) -> Result<Vec<EgoTick>, String> {
+pub fn ego_ticks(log: &LogContents, projection: &Projection) -> Result<Vec<EgoTick>> {
     let mut poses: Vec<(i64, [f64; 4])> = log
         .records
         .iter()
@@ -79,7 +80,7 @@ pub fn ego_ticks(log: &LogContents, projection: &Projection) -> Result<Vec<EgoTi
     poses.sort_by_key(|p| p.0);
     poses.dedup_by_key(|p| p.0);
     let (Some(first), Some(last)) = (poses.first(), poses.last()) else {
-        return Err("the log has no ego poses".to_owned());
+        return Err(Error::invalid("the log has no ego poses"));
     };
     let step = (1e6 / RATE_HZ) as i64;
     let ticks = ((last.0 - first.0) / step + 1) as usize;
@@ -193,8 +194,8 @@ pub fn write(
     ids: &MapIds,
     log_projection: &Projection,
     scene_s: f64,
-) -> Result<usize, String> {
-    let err = |e: rusqlite::Error| format!("{}: {e}", path.display());
+) -> Result<usize> {
+    let err = |e: rusqlite::Error| Error::file(path, e);
     let mut db = Connection::open(path).map_err(err)?;
     db.execute_batch(SCHEMA).map_err(err)?;
     let tx = db.transaction().map_err(err)?;

@@ -26,6 +26,7 @@ use super::gpkg::{Geometry, Layer, Value};
 use super::junctions::{layout, DisjointSets, LaneShape};
 use super::projection::Projection;
 use crate::geometry::{band, bezier, capsule, contains, cut, heading_at, hull, is_simple, length, point_at, Line};
+use crate::{Error, Result};
 
 const ROADBLOCK_BASE: i64 = 1_000_000;
 const CONNECTOR_BASE: i64 = 2_000_000;
@@ -65,10 +66,10 @@ type Row = (i64, Geometry, Vec<Value>);
 struct RoadblockSides(Option<Line>, Option<Line>, Vec<usize>);
 
 /// The layers of `view` in `projection`'s frame, and the ids the log export needs.
-pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>, MapIds), String> {
+pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>, MapIds)> {
     let lanes: Vec<_> = (0..view.len() as u32).filter_map(|i| view.lane(i)).collect();
     if lanes.is_empty() {
-        return Err("the map has no lanes".to_owned());
+        return Err(Error::invalid("the map has no lanes"));
     }
     // Project every centreline once (the tile's frame is the map's origin).
     let project = |pts: Vec<(f64, f64)>| -> Line {

@@ -19,6 +19,7 @@ use dash2sim_core::map::MapView;
 use serde_json::json;
 
 use crate::log::LogContents;
+use crate::{Error, Result};
 use gpkg::GeoPackage;
 use projection::Projection;
 
@@ -74,30 +75,31 @@ impl Drop for Cleanup {
     }
 }
 
-fn origin_of(log: &LogContents) -> Result<Geodetic, String> {
-    let h = log.header.ok_or("the log's header is damaged (no origin)")?;
+fn origin_of(log: &LogContents) -> Result<Geodetic> {
+    let h = log.header.ok_or_else(|| Error::invalid("the log's header is damaged (no origin)"))?;
     Geodetic::new(f64::from(h.origin[0]) * 1e-7, f64::from(h.origin[1]) * 1e-7, f64::from(h.origin[2]) * 1e-3)
-        .map_err(|e| format!("the log's origin: {e}"))
+        .map_err(|e| Error::refused("the log's origin", e))
 }
 
 /// Export. Errors name what is missing; nothing is left behind on an error.
-pub fn export(request: &NuplanRequest<'_>) -> Result<NuplanExport, String> {
+pub fn export(request: &NuplanRequest<'_>) -> Result<NuplanExport> {
     if !(request.scene_s.is_finite() && request.scene_s >= 1.0) {
-        return Err(format!("--scenario-seconds {} must be at least 1", request.scene_s));
+        return Err(Error::invalid(format!("--scenario-seconds {} must be at least 1", request.scene_s)));
     }
-    let view = MapView::parse(request.tile).map_err(|e| format!("map: {e}"))?;
+    let view = MapView::parse(request.tile).map_err(|e| Error::refused("map", e))?;
     let [lat, lon, h] = view.header().origin;
-    let map_origin = Geodetic::new(lat, lon, h).map_err(|e| format!("map origin: {e}"))?;
+    let map_origin = Geodetic::new(lat, lon, h).map_err(|e| Error::refused("map origin", e))?;
     let map_projection = Projection::new(map_origin)?;
     let log_projection = Projection::with_zone(origin_of(request.log)?, map_projection.zone, map_projection.north)?;
-    let ticks = logdb::ego_ticks(request.log, &log_projection).map_err(|e| format!("{}: {e}", request.log_name))?;
+    let ticks =
+        logdb::ego_ticks(request.log, &log_projection).map_err(|e| Error::refused(request.log_name.to_string(), e))?;
     let duration = ticks.len().saturating_sub(1) as f64 / logdb::RATE_HZ;
     let scenes = logdb::scene_count(ticks.len(), request.scene_s);
     if scenes < MIN_SCENES {
-        return Err(format!(
+        return Err(Error::invalid(format!(
             "{}: {duration:.1} s of ego poses make {scenes} scenes of {} s; nuPlan needs at least {MIN_SCENES} (it drops the first two and the last): a longer log or shorter --scenario-seconds",
             request.log_name, request.scene_s
-        ));
+        )));
     }
     // The map must cover the drive (the tile is in the map's frame; the ticks keep the log's
     // ENU, which is the map's when the origins agree — checked through geodetic positions).
@@ -116,17 +118,17 @@ pub fn export(request: &NuplanRequest<'_>) -> Result<NuplanExport, String> {
         }
     }
     if off * 10 > ticks.len() {
-        return Err(format!(
+        return Err(Error::invalid(format!(
             "the map does not cover the drive: {off} of {} ego poses are farther than {OFF_MAP_M} m from every lane",
             ticks.len()
-        ));
+        )));
     }
     let (layers, ids) = map::layers(&view, &map_projection)?;
 
     let db_dir = request.out.join("db");
     let map_dir = request.out.join("maps").join(request.map_name).join(MAP_VERSION);
     for d in [&db_dir, &map_dir] {
-        std::fs::create_dir_all(d).map_err(|e| format!("{}: {e}", d.display()))?;
+        std::fs::create_dir_all(d).map_err(|e| Error::file(d, e))?;
     }
     let stem = Path::new(request.log_name).file_stem().and_then(|s| s.to_str()).unwrap_or("log");
     let start = ticks.first().map_or(0, |t| t.t_us);
@@ -160,12 +162,11 @@ pub fn export(request: &NuplanRequest<'_>) -> Result<NuplanExport, String> {
         request.scene_s,
     )?;
     let maps_json = json!({request.map_name: {"version": MAP_VERSION, "layers": {}}});
-    std::fs::write(partial(&json_path), format!("{maps_json:#}"))
-        .map_err(|e| format!("{}: {e}", json_path.display()))?;
+    std::fs::write(partial(&json_path), format!("{maps_json:#}")).map_err(|e| Error::file(&json_path, e))?;
     for (from, to) in
         [(partial(&gpkg_path), &gpkg_path), (partial(&db_path), &db_path), (partial(&json_path), &json_path)]
     {
-        std::fs::rename(&from, to).map_err(|e| format!("{}: {e}", to.display()))?;
+        std::fs::rename(&from, to).map_err(|e| Error::file(to, e))?;
     }
     cleanup.0.clear();
     Ok(NuplanExport {

@@ -2,6 +2,7 @@
 //! use: the UTM zone of the map's origin (WGS 84, EPSG 326zz north / 327zz south), through
 //! geodetic coordinates. UTM's Transverse Mercator is Rust Geodesy's (Krüger's series).
 
+use crate::{Error, Result};
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::nalgebra::Vector3;
 use geodesy::prelude::*;
@@ -20,17 +21,17 @@ pub struct Projection {
 
 impl Projection {
     /// The projection for the local frame at `origin` into its own UTM zone.
-    pub fn new(origin: Geodetic) -> Result<Self, String> {
+    pub fn new(origin: Geodetic) -> Result<Self> {
         let zone = (((origin.lon_deg + 180.0) / 6.0).floor() as i64).rem_euclid(60) as u8 + 1;
         Self::with_zone(origin, zone, origin.lat_deg >= 0.0)
     }
 
     /// The projection for the local frame at `origin` into UTM zone `zone` (a log whose
     /// origin differs from its map's goes into the map's zone).
-    pub fn with_zone(origin: Geodetic, zone: u8, north: bool) -> Result<Self, String> {
+    pub fn with_zone(origin: Geodetic, zone: u8, north: bool) -> Result<Self> {
         let mut context = Minimal::default();
         let definition = if north { format!("utm zone={zone}") } else { format!("utm zone={zone} south") };
-        let utm = context.op(&definition).map_err(|e| format!("UTM zone {zone}: {e}"))?;
+        let utm = context.op(&definition).map_err(|e| Error::refused(format!("UTM zone {zone}"), e))?;
         Ok(Projection { frame: LocalFrame::new(origin), context, utm, zone, north })
     }
 

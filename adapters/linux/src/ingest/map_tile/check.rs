@@ -6,6 +6,7 @@
 use std::path::Path;
 use std::time::Instant;
 
+use crate::{Error, Result};
 use dash2sim_core::drivable::Channel;
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::PACIFICA;
@@ -36,15 +37,15 @@ impl Checked {
 }
 
 /// Check every pose of `poses` (TUM, rear axle, the tile's ENU frame) `passes` times.
-pub fn check_file(map: &Path, poses: &Path, passes: u32) -> Result<Checked, String> {
+pub fn check_file(map: &Path, poses: &Path, passes: u32) -> Result<Checked> {
     if passes == 0 {
-        return Err("--passes must be at least 1".to_owned());
+        return Err(Error::invalid("--passes must be at least 1"));
     }
-    let bytes = std::fs::read(map).map_err(|e| format!("{}: {e}", map.display()))?;
-    let view = MapView::parse(&bytes).map_err(|e| format!("{}: {e}", map.display()))?;
+    let bytes = std::fs::read(map).map_err(|e| Error::file(map, e))?;
+    let view = MapView::parse(&bytes).map_err(|e| Error::file(map, e))?;
     let poses = crate::ingest::ego::read_ego(poses)?;
     if poses.is_empty() {
-        return Err("no poses to check".to_owned());
+        return Err(Error::invalid("no poses to check"));
     }
     // A map of polygons (Lanelet2) is checked through its fine index, built first (not timed).
     let index = super::polygon_index::build(&view);

@@ -20,6 +20,7 @@ use dash2sim_core::map::{body_checksum, Header, CRC_AT, HEADER_LEN, NONE, POLYGO
 use crate::geometry::offset_polyline;
 use crate::ingest::osm::highway::{interpret, RoadSpec};
 use crate::ingest::osm::OsmData;
+use crate::{Error, Result};
 
 /// Road classes as stored in the tile (`docs/map-tile.md`).
 pub const CLASSES: [&str; 12] = [
@@ -357,29 +358,29 @@ fn item_box(points: impl Iterator<Item = (f64, f64)>, margin: f64) -> [f32; 4] {
     [down(lo.0), down(lo.1), up(hi.0), up(hi.1)]
 }
 
-fn parse_origin(text: &str) -> Result<Geodetic, String> {
+fn parse_origin(text: &str) -> Result<Geodetic> {
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
-    let [lat, lon] = parts[..] else { return Err(format!("--origin {text:?}: expected LAT,LON")) };
+    let [lat, lon] = parts[..] else { return Err(Error::invalid(format!("--origin {text:?}: expected LAT,LON"))) };
     let (Ok(lat), Ok(lon)) = (lat.parse::<f64>(), lon.parse::<f64>()) else {
-        return Err(format!("--origin {text:?}: LAT and LON must be numbers"));
+        return Err(Error::invalid(format!("--origin {text:?}: LAT and LON must be numbers")));
     };
-    Geodetic::new(lat, lon, 0.0).map_err(|e| format!("--origin {text:?}: {e}"))
+    Geodetic::new(lat, lon, 0.0).map_err(|e| Error::refused(format!("--origin {text:?}"), e))
 }
 
-fn parse_bbox(text: &str) -> Result<[f64; 4], String> {
+fn parse_bbox(text: &str) -> Result<[f64; 4]> {
     let values: Vec<f64> = text
         .split(',')
         .map(|v| v.trim().parse::<f64>())
         .collect::<Result<_, _>>()
-        .map_err(|_| format!("--bbox {text:?}: expected four numbers WEST,SOUTH,EAST,NORTH"))?;
+        .map_err(|_| Error::invalid(format!("--bbox {text:?}: expected four numbers WEST,SOUTH,EAST,NORTH")))?;
     let [west, south, east, north] = values[..] else {
-        return Err(format!("--bbox {text:?}: expected four numbers WEST,SOUTH,EAST,NORTH"));
+        return Err(Error::invalid(format!("--bbox {text:?}: expected four numbers WEST,SOUTH,EAST,NORTH")));
     };
     if !((-180.0..=180.0).contains(&west) && (-180.0..=180.0).contains(&east) && west < east) {
-        return Err(format!("--bbox {text:?}: WEST and EAST must be longitudes with WEST < EAST"));
+        return Err(Error::invalid(format!("--bbox {text:?}: WEST and EAST must be longitudes with WEST < EAST")));
     }
     if !((-90.0..=90.0).contains(&south) && (-90.0..=90.0).contains(&north) && south < north) {
-        return Err(format!("--bbox {text:?}: SOUTH and NORTH must be latitudes with SOUTH < NORTH"));
+        return Err(Error::invalid(format!("--bbox {text:?}: SOUTH and NORTH must be latitudes with SOUTH < NORTH")));
     }
     Ok([west, south, east, north])
 }
@@ -405,13 +406,13 @@ pub fn build_file(
     origin: Option<&str>,
     bbox: Option<&str>,
     cell: f64,
-) -> Result<Built, String> {
+) -> Result<Built> {
     if !(cell.is_finite() && (1.0..=10_000.0).contains(&cell)) {
-        return Err(format!("--cell {cell} must be between 1 and 10000 metres"));
+        return Err(Error::invalid(format!("--cell {cell} must be between 1 and 10000 metres")));
     }
     let origin = origin.map(parse_origin).transpose()?;
     let bbox = bbox.map(parse_bbox).transpose()?;
-    let mut data = crate::ingest::osm::read(osm).map_err(|e| e.to_string())?;
+    let mut data = crate::ingest::osm::read(osm).map_err(Error::other)?;
     // The counts describe the source file, before any clipping.
     let source_counts = source_counts(&data);
     if let Some(bbox) = bbox {
@@ -421,17 +422,17 @@ pub fn build_file(
     let mut content = from_osm(&data, origin, &mut warnings);
     content.source_counts = source_counts;
     if content.lanes.is_empty() {
-        return Err(format!("{}: no drivable highway ways or Lanelet2 lanelets", osm.display()));
+        return Err(Error::file(osm, "no drivable highway ways or Lanelet2 lanelets"));
     }
     let bytes = encode(&content, cell);
-    std::fs::write(output, &bytes).map_err(|e| format!("{}: {e}", output.display()))?;
+    std::fs::write(output, &bytes).map_err(|e| Error::file(output, e))?;
     Ok(Built { lanes: content.lanes.len(), lane_km: content.lane_km(), bytes: bytes.len(), warnings })
 }
 
 /// `dash2sim map lanes`: the lanes and free-standing polygons of a tile as JSON.
-pub fn lanes_json(path: &std::path::Path) -> Result<serde_json::Value, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let view = dash2sim_core::map::MapView::parse(&bytes).map_err(|e| format!("{}: {e}", path.display()))?;
+pub fn lanes_json(path: &std::path::Path) -> Result<serde_json::Value> {
+    let bytes = std::fs::read(path).map_err(|e| Error::file(path, e))?;
+    let view = dash2sim_core::map::MapView::parse(&bytes).map_err(|e| Error::file(path, e))?;
     let ring = |i: u32| view.polygon(i).map(|p| p.map(|(x, y)| [x, y]).collect::<Vec<_>>());
     let lanes: Vec<serde_json::Value> = (0..view.header().lanes)
         .filter_map(|i| view.lane(i))
@@ -488,9 +489,9 @@ impl TileInfo {
 }
 
 /// Describe the tile at `path`.
-pub fn info(path: &std::path::Path) -> Result<TileInfo, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let view = dash2sim_core::map::MapView::parse(&bytes).map_err(|e| format!("{}: {e}", path.display()))?;
+pub fn info(path: &std::path::Path) -> Result<TileInfo> {
+    let bytes = std::fs::read(path).map_err(|e| Error::file(path, e))?;
+    let view = dash2sim_core::map::MapView::parse(&bytes).map_err(|e| Error::file(path, e))?;
     let h = view.header();
     let lane_km: f64 = (0..h.lanes)
         .filter_map(|i| view.lane(i))

@@ -6,6 +6,7 @@ use quick_xml::events::{BytesStart, Event};
 use quick_xml::{Reader, XmlVersion};
 
 use super::{Member, MemberKind, OsmData, OsmError, Relation, Way};
+use crate::{Error, Result};
 
 /// 1-based line of byte offset `pos` in `text`.
 fn line_of(text: &str, pos: u64) -> usize {
@@ -14,20 +15,20 @@ fn line_of(text: &str, pos: u64) -> usize {
 }
 
 /// The element's attributes as (key, value) strings; a broken attribute is an error.
-fn attributes(e: &BytesStart<'_>) -> Result<HashMap<String, String>, String> {
+fn attributes(e: &BytesStart<'_>) -> Result<HashMap<String, String>> {
     let mut out = HashMap::new();
     for attr in e.attributes() {
-        let attr = attr.map_err(|err| err.to_string())?;
+        let attr = attr.map_err(Error::other)?;
         let key = attr.key.as_ref().to_owned();
-        let value = attr.normalized_value(XmlVersion::Implicit1_0).map_err(|err| err.to_string())?;
+        let value = attr.normalized_value(XmlVersion::Implicit1_0).map_err(Error::other)?;
         out.insert(key, value.into_owned());
     }
     Ok(out)
 }
 
-fn number<T: std::str::FromStr>(attrs: &HashMap<String, String>, key: &str) -> Result<T, String> {
-    let text = attrs.get(key).ok_or_else(|| format!("no `{key}`"))?;
-    text.parse().map_err(|_| format!("`{key}` is not a number: {text:?}"))
+fn number<T: std::str::FromStr>(attrs: &HashMap<String, String>, key: &str) -> Result<T> {
+    let text = attrs.get(key).ok_or_else(|| Error::invalid(format!("no `{key}`")))?;
+    text.parse().map_err(|_| Error::invalid(format!("`{key}` is not a number: {text:?}")))
 }
 
 enum Open {

@@ -12,12 +12,14 @@ use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Pose2, PACIFICA};
 use serde_json::{json, Value};
 
+use crate::finish::FinishReport;
 use crate::log::{self, LogContents};
 use crate::record::Setup;
 use crate::sim::scenario::judge::{judge_log, LogJudgement};
 use crate::sim::scenario::street::street_anchors;
 use crate::sim::scenario::Scenario;
-use crate::verify::AgentsByTime;
+use crate::verify::{AgentsByTime, VerifyReport};
+use crate::{Error, Result};
 
 /// Which street-imagery anchors finishing is given.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -50,16 +52,16 @@ pub const ANCHOR_SPACING_M: f64 = 50.0;
 #[derive(Clone, Debug)]
 pub struct BothModes {
     /// Every lane drivable, as the device verifies.
-    pub insensitive: Value,
+    pub insensitive: VerifyReport,
     /// Only the lanes along the driven route.
-    pub sensitive: Value,
+    pub sensitive: VerifyReport,
 }
 
 impl BothModes {
-    fn of(map: MapView<'_>, ego: &[(f64, Pose2)], agents: &AgentsByTime) -> Result<Self, String> {
-        let mode = |sensitive| -> Result<Value, String> {
+    fn of(map: MapView<'_>, ego: &[(f64, Pose2)], agents: &AgentsByTime) -> Result<Self> {
+        let mode = |sensitive| -> Result<VerifyReport> {
             let v = crate::verify::replay(map, ego, agents, sensitive, PACIFICA)?;
-            Ok(crate::verify::report_json(&v, sensitive))
+            Ok(crate::verify::report(&v, sensitive))
         };
         Ok(BothModes { insensitive: mode(false)?, sensitive: mode(true)? })
     }
@@ -109,7 +111,7 @@ pub struct Assessment {
     /// The anchors CSV finishing was given, if any.
     pub anchors_text: Option<String>,
     /// `finish`'s report.
-    pub finish_report: Value,
+    pub finish_report: FinishReport,
     /// The finished log.
     pub finished_log: LogContents,
     /// Its bytes.
@@ -172,7 +174,7 @@ fn window_pairs(
     log: &LogContents,
     map: MapView<'_>,
     agents: &AgentsByTime,
-) -> Result<Vec<WindowPair>, String> {
+) -> Result<Vec<WindowPair>> {
     let truth = truth_ego(scenario);
     let mut previous_end: Option<f64> = None;
     let first_pose = log.records.iter().find_map(|r| match r {
@@ -213,7 +215,7 @@ fn judge(
     name: &str,
     map: MapView<'_>,
     true_agents: &AgentsByTime,
-) -> Result<Judged, String> {
+) -> Result<Judged> {
     let judgement = judge_log(scenario, log);
     if !log.records.iter().any(|r| matches!(r, Record::EgoPose(_))) {
         return Ok(Judged { judgement, verification: None, ego_with_true_agents: None });
@@ -250,13 +252,13 @@ pub struct Recorded<'a> {
 /// Judge a recorded drive: finish it with `anchors` (the anchors CSV written to
 /// `anchors_path`), verify the truth, the online and the finished log on the drive's map
 /// tile, and set the device's windows against the truth's.
-pub fn assess(recorded: &Recorded<'_>, anchors: Anchors, anchors_path: &Path) -> Result<Assessment, String> {
+pub fn assess(recorded: &Recorded<'_>, anchors: Anchors, anchors_path: &Path) -> Result<Assessment> {
     let Recorded { scenario, drive_dir, log, log_name, tile, setup } = *recorded;
-    let map = MapView::parse(tile).map_err(|e| e.to_string())?;
+    let map = MapView::parse(tile).map_err(Error::other)?;
     let anchors_text = match anchors {
         Anchors::Street => {
             let text = street_anchors(scenario, log, ANCHOR_SPACING_M, scenario.config.seed);
-            std::fs::write(anchors_path, &text).map_err(|e| format!("{}: {e}", anchors_path.display()))?;
+            std::fs::write(anchors_path, &text).map_err(|e| Error::file(anchors_path, e))?;
             Some(text)
         }
         Anchors::None => None,
@@ -265,7 +267,7 @@ pub fn assess(recorded: &Recorded<'_>, anchors: Anchors, anchors_path: &Path) ->
         .as_deref()
         .map(crate::finish::anchors::parse)
         .transpose()
-        .map_err(|(line, why)| format!("{}:{line}: {why}", anchors_path.display()))?;
+        .map_err(|(line, why)| Error::line(anchors_path, line, why))?;
     let anchors_name = anchors_path.display().to_string();
     let finished = crate::finish::finish(
         log,
@@ -276,9 +278,9 @@ pub fn assess(recorded: &Recorded<'_>, anchors: Anchors, anchors_path: &Path) ->
         crate::finish::solve::Settings { gravity_aligned: true, ..Default::default() },
         setup.gnss.uere_m,
     )?;
-    let header = log.header.ok_or("the recorded log has no header")?;
+    let header = log.header.ok_or_else(|| Error::invalid("the recorded log has no header"))?;
     let finished_bytes = log::import::encode_in_order(&header, &finished.records)?;
-    let finished_log = log::decode(&finished_bytes, "finished").map_err(|e| e.to_string())?;
+    let finished_log = log::decode(&finished_bytes, "finished").map_err(Error::other)?;
 
     let truth_agents = crate::verify::read_objects(&drive_dir.join("objects.csv"))?;
     let truth = BothModes::of(map, &truth_ego(scenario), &truth_agents)?;
@@ -288,7 +290,7 @@ pub fn assess(recorded: &Recorded<'_>, anchors: Anchors, anchors_path: &Path) ->
 
     let samples = &scenario.vo.samples;
     let true_mean_scale = samples.iter().map(|s| s.scale).sum::<f64>() / samples.len().max(1) as f64;
-    let scale = finished.report["anchoring"]["scale"].as_f64().unwrap_or(f64::NAN);
+    let scale = finished.report.anchoring.scale;
     Ok(Assessment {
         truth,
         online_scale: online_scale(scenario, log),

@@ -9,6 +9,7 @@ use plotters::prelude::*;
 use super::summary::{Confusion, Summary};
 use super::sweep::Row;
 use crate::plot::{err, register_font, FINISHED, GNSS, ONLINE};
+use crate::Result;
 
 const SIZE: (u32, u32) = (1400, 900);
 
@@ -21,7 +22,7 @@ fn cdf(values: impl Iterator<Item = Option<f64>>) -> Vec<(f64, f64)> {
 }
 
 /// Draw the sweep's picture to `path` (PNG).
-pub fn draw(rows: &[Row], summary: &Summary, path: &Path) -> Result<(), String> {
+pub fn draw(rows: &[Row], summary: &Summary, path: &Path) -> Result<()> {
     register_font()?;
     let root = BitMapBackend::new(path, SIZE).into_drawing_area();
     root.fill(&WHITE).map_err(err)?;

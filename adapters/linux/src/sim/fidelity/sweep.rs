@@ -11,7 +11,6 @@ use std::path::{Path, PathBuf};
 use dash2sim_core::geo::Geodetic;
 use rayon::prelude::*;
 use serde::Serialize;
-use serde_json::Value;
 
 use super::drive::{assess, Anchors, Assessment, Recorded, WindowPair};
 use super::summary::Summary;
@@ -21,6 +20,8 @@ use crate::sim::scenario::command::{config, MAX_DURATION_S};
 use crate::sim::scenario::profile::{Profile, Receiver};
 use crate::sim::scenario::write::{road_tile, write_scenario};
 use crate::sim::scenario::{generate, Driver};
+use crate::verify::VerifyReport;
+use crate::{Error, Result};
 use dash2sim_core::binlog::Record;
 
 /// Which drivers a sweep drives each seed with.
@@ -69,9 +70,9 @@ pub struct SweepRequest {
 }
 
 /// `A-B` or `A` as an inclusive range of seeds.
-pub fn parse_seeds(text: &str) -> Result<RangeInclusive<u64>, String> {
-    let number = |s: &str| -> Result<u64, String> {
-        s.trim().parse().map_err(|_| format!("`{s}` is not a seed (a whole number ≥ 0); give A-B or A"))
+pub fn parse_seeds(text: &str) -> Result<RangeInclusive<u64>> {
+    let number = |s: &str| -> Result<u64> {
+        s.trim().parse().map_err(|_| Error::invalid(format!("`{s}` is not a seed (a whole number ≥ 0); give A-B or A")))
     };
     let (a, b) = match text.split_once('-') {
         Some((a, b)) => (number(a)?, number(b)?),
@@ -81,7 +82,7 @@ pub fn parse_seeds(text: &str) -> Result<RangeInclusive<u64>, String> {
         }
     };
     if a > b {
-        return Err(format!("{text}: the first seed is after the last (give A-B with A ≤ B)"));
+        return Err(Error::invalid(format!("{text}: the first seed is after the last (give A-B with A ≤ B)")));
     }
     Ok(a..=b)
 }
@@ -98,16 +99,10 @@ pub struct Verdict {
 }
 
 impl Verdict {
-    fn of(report: &Value) -> Self {
-        let failed = report["metrics"]
-            .as_object()
-            .map(|m| m.iter().filter(|(_, v)| v.as_f64().is_some_and(|x| x < 1.0)).map(|(k, _)| k.clone()).collect())
-            .unwrap_or_default();
-        Verdict {
-            score: report["score"].as_f64().unwrap_or(f64::NAN),
-            verified: report["verified"].as_bool().unwrap_or(false),
-            failed,
-        }
+    fn of(report: &VerifyReport) -> Self {
+        let failed =
+            report.metrics.named().into_iter().filter(|(_, x)| *x < 1.0).map(|(name, _)| name.to_owned()).collect();
+        Verdict { score: report.score, verified: report.verified, failed }
     }
 }
 
@@ -275,11 +270,11 @@ impl Row {
         self.finished_sigma_poses = sigma.poses;
         self.finished_within_2sigma = sigma.within_2sigma;
         self.finished_nees = finite(sigma.nees());
-        let anchoring = &a.finish_report["anchoring"];
-        self.latency_error_s = anchoring["gnss_latency_s"].as_f64().map(|l| l - facts.true_latency_s);
+        let anchoring = &a.finish_report.anchoring;
+        self.latency_error_s = finite(anchoring.gnss_latency_s).map(|l| l - facts.true_latency_s);
         self.online_latency_error_s = a.online_latency_s.map(|l| l - facts.true_latency_s);
         self.gnss_mean_error_m = facts.gnss_mean_error_m;
-        self.wheel_factor_error = anchoring["wheel_factor"].as_f64().map(|w| w * facts.true_wheel_scale - 1.0);
+        self.wheel_factor_error = finite(anchoring.wheel_factor).map(|w| w * facts.true_wheel_scale - 1.0);
         self.windows = a.windows.clone();
         self
     }
@@ -290,7 +285,7 @@ fn run_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Row
     let row = Row::empty(seed, driver, args);
     match try_drive(seed, driver, args, work) {
         Ok((assessment, facts)) => row.with_assessment(&assessment, &facts),
-        Err(e) => Row { error: Some(e), ..row },
+        Err(e) => Row { error: Some(e.to_string()), ..row },
     }
 }
 
@@ -340,22 +335,22 @@ fn mount_error(scenario: &crate::sim::scenario::Scenario, log: &LogContents) -> 
     (Some(yaw.max(pitch)), m.calibrated == 1)
 }
 
-fn try_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Result<(Assessment, DriveFacts), String> {
+fn try_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Result<(Assessment, DriveFacts)> {
     let config =
         crate::sim::scenario::ScenarioConfig { driver, ..config(seed, args.duration, args.profile, args.receiver)? };
     let scenario = generate(&config);
     let drive_dir = work.join("drive");
-    write_scenario(&scenario, &drive_dir).map_err(|e| format!("{}: {e}", drive_dir.display()))?;
+    write_scenario(&scenario, &drive_dir).map_err(|e| Error::file(&drive_dir, e))?;
     let [lat, lon, height] = config.origin;
-    let origin = Geodetic::new(lat, lon, height).map_err(|e| e.to_string())?;
+    let origin = Geodetic::new(lat, lon, height).map_err(Error::other)?;
     let tile = road_tile(&drive_dir, origin)?;
     // The demo's device: the same setup, so that a row equals `demo --offline`'s summary.
     let setup = Setup::work_zone(origin, Some(tile.clone()), *b"dash2sim-demo\0\0\0");
     let (stream, _) = record::read_sources(&record::Sources::scenario(&drive_dir))?;
     let recording = record::run_stream(&stream, &setup)?;
     let log_path = work.join("drive.d2slog");
-    std::fs::write(&log_path, &recording.log).map_err(|e| format!("{}: {e}", log_path.display()))?;
-    let log = log::read(&log_path).map_err(|e| e.to_string())?;
+    std::fs::write(&log_path, &recording.log).map_err(|e| Error::file(&log_path, e))?;
+    let log = log::read(&log_path).map_err(Error::other)?;
     let log_name = log_path.display().to_string();
     let recorded = Recorded {
         scenario: &scenario,
@@ -368,7 +363,7 @@ fn try_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Res
     let assessment = assess(&recorded, args.anchors, &work.join("anchors.csv"))?;
     if args.keep {
         let finished = work.join("finished.d2slog");
-        std::fs::write(&finished, &assessment.finished_bytes).map_err(|e| format!("{}: {e}", finished.display()))?;
+        std::fs::write(&finished, &assessment.finished_bytes).map_err(|e| Error::file(&finished, e))?;
     }
     let (mount_error_deg, mount_calibrated) = mount_error(&scenario, &log);
     let facts = DriveFacts {
@@ -440,22 +435,26 @@ fn csv_row(r: &Row) -> String {
     )
 }
 
-fn write(path: &Path, contents: impl AsRef<[u8]>) -> Result<(), String> {
-    std::fs::write(path, contents).map_err(|e| format!("{}: {e}", path.display()))
+fn write(path: &Path, contents: impl AsRef<[u8]>) -> Result<()> {
+    std::fs::write(path, contents).map_err(|e| Error::file(path, e))
 }
 
 /// Run the sweep `args` describes: its rows (in seed, driver order) and summary, written to
 /// the output folder. `progress` is told, as each drive ends (from the worker threads), how
 /// many have ended and how many there are.
-pub fn sweep(args: &SweepRequest, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<(Vec<Row>, Summary), String> {
+pub fn sweep(args: &SweepRequest, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<(Vec<Row>, Summary)> {
     if !(args.duration.is_finite() && (10.0..=MAX_DURATION_S).contains(&args.duration)) {
-        return Err(format!("--duration {} must be between 10 and {MAX_DURATION_S} seconds", args.duration));
+        return Err(Error::invalid(format!(
+            "--duration {} must be between 10 and {MAX_DURATION_S} seconds",
+            args.duration
+        )));
     }
     if args.jobs == Some(0) {
-        return Err("--jobs must be at least 1".to_owned());
+        return Err(Error::invalid("--jobs must be at least 1"));
     }
     let out = &args.output;
-    std::fs::create_dir_all(out).map_err(|e| format!("cannot create the output folder {}: {e}", out.display()))?;
+    std::fs::create_dir_all(out)
+        .map_err(|e| Error::refused(format!("cannot create the output folder {}", out.display()), e))?;
     // Fail now, not after the drives, when the folder cannot be written.
     write(&out.join("runs.csv"), format!("{CSV_HEADER}\n"))?;
     let work_root = if args.keep { out.join("drives") } else { out.join(".work") };
@@ -463,7 +462,7 @@ pub fn sweep(args: &SweepRequest, progress: &(dyn Fn(usize, usize) + Sync)) -> R
         args.seeds.clone().flat_map(|seed| args.driver.list().iter().map(move |d| (seed, *d))).collect();
     let ended = std::sync::atomic::AtomicUsize::new(0);
     let jobs = args.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(jobs).build().map_err(|e| e.to_string())?;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(jobs).build().map_err(Error::other)?;
     let rows: Vec<Row> = pool.install(|| {
         drives
             .par_iter()
@@ -485,12 +484,12 @@ pub fn sweep(args: &SweepRequest, progress: &(dyn Fn(usize, usize) + Sync)) -> R
     let mut lines = String::new();
     for row in &rows {
         let _ = writeln!(csv, "{}", csv_row(row));
-        let _ = writeln!(lines, "{}", serde_json::to_string(row).map_err(|e| e.to_string())?);
+        let _ = writeln!(lines, "{}", serde_json::to_string(row).map_err(Error::other)?);
     }
     write(&out.join("runs.csv"), csv)?;
     write(&out.join("runs.jsonl"), lines)?;
     let summary = Summary::of(args, &rows);
-    let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+    let text = serde_json::to_string_pretty(&summary).map_err(Error::other)?;
     write(&out.join("summary.json"), text)?;
     // The picture needs the `plot` feature; without it the tables are all there is.
     #[cfg(feature = "plot")]
@@ -504,11 +503,11 @@ mod tests {
 
     #[test]
     fn seeds_are_a_range_or_one_and_a_backward_range_is_refused() {
-        assert_eq!(parse_seeds("3-7"), Ok(3..=7));
-        assert_eq!(parse_seeds("12"), Ok(12..=12));
-        let e = parse_seeds("5-2").expect_err("backwards");
+        assert_eq!(parse_seeds("3-7").ok(), Some(3..=7));
+        assert_eq!(parse_seeds("12").ok(), Some(12..=12));
+        let e = parse_seeds("5-2").expect_err("backwards").to_string();
         assert!(e.contains("first seed is after the last"), "{e}");
-        assert!(parse_seeds("a-3").expect_err("not a number").contains("not a seed"));
+        assert!(parse_seeds("a-3").expect_err("not a number").to_string().contains("not a seed"));
         assert!(parse_seeds("-3").is_err());
     }
 }

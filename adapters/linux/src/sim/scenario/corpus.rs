@@ -15,6 +15,7 @@ use super::profile::{Profile, Receiver};
 use super::write::{road_tile, write_scenario};
 use super::{generate, Driver, ScenarioConfig};
 use crate::record::{self, Setup, Sources};
+use crate::{Error, Result};
 
 /// A corpus to generate (`dash2sim scenario corpus`).
 #[derive(Debug, Clone)]
@@ -112,7 +113,7 @@ fn plan(args: &CorpusRequest, i: usize) -> Plan {
 }
 
 /// Generate, record and (maybe) damage one log; its entry in `corpus.json`.
-fn make(plan: &Plan, out: &Path) -> Result<Value, String> {
+fn make(plan: &Plan, out: &Path) -> Result<Value> {
     let name = format!("drive-{:04}", plan.name_index);
     let (region, origin) = REGIONS[plan.region];
     let config = ScenarioConfig {
@@ -121,10 +122,10 @@ fn make(plan: &Plan, out: &Path) -> Result<Value, String> {
         origin,
         ..ScenarioConfig::drive(plan.seed, plan.profile, Receiver::Good)
     };
-    let geodetic = Geodetic::new(origin[0], origin[1], origin[2]).map_err(|e| e.to_string())?;
+    let geodetic = Geodetic::new(origin[0], origin[1], origin[2]).map_err(Error::other)?;
     let scenario = generate(&config);
     let work = out.join(".work").join(&name);
-    write_scenario(&scenario, &work).map_err(|e| format!("{}: {e}", work.display()))?;
+    write_scenario(&scenario, &work).map_err(|e| Error::file(&work, e))?;
     let tile = road_tile(&work, geodetic)?;
     let mut sources = Sources::scenario(&work);
     if plan.damage == Some(Damage::NoGnss) {
@@ -134,10 +135,9 @@ fn make(plan: &Plan, out: &Path) -> Result<Value, String> {
     let mut device_id = [0u8; 16];
     device_id[..name.len().min(16)].copy_from_slice(&name.as_bytes()[..name.len().min(16)]);
     let recording = record::run_stream(&stream, &Setup::work_zone(geodetic, Some(tile.clone()), device_id))?;
-    std::fs::remove_dir_all(&work).map_err(|e| format!("{}: {e}", work.display()))?;
+    std::fs::remove_dir_all(&work).map_err(|e| Error::file(&work, e))?;
     let log = damaged(recording.log, plan);
-    let write =
-        |path: PathBuf, bytes: &[u8]| std::fs::write(&path, bytes).map_err(|e| format!("{}: {e}", path.display()));
+    let write = |path: PathBuf, bytes: &[u8]| std::fs::write(&path, bytes).map_err(|e| Error::file(&path, e));
     write(out.join(format!("{name}.d2slog")), &log)?;
     if plan.damage != Some(Damage::NoMap) {
         write(out.join(format!("{name}.map")), &tile)?;
@@ -184,12 +184,12 @@ fn damaged(mut log: Vec<u8>, plan: &Plan) -> Vec<u8> {
 
 /// Generate the corpus `args` asks for; `progress` is told how many logs are written so far
 /// (from the worker threads, in any order).
-pub fn make_corpus(args: &CorpusRequest, progress: &(dyn Fn(usize) + Sync)) -> Result<Corpus, String> {
-    std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
+pub fn make_corpus(args: &CorpusRequest, progress: &(dyn Fn(usize) + Sync)) -> Result<Corpus> {
+    std::fs::create_dir_all(&args.output).map_err(|e| Error::file(&args.output, e))?;
     let plans: Vec<Plan> = (0..args.logs).map(|i| plan(args, i)).collect();
     let workers = std::thread::available_parallelism().map_or(1, usize::from);
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<Result<Value, String>> = std::thread::scope(|scope| {
+    let results: Vec<Result<Value>> = std::thread::scope(|scope| {
         let chunks: Vec<_> = plans
             .chunks(plans.len().div_ceil(workers).max(1))
             .map(|chunk| {
@@ -207,14 +207,17 @@ pub fn make_corpus(args: &CorpusRequest, progress: &(dyn Fn(usize) + Sync)) -> R
                 })
             })
             .collect();
-        chunks.into_iter().flat_map(|h| h.join().unwrap_or_else(|_| vec![Err("a worker panicked".into())])).collect()
+        chunks
+            .into_iter()
+            .flat_map(|h| h.join().unwrap_or_else(|_| vec![Err(Error::invalid("a worker panicked"))]))
+            .collect()
     });
     let _ = std::fs::remove_dir(args.output.join(".work"));
-    let entries = results.into_iter().collect::<Result<Vec<Value>, String>>()?;
+    let entries = results.into_iter().collect::<Result<Vec<Value>>>()?;
     let damaged = entries.iter().filter(|e| !e["damage"].is_null()).count();
     let path = args.output.join("corpus.json");
-    let text = serde_json::to_string_pretty(&json!({"logs": entries})).map_err(|e| e.to_string())?;
-    std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text = serde_json::to_string_pretty(&json!({"logs": entries})).map_err(Error::other)?;
+    std::fs::write(&path, text).map_err(|e| Error::file(&path, e))?;
     Ok(Corpus { logs: args.logs, damaged, listing: path })
 }
 

@@ -25,6 +25,7 @@ use super::write::{receiver_output, wheel_speed_frames};
 use super::{generate, Driver, Scenario, ScenarioConfig};
 use crate::record::bridge::messages::MAX_DETECTIONS;
 use crate::record::bridge::{device_now, CameraPublisher, MAX_IMAGE_BYTES};
+use crate::{Error, Result};
 
 /// What to publish and how fast. Two binaries take it as their arguments (`dash2sim scenario
 /// publish` and the `camera_sim` example), so it derives `clap::Args` under the `clap` feature.
@@ -109,15 +110,15 @@ fn write_paced(
     path: PathBuf,
     pace: Pace,
     laps: u32,
-    lines: impl Fn(u32) -> Result<Vec<(f64, String)>, String> + Send + 'static,
-) -> std::thread::JoinHandle<Result<(), String>> {
+    lines: impl Fn(u32) -> Result<Vec<(f64, String)>> + Send + 'static,
+) -> std::thread::JoinHandle<Result<()>> {
     std::thread::spawn(move || {
         let mut out = std::fs::OpenOptions::new()
             .write(true)
             .create(true)
             .truncate(true)
             .open(&path)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+            .map_err(|e| Error::file(&path, e))?;
         for lap in 0..laps {
             for (t, line) in lines(lap)? {
                 pace.wait(lap, t);
@@ -177,19 +178,22 @@ fn camera_detections(scenario: &Scenario, frame: usize, cones: &[[f64; 2]], obje
 }
 
 /// Publish the drive `args` names; the number of frames published.
-pub fn run(args: &PublishRequest) -> Result<u64, String> {
+pub fn run(args: &PublishRequest) -> Result<u64> {
     let longest = super::command::MAX_DURATION_S;
     if !(args.seconds.is_finite() && (1.0..=longest).contains(&args.seconds)) {
-        return Err(format!("--seconds {} must be between 1 and {longest}", args.seconds));
+        return Err(Error::invalid(format!("--seconds {} must be between 1 and {longest}", args.seconds)));
     }
     if !(args.speedup.is_finite() && args.speedup > 0.0) {
-        return Err(format!("--speedup {} must be positive", args.speedup));
+        return Err(Error::invalid(format!("--speedup {} must be positive", args.speedup)));
     }
     if args.fps == 0 || !args.fps.is_multiple_of(5) || args.fps > 60 {
-        return Err(format!("--fps {} must be a multiple of 5 (the receiver's rate), at most 60", args.fps));
+        return Err(Error::invalid(format!(
+            "--fps {} must be a multiple of 5 (the receiver's rate), at most 60",
+            args.fps
+        )));
     }
     if args.laps == 0 {
-        return Err("--laps must be at least 1".to_owned());
+        return Err(Error::invalid("--laps must be at least 1"));
     }
     let scenario = generate(&ScenarioConfig {
         driver: args.driver,
@@ -197,7 +201,7 @@ pub fn run(args: &PublishRequest) -> Result<u64, String> {
         frame_rate_hz: f64::from(args.fps),
         ..ScenarioConfig::drive(args.seed, args.profile, args.receiver)
     });
-    let camera = CameraPublisher::new(&args.prefix, args.images).map_err(|e| e.to_string())?;
+    let camera = CameraPublisher::new(&args.prefix, args.images).map_err(Error::other)?;
     let image = args.images.then(|| vec![0x80u8; MAX_IMAGE_BYTES]);
     let cones = if args.objects > 0 {
         roadside_cones(&scenario.road, scenario.frames.first().map_or(0.0, |f| f.ego.d))
@@ -211,12 +215,12 @@ pub fn run(args: &PublishRequest) -> Result<u64, String> {
     if let Some(path) = &args.nmea_out {
         let receiver = scenario.clone();
         writers.push(write_paced(path.clone(), pace(), args.laps, move |lap| {
-            let lines = receiver_output(&receiver, f64::from(lap) * lap_s).map_err(|e| e.to_string())?;
+            let lines = receiver_output(&receiver, f64::from(lap) * lap_s).map_err(Error::other)?;
             Ok(lines.into_iter().map(|(t, [gga, rmc])| (t, format!("{gga}\r\n{rmc}\r\n"))).collect())
         }));
     }
     if let Some(path) = &args.can_out {
-        let frames = wheel_speed_frames(&scenario).map_err(|e| e.to_string())?;
+        let frames = wheel_speed_frames(&scenario).map_err(Error::other)?;
         writers.push(write_paced(path.clone(), pace(), args.laps, move |lap| {
             frames
                 .iter()
@@ -225,8 +229,7 @@ pub fn run(args: &PublishRequest) -> Result<u64, String> {
                     let stamp = dash2sim_core::time::Timestamp::from_micros(
                         ((f64::from(lap) * lap_s + t) * 1e6).round() as i64,
                     );
-                    dash2sim_can::candump::write_log_line(&mut line, stamp, "can0", frame)
-                        .map_err(|e| e.to_string())?;
+                    dash2sim_can::candump::write_log_line(&mut line, stamp, "can0", frame).map_err(Error::other)?;
                     Ok((*t, String::from_utf8_lossy(&line).into_owned()))
                 })
                 .collect()
@@ -239,25 +242,25 @@ pub fn run(args: &PublishRequest) -> Result<u64, String> {
             pace().wait(lap, frame.ego.t);
             let t = pace().capture_time(lap, frame.ego.t);
             let sequence = u64::from(lap) * frames_per_lap + u64::from(frame.index);
-            camera.frame(sequence, t, 8_000, image.as_deref()).map_err(|e| e.to_string())?;
+            camera.frame(sequence, t, 8_000, image.as_deref()).map_err(Error::other)?;
             // While the VO has lost track there is no pose to publish.
             if let Some((pose, session)) = scenario.vo.at_frame(i) {
-                camera.vo(sequence, t, pose, session).map_err(|e| e.to_string())?;
+                camera.vo(sequence, t, pose, session).map_err(Error::other)?;
             }
             camera
                 .detections3d(sequence, t, &camera_detections(&scenario, i, &cones, args.objects))
-                .map_err(|e| e.to_string())?;
+                .map_err(Error::other)?;
             let detections2d: Vec<ImageDetection> = frame
                 .detections_2d
                 .iter()
                 .map(|d| ImageDetection { class: 0, detection: Detection { bbox: d.bbox, score: d.score } })
                 .collect();
-            camera.detections2d(sequence, t, &detections2d).map_err(|e| e.to_string())?;
+            camera.detections2d(sequence, t, &detections2d).map_err(Error::other)?;
             published += 1;
         }
     }
     for writer in writers {
-        writer.join().map_err(|_| "a writer thread panicked".to_owned())??;
+        writer.join().map_err(|_| Error::invalid("a writer thread panicked"))??;
     }
     Ok(published)
 }

@@ -17,6 +17,7 @@ use super::actors::Class;
 use super::road::Segment;
 use super::Scenario;
 use crate::trajectory::{write_file, Format, Trajectory};
+use crate::{Error, Result};
 
 /// UTC time of day of the first frame, seconds (08:00:00); the date is 2026-06-01.
 const START_SECONDS_OF_DAY: f64 = 8.0 * 3600.0;
@@ -190,8 +191,8 @@ pub fn write_vo_csv(out: &mut impl Write, vo: &super::vo::VoTrack) -> io::Result
 
 /// The map tile of a drive written to `dir`: its `road.osm` in the ENU frame at `origin`,
 /// with the default grid cell (what `map build` makes of it).
-pub fn road_tile(dir: &Path, origin: Geodetic) -> Result<Vec<u8>, String> {
-    let osm = crate::ingest::osm::read(&dir.join("road.osm")).map_err(|e| e.to_string())?;
+pub fn road_tile(dir: &Path, origin: Geodetic) -> Result<Vec<u8>> {
+    let osm = crate::ingest::osm::read(&dir.join("road.osm")).map_err(Error::other)?;
     let content = crate::ingest::map_tile::from_osm(&osm, Some(origin), &mut Vec::new());
     Ok(crate::ingest::map_tile::encode(&content, crate::ingest::map_tile::DEFAULT_CELL_M))
 }
