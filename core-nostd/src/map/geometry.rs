@@ -164,7 +164,7 @@ pub(super) fn box_reaches(lo: [f32; 2], hi: [f32; 2], point: (f64, f64), squared
 const CULL_SLACK: f32 = 0.01;
 
 /// Distance from `point` to the nearest of `edges` (x, y of both ends, as stored), found as
-/// [`MapView::polygon_distances`] finds it; infinite for none.
+/// [`MapView::polygon_distances`](super::MapView::polygon_distances) finds it; infinite for none.
 pub fn edges_distance(edges: &[[f32; 4]], point: (f64, f64)) -> f64 {
     let mut n = EdgeDistance::NONE;
     for &[ax, ay, bx, by] in edges {
@@ -175,7 +175,7 @@ pub fn edges_distance(edges: &[[f32; 4]], point: (f64, f64)) -> f64 {
 }
 
 /// The even-odd parity of `point` from `edges` (x, y of both ends, as stored), starting from
-/// `parity`: the test [`MapView::polygon_distances`] makes, edge by edge.
+/// `parity`: the test [`MapView::polygon_distances`](super::MapView::polygon_distances) makes, edge by edge.
 pub fn edges_parity(edges: &[[f32; 4]], point: (f64, f64), parity: bool) -> bool {
     edges.iter().fold(parity, |inside, &[ax, ay, bx, by]| inside ^ crosses_ray(wide([ax, ay]), wide([bx, by]), point))
 }

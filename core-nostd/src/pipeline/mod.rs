@@ -95,7 +95,7 @@ pub enum SpeedSource {
 }
 
 impl SpeedSource {
-    /// The `source` code of [`VehicleSpeed`] records.
+    /// The `source` code of [`VehicleSpeed`](crate::binlog::VehicleSpeed) records.
     pub const fn code(&self) -> i64 {
         match self {
             SpeedSource::Ccvs1 => 1,
