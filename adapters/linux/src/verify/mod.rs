@@ -424,3 +424,30 @@ pub fn evaluate<'a>(request: &VerifyRequest<'a>, warn: &mut dyn FnMut(&str)) -> 
     }
     Ok((v, name))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Metrics;
+
+    /// `named` is what the sweep lists failed metrics from: the JSON's names, in its order.
+    #[test]
+    fn named_metrics_are_the_json_ones_in_its_order() {
+        let m = Metrics {
+            no_at_fault_collisions: 1.0,
+            drivable_area_compliance: 0.0,
+            driving_direction_compliance: 0.5,
+            ego_is_making_progress: 1.0,
+            ego_progress_along_expert_route: 0.9,
+            time_to_collision_within_bound: 1.0,
+            speed_limit_compliance: 0.8,
+            ego_is_comfortable: 1.0,
+        };
+        let json = serde_json::to_value(m).expect("serialises");
+        let keys: Vec<&str> = json.as_object().expect("an object").keys().map(String::as_str).collect();
+        let named = m.named();
+        assert_eq!(keys, named.iter().map(|(n, _)| *n).collect::<Vec<_>>());
+        for (name, value) in named {
+            assert_eq!(json[name].as_f64(), Some(value), "{name}");
+        }
+    }
+}
