@@ -49,7 +49,7 @@ pub fn run(args: &AnchorArgs) -> Result<()> {
         output: args.output.clone(),
     })?;
     if args.json {
-        println!("{}", summary.to_json());
+        println!("{}", crate::render::json_of(&summary)?);
         return Ok(());
     }
     let q = &summary.quality;

@@ -452,7 +452,7 @@ fn mot_eval(gt: &std::path::Path, test: &std::path::Path, max_distance: f64, as_
     let summary =
         dash2sim_linux::verify::mot::summarize(&dash2sim_linux::verify::mot::compare(&gt, &test, max_distance));
     if as_json {
-        println!("{}", summary.to_json());
+        println!("{}", crate::render::json_of(&summary)?);
     } else {
         for (name, value) in &summary.values {
             println!("{name:>20}  {value}");
@@ -521,7 +521,7 @@ fn report(metric: &str, c: &CommonArgs, eval: &Evaluation, rpe: Option<&RpeArgs>
             "metric": metric.to_lowercase(),
             "pose_relation": relation,
             "align": align,
-            "alignment": evaluate::sim3_json(&eval.alignment),
+            "alignment": evaluate::Alignment::from(&eval.alignment),
             "stats": stats_json(&eval.stats),
             "n": eval.n,
             "matched": eval.matched,

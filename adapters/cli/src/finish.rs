@@ -3,11 +3,11 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use dash2sim_linux::finish::{self, FinishRequest};
-use serde_json::{Map, Value};
+use dash2sim_linux::finish::windows::{DriveVerification, Verdict};
+use dash2sim_linux::finish::{self, FinishRequest, FinishedFile};
 
 use crate::record::DeviceArgs;
-use dash2sim_linux::{Error, Result};
+use dash2sim_linux::Result;
 
 /// `dash2sim finish`.
 #[derive(Debug, Args)]
@@ -51,81 +51,67 @@ pub fn run(args: &FinishArgs) -> Result<()> {
     for refused in &anchors.refused {
         eprintln!("{}:{}: {}", anchors.file.as_deref().unwrap_or_default(), refused.line, refused.reason);
     }
-    // Rendered through `Value`, whose keys are sorted (the output's order since the start).
-    let report = serde_json::to_value(&finished).map_err(Error::other)?;
     if args.json {
-        println!("{report}");
+        println!("{}", crate::render::json_of(&finished)?);
     } else {
-        print_report(&report);
+        print_report(&finished);
     }
     Ok(())
 }
 
-fn print_report(r: &Value) {
-    let a = &r["anchoring"];
-    println!(
-        "{} → {} ({} records, {} bytes)",
-        r["log"].as_str().unwrap_or_default(),
-        r["output"].as_str().unwrap_or_default(),
-        r["records"],
-        r["bytes"]
-    );
+fn print_report(f: &FinishedFile) {
+    let r = &f.report;
+    let a = &r.anchoring;
+    println!("{} → {} ({} records, {} bytes)", r.log, f.output, r.records, f.bytes);
     println!(
         "  anchoring     {} keyframes, {} iterations: scale {:.6} ± {:.4} %, positions ± {:.2} m, GNSS latency {:.0} ms, wheel factor {:.4}",
-        a["keyframes"],
-        a["iterations"],
-        a["scale"].as_f64().unwrap_or(f64::NAN),
-        100.0 * a["scale_sigma_relative"].as_f64().unwrap_or(f64::NAN),
-        a["position_sigma_m"].as_f64().unwrap_or(f64::NAN),
-        1000.0 * a["gnss_latency_s"].as_f64().unwrap_or(f64::NAN),
-        a["wheel_factor"].as_f64().unwrap_or(f64::NAN),
+        a.keyframes,
+        a.iterations,
+        a.scale,
+        100.0 * a.scale_sigma_relative,
+        a.position_sigma_m,
+        1000.0 * a.gnss_latency_s,
+        a.wheel_factor,
     );
     println!(
         "  inputs        GNSS {} of {} fixes used, {} speed samples, anchors {} used, {} refused",
-        r["gnss"]["used"],
-        r["gnss"]["fixes"],
-        r["speed_samples"],
-        r["anchors"]["used"],
-        r["anchors"]["refused"].as_array().map_or(0, Vec::len)
+        r.gnss.used,
+        r.gnss.fixes,
+        r.speed_samples,
+        r.anchors.used,
+        r.anchors.refused.len()
     );
-    let t = &r["tracks"];
+    let t = &r.tracks;
     println!(
         "  tracks        {} states: {} moving tracks smoothed, {} static objects merged, {} states without an ego pose dropped",
-        t["states"], t["smoothed"], t["static_merged"], t["unplaced"]
+        t.states, t.smoothed, t.static_merged, t.unplaced
     );
-    if let Some(v) = r["verification"].as_object() {
+    if let Some(v) = &r.verification {
         print_verification(v);
     }
-    if r["damage"]["stretches"].as_u64().unwrap_or(0) > 0 {
+    if r.damage.stretches > 0 {
         println!(
             "  damage        {} stretches ({} bytes) of the source log were lost",
-            r["damage"]["stretches"], r["damage"]["bytes"]
+            r.damage.stretches, r.damage.bytes
         );
     }
 }
 
 /// The verification lines of the human report.
-fn print_verification(v: &Map<String, Value>) {
-    let line = |s: &Value| {
-        format!(
-            "{:.2} ({})",
-            s["score"].as_f64().unwrap_or(f64::NAN),
-            if s["verified"].as_bool().unwrap_or(false) { "verified" } else { "not verified" }
-        )
-    };
-    let drive = &v["drive"];
+fn print_verification(v: &DriveVerification) {
+    let line = |s: &Verdict| format!("{:.2} ({})", s.score, if s.verified { "verified" } else { "not verified" });
     println!(
         "  verification  drive {} channel-insensitive, {} channel-sensitive",
-        line(&drive["channel_insensitive"]),
-        line(&drive["channel_sensitive"])
+        line(&v.drive.channel_insensitive),
+        line(&v.drive.channel_sensitive)
     );
-    for w in v["windows"].as_array().into_iter().flatten() {
+    for w in &v.windows {
         println!(
             "                {:>6.1}–{:<6.1} s  {} / {}",
-            w["start_s"].as_f64().unwrap_or(f64::NAN),
-            w["end_s"].as_f64().unwrap_or(f64::NAN),
-            line(&w["channel_insensitive"]),
-            line(&w["channel_sensitive"])
+            w.start_s,
+            w.end_s,
+            line(&w.channel_insensitive),
+            line(&w.channel_sensitive)
         );
     }
 }

@@ -15,7 +15,7 @@ pub fn run(path: &Path, as_json: bool) -> Result<()> {
     if as_json {
         // Through `Value`, whose keys are sorted: the output's order is the JSON's, not the
         // struct's.
-        println!("{}", serde_json::to_value(&r).map_err(Error::other)?);
+        println!("{}", crate::render::json_of(&r)?);
         return Ok(());
     }
     println!("log {} ({} bytes, format v1)", path.display(), log.bytes);

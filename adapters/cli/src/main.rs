@@ -11,6 +11,7 @@ mod inspect;
 mod map;
 mod plot;
 mod record;
+mod render;
 mod scenario;
 mod verify;
 

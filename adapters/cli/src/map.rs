@@ -32,7 +32,7 @@ pub fn build(osm: &Path, output: &Path, origin: Option<&str>, bbox: Option<&str>
 
 /// `dash2sim map lanes`.
 pub fn lanes(path: &Path) -> Result<()> {
-    let json = map_tile::lanes_json(path)?;
+    let json = crate::render::json_of(&map_tile::lanes(path)?)?;
     match writeln!(std::io::stdout().lock(), "{json}") {
         // A reader that stops early (`| head`) is not an error.
         Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(Error::invalid(format!("stdout: {e}"))),
@@ -44,7 +44,7 @@ pub fn lanes(path: &Path) -> Result<()> {
 pub fn info(path: &Path, as_json: bool) -> Result<()> {
     let info = map_tile::info(path)?;
     if as_json {
-        println!("{}", info.to_json());
+        println!("{}", crate::render::json_of(&info)?);
         return Ok(());
     }
     let (h, lane_km) = (&info.header, info.lane_km);
@@ -65,7 +65,7 @@ pub fn info(path: &Path, as_json: bool) -> Result<()> {
 pub fn check(map: &Path, poses: &Path, passes: u32, as_json: bool) -> Result<()> {
     let c = check::check_file(map, poses, passes)?;
     if as_json {
-        println!("{}", c.to_json());
+        println!("{}", crate::render::json_of(&c)?);
     } else {
         println!(
             "{} poses: {} compliant, {} corners outside, {} with nothing drivable within 10 m; {:.2} µs per pose (fastest of {} passes)",

@@ -175,7 +175,7 @@ pub fn run(args: &RecordArgs) -> Result<()> {
         }
         let report = report?;
         if args.json {
-            println!("{}", record::live_summary(&report));
+            println!("{}", crate::render::json_of(&report)?);
         } else {
             println!(
                 "{}: {} files; {} camera frames, {}; {} inputs dropped, {} issues",
@@ -195,7 +195,7 @@ pub fn run(args: &RecordArgs) -> Result<()> {
     }
     std::fs::write(&args.output, &recording.log).map_err(|e| Error::file(&args.output, e))?;
     if args.json {
-        println!("{}", record::file_summary(&recording, &counts));
+        println!("{}", crate::render::json_of(&record::file_summary(&recording, &counts))?);
         return Ok(());
     }
     let s = &recording.stats;

@@ -123,7 +123,7 @@ pub fn eval(seed: u64, duration_s: f64, profile: Profile, max_age: u32, as_json:
             "detections": report.detections,
             "paired": report.paired,
             "rejected_detections": report.stats.rejected,
-            "metrics": report.summary.to_json(),
+            "metrics": crate::render::json_of(&report.summary)?,
         });
         for (name, value) in figures {
             out[name] = json!(value);

@@ -75,7 +75,7 @@ pub fn run(a: &VerifyArgs) -> Result<()> {
     let (v, name) = verify::evaluate(&request, &mut |warning| eprintln!("warning: {warning}"))?;
     if a.json {
         // Through `Value`, whose keys are sorted (the output's order since the start).
-        println!("{}", serde_json::to_value(verify::report(&v, request.channel_sensitive)).map_err(Error::other)?);
+        println!("{}", crate::render::json_of(&verify::report(&v, request.channel_sensitive))?);
         return Ok(());
     }
     render(&v, name, request.channel_sensitive);

@@ -231,6 +231,7 @@ pub struct ImageDetection {
 
 /// What the pipeline has done.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct PipelineStats {
     /// VO poses accepted.
     pub vo_poses: u64,

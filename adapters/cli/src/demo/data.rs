@@ -24,7 +24,7 @@ const KNOWN: [Known; 2] = [
         name: "comma2k19",
         folder: "comma2k19",
         missing: |dir| datasets::missing(dir, &comma::REQUIRED),
-        run: comma::run,
+        run: |dir, out| comma::run(dir, out).and_then(|r| crate::render::json_of(&r)),
         doing: "comma2k19: recording the u-blox NMEA, Toyota CAN and VO made from the fused poses; finishing; comparing with the fused poses",
     },
     Known {
@@ -37,7 +37,7 @@ const KNOWN: [Known; 2] = [
             }
             missing
         },
-        run: css::run,
+        run: |dir, out| css::run(dir, out).and_then(|r| crate::render::json_of(&r)),
         doing: "CSS CANedge: recording 40 minutes of GNSS over CAN (CANmod.gps through its DBC) and OBD-II speed",
     },
 ];

@@ -36,8 +36,9 @@ use serde_json::{json, Value};
 use dash2sim_linux::finish::FinishReport;
 use dash2sim_linux::log::{self, LogContents};
 use dash2sim_linux::record::{self, Setup};
-use dash2sim_linux::sim::fidelity::drive::{assess, judged_json, Anchors, Recorded};
+use dash2sim_linux::sim::fidelity::drive::{assess, Anchors, Recorded};
 use dash2sim_linux::sim::scenario::evaluate::evaluate_tracking;
+use dash2sim_linux::sim::scenario::judge::LogJudgement;
 use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
 use dash2sim_linux::sim::scenario::write::{road_tile, write_scenario};
 use dash2sim_linux::sim::scenario::{generate, tracker_classes, tracker_config, Driver, ScenarioConfig};
@@ -198,7 +199,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value> {
         let r = &live.report;
         json!({"mode": "live", "frames_published": live.published, "frames_received": r.frames,
                "inputs_dropped": r.dropped, "issues": r.issues, "wall_s": live.seconds,
-               "pipeline": record::stats_json(&r.stats)})
+               "pipeline": r.stats})
     };
     let log = log::read(&log_path).map_err(Error::other)?;
     let log_bytes = log.bytes;
@@ -350,4 +351,20 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value> {
         "nuplan": nuplan_json,
         "files": files,
     }))
+}
+
+/// A judgement's figures as the demo's summary gives them.
+fn judged_json(t: &LogJudgement) -> Value {
+    json!({
+        "ape_rmse_m": t.ego_rmse,
+        "ape_max_m": t.ego_max,
+        "observable_after_s": t.first_anchored_s,
+        "anchored_frames": t.ego_errors.len(),
+        "mota": t.tracks.0,
+        "idf1": t.tracks.1,
+        "mota_anchored_frames": t.tracks_anchored.0,
+        "idf1_anchored_frames": t.tracks_anchored.1,
+        "mota_seen_from_ego": t.tracks_relative.0,
+        "idf1_seen_from_ego": t.tracks_relative.1,
+    })
 }

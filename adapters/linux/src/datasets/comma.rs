@@ -10,9 +10,10 @@ use std::path::{Path, PathBuf};
 use dash2sim_core::binlog::Record;
 use dash2sim_core::nalgebra::Vector3;
 use dash2sim_core::sim3::{AlignMode, Moments};
-use serde_json::{json, Value};
+use serde::Serialize;
+use serde_json::Value;
 
-use super::{device_times, write};
+use super::{device_times, write, OutputFile};
 use crate::log::{self, LogContents};
 use crate::record::{self, Device, RecordRequest, VoFrame};
 use crate::sim::scenario::vo::VoModel;
@@ -113,7 +114,7 @@ pub struct RecordedMinute {
     /// Device time of every record (see [`device_times`]).
     pub device: Vec<f64>,
     /// The pipeline's summary (`record --json`).
-    pub summary: Value,
+    pub summary: record::Summary,
     /// u-blox fixes the CSV holds.
     pub fixes_in_csv: usize,
 }
@@ -176,17 +177,22 @@ pub fn truth_at(truth: &Trajectory, t: f64) -> Option<Vector3<f64>> {
 }
 
 /// How a log's ego track compares with the fused poses.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Serialize)]
 pub struct Compared {
     /// Ego poses with a fused pose at their time.
+    #[serde(rename = "ego_poses_compared")]
     pub matched: usize,
     /// Seconds from the first fused pose to the first ego pose.
+    #[serde(rename = "observable_after_s")]
     pub first_s: f64,
     /// Absolute position error (no alignment), RMS and largest, m.
+    #[serde(rename = "ape_rmse_m")]
     pub ape_rmse: f64,
     /// See `ape_rmse`.
+    #[serde(rename = "ape_max_m")]
     pub ape_max: f64,
     /// The same after the best Sim(3) alignment, m.
+    #[serde(rename = "ape_after_sim3_m")]
     pub ape_aligned: f64,
     /// Scale of that Sim(3) minus one.
     pub scale_error: f64,
@@ -224,14 +230,78 @@ pub fn compare(records: &[Record], device: &[f64], truth: &Trajectory) -> Result
     })
 }
 
-fn compared_json(c: &Compared) -> Value {
-    json!({"ego_poses_compared": c.matched, "observable_after_s": c.first_s, "ape_rmse_m": c.ape_rmse,
-           "ape_max_m": c.ape_max, "ape_after_sim3_m": c.ape_aligned, "scale_error": c.scale_error})
+/// What `run` measured on the minute (`demo --data`'s summary of it).
+#[derive(Debug, Serialize)]
+pub struct Report {
+    /// `comma2k19`.
+    pub name: &'static str,
+    /// What the recording is.
+    pub what: &'static str,
+    /// Where the VO came from.
+    pub vo: &'static str,
+    /// The fused poses' span, s.
+    pub duration_s: f64,
+    /// What the device recorded.
+    pub recording: RecordingReport,
+    /// The u-blox fixes' own error, as evo measured it.
+    pub gnss_alone: GnssAlone,
+    /// The device's log against the fused poses.
+    pub online: Online,
+    /// The finished log against the fused poses.
+    pub finished: Finished,
+    /// The files written.
+    pub files: Vec<OutputFile>,
+}
+
+/// What the device recorded.
+#[derive(Debug, Serialize)]
+pub struct RecordingReport {
+    /// The pipeline's summary (`record --json`).
+    pub pipeline: record::Summary,
+    /// u-blox fixes the CSV holds (every one should reach the log).
+    pub fixes_in_csv: usize,
+    /// The log's size.
+    pub log_bytes: u64,
+    /// The log's size per minute of driving.
+    pub bytes_per_minute: f64,
+}
+
+/// The u-blox fixes against the fused poses, no alignment (evo's figures).
+#[derive(Debug, Serialize)]
+pub struct GnssAlone {
+    /// APE RMSE, m.
+    pub ape_rmse_m: Option<f64>,
+    /// Largest APE, m.
+    pub ape_max_m: Option<f64>,
+    /// Where the figures come from.
+    pub source: &'static str,
+}
+
+/// The device's log against the fused poses.
+#[derive(Debug, Serialize)]
+pub struct Online {
+    /// Its ego track.
+    pub compared: Compared,
+    /// The last full anchor's scale over the true one, minus one.
+    pub anchor_scale_error_at_end: Option<f64>,
+}
+
+/// The finished log against the fused poses, and what finishing estimated.
+#[derive(Debug, Serialize)]
+pub struct Finished {
+    /// Its ego track.
+    pub compared: Compared,
+    /// The scale's relative σ.
+    pub scale_sigma_relative: f64,
+    /// The GNSS latency estimated, s.
+    pub gnss_latency_s: f64,
+    /// The wheel-speed factor estimated.
+    pub wheel_factor: f64,
 }
 
 /// The minute through the product into `out`: recorded, finished (GNSS and wheel speed,
 /// no anchors), exported, and compared with the fused poses. The summary.
-pub fn run(dir: &Path, out: &Path) -> Result<Value> {
+pub fn run(dir: &Path, out: &Path) -> Result<Report> {
     std::fs::create_dir_all(out).map_err(|e| Error::file(out, e))?;
     let model = VoModel::arbitrary();
     let minute = record_minute(dir, out, &model, 1)?;
@@ -267,36 +337,39 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value> {
     let gnss_alone = &evo["cases"]["maxdiff0.01_none"]["ape_translation_stats"];
     let span = truth.stamps.last().copied().unwrap_or_default() - t0;
     let a = &finished.report.anchoring;
-    let file = |name: &str| out.join(name).display().to_string();
-    Ok(json!({
-        "name": "comma2k19",
-        "what": "one minute of a Toyota RAV4 in San Francisco: real u-blox NMEA and Toyota CAN (0xB4 SPEED through opendbc)",
-        "vo": "none recorded: VO made from comma's fused camera poses through an unknown Sim(3) (scale 3.7, arbitrary rotation) with 1 %/min scale and 1°/min yaw drift",
-        "duration_s": span,
-        "recording": {
-            "pipeline": minute.summary,
-            "fixes_in_csv": minute.fixes_in_csv,
-            "log_bytes": log.bytes,
-            "bytes_per_minute": log.bytes as f64 / (span / 60.0),
+    let file = |what, name| OutputFile::new(what, out, name);
+    Ok(Report {
+        name: "comma2k19",
+        what: "one minute of a Toyota RAV4 in San Francisco: real u-blox NMEA and Toyota CAN (0xB4 SPEED through opendbc)",
+        vo: "none recorded: VO made from comma's fused camera poses through an unknown Sim(3) (scale 3.7, arbitrary rotation) with 1 %/min scale and 1°/min yaw drift",
+        duration_s: span,
+        recording: RecordingReport {
+            pipeline: minute.summary,
+            fixes_in_csv: minute.fixes_in_csv,
+            log_bytes: log.bytes,
+            bytes_per_minute: log.bytes as f64 / (span / 60.0),
         },
-        "gnss_alone": {"ape_rmse_m": gnss_alone["rmse"], "ape_max_m": gnss_alone["max"],
-                       "source": "evo 1.38.1, u-blox fixes vs fused poses, no alignment (expected/evo_ape_gnss_vs_pose.json)"},
-        "online": {"compared": compared_json(&online), "anchor_scale_error_at_end": online_scale},
-        "finished": {
-            "compared": compared_json(&finished_compared),
-            "scale_sigma_relative": a.scale_sigma_relative,
-            "gnss_latency_s": a.gnss_latency_s,
-            "wheel_factor": a.wheel_factor,
+        gnss_alone: GnssAlone {
+            ape_rmse_m: gnss_alone["rmse"].as_f64(),
+            ape_max_m: gnss_alone["max"].as_f64(),
+            source: "evo 1.38.1, u-blox fixes vs fused poses, no alignment (expected/evo_ape_gnss_vs_pose.json)",
         },
-        "files": [
-            {"what": "VO made from the fused poses (frame, pose, VO session)", "path": file("vo.csv")},
-            {"what": "the u-blox fixes as a serial capture", "path": file("ublox.serial.log")},
-            {"what": "the device's 4D log", "path": file("comma.d2slog")},
-            {"what": "the finished 4D log", "path": file("finished.d2slog")},
-            {"what": "TUM for evo (the device's log)", "path": file("ego.tum")},
-            {"what": "TUM for evo (finished)", "path": file("finished.tum")},
-            {"what": "GeoJSON for QGIS (finished)", "path": file("drive.geojson")},
-            {"what": "MCAP for Foxglove (finished)", "path": file("finished.mcap")},
+        online: Online { compared: online, anchor_scale_error_at_end: online_scale },
+        finished: Finished {
+            compared: finished_compared,
+            scale_sigma_relative: a.scale_sigma_relative,
+            gnss_latency_s: a.gnss_latency_s,
+            wheel_factor: a.wheel_factor,
+        },
+        files: vec![
+            file("VO made from the fused poses (frame, pose, VO session)", "vo.csv"),
+            file("the u-blox fixes as a serial capture", "ublox.serial.log"),
+            file("the device's 4D log", "comma.d2slog"),
+            file("the finished 4D log", "finished.d2slog"),
+            file("TUM for evo (the device's log)", "ego.tum"),
+            file("TUM for evo (finished)", "finished.tum"),
+            file("GeoJSON for QGIS (finished)", "drive.geojson"),
+            file("MCAP for Foxglove (finished)", "finished.mcap"),
         ],
-    }))
+    })
 }

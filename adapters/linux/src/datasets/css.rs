@@ -13,9 +13,9 @@ use dash2sim_core::binlog::Record;
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::nalgebra::Vector3;
 use dash2sim_core::pipeline::Issue;
-use serde_json::{json, Value};
+use serde::Serialize;
 
-use super::write;
+use super::{write, OutputFile};
 use crate::log;
 use crate::record::{self, RecordRequest};
 use crate::{Error, Result};
@@ -127,9 +127,96 @@ fn speed_pairs(records: &[Record], fixes: &[(f64, Vector3<f64>)]) -> Vec<(f64, f
     pairs
 }
 
+/// What `run` measured on the drive (`demo --data`'s summary of it).
+#[derive(Debug, Serialize)]
+pub struct Report {
+    /// `css`.
+    pub name: &'static str,
+    /// What the recording is.
+    pub what: &'static str,
+    /// Why there is no VO.
+    pub vo: &'static str,
+    /// candump files read.
+    pub candump_files: usize,
+    /// CAN frames they held.
+    pub can_frames: u64,
+    /// What the device recorded, against cantools' decoding.
+    pub recording: RecordingReport,
+    /// The drive by its fixes, against the module's odometer.
+    pub drive: Drive,
+    /// The logger's clock against GNSS time.
+    pub clock: Clock,
+    /// The fixes' own speed against OBD speed.
+    pub speed_check: SpeedCheck,
+    /// The files written.
+    pub files: Vec<OutputFile>,
+}
+
+/// What the device recorded, beside cantools' counts of the same frames.
+#[derive(Debug, Serialize)]
+pub struct RecordingReport {
+    /// The pipeline's summary (`record --json`).
+    pub pipeline: record::Summary,
+    /// Fixes logged.
+    pub fixes: u64,
+    /// Position frames cantools decodes as valid.
+    pub fixes_valid_by_cantools: usize,
+    /// Position frames refused for having no fix.
+    pub positions_without_fix: u64,
+    /// Position frames cantools decodes as invalid.
+    pub positions_without_fix_by_cantools: usize,
+    /// Speeds logged.
+    pub speeds: u64,
+    /// OBD speed responses in the reference.
+    pub speeds_in_reference: usize,
+    /// The log's size.
+    pub log_bytes: u64,
+    /// The log's size per minute of driving.
+    pub bytes_per_minute: f64,
+}
+
+/// The drive by its fixes.
+#[derive(Debug, Serialize)]
+pub struct Drive {
+    /// From the first fix to the last, s.
+    pub duration_s: f64,
+    /// Along the fixes, km.
+    pub distance_km: f64,
+    /// The module's own trip odometer, km.
+    pub module_odometer_km: Option<f64>,
+}
+
+/// Logger time minus GNSS time over the drive (the log's clock-offset records), s.
+#[derive(Debug, Serialize)]
+pub struct Clock {
+    /// The first offset.
+    pub logger_minus_gnss_first_s: Option<f64>,
+    /// The last offset.
+    pub logger_minus_gnss_last_s: Option<f64>,
+    /// The smallest.
+    pub logger_minus_gnss_min_s: Option<f64>,
+    /// The largest.
+    pub logger_minus_gnss_max_s: Option<f64>,
+    /// Clock-offset records.
+    pub offset_records: usize,
+}
+
+/// Speed from consecutive fixes against OBD speed.
+#[derive(Debug, Serialize)]
+pub struct SpeedCheck {
+    /// Pairs compared.
+    pub pairs: usize,
+    /// Mean absolute difference, km/h.
+    pub mean_abs_diff_kmh: f64,
+    /// Their correlation.
+    pub correlation: f64,
+    /// How the pairs were made.
+    pub what: &'static str,
+}
+
 /// The drive through the product into `out`: recorded from its candump splits, exported,
 /// and measured. The summary.
-pub fn run(dir: &Path, out: &Path) -> Result<Value> {
+pub fn run(dir: &Path, out: &Path) -> Result<Report> {
     std::fs::create_dir_all(out).map_err(|e| Error::file(out, e))?;
     let files = splits(dir);
     if files.is_empty() {
@@ -174,45 +261,48 @@ pub fn run(dir: &Path, out: &Path) -> Result<Value> {
 
     let expected = |name: &str| Csv::read(&dir.join("expected").join(format!("3BA199E2_session164.{name}.csv")));
     let (positions, odo) = (expected("gnss_pos")?, expected("gnss_odo")?);
-    let file = |name: &str| out.join(name).display().to_string();
-    Ok(json!({
-        "name": "css",
-        "what": "CSS Electronics' CANedge: 40 minutes of a car in Denmark; GNSS over CAN (CANmod.gps, DBC-defined), speed as OBD-II PID 0x0D",
-        "vo": "none: the log carries GNSS and speed only (no anchoring, no ego poses, no verification — and no map of Denmark in the data)",
-        "candump_files": files.len(),
-        "can_frames": counts.can_frames,
-        "recording": {
-            "pipeline": record::summary(&recording),
-            "fixes": recording.stats.fixes,
-            "fixes_valid_by_cantools": positions.count("PositionValid", "1")?,
-            "positions_without_fix": recording.issues.get(Issue::GnssNoPosition),
-            "positions_without_fix_by_cantools": positions.count("PositionValid", "0")?,
-            "speeds": recording.stats.speeds,
-            "speeds_in_reference": expected("obd_pid0d_speed")?.rows.len(),
-            "log_bytes": log.bytes,
-            "bytes_per_minute": log.bytes as f64 / (span_s / 60.0),
+    let file = |what, name| OutputFile::new(what, out, name);
+    Ok(Report {
+        name: "css",
+        what: "CSS Electronics' CANedge: 40 minutes of a car in Denmark; GNSS over CAN (CANmod.gps, DBC-defined), speed as OBD-II PID 0x0D",
+        vo: "none: the log carries GNSS and speed only (no anchoring, no ego poses, no verification — and no map of Denmark in the data)",
+        candump_files: files.len(),
+        can_frames: counts.can_frames,
+        recording: RecordingReport {
+            pipeline: record::summary(&recording),
+            fixes: recording.stats.fixes,
+            fixes_valid_by_cantools: positions.count("PositionValid", "1")?,
+            positions_without_fix: recording.issues.get(Issue::GnssNoPosition),
+            positions_without_fix_by_cantools: positions.count("PositionValid", "0")?,
+            speeds: recording.stats.speeds,
+            speeds_in_reference: expected("obd_pid0d_speed")?.rows.len(),
+            log_bytes: log.bytes,
+            bytes_per_minute: log.bytes as f64 / (span_s / 60.0),
         },
-        "drive": {"duration_s": span_s, "distance_km": distance_m * 1e-3,
-                  "module_odometer_km": odometer_m(&odo)?.map(|m| m * 1e-3)},
-        "clock": {
-            "logger_minus_gnss_first_s": offsets.first(),
-            "logger_minus_gnss_last_s": offsets.last(),
-            "logger_minus_gnss_min_s": offsets.iter().copied().reduce(f64::min),
-            "logger_minus_gnss_max_s": offsets.iter().copied().reduce(f64::max),
-            "offset_records": offsets.len(),
+        drive: Drive {
+            duration_s: span_s,
+            distance_km: distance_m * 1e-3,
+            module_odometer_km: odometer_m(&odo)?.map(|m| m * 1e-3),
         },
-        "speed_check": {
-            "pairs": pairs.len(),
-            "mean_abs_diff_kmh": mean_abs,
-            "correlation": correlation(&pairs),
-            "what": "speed from consecutive fixes vs OBD PID 0x0D, both from the log (UTC), OBD times",
+        clock: Clock {
+            logger_minus_gnss_first_s: offsets.first().copied(),
+            logger_minus_gnss_last_s: offsets.last().copied(),
+            logger_minus_gnss_min_s: offsets.iter().copied().reduce(f64::min),
+            logger_minus_gnss_max_s: offsets.iter().copied().reduce(f64::max),
+            offset_records: offsets.len(),
         },
-        "files": [
-            {"what": "the device's 4D log (GNSS and speed)", "path": file("css.d2slog")},
-            {"what": "GeoJSON for QGIS (the GNSS track)", "path": file("drive.geojson")},
-            {"what": "MCAP for Foxglove", "path": file("drive.mcap")},
+        speed_check: SpeedCheck {
+            pairs: pairs.len(),
+            mean_abs_diff_kmh: mean_abs,
+            correlation: correlation(&pairs),
+            what: "speed from consecutive fixes vs OBD PID 0x0D, both from the log (UTC), OBD times",
+        },
+        files: vec![
+            file("the device's 4D log (GNSS and speed)", "css.d2slog"),
+            file("GeoJSON for QGIS (the GNSS track)", "drive.geojson"),
+            file("MCAP for Foxglove", "drive.mcap"),
         ],
-    }))
+    })
 }
 
 #[cfg(test)]

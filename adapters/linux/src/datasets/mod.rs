@@ -11,6 +11,21 @@ pub mod css;
 use crate::{Error, Result};
 use std::path::{Path, PathBuf};
 
+/// A file a recording's run wrote, and what it holds.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct OutputFile {
+    /// What the file holds and what it is for.
+    pub what: &'static str,
+    /// Where it was written.
+    pub path: String,
+}
+
+impl OutputFile {
+    fn new(what: &'static str, dir: &Path, name: &str) -> Self {
+        Self { what, path: dir.join(name).display().to_string() }
+    }
+}
+
 /// The data folder `--data` defaults to: `$DASH2SIM_DATA`, else `../shared/data`.
 pub fn default_dir() -> PathBuf {
     std::env::var_os("DASH2SIM_DATA").map_or_else(|| PathBuf::from("../shared/data"), PathBuf::from)

@@ -117,10 +117,11 @@ enum BusInput {
     Can(CanFrame),
 }
 
-/// Counters of a live run.
-#[derive(Clone, Copy, Debug, Default)]
+/// Counters of a live run: the summary `record --live --json` prints.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct LiveReport {
     /// What the pipeline did.
+    #[serde(flatten)]
     pub stats: PipelineStats,
     /// Camera frames received (frame metadata messages).
     pub frames: u64,

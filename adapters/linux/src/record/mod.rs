@@ -23,7 +23,6 @@ use dash2sim_core::pipeline::{
     CameraMount, ClassMeta, FrameId, GnssErrorModel, GnssFrame, GnssSignals, Issue, Issues, Pipeline, PipelineConfig,
     PipelineStats, SpeedSource, Trackers,
 };
-use serde_json::json;
 
 use crate::{Error, Result};
 use dash2sim_core::pipeline::profile::{self, work_zone_meta, work_zone_pipeline, work_zone_trackers};
@@ -573,68 +572,39 @@ pub fn record_live(
     live::run(request, &setup, &stop)
 }
 
-/// A live recording's summary: the pipeline's totals, the files, frames, dropped inputs and
-/// issues.
-#[cfg(feature = "bridge")]
-pub fn live_summary(report: &live::LiveReport) -> serde_json::Value {
-    let mut summary = stats_json(&report.stats);
-    for (key, value) in [
-        ("files", u64::from(report.files)),
-        ("frames", report.frames),
-        ("dropped", report.dropped),
-        ("issues", report.issues),
-    ] {
-        summary[key] = json!(value);
-    }
-    summary
-}
-
 fn display(p: &Option<PathBuf>) -> String {
     p.as_deref().map_or_else(String::new, |p: &Path| p.display().to_string())
 }
 
-/// The pipeline's totals as JSON (file and live recordings, the demo).
-pub fn stats_json(s: &PipelineStats) -> serde_json::Value {
-    json!({
-        "records": s.records,
-        "vo_poses": s.vo_poses,
-        "anchored_frames": s.anchored_frames,
-        "carried_frames": s.carried_frames,
-        "fixes": s.fixes,
-        "speeds": s.speeds,
-        "can_frames": s.can_frames,
-        "serial_bytes": s.serial_bytes,
-        "detections_placed": s.detections_placed,
-        "detections_raw": s.detections_raw,
-        "track_states": s.track_states,
-        "track2d_states": s.track2d_states,
-        "windows": s.windows,
-        "windows_verified": s.windows_verified,
-    })
+/// The summary of a recording: the pipeline's totals, the inputs, the log's size and the
+/// refused inputs by reason.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Summary {
+    /// What the pipeline did.
+    #[serde(flatten)]
+    pub stats: PipelineStats,
+    /// Inputs the stream held.
+    pub inputs: u64,
+    /// The log's size.
+    pub log_bytes: usize,
+    /// Refused inputs by reason (only reasons that occurred).
+    pub issues: BTreeMap<String, u64>,
+    /// What the files held, for a recording from files.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sources: Option<sources::SourceCounts>,
 }
 
 /// The summary of a recording.
-pub fn summary(recording: &Recording) -> serde_json::Value {
-    let issues: serde_json::Map<String, serde_json::Value> = Issue::ALL
+pub fn summary(recording: &Recording) -> Summary {
+    let issues = Issue::ALL
         .iter()
         .filter(|i| recording.issues.get(**i) > 0)
-        .map(|i| (format!("{i:?}"), json!(recording.issues.get(*i))))
+        .map(|i| (format!("{i:?}"), recording.issues.get(*i)))
         .collect();
-    let mut summary = stats_json(&recording.stats);
-    summary["inputs"] = json!(recording.inputs);
-    summary["log_bytes"] = json!(recording.log.len());
-    summary["issues"] = json!(issues);
-    summary
+    Summary { stats: recording.stats, inputs: recording.inputs, log_bytes: recording.log.len(), issues, sources: None }
 }
 
 /// The summary of a recording from files, with what the files held.
-pub fn file_summary(recording: &Recording, counts: &sources::SourceCounts) -> serde_json::Value {
-    let mut summary = summary(recording);
-    summary["sources"] = json!({
-        "vo_poses": counts.vo, "serial_lines": counts.serial_lines, "can_frames": counts.can_frames,
-        "detection_frames": counts.detection_frames, "detections": counts.detections,
-        "detection2d_frames": counts.detection2d_frames,
-        "detection2d_frames_without_time": counts.detection2d_frames_without_time,
-    });
-    summary
+pub fn file_summary(recording: &Recording, counts: &sources::SourceCounts) -> Summary {
+    Summary { sources: Some(counts.clone()), ..summary(recording) }
 }

@@ -50,9 +50,10 @@ impl Input {
 }
 
 /// Counts of what the files held, and what was wrong in them.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct SourceCounts {
     /// VO poses.
+    #[serde(rename = "vo_poses")]
     pub vo: u64,
     /// Serial lines.
     pub serial_lines: u64,
@@ -69,6 +70,8 @@ pub struct SourceCounts {
     pub detection2d_frames_without_time: u64,
     /// Lines of the captures that could not be read, `FILE: what` (at most ten per file,
     /// then how many more); reading went on after each.
+    /// Not in the summary: `record` reports them on stderr as it reads.
+    #[serde(skip)]
     pub problems: Vec<String>,
 }
 

@@ -6,10 +6,11 @@ use std::path::{Path, PathBuf};
 use dash2sim_core::anchor::{AnchorConfig, Anchorer, Observability, Quality};
 use dash2sim_core::sim3::Sim3;
 use dash2sim_core::time::Timestamp;
-use serde_json::json;
+use serde::Serialize;
 
 use crate::record::VoFrame;
 use crate::trajectory::{self, Format, Trajectory};
+use crate::verify::evaluate::Alignment;
 use crate::{Error, Result};
 
 /// Anchoring of trajectory files (`dash2sim anchor`).
@@ -47,25 +48,42 @@ pub struct AnchorSummary {
     pub quality: Quality,
 }
 
-impl AnchorSummary {
-    /// The summary as `dash2sim anchor --json` prints it.
-    pub fn to_json(&self) -> serde_json::Value {
+/// How `dash2sim anchor --json` gives the summary: the quality's figures beside the counts.
+impl Serialize for AnchorSummary {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+        #[derive(Serialize)]
+        struct Summary {
+            frames: usize,
+            anchored_frames: usize,
+            observable_after_s: Option<f64>,
+            estimate: Option<Alignment>,
+            observability: String,
+            anchors_used: u32,
+            anchors_rejected: u32,
+            anchors_dropped: u32,
+            rms_residual_m: f64,
+            rotation_sigma_deg: f64,
+            scale_rel_sigma: f64,
+            latency_s: Option<f64>,
+            wheel_factor: Option<f64>,
+        }
         let q = &self.quality;
-        json!({
-            "frames": self.frames,
-            "anchored_frames": self.anchored_frames,
-            "observable_after_s": self.observable_after_s,
-            "estimate": self.estimate.as_ref().map(crate::verify::evaluate::sim3_json),
-            "observability": format!("{:?}", q.observability),
-            "anchors_used": q.anchors_used,
-            "anchors_rejected": q.anchors_rejected,
-            "anchors_dropped": q.anchors_dropped,
-            "rms_residual_m": q.rms_residual_m,
-            "rotation_sigma_deg": q.rotation_sigma_rad.to_degrees(),
-            "scale_rel_sigma": q.scale_rel_sigma,
-            "latency_s": q.latency_s,
-            "wheel_factor": q.wheel_factor,
-        })
+        Summary {
+            frames: self.frames,
+            anchored_frames: self.anchored_frames,
+            observable_after_s: self.observable_after_s,
+            estimate: self.estimate.as_ref().map(Alignment::from),
+            observability: format!("{:?}", q.observability),
+            anchors_used: q.anchors_used,
+            anchors_rejected: q.anchors_rejected,
+            anchors_dropped: q.anchors_dropped,
+            rms_residual_m: q.rms_residual_m,
+            rotation_sigma_deg: q.rotation_sigma_rad.to_degrees(),
+            scale_rel_sigma: q.scale_rel_sigma,
+            latency_s: q.latency_s,
+            wheel_factor: q.wheel_factor,
+        }
+        .serialize(serializer)
     }
 }
 

@@ -186,12 +186,27 @@ pub fn rpe(
     })
 }
 
-/// The alignment as `{"R": [[..]], "t": [..], "s": ..}`.
-pub fn sim3_json(t: &Sim3) -> serde_json::Value {
-    let r = &t.rotation;
-    serde_json::json!({
-        "R": (0..3).map(|i| (0..3).map(|j| r[(i, j)]).collect::<Vec<_>>()).collect::<Vec<_>>(),
-        "t": [t.translation.x, t.translation.y, t.translation.z],
-        "s": t.scale,
-    })
+/// A similarity as `traj --json` and `anchor --json` give it: `{"R": [[..]], "t": [..], "s": ..}`.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Alignment {
+    /// Rotation, row by row.
+    #[serde(rename = "R")]
+    pub rotation: [[f64; 3]; 3],
+    /// Translation.
+    #[serde(rename = "t")]
+    pub translation: [f64; 3],
+    /// Scale.
+    #[serde(rename = "s")]
+    pub scale: f64,
+}
+
+impl From<&Sim3> for Alignment {
+    fn from(t: &Sim3) -> Self {
+        let r = &t.rotation;
+        Self {
+            rotation: core::array::from_fn(|i| core::array::from_fn(|j| r[(i, j)])),
+            translation: [t.translation.x, t.translation.y, t.translation.z],
+            scale: t.scale,
+        }
+    }
 }

@@ -6,7 +6,6 @@
 use std::collections::{BTreeSet, HashMap};
 
 use dash2sim_core::assign::{AssignError, Workspace};
-use serde_json::{json, Value};
 
 use crate::ingest::motchallenge::MotRow;
 
@@ -227,10 +226,12 @@ impl Summary {
     pub fn get(&self, name: &str) -> Option<f64> {
         self.values.iter().find(|(n, _)| *n == name).map(|(_, v)| *v)
     }
+}
 
-    /// As a JSON object.
-    pub fn to_json(&self) -> Value {
-        Value::Object(self.values.iter().map(|(k, v)| ((*k).to_owned(), json!(v))).collect())
+/// An object of the metrics by motmetrics' names (`mot --json`, the scenario's `metrics`).
+impl serde::Serialize for Summary {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.collect_map(self.values.iter().map(|(k, v)| (k, v)))
     }
 }
 

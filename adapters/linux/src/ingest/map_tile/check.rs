@@ -11,8 +11,8 @@ use dash2sim_core::drivable::Channel;
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::PACIFICA;
 
-/// What checking a file of poses found, and how long it took.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// What checking a file of poses found, and how long it took (`dash2sim map check --json`).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Checked {
     /// Poses checked.
     pub poses: usize,
@@ -26,14 +26,6 @@ pub struct Checked {
     pub us_per_pose: f64,
     /// Passes made.
     pub passes: u32,
-}
-
-impl Checked {
-    /// As `dash2sim map check --json` prints it.
-    pub fn to_json(&self) -> serde_json::Value {
-        serde_json::json!({"poses": self.poses, "compliant": self.compliant, "corners_outside": self.corners_outside,
-                           "corners_nothing_near": self.corners_nothing_near, "us_per_pose": self.us_per_pose, "passes": self.passes})
-    }
 }
 
 /// Check every pose of `poses` (TUM, rear axle, the tile's ENU frame) `passes` times.

@@ -21,6 +21,7 @@ use crate::geometry::offset_polyline;
 use crate::ingest::osm::highway::{interpret, RoadSpec};
 use crate::ingest::osm::OsmData;
 use crate::{Error, Result};
+use serde::Serialize;
 
 /// Road classes as stored in the tile (`docs/map-tile.md`).
 pub const CLASSES: [&str; 12] = [
@@ -429,31 +430,72 @@ pub fn build_file(
     Ok(Built { lanes: content.lanes.len(), lane_km: content.lane_km(), bytes: bytes.len(), warnings })
 }
 
-/// `dash2sim map lanes`: the lanes and free-standing polygons of a tile as JSON.
-pub fn lanes_json(path: &std::path::Path) -> Result<serde_json::Value> {
+/// A position by latitude and longitude, degrees.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct LatLon {
+    /// Latitude.
+    pub lat: f64,
+    /// Longitude.
+    pub lon: f64,
+}
+
+/// A tile's lanes and free-standing polygons (`dash2sim map lanes`).
+#[derive(Clone, Debug, Serialize)]
+pub struct Lanes {
+    /// The tile's ENU origin.
+    pub origin: LatLon,
+    /// Every lane.
+    pub lanes: Vec<LaneShape>,
+    /// Polygons that are no lane's area (ENU, m).
+    pub polygons: Vec<Vec<[f64; 2]>>,
+}
+
+/// One lane of a tile.
+#[derive(Clone, Debug, Serialize)]
+pub struct LaneShape {
+    /// Its index in the tile.
+    pub index: u32,
+    /// Width, m.
+    pub width: f64,
+    /// Speed limit, m/s.
+    pub speed_limit: Option<f64>,
+    /// Road class (OSM `highway=*`, or `other`).
+    pub class: &'static str,
+    /// The lane to its left.
+    pub left: Option<u32>,
+    /// The lane to its right.
+    pub right: Option<u32>,
+    /// Lanes it leads to.
+    pub successors: Vec<u32>,
+    /// Its centreline (ENU, m).
+    pub points: Vec<[f64; 2]>,
+    /// Its area's outline where the tile has one (Lanelet2).
+    pub area: Option<Vec<[f64; 2]>>,
+}
+
+/// `dash2sim map lanes`: the lanes and free-standing polygons of the tile at `path`.
+pub fn lanes(path: &std::path::Path) -> Result<Lanes> {
     let bytes = std::fs::read(path).map_err(|e| Error::file(path, e))?;
     let view = dash2sim_core::map::MapView::parse(&bytes).map_err(|e| Error::file(path, e))?;
     let ring = |i: u32| view.polygon(i).map(|p| p.map(|(x, y)| [x, y]).collect::<Vec<_>>());
-    let lanes: Vec<serde_json::Value> = (0..view.header().lanes)
+    let lanes = (0..view.header().lanes)
         .filter_map(|i| view.lane(i))
-        .map(|l| {
-            serde_json::json!({
-                "index": l.index,
-                "width": l.width,
-                "speed_limit": l.speed_limit,
-                "class": CLASSES.get(usize::from(l.class)).copied().unwrap_or("other"),
-                "left": l.left,
-                "right": l.right,
-                "successors": l.successors().collect::<Vec<_>>(),
-                "points": l.points().map(|(x, y)| [x, y]).collect::<Vec<_>>(),
-                "area": l.area.and_then(ring),
-            })
+        .map(|l| LaneShape {
+            index: l.index,
+            width: l.width,
+            speed_limit: l.speed_limit,
+            class: CLASSES.get(usize::from(l.class)).copied().unwrap_or("other"),
+            left: l.left,
+            right: l.right,
+            successors: l.successors().collect(),
+            points: l.points().map(|(x, y)| [x, y]).collect(),
+            area: l.area.and_then(ring),
         })
         .collect();
     let areas: std::collections::HashSet<u32> = (0..view.header().lanes).filter_map(|i| view.lane(i)?.area).collect();
-    let polygons: Vec<_> = (0..view.header().polygons).filter(|i| !areas.contains(i)).filter_map(ring).collect();
+    let polygons = (0..view.header().polygons).filter(|i| !areas.contains(i)).filter_map(ring).collect();
     let h = view.header();
-    Ok(serde_json::json!({"origin": {"lat": h.origin[0], "lon": h.origin[1]}, "lanes": lanes, "polygons": polygons}))
+    Ok(Lanes { origin: LatLon { lat: h.origin[0], lon: h.origin[1] }, lanes, polygons })
 }
 
 /// What a tile is (`dash2sim map info`).
@@ -469,22 +511,49 @@ pub struct TileInfo {
     pub bytes: usize,
 }
 
-impl TileInfo {
-    /// As `dash2sim map info --json` prints it.
-    pub fn to_json(&self) -> serde_json::Value {
+/// How `dash2sim map info --json` gives a tile: the header's counts by name.
+impl Serialize for TileInfo {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+        #[derive(Serialize)]
+        struct Osm {
+            nodes: u32,
+            ways: u32,
+            highway_ways: u32,
+            relations: u32,
+        }
+        #[derive(Serialize)]
+        struct Grid {
+            cell_m: f32,
+            columns: u16,
+            rows: u16,
+            entries: u32,
+        }
+        #[derive(Serialize)]
+        struct Info {
+            origin: LatLon,
+            osm: Osm,
+            lanes: u32,
+            lane_km: f64,
+            polygons: u32,
+            points: u32,
+            grid: Grid,
+            bytes: usize,
+            bytes_per_lane_km: f64,
+        }
         let h = &self.header;
         let [nodes, ways, highway_ways, relations] = h.source_counts;
-        serde_json::json!({
-            "origin": {"lat": h.origin[0], "lon": h.origin[1]},
-            "osm": {"nodes": nodes, "ways": ways, "highway_ways": highway_ways, "relations": relations},
-            "lanes": h.lanes,
-            "lane_km": self.lane_km,
-            "polygons": h.polygons,
-            "points": h.points,
-            "grid": {"cell_m": h.cell_size, "columns": h.grid_size[0], "rows": h.grid_size[1], "entries": h.grid_entries},
-            "bytes": self.bytes,
-            "bytes_per_lane_km": self.bytes as f64 / self.lane_km.max(1e-9),
-        })
+        Info {
+            origin: LatLon { lat: h.origin[0], lon: h.origin[1] },
+            osm: Osm { nodes, ways, highway_ways, relations },
+            lanes: h.lanes,
+            lane_km: self.lane_km,
+            polygons: h.polygons,
+            points: h.points,
+            grid: Grid { cell_m: h.cell_size, columns: h.grid_size[0], rows: h.grid_size[1], entries: h.grid_entries },
+            bytes: self.bytes,
+            bytes_per_lane_km: self.bytes as f64 / self.lane_km.max(1e-9),
+        }
+        .serialize(serializer)
     }
 }
 

@@ -10,7 +10,6 @@ use std::path::Path;
 use dash2sim_core::binlog::Record;
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Pose2, PACIFICA};
-use serde_json::{json, Value};
 
 use crate::finish::FinishReport;
 use crate::log::{self, LogContents};
@@ -303,21 +302,5 @@ pub fn assess(recorded: &Recorded<'_>, anchors: Anchors, anchors_path: &Path) ->
         finished_bytes,
         finished_scale: (scale, true_mean_scale, scale / true_mean_scale - 1.0),
         windows,
-    })
-}
-
-/// A judgement's figures as the demo's summary and the sweep's rows give them.
-pub fn judged_json(t: &LogJudgement) -> Value {
-    json!({
-        "ape_rmse_m": t.ego_rmse,
-        "ape_max_m": t.ego_max,
-        "observable_after_s": t.first_anchored_s,
-        "anchored_frames": t.ego_errors.len(),
-        "mota": t.tracks.0,
-        "idf1": t.tracks.1,
-        "mota_anchored_frames": t.tracks_anchored.0,
-        "idf1_anchored_frames": t.tracks_anchored.1,
-        "mota_seen_from_ego": t.tracks_relative.0,
-        "idf1_seen_from_ego": t.tracks_relative.1,
     })
 }

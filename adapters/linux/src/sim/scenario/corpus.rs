@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use dash2sim_core::geo::Geodetic;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use serde_json::{json, Value};
+use serde::Serialize;
 
 use super::profile::{Profile, Receiver};
 use super::write::{road_tile, write_scenario};
@@ -112,8 +112,27 @@ fn plan(args: &CorpusRequest, i: usize) -> Plan {
     }
 }
 
+/// One log's entry in `corpus.json`: what the log is and what was done to it.
+#[derive(Debug, Serialize)]
+struct Entry {
+    log: String,
+    seed: u64,
+    duration_s: f64,
+    driver: &'static str,
+    region: &'static str,
+    origin: [f64; 3],
+    damage: Option<&'static str>,
+    profile: &'static str,
+}
+
+/// `corpus.json`.
+#[derive(Debug, Serialize)]
+struct Listing {
+    logs: Vec<Entry>,
+}
+
 /// Generate, record and (maybe) damage one log; its entry in `corpus.json`.
-fn make(plan: &Plan, out: &Path) -> Result<Value> {
+fn make(plan: &Plan, out: &Path) -> Result<Entry> {
     let name = format!("drive-{:04}", plan.name_index);
     let (region, origin) = REGIONS[plan.region];
     let config = ScenarioConfig {
@@ -142,16 +161,16 @@ fn make(plan: &Plan, out: &Path) -> Result<Value> {
     if plan.damage != Some(Damage::NoMap) {
         write(out.join(format!("{name}.map")), &tile)?;
     }
-    Ok(json!({
-        "log": format!("{name}.d2slog"),
-        "seed": plan.seed,
-        "duration_s": plan.duration_s,
-        "driver": plan.driver.name(),
-        "region": region,
-        "origin": origin,
-        "damage": plan.damage.map(Damage::name),
-        "profile": plan.profile.name(),
-    }))
+    Ok(Entry {
+        log: format!("{name}.d2slog"),
+        seed: plan.seed,
+        duration_s: plan.duration_s,
+        driver: plan.driver.name(),
+        region,
+        origin,
+        damage: plan.damage.map(Damage::name),
+        profile: plan.profile.name(),
+    })
 }
 
 /// The log's bytes damaged as the plan says.
@@ -189,7 +208,7 @@ pub fn make_corpus(args: &CorpusRequest, progress: &(dyn Fn(usize) + Sync)) -> R
     let plans: Vec<Plan> = (0..args.logs).map(|i| plan(args, i)).collect();
     let workers = std::thread::available_parallelism().map_or(1, usize::from);
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<Result<Value>> = std::thread::scope(|scope| {
+    let results: Vec<Result<Entry>> = std::thread::scope(|scope| {
         let chunks: Vec<_> = plans
             .chunks(plans.len().div_ceil(workers).max(1))
             .map(|chunk| {
@@ -213,10 +232,12 @@ pub fn make_corpus(args: &CorpusRequest, progress: &(dyn Fn(usize) + Sync)) -> R
             .collect()
     });
     let _ = std::fs::remove_dir(args.output.join(".work"));
-    let entries = results.into_iter().collect::<Result<Vec<Value>>>()?;
-    let damaged = entries.iter().filter(|e| !e["damage"].is_null()).count();
+    let logs = results.into_iter().collect::<Result<Vec<Entry>>>()?;
+    let damaged = logs.iter().filter(|e| e.damage.is_some()).count();
     let path = args.output.join("corpus.json");
-    let text = serde_json::to_string_pretty(&json!({"logs": entries})).map_err(Error::other)?;
+    // Through a `Value`: its keys sorted, as the corpus job's tests and readers have them.
+    let listing = serde_json::to_value(Listing { logs }).map_err(Error::other)?;
+    let text = serde_json::to_string_pretty(&listing).map_err(Error::other)?;
     std::fs::write(&path, text).map_err(|e| Error::file(&path, e))?;
     Ok(Corpus { logs: args.logs, damaged, listing: path })
 }
