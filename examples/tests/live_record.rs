@@ -81,7 +81,7 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
         duration: Some(Duration::from_secs_f64(SECONDS + 2.5)),
         status: None,
     };
-    let logger = std::thread::spawn(move || live::run(&request, &setup, &AtomicBool::new(false)));
+    let logger = std::thread::spawn(move || live::run(&request, &setup, &live::Origin::Given, &AtomicBool::new(false)));
     std::thread::sleep(Duration::from_millis(300));
     let camera = Command::new(env!("CARGO_BIN_EXE_camera_sim"))
         .args(["--profile", "ideal", "--seconds", &SECONDS.to_string(), "--prefix", &prefix, "--nmea-out"])
@@ -165,7 +165,7 @@ fn the_camera_process_killed_and_restarted_is_a_gap_in_the_log_not_the_end_of_it
         duration: Some(Duration::from_secs(6)),
         status: None,
     };
-    let logger = std::thread::spawn(move || live::run(&request, &setup, &AtomicBool::new(false)));
+    let logger = std::thread::spawn(move || live::run(&request, &setup, &live::Origin::Given, &AtomicBool::new(false)));
     std::thread::sleep(Duration::from_millis(300));
     let camera = |seconds: &str| {
         Command::new(env!("CARGO_BIN_EXE_camera_sim"))

@@ -46,7 +46,8 @@ fn assert_alignment(what: &str, got: &Sim3, want: &Value) {
 }
 
 fn load(dir: &Path, format: Format, reference: &str, estimate: &str) -> (Trajectory, Trajectory) {
-    evaluate::load_pair(&dir.join(reference), &dir.join(estimate), format, 0.01).expect("files load and associate")
+    evaluate::load_pair(&dir.join(reference), &dir.join(estimate), format, evaluate::Association::within(0.01))
+        .expect("files load and associate")
 }
 
 fn rpe_pairs(delta: Delta) -> RpePairs {

@@ -23,6 +23,16 @@ pub enum DbcError {
     Parse(String),
     /// The text is neither UTF-8 nor Windows-1252.
     Encoding,
+    /// An id offset moves a message's id out of its range (standard 0–0x7FF, extended
+    /// 0–0x1FFFFFFF).
+    IdOutOfRange {
+        /// The message.
+        message: String,
+        /// Its id in the file.
+        id: u32,
+        /// The offset.
+        offset: i64,
+    },
 }
 
 impl fmt::Display for DbcError {
@@ -31,6 +41,9 @@ impl fmt::Display for DbcError {
             DbcError::Io(e) => write!(f, "{e}"),
             DbcError::Parse(e) => write!(f, "not a valid DBC file: {e}"),
             DbcError::Encoding => write!(f, "neither UTF-8 nor Windows-1252 text"),
+            DbcError::IdOutOfRange { message, id, offset } => {
+                write!(f, "message {message} (id {id:#X}) moved by {offset:+#X} leaves the CAN id range")
+            }
         }
     }
 }
@@ -176,6 +189,23 @@ impl SignalTable {
         }
     }
 
+    /// Every message's id moved by `offset`: the same module at another base id (a CANedge
+    /// CANmod.gps configured to start at 0x65 where its DBC says 1 is `offset` 0x64).
+    pub fn shifted(self, offset: i64) -> Result<Self, DbcError> {
+        let mut table = SignalTable::default();
+        for mut message in self.messages {
+            let (extended, raw) = key(message.id);
+            let moved = i64::from(raw).checked_add(offset).and_then(|id| u32::try_from(id).ok());
+            message.id = moved.and_then(|id| id_from_raw(id, extended)).ok_or_else(|| DbcError::IdOutOfRange {
+                message: message.name.clone(),
+                id: raw,
+                offset,
+            })?;
+            table.insert(message);
+        }
+        Ok(table)
+    }
+
     /// Merge another table (e.g. a second `--dbc` file); its messages win on equal ids.
     pub fn extend(&mut self, other: SignalTable) {
         for message in other.messages {
@@ -211,6 +241,20 @@ fn key(id: Id) -> (bool, u32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_shifted_table_finds_its_messages_at_the_new_ids_only() {
+        let (table, _) = SignalTable::parse(DBC).expect("dbc");
+        let moved = table.clone().shifted(0x64).expect("in range");
+        let at = |t: &SignalTable, raw| t.message(id_from_raw(raw, false).expect("id")).map(|m| m.name.clone());
+        assert_eq!(at(&moved, 170 + 0x64).as_deref(), Some("WHEEL_SPEEDS"));
+        assert_eq!(at(&moved, 170), None);
+        assert_eq!(moved.message_by_name("MUXED").map(|m| raw_id(m.id)), Some((2566844926 & 0x1FFF_FFFF) + 0x64));
+        let back = moved.shifted(-0x64).expect("in range");
+        assert_eq!(at(&back, 170).as_deref(), Some("WHEEL_SPEEDS"));
+        let err = table.shifted(-171).expect_err("below zero");
+        assert!(err.to_string().contains("WHEEL_SPEEDS"), "{err}");
+    }
 
     const DBC: &str = r#"VERSION ""
 

@@ -82,6 +82,10 @@ enum Command {
     Inspect {
         /// The log.
         log: PathBuf,
+        /// Also list the log's events: time, level and text of every message the device
+        /// wrote (refused inputs, anchoring, dropped inputs, …).
+        #[arg(long)]
+        events: bool,
         /// Print JSON on stdout.
         #[arg(long)]
         json: bool,
@@ -138,8 +142,9 @@ enum MapCommand {
         /// Output tile.
         #[arg(short, long)]
         output: PathBuf,
-        /// ENU origin `LAT,LON` (degrees); default: the centre of the roads.
-        #[arg(long, value_name = "LAT,LON")]
+        /// ENU origin `LAT,LON[,H]` (degrees, metres above the ellipsoid), kept in the tile
+        /// (a log recorded with the tile takes it); default: the centre of the roads, height 0.
+        #[arg(long, value_name = "LAT,LON[,H]", allow_hyphen_values = true)]
         origin: Option<String>,
         /// Keep only the part inside `WEST,SOUTH,EAST,NORTH` (degrees, as osmium and the
         /// OSM API order them); ways are cut at the box.
@@ -309,6 +314,11 @@ struct CommonArgs {
     /// Largest timestamp difference for association, s.
     #[arg(long, default_value_t = DEFAULT_MAX_DIFF_S)]
     max_diff: f64,
+    /// Added to the estimate's timestamps before association, s (evo's `--t_offset`): e.g.
+    /// `-1780300800` to compare a log's export (UTC) with a generated drive's truth (seconds
+    /// from its start, 2026-06-01T08:00:00Z).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    t_offset: f64,
     /// Print JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -401,7 +411,7 @@ pub fn run() -> ExitCode {
         Command::Record(args) => crate::record::run(&args),
         Command::Finish(args) => crate::finish::run(&args),
         Command::Plot(args) => crate::plot::run(args),
-        Command::Inspect { log, json } => crate::inspect::run(&log, json),
+        Command::Inspect { log, events, json } => crate::inspect::run(&log, events, json),
         Command::Export(args) => crate::export::run(*args),
         Command::Verify(a) => crate::verify::run(&a),
     };
@@ -417,7 +427,7 @@ pub fn run() -> ExitCode {
 fn traj_ape(args: &ApeArgs) -> Result<()> {
     let c = &args.common;
     check_max_diff(c.max_diff)?;
-    let (r, e) = evaluate::load_pair(&c.reference, &c.estimate, c.format, c.max_diff).map_err(Error::other)?;
+    let (r, e) = load_pair(c)?;
     let eval = evaluate::ape(&r, &e, c.align, c.pose_relation).map_err(Error::other)?;
     report("APE", c, &eval, None);
     Ok(())
@@ -437,10 +447,20 @@ fn traj_rpe(args: &RpeArgs) -> Result<()> {
         DeltaUnit::M => return Err(Error::invalid(format!("--delta {} m must be positive", args.delta))),
     };
     let pairs = RpePairs { delta, all_pairs: args.all_pairs, from_reference: args.pairs_from_reference };
-    let (r, e) = evaluate::load_pair(&c.reference, &c.estimate, c.format, c.max_diff).map_err(Error::other)?;
+    let (r, e) = load_pair(c)?;
     let eval = evaluate::rpe(&r, &e, c.align, c.pose_relation, pairs).map_err(Error::other)?;
     report("RPE", c, &eval, Some(args));
     Ok(())
+}
+
+fn load_pair(
+    c: &CommonArgs,
+) -> Result<(dash2sim_linux::trajectory::Trajectory, dash2sim_linux::trajectory::Trajectory)> {
+    if !c.t_offset.is_finite() {
+        return Err(Error::invalid(format!("--t-offset {} must be a number of seconds", c.t_offset)));
+    }
+    let association = evaluate::Association { max_diff: c.max_diff, t_offset: c.t_offset };
+    evaluate::load_pair(&c.reference, &c.estimate, c.format, association).map_err(Error::other)
 }
 
 fn mot_eval(gt: &std::path::Path, test: &std::path::Path, max_distance: f64, as_json: bool) -> Result<()> {

@@ -3,19 +3,23 @@
 use std::path::Path;
 
 use dash2sim_core::binlog::Kind;
-use dash2sim_linux::log::inspect::{dropped_inputs, frames, gaps, report};
+use dash2sim_linux::log::inspect::{dropped_inputs, events, frames, gaps, report};
 use dash2sim_linux::log::read;
 use dash2sim_linux::{Error, Result};
 use serde_json::json;
 
 /// `dash2sim inspect`.
-pub fn run(path: &Path, as_json: bool) -> Result<()> {
+pub fn run(path: &Path, with_events: bool, as_json: bool) -> Result<()> {
     let log = read(path).map_err(Error::other)?;
     let r = report(&log);
     if as_json {
         // Through `Value`, whose keys are sorted: the output's order is the JSON's, not the
         // struct's.
-        println!("{}", crate::render::json_of(&r)?);
+        let mut out = crate::render::json_of(&r)?;
+        if with_events {
+            out["events"] = crate::render::json_of(&events(&log))?;
+        }
+        println!("{out}");
         return Ok(());
     }
     println!("log {} ({} bytes, format v1)", path.display(), log.bytes);
@@ -60,6 +64,13 @@ pub fn run(path: &Path, as_json: bool) -> Result<()> {
     }
     for (kind, a, b) in gaps(&log).iter().take(10) {
         println!("  gap         {} {a:.3} … {b:.3} s", kind.name());
+    }
+    if with_events {
+        let events = events(&log);
+        println!("  events      {}", events.len());
+        for e in &events {
+            println!("    {:.3} s  {:<7}  {}", e.t_s, e.level, e.text);
+        }
     }
     Ok(())
 }

@@ -50,7 +50,7 @@ pub fn info(path: &Path, as_json: bool) -> Result<()> {
     let (h, lane_km) = (&info.header, info.lane_km);
     let [nodes, ways, highway_ways, relations] = h.source_counts;
     println!("map tile {} (format v{})", path.display(), info.version);
-    println!("  origin      {:.7}, {:.7}", h.origin[0], h.origin[1]);
+    println!("  origin      {:.7}, {:.7}, height {} m", h.origin[0], h.origin[1], h.origin[2]);
     println!("  source      {nodes} nodes, {ways} ways ({highway_ways} highway), {relations} relations");
     println!("  lanes       {} ({lane_km:.2} lane-km), {} polygons, {} points", h.lanes, h.polygons, h.points);
     println!(

@@ -68,7 +68,7 @@ pub struct RecordArgs {
     #[arg(long)]
     pub map: Option<PathBuf>,
     /// ENU origin `LAT,LON[,H]` (default: the map's, else the first GNSS fix).
-    #[arg(long)]
+    #[arg(long, value_name = "LAT,LON[,H]", allow_hyphen_values = true)]
     pub origin: Option<String>,
     /// The dashcam: mount, VO frame, GNSS error model.
     #[command(flatten)]

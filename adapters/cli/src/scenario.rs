@@ -11,7 +11,7 @@ use dash2sim_linux::sim::scenario::command::config;
 use dash2sim_linux::sim::scenario::corpus::{self, CorpusRequest};
 use dash2sim_linux::sim::scenario::evaluate::evaluate_tracking;
 use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
-use dash2sim_linux::sim::scenario::write::write_scenario;
+use dash2sim_linux::sim::scenario::write::{origin_option, write_scenario, START_UNIX_S};
 use dash2sim_linux::sim::scenario::{generate, tracker_classes, tracker_config, Frame};
 use dash2sim_linux::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -99,6 +99,13 @@ pub fn generate_to(seed: u64, duration_s: f64, profile: Profile, receiver: Recei
     for file in files {
         println!("  {}", file.display());
     }
+    // What the commands that take this drive on need to agree with its truth.
+    println!("ENU origin: --origin {} (for map build, record and import)", origin_option(scenario.config.origin));
+    println!(
+        "truth times: seconds from 2026-06-01T08:00:00Z, 10 Hz; a log's exports are in UTC, its clock within tens of ms: dash2sim traj ape {} EXPORT.tum --t-offset={} --max-diff 0.05",
+        dir.join("ego.tum").display(),
+        -START_UNIX_S
+    );
     Ok(())
 }
 

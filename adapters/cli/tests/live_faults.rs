@@ -142,7 +142,7 @@ fn a_sink_slower_than_the_input_drops_inputs_counts_them_and_logs_them() {
     let origin = dash2sim_core::geo::Geodetic::new(60.2711, 24.8572, 20.0).expect("origin");
     let setup = Setup::work_zone(origin, None, *b"dash2sim-slow\0\0\0");
     let bytes = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
-    let report = live::run_into(&request, &setup, &AtomicBool::new(false), |_| {
+    let report = live::run_into(&request, &setup, &live::Origin::Given, &AtomicBool::new(false), |_| {
         Ok(SlowSink { bytes: bytes.clone(), delay: Duration::from_millis(20) })
     })
     .expect("live run");

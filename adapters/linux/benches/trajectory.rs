@@ -24,18 +24,20 @@ fn kitti(c: &mut Criterion) {
     let mut group = c.benchmark_group("kitti00_4541_poses");
     group.bench_function("ape_sim3_end_to_end", |b| {
         b.iter(|| {
-            let (r, e) = evaluate::load_pair(&gt, &orb, Format::Kitti, 0.01).expect("load");
+            let (r, e) =
+                evaluate::load_pair(&gt, &orb, Format::Kitti, evaluate::Association::within(0.01)).expect("load");
             evaluate::ape(&r, &e, Align::Sim3, Relation::Trans).expect("ape")
         })
     });
     let rpe_10m = RpePairs { delta: Delta::Metres(10.0), all_pairs: false, from_reference: false };
     group.bench_function("rpe_10m_end_to_end", |b| {
         b.iter(|| {
-            let (r, e) = evaluate::load_pair(&gt, &orb, Format::Kitti, 0.01).expect("load");
+            let (r, e) =
+                evaluate::load_pair(&gt, &orb, Format::Kitti, evaluate::Association::within(0.01)).expect("load");
             evaluate::rpe(&r, &e, Align::None, Relation::Trans, rpe_10m).expect("rpe")
         })
     });
-    let (r, e) = evaluate::load_pair(&gt, &orb, Format::Kitti, 0.01).expect("load");
+    let (r, e) = evaluate::load_pair(&gt, &orb, Format::Kitti, evaluate::Association::within(0.01)).expect("load");
     group.bench_function("ape_sim3_compute_only", |b| {
         b.iter(|| evaluate::ape(&r, &e, Align::Sim3, Relation::Trans).expect("ape"))
     });

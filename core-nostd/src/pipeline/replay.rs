@@ -360,6 +360,11 @@ impl<W: Write> Recorder<W> {
         Ok(())
     }
 
+    /// The sink so far (a host keeping inputs in a `Vec` bounds it by its length).
+    pub fn get_ref(&self) -> &W {
+        &self.io
+    }
+
     /// Flush and give the sink back.
     pub fn finish(mut self) -> Result<W, W::Error> {
         self.io.flush()?;

@@ -73,7 +73,7 @@ pub fn record(drive: Drive, dir: &Path, log_path: &Path, setup: &Setup, bar: &Pr
     let started = Instant::now();
     let result = std::thread::scope(|scope| {
         let logger = scope.spawn(|| {
-            live::run_into(&request, setup, &stop, |index| match index {
+            live::run_into(&request, setup, &live::Origin::Given, &stop, |index| match index {
                 0 => FileSink::create(log_path),
                 _ => Err(Error::invalid("the demo's log does not rotate")),
             })

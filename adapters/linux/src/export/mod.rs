@@ -94,7 +94,10 @@ pub fn export(request: &ExportRequest) -> Result<Exported> {
     if let Some(path) = &request.tum {
         let n = ego_poses(&log).count();
         if n == 0 {
-            return Err(Error::file(&request.log, "no ego poses to write as TUM"));
+            return Err(Error::file(
+                &request.log,
+                "no ego poses to write as TUM (a log of GNSS and speed only has none; --geojson and --mcap carry its fixes)",
+            ));
         }
         write(path, &tum(&log))?;
         exported.written.push(format!("{}: {n} ego poses", path.display()));

@@ -9,7 +9,7 @@
 //! and abandoned fast-packet message is reported on stderr with its line number.
 
 use std::io::BufRead;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use crate::{Error, Result};
 use dash2sim_can::candump::CandumpReader;
@@ -158,16 +158,38 @@ pub fn decode_source<R: BufRead>(
 }
 
 /// Load and merge DBC files (later files win on equal ids); the warnings, `FILE: what`,
-/// of what was skipped in them.
+/// of what was skipped in them. `FILE@+OFFSET` (or `@-OFFSET`, decimal or `0x` hex) moves
+/// every id of the file by the offset: a module configured to another base id.
 pub fn load_tables(paths: &[PathBuf]) -> Result<(SignalTable, Vec<String>)> {
     let mut table = SignalTable::default();
     let mut warnings = Vec::new();
-    for path in paths {
-        let (one, found) = SignalTable::load(path).map_err(|e| Error::file(path, e))?;
+    for given in paths {
+        let (path, offset) = id_offset(given)?;
+        let (one, found) = SignalTable::load(&path).map_err(|e| Error::file(&path, e))?;
+        let one = if offset == 0 { one } else { one.shifted(offset).map_err(|e| Error::file(given, e))? };
         warnings.extend(found.iter().map(|w| format!("{}: {w}", path.display())));
         table.extend(one);
     }
     Ok((table, warnings))
+}
+
+/// A `--dbc` argument split into the file and its id offset (`FILE@+0x64`); a file whose
+/// own name has such an ending is taken whole.
+fn id_offset(given: &Path) -> Result<(PathBuf, i64)> {
+    let text = given.to_string_lossy();
+    let Some((file, suffix)) = text.rsplit_once('@') else { return Ok((given.to_path_buf(), 0)) };
+    if given.exists() || !suffix.starts_with(['+', '-']) {
+        return Ok((given.to_path_buf(), 0));
+    }
+    let (sign, digits) = suffix.split_at(1);
+    let value = match digits.strip_prefix("0x").or_else(|| digits.strip_prefix("0X")) {
+        Some(hex) => i64::from_str_radix(hex, 16),
+        None => digits.parse::<i64>(),
+    }
+    .map_err(|_| {
+        Error::invalid(format!("--dbc {text}: the id offset {suffix:?} is not +N or -N (decimal or 0x hex)"))
+    })?;
+    Ok((PathBuf::from(file), if sign == "-" { -value } else { value }))
 }
 
 /// A decode's summary as `dash2sim can decode` prints it (`class` `SUMMARY`), with the

@@ -19,6 +19,7 @@ use dash2sim_core::binlog::{
 use dash2sim_core::nmea::{Event as NmeaEvent, Stream, StreamEvent};
 
 use super::quantise;
+use crate::ingest::origin::parse_origin;
 use crate::trajectory::{Format, Trajectory};
 use crate::{Error, Result};
 
@@ -66,23 +67,6 @@ pub struct ImportRequest {
     pub objects: Option<PathBuf>,
     /// `LAT,LON[,H]`.
     pub origin: Option<String>,
-}
-
-/// Parse `--origin LAT,LON[,H]` (height 0 when absent).
-pub fn parse_origin(text: &str) -> Result<[f64; 3]> {
-    let values: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| Error::invalid(format!("--origin {text:?}: expected LAT,LON[,H] numbers")))?;
-    match values[..] {
-        [lat, lon] | [lat, lon, _] if (-90.0..=90.0).contains(&lat) && (-180.0..=180.0).contains(&lon) => {
-            Ok([lat, lon, values.get(2).copied().unwrap_or(0.0)])
-        }
-        _ => {
-            Err(Error::invalid(format!("--origin {text:?}: expected LAT,LON[,H] with a valid latitude and longitude")))
-        }
-    }
 }
 
 /// Records from one source (as `import` reads it).
@@ -274,7 +258,11 @@ pub struct Imported {
 /// a capture that could not be read (the import goes on) and the DBC files' warnings.
 pub fn import(request: &ImportRequest, problem: &mut dyn FnMut(&str)) -> Result<Imported> {
     let mut records = Vec::new();
-    let mut origin = request.origin.as_deref().map(parse_origin).transpose()?;
+    let mut origin = request
+        .origin
+        .as_deref()
+        .map(|text| parse_origin(text).map(|g| [g.lat_deg, g.lon_deg, g.height_m]))
+        .transpose()?;
     if let Some(path) = &request.nmea {
         let first = nmea_records(path, request.nmea_offset_s, &mut records, problem)?;
         origin = origin.or(first);

@@ -9,6 +9,34 @@ use serde::Serialize;
 
 use super::{seconds, LogContents};
 
+/// One of the log's own messages: what the device said went wrong (or right) and when
+/// (`inspect --events`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LogEvent {
+    /// Time, s (UTC once the log knows it).
+    pub t_s: f64,
+    /// `debug`, `info`, `warning`, `error`, `fatal` (as `foxglove.Log`), or `unknown`.
+    pub level: &'static str,
+    /// The text (invalid UTF-8 replaced).
+    pub text: String,
+}
+
+/// The log's events in log order.
+pub fn events(log: &LogContents) -> Vec<LogEvent> {
+    const LEVELS: [&str; 6] = ["unknown", "debug", "info", "warning", "error", "fatal"];
+    log.records
+        .iter()
+        .filter_map(|r| match r {
+            Record::Event(e) => Some(LogEvent {
+                t_s: seconds(e.t_us),
+                level: LEVELS.get(usize::from(e.level)).copied().unwrap_or("unknown"),
+                text: String::from_utf8_lossy(&e.text).into_owned(),
+            }),
+            _ => None,
+        })
+        .collect()
+}
+
 /// A gap longer than this between records of one kind is reported, s.
 pub const GAP_S: f64 = 1.0;
 

@@ -20,10 +20,11 @@ use std::time::{Duration, Instant};
 use dash2sim_can::source::FrameSource;
 use dash2sim_core::can::CanFrame;
 use dash2sim_core::pipeline::profile::{work_zone_meta, work_zone_trackers};
-use dash2sim_core::pipeline::{Pipeline, PipelineStats, Trackers};
+use dash2sim_core::pipeline::replay::{feed, Input, Reader, Recorder};
+use dash2sim_core::pipeline::{GnssSignals, Pipeline, PipelineStats, Trackers};
 use dash2sim_core::time::Timestamp;
 
-use super::Setup;
+use super::{FixFinder, Setup};
 use crate::record::bridge::{device_now, CameraInput, CameraSubscriber};
 use crate::{Error, Result};
 
@@ -112,6 +113,20 @@ pub struct LiveStatus {
     pub stats: PipelineStats,
 }
 
+/// Where a live recording's ENU origin comes from.
+#[derive(Clone, Debug)]
+pub enum Origin {
+    /// The setup's (`--origin`, or the map's).
+    Given,
+    /// The first fix of the serial NMEA, or of the CAN through these signals: until it
+    /// arrives the inputs are kept in memory (bounded), then logged with it.
+    FirstFix(Option<Box<GnssSignals>>),
+}
+
+/// Inputs kept while waiting for the first fix, at most (beyond, they are dropped and
+/// counted): about an hour of a dashcam's VO and detections.
+pub const WAITING_BYTES: usize = 256 << 20;
+
 enum BusInput {
     Serial(Vec<u8>),
     Can(CanFrame),
@@ -182,7 +197,7 @@ fn can_reader(
 ) -> Result<Option<std::thread::JoinHandle<()>>> {
     if let Some(interface) = &request.can_interface {
         let mut source = dash2sim_can::source::SocketCanSource::open(interface).map_err(|e| {
-            Error::invalid(format!("CAN interface {interface}: {e} (no such interface, or a kernel without SocketCAN)"))
+            Error::invalid(format!("CAN interface {interface}: {e} (no such interface, or a kernel without SocketCAN; --can-replay FILE replays a candump capture instead)"))
         })?;
         return Ok(Some(std::thread::spawn(move || {
             while let Some(Ok(record)) = source.next_frame() {
@@ -224,10 +239,10 @@ fn new_file(dir: &Path, started: u128, index: u32) -> Result<FileSink> {
 
 /// Run until `stop` is set (a signal) or the duration is over; then close the log cleanly.
 /// The log goes to rotating files in `request.dir`.
-pub fn run(request: &LiveRequest, setup: &Setup, stop: &AtomicBool) -> Result<LiveReport> {
+pub fn run(request: &LiveRequest, setup: &Setup, origin: &Origin, stop: &AtomicBool) -> Result<LiveReport> {
     std::fs::create_dir_all(&request.dir).map_err(|e| Error::file(&request.dir, e))?;
     let started = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_millis());
-    run_into(request, setup, stop, |index| new_file(&request.dir, started, index))
+    run_into(request, setup, origin, stop, |index| new_file(&request.dir, started, index))
 }
 
 /// [`run`] into the sinks `open` gives: the first file is `open(0)`, each rotation opens
@@ -235,6 +250,7 @@ pub fn run(request: &LiveRequest, setup: &Setup, stop: &AtomicBool) -> Result<Li
 pub fn run_into<S: embedded_io::Write>(
     request: &LiveRequest,
     setup: &Setup,
+    origin: &Origin,
     stop: &AtomicBool,
     mut open: impl FnMut(u32) -> Result<S>,
 ) -> Result<LiveReport> {
@@ -248,14 +264,33 @@ pub fn run_into<S: embedded_io::Write>(
     readers.extend(can_reader(request, queue.clone(), dropped.clone())?);
     drop(queue);
 
+    let begun = Instant::now();
+    let mut frames = 0u64;
+    let (setup, waited) = match origin {
+        Origin::Given => (setup.clone(), None),
+        Origin::FirstFix(gnss) => {
+            let waiting = Waiting { request, camera: camera.as_ref(), inputs: &inputs, dropped: &dropped, stop, begun };
+            let (fix, kept, seen) = waiting.for_fix(gnss.as_deref())?;
+            frames = seen;
+            (Setup { origin: fix, ..setup.clone() }, Some(kept))
+        }
+    };
     let meta = work_zone_meta();
     let config = setup.config(&meta)?;
     let mut trackers: Box<Trackers<'_, 64, 32>> = Box::new(work_zone_trackers());
     let mut index = 0;
     let mut pipeline: Box<Pipeline<'_, S>> = Box::new(Pipeline::new(open(index)?, config, &mut trackers));
-    let (begun, mut file_started, mut last_status) = (Instant::now(), Instant::now(), Instant::now());
-    let (mut frames, mut dropped_noted) = (0u64, 0u64);
+    let (mut file_started, mut last_status) = (Instant::now(), Instant::now());
+    let mut dropped_noted = 0u64;
     let log_error = |e: dash2sim_core::binlog::WriteError<S::Error>| Error::other(format!("log: {e}"));
+    // What came before the first fix, in its order, with its own times.
+    if let Some(waited) = &waited {
+        let mut reader =
+            Reader::new(waited).map_err(|e| Error::other(format!("inputs kept for the first fix: {e:?}")))?;
+        while let Some(Ok((t, input))) = reader.next_input() {
+            feed(&mut pipeline, t, &input).map_err(log_error)?;
+        }
+    }
     loop {
         let mut busy = false;
         if let Some(camera) = &camera {
@@ -318,6 +353,93 @@ pub fn run_into<S: embedded_io::Write>(
     let (_, stats, _) = pipeline.finish().map_err(log_error)?;
     drop(inputs);
     Ok(LiveReport { stats, frames, dropped: dropped.load(Ordering::Relaxed), files: index + 1, issues })
+}
+
+/// The inputs of a live recording while it waits for its first fix.
+struct Waiting<'a> {
+    request: &'a LiveRequest,
+    camera: Option<&'a CameraSubscriber>,
+    inputs: &'a Receiver<(Timestamp, BusInput)>,
+    dropped: &'a AtomicU64,
+    stop: &'a AtomicBool,
+    begun: Instant,
+}
+
+impl Waiting<'_> {
+    /// Keep every input (as an input stream) until one completes a fix: the fix, the stream
+    /// and the camera frames seen. An error when the recording is stopped first.
+    fn for_fix(&self, gnss: Option<&GnssSignals>) -> Result<(dash2sim_core::geo::Geodetic, Vec<u8>, u64)> {
+        let recorder = Recorder::new(Vec::new()).map_err(|e| match e {})?;
+        let mut kept = Kept { recorder, dropped: self.dropped };
+        let mut finder = FixFinder::new(gnss);
+        let (mut frames, mut last_status) = (0u64, Instant::now());
+        loop {
+            let mut busy = false;
+            if let Some(camera) = self.camera {
+                camera
+                    .receive(|input| {
+                        busy = true;
+                        match input {
+                            CameraInput::Frame { .. } => frames += 1,
+                            CameraInput::Vo(t, frame, session, pose) => kept.keep(|k| k.vo(t, frame, session, &pose)),
+                            CameraInput::Detections3d(t, frame, d) => kept.keep(|k| k.detections3d(t, frame, &d)),
+                            CameraInput::Detections2d(t, frame, d) => kept.keep(|k| k.detections2d(t, frame, &d)),
+                        }
+                    })
+                    .map_err(Error::other)?;
+            }
+            while let Ok((t, input)) = self.inputs.try_recv() {
+                busy = true;
+                let fix = match &input {
+                    BusInput::Serial(bytes) => {
+                        kept.keep(|k| k.serial(t, bytes));
+                        finder.push(&Input::Serial(bytes))
+                    }
+                    BusInput::Can(frame) => {
+                        kept.keep(|k| k.can(t, frame));
+                        finder.push(&Input::Can(*frame))
+                    }
+                };
+                if let Some(fix) = fix {
+                    let stream = kept.recorder.finish().map_err(|e| match e {})?;
+                    return Ok((fix, stream, frames));
+                }
+            }
+            if let Some(status) = self.request.status.filter(|_| last_status.elapsed() >= Duration::from_millis(500)) {
+                let dropped = self.dropped.load(Ordering::Relaxed);
+                status(&LiveStatus { frames, dropped, anchored: false, stats: PipelineStats::default() });
+                last_status = Instant::now();
+            }
+            let over = self.request.duration.is_some_and(|d| self.begun.elapsed() >= d);
+            if self.stop.load(Ordering::Relaxed) || over {
+                return Err(Error::invalid(format!(
+                    "no GNSS fix arrived in {:.0} s, so the log has no ENU origin and nothing was written; give \
+                     --origin LAT,LON[,H] or a --map to record without a fix",
+                    self.begun.elapsed().as_secs_f64()
+                )));
+            }
+            if !busy {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        }
+    }
+}
+
+/// The inputs kept while waiting for the first fix, at most [`WAITING_BYTES`] of them.
+struct Kept<'a> {
+    recorder: Recorder<Vec<u8>>,
+    dropped: &'a AtomicU64,
+}
+
+impl Kept<'_> {
+    /// Keep an input, or count it as dropped when the buffer is full.
+    fn keep(&mut self, write: impl FnOnce(&mut Recorder<Vec<u8>>) -> Result<(), core::convert::Infallible>) {
+        if self.recorder.get_ref().len() < WAITING_BYTES {
+            let Ok(()) = write(&mut self.recorder);
+        } else {
+            self.dropped.fetch_add(1, Ordering::Relaxed);
+        }
+    }
 }
 
 /// Stop on SIGINT and SIGTERM: the flag the loop checks.

@@ -24,6 +24,7 @@ use dash2sim_core::pipeline::{
     PipelineStats, SpeedSource, Trackers,
 };
 
+use crate::ingest::origin::parse_origin;
 use crate::{Error, Result};
 use dash2sim_core::pipeline::profile::{self, work_zone_meta, work_zone_pipeline, work_zone_trackers};
 
@@ -213,12 +214,6 @@ impl VoFrame {
     }
 }
 
-/// Parse `LAT,LON[,H]`.
-pub fn parse_origin(text: &str) -> Result<Geodetic> {
-    let [lat, lon, h] = crate::log::import::parse_origin(text)?;
-    Geodetic::new(lat, lon, h).map_err(|e| Error::refused(format!("--origin {text:?}"), e))
-}
-
 /// Parse `--mount`: `FORWARD,LEFT,UP[,ROLL,PITCH,YAW]`.
 pub fn parse_mount(text: &str) -> Result<CameraMount> {
     let v: Vec<f64> =
@@ -236,25 +231,83 @@ pub fn parse_mount(text: &str) -> Result<CameraMount> {
 /// none is given.
 fn first_fix(stream: &[u8], gnss: Option<&GnssSignals>) -> Option<Geodetic> {
     let mut reader = Reader::new(stream).ok()?;
-    let mut nmea: dash2sim_core::nmea::Stream = dash2sim_core::nmea::Stream::new();
+    let mut finder = FixFinder::new(gnss);
     while let Some(Ok((_, input))) = reader.next_input() {
-        let found = match input {
-            Input::Serial(bytes) => {
-                nmea.feed(bytes, |_| {});
-                let f = nmea.decoder.current();
-                f.has_position().then(|| Geodetic::new(f.lat?, f.lon?, f.alt_hae().or(f.alt_msl).unwrap_or(0.0)).ok())
-            }
-            Input::Can(frame) => match gnss.and_then(|g| g.read(&frame)) {
-                Some(GnssFrame::Position { lat, lon, valid: true, .. }) => Some(Geodetic::new(lat, lon, 0.0).ok()),
-                _ => None,
-            },
-            _ => None,
-        };
-        if let Some(Some(origin)) = found {
+        if let Some(origin) = finder.push(&input) {
             return Some(origin);
         }
     }
     None
+}
+
+/// The first GNSS fix of inputs as they come — NMEA on serial, or CAN through the
+/// `--gnss-signals` — for the ENU origin of a recording given none (from files, or live).
+struct FixFinder<'a> {
+    nmea: dash2sim_core::nmea::Stream,
+    gnss: Option<&'a GnssSignals>,
+}
+
+impl<'a> FixFinder<'a> {
+    fn new(gnss: Option<&'a GnssSignals>) -> Self {
+        Self { nmea: dash2sim_core::nmea::Stream::new(), gnss }
+    }
+
+    /// The fix `input` completes, if it is the first.
+    fn push(&mut self, input: &Input<'_>) -> Option<Geodetic> {
+        match input {
+            // Line by line: a chunk of a serial port holds several epochs, and the first
+            // position is the one wanted.
+            Input::Serial(bytes) => bytes.split_inclusive(|&b| b == b'\n').find_map(|line| {
+                self.nmea.feed(line, |_| {});
+                let f = self.nmea.decoder.current();
+                f.has_position()
+                    .then(|| Geodetic::new(f.lat?, f.lon?, f.alt_hae().or(f.alt_msl).unwrap_or(0.0)).ok())?
+            }),
+            Input::Can(frame) => match self.gnss.and_then(|g| g.read(frame)) {
+                Some(GnssFrame::Position { lat, lon, valid: true, .. }) => Geodetic::new(lat, lon, 0.0).ok(),
+                _ => None,
+            },
+            _ => None,
+        }
+    }
+}
+
+/// The frames `--gnss-signals` reads, named by the option.
+fn gnss_frames(g: &GnssSignals) -> Vec<(&'static str, FrameId)> {
+    let mut frames = vec![("--gnss-signals (lat, lon)", g.position)];
+    frames.extend(g.time.map(|(frame, _)| ("--gnss-signals (time)", frame)));
+    frames
+}
+
+/// For each wanted frame the stream's CAN never carries, what was there instead: a DBC
+/// written for a module at another base id reads nothing, and says so here.
+fn absent_frames(stream: &[u8], wanted: &[(&str, FrameId)]) -> Vec<String> {
+    let Ok(mut reader) = Reader::new(stream) else { return Vec::new() };
+    let mut seen = std::collections::BTreeSet::new();
+    let mut frames = 0u64;
+    while let Some(Ok((_, input))) = reader.next_input() {
+        if let Input::Can(frame) = input {
+            let id = embedded_can::Frame::id(&frame);
+            seen.insert((matches!(id, embedded_can::Id::Extended(_)), dash2sim_core::can::frame::raw_id(id)));
+            frames += 1;
+        }
+    }
+    let (Some(first), Some(last)) = (seen.first(), seen.last()) else { return Vec::new() };
+    let hex = |(extended, id): (bool, u32)| if extended { format!("0x{id:08X}") } else { format!("0x{id:03X}") };
+    wanted
+        .iter()
+        .filter(|(_, f)| !seen.contains(&(f.extended, f.id)))
+        .map(|(option, f)| {
+            format!(
+                "{option}: no frame with id {} in {frames} CAN frames; ids seen: {}–{} ({} ids). A module at \
+                 another base id? --dbc FILE@+OFFSET moves the DBC's ids",
+                hex((f.extended, f.id)),
+                hex(*first),
+                hex(*last),
+                seen.len()
+            )
+        })
+        .collect()
 }
 
 /// What a run of the pipeline over an input stream produced.
@@ -449,7 +502,8 @@ pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts)> 
     }
     if inputs.is_empty() {
         return Err(Error::invalid(
-            "nothing to record: give --vo, --nmea, --can or --detections (with inputs in them)",
+            "nothing to record: give files (--vo, --nmea, --can, --detections, or --replay of a saved input stream) \
+             or live sources (--camera, --serial, --can-iface, --can-replay), with inputs in them",
         ));
     }
     Ok((inputs.stream()?, inputs.counts))
@@ -503,11 +557,18 @@ pub fn record_files(args: &RecordRequest) -> Result<(Recording, sources::SourceC
     }
     let setup = setup_from_args(args, &mut counts.problems, |gnss| {
         first_fix(&stream, gnss).ok_or_else(|| {
-            Error::invalid(
-                "no ENU origin: give --origin LAT,LON[,H], a --map, or GNSS with a fix (--nmea, or --can with --gnss-signals)",
-            )
+            let hints = gnss.map(|g| absent_frames(&stream, &gnss_frames(g))).unwrap_or_default();
+            Error::invalid(format!(
+                "no ENU origin: give --origin LAT,LON[,H], a --map, or GNSS with a fix (--nmea, or --can with --gnss-signals){}",
+                hints.iter().map(|h| format!("; {h}")).collect::<String>()
+            ))
         })
     })?;
+    let mut wanted = setup.gnss_signals.as_ref().map(gnss_frames).unwrap_or_default();
+    if let Some(SpeedSource::Signal { frame, .. }) = setup.speed {
+        wanted.push(("--speed-signal", frame));
+    }
+    counts.problems.extend(absent_frames(&stream, &wanted));
     Ok((run_stream(&stream, &setup)?, counts))
 }
 
@@ -555,7 +616,10 @@ fn device_id(text: &str) -> Result<[u8; 16]> {
 }
 
 /// The live logger: records until the request's duration is over or SIGINT / SIGTERM.
-/// `warn` hears the DBC files' warnings before the recording starts.
+/// `warn` hears the DBC files' warnings before the recording starts. Without `--origin` or
+/// a `--map` the recording starts anyway and takes its ENU origin from the first GNSS fix,
+/// as a recording from files does (the inputs before it are kept and logged once it is
+/// known).
 #[cfg(feature = "bridge")]
 pub fn record_live(
     args: &RecordRequest,
@@ -563,13 +627,22 @@ pub fn record_live(
     warn: &mut dyn FnMut(&str),
 ) -> Result<live::LiveReport> {
     let mut warnings = Vec::new();
-    let setup = setup_from_args(args, &mut warnings, |_| {
-        Err(Error::invalid("a live recording needs its ENU origin: give --origin LAT,LON[,H] or a --map"))
+    let mut origin = live::Origin::Given;
+    let setup = setup_from_args(args, &mut warnings, |gnss| {
+        if request.serial.is_none() && gnss.is_none() {
+            return Err(Error::invalid(
+                "a live recording needs its ENU origin: give --origin LAT,LON[,H], a --map, or a GNSS source to take \
+                 it from the first fix (--serial with NMEA, or --can-iface / --can-replay with --gnss-signals)",
+            ));
+        }
+        origin = live::Origin::FirstFix(gnss.cloned().map(Box::new));
+        // Replaced by the first fix before the pipeline is built (`live::run`).
+        Geodetic::new(0.0, 0.0, 0.0).map_err(|e| Error::refused("origin", e))
     });
     warnings.iter().for_each(|w| warn(w));
     let setup = setup?;
     let stop = live::stop_on_signals()?;
-    live::run(request, &setup, &stop)
+    live::run(request, &setup, &origin, &stop)
 }
 
 fn display(p: &Option<PathBuf>) -> String {

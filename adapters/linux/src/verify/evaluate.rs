@@ -63,6 +63,11 @@ pub enum EvalError {
         reference: usize,
         /// Poses in the estimate.
         estimate: usize,
+        /// The first and last stamp of each file as read, s (none for KITTI files or an
+        /// empty file): what makes a wrong time base visible.
+        spans: Option<Spans>,
+        /// The offset that was added to the estimate's stamps, s.
+        t_offset: f64,
     },
     /// The alignment failed.
     Align(AlignError),
@@ -74,10 +79,16 @@ impl std::fmt::Display for EvalError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             EvalError::File(e) => write!(f, "{e}"),
-            EvalError::TooFewMatches { matched, reference, estimate } => write!(
-                f,
-                "only {matched} poses matched (reference {reference}, estimate {estimate}); at least {MIN_MATCHED_POSES} are needed"
-            ),
+            EvalError::TooFewMatches { matched, reference, estimate, spans, t_offset } => {
+                write!(
+                    f,
+                    "only {matched} poses matched (reference {reference}, estimate {estimate}); at least {MIN_MATCHED_POSES} are needed"
+                )?;
+                if let Some(spans) = spans {
+                    spans.explain(f, *t_offset)?;
+                }
+                Ok(())
+            }
             EvalError::Align(e) => write!(f, "alignment failed: {e}"),
             EvalError::Metric(e) => write!(f, "{e}"),
         }
@@ -89,6 +100,62 @@ impl std::error::Error for EvalError {}
 impl From<TrajectoryError> for EvalError {
     fn from(e: TrajectoryError) -> Self {
         EvalError::File(e)
+    }
+}
+
+/// The first and last stamps of the two files, s.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spans {
+    /// The reference's.
+    pub reference: (f64, f64),
+    /// The estimate's, as read (before any offset).
+    pub estimate: (f64, f64),
+}
+
+impl Spans {
+    fn of(reference: &Trajectory, estimate: &Trajectory) -> Option<Self> {
+        let span = |t: &Trajectory| Some((*t.stamps.first()?, *t.stamps.last()?));
+        Some(Self { reference: span(reference)?, estimate: span(estimate)? })
+    }
+
+    /// The spans, and when they do not overlap the offset that would line up the first poses
+    /// (the usual cause: one file counts from the drive's start, the other is in UTC).
+    fn explain(&self, f: &mut std::fmt::Formatter<'_>, t_offset: f64) -> std::fmt::Result {
+        let ((r0, r1), (e0, e1)) = (self.reference, self.estimate);
+        write!(f, ". The reference spans {r0:.3}–{r1:.3} s, the estimate {e0:.3}–{e1:.3} s")?;
+        if t_offset != 0.0 {
+            write!(f, " (then {:.3}–{:.3} s with --t-offset {t_offset})", e0 + t_offset, e1 + t_offset)?;
+        }
+        if e1 + t_offset < r0 || e0 + t_offset > r1 {
+            write!(f, ": they do not overlap. If the files count time from different starts, ")?;
+            if e1 - e0 <= r1 - r0 {
+                write!(
+                    f,
+                    "any --t-offset from {:.3} to {:.3} (added to the estimate's times) puts the estimate inside the reference's span",
+                    r0 - e0,
+                    r1 - e1
+                )?;
+            } else {
+                write!(f, "--t-offset {:.3} (added to the estimate's times) lines up their first poses", r0 - e0)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// How poses are paired by time (evo's `--t_max_diff` and `--t_offset`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Association {
+    /// Largest stamp difference of a pair, s.
+    pub max_diff: f64,
+    /// Added to the estimate's stamps before pairing, s.
+    pub t_offset: f64,
+}
+
+impl Association {
+    /// Pairs within `max_diff`, no offset.
+    pub fn within(max_diff: f64) -> Self {
+        Self { max_diff, t_offset: 0.0 }
     }
 }
 
@@ -105,27 +172,32 @@ pub struct Evaluation {
     pub matched: usize,
 }
 
-/// Reference and estimate, read and associated. KITTI files pair by index.
+/// Reference and estimate, read and associated (the estimate's stamps shifted by the
+/// association's offset first, as evo does). KITTI files pair by index.
 pub fn load_pair(
     reference: &Path,
     estimate: &Path,
     format: Format,
-    max_diff: f64,
+    association: Association,
 ) -> Result<(Trajectory, Trajectory), EvalError> {
     let traj_ref = Trajectory::read(reference, format)?;
     let est_format = if format == Format::Euroc { Format::Tum } else { format };
-    let traj_est = Trajectory::read(estimate, est_format)?;
+    let mut traj_est = Trajectory::read(estimate, est_format)?;
     let (n_ref, n_est) = (traj_ref.len(), traj_est.len());
+    let spans = Spans::of(&traj_ref, &traj_est);
+    let t_offset = association.t_offset;
+    let too_few = |matched| EvalError::TooFewMatches { matched, reference: n_ref, estimate: n_est, spans, t_offset };
     let (r, e) = if format == Format::Kitti {
         if traj_ref.len() != traj_est.len() {
-            return Err(EvalError::TooFewMatches { matched: 0, reference: traj_ref.len(), estimate: traj_est.len() });
+            return Err(too_few(0));
         }
         (traj_ref, traj_est)
     } else {
-        sync::associate(&traj_ref, &traj_est, max_diff)
+        traj_est.stamps.iter_mut().for_each(|t| *t += t_offset);
+        sync::associate(&traj_ref, &traj_est, association.max_diff)
     };
     if r.len() < MIN_MATCHED_POSES {
-        return Err(EvalError::TooFewMatches { matched: r.len(), reference: n_ref, estimate: n_est });
+        return Err(too_few(r.len()));
     }
     Ok((r, e))
 }

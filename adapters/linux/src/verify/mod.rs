@@ -109,7 +109,10 @@ pub fn from_contents(
         })
         .collect();
     if poses.is_empty() {
-        return Err(Error::invalid(format!("{name}: no ego poses to verify")));
+        return Err(Error::invalid(format!(
+            "{name}: no ego poses to verify (a log of GNSS and speed only has none: record it with VO, --vo or \
+             --camera, finish it, or verify a trajectory with --ego FILE)"
+        )));
     }
     let mut agents: BTreeMap<i64, Vec<Agent>> = BTreeMap::new();
     for (t_us, t) in tracks(log) {

@@ -35,9 +35,10 @@ pub fn check_file(map: &Path, poses: &Path, passes: u32) -> Result<Checked> {
     }
     let bytes = std::fs::read(map).map_err(|e| Error::file(map, e))?;
     let view = MapView::parse(&bytes).map_err(|e| Error::file(map, e))?;
-    let poses = crate::ingest::ego::read_ego(poses)?;
+    let path = poses;
+    let poses = crate::ingest::ego::read_ego(path)?;
     if poses.is_empty() {
-        return Err(Error::invalid("no poses to check"));
+        return Err(Error::file(path, "no poses to check (TUM: t x y z qx qy qz qw per line)"));
     }
     // A map of polygons (Lanelet2) is checked through its fine index, built first (not timed).
     let index = super::polygon_index::build(&view);

@@ -18,6 +18,7 @@ use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::map::{body_checksum, Header, CRC_AT, HEADER_LEN, NONE, POLYGON_BIT, VERSION_MAJOR};
 
 use crate::geometry::offset_polyline;
+use crate::ingest::origin::parse_origin;
 use crate::ingest::osm::highway::{interpret, RoadSpec};
 use crate::ingest::osm::OsmData;
 use crate::{Error, Result};
@@ -359,15 +360,6 @@ fn item_box(points: impl Iterator<Item = (f64, f64)>, margin: f64) -> [f32; 4] {
     [down(lo.0), down(lo.1), up(hi.0), up(hi.1)]
 }
 
-fn parse_origin(text: &str) -> Result<Geodetic> {
-    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
-    let [lat, lon] = parts[..] else { return Err(Error::invalid(format!("--origin {text:?}: expected LAT,LON"))) };
-    let (Ok(lat), Ok(lon)) = (lat.parse::<f64>(), lon.parse::<f64>()) else {
-        return Err(Error::invalid(format!("--origin {text:?}: LAT and LON must be numbers")));
-    };
-    Geodetic::new(lat, lon, 0.0).map_err(|e| Error::refused(format!("--origin {text:?}"), e))
-}
-
 fn parse_bbox(text: &str) -> Result<[f64; 4]> {
     let values: Vec<f64> = text
         .split(',')
@@ -399,7 +391,7 @@ pub struct Built {
     pub warnings: Vec<String>,
 }
 
-/// `dash2sim map build`: a tile from an OSM file (`origin` `LAT,LON`, `bbox`
+/// `dash2sim map build`: a tile from an OSM file (`origin` `LAT,LON[,H]`, `bbox`
 /// `WEST,SOUTH,EAST,NORTH` as the command line takes them), written to `output`.
 pub fn build_file(
     osm: &std::path::Path,
@@ -423,7 +415,11 @@ pub fn build_file(
     let mut content = from_osm(&data, origin, &mut warnings);
     content.source_counts = source_counts;
     if content.lanes.is_empty() {
-        return Err(Error::file(osm, "no drivable highway ways or Lanelet2 lanelets"));
+        return Err(Error::file(
+            osm,
+            "no drivable highway ways or Lanelet2 lanelets (an OpenStreetMap extract with highway=* roads, or a \
+             Lanelet2 map; with --bbox, one that covers them)",
+        ));
     }
     let bytes = encode(&content, cell);
     std::fs::write(output, &bytes).map_err(|e| Error::file(output, e))?;
@@ -515,6 +511,12 @@ pub struct TileInfo {
 impl Serialize for TileInfo {
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
         #[derive(Serialize)]
+        struct Origin {
+            lat: f64,
+            lon: f64,
+            height_m: f64,
+        }
+        #[derive(Serialize)]
         struct Osm {
             nodes: u32,
             ways: u32,
@@ -530,7 +532,7 @@ impl Serialize for TileInfo {
         }
         #[derive(Serialize)]
         struct Info {
-            origin: LatLon,
+            origin: Origin,
             osm: Osm,
             lanes: u32,
             lane_km: f64,
@@ -543,7 +545,7 @@ impl Serialize for TileInfo {
         let h = &self.header;
         let [nodes, ways, highway_ways, relations] = h.source_counts;
         Info {
-            origin: LatLon { lat: h.origin[0], lon: h.origin[1] },
+            origin: Origin { lat: h.origin[0], lon: h.origin[1], height_m: h.origin[2] },
             osm: Osm { nodes, ways, highway_ways, relations },
             lanes: h.lanes,
             lane_km: self.lane_km,

@@ -28,7 +28,6 @@ pub const START_UNIX_S: f64 = 1_780_300_800.0;
 /// How `dash2sim import` reads a scenario written to `dir` into a 4D log at `output`:
 /// GNSS from the NMEA capture (moved onto the scenario clock), ego truth, objects.
 pub fn import_request(scenario: &Scenario, dir: &Path, output: PathBuf) -> crate::log::import::ImportRequest {
-    let [lat, lon, height] = scenario.config.origin;
     crate::log::import::ImportRequest {
         output,
         nmea: Some(dir.join("gnss.nmea")),
@@ -36,7 +35,7 @@ pub fn import_request(scenario: &Scenario, dir: &Path, output: PathBuf) -> crate
         speed_unit: 1.0,
         traj: Some(dir.join("ego.tum")),
         objects: Some(dir.join("objects.csv")),
-        origin: Some(format!("{lat},{lon},{height}")),
+        origin: Some(origin_option(scenario.config.origin)),
         ..Default::default()
     }
 }
@@ -304,6 +303,11 @@ fn road_osm(scenario: &Scenario, frame: &LocalFrame) -> io::Result<String> {
     Ok(xml)
 }
 
+/// The ENU origin as `--origin` takes it (`map build`, `record`, `import`): `LAT,LON,H`.
+pub fn origin_option([lat, lon, height]: [f64; 3]) -> String {
+    format!("{lat},{lon},{height}")
+}
+
 fn summary(scenario: &Scenario, files: &[PathBuf]) -> serde_json::Value {
     let c = &scenario.config;
     let segments: Vec<_> = scenario
@@ -330,8 +334,9 @@ fn summary(scenario: &Scenario, files: &[PathBuf]) -> serde_json::Value {
         "frame_rate_hz": c.frame_rate_hz,
         "gnss_rate_hz": c.gnss_rate_hz,
         "speed_rate_hz": c.speed_rate_hz,
-        "origin": {"lat": c.origin[0], "lon": c.origin[1], "height_m": c.origin[2]},
+        "origin": {"lat": c.origin[0], "lon": c.origin[1], "height_m": c.origin[2], "as_option": origin_option(c.origin)},
         "start_utc": "2026-06-01T08:00:00Z",
+        "start_unix_s": START_UNIX_S,
         "classes": Class::ALL.iter().map(|k| k.name()).collect::<Vec<_>>(),
         "profile": c.profile.name(),
         "receiver": c.receiver.name(),
