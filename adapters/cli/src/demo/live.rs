@@ -80,7 +80,7 @@ pub fn record(drive: Drive, dir: &Path, log_path: &Path, setup: &Setup, bar: &Pr
         });
         // The logger subscribes before the camera publishes its first frame.
         std::thread::sleep(Duration::from_millis(300));
-        let camera = publish(drive, &prefix, &gnss, &can, bar, started);
+        let camera = publish(drive, &prefix, &gnss, &can, bar, started, &|| logger.is_finished());
         if camera.is_err() {
             // A camera process that never opened the FIFOs leaves the logger waiting in
             // open(): open them here so that it can see their end.
@@ -97,14 +97,26 @@ pub fn record(drive: Drive, dir: &Path, log_path: &Path, setup: &Setup, bar: &Pr
     for path in [&gnss, &can] {
         let _ = std::fs::remove_file(path);
     }
+    // The logger's error first: a camera process stopped because the logger had failed
+    // is the consequence, not the cause.
     let (camera, report) = result?;
-    let published = camera?;
     let report = report?;
+    let published = camera?;
     Ok(LiveRecording { report, published, seconds: started.elapsed().as_secs_f64() })
 }
 
-/// Run the camera process until it ends; the frames it published.
-fn publish(drive: Drive, prefix: &str, gnss: &Path, can: &Path, bar: &ProgressBar, started: Instant) -> Result<u64> {
+/// Run the camera process until it ends, or until the logger has (a logger that failed
+/// reads nothing, and the camera process would wait for a reader of its FIFOs forever);
+/// the frames it published.
+fn publish(
+    drive: Drive,
+    prefix: &str,
+    gnss: &Path,
+    can: &Path,
+    bar: &ProgressBar,
+    started: Instant,
+    logger_ended: &dyn Fn() -> bool,
+) -> Result<u64> {
     let exe = std::env::current_exe().map_err(|e| Error::refused("the dash2sim executable", e))?;
     let mut child = Command::new(exe)
         .args(["scenario", "publish", "--seed", &drive.seed.to_string(), "--seconds", &drive.seconds.to_string()])
@@ -122,6 +134,11 @@ fn publish(drive: Drive, prefix: &str, gnss: &Path, can: &Path, bar: &ProgressBa
         bar.set_position(started.elapsed().as_secs().min(drive.seconds as u64));
         match child.try_wait() {
             Ok(Some(_)) => break,
+            Ok(None) if logger_ended() => {
+                let _ = child.kill();
+                let _ = child.wait();
+                return Err(Error::invalid("the camera process was stopped: the logger had ended"));
+            }
             Ok(None) => std::thread::sleep(Duration::from_millis(100)),
             Err(e) => return Err(Error::invalid(format!("the camera process: {e}"))),
         }
