@@ -118,9 +118,9 @@ pub struct LiveStatus {
 pub enum Origin {
     /// The setup's (`--origin`, or the map's).
     Given,
-    /// The first fix of the serial NMEA, or of the CAN through these signals: until it
-    /// arrives the inputs are kept in memory (bounded), then logged with it.
-    FirstFix(Option<Box<GnssSignals>>),
+    /// The first fix of the serial NMEA, or of the CAN through the setup's GNSS signals:
+    /// until it arrives the inputs are kept in memory (bounded), then logged with it.
+    FirstFix,
 }
 
 /// Inputs kept while waiting for the first fix, at most (beyond, they are dropped and
@@ -268,9 +268,9 @@ pub fn run_into<S: embedded_io::Write>(
     let mut frames = 0u64;
     let (setup, waited) = match origin {
         Origin::Given => (setup.clone(), None),
-        Origin::FirstFix(gnss) => {
+        Origin::FirstFix => {
             let waiting = Waiting { request, camera: camera.as_ref(), inputs: &inputs, dropped: &dropped, stop, begun };
-            let (fix, kept, seen) = waiting.for_fix(gnss.as_deref())?;
+            let (fix, kept, seen) = waiting.for_fix(setup.gnss_signals.as_ref())?;
             frames = seen;
             (Setup { origin: fix, ..setup.clone() }, Some(kept))
         }

@@ -635,7 +635,7 @@ pub fn record_live(
                  it from the first fix (--serial with NMEA, or --can-iface / --can-replay with --gnss-signals)",
             ));
         }
-        origin = live::Origin::FirstFix(gnss.cloned().map(Box::new));
+        origin = live::Origin::FirstFix;
         // Replaced by the first fix before the pipeline is built (`live::run`).
         Geodetic::new(0.0, 0.0, 0.0).map_err(|e| Error::refused("origin", e))
     });
