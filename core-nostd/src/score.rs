@@ -209,6 +209,8 @@ pub struct StepReport {
     pub speed: f64,
     /// Projected time to collision, s, if within the horizon.
     pub ttc: Option<f64>,
+    /// The agent that time is to (the one collided with, at an at-fault collision).
+    pub ttc_agent: Option<u32>,
     /// Progress along the lane direction over the last window, m (negative: against it).
     pub direction_progress: f64,
     /// A new collision, if any (the first of the step).
@@ -465,18 +467,23 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
 
         self.comfort.push(t, pose);
         let collision = self.collide(pose, speed, agents, &check);
-        let ttc = if collision.is_some_and(|c| c.at_fault) {
+        let ttc = match collision {
             // nuPlan: an at-fault collision is a TTC of 0.
-            Some(0.0)
-        } else if self.poses > 1 && speed > self.config.ttc_stopped_speed {
-            self.ttc(pose, speed, agents, &check)
-        } else {
-            None
+            Some(c) if c.at_fault => Some((0.0, c.id)),
+            _ if self.poses > 1 && speed > self.config.ttc_stopped_speed => self.ttc(pose, speed, agents, &check),
+            _ => None,
         };
-        if let Some(ttc) = ttc {
+        if let Some((ttc, _)) = ttc {
             self.min_ttc = self.min_ttc.min(ttc);
         }
-        Ok(StepReport { check, speed, ttc, direction_progress, collision })
+        Ok(StepReport {
+            check,
+            speed,
+            ttc: ttc.map(|(t, _)| t),
+            ttc_agent: ttc.map(|(_, id)| id),
+            direction_progress,
+            collision,
+        })
     }
 
     /// nuPlan's collision classification for each agent's first contact.
@@ -516,14 +523,14 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
     /// As nuPlan: agents ahead (within 30° of the heading, seen from the rear axle) count;
     /// agents beside count too while the ego is between lanes or off the drivable area;
     /// agents behind (beyond 150°) and agents already collided with never do. Each agent
-    /// moves along its heading at its speed.
-    fn ttc(&self, pose: &Pose2, speed: f64, agents: &[Agent], check: &PoseCheck) -> Option<f64> {
+    /// moves along its heading at its speed. The time and the agent it is to.
+    fn ttc(&self, pose: &Pose2, speed: f64, agents: &[Agent], check: &PoseCheck) -> Option<(f64, u32)> {
         let ego = self.checker.footprint().at(pose);
         let (s, c) = libm::sincos(pose.heading);
         let between_lanes = check.occupied.len() != 1 || !check.compliant();
         // The horizon itself is excluded, as numpy's arange(step, horizon, step).
         let steps = libm::ceil(self.config.ttc_horizon / self.config.ttc_step - 1e-9).clamp(1.0, 1000.0) as u32 - 1;
-        let mut best: Option<f64> = None;
+        let mut best: Option<(f64, u32)> = None;
         for agent in agents {
             let (dx, dy) = (agent.bbox.centre.x - pose.x, agent.bbox.centre.y - pose.y);
             let distance = libm::hypot(dx, dy);
@@ -546,13 +553,13 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
             let last = libm::ceil(leave / step).clamp(0.0, f64::from(steps)) as u32;
             for k in first..=last {
                 let tk = f64::from(k) * self.config.ttc_step;
-                if best.is_some_and(|b| tk >= b) {
+                if best.is_some_and(|(b, _)| tk >= b) {
                     break;
                 }
                 let e = ego.translated(speed * c * tk, speed * s * tk);
                 let a = agent.bbox.translated(agent_speed * ca * tk, agent_speed * sa * tk);
                 if e.overlaps(&a) {
-                    best = Some(tk);
+                    best = Some((tk, agent.id));
                     break;
                 }
             }

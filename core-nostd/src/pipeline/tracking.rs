@@ -189,11 +189,14 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                     is_static: i64::from(o.is_static),
                 });
                 let kind = meta.map_or(AgentKind::Object, |m| m.kind);
+                // A track reported static is scored standing still: its filtered velocity
+                // is the ego's anchoring corrections seen against the world, not motion.
+                let velocity = if o.is_static { (0.0, 0.0) } else { (vx, vy) };
                 let _ = self.windows.agents.push(Agent {
                     id: o.id,
                     kind,
                     bbox: OrientedBox { centre: Pose2::new(b.x, b.y, b.yaw), length: b.l, width: b.w },
-                    velocity: (vx, vy),
+                    velocity,
                 });
             }
             self.log.write(&Record::Tracks3d(batch))?;

@@ -168,6 +168,20 @@ fn state_of(b: &Box3d) -> SVector<f64, 7> {
     SVector::<f64, 7>::from_column_slice(&[b.x, b.y, b.z, wrap_angle(b.yaw), b.l, b.w, b.h])
 }
 
+/// `b` turned by π when its heading points against the motion `v`. The filter follows a
+/// detector's π flips (AB3DMOT's correction keeps it from averaging the two headings), so
+/// its yaw is the box's axis, not the way the object goes; what reads a reported heading as
+/// the direction of travel (the score's projection of an agent, a simulator replaying the
+/// log) gets the one the track moves along.
+fn heading_along(b: Box3d, v: [f64; 3]) -> Box3d {
+    let (s, c) = libm::sincos(b.yaw);
+    if c * v[0] + s * v[1] < 0.0 {
+        Box3d { yaw: wrap_angle(b.yaw + PI), ..b }
+    } else {
+        b
+    }
+}
+
 fn box_of(x: &SVector<f64, 10>) -> Box3d {
     Box3d { x: x[0], y: x[1], z: x[2], yaw: x[3], l: x[4], w: x[5], h: x[6] }
 }
@@ -463,14 +477,9 @@ impl<'a, const N: usize> Tracker3d<'a, N> {
             self.tracks.iter().filter(|t| t.since_update == 0 && (t.hits >= min_hits || frames <= u64::from(min_hits)))
         {
             let v = [t.kf.x[7], t.kf.x[8], t.kf.x[9]];
-            emit(Track3dOutput {
-                id: t.id,
-                class: t.class,
-                bbox: box_of(&t.kf.x),
-                velocity: v,
-                is_static: libm::hypot(v[0], v[1]) < static_speed,
-                state: t.kf,
-            });
+            let is_static = libm::hypot(v[0], v[1]) < static_speed;
+            let bbox = if is_static { box_of(&t.kf.x) } else { heading_along(box_of(&t.kf.x), v) };
+            emit(Track3dOutput { id: t.id, class: t.class, bbox, velocity: v, is_static, state: t.kf });
         }
         Ok(())
     }
@@ -532,8 +541,13 @@ mod tests {
             last = frame(&mut tracker, &[car(1.5 * f64::from(k), yaw), cone(20.0, 3.0 + 0.02 * f64::from(k % 2))]);
             if let Some(car_track) = last.iter().find(|o| o.class == 0) {
                 // With the π correction the filter follows the flip instead of averaging
-                // the two headings (which would leave it ~90° off).
-                assert!(wrap_angle(car_track.bbox.yaw - yaw).abs() < 0.1, "frame {k}: {}", car_track.bbox.yaw);
+                // the two headings (which would leave it ~90° off) ...
+                let off = wrap_angle(car_track.bbox.yaw - yaw).abs();
+                assert!(off < 0.1 || (off - PI).abs() < 0.1, "frame {k}: {}", car_track.bbox.yaw);
+                // ... and a moving track reports the heading it moves along, not the flip.
+                if !car_track.is_static {
+                    assert!(car_track.bbox.yaw.abs() < 0.1, "frame {k}: {}", car_track.bbox.yaw);
+                }
             }
         }
         assert_eq!(last.len(), 2);

@@ -125,7 +125,8 @@ pub fn from_contents(
                 length: t.l_mm as f64 * 1e-3,
                 width: t.w_mm as f64 * 1e-3,
             },
-            velocity: (t.vx_mm_s as f64 * 1e-3, t.vy_mm_s as f64 * 1e-3),
+            // A track reported static stands still (as the device scores it).
+            velocity: if t.is_static != 0 { (0.0, 0.0) } else { (t.vx_mm_s as f64 * 1e-3, t.vy_mm_s as f64 * 1e-3) },
         });
     }
     Ok((poses, agents))
@@ -218,14 +219,14 @@ pub fn replay(
 
 fn poses_csv(steps: &[(f64, Pose2, StepReport)]) -> String {
     let mut out = String::from(
-        "t_s,x,y,heading,front_left_m,front_right_m,rear_right_m,rear_left_m,compliant,occupied_lanes,centre_lane,speed_mps,ttc_s,direction_progress_m\n",
+        "t_s,x,y,heading,front_left_m,front_right_m,rear_right_m,rear_left_m,compliant,occupied_lanes,centre_lane,speed_mps,ttc_s,ttc_agent,direction_progress_m\n",
     );
     for (t, p, r) in steps {
         let corner = |c: Option<f64>| c.map_or_else(|| "inf".to_owned(), |d| format!("{d:.4}"));
         let occupied: Vec<String> = r.check.occupied.iter().map(u32::to_string).collect();
         let _ = writeln!(
             out,
-            "{t:.3},{:.3},{:.3},{:.5},{},{},{},{},{},{},{},{:.3},{},{:.3}",
+            "{t:.3},{:.3},{:.3},{:.5},{},{},{},{},{},{},{},{:.3},{},{},{:.3}",
             p.x,
             p.y,
             p.heading,
@@ -238,6 +239,7 @@ fn poses_csv(steps: &[(f64, Pose2, StepReport)]) -> String {
             r.check.centre_lane.map_or_else(String::new, |c| c.lane.to_string()),
             r.speed,
             r.ttc.map_or_else(String::new, |v| format!("{v:.1}")),
+            r.ttc_agent.map_or_else(String::new, |id| id.to_string()),
             r.direction_progress
         );
     }
@@ -278,6 +280,26 @@ impl Metrics {
             speed_limit_compliance: s.speed_limit,
             ego_is_comfortable: s.comfort,
         }
+    }
+
+    /// The metrics a device's window record states.
+    pub fn of_record(v: &dash2sim_core::binlog::Verification) -> Self {
+        let m = |e4: i64| e4 as f64 * 1e-4;
+        Metrics {
+            no_at_fault_collisions: m(v.collisions_e4),
+            drivable_area_compliance: m(v.drivable_e4),
+            driving_direction_compliance: m(v.direction_e4),
+            ego_is_making_progress: m(v.making_progress_e4),
+            ego_progress_along_expert_route: m(v.progress_e4),
+            time_to_collision_within_bound: m(v.ttc_e4),
+            speed_limit_compliance: m(v.speed_limit_e4),
+            ego_is_comfortable: m(v.comfort_e4),
+        }
+    }
+
+    /// The names of the metrics below 1 (failed or reduced), in `named`'s order.
+    pub fn failed(&self) -> Vec<&'static str> {
+        self.named().into_iter().filter(|(_, v)| *v < 1.0).map(|(n, _)| n).collect()
     }
 
     /// Each metric with its name, the names in alphabetical order (the JSON's).

@@ -17,7 +17,7 @@ use crate::record::Setup;
 use crate::sim::scenario::judge::{judge_log, LogJudgement};
 use crate::sim::scenario::street::street_anchors;
 use crate::sim::scenario::Scenario;
-use crate::verify::{AgentsByTime, VerifyReport};
+use crate::verify::{AgentsByTime, Metrics, VerifyReport};
 use crate::{Error, Result};
 
 /// Which street-imagery anchors finishing is given.
@@ -80,7 +80,7 @@ pub struct Judged {
 }
 
 /// One of the device's verification windows and the truth's over the same stretch.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct WindowPair {
     /// Drive time of its first and last pose, s from the first frame.
     pub start_s: f64,
@@ -90,12 +90,16 @@ pub struct WindowPair {
     pub device_score: f64,
     /// See `device_score`.
     pub device_verified: bool,
+    /// The device's metrics below 1 (what its verdict rests on).
+    pub device_failed: Vec<&'static str>,
     /// The true drive's score and verdict over the frames of the same stretch.
     pub truth_score: f64,
     /// See `truth_score`.
     pub truth_verified: bool,
     /// Whether the truth's window has an at-fault collision.
     pub truth_collision: bool,
+    /// The truth's metrics below 1.
+    pub truth_failed: Vec<&'static str>,
 }
 
 /// What a recorded drive came to.
@@ -200,9 +204,11 @@ fn window_pairs(
             end_s: end,
             device_score: v.score_e2 as f64 / 100.0,
             device_verified: v.score_e2 > 9000,
+            device_failed: Metrics::of_record(v).failed(),
             truth_score: s.score,
             truth_verified: s.verified,
             truth_collision: s.no_at_fault_collisions < 1.0,
+            truth_failed: Metrics::of(&s).failed(),
         });
     }
     Ok(pairs)
