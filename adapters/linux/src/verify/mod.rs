@@ -80,7 +80,7 @@ pub fn from_contents(
     name: &str,
     map: &MapView<'_>,
 ) -> Result<(Vec<(f64, Pose2)>, AgentsByTime)> {
-    use crate::log::export::{class_name, ego_enu, ego_poses, tracks};
+    use crate::log::export::{ego_enu, ego_poses, tracks};
     use dash2sim_core::geo::{Geodetic, LocalFrame};
     use dash2sim_core::nalgebra::Vector3;
     let header = log.header.ok_or_else(|| Error::invalid(format!("{name}: the header is damaged (no origin)")))?;
@@ -117,19 +117,25 @@ pub fn from_contents(
     let mut agents: BTreeMap<i64, Vec<Agent>> = BTreeMap::new();
     for (t_us, t) in tracks(log) {
         let (x, y) = to_map(Vector3::new(t.x_mm as f64, t.y_mm as f64, t.z_mm as f64) * 1e-3);
-        agents.entry((t_us as f64 / 1000.0).round() as i64).or_default().push(Agent {
-            id: u32::try_from(t.id).unwrap_or(u32::MAX),
-            kind: agent_kind(class_name(t.class)),
-            bbox: OrientedBox {
-                centre: Pose2::new(x, y, t.yaw_e4 as f64 * 1e-4),
-                length: t.l_mm as f64 * 1e-3,
-                width: t.w_mm as f64 * 1e-3,
-            },
-            // A track reported static stands still (as the device scores it).
-            velocity: if t.is_static != 0 { (0.0, 0.0) } else { (t.vx_mm_s as f64 * 1e-3, t.vy_mm_s as f64 * 1e-3) },
-        });
+        agents.entry((t_us as f64 / 1000.0).round() as i64).or_default().push(agent_of(t, (x, y)));
     }
     Ok((poses, agents))
+}
+
+/// The agent a logged track state is, its centre at `at` in the map's frame. A track the
+/// log reports static stands still, as the device scores it: its filtered velocity is the
+/// anchoring's corrections seen against the world, not motion.
+fn agent_of(t: &dash2sim_core::binlog::Track3d, at: (f64, f64)) -> Agent {
+    Agent {
+        id: u32::try_from(t.id).unwrap_or(u32::MAX),
+        kind: agent_kind(crate::log::export::class_name(t.class)),
+        bbox: OrientedBox {
+            centre: Pose2::new(at.0, at.1, t.yaw_e4 as f64 * 1e-4),
+            length: t.l_mm as f64 * 1e-3,
+            width: t.w_mm as f64 * 1e-3,
+        },
+        velocity: if t.is_static != 0 { (0.0, 0.0) } else { (t.vx_mm_s as f64 * 1e-3, t.vy_mm_s as f64 * 1e-3) },
+    }
 }
 
 /// Agent kind of a class name: vehicles, vulnerable road users, or static objects.
@@ -452,7 +458,20 @@ pub fn evaluate<'a>(request: &VerifyRequest<'a>, warn: &mut dyn FnMut(&str)) -> 
 
 #[cfg(test)]
 mod tests {
-    use super::Metrics;
+    use super::{agent_of, Metrics};
+    use dash2sim_core::binlog::Track3d;
+
+    /// A cone the log reports static is replayed standing still whatever its filtered
+    /// velocity; a moving car keeps its velocity.
+    #[test]
+    fn a_static_track_stands_still_and_a_moving_one_moves() {
+        let cone = Track3d { id: 7, class: 6, vx_mm_s: 400, vy_mm_s: -300, is_static: 1, ..Track3d::default() };
+        assert_eq!(agent_of(&cone, (1.0, 2.0)).velocity, (0.0, 0.0));
+        let car = Track3d { id: 8, class: 0, vx_mm_s: 15_000, vy_mm_s: -300, is_static: 0, ..Track3d::default() };
+        let agent = agent_of(&car, (1.0, 2.0));
+        assert_eq!(agent.velocity, (15.0, -0.3));
+        assert_eq!((agent.id, agent.bbox.centre.x, agent.bbox.centre.y), (8, 1.0, 2.0));
+    }
 
     /// `named` is what the sweep lists failed metrics from: the JSON's names, in its order.
     #[test]
