@@ -163,6 +163,16 @@ fn route(ticks: &[EgoTick], from: usize, ids: &MapIds) -> Vec<i64> {
 
 /// Tracks of the batch nearest each tick (within one tick), moved by their velocity to the
 /// tick's time: (tick index, track).
+/// A track's velocity, mm/s: none when the log reports it static, as `verify` replays it
+/// (its filtered velocity is the anchoring's corrections, not motion).
+fn velocity_mm_s(t: &Track3d) -> (f64, f64) {
+    if t.is_static != 0 {
+        (0.0, 0.0)
+    } else {
+        (t.vx_mm_s as f64, t.vy_mm_s as f64)
+    }
+}
+
 fn tracks_at_ticks(log: &LogContents, ticks: &[EgoTick]) -> Vec<(usize, Track3d, f64)> {
     let mut batches: BTreeMap<i64, Vec<Track3d>> = BTreeMap::new();
     for r in &log.records {
@@ -276,11 +286,8 @@ pub fn write(
     let box_points: Vec<(f64, f64, f64)> = boxes
         .iter()
         .map(|(_, t, dt)| {
-            (
-                (t.x_mm as f64 + t.vx_mm_s as f64 * dt) * 1e-3,
-                (t.y_mm as f64 + t.vy_mm_s as f64 * dt) * 1e-3,
-                t.z_mm as f64 * 1e-3,
-            )
+            let (vx, vy) = velocity_mm_s(t);
+            ((t.x_mm as f64 + vx * dt) * 1e-3, (t.y_mm as f64 + vy * dt) * 1e-3, t.z_mm as f64 * 1e-3)
         })
         .collect();
     let projected = log_projection.project(&box_points);
@@ -296,7 +303,8 @@ pub fn write(
         for (m, &k) in members.iter().enumerate() {
             let (tick, b, _) = &boxes[k];
             let heading = log_projection.heading(box_points[k], b.yaw_e4 as f64 * 1e-4);
-            let (vx, vy) = (b.vx_mm_s as f64 * 1e-3, b.vy_mm_s as f64 * 1e-3);
+            let (vx, vy) = velocity_mm_s(b);
+            let (vx, vy) = (vx * 1e-3, vy * 1e-3);
             let speed_heading = log_projection.heading(box_points[k], vy.atan2(vx));
             let speed = vx.hypot(vy);
             tx.execute(
