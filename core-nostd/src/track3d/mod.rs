@@ -535,6 +535,7 @@ mod tests {
     fn a_moving_car_and_a_cone_keep_their_ids_and_kinds() {
         let mut tracker = Tracker3d::<8>::new(config());
         let mut last = heapless::Vec::<Track3dOutput, 8>::new();
+        let mut moving_frames = 0;
         for k in 0..10 {
             // The detector flips the car by π every third frame.
             let yaw = if k % 3 == 2 { PI - 0.01 } else { -0.01 };
@@ -547,9 +548,12 @@ mod tests {
                 // ... and a moving track reports the heading it moves along, not the flip.
                 if !car_track.is_static {
                     assert!(car_track.bbox.yaw.abs() < 0.1, "frame {k}: {}", car_track.bbox.yaw);
+                    moving_frames += 1;
                 }
             }
         }
+        // The flipped frames among them (every third) are what the check above is for.
+        assert!(moving_frames >= 6, "the car was reported moving in {moving_frames} frames");
         assert_eq!(last.len(), 2);
         let car_track = last.iter().find(|o| o.class == 0).expect("car");
         let cone_track = last.iter().find(|o| o.class == 1).expect("cone");

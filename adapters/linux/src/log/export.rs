@@ -37,6 +37,18 @@ pub fn tum(log: &LogContents) -> String {
     out
 }
 
+/// A track state's velocity (east, north), m/s — none when the log reports it static:
+/// its filtered velocity is then the anchoring's corrections seen against the world, not
+/// motion. The device's windows score it so (`pipeline::tracking`); `verify` and the
+/// nuPlan export read it here.
+pub fn track_velocity(t: &Track3d) -> (f64, f64) {
+    if t.is_static != 0 {
+        (0.0, 0.0)
+    } else {
+        (t.vx_mm_s as f64 * 1e-3, t.vy_mm_s as f64 * 1e-3)
+    }
+}
+
 /// Class name of a `Track3d` class code.
 pub fn class_name(code: i64) -> &'static str {
     usize::try_from(code).ok().and_then(|i| CLASSES.get(i)).copied().unwrap_or("other")

@@ -122,9 +122,8 @@ pub fn from_contents(
     Ok((poses, agents))
 }
 
-/// The agent a logged track state is, its centre at `at` in the map's frame. A track the
-/// log reports static stands still, as the device scores it: its filtered velocity is the
-/// anchoring's corrections seen against the world, not motion.
+/// The agent a logged track state is, its centre at `at` in the map's frame; a track the
+/// log reports static stands still ([`crate::log::export::track_velocity`]).
 fn agent_of(t: &dash2sim_core::binlog::Track3d, at: (f64, f64)) -> Agent {
     Agent {
         id: u32::try_from(t.id).unwrap_or(u32::MAX),
@@ -134,7 +133,7 @@ fn agent_of(t: &dash2sim_core::binlog::Track3d, at: (f64, f64)) -> Agent {
             length: t.l_mm as f64 * 1e-3,
             width: t.w_mm as f64 * 1e-3,
         },
-        velocity: if t.is_static != 0 { (0.0, 0.0) } else { (t.vx_mm_s as f64 * 1e-3, t.vy_mm_s as f64 * 1e-3) },
+        velocity: crate::log::export::track_velocity(t),
     }
 }
 

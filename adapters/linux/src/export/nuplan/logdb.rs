@@ -12,7 +12,7 @@ use rusqlite::{params, Connection};
 
 use super::map::MapIds;
 use super::projection::Projection;
-use crate::log::export::class_name;
+use crate::log::export::{class_name, track_velocity};
 use crate::log::LogContents;
 use crate::{Error, Result};
 
@@ -163,16 +163,6 @@ fn route(ticks: &[EgoTick], from: usize, ids: &MapIds) -> Vec<i64> {
 
 /// Tracks of the batch nearest each tick (within one tick), moved by their velocity to the
 /// tick's time: (tick index, track).
-/// A track's velocity, mm/s: none when the log reports it static, as `verify` replays it
-/// (its filtered velocity is the anchoring's corrections, not motion).
-fn velocity_mm_s(t: &Track3d) -> (f64, f64) {
-    if t.is_static != 0 {
-        (0.0, 0.0)
-    } else {
-        (t.vx_mm_s as f64, t.vy_mm_s as f64)
-    }
-}
-
 fn tracks_at_ticks(log: &LogContents, ticks: &[EgoTick]) -> Vec<(usize, Track3d, f64)> {
     let mut batches: BTreeMap<i64, Vec<Track3d>> = BTreeMap::new();
     for r in &log.records {
@@ -286,8 +276,8 @@ pub fn write(
     let box_points: Vec<(f64, f64, f64)> = boxes
         .iter()
         .map(|(_, t, dt)| {
-            let (vx, vy) = velocity_mm_s(t);
-            ((t.x_mm as f64 + vx * dt) * 1e-3, (t.y_mm as f64 + vy * dt) * 1e-3, t.z_mm as f64 * 1e-3)
+            let (vx, vy) = track_velocity(t);
+            (t.x_mm as f64 * 1e-3 + vx * dt, t.y_mm as f64 * 1e-3 + vy * dt, t.z_mm as f64 * 1e-3)
         })
         .collect();
     let projected = log_projection.project(&box_points);
@@ -303,8 +293,7 @@ pub fn write(
         for (m, &k) in members.iter().enumerate() {
             let (tick, b, _) = &boxes[k];
             let heading = log_projection.heading(box_points[k], b.yaw_e4 as f64 * 1e-4);
-            let (vx, vy) = velocity_mm_s(b);
-            let (vx, vy) = (vx * 1e-3, vy * 1e-3);
+            let (vx, vy) = track_velocity(b);
             let speed_heading = log_projection.heading(box_points[k], vy.atan2(vx));
             let speed = vx.hypot(vy);
             tx.execute(
