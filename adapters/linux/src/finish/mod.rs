@@ -360,7 +360,7 @@ pub fn finish(
             .collect();
         let mut planar: Vec<tracks::Sample> = bodies
             .iter()
-            .map(|(t, b)| tracks::Sample { t: *t, x: b.translation.x, y: b.translation.y, vx: 0.0, vy: 0.0 })
+            .map(|(t, b)| tracks::Sample { t: *t, x: b.translation.x, y: b.translation.y, ..tracks::Sample::default() })
             .collect();
         tracks::smooth_planar(&mut planar, (0.0, 0.0), EGO_SMOOTHING.0, EGO_SMOOTHING.1);
         starts.push(planar_poses.len());
