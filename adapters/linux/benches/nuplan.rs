@@ -12,7 +12,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use dash2sim_linux::export::nuplan::map::layers;
-use dash2sim_linux::export::nuplan::projection::Projection;
+use dash2sim_linux::export::projection::Projection;
 use dash2sim_linux::ingest::map_tile::{encode, from_osm};
 
 fn map_layers(c: &mut Criterion) {

@@ -3,8 +3,11 @@
 //! (GeoJSON), DuckDB/pandas/Spark (Parquet), nuPlan. The exporters are in `logfile` and
 //! `nuplan`; this module only reads the request and calls them.
 
+pub mod junctions;
 #[cfg(feature = "nuplan")]
 pub mod nuplan;
+pub mod projection;
+pub mod road;
 
 use std::path::{Path, PathBuf};
 

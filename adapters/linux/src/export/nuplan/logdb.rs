@@ -11,7 +11,7 @@ use dash2sim_core::obb::Pose2;
 use rusqlite::{params, Connection};
 
 use super::map::MapIds;
-use super::projection::Projection;
+use crate::export::projection::Projection;
 use crate::log::export::{class_name, track_velocity};
 use crate::log::LogContents;
 use crate::{Error, Result};

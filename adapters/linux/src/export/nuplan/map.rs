@@ -1,7 +1,8 @@
 //! A map tile's lanes as nuPlan's map layers (`docs/nuplan.md`): the same lanes `map build`
-//! puts in the tile, so that `verify` and nuPlan see one geometry.
+//! puts in the tile, so that `verify` and nuPlan see one geometry — the pieces, roadblocks,
+//! connectors and drivable area of [`crate::export::road`], as nuPlan's tables.
 //!
-//! * **Lanes**: each tile lane cut at its junctions ([`super::junctions`]) into pieces that
+//! * **Lanes**: each tile lane cut at its junctions ([`crate::export::junctions`]) into pieces that
 //!   overlap no other lane; each piece as `lanes_polygons` (its centreline offset by half
 //!   the width, in projected metres and less a 1 mm seam, on each side), its
 //!   `baseline_paths` row and two `boundaries`.
@@ -23,10 +24,10 @@ use std::collections::BTreeMap;
 use dash2sim_core::map::MapView;
 
 use super::gpkg::{Geometry, Layer, Value};
-use super::junctions::{layout, DisjointSets, LaneShape};
-use super::projection::Projection;
-use crate::geometry::{band, bezier, capsule, contains, cut, heading_at, hull, is_simple, length, point_at, Line};
-use crate::{Error, Result};
+use crate::export::projection::Projection;
+use crate::export::road::road;
+use crate::geometry::{contains, hull, Line};
+use crate::Result;
 
 const ROADBLOCK_BASE: i64 = 1_000_000;
 const CONNECTOR_BASE: i64 = 2_000_000;
@@ -36,8 +37,6 @@ const BOUNDARY_BASE: i64 = 4_000_000;
 /// share a sliver (rounding of f32 points and of the projection) in which nuPlan would find
 /// two lanes under a point.
 const SEAM_M: f64 = 0.001;
-/// Points on a turn's curve.
-const TURN_POINTS: usize = 12;
 
 /// What the log export needs to know about the map besides its layers.
 #[derive(Debug, Clone, Default)]
@@ -60,168 +59,58 @@ impl MapIds {
 
 type Row = (i64, Geometry, Vec<Value>);
 
-/// A roadblock's outer sides (its leftmost lane's left, its rightmost lane's right) and its
-/// lane rows.
-#[derive(Default)]
-struct RoadblockSides(Option<Line>, Option<Line>, Vec<usize>);
-
 /// The layers of `view` in `projection`'s frame, and the ids the log export needs.
 pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>, MapIds)> {
-    let lanes: Vec<_> = (0..view.len() as u32).filter_map(|i| view.lane(i)).collect();
-    if lanes.is_empty() {
-        return Err(Error::invalid("the map has no lanes"));
-    }
-    // Project every centreline once (the tile's frame is the map's origin).
-    let project = |pts: Vec<(f64, f64)>| -> Line {
-        let enu: Vec<(f64, f64, f64)> = pts.iter().map(|&(x, y)| (x, y, 0.0)).collect();
-        projection.project(&enu)
+    let road = road(view, projection, SEAM_M)?;
+    let (mut lane_rows, mut baselines, mut boundaries): (Vec<Row>, Vec<Row>, Vec<Row>) = Default::default();
+    let add_boundary = |line: &Line, boundaries: &mut Vec<Row>| {
+        let id = BOUNDARY_BASE + 1 + boundaries.len() as i64;
+        boundaries.push((id, Geometry::LineString(line.clone()), vec![]));
+        id
     };
-    let centrelines: Vec<Line> = lanes.iter().map(|l| project(l.points().collect())).collect();
-    // Widths in projected metres: UTM shrinks distances by up to 0.04 %, which would make
-    // the bands of side-by-side lanes overlap by a millimetre and more.
-    let scale = {
-        let unit = project(vec![(0.0, 0.0), (1.0, 0.0)]);
-        length(&unit)
-    };
-    let count = lanes.len();
-    let mut has_predecessor = vec![false; count];
-    for lane in &lanes {
-        for s in lane.successors() {
-            if let Some(p) = has_predecessor.get_mut(s as usize) {
-                *p = true;
-            }
-        }
+    let roadblock_id = |index: usize| ROADBLOCK_BASE + 1 + index as i64;
+    // Lane fids (1…) and roadblock ids, by piece.
+    let mut piece_ids = Vec::with_capacity(road.pieces.len());
+    for piece in &road.pieces {
+        let (left_id, right_id) =
+            (add_boundary(&piece.left, &mut boundaries), add_boundary(&piece.right, &mut boundaries));
+        let fid = lane_rows.len() as i64 + 1;
+        let roadblock = roadblock_id(piece.roadblock);
+        piece_ids.push((fid, roadblock));
+        lane_rows.push((
+            fid,
+            Geometry::Polygon(piece.ring.clone()),
+            vec![
+                Value::Int(fid),
+                Value::Int(roadblock),
+                Value::Int(piece.lane_index),
+                piece.speed_limit.map_or(Value::Null, Value::Real),
+                Value::Int(left_id),
+                Value::Int(right_id),
+            ],
+        ));
+        baselines.push((fid, Geometry::LineString(piece.centre.clone()), vec![Value::Int(fid), Value::Null]));
     }
-    // Roadblocks: lanes connected by left/right neighbours.
-    let mut groups = DisjointSets::new(count);
-    for (i, lane) in lanes.iter().enumerate() {
-        for n in [lane.left, lane.right].into_iter().flatten().filter(|&n| (n as usize) < count) {
-            groups.join(i, n as usize);
-        }
-    }
-    let lane_index: Vec<i64> = lanes
-        .iter()
-        .map(|l| {
-            let (mut k, mut at) = (0, l.left);
-            while let Some(i) = at {
-                k += 1;
-                at = lanes.get(i as usize).and_then(|n| n.left);
-                if k > 64 {
-                    break;
-                }
-            }
-            k
-        })
-        .collect();
-    let shapes: Vec<LaneShape> = lanes
+    let roadblocks: Vec<Row> = road
+        .roadblocks
         .iter()
         .enumerate()
-        .map(|(i, lane)| LaneShape {
-            centre: centrelines[i].clone(),
-            width: lane.width * scale,
-            successors: lane.successors().map(|s| s as usize).filter(|&s| s < count).collect(),
-            has_predecessor: has_predecessor[i],
-            group: groups.root(i),
-            carve: lane.area.is_none(),
-        })
+        .map(|(k, ring)| (roadblock_id(k), Geometry::Polygon(ring.clone()), vec![]))
         .collect();
-    let cut_map = layout(&shapes);
-
-    let (mut lane_rows, mut baselines, mut boundaries): (Vec<Row>, Vec<Row>, Vec<Row>) = Default::default();
-    let mut boundary_id = BOUNDARY_BASE;
-    let mut add_boundary = |line: Line, boundaries: &mut Vec<Row>| {
-        boundary_id += 1;
-        boundaries.push((boundary_id, Geometry::LineString(line), vec![]));
-        boundary_id
-    };
-    // Roadblock ids by (group, piece index); lane fids and roadblocks by (lane, piece).
-    let mut roadblock_ids: BTreeMap<(usize, usize), i64> = BTreeMap::new();
-    let mut piece_ids: BTreeMap<(usize, usize), (i64, i64)> = BTreeMap::new();
-    let mut roadblock_sides: BTreeMap<i64, RoadblockSides> = BTreeMap::new();
-    for (i, lane) in lanes.iter().enumerate() {
-        for (k, &(from, to)) in cut_map.pieces[i].iter().enumerate() {
-            let next = ROADBLOCK_BASE + 1 + roadblock_ids.len() as i64;
-            let roadblock = *roadblock_ids.entry((shapes[i].group, k)).or_insert(next);
-            let centre = cut(&centrelines[i], from, to);
-            let (ring, left, right) = band(&centre, lane.width * scale / 2.0 - SEAM_M);
-            let (left_id, right_id) =
-                (add_boundary(left.clone(), &mut boundaries), add_boundary(right.clone(), &mut boundaries));
-            let fid = lane_rows.len() as i64 + 1;
-            piece_ids.insert((i, k), (fid, roadblock));
-            let speed = lane.speed_limit.map_or(Value::Null, Value::Real);
-            let sides = roadblock_sides.entry(roadblock).or_default();
-            sides.2.push(lane_rows.len());
-            lane_rows.push((
-                fid,
-                Geometry::Polygon(ring),
-                vec![
-                    Value::Int(fid),
-                    Value::Int(roadblock),
-                    Value::Int(lane_index[i]),
-                    speed,
-                    Value::Int(left_id),
-                    Value::Int(right_id),
-                ],
-            ));
-            baselines.push((fid, Geometry::LineString(centre), vec![Value::Int(fid), Value::Null]));
-            if lane.left.is_none() {
-                sides.0 = Some(left);
-            }
-            if lane.right.is_none() {
-                sides.1 = Some(right);
-            }
-        }
-    }
-    // Roadblocks: the leftmost lane's left side and the rightmost lane's right side.
-    let mut roadblocks = Vec::new();
-    for (&id, RoadblockSides(left, right, members)) in &roadblock_sides {
-        let ring = match (left, right) {
-            (Some(l), Some(r)) => {
-                let mut ring = l.clone();
-                ring.extend(r.iter().rev());
-                ring
-            }
-            _ => hull(members.iter().flat_map(|&r| lane_rows[r].1.points().to_vec()).collect()),
-        };
-        roadblocks.push((id, Geometry::Polygon(ring), vec![]));
-    }
-    // Connectors.
+    // Connectors, grouped by (roadblock, roadblock) into roadblock connectors.
     let (mut connectors, mut connector_polygons) = (Vec::new(), Vec::new());
     let mut roadblock_connectors: BTreeMap<(i64, i64), (i64, Line)> = BTreeMap::new();
-    let mut connector_id = CONNECTOR_BASE;
-    for join in &cut_map.joins {
-        let ((i, k), (j, l)) = (join.from, join.to);
-        let (Some(&(from_fid, from_block)), Some(&(to_fid, to_block))) =
-            (piece_ids.get(&(i, k)), piece_ids.get(&(j, l)))
-        else {
-            continue;
-        };
-        let (end, start) = (cut_map.pieces[i][k].1, cut_map.pieces[j][l].0);
-        let mut line = if i == j {
-            cut(&centrelines[i], end, start)
-        } else {
-            let (a, b) = (point_at(&centrelines[i], end), point_at(&centrelines[j], start));
-            bezier(a, heading_at(&centrelines[i], end), b, heading_at(&centrelines[j], start), TURN_POINTS)
-        };
-        line.dedup();
-        if line.len() < 2 || length(&line) < 1e-3 {
-            continue;
-        }
-        connector_id += 1;
-        let width = lanes[i].width.min(lanes[j].width) * scale;
-        let (ring, left, right) = band(&line, width / 2.0);
-        // A turn tighter than half the lane's width folds its band over on the inside: its
-        // hull stands for it (a polygon must be simple).
-        let ring = if is_simple(&ring) { ring } else { hull(ring) };
-        let (left_id, right_id) = (add_boundary(left, &mut boundaries), add_boundary(right, &mut boundaries));
+    for (k, c) in road.connectors.iter().enumerate() {
+        let connector_id = CONNECTOR_BASE + 1 + k as i64;
+        let ((from_fid, from_block), (to_fid, to_block)) = (piece_ids[c.from], piece_ids[c.to]);
+        let (left_id, right_id) = (add_boundary(&c.left, &mut boundaries), add_boundary(&c.right, &mut boundaries));
         let key = (from_block, to_block);
         let next_id = ROADBLOCK_CONNECTOR_BASE + 1 + roadblock_connectors.len() as i64;
         let entry = roadblock_connectors.entry(key).or_insert((next_id, Vec::new()));
-        entry.1.extend(ring.iter().copied());
-        let speed = lanes[i].speed_limit.map_or(Value::Null, Value::Real);
+        entry.1.extend(c.ring.iter().copied());
         connectors.push((
             connector_id,
-            Geometry::LineString(line.clone()),
+            Geometry::LineString(c.centre.clone()),
             vec![
                 Value::Int(from_fid),
                 Value::Int(to_fid),
@@ -229,16 +118,16 @@ pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>
                 Value::Int(key.1),
                 Value::Int(entry.0),
                 Value::Null,
-                speed,
+                c.speed_limit.map_or(Value::Null, Value::Real),
                 Value::Text(String::new()),
             ],
         ));
         connector_polygons.push((
             connector_id,
-            Geometry::Polygon(ring),
+            Geometry::Polygon(c.ring.clone()),
             vec![Value::Int(connector_id), Value::Int(left_id), Value::Int(right_id)],
         ));
-        baselines.push((0, Geometry::LineString(line), vec![Value::Null, Value::Int(connector_id)]));
+        baselines.push((0, Geometry::LineString(c.centre.clone()), vec![Value::Null, Value::Int(connector_id)]));
     }
     let roadblock_connector_rows = roadblock_connectors
         .iter()
@@ -246,25 +135,12 @@ pub fn layers(view: &MapView<'_>, projection: &Projection) -> Result<(Vec<Layer>
             (*id, Geometry::Polygon(hull(points.clone())), vec![Value::Int(from), Value::Int(to), Value::Null])
         })
         .collect();
-    // The tile's drivable area: one capsule per centreline segment, and its polygons.
-    let mut drivable = Vec::new();
-    for (i, lane) in lanes.iter().enumerate() {
-        if lane.area.is_some() {
-            continue;
-        }
-        for w in centrelines[i].windows(2) {
-            drivable.push((
-                drivable.len() as i64 + 1,
-                Geometry::Polygon(capsule(w[0], w[1], lane.width * scale / 2.0)),
-                vec![],
-            ));
-        }
-    }
-    for g in 0..view.header().polygons {
-        if let Some(points) = view.polygon(g) {
-            drivable.push((drivable.len() as i64 + 1, Geometry::Polygon(project(points.collect())), vec![]));
-        }
-    }
+    let drivable: Vec<Row> = road
+        .drivable
+        .iter()
+        .enumerate()
+        .map(|(k, ring)| (k as i64 + 1, Geometry::Polygon(ring.clone()), vec![]))
+        .collect();
     // Baseline path fids in order.
     for (k, b) in baselines.iter_mut().enumerate() {
         b.0 = k as i64 + 1;

@@ -3,14 +3,12 @@
 //!
 //! `DIR/db/<log>.db` is the log database ([`logdb`]); `DIR/maps/nuplan-maps-v1.0.json` and
 //! `DIR/maps/<map name>/<version>/map.gpkg` the map ([`map`], written by [`gpkg`]) in the UTM
-//! zone of the map's origin ([`projection`]). Everything is written under temporary names
+//! zone of the map's origin ([`super::projection`]). Everything is written under temporary names
 //! and renamed at the end: a refused input leaves nothing behind.
 
 pub mod gpkg;
-pub mod junctions;
 pub mod logdb;
 pub mod map;
-pub mod projection;
 
 use std::path::{Path, PathBuf};
 
@@ -18,10 +16,10 @@ use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use serde_json::json;
 
+use super::projection::Projection;
 use crate::log::LogContents;
 use crate::{Error, Result};
 use gpkg::GeoPackage;
-use projection::Projection;
 
 /// The map version directory nuPlan's map reader expects.
 pub const MAP_VERSION: &str = "9.17.1964";
