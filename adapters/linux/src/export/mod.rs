@@ -8,6 +8,7 @@ pub mod junctions;
 pub mod nuplan;
 pub mod projection;
 pub mod road;
+pub mod ticks;
 
 use std::path::{Path, PathBuf};
 

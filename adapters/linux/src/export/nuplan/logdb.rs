@@ -6,13 +6,12 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use dash2sim_core::binlog::{Record, Track3d};
-use dash2sim_core::obb::Pose2;
 use rusqlite::{params, Connection};
 
 use super::map::MapIds;
 use crate::export::projection::Projection;
-use crate::log::export::{class_name, track_velocity};
+use crate::export::ticks::{agents_at_ticks, EgoTick};
+use crate::log::export::class_name;
 use crate::log::LogContents;
 use crate::{Error, Result};
 
@@ -33,103 +32,6 @@ pub fn category(class: &str) -> &'static str {
         "sign" | "arrow_board" => "czone_sign",
         _ => "generic_object",
     }
-}
-
-/// An ego state at a 20 Hz tick, in the projected frame.
-#[derive(Clone, Copy, Debug)]
-pub struct EgoTick {
-    /// Time, µs.
-    pub t_us: i64,
-    /// Rear axle, projected (m) and height.
-    pub x: f64,
-    /// Northing.
-    pub y: f64,
-    /// Height.
-    pub z: f64,
-    /// Grid heading, rad.
-    pub heading: f64,
-    /// Body-frame velocity (forward, left), m/s.
-    pub velocity: (f64, f64),
-    /// Body-frame acceleration, m/s².
-    pub acceleration: (f64, f64),
-    /// Yaw rate, rad/s.
-    pub yaw_rate: f64,
-    /// The log's ENU pose, for map queries in the tile's frame.
-    pub enu: Pose2,
-}
-
-fn wrap(a: f64) -> f64 {
-    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
-}
-
-/// The log's ego poses resampled at exactly 20 Hz (linear in position, shortest-way in
-/// heading), projected, with body-frame velocities and accelerations by central
-/// differences.
-pub fn ego_ticks(log: &LogContents, projection: &Projection) -> Result<Vec<EgoTick>> {
-    let mut poses: Vec<(i64, [f64; 4])> = log
-        .records
-        .iter()
-        .filter_map(|r| match r {
-            Record::EgoPose(p) => Some((
-                p.t_us,
-                [p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3, p.z_mm as f64 * 1e-3, p.yaw_e4 as f64 * 1e-4],
-            )),
-            _ => None,
-        })
-        .collect();
-    poses.sort_by_key(|p| p.0);
-    poses.dedup_by_key(|p| p.0);
-    let (Some(first), Some(last)) = (poses.first(), poses.last()) else {
-        return Err(Error::invalid("the log has no ego poses"));
-    };
-    let step = (1e6 / RATE_HZ) as i64;
-    let ticks = ((last.0 - first.0) / step + 1) as usize;
-    let mut enu = Vec::with_capacity(ticks);
-    let mut k = 0;
-    for n in 0..ticks {
-        let t = first.0 + n as i64 * step;
-        while k + 1 < poses.len() && poses[k + 1].0 < t {
-            k += 1;
-        }
-        let (a, b) = (poses[k], poses[(k + 1).min(poses.len() - 1)]);
-        let f = if b.0 > a.0 { ((t - a.0) as f64 / (b.0 - a.0) as f64).clamp(0.0, 1.0) } else { 0.0 };
-        let lerp = |i: usize| a.1[i] + (b.1[i] - a.1[i]) * f;
-        let heading = a.1[3] + wrap(b.1[3] - a.1[3]) * f;
-        enu.push((t, [lerp(0), lerp(1), lerp(2), heading]));
-    }
-    let points: Vec<(f64, f64, f64)> = enu.iter().map(|(_, p)| (p[0], p[1], p[2])).collect();
-    let projected = projection.project(&points);
-    let headings: Vec<f64> = enu.iter().map(|(_, p)| projection.heading((p[0], p[1], p[2]), p[3])).collect();
-    let dt = 1.0 / RATE_HZ;
-    let n = enu.len();
-    let velocity_at = |i: usize| {
-        let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
-        let span = (b - a).max(1) as f64 * dt;
-        ((projected[b].0 - projected[a].0) / span, (projected[b].1 - projected[a].1) / span)
-    };
-    let world_velocity: Vec<(f64, f64)> = (0..n).map(velocity_at).collect();
-    let mut out = Vec::with_capacity(n);
-    for i in 0..n {
-        let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
-        let span = (b - a).max(1) as f64 * dt;
-        let accel =
-            ((world_velocity[b].0 - world_velocity[a].0) / span, (world_velocity[b].1 - world_velocity[a].1) / span);
-        let (s, c) = headings[i].sin_cos();
-        let body = |v: (f64, f64)| (c * v.0 + s * v.1, -s * v.0 + c * v.1);
-        let (t, p) = enu[i];
-        out.push(EgoTick {
-            t_us: t,
-            x: projected[i].0,
-            y: projected[i].1,
-            z: p[2],
-            heading: headings[i],
-            velocity: body(world_velocity[i]),
-            acceleration: body(accel),
-            yaw_rate: wrap(headings[b] - headings[a]) / span,
-            enu: Pose2::new(p[0], p[1], p[3]),
-        });
-    }
-    Ok(out)
 }
 
 /// Scenes of `scene_s` in `ticks` ticks: whole scenes, the last one taking the rest.
@@ -157,29 +59,6 @@ fn route(ticks: &[EgoTick], from: usize, ids: &MapIds) -> Vec<i64> {
             }
         }
         out.push(roadblock);
-    }
-    out
-}
-
-/// Tracks of the batch nearest each tick (within one tick), moved by their velocity to the
-/// tick's time: (tick index, track).
-fn tracks_at_ticks(log: &LogContents, ticks: &[EgoTick]) -> Vec<(usize, Track3d, f64)> {
-    let mut batches: BTreeMap<i64, Vec<Track3d>> = BTreeMap::new();
-    for r in &log.records {
-        if let Record::Tracks3d(b) = r {
-            batches.entry(b.t_us).or_default().extend(b.tracks.iter().copied());
-        }
-    }
-    let step = (1e6 / RATE_HZ) as i64;
-    let mut out = Vec::new();
-    for (i, tick) in ticks.iter().enumerate() {
-        let nearest = batches.range(tick.t_us - step..=tick.t_us + step).min_by_key(|(t, _)| (*t - tick.t_us).abs());
-        if let Some((t, tracks)) = nearest {
-            let dt = (tick.t_us - t) as f64 * 1e-6;
-            for track in tracks {
-                out.push((i, *track, dt));
-            }
-        }
     }
     out
 }
@@ -268,22 +147,14 @@ pub fn write(
         .map_err(err)?;
     }
     // Tracks and their boxes, chained per track.
-    let boxes = tracks_at_ticks(log, ticks);
+    let boxes = agents_at_ticks(log, ticks, log_projection);
     let mut by_track: BTreeMap<i64, Vec<usize>> = BTreeMap::new();
-    for (k, (_, track, _)) in boxes.iter().enumerate() {
-        by_track.entry(track.id).or_default().push(k);
+    for (k, b) in boxes.iter().enumerate() {
+        by_track.entry(b.track.id).or_default().push(k);
     }
-    let box_points: Vec<(f64, f64, f64)> = boxes
-        .iter()
-        .map(|(_, t, dt)| {
-            let (vx, vy) = track_velocity(t);
-            (t.x_mm as f64 * 1e-3 + vx * dt, t.y_mm as f64 * 1e-3 + vy * dt, t.z_mm as f64 * 1e-3)
-        })
-        .collect();
-    let projected = log_projection.project(&box_points);
     for (n, members) in by_track.values().enumerate() {
         let Some(&first) = members.first() else { continue };
-        let t = &boxes[first].1;
+        let t = &boxes[first].track;
         let category = CATEGORIES.iter().position(|c| *c == category(class_name(t.class))).unwrap_or(6);
         tx.execute(
             "INSERT INTO track VALUES (?1, ?2, ?3, ?4, ?5)",
@@ -291,28 +162,24 @@ pub fn write(
         )
         .map_err(err)?;
         for (m, &k) in members.iter().enumerate() {
-            let (tick, b, _) = &boxes[k];
-            let heading = log_projection.heading(box_points[k], b.yaw_e4 as f64 * 1e-4);
-            let (vx, vy) = track_velocity(b);
-            let speed_heading = log_projection.heading(box_points[k], vy.atan2(vx));
-            let speed = vx.hypot(vy);
+            let b = &boxes[k];
             tx.execute(
                 "INSERT INTO lidar_box VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, 0, ?14, 1.0)",
                 params![
                     token(8, k),
-                    token(5, *tick),
+                    token(5, b.tick),
                     token(7, n),
                     members.get(m + 1).map(|&j| token(8, j)),
                     m.checked_sub(1).map(|p| token(8, members[p])),
-                    projected[k].0,
-                    projected[k].1,
-                    box_points[k].2,
-                    b.w_mm as f64 * 1e-3,
-                    b.l_mm as f64 * 1e-3,
-                    b.h_mm as f64 * 1e-3,
-                    speed * speed_heading.cos(),
-                    speed * speed_heading.sin(),
-                    heading
+                    b.x,
+                    b.y,
+                    b.z,
+                    b.track.w_mm as f64 * 1e-3,
+                    b.track.l_mm as f64 * 1e-3,
+                    b.track.h_mm as f64 * 1e-3,
+                    b.velocity.0,
+                    b.velocity.1,
+                    b.heading
                 ],
             )
             .map_err(err)?;

@@ -17,6 +17,7 @@ use dash2sim_core::map::MapView;
 use serde_json::json;
 
 use super::projection::Projection;
+use super::ticks::{ego_ticks, log_origin, place_on_map};
 use crate::log::LogContents;
 use crate::{Error, Result};
 use gpkg::GeoPackage;
@@ -25,8 +26,6 @@ use gpkg::GeoPackage;
 pub const MAP_VERSION: &str = "9.17.1964";
 /// nuPlan drops the first two scenes and the last one.
 pub const MIN_SCENES: usize = 5;
-/// A pose farther than this from every lane is off the map, m.
-const OFF_MAP_M: f64 = 10.0;
 
 /// What `export --nuplan` was asked.
 #[derive(Clone, Debug)]
@@ -73,12 +72,6 @@ impl Drop for Cleanup {
     }
 }
 
-fn origin_of(log: &LogContents) -> Result<Geodetic> {
-    let h = log.header.ok_or_else(|| Error::invalid("the log's header is damaged (no origin)"))?;
-    Geodetic::new(f64::from(h.origin[0]) * 1e-7, f64::from(h.origin[1]) * 1e-7, f64::from(h.origin[2]) * 1e-3)
-        .map_err(|e| Error::refused("the log's origin", e))
-}
-
 /// Export. Errors name what is missing; nothing is left behind on an error.
 pub fn export(request: &NuplanRequest<'_>) -> Result<NuplanExport> {
     if !(request.scene_s.is_finite() && request.scene_s >= 1.0) {
@@ -88,9 +81,9 @@ pub fn export(request: &NuplanRequest<'_>) -> Result<NuplanExport> {
     let [lat, lon, h] = view.header().origin;
     let map_origin = Geodetic::new(lat, lon, h).map_err(|e| Error::refused("map origin", e))?;
     let map_projection = Projection::new(map_origin)?;
-    let log_projection = Projection::with_zone(origin_of(request.log)?, map_projection.zone, map_projection.north)?;
-    let ticks =
-        logdb::ego_ticks(request.log, &log_projection).map_err(|e| Error::refused(request.log_name.to_string(), e))?;
+    let log_projection = Projection::with_zone(log_origin(request.log)?, map_projection.zone, map_projection.north)?;
+    let mut ticks = ego_ticks(request.log, &log_projection, logdb::RATE_HZ)
+        .map_err(|e| Error::refused(request.log_name.to_string(), e))?;
     let duration = ticks.len().saturating_sub(1) as f64 / logdb::RATE_HZ;
     let scenes = logdb::scene_count(ticks.len(), request.scene_s);
     if scenes < MIN_SCENES {
@@ -100,27 +93,8 @@ pub fn export(request: &NuplanRequest<'_>) -> Result<NuplanExport> {
         )));
     }
     // The map must cover the drive (the tile is in the map's frame; the ticks keep the log's
-    // ENU, which is the map's when the origins agree — checked through geodetic positions).
-    let map_frame = dash2sim_core::geo::LocalFrame::new(map_origin);
-    let log_frame = dash2sim_core::geo::LocalFrame::new(origin_of(request.log)?);
-    let mut ticks = ticks;
-    let mut off = 0;
-    for t in &mut ticks {
-        let enu = dash2sim_core::nalgebra::Vector3::new(t.enu.x, t.enu.y, 0.0);
-        if let Ok(g) = log_frame.enu_to_geodetic(&enu) {
-            let m = map_frame.geodetic_to_enu(&g);
-            t.enu = dash2sim_core::obb::Pose2::new(m.x, m.y, t.enu.heading);
-        }
-        if view.distance_to_drivable(t.enu.x, t.enu.y, OFF_MAP_M, |_| true).is_none() {
-            off += 1;
-        }
-    }
-    if off * 10 > ticks.len() {
-        return Err(Error::invalid(format!(
-            "the map does not cover the drive: {off} of {} ego poses are farther than {OFF_MAP_M} m from every lane",
-            ticks.len()
-        )));
-    }
+    // ENU, which is the map's when the origins agree).
+    place_on_map(&mut ticks, log_origin(request.log)?, map_origin, &view)?;
     let (layers, ids) = map::layers(&view, &map_projection)?;
 
     let db_dir = request.out.join("db");

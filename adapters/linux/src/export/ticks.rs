@@ -1,0 +1,221 @@
+//! A log's states on a simulator's clock, in the projected frame of the simulator exports:
+//! the ego resampled at a fixed rate (with body-frame velocity, acceleration and yaw rate),
+//! the tracked objects of the nearest frame moved to each tick, and the check that the map
+//! covers the drive. nuPlan's log database (20 Hz) and CommonRoad's scenarios (10 Hz) are
+//! written from the same ticks.
+
+use std::collections::BTreeMap;
+
+use dash2sim_core::binlog::{Record, Track3d};
+use dash2sim_core::geo::{Geodetic, LocalFrame};
+use dash2sim_core::map::MapView;
+use dash2sim_core::nalgebra::Vector3;
+use dash2sim_core::obb::Pose2;
+
+use super::projection::Projection;
+use crate::log::export::track_velocity;
+use crate::log::LogContents;
+use crate::{Error, Result};
+
+/// A pose farther than this from every lane is off the map, m.
+const OFF_MAP_M: f64 = 10.0;
+
+/// An ego state at a tick, in the projected frame.
+#[derive(Clone, Copy, Debug)]
+pub struct EgoTick {
+    /// Time, µs.
+    pub t_us: i64,
+    /// Rear axle, projected (m) and height.
+    pub x: f64,
+    /// Northing.
+    pub y: f64,
+    /// Height.
+    pub z: f64,
+    /// Grid heading, rad.
+    pub heading: f64,
+    /// Body-frame velocity (forward, left), m/s.
+    pub velocity: (f64, f64),
+    /// Body-frame acceleration, m/s².
+    pub acceleration: (f64, f64),
+    /// Yaw rate, rad/s.
+    pub yaw_rate: f64,
+    /// The log's ENU pose, for map queries in the tile's frame.
+    pub enu: Pose2,
+}
+
+/// The log's origin (its header's), where its ENU frame is anchored.
+pub fn log_origin(log: &LogContents) -> Result<Geodetic> {
+    let h = log.header.ok_or_else(|| Error::invalid("the log's header is damaged (no origin)"))?;
+    Geodetic::new(f64::from(h.origin[0]) * 1e-7, f64::from(h.origin[1]) * 1e-7, f64::from(h.origin[2]) * 1e-3)
+        .map_err(|e| Error::refused("the log's origin", e))
+}
+
+fn wrap(a: f64) -> f64 {
+    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+}
+
+/// The log's ego poses resampled at exactly `rate_hz` (linear in position, shortest-way in
+/// heading), projected, with body-frame velocities and accelerations by central
+/// differences.
+pub fn ego_ticks(log: &LogContents, projection: &Projection, rate_hz: f64) -> Result<Vec<EgoTick>> {
+    let mut poses: Vec<(i64, [f64; 4])> = log
+        .records
+        .iter()
+        .filter_map(|r| match r {
+            Record::EgoPose(p) => Some((
+                p.t_us,
+                [p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3, p.z_mm as f64 * 1e-3, p.yaw_e4 as f64 * 1e-4],
+            )),
+            _ => None,
+        })
+        .collect();
+    poses.sort_by_key(|p| p.0);
+    poses.dedup_by_key(|p| p.0);
+    let (Some(first), Some(last)) = (poses.first(), poses.last()) else {
+        return Err(Error::invalid("the log has no ego poses"));
+    };
+    let step = (1e6 / rate_hz) as i64;
+    let ticks = ((last.0 - first.0) / step + 1) as usize;
+    let mut enu = Vec::with_capacity(ticks);
+    let mut k = 0;
+    for n in 0..ticks {
+        let t = first.0 + n as i64 * step;
+        while k + 1 < poses.len() && poses[k + 1].0 < t {
+            k += 1;
+        }
+        let (a, b) = (poses[k], poses[(k + 1).min(poses.len() - 1)]);
+        let f = if b.0 > a.0 { ((t - a.0) as f64 / (b.0 - a.0) as f64).clamp(0.0, 1.0) } else { 0.0 };
+        let lerp = |i: usize| a.1[i] + (b.1[i] - a.1[i]) * f;
+        let heading = a.1[3] + wrap(b.1[3] - a.1[3]) * f;
+        enu.push((t, [lerp(0), lerp(1), lerp(2), heading]));
+    }
+    let points: Vec<(f64, f64, f64)> = enu.iter().map(|(_, p)| (p[0], p[1], p[2])).collect();
+    let projected = projection.project(&points);
+    let headings: Vec<f64> = enu.iter().map(|(_, p)| projection.heading((p[0], p[1], p[2]), p[3])).collect();
+    let dt = 1.0 / rate_hz;
+    let n = enu.len();
+    let velocity_at = |i: usize| {
+        let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
+        let span = (b - a).max(1) as f64 * dt;
+        ((projected[b].0 - projected[a].0) / span, (projected[b].1 - projected[a].1) / span)
+    };
+    let world_velocity: Vec<(f64, f64)> = (0..n).map(velocity_at).collect();
+    let mut out = Vec::with_capacity(n);
+    for i in 0..n {
+        let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
+        let span = (b - a).max(1) as f64 * dt;
+        let accel =
+            ((world_velocity[b].0 - world_velocity[a].0) / span, (world_velocity[b].1 - world_velocity[a].1) / span);
+        let (s, c) = headings[i].sin_cos();
+        let body = |v: (f64, f64)| (c * v.0 + s * v.1, -s * v.0 + c * v.1);
+        let (t, p) = enu[i];
+        out.push(EgoTick {
+            t_us: t,
+            x: projected[i].0,
+            y: projected[i].1,
+            z: p[2],
+            heading: headings[i],
+            velocity: body(world_velocity[i]),
+            acceleration: body(accel),
+            yaw_rate: wrap(headings[b] - headings[a]) / span,
+            enu: Pose2::new(p[0], p[1], p[3]),
+        });
+    }
+    Ok(out)
+}
+
+/// The ticks' ENU poses moved from the log's frame (origin `log_origin`) into the map's
+/// (`map_origin`), through geodetic positions; an error when more than a tenth of them lie
+/// farther than 10 m from every lane of `view` (the map does not cover the drive).
+pub fn place_on_map(
+    ticks: &mut [EgoTick],
+    log_origin: Geodetic,
+    map_origin: Geodetic,
+    view: &MapView<'_>,
+) -> Result<()> {
+    let (log_frame, map_frame) = (LocalFrame::new(log_origin), LocalFrame::new(map_origin));
+    let mut off = 0;
+    for t in ticks.iter_mut() {
+        if let Ok(g) = log_frame.enu_to_geodetic(&Vector3::new(t.enu.x, t.enu.y, 0.0)) {
+            let m = map_frame.geodetic_to_enu(&g);
+            t.enu = Pose2::new(m.x, m.y, t.enu.heading);
+        }
+        if view.distance_to_drivable(t.enu.x, t.enu.y, OFF_MAP_M, |_| true).is_none() {
+            off += 1;
+        }
+    }
+    if off * 10 > ticks.len() {
+        return Err(Error::invalid(format!(
+            "the map does not cover the drive: {off} of {} ego poses are farther than {OFF_MAP_M} m from every lane",
+            ticks.len()
+        )));
+    }
+    Ok(())
+}
+
+/// A tracked object at a tick, in the projected frame.
+#[derive(Clone, Copy, Debug)]
+pub struct AgentTick {
+    /// Index of the tick.
+    pub tick: usize,
+    /// The track's state as logged (id, class, size, …).
+    pub track: Track3d,
+    /// Centre, projected (m), and height.
+    pub x: f64,
+    /// Northing.
+    pub y: f64,
+    /// Height.
+    pub z: f64,
+    /// Grid heading of the box, rad.
+    pub heading: f64,
+    /// Velocity in the grid (east, north), m/s; zero for a static object.
+    pub velocity: (f64, f64),
+}
+
+/// The tracks of the batch nearest each tick (within one tick's step), moved by their
+/// velocity to the tick's time, projected; in tick order.
+pub fn agents_at_ticks(log: &LogContents, ticks: &[EgoTick], projection: &Projection) -> Vec<AgentTick> {
+    let mut batches: BTreeMap<i64, Vec<Track3d>> = BTreeMap::new();
+    for r in &log.records {
+        if let Record::Tracks3d(b) = r {
+            batches.entry(b.t_us).or_default().extend(b.tracks.iter().copied());
+        }
+    }
+    let step = match ticks {
+        [a, b, ..] => b.t_us - a.t_us,
+        _ => 0,
+    };
+    let mut placed = Vec::new();
+    for (i, tick) in ticks.iter().enumerate() {
+        let nearest = batches.range(tick.t_us - step..=tick.t_us + step).min_by_key(|(t, _)| (*t - tick.t_us).abs());
+        if let Some((t, tracks)) = nearest {
+            let dt = (tick.t_us - t) as f64 * 1e-6;
+            for track in tracks {
+                let (vx, vy) = track_velocity(track);
+                let at =
+                    (track.x_mm as f64 * 1e-3 + vx * dt, track.y_mm as f64 * 1e-3 + vy * dt, track.z_mm as f64 * 1e-3);
+                placed.push((i, *track, at));
+            }
+        }
+    }
+    let points: Vec<(f64, f64, f64)> = placed.iter().map(|p| p.2).collect();
+    let projected = projection.project(&points);
+    placed
+        .iter()
+        .zip(projected)
+        .map(|(&(tick, track, at), (x, y))| {
+            let (vx, vy) = track_velocity(&track);
+            let speed = vx.hypot(vy);
+            let speed_heading = projection.heading(at, vy.atan2(vx));
+            AgentTick {
+                tick,
+                track,
+                x,
+                y,
+                z: at.2,
+                heading: projection.heading(at, track.yaw_e4 as f64 * 1e-4),
+                velocity: (speed * speed_heading.cos(), speed * speed_heading.sin()),
+            }
+        })
+        .collect()
+}
