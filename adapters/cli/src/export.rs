@@ -29,13 +29,20 @@ pub struct ExportArgs {
     /// nuPlan output folder: `db/<log>.db` and `maps/` (needs --map).
     #[arg(long)]
     pub nuplan: Option<PathBuf>,
+    /// CommonRoad scenario (2020a XML), the ego's solution trajectory beside it as
+    /// `F.solution.xml` (needs --map; docs/commonroad.md).
+    #[arg(long, value_name = "F.xml")]
+    pub commonroad: Option<PathBuf>,
     /// A map tile (`map build`) or an OpenStreetMap file (built into a tile around the
-    /// log's origin): its lanes go into the MCAP as lines and are the nuPlan map.
+    /// log's origin): its lanes go into the MCAP as lines and are the nuPlan and CommonRoad
+    /// map.
     #[arg(long)]
     pub map: Option<PathBuf>,
-    /// Length of a nuPlan scene, s (nuPlan drops the first two and the last of a log).
-    #[arg(long, default_value_t = export::DEFAULT_SCENARIO_SECONDS)]
-    pub scenario_seconds: f64,
+    /// Length of a scenario, s: of a nuPlan scene (default 5; nuPlan drops the first two and
+    /// the last of a log); with --commonroad, one file per window of this length
+    /// (`F-001.xml`, …; default: one file for the whole log).
+    #[arg(long)]
+    pub scenario_seconds: Option<f64>,
     /// The map's name in nuPlan (default: `dash2sim-` and the map file's name).
     #[arg(long)]
     pub map_name: Option<String>,
@@ -52,6 +59,7 @@ pub fn run(args: ExportArgs) -> Result<()> {
         parquet: args.parquet,
         log_id: args.log_id,
         nuplan: args.nuplan,
+        commonroad: args.commonroad,
         map: args.map,
         scenario_seconds: args.scenario_seconds,
         map_name: args.map_name,

@@ -1,4 +1,4 @@
-//! The `dash2sim` binary end to end — a log's life after recording: `import`, `inspect`, `finish`, `export` (TUM, GeoJSON, MCAP, nuPlan, Parquet) and `plot`: output shape, exit status and error messages.
+//! The `dash2sim` binary end to end — a log's life after recording: `import`, `inspect`, `finish`, `export` (TUM, GeoJSON, MCAP, nuPlan, CommonRoad, Parquet) and `plot`: output shape, exit status and error messages.
 
 mod common;
 
@@ -249,6 +249,155 @@ fn export_nuplan_writes_the_devkits_tables_and_layers_and_refuses_bad_input() {
     assert!(!out.status.success() && stderr(&out).contains("no ego poses"), "{}", stderr(&out));
     let out = dash2sim(&["export", &path(&log), "--nuplan", &path(&fresh)]);
     assert!(!out.status.success() && stderr(&out).contains("--nuplan needs --map"), "{}", stderr(&out));
+    let left: Vec<_> = walk(&fresh).into_iter().filter(|p| p.is_file()).collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+/// Every element of an XML file: its path of tag names (`commonRoad/lanelet/successor`), its
+/// attributes and its text.
+type Element = (String, Vec<(String, String)>, String);
+
+fn xml_elements(path: &Path) -> Vec<Element> {
+    use quick_xml::events::Event;
+    let text = std::fs::read_to_string(path).expect("xml");
+    let mut reader = quick_xml::Reader::from_str(&text);
+    let (mut stack, mut out): (Vec<String>, Vec<Element>) = (Vec::new(), Vec::new());
+    let attributes = |e: &quick_xml::events::BytesStart<'_>| -> Vec<(String, String)> {
+        e.attributes()
+            .map(|a| {
+                let a = a.expect("attribute");
+                (a.key.as_ref().to_owned(), a.value.into_owned())
+            })
+            .collect()
+    };
+    loop {
+        match reader.read_event().expect("well-formed XML") {
+            Event::Start(e) => {
+                stack.push(e.name().as_ref().to_owned());
+                out.push((stack.join("/"), attributes(&e), String::new()));
+            }
+            Event::Empty(e) => {
+                let name = e.name().as_ref().to_owned();
+                out.push((format!("{}/{name}", stack.join("/")), attributes(&e), String::new()));
+            }
+            Event::Text(t) => {
+                if let Some(last) = out.last_mut() {
+                    last.2.push_str(t.as_ref());
+                }
+            }
+            Event::End(_) => {
+                stack.pop();
+            }
+            // Whitespace between elements lands on the last one opened: trimmed away.
+            Event::Eof => return out.into_iter().map(|(p, a, t)| (p, a, t.trim().to_owned())).collect(),
+            _ => {}
+        }
+    }
+}
+
+#[test]
+fn export_commonroad_writes_lanelets_obstacles_and_the_ego_and_refuses_bad_input() {
+    let dir = scratch("commonroad");
+    let out = demo_ideal_offline(&dir, "30");
+    assert!(out.status.success(), "{}", stderr(&out));
+    let path = |p: &Path| p.display().to_string();
+    let (log, map) = (dir.join("finished.d2slog"), dir.join("road.map"));
+    let scenario = dir.join("drive.xml");
+    let out = dash2sim(&["export", &path(&log), "--commonroad", &path(&scenario), "--map", &path(&map)]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let elements = xml_elements(&scenario);
+    let all = |suffix: &str| -> Vec<&Element> { elements.iter().filter(|e| e.0.ends_with(suffix)).collect() };
+    let attr = |e: &Element, key: &str| e.1.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone()).unwrap_or_default();
+    // The lanelet network: every reference resolves, the ids are unique across kinds.
+    let lanelets: Vec<String> = all("commonRoad/lanelet").into_iter().map(|e| attr(e, "id")).collect();
+    assert!(lanelets.len() >= 2, "{lanelets:?}");
+    for reference in ["predecessor", "successor", "adjacentLeft", "adjacentRight"] {
+        for e in all(&format!("lanelet/{reference}")) {
+            assert!(lanelets.contains(&attr(e, "ref")), "{reference} {}", attr(e, "ref"));
+        }
+    }
+    let mut ids: Vec<String> =
+        elements.iter().filter(|e| e.0.matches('/').count() == 1).map(|e| attr(e, "id")).collect();
+    ids.retain(|id| !id.is_empty());
+    let unique: std::collections::BTreeSet<&String> = ids.iter().collect();
+    assert_eq!(unique.len(), ids.len(), "ids collide");
+    // The work zone's objects stand as construction zones; a moving track is a trajectory of
+    // consecutive steps.
+    assert!(all("staticObstacle/type").into_iter().any(|e| e.2 == "constructionZone"));
+    let mut obstacles: Vec<Vec<i64>> = Vec::new();
+    for e in &elements {
+        if e.0 == "commonRoad/dynamicObstacle" {
+            obstacles.push(Vec::new());
+        } else if e.0.starts_with("commonRoad/dynamicObstacle/") && e.0.ends_with("time/exact") {
+            obstacles.last_mut().expect("in an obstacle").push(e.2.parse().expect("step"));
+        }
+    }
+    assert!(!obstacles.is_empty());
+    for steps in &obstacles {
+        assert!(steps.len() >= 2 && steps.windows(2).all(|w| w[1] == w[0] + 1), "a trajectory with a gap: {steps:?}");
+    }
+    // The ego: the planning problem starts where the solution does, and the solution has a
+    // state per 0.1 s step of the 30 s drive.
+    let solution = xml_elements(&dir.join("drive.solution.xml"));
+    let states: Vec<&Element> = solution.iter().filter(|e| e.0.ends_with("ksTrajectory/ksState/x")).collect();
+    assert!((299..=302).contains(&states.len()), "{}", states.len());
+    let start_x: f64 =
+        all("planningProblem/initialState/position/point/x").first().expect("start").2.parse().expect("x");
+    assert!((start_x - states[0].2.parse::<f64>().expect("x")).abs() < 1e-6);
+    assert!(elements
+        .iter()
+        .any(|e| e.0.ends_with("location/geoTransformation/geoReference") && e.2.contains("+zone=35")));
+
+    // Windows: one scenario per 10 s, each with its own solution.
+    let windows = dir.join("windows/w.xml");
+    std::fs::create_dir_all(dir.join("windows")).expect("dir");
+    let out = dash2sim(&[
+        "export",
+        &path(&log),
+        "--commonroad",
+        &path(&windows),
+        "--map",
+        &path(&map),
+        "--scenario-seconds",
+        "10",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let mut names: Vec<String> = std::fs::read_dir(dir.join("windows"))
+        .expect("windows")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        ["w-001.solution.xml", "w-001.xml", "w-002.solution.xml", "w-002.xml", "w-003.solution.xml", "w-003.xml"]
+    );
+
+    // Bad input: a clear error and nothing left behind.
+    let fresh = dir.join("refused");
+    std::fs::create_dir_all(&fresh).expect("dir");
+    let target = path(&fresh.join("s.xml"));
+    let out =
+        dash2sim(&["export", &path(&log), "--commonroad", &target, "--map", &path(&map), "--scenario-seconds", "0.5"]);
+    assert!(!out.status.success() && stderr(&out).contains("needs at least 1 s"), "{}", stderr(&out));
+    let out =
+        dash2sim(&["export", &path(&log), "--commonroad", &target, "--map", &path(&map), "--scenario-seconds", "60"]);
+    assert!(!out.status.success() && stderr(&out).contains("shorter than one scenario"), "{}", stderr(&out));
+    let far = write(
+        &dir,
+        "far.osm",
+        r#"<osm version="0.6"><node id="1" lat="0.0" lon="0.0"/><node id="2" lat="0.001" lon="0.0"/>
+<way id="3"><nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/></way></osm>"#,
+    );
+    let out = dash2sim(&["export", &path(&log), "--commonroad", &target, "--map", &far]);
+    assert!(!out.status.success() && stderr(&out).contains("the map does not cover the drive"), "{}", stderr(&out));
+    let gnss_only = dir.join("gnss-only.d2slog");
+    assert!(dash2sim(&["import", "-o", &path(&gnss_only), "--nmea", &path(&dir.join("drive/gnss.nmea"))])
+        .status
+        .success());
+    let out = dash2sim(&["export", &path(&gnss_only), "--commonroad", &target, "--map", &path(&map)]);
+    assert!(!out.status.success() && stderr(&out).contains("no ego poses"), "{}", stderr(&out));
+    let out = dash2sim(&["export", &path(&log), "--commonroad", &target]);
+    assert!(!out.status.success() && stderr(&out).contains("--commonroad needs --map"), "{}", stderr(&out));
     let left: Vec<_> = walk(&fresh).into_iter().filter(|p| p.is_file()).collect();
     assert!(left.is_empty(), "left behind: {left:?}");
 }

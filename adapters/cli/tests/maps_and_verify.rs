@@ -130,7 +130,7 @@ fn verify_scores_a_generated_drive_and_names_bad_inputs() {
     }
     let csv = std::fs::read_to_string(&poses).expect("per-pose CSV");
     assert_eq!(csv.lines().count(), 102, "header and one row per pose");
-    assert!(csv.lines().nth(1).is_some_and(|l| l.split(',').count() == 15));
+    assert!(csv.lines().nth(1).is_some_and(|l| l.split(',').count() == 16));
     // A TTC always names the agent it is to.
     let header: Vec<&str> = csv.lines().next().expect("header").split(',').collect();
     let column = |name: &str| header.iter().position(|h| *h == name).expect(name);
@@ -138,6 +138,8 @@ fn verify_scores_a_generated_drive_and_names_bad_inputs() {
     let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
     assert!(rows.iter().any(|r| !r[ttc].is_empty()), "some pose has an agent ahead within the horizon");
     assert!(rows.iter().all(|r| r[ttc].is_empty() == r[agent].is_empty()), "{csv}");
+    // A verified drive meets nothing.
+    assert!(rows.iter().all(|r| r[column("collision_agent")].is_empty()), "{csv}");
 
     // Bad inputs: a clear error naming the file and line, never a crash.
     let bad_ego = write(&dir, "bad.tum", "0.0 1 2 0 0 0 0 1\n0.1 1 2 zero 0 0 0 1\n");

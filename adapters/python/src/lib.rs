@@ -155,8 +155,9 @@ fn export(
         parquet,
         log_id,
         nuplan,
+        commonroad: None,
         map,
-        scenario_seconds: dash2sim_linux::export::DEFAULT_SCENARIO_SECONDS,
+        scenario_seconds: None,
         map_name: None,
     };
     let exported = py.detach(|| dash2sim_linux::export::export(&request)).map_err(error)?;

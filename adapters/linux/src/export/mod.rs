@@ -1,8 +1,10 @@
 //! `dash2sim export LOG [--mcap F] [--tum F] [--geojson F] [--parquet DIR] [--nuplan DIR]
-//! [--map MAP|OSM]`: one log into every format asked for — Foxglove (MCAP), evo (TUM), QGIS
-//! (GeoJSON), DuckDB/pandas/Spark (Parquet), nuPlan. The exporters are in `logfile` and
-//! `nuplan`; this module only reads the request and calls them.
+//! [--commonroad F.xml] [--map MAP|OSM]`: one log into every format asked for — Foxglove
+//! (MCAP), evo (TUM), QGIS (GeoJSON), DuckDB/pandas/Spark (Parquet), nuPlan, CommonRoad. The
+//! exporters are in `log` and here (`nuplan`, `commonroad`, on the shared `road` and `ticks`);
+//! this module only reads the request and calls them.
 
+pub mod commonroad;
 pub mod junctions;
 #[cfg(feature = "nuplan")]
 pub mod nuplan;
@@ -33,12 +35,15 @@ pub struct ExportRequest {
     pub log_id: Option<String>,
     /// nuPlan output folder: `db/<log>.db` and `maps/` (needs --map).
     pub nuplan: Option<PathBuf>,
+    /// CommonRoad scenario file (`F.xml`, its solution `F.solution.xml`; needs --map).
+    pub commonroad: Option<PathBuf>,
     /// A map tile (`map build`) or an OpenStreetMap file (built into a tile around the
     /// log's origin): its lanes go into the MCAP as lines and are the nuPlan map.
     pub map: Option<PathBuf>,
-    /// Length of a nuPlan scene, s (nuPlan drops the first two and the last of a log;
-    /// [`DEFAULT_SCENARIO_SECONDS`] is the command line's default).
-    pub scenario_seconds: f64,
+    /// Length of a scenario, s: a nuPlan scene ([`DEFAULT_SCENARIO_SECONDS`] when not
+    /// given; nuPlan drops the first two and the last of a log), one CommonRoad file per
+    /// window (not given: one for the whole log).
+    pub scenario_seconds: Option<f64>,
     /// The map's name in nuPlan (default: `dash2sim-` and the map file's name).
     pub map_name: Option<String>,
 }
@@ -81,8 +86,11 @@ pub fn export(request: &ExportRequest) -> Result<Exported> {
         && request.geojson.is_none()
         && request.parquet.is_none()
         && request.nuplan.is_none()
+        && request.commonroad.is_none()
     {
-        return Err(Error::invalid("nothing to export: give --mcap, --tum, --geojson, --parquet and/or --nuplan"));
+        return Err(Error::invalid(
+            "nothing to export: give --mcap, --tum, --geojson, --parquet, --nuplan and/or --commonroad",
+        ));
     }
     let log = read(&request.log).map_err(Error::other)?;
     let mut exported = Exported::default();
@@ -120,6 +128,12 @@ pub fn export(request: &ExportRequest) -> Result<Exported> {
             return Err(Error::invalid("--nuplan needs --map (a tile or an OpenStreetMap file)"));
         };
         exported.written.push(nuplan(&log, request, tile, map_path, dir)?);
+    }
+    if let Some(path) = &request.commonroad {
+        let Some(tile) = &map else {
+            return Err(Error::invalid("--commonroad needs --map (a tile or an OpenStreetMap file)"));
+        };
+        exported.written.extend(commonroad(&log, request, tile, path)?);
     }
     if let Some(path) = &request.mcap {
         let view = map
@@ -163,7 +177,7 @@ fn nuplan(log: &LogContents, request: &ExportRequest, tile: &[u8], map_path: &Pa
         tile,
         map_name: &name,
         out: dir,
-        scene_s: request.scenario_seconds,
+        scene_s: request.scenario_seconds.unwrap_or(DEFAULT_SCENARIO_SECONDS),
     })?;
     let layers: Vec<String> = out.layers.iter().filter(|l| l.1 > 0).map(|(n, c)| format!("{c} {n}")).collect();
     Ok(format!(
@@ -176,6 +190,38 @@ fn nuplan(log: &LogContents, request: &ExportRequest, tile: &[u8], map_path: &Pa
         layers.join(", "),
         started.elapsed().as_secs_f64()
     ))
+}
+
+/// The CommonRoad scenarios written: one line each.
+fn commonroad(log: &LogContents, request: &ExportRequest, tile: &[u8], path: &Path) -> Result<Vec<String>> {
+    let log_name = request.log.display().to_string();
+    let started = std::time::Instant::now();
+    let out = commonroad::export(&commonroad::CommonRoadRequest {
+        log,
+        log_name: &log_name,
+        tile,
+        out: path,
+        window_s: request.scenario_seconds,
+    })?;
+    let seconds = started.elapsed().as_secs_f64();
+    Ok(out
+        .scenarios
+        .iter()
+        .map(|s| {
+            format!(
+                "{}: CommonRoad {} — {} lanelets (EPSG:{} less the map origin), {} steps of {} s, {} dynamic and {} static obstacles; the ego's trajectory in {} ({seconds:.2} s)",
+                s.path.display(),
+                s.id,
+                out.lanelets,
+                out.epsg,
+                s.steps,
+                commonroad::TIME_STEP_S,
+                s.dynamic,
+                s.r#static,
+                s.solution.display()
+            )
+        })
+        .collect())
 }
 
 #[cfg(not(feature = "nuplan"))]

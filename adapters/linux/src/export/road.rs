@@ -57,6 +57,8 @@ pub struct Connector {
     /// The polygon between the bounds; a turn tighter than half the width folds its band
     /// over on the inside, so then its convex hull (a polygon must be simple).
     pub ring: Line,
+    /// Its width (the narrower lane's), m.
+    pub width: f64,
     /// The speed limit of the lane it leaves, m/s.
     pub speed_limit: Option<f64>,
 }
@@ -209,7 +211,16 @@ pub fn road(view: &MapView<'_>, projection: &Projection, seam: f64) -> Result<Ro
         let width = lanes[i].width.min(lanes[j].width) * scale;
         let (ring, left, right) = band(&centre, width / 2.0);
         let ring = if is_simple(&ring) { ring } else { hull(ring) };
-        road.connectors.push(Connector { from, to, centre, left, right, ring, speed_limit: lanes[i].speed_limit });
+        road.connectors.push(Connector {
+            from,
+            to,
+            centre,
+            left,
+            right,
+            ring,
+            width,
+            speed_limit: lanes[i].speed_limit,
+        });
     }
     for (i, lane) in lanes.iter().enumerate() {
         if lane.area.is_none() {

@@ -224,14 +224,14 @@ pub fn replay(
 
 fn poses_csv(steps: &[(f64, Pose2, StepReport)]) -> String {
     let mut out = String::from(
-        "t_s,x,y,heading,front_left_m,front_right_m,rear_right_m,rear_left_m,compliant,occupied_lanes,centre_lane,speed_mps,ttc_s,ttc_agent,direction_progress_m\n",
+        "t_s,x,y,heading,front_left_m,front_right_m,rear_right_m,rear_left_m,compliant,occupied_lanes,centre_lane,speed_mps,ttc_s,ttc_agent,direction_progress_m,collision_agent\n",
     );
     for (t, p, r) in steps {
         let corner = |c: Option<f64>| c.map_or_else(|| "inf".to_owned(), |d| format!("{d:.4}"));
         let occupied: Vec<String> = r.check.occupied.iter().map(u32::to_string).collect();
         let _ = writeln!(
             out,
-            "{t:.3},{:.3},{:.3},{:.5},{},{},{},{},{},{},{},{:.3},{},{},{:.3}",
+            "{t:.3},{:.3},{:.3},{:.5},{},{},{},{},{},{},{},{:.3},{},{},{:.3},{}",
             p.x,
             p.y,
             p.heading,
@@ -245,7 +245,8 @@ fn poses_csv(steps: &[(f64, Pose2, StepReport)]) -> String {
             r.speed,
             r.ttc.map_or_else(String::new, |v| format!("{v:.1}")),
             r.ttc_agent.map_or_else(String::new, |id| id.to_string()),
-            r.direction_progress
+            r.direction_progress,
+            r.collision.as_ref().map_or_else(String::new, |c| c.id.to_string())
         );
     }
     out
