@@ -26,6 +26,7 @@ use dash2sim_core::obb::PACIFICA;
 use super::projection::Projection;
 use super::road::{road, Connector, Road};
 use super::ticks::{agents_at_ticks, ego_ticks, log_origin, place_on_map, AgentTick, EgoTick};
+use super::Cleanup;
 use crate::geometry::{band, is_simple, Line};
 use crate::log::export::class_name;
 use crate::log::LogContents;
@@ -88,17 +89,6 @@ pub struct CommonRoadExport {
     pub lanelets: usize,
     /// EPSG code of the projected frame.
     pub epsg: i32,
-}
-
-/// Remove `paths` when dropped unless disarmed: nothing partial is left behind.
-struct Cleanup(Vec<PathBuf>);
-
-impl Drop for Cleanup {
-    fn drop(&mut self) {
-        for p in &self.0 {
-            let _ = std::fs::remove_file(p);
-        }
-    }
 }
 
 /// Export. Errors name what is wrong; nothing is left behind on an error.

@@ -18,6 +18,18 @@ use crate::log::export::{ego_poses, geojson, tum};
 use crate::log::{frame, mcap_export, read, LogContents};
 use crate::{Error, Result};
 
+/// Files a simulator export writes under temporary names, removed when dropped unless
+/// disarmed (emptied): a refused input leaves nothing partial behind.
+struct Cleanup(Vec<PathBuf>);
+
+impl Drop for Cleanup {
+    fn drop(&mut self) {
+        for p in &self.0 {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
 /// What to export (`dash2sim export`).
 #[derive(Clone, Debug)]
 pub struct ExportRequest {

@@ -18,6 +18,7 @@ use serde_json::json;
 
 use super::projection::Projection;
 use super::ticks::{ego_ticks, log_origin, place_on_map};
+use super::Cleanup;
 use crate::log::LogContents;
 use crate::{Error, Result};
 use gpkg::GeoPackage;
@@ -59,17 +60,6 @@ pub struct NuplanExport {
     pub layers: Vec<(&'static str, usize)>,
     /// EPSG code of the projected frame.
     pub epsg: i32,
-}
-
-/// Remove `paths` when dropped unless disarmed: nothing partial is left behind.
-struct Cleanup(Vec<PathBuf>);
-
-impl Drop for Cleanup {
-    fn drop(&mut self) {
-        for p in &self.0 {
-            let _ = std::fs::remove_file(p);
-        }
-    }
 }
 
 /// Export. Errors name what is missing; nothing is left behind on an error.
