@@ -123,11 +123,13 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                 frame = raw_frame.saturating_add(self.anchoring.frame_offset);
                 self.log.issue(t, Issue::CameraRestarted, 1)?;
             }
-            let skipped = frame - v.frame - 1;
+            // Saturating: frame numbers near u64::MAX (untrusted) leave `frame` no further on
+            // than the last one.
+            let skipped = frame.saturating_sub(v.frame).saturating_sub(1);
             if skipped > 0 {
                 self.log.issue(t, Issue::FramesMissing, skipped)?;
             }
-            let per_frame = (t - v.t).as_secs_f64() / (frame - v.frame) as f64;
+            let per_frame = (t - v.t).as_secs_f64() / frame.saturating_sub(v.frame) as f64;
             if per_frame.is_finite() && per_frame > 0.0 {
                 self.anchoring.frame_interval = per_frame;
             }

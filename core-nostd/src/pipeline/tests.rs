@@ -569,6 +569,22 @@ fn a_camera_restart_and_skipped_frames_are_events_and_tracking_goes_on_across_a_
 }
 
 #[test]
+fn frame_numbers_at_the_end_of_the_range_are_taken_without_a_panic() {
+    // Found by the `pipeline_inputs` fuzz target: the largest frame number, then a restart
+    // whose frame offset saturates, left the new frame equal to the last one.
+    let classes = cone_class();
+    let mut trackers = trackers(&classes);
+    let mut buffer = [0u8; 65_536];
+    let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> = Pipeline::new(&mut buffer[..], config(), &mut trackers);
+    for (k, frame) in [u64::MAX - 1, u64::MAX, 0, 1, u64::MAX].into_iter().enumerate() {
+        let t = 100_000 * k as i64;
+        assert!(p.push_vo(us(t), frame, 0, &vo_pose(t)).is_ok(), "frame {frame}");
+    }
+    assert_eq!(p.stats().vo_poses, 5);
+    assert!(p.issues().get(Issue::CameraRestarted) >= 1);
+}
+
+#[test]
 fn gnss_from_dbc_signals_anchors_the_drive_and_puts_the_log_in_utc() {
     let classes = cone_class();
     let mut trackers = trackers(&classes);
