@@ -20,12 +20,11 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::geo::Geodetic;
-use dash2sim_core::map::MapView;
 use dash2sim_core::obb::PACIFICA;
 
 use super::projection::Projection;
 use super::road::{road, Connector, Road};
-use super::ticks::{agents_at_ticks, ego_ticks, log_origin, place_on_map, AgentTick, EgoTick};
+use super::ticks::{agents_at_ticks, on_map, AgentTick, EgoTick, OnMap};
 use super::Cleanup;
 use crate::geometry::{band, is_simple, Line};
 use crate::log::export::class_name;
@@ -93,13 +92,8 @@ pub struct CommonRoadExport {
 
 /// Export. Errors name what is wrong; nothing is left behind on an error.
 pub fn export(request: &CommonRoadRequest<'_>) -> Result<CommonRoadExport> {
-    let view = MapView::parse(request.tile).map_err(|e| Error::refused("map", e))?;
-    let [lat, lon, h] = view.header().origin;
-    let map_origin = Geodetic::new(lat, lon, h).map_err(|e| Error::refused("map origin", e))?;
-    let map_projection = Projection::new(map_origin)?;
-    let log_projection = Projection::with_zone(log_origin(request.log)?, map_projection.zone, map_projection.north)?;
-    let mut ticks = ego_ticks(request.log, &log_projection, 1.0 / TIME_STEP_S)
-        .map_err(|e| Error::refused(request.log_name.to_string(), e))?;
+    let OnMap { view, map_origin, map_projection, log_projection, ticks } =
+        on_map(request.log, request.log_name, request.tile, 1.0 / TIME_STEP_S)?;
     let duration = ticks.len().saturating_sub(1) as f64 * TIME_STEP_S;
     let window = match request.window_s {
         None => ticks.len(),
@@ -120,7 +114,6 @@ pub fn export(request: &CommonRoadRequest<'_>) -> Result<CommonRoadExport> {
             window.max(MIN_STEPS) as f64 * TIME_STEP_S
         )));
     }
-    place_on_map(&mut ticks, log_origin(request.log)?, map_origin, &view)?;
     let road = road(&view, &map_projection, -0.01)?;
     // The local frame: the map origin at (0, 0).
     let origin = map_projection.project(&[(0.0, 0.0, 0.0)]).first().copied().unwrap_or_default();

@@ -44,7 +44,7 @@ pub struct EgoTick {
 }
 
 /// The log's origin (its header's), where its ENU frame is anchored.
-pub fn log_origin(log: &LogContents) -> Result<Geodetic> {
+fn log_origin(log: &LogContents) -> Result<Geodetic> {
     let h = log.header.ok_or_else(|| Error::invalid("the log's header is damaged (no origin)"))?;
     Geodetic::new(f64::from(h.origin[0]) * 1e-7, f64::from(h.origin[1]) * 1e-7, f64::from(h.origin[2]) * 1e-3)
         .map_err(|e| Error::refused("the log's origin", e))
@@ -124,15 +124,49 @@ pub fn ego_ticks(log: &LogContents, projection: &Projection, rate_hz: f64) -> Re
     Ok(out)
 }
 
+/// A log and a map tile in one projected frame (the UTM zone of the map's origin): what a
+/// simulator export starts from.
+pub struct OnMap<'t> {
+    /// The tile.
+    pub view: MapView<'t>,
+    /// The tile's origin.
+    pub map_origin: Geodetic,
+    /// The tile's frame into UTM.
+    pub map_projection: Projection,
+    /// The log's frame into the same zone.
+    pub log_projection: Projection,
+    /// The ego at `rate_hz`, its ENU poses in the map's frame.
+    pub ticks: Vec<EgoTick>,
+}
+
+impl std::fmt::Debug for OnMap<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OnMap")
+            .field("map_origin", &self.map_origin)
+            .field("map_projection", &self.map_projection)
+            .field("ticks", &self.ticks.len())
+            .finish_non_exhaustive()
+    }
+}
+
+/// `log` (named `log_name` in errors) resampled at `rate_hz` and placed on `tile`: errors for
+/// a damaged tile or header, a log without ego poses, a map that does not cover the drive.
+pub fn on_map<'t>(log: &LogContents, log_name: &str, tile: &'t [u8], rate_hz: f64) -> Result<OnMap<'t>> {
+    let view = MapView::parse(tile).map_err(|e| Error::refused("map", e))?;
+    let [lat, lon, h] = view.header().origin;
+    let map_origin = Geodetic::new(lat, lon, h).map_err(|e| Error::refused("map origin", e))?;
+    let map_projection = Projection::new(map_origin)?;
+    let origin = log_origin(log)?;
+    let log_projection = Projection::with_zone(origin, map_projection.zone, map_projection.north)?;
+    let mut ticks = ego_ticks(log, &log_projection, rate_hz).map_err(|e| Error::refused(log_name.to_string(), e))?;
+    place_on_map(&mut ticks, origin, map_origin, &view)?;
+    Ok(OnMap { view, map_origin, map_projection, log_projection, ticks })
+}
+
 /// The ticks' ENU poses moved from the log's frame (origin `log_origin`) into the map's
 /// (`map_origin`), through geodetic positions; an error when more than a tenth of them lie
 /// farther than 10 m from every lane of `view` (the map does not cover the drive).
-pub fn place_on_map(
-    ticks: &mut [EgoTick],
-    log_origin: Geodetic,
-    map_origin: Geodetic,
-    view: &MapView<'_>,
-) -> Result<()> {
+fn place_on_map(ticks: &mut [EgoTick], log_origin: Geodetic, map_origin: Geodetic, view: &MapView<'_>) -> Result<()> {
     let (log_frame, map_frame) = (LocalFrame::new(log_origin), LocalFrame::new(map_origin));
     let mut off = 0;
     for t in ticks.iter_mut() {

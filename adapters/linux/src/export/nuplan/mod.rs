@@ -12,12 +12,9 @@ pub mod map;
 
 use std::path::{Path, PathBuf};
 
-use dash2sim_core::geo::Geodetic;
-use dash2sim_core::map::MapView;
 use serde_json::json;
 
-use super::projection::Projection;
-use super::ticks::{ego_ticks, log_origin, place_on_map};
+use super::ticks::{on_map, OnMap};
 use super::Cleanup;
 use crate::log::LogContents;
 use crate::{Error, Result};
@@ -67,13 +64,8 @@ pub fn export(request: &NuplanRequest<'_>) -> Result<NuplanExport> {
     if !(request.scene_s.is_finite() && request.scene_s >= 1.0) {
         return Err(Error::invalid(format!("--scenario-seconds {} must be at least 1", request.scene_s)));
     }
-    let view = MapView::parse(request.tile).map_err(|e| Error::refused("map", e))?;
-    let [lat, lon, h] = view.header().origin;
-    let map_origin = Geodetic::new(lat, lon, h).map_err(|e| Error::refused("map origin", e))?;
-    let map_projection = Projection::new(map_origin)?;
-    let log_projection = Projection::with_zone(log_origin(request.log)?, map_projection.zone, map_projection.north)?;
-    let mut ticks = ego_ticks(request.log, &log_projection, logdb::RATE_HZ)
-        .map_err(|e| Error::refused(request.log_name.to_string(), e))?;
+    let OnMap { view, map_projection, log_projection, ticks, .. } =
+        on_map(request.log, request.log_name, request.tile, logdb::RATE_HZ)?;
     let duration = ticks.len().saturating_sub(1) as f64 / logdb::RATE_HZ;
     let scenes = logdb::scene_count(ticks.len(), request.scene_s);
     if scenes < MIN_SCENES {
@@ -82,9 +74,6 @@ pub fn export(request: &NuplanRequest<'_>) -> Result<NuplanExport> {
             request.log_name, request.scene_s
         )));
     }
-    // The map must cover the drive (the tile is in the map's frame; the ticks keep the log's
-    // ENU, which is the map's when the origins agree).
-    place_on_map(&mut ticks, log_origin(request.log)?, map_origin, &view)?;
     let (layers, ids) = map::layers(&view, &map_projection)?;
 
     let db_dir = request.out.join("db");
