@@ -11,8 +11,8 @@
    by `CommonRoadSolutionReader`;
 3. the drivability checker (commonroad-drivability-checker) judges the ego, a rectangle of
    `verify`'s footprint (nuPlan's Pacifica) at every state of the solution: **road
-   compliance** against the road boundary it builds from the lanelet network (Delaunay
-   triangulation of everything outside the lanelets) and **collision** with the obstacles at
+   compliance** against the road boundary it builds from the lanelet network (`aligned_triangulation`:
+   everything outside the union of the lanelets, in axis-aligned triangles) and **collision** with the obstacles at
    that step (its collision checker built from the scenario);
 4. `dash2sim verify LOG --map MAP --poses CSV` judges the same poses: the pose is compliant
    when its footprint lies in the tile's drivable area; a collision is reported at the pose it
