@@ -33,14 +33,19 @@ pub struct ExportArgs {
     /// `F.solution.xml` (needs --map; docs/commonroad.md).
     #[arg(long, value_name = "F.xml")]
     pub commonroad: Option<PathBuf>,
+    /// ScenarioNet dataset folder: a scenario pickle per window (MetaDrive's
+    /// `ScenarioDescription`), `dataset_summary.pkl` and `dataset_mapping.pkl` (needs --map;
+    /// docs/scenarionet.md).
+    #[arg(long, value_name = "DIR")]
+    pub scenarionet: Option<PathBuf>,
     /// A map tile (`map build`) or an OpenStreetMap file (built into a tile around the
-    /// log's origin): its lanes go into the MCAP as lines and are the nuPlan and CommonRoad
-    /// map.
+    /// log's origin): its lanes go into the MCAP as lines and are the nuPlan, CommonRoad and
+    /// ScenarioNet map.
     #[arg(long)]
     pub map: Option<PathBuf>,
     /// Length of a scenario, s: of a nuPlan scene (default 5; nuPlan drops the first two and
-    /// the last of a log); with --commonroad, one file per window of this length
-    /// (`F-001.xml`, …; default: one file for the whole log).
+    /// the last of a log); with --commonroad and --scenarionet, one scenario per window of
+    /// this length (`F-001.xml`, …; default: one for the whole log).
     #[arg(long)]
     pub scenario_seconds: Option<f64>,
     /// The map's name in nuPlan (default: `dash2sim-` and the map file's name).
@@ -60,6 +65,7 @@ pub fn run(args: ExportArgs) -> Result<()> {
         log_id: args.log_id,
         nuplan: args.nuplan,
         commonroad: args.commonroad,
+        scenarionet: args.scenarionet,
         map: args.map,
         scenario_seconds: args.scenario_seconds,
         map_name: args.map_name,

@@ -402,6 +402,155 @@ fn export_commonroad_writes_lanelets_obstacles_and_the_ego_and_refuses_bad_input
     assert!(left.is_empty(), "left behind: {left:?}");
 }
 
+/// A pickle's structure as serde-pickle reads it: numpy arrays (an unresolved global) are
+/// `None`.
+fn unpickle(path: &Path) -> serde_pickle::Value {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_pickle::value_from_slice(&bytes, serde_pickle::DeOptions::new().replace_unresolved_globals())
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// `value[key]` of a pickled dict with string keys.
+fn field<'v>(value: &'v serde_pickle::Value, key: &str) -> &'v serde_pickle::Value {
+    let serde_pickle::Value::Dict(map) = value else { panic!("not a dict: {value:?}") };
+    map.get(&serde_pickle::HashableValue::String(key.to_string())).unwrap_or_else(|| panic!("no {key}"))
+}
+
+fn keys(value: &serde_pickle::Value) -> Vec<String> {
+    let serde_pickle::Value::Dict(map) = value else { panic!("not a dict") };
+    map.keys()
+        .map(|k| match k {
+            serde_pickle::HashableValue::String(s) => s.clone(),
+            other => panic!("a key that is not a string: {other:?}"),
+        })
+        .collect()
+}
+
+#[test]
+fn export_scenarionet_writes_a_dataset_with_the_ego_objects_and_lanes_and_refuses_bad_input() {
+    use serde_pickle::Value;
+    let dir = scratch("scenarionet");
+    let out = demo_ideal_offline(&dir, "30");
+    assert!(out.status.success(), "{}", stderr(&out));
+    let path = |p: &Path| p.display().to_string();
+    let (log, map) = (dir.join("finished.d2slog"), dir.join("road.map"));
+    let dataset = dir.join("dataset");
+    let out = dash2sim(&[
+        "export",
+        &path(&log),
+        "--scenarionet",
+        &path(&dataset),
+        "--map",
+        &path(&map),
+        "--scenario-seconds",
+        "10",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    // Three windows of 10 s and ScenarioNet's two index files, nothing else.
+    let mut names: Vec<String> = std::fs::read_dir(&dataset)
+        .expect("dataset")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    let scenarios: Vec<String> = names.iter().filter(|n| n.starts_with("sd_dash2sim_")).cloned().collect();
+    assert_eq!(scenarios.len(), 3, "{names:?}");
+    assert_eq!(names.len(), 5, "{names:?}");
+    let mapping = unpickle(&dataset.join("dataset_mapping.pkl"));
+    let mut mapped = keys(&mapping);
+    mapped.sort();
+    assert_eq!(mapped, scenarios);
+    let summary = unpickle(&dataset.join("dataset_summary.pkl"));
+    for name in &scenarios {
+        let scenario = unpickle(&dataset.join(name));
+        let mut top = keys(&scenario);
+        top.sort();
+        assert_eq!(top, ["dynamic_map_states", "id", "length", "map_features", "metadata", "tracks", "version"]);
+        assert_eq!(field(&scenario, "length"), &Value::I64(100));
+        let metadata = field(&scenario, "metadata");
+        assert_eq!(field(metadata, "sdc_id"), &Value::String("ego".into()));
+        assert_eq!(field(metadata, "dataset"), &Value::String("dash2sim".into()));
+        assert_eq!(field(metadata, "utm_epsg"), &Value::I64(32635));
+        assert_eq!(field(&summary, name), metadata, "the summary holds each scenario's metadata");
+        // The ego and the tracked objects, each with the state arrays MetaDrive reads and
+        // its own id in its metadata.
+        let tracks = field(&scenario, "tracks");
+        let ids = keys(tracks);
+        assert!(ids.contains(&"ego".to_string()) && ids.len() >= 2, "{ids:?}");
+        for id in &ids {
+            let track = field(tracks, id);
+            let mut state = keys(field(track, "state"));
+            state.sort();
+            assert_eq!(state, ["heading", "height", "length", "position", "valid", "velocity", "width"]);
+            assert_eq!(field(field(track, "metadata"), "object_id"), &Value::String(id.clone()));
+        }
+        let object_summary = field(metadata, "object_summary");
+        let mut summarised = keys(object_summary);
+        summarised.sort();
+        let mut sorted = ids.clone();
+        sorted.sort();
+        assert_eq!(summarised, sorted);
+        // Lanes whose neighbours, entries, exits and boundaries all name features of the map.
+        let features = field(&scenario, "map_features");
+        let feature_ids = keys(features);
+        let kind = |id: &str| match field(field(features, id), "type") {
+            Value::String(s) => s.clone(),
+            other => panic!("{other:?}"),
+        };
+        let lanes: Vec<&String> = feature_ids.iter().filter(|id| kind(id) == "LANE_SURFACE_STREET").collect();
+        assert!(lanes.len() >= 2, "{feature_ids:?}");
+        assert!(feature_ids.iter().any(|id| kind(id) == "ROAD_EDGE_BOUNDARY"));
+        for lane in lanes {
+            let lane = field(features, lane);
+            for (list, key) in [
+                ("entry_lanes", None),
+                ("exit_lanes", None),
+                ("left_neighbor", Some("feature_id")),
+                ("right_neighbor", Some("feature_id")),
+                ("left_boundaries", Some("boundary_feature_id")),
+                ("right_boundaries", Some("boundary_feature_id")),
+            ] {
+                let Value::List(items) = field(lane, list) else { panic!("{list} is not a list") };
+                for item in items {
+                    let target = match key {
+                        None => item,
+                        Some(k) => field(item, k),
+                    };
+                    let Value::String(target) = target else { panic!("{list}: {target:?}") };
+                    assert!(feature_ids.contains(target), "{list} names {target}, not a feature");
+                }
+            }
+        }
+    }
+
+    // Bad input: a clear error and nothing left behind.
+    let fresh = dir.join("refused");
+    let target = path(&fresh);
+    let out =
+        dash2sim(&["export", &path(&log), "--scenarionet", &target, "--map", &path(&map), "--scenario-seconds", "0.5"]);
+    assert!(!out.status.success() && stderr(&out).contains("needs at least 1 s"), "{}", stderr(&out));
+    let out =
+        dash2sim(&["export", &path(&log), "--scenarionet", &target, "--map", &path(&map), "--scenario-seconds", "60"]);
+    assert!(!out.status.success() && stderr(&out).contains("shorter than one scenario"), "{}", stderr(&out));
+    let far = write(
+        &dir,
+        "far.osm",
+        r#"<osm version="0.6"><node id="1" lat="0.0" lon="0.0"/><node id="2" lat="0.001" lon="0.0"/>
+<way id="3"><nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/></way></osm>"#,
+    );
+    let out = dash2sim(&["export", &path(&log), "--scenarionet", &target, "--map", &far]);
+    assert!(!out.status.success() && stderr(&out).contains("the map does not cover the drive"), "{}", stderr(&out));
+    let gnss_only = dir.join("gnss-only.d2slog");
+    assert!(dash2sim(&["import", "-o", &path(&gnss_only), "--nmea", &path(&dir.join("drive/gnss.nmea"))])
+        .status
+        .success());
+    let out = dash2sim(&["export", &path(&gnss_only), "--scenarionet", &target, "--map", &path(&map)]);
+    assert!(!out.status.success() && stderr(&out).contains("no ego poses"), "{}", stderr(&out));
+    let out = dash2sim(&["export", &path(&log), "--scenarionet", &target]);
+    assert!(!out.status.success() && stderr(&out).contains("--scenarionet needs --map"), "{}", stderr(&out));
+    let left: Vec<_> = walk(&fresh).into_iter().filter(|p| p.is_file()).collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
 #[test]
 fn plot_draws_the_map_the_three_trajectories_and_the_objects_and_refuses_a_log_without_poses() {
     let dir = scratch("plot");

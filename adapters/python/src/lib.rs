@@ -156,6 +156,7 @@ fn export(
         log_id,
         nuplan,
         commonroad: None,
+        scenarionet: None,
         map,
         scenario_seconds: None,
         map_name: None,

@@ -20,11 +20,10 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::geo::Geodetic;
-use dash2sim_core::obb::PACIFICA;
 
 use super::projection::Projection;
 use super::road::{road, Connector, Road};
-use super::ticks::{agents_at_ticks, on_map, AgentTick, EgoTick, OnMap};
+use super::ticks::{agents_at_ticks, on_map, windows, AgentTick, EgoTick, OnMap};
 use super::Cleanup;
 use crate::geometry::{band, is_simple, Line};
 use crate::log::export::class_name;
@@ -94,26 +93,7 @@ pub struct CommonRoadExport {
 pub fn export(request: &CommonRoadRequest<'_>) -> Result<CommonRoadExport> {
     let OnMap { view, map_origin, map_projection, log_projection, ticks } =
         on_map(request.log, request.log_name, request.tile, 1.0 / TIME_STEP_S)?;
-    let duration = ticks.len().saturating_sub(1) as f64 * TIME_STEP_S;
-    let window = match request.window_s {
-        None => ticks.len(),
-        Some(s) if s.is_finite() && (s / TIME_STEP_S).round() as usize >= MIN_STEPS => {
-            (s / TIME_STEP_S).round() as usize
-        }
-        Some(s) => {
-            return Err(Error::invalid(format!(
-            "--scenario-seconds {s}: a CommonRoad scenario needs at least {} s ({MIN_STEPS} steps of {TIME_STEP_S} s)",
-            MIN_STEPS as f64 * TIME_STEP_S
-        )))
-        }
-    };
-    if ticks.len() < window.max(MIN_STEPS) {
-        return Err(Error::invalid(format!(
-            "{}: {duration:.1} s of ego poses are shorter than one scenario ({:.1} s)",
-            request.log_name,
-            window.max(MIN_STEPS) as f64 * TIME_STEP_S
-        )));
-    }
+    let windows = windows(ticks.len(), request.window_s, TIME_STEP_S, MIN_STEPS, "CommonRoad", request.log_name)?;
     let road = road(&view, &map_projection, -0.01)?;
     // The local frame: the map origin at (0, 0).
     let origin = map_projection.project(&[(0.0, 0.0, 0.0)]).first().copied().unwrap_or_default();
@@ -121,7 +101,6 @@ pub fn export(request: &CommonRoadRequest<'_>) -> Result<CommonRoadExport> {
     let lanelets = lanelet_xml(&road, origin);
     let location = location_xml(map_origin, &map_projection, origin);
 
-    let windows: Vec<(usize, usize)> = (0..ticks.len() / window).map(|k| (k * window, (k + 1) * window)).collect();
     let stem = request.out.file_stem().and_then(|s| s.to_str()).unwrap_or("scenario");
     let folder = request.out.parent().unwrap_or(Path::new(""));
     let mut scenarios = Vec::new();
@@ -384,25 +363,18 @@ fn obstacles_xml(agents: &[&AgentTick], from: usize, origin: (f64, f64)) -> (Str
     (statics, n_dynamic, n_static)
 }
 
-/// The ego's centre (CommonRoad positions a vehicle's rectangle by its centre; the log's ego
-/// pose is the rear axle).
-fn centre(t: &EgoTick) -> (f64, f64) {
-    let forward = 0.5 * (PACIFICA.front - PACIFICA.rear);
-    (t.x + forward * t.heading.cos(), t.y + forward * t.heading.sin())
-}
-
 fn planning_problem_xml(ego: &[EgoTick], origin: (f64, f64)) -> String {
     let mut out = format!("  <planningProblem id=\"{}\">\n    <initialState>\n", PLANNING_PROBLEM_BASE + 1);
     if let (Some(first), Some(last)) = (ego.first(), ego.last()) {
         let _ = writeln!(out, "      <time><exact>0</exact></time>\n      <position>");
-        point(&mut out, "        ", centre(first), origin);
+        point(&mut out, "        ", first.centre(), origin);
         let _ = writeln!(
             out,
             "      </position>\n      <orientation><exact>{:.6}</exact></orientation>\n      <velocity><exact>{:.4}</exact></velocity>\n      <yawRate><exact>{:.6}</exact></yawRate>\n      <slipAngle><exact>0</exact></slipAngle>\n    </initialState>",
             first.heading, first.velocity.0, first.yaw_rate
         );
         let steps = ego.len() - 1;
-        let (x, y) = centre(last);
+        let (x, y) = last.centre();
         let _ = writeln!(
             out,
             "    <goalState>\n      <time><intervalStart>{}</intervalStart><intervalEnd>{}</intervalEnd></time>\n      <position>\n        <rectangle>\n          <length>{GOAL_LENGTH_M}</length>\n          <width>{GOAL_WIDTH_M}</width>\n          <orientation>{:.6}</orientation>\n          <center><x>{:.3}</x><y>{:.3}</y></center>\n        </rectangle>\n      </position>\n    </goalState>",
@@ -427,7 +399,7 @@ fn solution_xml(ego: &[EgoTick], origin: (f64, f64), id: &str, date: &str) -> St
         PLANNING_PROBLEM_BASE + 1
     );
     for (k, t) in ego.iter().enumerate() {
-        let (x, y) = centre(t);
+        let (x, y) = t.centre();
         let speed = t.velocity.0;
         let steering = if speed.abs() > 0.5 { (WHEELBASE_M * t.yaw_rate / speed).atan() } else { 0.0 };
         let _ = writeln!(

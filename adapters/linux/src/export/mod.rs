@@ -1,15 +1,18 @@
 //! `dash2sim export LOG [--mcap F] [--tum F] [--geojson F] [--parquet DIR] [--nuplan DIR]
-//! [--commonroad F.xml] [--map MAP|OSM]`: one log into every format asked for — Foxglove
-//! (MCAP), evo (TUM), QGIS (GeoJSON), DuckDB/pandas/Spark (Parquet), nuPlan, CommonRoad. The
-//! exporters are in `log` and here (`nuplan`, `commonroad`, on the shared `road` and `ticks`);
-//! this module only reads the request and calls them.
+//! [--commonroad F.xml] [--scenarionet DIR] [--map MAP|OSM]`: one log into every format asked
+//! for — Foxglove (MCAP), evo (TUM), QGIS (GeoJSON), DuckDB/pandas/Spark (Parquet), nuPlan,
+//! CommonRoad, ScenarioNet. The exporters are in `log` and here (`nuplan`, `commonroad`,
+//! `scenarionet`, on the shared `road` and `ticks`); this module only reads the request and
+//! calls them.
 
 pub mod commonroad;
 pub mod junctions;
 #[cfg(feature = "nuplan")]
 pub mod nuplan;
+pub mod pickle;
 pub mod projection;
 pub mod road;
+pub mod scenarionet;
 pub mod ticks;
 
 use std::path::{Path, PathBuf};
@@ -49,12 +52,15 @@ pub struct ExportRequest {
     pub nuplan: Option<PathBuf>,
     /// CommonRoad scenario file (`F.xml`, its solution `F.solution.xml`; needs --map).
     pub commonroad: Option<PathBuf>,
+    /// ScenarioNet dataset folder (scenario pickles and the dataset's summary and mapping;
+    /// needs --map).
+    pub scenarionet: Option<PathBuf>,
     /// A map tile (`map build`) or an OpenStreetMap file (built into a tile around the
     /// log's origin): its lanes go into the MCAP as lines and are the nuPlan map.
     pub map: Option<PathBuf>,
     /// Length of a scenario, s: a nuPlan scene ([`DEFAULT_SCENARIO_SECONDS`] when not
-    /// given; nuPlan drops the first two and the last of a log), one CommonRoad file per
-    /// window (not given: one for the whole log).
+    /// given; nuPlan drops the first two and the last of a log), one CommonRoad file or
+    /// ScenarioNet scenario per window (not given: one for the whole log).
     pub scenario_seconds: Option<f64>,
     /// The map's name in nuPlan (default: `dash2sim-` and the map file's name).
     pub map_name: Option<String>,
@@ -99,9 +105,10 @@ pub fn export(request: &ExportRequest) -> Result<Exported> {
         && request.parquet.is_none()
         && request.nuplan.is_none()
         && request.commonroad.is_none()
+        && request.scenarionet.is_none()
     {
         return Err(Error::invalid(
-            "nothing to export: give --mcap, --tum, --geojson, --parquet, --nuplan and/or --commonroad",
+            "nothing to export: give --mcap, --tum, --geojson, --parquet, --nuplan, --commonroad and/or --scenarionet",
         ));
     }
     let log = read(&request.log).map_err(Error::other)?;
@@ -146,6 +153,12 @@ pub fn export(request: &ExportRequest) -> Result<Exported> {
             return Err(Error::invalid("--commonroad needs --map (a tile or an OpenStreetMap file)"));
         };
         exported.written.extend(commonroad(&log, request, tile, path)?);
+    }
+    if let Some(dir) = &request.scenarionet {
+        let Some(tile) = &map else {
+            return Err(Error::invalid("--scenarionet needs --map (a tile or an OpenStreetMap file)"));
+        };
+        exported.written.push(scenarionet(&log, request, tile, dir)?);
     }
     if let Some(path) = &request.mcap {
         let view = map
@@ -234,6 +247,32 @@ fn commonroad(log: &LogContents, request: &ExportRequest, tile: &[u8], path: &Pa
             )
         })
         .collect())
+}
+
+/// The ScenarioNet dataset written: what it holds.
+fn scenarionet(log: &LogContents, request: &ExportRequest, tile: &[u8], dir: &Path) -> Result<String> {
+    let log_name = request.log.display().to_string();
+    let started = std::time::Instant::now();
+    let out = scenarionet::export(&scenarionet::ScenarioNetRequest {
+        log,
+        log_name: &log_name,
+        tile,
+        out: dir,
+        window_s: request.scenario_seconds,
+    })?;
+    let steps: usize = out.scenarios.iter().map(|s| s.steps).sum();
+    let tracks: usize = out.scenarios.iter().map(|s| s.tracks).sum();
+    Ok(format!(
+        "{}: ScenarioNet, {} scenarios ({steps} steps of {} s, {tracks} tracks with the ego's), {} map features each (EPSG:{} less the map origin); {} and {} ({:.2} s)",
+        dir.display(),
+        out.scenarios.len(),
+        scenarionet::TIME_STEP_S,
+        out.map_features,
+        out.epsg,
+        out.summary.display(),
+        out.mapping.display(),
+        started.elapsed().as_secs_f64()
+    ))
 }
 
 #[cfg(not(feature = "nuplan"))]

@@ -10,10 +10,10 @@ use dash2sim_core::binlog::{Record, Track3d};
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::map::MapView;
 use dash2sim_core::nalgebra::Vector3;
-use dash2sim_core::obb::Pose2;
+use dash2sim_core::obb::{Pose2, PACIFICA};
 
 use super::projection::Projection;
-use crate::log::export::track_velocity;
+use crate::log::export::{standing_objects, track_velocity};
 use crate::log::LogContents;
 use crate::{Error, Result};
 
@@ -41,6 +41,15 @@ pub struct EgoTick {
     pub yaw_rate: f64,
     /// The log's ENU pose, for map queries in the tile's frame.
     pub enu: Pose2,
+}
+
+impl EgoTick {
+    /// The centre of the ego's footprint (nuPlan's Pacifica, which `verify` uses): where
+    /// CommonRoad and ScenarioNet place a vehicle, while the log's pose is the rear axle.
+    pub fn centre(&self) -> (f64, f64) {
+        let forward = 0.5 * (PACIFICA.front - PACIFICA.rear);
+        (self.x + forward * self.heading.cos(), self.y + forward * self.heading.sin())
+    }
 }
 
 /// The log's origin (its header's), where its ENU frame is anchored.
@@ -207,12 +216,21 @@ pub struct AgentTick {
 }
 
 /// The tracks of the batch nearest each tick (within one tick's step), moved by their
-/// velocity to the tick's time, projected; in tick order.
+/// velocity to the tick's time, projected, with the static objects the camera has lost
+/// standing where they were seen ([`standing_objects`]); in tick order.
 pub fn agents_at_ticks(log: &LogContents, ticks: &[EgoTick], projection: &Projection) -> Vec<AgentTick> {
     let mut batches: BTreeMap<i64, Vec<Track3d>> = BTreeMap::new();
     for r in &log.records {
         if let Record::Tracks3d(b) = r {
             batches.entry(b.t_us).or_default().extend(b.tracks.iter().copied());
+        }
+    }
+    // Static objects stand where they were seen after the camera lost them.
+    for (last, standing) in standing_objects(log).into_values() {
+        for batch in batches.range_mut(last + 1..).map(|(_, b)| b) {
+            if !batch.iter().any(|t| t.id == standing.id) {
+                batch.push(standing);
+            }
         }
     }
     let step = match ticks {
@@ -252,4 +270,36 @@ pub fn agents_at_ticks(log: &LogContents, ticks: &[EgoTick], projection: &Projec
             }
         })
         .collect()
+}
+
+/// The windows of `ticks` ticks (`step_s` apart) a simulator export writes, as (first, end)
+/// tick ranges: one per whole `window_s` seconds, or the whole drive when `None`. Errors for a
+/// window under `min_steps` ticks and for a drive shorter than one window; `simulator` and
+/// `log_name` name them.
+pub fn windows(
+    ticks: usize,
+    window_s: Option<f64>,
+    step_s: f64,
+    min_steps: usize,
+    simulator: &str,
+    log_name: &str,
+) -> Result<Vec<(usize, usize)>> {
+    let window = match window_s {
+        None => ticks,
+        Some(s) if s.is_finite() && (s / step_s).round() as usize >= min_steps => (s / step_s).round() as usize,
+        Some(s) => {
+            return Err(Error::invalid(format!(
+                "--scenario-seconds {s}: a {simulator} scenario needs at least {} s ({min_steps} steps of {step_s} s)",
+                min_steps as f64 * step_s
+            )))
+        }
+    };
+    if ticks < window.max(min_steps) {
+        return Err(Error::invalid(format!(
+            "{log_name}: {:.1} s of ego poses are shorter than one scenario ({:.1} s)",
+            ticks.saturating_sub(1) as f64 * step_s,
+            window.max(min_steps) as f64 * step_s
+        )));
+    }
+    Ok((0..ticks / window).map(|k| (k * window, (k + 1) * window)).collect())
 }
