@@ -114,12 +114,11 @@ fn demo_of_a_careless_driver_is_rejected_and_bad_arguments_are_named() {
     for who in ["ground_truth", "online", "finished"] {
         assert_eq!(v[who]["channel_insensitive"]["verified"], false, "{who}: {}", v[who]);
     }
-    // It hit the taper's drums: the finished log sees the collision, or a time to collision
-    // under the bound (the drum it hits has left the camera's view; on the typical sweep the
-    // finished logs see the collision itself in 8 of the 93 careless drives that collide).
-    let metrics = &v["finished"]["channel_insensitive"]["metrics"];
-    let close = |m: &str| metrics[m].as_f64().is_some_and(|s| s < 1.0);
-    assert!(close("no_at_fault_collisions") || close("time_to_collision_within_bound"), "{v}");
+    // It hit the taper's drums, and the finished log sees the collision: the drum it hits has
+    // left the camera's view, but a static object stands where it was seen (on the typical
+    // sweep the finished logs see the collision in 84 of the 93 careless drives that collide,
+    // 8 before static objects stood).
+    assert!(v["finished"]["channel_insensitive"]["metrics"]["no_at_fault_collisions"].as_f64() < Some(1.0), "{v}");
     let out = dash2sim(&["demo", "-o", &dir.display().to_string(), "--duration", "5"]);
     assert!(!out.status.success() && stderr(&out).contains("--duration"));
 }

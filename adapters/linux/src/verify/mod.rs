@@ -80,7 +80,7 @@ pub fn from_contents(
     name: &str,
     map: &MapView<'_>,
 ) -> Result<(Vec<(f64, Pose2)>, AgentsByTime)> {
-    use crate::log::export::{ego_enu, ego_poses, tracks};
+    use crate::log::export::{ego_enu, ego_poses, standing_objects, tracks};
     use dash2sim_core::geo::{Geodetic, LocalFrame};
     use dash2sim_core::nalgebra::Vector3;
     let header = log.header.ok_or_else(|| Error::invalid(format!("{name}: the header is damaged (no origin)")))?;
@@ -115,9 +115,20 @@ pub fn from_contents(
         )));
     }
     let mut agents: BTreeMap<i64, Vec<Agent>> = BTreeMap::new();
+    let at =
+        |t: &dash2sim_core::binlog::Track3d| to_map(Vector3::new(t.x_mm as f64, t.y_mm as f64, t.z_mm as f64) * 1e-3);
     for (t_us, t) in tracks(log) {
-        let (x, y) = to_map(Vector3::new(t.x_mm as f64, t.y_mm as f64, t.z_mm as f64) * 1e-3);
-        agents.entry((t_us as f64 / 1000.0).round() as i64).or_default().push(agent_of(t, (x, y)));
+        agents.entry((t_us as f64 / 1000.0).round() as i64).or_default().push(agent_of(t, at(t)));
+    }
+    // Static objects stand where they were seen after the camera lost them.
+    for (last_us, standing) in standing_objects(log).into_values() {
+        let agent = agent_of(&standing, at(&standing));
+        let last_ms = (last_us as f64 / 1000.0).round() as i64;
+        for frame in agents.range_mut(last_ms + 1..).map(|(_, a)| a) {
+            if !frame.iter().any(|a| a.id == agent.id) {
+                frame.push(agent);
+            }
+        }
     }
     Ok((poses, agents))
 }
