@@ -295,6 +295,37 @@ fn xml_elements(path: &Path) -> Vec<Element> {
     }
 }
 
+/// A simulator export (`flag`: `--commonroad F.xml` or `--scenarionet DIR`, written to
+/// `target` under `fresh`) refuses a window under 1 s, a window longer than the log, a map far
+/// from the drive, a log without ego poses and a missing `--map`, each with a clear error, and
+/// leaves nothing behind.
+fn assert_export_refuses_bad_input(dir: &Path, log: &Path, map: &Path, flag: &str, fresh: &Path, target: &Path) {
+    let path = |p: &Path| p.display().to_string();
+    let (log, map, target) = (path(log), path(map), path(target));
+    let out = dash2sim(&["export", &log, flag, &target, "--map", &map, "--scenario-seconds", "0.5"]);
+    assert!(!out.status.success() && stderr(&out).contains("needs at least 1 s"), "{}", stderr(&out));
+    let out = dash2sim(&["export", &log, flag, &target, "--map", &map, "--scenario-seconds", "60"]);
+    assert!(!out.status.success() && stderr(&out).contains("shorter than one scenario"), "{}", stderr(&out));
+    let far = write(
+        dir,
+        "far.osm",
+        r#"<osm version="0.6"><node id="1" lat="0.0" lon="0.0"/><node id="2" lat="0.001" lon="0.0"/>
+<way id="3"><nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/></way></osm>"#,
+    );
+    let out = dash2sim(&["export", &log, flag, &target, "--map", &far]);
+    assert!(!out.status.success() && stderr(&out).contains("the map does not cover the drive"), "{}", stderr(&out));
+    let gnss_only = dir.join("gnss-only.d2slog");
+    assert!(dash2sim(&["import", "-o", &path(&gnss_only), "--nmea", &path(&dir.join("drive/gnss.nmea"))])
+        .status
+        .success());
+    let out = dash2sim(&["export", &path(&gnss_only), flag, &target, "--map", &map]);
+    assert!(!out.status.success() && stderr(&out).contains("no ego poses"), "{}", stderr(&out));
+    let out = dash2sim(&["export", &log, flag, &target]);
+    assert!(!out.status.success() && stderr(&out).contains(&format!("{flag} needs --map")), "{}", stderr(&out));
+    let left: Vec<_> = walk(fresh).into_iter().filter(|p| p.is_file()).collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
 #[test]
 fn export_commonroad_writes_lanelets_obstacles_and_the_ego_and_refuses_bad_input() {
     let dir = scratch("commonroad");
@@ -375,31 +406,7 @@ fn export_commonroad_writes_lanelets_obstacles_and_the_ego_and_refuses_bad_input
     // Bad input: a clear error and nothing left behind.
     let fresh = dir.join("refused");
     std::fs::create_dir_all(&fresh).expect("dir");
-    let target = path(&fresh.join("s.xml"));
-    let out =
-        dash2sim(&["export", &path(&log), "--commonroad", &target, "--map", &path(&map), "--scenario-seconds", "0.5"]);
-    assert!(!out.status.success() && stderr(&out).contains("needs at least 1 s"), "{}", stderr(&out));
-    let out =
-        dash2sim(&["export", &path(&log), "--commonroad", &target, "--map", &path(&map), "--scenario-seconds", "60"]);
-    assert!(!out.status.success() && stderr(&out).contains("shorter than one scenario"), "{}", stderr(&out));
-    let far = write(
-        &dir,
-        "far.osm",
-        r#"<osm version="0.6"><node id="1" lat="0.0" lon="0.0"/><node id="2" lat="0.001" lon="0.0"/>
-<way id="3"><nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/></way></osm>"#,
-    );
-    let out = dash2sim(&["export", &path(&log), "--commonroad", &target, "--map", &far]);
-    assert!(!out.status.success() && stderr(&out).contains("the map does not cover the drive"), "{}", stderr(&out));
-    let gnss_only = dir.join("gnss-only.d2slog");
-    assert!(dash2sim(&["import", "-o", &path(&gnss_only), "--nmea", &path(&dir.join("drive/gnss.nmea"))])
-        .status
-        .success());
-    let out = dash2sim(&["export", &path(&gnss_only), "--commonroad", &target, "--map", &path(&map)]);
-    assert!(!out.status.success() && stderr(&out).contains("no ego poses"), "{}", stderr(&out));
-    let out = dash2sim(&["export", &path(&log), "--commonroad", &target]);
-    assert!(!out.status.success() && stderr(&out).contains("--commonroad needs --map"), "{}", stderr(&out));
-    let left: Vec<_> = walk(&fresh).into_iter().filter(|p| p.is_file()).collect();
-    assert!(left.is_empty(), "left behind: {left:?}");
+    assert_export_refuses_bad_input(&dir, &log, &map, "--commonroad", &fresh, &fresh.join("s.xml"));
 }
 
 /// A pickle's structure as serde-pickle reads it: numpy arrays (an unresolved global) are
@@ -524,31 +531,7 @@ fn export_scenarionet_writes_a_dataset_with_the_ego_objects_and_lanes_and_refuse
 
     // Bad input: a clear error and nothing left behind.
     let fresh = dir.join("refused");
-    let target = path(&fresh);
-    let out =
-        dash2sim(&["export", &path(&log), "--scenarionet", &target, "--map", &path(&map), "--scenario-seconds", "0.5"]);
-    assert!(!out.status.success() && stderr(&out).contains("needs at least 1 s"), "{}", stderr(&out));
-    let out =
-        dash2sim(&["export", &path(&log), "--scenarionet", &target, "--map", &path(&map), "--scenario-seconds", "60"]);
-    assert!(!out.status.success() && stderr(&out).contains("shorter than one scenario"), "{}", stderr(&out));
-    let far = write(
-        &dir,
-        "far.osm",
-        r#"<osm version="0.6"><node id="1" lat="0.0" lon="0.0"/><node id="2" lat="0.001" lon="0.0"/>
-<way id="3"><nd ref="1"/><nd ref="2"/><tag k="highway" v="primary"/></way></osm>"#,
-    );
-    let out = dash2sim(&["export", &path(&log), "--scenarionet", &target, "--map", &far]);
-    assert!(!out.status.success() && stderr(&out).contains("the map does not cover the drive"), "{}", stderr(&out));
-    let gnss_only = dir.join("gnss-only.d2slog");
-    assert!(dash2sim(&["import", "-o", &path(&gnss_only), "--nmea", &path(&dir.join("drive/gnss.nmea"))])
-        .status
-        .success());
-    let out = dash2sim(&["export", &path(&gnss_only), "--scenarionet", &target, "--map", &path(&map)]);
-    assert!(!out.status.success() && stderr(&out).contains("no ego poses"), "{}", stderr(&out));
-    let out = dash2sim(&["export", &path(&log), "--scenarionet", &target]);
-    assert!(!out.status.success() && stderr(&out).contains("--scenarionet needs --map"), "{}", stderr(&out));
-    let left: Vec<_> = walk(&fresh).into_iter().filter(|p| p.is_file()).collect();
-    assert!(left.is_empty(), "left behind: {left:?}");
+    assert_export_refuses_bad_input(&dir, &log, &map, "--scenarionet", &fresh, &fresh);
 }
 
 #[test]

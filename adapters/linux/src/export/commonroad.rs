@@ -24,10 +24,9 @@ use dash2sim_core::geo::Geodetic;
 use super::projection::Projection;
 use super::road::{road, Connector, Road};
 use super::ticks::{agents_at_ticks, on_map, windows, AgentTick, EgoTick, OnMap};
-use super::Cleanup;
+use super::{Cleanup, ScenarioRequest};
 use crate::geometry::{band, is_simple, Line};
 use crate::log::export::class_name;
-use crate::log::LogContents;
 use crate::{Error, Result};
 
 /// CommonRoad's time step here: the log's ego poses are at 10 Hz, s.
@@ -45,21 +44,6 @@ const PLANNING_PROBLEM_BASE: usize = 900_000;
 /// The ego's wheelbase for its steering angle, m (nuPlan's Pacifica, whose footprint `verify`
 /// uses).
 const WHEELBASE_M: f64 = 3.089;
-
-/// What `export --commonroad` was asked.
-#[derive(Clone, Debug)]
-pub struct CommonRoadRequest<'a> {
-    /// The log, read.
-    pub log: &'a LogContents,
-    /// Its name, for messages.
-    pub log_name: &'a str,
-    /// The map tile's bytes.
-    pub tile: &'a [u8],
-    /// The scenario file (`F.xml`); with windows, `F-001.xml`, `F-002.xml`, ….
-    pub out: &'a Path,
-    /// One scenario per window of this length, s (`None`: one for the whole log).
-    pub window_s: Option<f64>,
-}
 
 /// One scenario written.
 #[derive(Clone, Debug)]
@@ -89,8 +73,9 @@ pub struct CommonRoadExport {
     pub epsg: i32,
 }
 
-/// Export. Errors name what is wrong; nothing is left behind on an error.
-pub fn export(request: &CommonRoadRequest<'_>) -> Result<CommonRoadExport> {
+/// Export `request` (its `out` the scenario file `F.xml`; with windows `F-001.xml`, `F-002.xml`,
+/// …). Errors name what is wrong; nothing is left behind on an error.
+pub fn export(request: &ScenarioRequest<'_>) -> Result<CommonRoadExport> {
     let OnMap { view, map_origin, map_projection, log_projection, ticks } =
         on_map(request.log, request.log_name, request.tile, 1.0 / TIME_STEP_S)?;
     let windows = windows(ticks.len(), request.window_s, TIME_STEP_S, MIN_STEPS, "CommonRoad", request.log_name)?;

@@ -33,6 +33,21 @@ impl Drop for Cleanup {
     }
 }
 
+/// What a simulator export of scenarios (CommonRoad, ScenarioNet) is asked.
+#[derive(Clone, Debug)]
+pub struct ScenarioRequest<'a> {
+    /// The log, read.
+    pub log: &'a LogContents,
+    /// Its name, for messages and the files' metadata.
+    pub log_name: &'a str,
+    /// The map tile's bytes.
+    pub tile: &'a [u8],
+    /// Where to write (a file or a folder, as the format has it).
+    pub out: &'a Path,
+    /// One scenario per window of this length, s (`None`: one for the whole log).
+    pub window_s: Option<f64>,
+}
+
 /// What to export (`dash2sim export`).
 #[derive(Clone, Debug)]
 pub struct ExportRequest {
@@ -221,7 +236,7 @@ fn nuplan(log: &LogContents, request: &ExportRequest, tile: &[u8], map_path: &Pa
 fn commonroad(log: &LogContents, request: &ExportRequest, tile: &[u8], path: &Path) -> Result<Vec<String>> {
     let log_name = request.log.display().to_string();
     let started = std::time::Instant::now();
-    let out = commonroad::export(&commonroad::CommonRoadRequest {
+    let out = commonroad::export(&ScenarioRequest {
         log,
         log_name: &log_name,
         tile,
@@ -253,7 +268,7 @@ fn commonroad(log: &LogContents, request: &ExportRequest, tile: &[u8], path: &Pa
 fn scenarionet(log: &LogContents, request: &ExportRequest, tile: &[u8], dir: &Path) -> Result<String> {
     let log_name = request.log.display().to_string();
     let started = std::time::Instant::now();
-    let out = scenarionet::export(&scenarionet::ScenarioNetRequest {
+    let out = scenarionet::export(&ScenarioRequest {
         log,
         log_name: &log_name,
         tile,

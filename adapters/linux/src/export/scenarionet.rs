@@ -27,10 +27,9 @@ use dash2sim_core::obb::PACIFICA;
 use super::pickle::{dict, dumps, Array, Py};
 use super::road::{road, Road};
 use super::ticks::{agents_at_ticks, on_map, windows, AgentTick, EgoTick, OnMap};
-use super::Cleanup;
+use super::{Cleanup, ScenarioRequest};
 use crate::geometry::Line;
 use crate::log::export::class_name;
-use crate::log::LogContents;
 use crate::{Error, Result};
 
 /// ScenarioNet's time step (Waymo's and its nuPlan converter's), s.
@@ -48,21 +47,6 @@ const DATASET: &str = "dash2sim";
 const CENTRE_LINE_M: f64 = 1.0;
 /// An object moving less than this (m) in a scenario is not moving (ScenarioNet's summary).
 const MOVING_M: f64 = 1.0;
-
-/// What `export --scenarionet` was asked.
-#[derive(Clone, Debug)]
-pub struct ScenarioNetRequest<'a> {
-    /// The log, read.
-    pub log: &'a LogContents,
-    /// Its name, for messages and the metadata.
-    pub log_name: &'a str,
-    /// The map tile's bytes.
-    pub tile: &'a [u8],
-    /// The dataset folder (made if missing).
-    pub out: &'a Path,
-    /// One scenario per window of this length, s (`None`: one for the whole log).
-    pub window_s: Option<f64>,
-}
 
 /// One scenario written.
 #[derive(Clone, Debug)]
@@ -92,8 +76,9 @@ pub struct ScenarioNetExport {
     pub epsg: i32,
 }
 
-/// Export. Errors name what is wrong; nothing is left behind on an error.
-pub fn export(request: &ScenarioNetRequest<'_>) -> Result<ScenarioNetExport> {
+/// Export `request` (its `out` the dataset folder, made if missing). Errors name what is
+/// wrong; nothing is left behind on an error.
+pub fn export(request: &ScenarioRequest<'_>) -> Result<ScenarioNetExport> {
     let OnMap { view, map_projection, log_projection, ticks, .. } =
         on_map(request.log, request.log_name, request.tile, 1.0 / TIME_STEP_S)?;
     let windows = windows(ticks.len(), request.window_s, TIME_STEP_S, MIN_STEPS, "ScenarioNet", request.log_name)?;
