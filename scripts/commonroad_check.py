@@ -18,6 +18,21 @@
    when its footprint lies in the tile's drivable area; a collision is reported at the pose it
    begins (nuPlan counts each agent once).
 
+5. with `--crime`, CriMe's time to collision (commonroad-crime: `TTC`, constant acceleration
+   along the ego's lane) against `verify`'s (nuPlan's: the two boxes projected at constant
+   velocity along their headings, 0.1 s steps up to 3 s), at every step where CriMe defines
+   one for an obstacle on the ego's course — ahead, in the ego's lanelet, its centre closer
+   sideways than half the two widths (CriMe's TTC is one-dimensional: it measures along the
+   lane whatever the sideways offset). CriMe 0.4.5 projects both speeds with the cosine of the
+   lane's absolute orientation (`ttc.py`), as if the lane ran along x (CommonRoad's own
+   benchmark roads mostly do); the scenario is turned so that the ego's mean heading runs
+   along +x first. Both must agree on whether the TTC falls to nuPlan's bound (0.95 s) — the
+   metric's verdict; reported besides: at how many of those steps `verify`'s TTC (the least
+   over every agent it counts) is at most CriMe's plus `--ttc-tolerance` (default 0.3 s), and
+   the median gap. `verify` counts an agent only within 30° ahead of the rear axle and never
+   one it has already collided with, CriMe any obstacle along the lane: a step where a drum
+   beside the bonnet drops out of `verify`'s cone is a step CriMe alone counts.
+
 They must agree on every pose whose footprint is farther than `--tolerance` (default 0.3 m)
 from the drivable area's edge in `verify` (the lanelets are the tile's lanes cut at junctions,
 without the round caps of the tile's capsules: near an edge the two areas differ by design);
@@ -74,6 +89,90 @@ def verify_poses(dash2sim: str, log: str, map_path: str, out: Path) -> list:
                    stdout=subprocess.DEVNULL)
     with open(poses) as f:
         return list(csv.DictReader(f))
+
+
+TTC_BOUND_S = 0.95  # nuPlan's time_to_collision_within_bound
+TTC_HORIZON_S = 3.0  # verify's projection horizon
+
+
+def crime_ttc(path: Path, rows: list, first_step: int, tolerance: float) -> dict:
+    """CriMe's TTC on the scenario at `path` against `verify`'s rows (see the docstring)."""
+    import numpy as np
+    from commonroad.geometry.shape import Rectangle
+    from commonroad.prediction.prediction import TrajectoryPrediction
+    from commonroad.scenario.lanelet import LaneletNetwork
+    from commonroad.scenario.obstacle import DynamicObstacle, ObstacleType
+    from commonroad.scenario.state import CustomState, InitialState
+    from commonroad.scenario.trajectory import Trajectory
+    from commonroad_crime.data_structure.configuration import CriMeConfiguration
+    from commonroad_crime.measure.time.ttc import TTC
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scenario, _ = CommonRoadFileReader(str(path)).open()
+    states = CommonRoadSolutionReader.open(str(path.with_suffix(".solution.xml"))) \
+        .planning_problem_solutions[0].trajectory.state_list
+    theta = math.atan2(sum(math.sin(s.orientation) for s in states), sum(math.cos(s.orientation) for s in states))
+    scenario.translate_rotate(np.zeros(2), -theta)
+    # translate_rotate leaves the lanelet network's spatial index where it was: rebuild it.
+    scenario.replace_lanelet_network(LaneletNetwork.create_from_lanelet_network(scenario.lanelet_network))
+    c, s_ = math.cos(-theta), math.sin(-theta)
+    dt, ego_states = scenario.dt, []
+    for k, st in enumerate(states):
+        x, y = st.position
+        a, b = max(k - 1, 0), min(k + 1, len(states) - 1)
+        kind = InitialState if k == 0 else CustomState
+        ego_states.append(kind(time_step=k, position=np.array([c * x - s_ * y, s_ * x + c * y]),
+                               orientation=st.orientation - theta, velocity=st.velocity,
+                               acceleration=(states[b].velocity - states[a].velocity) / (dt * max(b - a, 1)),
+                               yaw_rate=0.0, slip_angle=0.0))
+    ego_id = scenario.generate_object_id()
+    shape = Rectangle(LENGTH, WIDTH)
+    scenario.add_objects(DynamicObstacle(ego_id, ObstacleType.CAR, shape, ego_states[0],
+                                         TrajectoryPrediction(Trajectory(1, ego_states[1:]), shape)))
+    scenario.assign_obstacles_to_lanelets(obstacle_ids={ego_id}, use_center_only=True)
+    config = CriMeConfiguration()
+    config.update(ego_id=ego_id, sce=scenario)
+    import logging
+    logging.disable(logging.WARNING)
+    ttc = TTC(config)
+    net, times = scenario.lanelet_network, [float(r["t_s"]) for r in rows]
+    compared, errors = [], []
+    for k, ego in enumerate(ego_states):
+        lanes = net.find_lanelet_by_position([ego.position])[0]
+        polygons = [net.find_lanelet_by_id(lane).polygon for lane in lanes]
+        least = math.inf
+        for o in scenario.obstacles:
+            if o.obstacle_id == ego_id:
+                continue
+            other = o.state_at_time(k) if isinstance(o, DynamicObstacle) else o.initial_state
+            if other is None:
+                continue
+            dx, dy = other.position - ego.position
+            ahead = dx * math.cos(ego.orientation) + dy * math.sin(ego.orientation)
+            side = -dx * math.sin(ego.orientation) + dy * math.cos(ego.orientation)
+            if ahead <= 0 or abs(side) > (WIDTH + o.obstacle_shape.width) / 2 or \
+                    not any(p.contains_point(other.position) for p in polygons):
+                continue
+            value = ttc.compute(o.obstacle_id, k, verbose=False)
+            if value is not None and not math.isnan(value):
+                least = min(least, value)
+        if least >= TTC_HORIZON_S:
+            continue
+        t = times[0] + (first_step + k) * dt
+        j = bisect.bisect_left(times, t - 0.05)
+        mine = float(rows[j]["ttc_s"]) if j < len(rows) and rows[j]["ttc_s"] not in ("", "inf") else math.inf
+        compared.append((k, least, mine))
+    crime_below = any(least <= TTC_BOUND_S for _, least, _ in compared)
+    verify_below = any(float(r["ttc_s"]) <= TTC_BOUND_S for r in rows[first_step:first_step + len(states)]
+                       if r["ttc_s"] not in ("", "inf"))
+    if crime_below != verify_below:
+        errors.append(f"TTC under {TTC_BOUND_S} s: CriMe {crime_below}, verify {verify_below}")
+    gaps = sorted(abs(least - mine) for _, least, mine in compared if mine < math.inf)
+    within = sum(mine <= least + tolerance for _, least, mine in compared)
+    return {"ttc_steps": len(compared), "ttc_within_tolerance": within,
+            "ttc_median_gap_s": round(gaps[len(gaps) // 2], 2) if gaps else None,
+            "crime_under_bound": crime_below, "verify_under_bound": verify_below, "ttc_errors": errors}
 
 
 def check(path: Path, rows: list, tolerance: float) -> dict:
@@ -147,6 +246,8 @@ def main() -> int:
     parser.add_argument("--out", required=True)
     parser.add_argument("--scenario-seconds")
     parser.add_argument("--tolerance", type=float, default=0.3)
+    parser.add_argument("--crime", action="store_true", help="compare CriMe's TTC with verify's")
+    parser.add_argument("--ttc-tolerance", type=float, default=0.3)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     out = Path(args.out)
@@ -161,6 +262,12 @@ def main() -> int:
         print("no scenario written", file=sys.stderr)
         return 1
     results = [check(p, rows, args.tolerance) for p in scenarios]
+    if args.crime:
+        for p, r in zip(scenarios, results):
+            suffix = p.stem.rsplit("-", 1)[-1]
+            first_step = (int(suffix) - 1) * r["steps"] if suffix.isdigit() else 0
+            r.update(crime_ttc(p, rows, first_step, args.ttc_tolerance))
+            r["errors"] += r["ttc_errors"]
     if args.json:
         print(json.dumps(results))
     else:
@@ -171,6 +278,9 @@ def main() -> int:
                   f"verify {r['verify_off_road']}); collisions: CommonRoad {r['commonroad_collision_steps']} steps, "
                   f"verify {r['verify_collisions']}" +
                   (f" (CommonRoad only, from steps {r['commonroad_only_collisions']})" if r["commonroad_only_collisions"] else "") +
+                  (f"; CriMe's TTC on {r['ttc_steps']} steps, verify's within it on {r['ttc_within_tolerance']}, median gap "
+                   f"{r['ttc_median_gap_s'] if r['ttc_median_gap_s'] is not None else '-'} s, under "
+                   f"{TTC_BOUND_S} s: CriMe {r['crime_under_bound']}, verify {r['verify_under_bound']}" if "ttc_steps" in r else "") +
                   ("" if not r["errors"] else "  DISAGREE: " + "; ".join(r["errors"])))
     return 1 if any(r["errors"] for r in results) else 0
 
