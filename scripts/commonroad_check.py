@@ -186,6 +186,16 @@ def check(path: Path, rows: list, tolerance: float) -> dict:
     start = problem.initial_state.position
     if math.dist(start, states[0].position) > 1e-3:
         errors.append(f"the planning problem starts at {start}, the solution at {states[0].position}")
+    # Lanes across a centre line name each other, facing the other way, along a shared bound.
+    network = scenario.lanelet_network
+    for lanelet in network.lanelets:
+        if lanelet.adj_left is not None and not lanelet.adj_left_same_direction:
+            other = network.find_lanelet_by_id(lanelet.adj_left)
+            if other.adj_left != lanelet.lanelet_id or other.adj_left_same_direction:
+                errors.append(f"lanelet {lanelet.lanelet_id}: opposite neighbour {other.lanelet_id} does not name it back")
+            elif Polygon(lanelet.polygon.vertices).buffer(0).intersection(
+                    Polygon(other.polygon.vertices).buffer(0)).area > 0.05 * lanelet.polygon.shapely_object.area:
+                errors.append(f"lanelets {lanelet.lanelet_id} and {other.lanelet_id} overlap across the centre line")
     _, boundary = create_road_boundary_obstacle(scenario, method="aligned_triangulation", axis="auto")
     obstacles = create_collision_checker(scenario)
     # The verify row of each step: the export's steps are 0.1 s apart from the log's first

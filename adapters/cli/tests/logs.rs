@@ -347,6 +347,14 @@ fn export_commonroad_writes_lanelets_obstacles_and_the_ego_and_refuses_bad_input
             assert!(lanelets.contains(&attr(e, "ref")), "{reference} {}", attr(e, "ref"));
         }
     }
+    // The two-way road: its two middle lanes name each other across the centre line.
+    let opposite: Vec<String> = all("lanelet/adjacentLeft")
+        .into_iter()
+        .filter(|e| attr(e, "drivingDir") == "opposite")
+        .map(|e| attr(e, "ref"))
+        .collect();
+    assert_eq!(opposite.len(), 2, "{opposite:?}");
+    assert_ne!(opposite[0], opposite[1]);
     let mut ids: Vec<String> =
         elements.iter().filter(|e| e.0.matches('/').count() == 1).map(|e| attr(e, "id")).collect();
     ids.retain(|id| !id.is_empty());

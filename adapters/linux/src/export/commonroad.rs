@@ -152,7 +152,7 @@ fn lanelet_xml(road: &Road, origin: (f64, f64)) -> String {
                        right: &[(f64, f64)],
                        predecessors: &[usize],
                        successors: &[usize],
-                       neighbours: (Option<usize>, Option<usize>),
+                       neighbours: (Option<(usize, &str)>, Option<usize>),
                        kind: &str| {
         let _ = writeln!(out, "  <lanelet id=\"{id}\">");
         for (name, bound) in [("leftBound", left), ("rightBound", right)] {
@@ -168,28 +168,22 @@ fn lanelet_xml(road: &Road, origin: (f64, f64)) -> String {
         for s in successors {
             let _ = writeln!(out, "    <successor ref=\"{s}\"/>");
         }
-        if let Some(n) = neighbours.0 {
-            let _ = writeln!(out, "    <adjacentLeft ref=\"{}\" drivingDir=\"same\"/>", n + 1);
+        if let Some((n, direction)) = neighbours.0 {
+            let _ = writeln!(out, "    <adjacentLeft ref=\"{}\" drivingDir=\"{direction}\"/>", n + 1);
         }
         if let Some(n) = neighbours.1 {
             let _ = writeln!(out, "    <adjacentRight ref=\"{}\" drivingDir=\"same\"/>", n + 1);
         }
         let _ = writeln!(out, "    <laneletType>{kind}</laneletType>\n  </lanelet>");
     };
+    let opposite = road.opposite_neighbours();
     for (i, piece) in road.pieces.iter().enumerate() {
+        let left = piece.left_neighbour.map(|n| (n, "same")).or(opposite[i].map(|n| (n, "opposite")));
         let into: Vec<usize> =
             road.connectors.iter().enumerate().filter(|(_, c)| c.to == i).map(|(k, _)| connector_id(k)).collect();
         let out_of: Vec<usize> =
             road.connectors.iter().enumerate().filter(|(_, c)| c.from == i).map(|(k, _)| connector_id(k)).collect();
-        lanelet(
-            i + 1,
-            &piece.left,
-            &piece.right,
-            &into,
-            &out_of,
-            (piece.left_neighbour, piece.right_neighbour),
-            "unknown",
-        );
+        lanelet(i + 1, &piece.left, &piece.right, &into, &out_of, (left, piece.right_neighbour), "unknown");
     }
     for (k, c) in road.connectors.iter().enumerate() {
         let (mut left, mut right) = unfolded(c);

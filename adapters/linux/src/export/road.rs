@@ -78,6 +78,53 @@ pub struct Road {
     pub drivable: Vec<Line>,
 }
 
+/// A roadblock's left bound this close (mean distance, m, both ways) to another's makes the
+/// two the sides of a two-way road's centre line.
+const CENTRE_LINE_M: f64 = 1.0;
+
+impl Road {
+    /// For each piece that is the leftmost of its roadblock, the leftmost piece of another
+    /// roadblock whose left bound runs along its own: the lane across a two-way road's centre
+    /// line, facing the other way (the tile does not record which lanes face each other; the
+    /// geometry does).
+    pub fn opposite_neighbours(&self) -> Vec<Option<usize>> {
+        let leftmost: Vec<usize> =
+            (0..self.pieces.len()).filter(|&i| self.pieces[i].left_neighbour.is_none()).collect();
+        (0..self.pieces.len())
+            .map(|i| {
+                let piece = &self.pieces[i];
+                if piece.left_neighbour.is_some() {
+                    return None;
+                }
+                leftmost.iter().copied().find(|&j| {
+                    let other = &self.pieces[j];
+                    other.roadblock != piece.roadblock
+                        && boxes_meet(&piece.left, &other.left, CENTRE_LINE_M)
+                        && mean_distance(&piece.left, &other.left) < CENTRE_LINE_M
+                        && mean_distance(&other.left, &piece.left) < CENTRE_LINE_M
+                })
+            })
+            .collect()
+    }
+}
+
+/// Whether the bounding boxes of `a` and `b`, grown by `margin`, overlap.
+fn boxes_meet(a: &[(f64, f64)], b: &[(f64, f64)], margin: f64) -> bool {
+    let bounds = |l: &[(f64, f64)]| {
+        l.iter().fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |m, p| {
+            [m[0].min(p.0), m[1].min(p.1), m[2].max(p.0), m[3].max(p.1)]
+        })
+    };
+    let (p, q) = (bounds(a), bounds(b));
+    p[0] - margin <= q[2] && q[0] - margin <= p[2] && p[1] - margin <= q[3] && q[1] - margin <= p[3]
+}
+
+/// Mean distance from the points of `a` to the nearest point of `b`.
+fn mean_distance(a: &[(f64, f64)], b: &[(f64, f64)]) -> f64 {
+    let nearest = |p: &(f64, f64)| b.iter().map(|q| (p.0 - q.0).hypot(p.1 - q.1)).fold(f64::INFINITY, f64::min);
+    a.iter().map(nearest).sum::<f64>() / a.len().max(1) as f64
+}
+
 /// The roads of `view` in `projection`'s frame, each piece's bounds drawn `seam` metres
 /// inside its half width (nuPlan wants side-by-side lanes not to touch; CommonRoad wants
 /// neighbours to share their bound: 0).

@@ -42,9 +42,6 @@ pub const EGO_ID: &str = "ego";
 const EGO_HEIGHT_M: f64 = 1.777;
 /// The dataset's name in file names and metadata.
 const DATASET: &str = "dash2sim";
-/// A neighbouring roadblock's left bound this close (mean distance, m) to a roadblock's left
-/// bound makes it the centre line of a two-way road, not the road's edge.
-const CENTRE_LINE_M: f64 = 1.0;
 /// An object moving less than this (m) in a scenario is not moving (ScenarioNet's summary).
 const MOVING_M: f64 = 1.0;
 
@@ -367,27 +364,10 @@ fn polyline(line: &[(f64, f64)], origin: (f64, f64)) -> Py {
     Array::f64(&[line.len(), 3], line.iter().flat_map(|p| [p.0 - origin.0, p.1 - origin.1, 0.0])).into()
 }
 
-/// Whether the bounding boxes of `a` and `b`, grown by `margin`, overlap.
-fn boxes_meet(a: &[(f64, f64)], b: &[(f64, f64)], margin: f64) -> bool {
-    let bounds = |l: &[(f64, f64)]| {
-        l.iter().fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |m, p| {
-            [m[0].min(p.0), m[1].min(p.1), m[2].max(p.0), m[3].max(p.1)]
-        })
-    };
-    let (p, q) = (bounds(a), bounds(b));
-    p[0] - margin <= q[2] && q[0] - margin <= p[2] && p[1] - margin <= q[3] && q[1] - margin <= p[3]
-}
-
 /// A polygon's ring in the local frame, (N, 2): MetaDrive builds its lane surfaces from the
 /// points as they are and wants them flat.
 fn polygon(ring: &[(f64, f64)], origin: (f64, f64)) -> Py {
     Array::f64(&[ring.len(), 2], ring.iter().flat_map(|p| [p.0 - origin.0, p.1 - origin.1])).into()
-}
-
-/// Mean distance from the points of `a` to the nearest point of `b`.
-fn mean_distance(a: &[(f64, f64)], b: &[(f64, f64)]) -> f64 {
-    let nearest = |p: &(f64, f64)| b.iter().map(|q| (p.0 - q.0).hypot(p.1 - q.1)).fold(f64::INFINITY, f64::min);
-    a.iter().map(nearest).sum::<f64>() / a.len().max(1) as f64
 }
 
 /// The lanes (ids 1…, as CommonRoad's lanelets), then the lines between and around them.
@@ -403,18 +383,7 @@ fn map_features(road: &Road, origin: (f64, f64)) -> Vec<(String, Py)> {
         lines.push((id.clone(), dict([("type", kind.into()), ("polyline", polyline(points, origin))])));
         (id, kind.to_string())
     };
-    // A roadblock's leftmost lane borders the opposite direction when another roadblock's
-    // leftmost lane runs along it: the two-way road's centre line.
-    let leftmost: Vec<usize> = (0..pieces).filter(|&i| road.pieces[i].left_neighbour.is_none()).collect();
-    let is_centre_line = |i: usize| {
-        let piece = &road.pieces[i];
-        leftmost.iter().any(|&j| {
-            road.pieces[j].roadblock != piece.roadblock
-                && boxes_meet(&piece.left, &road.pieces[j].left, CENTRE_LINE_M)
-                && mean_distance(&piece.left, &road.pieces[j].left) < CENTRE_LINE_M
-                && mean_distance(&road.pieces[j].left, &piece.left) < CENTRE_LINE_M
-        })
-    };
+    let opposite = road.opposite_neighbours();
     let boundary = |(id, kind): (String, String), n: usize| {
         dict([
             ("boundary_feature_id", id.into()),
@@ -438,7 +407,7 @@ fn map_features(road: &Road, origin: (f64, f64)) -> Vec<(String, Py)> {
         .map(|i| {
             let kind = match road.pieces[i].left_neighbour {
                 Some(_) => "ROAD_LINE_BROKEN_SINGLE_WHITE",
-                None if is_centre_line(i) => "ROAD_LINE_BROKEN_SINGLE_YELLOW",
+                None if opposite[i].is_some() => "ROAD_LINE_BROKEN_SINGLE_YELLOW",
                 None => "ROAD_EDGE_BOUNDARY",
             };
             line(kind, &road.pieces[i].left)
