@@ -134,7 +134,7 @@ fn verify(
 
 /// Export a log (`dash2sim export`): a warning if the log was damaged, and a line per output.
 #[pyfunction]
-#[pyo3(signature = (log, parquet = None, log_id = None, tum = None, geojson = None, mcap = None, nuplan = None, map = None))]
+#[pyo3(signature = (log, parquet = None, log_id = None, tum = None, geojson = None, mcap = None, nuplan = None, map = None, commonroad = None, scenarionet = None, scenario_seconds = None))]
 #[allow(clippy::too_many_arguments)]
 fn export(
     py: Python<'_>,
@@ -146,6 +146,9 @@ fn export(
     mcap: Option<PathBuf>,
     nuplan: Option<PathBuf>,
     map: Option<PathBuf>,
+    commonroad: Option<PathBuf>,
+    scenarionet: Option<PathBuf>,
+    scenario_seconds: Option<f64>,
 ) -> PyResult<(Option<String>, Vec<String>)> {
     let request = ExportRequest {
         log,
@@ -155,10 +158,10 @@ fn export(
         parquet,
         log_id,
         nuplan,
-        commonroad: None,
-        scenarionet: None,
+        commonroad,
+        scenarionet,
         map,
-        scenario_seconds: None,
+        scenario_seconds,
         map_name: None,
     };
     let exported = py.detach(|| dash2sim_linux::export::export(&request)).map_err(error)?;

@@ -100,6 +100,25 @@ def test_a_damaged_log_exports_its_intact_records_with_a_warning(corpus, corpus_
         dash2sim.export(intact_log, geojson=tmp_path / "a.geojson")
 
 
+def test_simulator_exports_are_the_command_line_s_bytes(corpus, corpus_plan, dash2sim_bin, tmp_path):
+    log, tile = paths(corpus, intact(corpus_plan)[0])
+    for side in ("py", "cli"):
+        (tmp_path / side).mkdir()
+    written = dash2sim.export(log, map=tile, commonroad=tmp_path / "py" / "s.xml", scenarionet=tmp_path / "py" / "sn",
+                              scenario_seconds=10)
+    assert "CommonRoad" in written[0] and "ScenarioNet" in written[-1], written
+    result = run_cli(dash2sim_bin, "export", log, "--map", tile, "--commonroad", tmp_path / "cli" / "s.xml",
+                     "--scenarionet", tmp_path / "cli" / "sn", "--scenario-seconds", "10")
+    assert result.returncode == 0, result.stderr
+    py_files = sorted(p.relative_to(tmp_path / "py") for p in (tmp_path / "py").rglob("*") if p.is_file())
+    cli_files = sorted(p.relative_to(tmp_path / "cli") for p in (tmp_path / "cli").rglob("*") if p.is_file())
+    assert py_files == cli_files and any(p.suffix == ".pkl" for p in py_files)
+    for name in py_files:
+        assert (tmp_path / "py" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
+    with pytest.raises(dash2sim.Dash2SimError, match="--scenarionet needs --map"):
+        dash2sim.export(log, scenarionet=tmp_path / "no-map")
+
+
 def test_the_gil_is_released_while_rust_works(corpus, corpus_plan, tmp_path):
     """With a switch interval far longer than the test, a thread that holds the GIL keeps it
     until it blocks: another thread's counter can only move during a native call if that

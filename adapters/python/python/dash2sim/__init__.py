@@ -116,8 +116,13 @@ def export(
     mcap: Optional[PathLike] = None,
     nuplan: Optional[PathLike] = None,
     map: Optional[PathLike] = None,
+    commonroad: Optional[PathLike] = None,
+    scenarionet: Optional[PathLike] = None,
+    scenario_seconds: Optional[float] = None,
 ) -> List[str]:
-    """Export a log (``dash2sim export``): Parquet folder, TUM, GeoJSON, MCAP, nuPlan (needs ``map``).
+    """Export a log (``dash2sim export``): Parquet folder, TUM, GeoJSON, MCAP; for simulators
+    (each needs ``map``) nuPlan's folder, a CommonRoad scenario file (``F.xml``) and a
+    ScenarioNet dataset folder, one scenario per ``scenario_seconds`` window when given.
 
     Returns one line per output written. A damaged log is exported from its intact records
     and a :class:`UserWarning` says what was skipped.
@@ -131,6 +136,9 @@ def export(
         _path_or_none(mcap),
         _path_or_none(nuplan),
         _path_or_none(map),
+        _path_or_none(commonroad),
+        _path_or_none(scenarionet),
+        scenario_seconds,
     )
     if warning is not None:
         warnings.warn(warning, UserWarning, stacklevel=2)

@@ -40,4 +40,7 @@ def export(
     mcap: Optional[str] = None,
     nuplan: Optional[str] = None,
     map: Optional[str] = None,
+    commonroad: Optional[str] = None,
+    scenarionet: Optional[str] = None,
+    scenario_seconds: Optional[float] = None,
 ) -> Tuple[Optional[str], List[str]]: ...
