@@ -1,7 +1,7 @@
 """CommonRoad's reactive planner on `dash2sim export --commonroad` scenarios (issue #33), as
 PDM-Closed runs on the nuPlan export (docs/verify.md).
 
-    VENV/bin/python scripts/commonroad_planner.py SCENARIO.xml [SCENARIO.xml ...] [--json]
+    VENV/bin/python scripts/commonroad_planner.py SCENARIO.xml [SCENARIO.xml ...] [--json] [--require-goal]
 
 For each scenario (its planning problem: the logged ego's state at the first step, a goal
 region around where the ego is at the last), the reactive planner (commonroad-reactive-planner,
@@ -11,7 +11,9 @@ reached, no feasible trajectory is left, or twice the scenario's steps have pass
 states are then judged by the drivability checker as `scripts/commonroad_check.py` judges the
 log's ego — road compliance against the lanelets' boundary, collisions with the obstacles at
 each step — with the planner's own vehicle (its default, a BMW 320i, 4.508 x 1.61 m), and the
-least distance to a static obstacle (a drum, cone, barrier) is reported.
+least distance to a static obstacle (a drum, cone, barrier) is reported. `--require-goal`: exit 1
+unless the planner reaches every goal without a colliding or off-road step (CI runs it so on
+the demo's two 15 s windows: a regression in the export that leaves the planner stuck fails).
 
 The route planner's reference path is smoothed with splines (`CLCSParams`: SPLINE_SMOOTHING):
 with the default (resampling only) the curvilinear initial state of these maps' polylines
@@ -28,6 +30,7 @@ from pathlib import Path
 
 
 def plan(path: Path) -> dict:
+    import numpy as np
     from commonroad.common.file_reader import CommonRoadFileReader
     from commonroad.geometry.shape import Rectangle
     from commonroad_clcs.config import CLCSParams, ProcessingOption
@@ -78,7 +81,7 @@ def plan(path: Path) -> dict:
         box = pycrcc.RectOBB(length / 2, width / 2, h, cx, cy)
         off_road += boundary.collide(box)
         collisions += obstacles.time_slice(state.time_step).collide(box)
-        footprint = Rectangle(length, width, (cx, cy), h).shapely_object
+        footprint = Rectangle(length, width, np.array([cx, cy]), h).shapely_object
         for o in scenario.static_obstacles:
             nearest_static = min(nearest_static, footprint.distance(o.occupancy_at_time(0).shape.shapely_object))
     speeds = [s.velocity for s in planner.record_state_list]
@@ -93,6 +96,7 @@ def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("scenarios", nargs="+")
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--require-goal", action="store_true")
     args = parser.parse_args()
     logging.disable(logging.WARNING)
     results = [plan(Path(p)) for p in args.scenarios]
@@ -104,7 +108,8 @@ def main() -> int:
                   f"off road {r['off_road_steps']} steps, colliding {r['colliding_steps']} steps, nearest static "
                   f"obstacle {r['nearest_static_m']} m, speed {r['speed_mps'][0]}–{r['speed_mps'][1]} m/s, "
                   f"{r['planning_ms_per_step']} ms per step")
-    return 0
+    failed = [r for r in results if r["outcome"] != "goal reached" or r["off_road_steps"] or r["colliding_steps"]]
+    return 1 if args.require_goal and failed else 0
 
 
 if __name__ == "__main__":
