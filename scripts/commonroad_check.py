@@ -42,7 +42,6 @@ for the whole scenario, while `verify` replays a track only while the log report
 hit after it left the camera's view collides in CommonRoad only. The script prints a table and
 exits 1 on a disagreement.
 """
-import argparse
 import bisect
 import csv
 import json
@@ -51,6 +50,8 @@ import subprocess
 import sys
 import warnings
 from pathlib import Path
+
+import peer_cli
 
 import commonroad
 from commonroad.common.file_reader import CommonRoadFileReader
@@ -249,16 +250,11 @@ def check(path: Path, rows: list, tolerance: float) -> dict:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--dash2sim", required=True)
-    parser.add_argument("--log", required=True)
-    parser.add_argument("--map", required=True)
-    parser.add_argument("--out", required=True)
+    parser = peer_cli.parser(__doc__.split("\n", 1)[0])
     parser.add_argument("--scenario-seconds")
     parser.add_argument("--tolerance", type=float, default=0.3)
     parser.add_argument("--crime", action="store_true", help="compare CriMe's TTC with verify's")
     parser.add_argument("--ttc-tolerance", type=float, default=0.3)
-    parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -18,12 +18,13 @@ multiplier metric and every weighted metric within 0.05; the script prints the t
 exits 1 otherwise. With PDM-Closed it reports nuPlan's scores only. `../shared/nuplan/setup.sh
 VENV` installs the devkit and PDM-Closed; they are test tools, never product dependencies.
 """
-import argparse
 import json
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+import peer_cli
 import nuplan.database.maps_db.gpkg_mapsdb as gpkg_mapsdb
 from hydra import compose, initialize_config_dir
 from nuplan.common.actor_state.vehicle_parameters import get_pacifica_parameters
@@ -74,16 +75,11 @@ TOLERANCE = 0.05
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--dash2sim", required=True)
-    parser.add_argument("--log", required=True)
-    parser.add_argument("--map", required=True)
-    parser.add_argument("--out", required=True)
+    parser = peer_cli.parser(__doc__.split("\n", 1)[0])
     parser.add_argument("--map-name", default="dash2sim-crosscheck")
     parser.add_argument("--every", type=float, default=5.0)
     parser.add_argument("--scenario-seconds", default="5")
     parser.add_argument("--planner", choices=["log", "pdm"], default="log")
-    parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     out = Path(args.out)
     subprocess.run([args.dash2sim, "export", args.log, "--nuplan", str(out), "--map", args.map,

@@ -31,7 +31,6 @@ MetaDrive fetches its 3D models and textures from GitHub the first time an engin
 reached the script gives MetaDrive an assets folder holding only its version stamp and the
 one file whose absence triggers the download.
 """
-import argparse
 import bisect
 import csv
 import json
@@ -41,6 +40,8 @@ import subprocess
 import sys
 import warnings
 from pathlib import Path
+
+import peer_cli
 
 import numpy as np
 
@@ -163,15 +164,10 @@ def replay(out: Path, scenarios: list) -> tuple:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--dash2sim", required=True)
-    parser.add_argument("--log", required=True)
-    parser.add_argument("--map", required=True)
-    parser.add_argument("--out", required=True)
+    parser = peer_cli.parser(__doc__.split("\n", 1)[0])
     parser.add_argument("--scenario-seconds")
     parser.add_argument("--expect", choices=["verified", "collision"])
     parser.add_argument("--metadrive-sizes", action="store_true")
-    parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
