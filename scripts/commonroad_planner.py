@@ -86,7 +86,7 @@ def plan(path: Path) -> dict:
             nearest_static = min(nearest_static, footprint.distance(o.occupancy_at_time(0).shape.shapely_object))
     speeds = [s.velocity for s in planner.record_state_list]
     return {"scenario": path.name, "outcome": outcome, "steps": len(planner.record_state_list) - 1,
-            "scenario_steps": steps, "off_road_steps": off_road, "colliding_steps": collisions,
+            "goal_end_step": steps, "off_road_steps": off_road, "colliding_steps": collisions,
             "nearest_static_m": round(nearest_static, 2) if nearest_static < math.inf else None,
             "speed_mps": [round(min(speeds), 1), round(max(speeds), 1)],
             "planning_ms_per_step": round(1000 * seconds / max(1, len(planner.record_state_list) - 1), 1)}
@@ -104,7 +104,7 @@ def main() -> int:
         print(json.dumps(results))
     else:
         for r in results:
-            print(f"{r['scenario']}: {r['outcome']} after {r['steps']} steps (the log's {r['scenario_steps']}); "
+            print(f"{r['scenario']}: {r['outcome']} after {r['steps']} steps (the goal window ends at step {r['goal_end_step']}); "
                   f"off road {r['off_road_steps']} steps, colliding {r['colliding_steps']} steps, nearest static "
                   f"obstacle {r['nearest_static_m']} m, speed {r['speed_mps'][0]}–{r['speed_mps'][1]} m/s, "
                   f"{r['planning_ms_per_step']} ms per step")
