@@ -21,10 +21,11 @@ use std::path::{Path, PathBuf};
 
 use dash2sim_core::geo::Geodetic;
 
+use super::partial::Cleanup;
 use super::projection::Projection;
+use super::request::ScenarioRequest;
 use super::road::{road, Connector, Road};
 use super::ticks::{agents_at_ticks, on_map, windows, AgentTick, EgoTick, OnMap};
-use super::{Cleanup, ScenarioRequest};
 use crate::geometry::{band, is_simple, Line};
 use crate::log::export::class_name;
 use crate::{Error, Result};

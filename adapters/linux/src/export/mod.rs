@@ -9,44 +9,21 @@ pub mod commonroad;
 pub mod junctions;
 #[cfg(feature = "nuplan")]
 pub mod nuplan;
+mod partial;
 pub mod pickle;
 pub mod projection;
+mod request;
 pub mod road;
 pub mod scenarionet;
 pub mod ticks;
+
+pub use request::ScenarioRequest;
 
 use std::path::{Path, PathBuf};
 
 use crate::log::export::{ego_poses, geojson, tum};
 use crate::log::{frame, mcap_export, read, LogContents};
 use crate::{Error, Result};
-
-/// Files a simulator export writes under temporary names, removed when dropped unless
-/// disarmed (emptied): a refused input leaves nothing partial behind.
-struct Cleanup(Vec<PathBuf>);
-
-impl Drop for Cleanup {
-    fn drop(&mut self) {
-        for p in &self.0 {
-            let _ = std::fs::remove_file(p);
-        }
-    }
-}
-
-/// What a simulator export of scenarios (CommonRoad, ScenarioNet) is asked.
-#[derive(Clone, Debug)]
-pub struct ScenarioRequest<'a> {
-    /// The log, read.
-    pub log: &'a LogContents,
-    /// Its name, for messages and the files' metadata.
-    pub log_name: &'a str,
-    /// The map tile's bytes.
-    pub tile: &'a [u8],
-    /// Where to write (a file or a folder, as the format has it).
-    pub out: &'a Path,
-    /// One scenario per window of this length, s (`None`: one for the whole log).
-    pub window_s: Option<f64>,
-}
 
 /// What to export (`dash2sim export`).
 #[derive(Clone, Debug)]

@@ -24,10 +24,11 @@ use std::path::{Path, PathBuf};
 
 use dash2sim_core::obb::PACIFICA;
 
+use super::partial::Cleanup;
 use super::pickle::{dict, dumps, Array, Py};
+use super::request::ScenarioRequest;
 use super::road::{road, Road};
 use super::ticks::{agents_at_ticks, on_map, windows, AgentTick, EgoTick, OnMap};
-use super::{Cleanup, ScenarioRequest};
 use crate::geometry::Line;
 use crate::log::export::class_name;
 use crate::{Error, Result};

@@ -14,8 +14,8 @@ use std::path::{Path, PathBuf};
 
 use serde_json::json;
 
+use super::partial::Cleanup;
 use super::ticks::{on_map, OnMap};
-use super::Cleanup;
 use crate::log::LogContents;
 use crate::{Error, Result};
 use gpkg::GeoPackage;
