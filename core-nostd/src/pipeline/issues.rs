@@ -141,15 +141,28 @@ impl Issues {
         })
     }
 
-    /// Total of every reason.
+    /// Total of every reason (saturating: a count comes from the input, e.g. the drops a
+    /// logger reports, and each saturates on its own).
     pub fn total(&self) -> u64 {
-        self.counts.iter().sum()
+        self.counts.iter().fold(0u64, |sum, c| sum.saturating_add(*c))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Counts taken from the input (a logger's drop count) can be anything: the total
+    /// saturates instead of overflowing (a fuzz crash, `fuzz/fuzz_targets/pipeline_inputs.rs`).
+    #[test]
+    fn the_total_of_huge_counts_saturates() {
+        let mut issues = Issues::default();
+        issues.count(Issue::InputsDropped, u64::MAX - 1, 0);
+        issues.count(Issue::CanBadFrame, 7, 0);
+        issues.count(Issue::InputsDropped, 5, 1);
+        assert_eq!(issues.get(Issue::InputsDropped), u64::MAX);
+        assert_eq!(issues.total(), u64::MAX);
+    }
 
     #[test]
     fn events_are_rate_limited_per_reason_and_the_tail_is_reported_at_the_end() {
