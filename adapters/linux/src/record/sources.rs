@@ -219,31 +219,7 @@ impl Inputs {
     /// track, its 3D detections' time), so read those first. A frame with neither is
     /// skipped and counted.
     pub fn detections2d(&mut self, path: &Path) -> Result<()> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
-        let mut frames: BTreeMap<u64, Vec<ImageDetection>> = BTreeMap::new();
-        for (n, line) in text.lines().enumerate() {
-            if line.trim().is_empty() {
-                continue;
-            }
-            let at = |message: String| Error::line(path, n + 1, message);
-            let f: Vec<f64> = line
-                .split(',')
-                .take(7)
-                .map(|v| v.trim().parse::<f64>())
-                .collect::<Result<_, _>>()
-                .map_err(|_| at("expected frame,id,left,top,width,height,score numbers".to_string()))?;
-            let [frame, _, x, y, w, h, score] = f[..] else {
-                return Err(at("expected at least 7 columns".to_string()));
-            };
-            let bbox = Box2d::new(x, y, w, h).map_err(|e| at(e.to_string()))?;
-            if !(frame >= 1.0 && frame.fract() == 0.0) {
-                return Err(at(format!("frame {frame} is not a frame number")));
-            }
-            frames
-                .entry(frame as u64)
-                .or_default()
-                .push(ImageDetection { class: 0, detection: Detection { bbox, score } });
-        }
+        let frames = read_detections2d(path)?;
         for (frame, detections) in frames {
             let Some(&t_us) = self.frame_times.get(&frame) else {
                 self.counts.detection2d_frames_without_time += 1;
@@ -276,6 +252,34 @@ impl Inputs {
         }
         recorder.finish().map_err(Error::other)
     }
+}
+
+/// 2D detections (MOTChallenge: `frame,id,left,top,width,height,score,…`, pixels as
+/// written), by frame number.
+pub fn read_detections2d(path: &Path) -> Result<BTreeMap<u64, Vec<ImageDetection>>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+    let mut frames: BTreeMap<u64, Vec<ImageDetection>> = BTreeMap::new();
+    for (n, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let at = |message: String| Error::line(path, n + 1, message);
+        let f: Vec<f64> = line
+            .split(',')
+            .take(7)
+            .map(|v| v.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| at("expected frame,id,left,top,width,height,score numbers".to_string()))?;
+        let [frame, _, x, y, w, h, score] = f[..] else {
+            return Err(at("expected at least 7 columns".to_string()));
+        };
+        let bbox = Box2d::new(x, y, w, h).map_err(|e| at(e.to_string()))?;
+        if !(frame >= 1.0 && frame.fract() == 0.0) {
+            return Err(at(format!("frame {frame} is not a frame number")));
+        }
+        frames.entry(frame as u64).or_default().push(ImageDetection { class: 0, detection: Detection { bbox, score } });
+    }
+    Ok(frames)
 }
 
 /// The header of a VO CSV.

@@ -1,8 +1,14 @@
 //! The bridge's message types: `#[repr(C)]`, self-contained, defined once for the camera
 //! process and the logger. Every message starts with [`LAYOUT_VERSION`]; change it whenever
 //! a layout here changes. Times are the device clock (µs); `sequence` is the frame number.
+//!
+//! Camera processes in C and Python publish the same messages (`adapters/camera-c`,
+//! `dash2sim.camera`): each type carries a fixed iceoryx2 type name (`dash2sim::…`, not
+//! Rust's module path, which other languages cannot know), and [`layouts`] reports every
+//! field's offset and size so that their definitions are checked against these.
 
 use iceoryx2::prelude::ZeroCopySend;
+use serde::Serialize;
 
 /// The message layout this build writes and reads.
 pub const LAYOUT_VERSION: u32 = 1;
@@ -11,6 +17,7 @@ pub const MAX_DETECTIONS: usize = 64;
 
 /// A camera frame's metadata.
 #[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
+#[type_name("dash2sim::FrameMetaMsg")]
 #[repr(C)]
 pub struct FrameMetaMsg {
     /// [`LAYOUT_VERSION`].
@@ -29,6 +36,7 @@ pub struct FrameMetaMsg {
 
 /// The VO pose of a frame: camera → VO frame, unknown scale.
 #[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
+#[type_name("dash2sim::VoPoseMsg")]
 #[repr(C)]
 pub struct VoPoseMsg {
     /// [`LAYOUT_VERSION`].
@@ -49,6 +57,7 @@ pub struct VoPoseMsg {
 
 /// One 3D detection in the camera frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
+#[type_name("dash2sim::Detection3dItem")]
 #[repr(C)]
 pub struct Detection3dItem {
     /// Class id (the work-zone profile's).
@@ -65,6 +74,7 @@ pub struct Detection3dItem {
 
 /// The 3D detections of a frame.
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[type_name("dash2sim::Detections3dMsg")]
 #[repr(C)]
 pub struct Detections3dMsg {
     /// [`LAYOUT_VERSION`].
@@ -81,6 +91,7 @@ pub struct Detections3dMsg {
 
 /// One 2D detection.
 #[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
+#[type_name("dash2sim::Detection2dItem")]
 #[repr(C)]
 pub struct Detection2dItem {
     /// Class id.
@@ -95,6 +106,7 @@ pub struct Detection2dItem {
 
 /// The 2D detections of a frame.
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[type_name("dash2sim::Detections2dMsg")]
 #[repr(C)]
 pub struct Detections2dMsg {
     /// [`LAYOUT_VERSION`].
@@ -107,4 +119,57 @@ pub struct Detections2dMsg {
     pub device_time_us: i64,
     /// The first `count` are the detections.
     pub items: [Detection2dItem; MAX_DETECTIONS],
+}
+
+/// A message type as another language must declare it: its iceoryx2 type name, size,
+/// alignment and fields in order.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Layout {
+    /// The iceoryx2 type name.
+    pub type_name: &'static str,
+    /// Bytes.
+    pub size: usize,
+    /// Bytes.
+    pub align: usize,
+    /// Name, offset and size of each field, in order.
+    pub fields: Vec<(&'static str, usize, usize)>,
+}
+
+/// The field `$f` of `$t`: name, offset, size.
+macro_rules! field {
+    ($t:ty, $f:ident) => {
+        (stringify!($f), core::mem::offset_of!($t, $f), {
+            fn size_of_field<F>(_: fn(&$t) -> &F) -> usize {
+                core::mem::size_of::<F>()
+            }
+            size_of_field(|m: &$t| &m.$f)
+        })
+    };
+}
+
+/// The layout of `$t` with its fields `$f…`.
+macro_rules! layout {
+    ($t:ty, $($f:ident),+) => {
+        Layout {
+            // The `type_name` attribute's value (the derive's accessor is an `unsafe fn`;
+            // `dash2sim-camera`'s tests compare the two).
+            type_name: concat!("dash2sim::", stringify!($t)),
+            size: core::mem::size_of::<$t>(),
+            align: core::mem::align_of::<$t>(),
+            fields: vec![$(field!($t, $f)),+],
+        }
+    };
+}
+
+/// Every message type's layout, with [`LAYOUT_VERSION`] and [`MAX_DETECTIONS`]: what the C
+/// header and the Python structures are checked against.
+pub fn layouts() -> Vec<Layout> {
+    vec![
+        layout!(FrameMetaMsg, version, exposure_us, sequence, device_time_us, image_bytes, reserved),
+        layout!(VoPoseMsg, version, session, sequence, device_time_us, position, rotation),
+        layout!(Detection3dItem, class, reserved, score, bbox, covariance),
+        layout!(Detections3dMsg, version, count, sequence, device_time_us, items),
+        layout!(Detection2dItem, class, reserved, score, bbox),
+        layout!(Detections2dMsg, version, count, sequence, device_time_us, items),
+    ]
 }

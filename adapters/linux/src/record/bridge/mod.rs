@@ -165,8 +165,9 @@ impl CameraPublisher {
         })
     }
 
-    /// A frame's metadata and, when the image service is on, its image (written straight
-    /// into shared memory: the subscriber reads it where it lies).
+    /// A frame's metadata and, when the image service is on, its image (copied once, into
+    /// shared memory: the subscriber reads it where it lies). [`CameraPublisher::loan_image`]
+    /// lets a camera write the image there itself.
     pub fn frame(
         &self,
         sequence: u64,
@@ -174,22 +175,48 @@ impl CameraPublisher {
         exposure_us: u32,
         image: Option<&[u8]>,
     ) -> Result<(), BridgeError> {
-        let mut image_bytes = 0u32;
-        if let (Some(publisher), Some(bytes)) = (&self.image, image) {
-            let n = bytes.len().min(MAX_IMAGE_BYTES);
-            let sample = publisher.loan_slice_uninit(n).map_err(|e| iox("image loan")(&e))?;
-            let sample = sample.write_from_slice(&bytes[..n]);
-            sample.send().map_err(|e| iox("image send")(&e))?;
-            image_bytes = n as u32;
-        }
+        let image = match image.filter(|_| self.image.is_some()) {
+            Some(bytes) => {
+                let n = bytes.len().min(MAX_IMAGE_BYTES);
+                let mut loan = self.loan_image(n)?;
+                loan.bytes_mut().copy_from_slice(&bytes[..n]);
+                Some(loan)
+            }
+            None => None,
+        };
         let message = FrameMetaMsg {
             version: LAYOUT_VERSION,
             exposure_us,
             sequence,
             device_time_us: micros(t),
-            image_bytes,
+            image_bytes: 0,
             reserved: 0,
         };
+        self.send_frame(message, image)
+    }
+
+    /// Shared memory for the next frame's image, `bytes` long (at most [`MAX_IMAGE_BYTES`];
+    /// iceoryx2 zeroes it): write the image into [`ImageLoan::bytes_mut`] and hand it to
+    /// [`CameraPublisher::send_frame`]. An error when the image service is off.
+    pub fn loan_image(&self, bytes: usize) -> Result<ImageLoan, BridgeError> {
+        let Some(publisher) = &self.image else {
+            return Err(BridgeError::Iceoryx("image loan: the publisher was opened without the image service".into()));
+        };
+        if bytes > MAX_IMAGE_BYTES {
+            return Err(BridgeError::Iceoryx(format!("image of {bytes} bytes: at most {MAX_IMAGE_BYTES}")));
+        }
+        Ok(ImageLoan(publisher.loan_slice(bytes).map_err(|e| iox("image loan")(&e))?))
+    }
+
+    /// A frame's metadata as it is, stamped with [`LAYOUT_VERSION`], after its image when there
+    /// is one (`image_bytes` is then the image's length). The C ABI publishes through this.
+    pub fn send_frame(&self, mut message: FrameMetaMsg, image: Option<ImageLoan>) -> Result<(), BridgeError> {
+        message.version = LAYOUT_VERSION;
+        message.image_bytes = 0;
+        if let Some(ImageLoan(sample)) = image {
+            message.image_bytes = sample.payload().len() as u32;
+            sample.send().map_err(|e| iox("image send")(&e))?;
+        }
         let sample = self.frame.loan_uninit().map_err(|e| iox("frame loan")(&e))?;
         sample.write_payload(message).send().map_err(|e| iox("frame send")(&e))?;
         Ok(())
@@ -202,14 +229,19 @@ impl CameraPublisher {
         for (k, r) in rotation.iter_mut().enumerate() {
             *r = pose.rotation[(k / 3, k % 3)];
         }
-        let message = VoPoseMsg {
+        self.send_vo(VoPoseMsg {
             version: LAYOUT_VERSION,
             session,
             sequence,
             device_time_us: micros(t),
             position: [pose.translation.x, pose.translation.y, pose.translation.z],
             rotation,
-        };
+        })
+    }
+
+    /// A VO pose message as it is, stamped with [`LAYOUT_VERSION`].
+    pub fn send_vo(&self, mut message: VoPoseMsg) -> Result<(), BridgeError> {
+        message.version = LAYOUT_VERSION;
         let sample = self.vo.loan_uninit().map_err(|e| iox("vo loan")(&e))?;
         sample.write_payload(message).send().map_err(|e| iox("vo send")(&e))?;
         Ok(())
@@ -218,6 +250,29 @@ impl CameraPublisher {
     /// The 3D detections of frame `sequence` in the camera frame (at most
     /// [`MAX_DETECTIONS`]; more is an error, so that none is lost silently).
     pub fn detections3d(&self, sequence: u64, t: Timestamp, detections: &[Detection3d]) -> Result<(), BridgeError> {
+        let items: Vec<Detection3dItem> = detections
+            .iter()
+            .map(|d| {
+                let b = &d.bbox;
+                Detection3dItem {
+                    class: d.class,
+                    reserved: 0,
+                    score: d.score as f32,
+                    bbox: [b.x, b.y, b.z, b.yaw, b.l, b.w, b.h].map(|v| v as f32),
+                    covariance: d.position_covariance.unwrap_or([0.0; 3]).map(|v| v as f32),
+                }
+            })
+            .collect();
+        self.send_detections3d(sequence, micros(t), &items)
+    }
+
+    /// 3D detections as their message items (at most [`MAX_DETECTIONS`]).
+    pub fn send_detections3d(
+        &self,
+        sequence: u64,
+        device_time_us: i64,
+        detections: &[Detection3dItem],
+    ) -> Result<(), BridgeError> {
         if detections.len() > MAX_DETECTIONS {
             return Err(BridgeError::Iceoryx(format!("{} 3D detections: at most {MAX_DETECTIONS}", detections.len())));
         }
@@ -225,19 +280,10 @@ impl CameraPublisher {
             version: LAYOUT_VERSION,
             count: detections.len() as u32,
             sequence,
-            device_time_us: micros(t),
+            device_time_us,
             items: [Detection3dItem::default(); MAX_DETECTIONS],
         };
-        for (item, d) in message.items.iter_mut().zip(detections) {
-            let b = &d.bbox;
-            *item = Detection3dItem {
-                class: d.class,
-                reserved: 0,
-                score: d.score as f32,
-                bbox: [b.x, b.y, b.z, b.yaw, b.l, b.w, b.h].map(|v| v as f32),
-                covariance: d.position_covariance.unwrap_or([0.0; 3]).map(|v| v as f32),
-            };
-        }
+        message.items[..detections.len()].copy_from_slice(detections);
         let sample = self.detections3d.loan_uninit().map_err(|e| iox("detections3d loan")(&e))?;
         sample.write_payload(message).send().map_err(|e| iox("detections3d send")(&e))?;
         Ok(())
@@ -245,6 +291,28 @@ impl CameraPublisher {
 
     /// The 2D detections of frame `sequence` (at most [`MAX_DETECTIONS`]).
     pub fn detections2d(&self, sequence: u64, t: Timestamp, detections: &[ImageDetection]) -> Result<(), BridgeError> {
+        let items: Vec<Detection2dItem> = detections
+            .iter()
+            .map(|d| {
+                let b = &d.detection.bbox;
+                Detection2dItem {
+                    class: d.class,
+                    reserved: 0,
+                    score: d.detection.score as f32,
+                    bbox: [b.x, b.y, b.w, b.h].map(|v| v as f32),
+                }
+            })
+            .collect();
+        self.send_detections2d(sequence, micros(t), &items)
+    }
+
+    /// 2D detections as their message items (at most [`MAX_DETECTIONS`]).
+    pub fn send_detections2d(
+        &self,
+        sequence: u64,
+        device_time_us: i64,
+        detections: &[Detection2dItem],
+    ) -> Result<(), BridgeError> {
         if detections.len() > MAX_DETECTIONS {
             return Err(BridgeError::Iceoryx(format!("{} 2D detections: at most {MAX_DETECTIONS}", detections.len())));
         }
@@ -252,21 +320,25 @@ impl CameraPublisher {
             version: LAYOUT_VERSION,
             count: detections.len() as u32,
             sequence,
-            device_time_us: micros(t),
+            device_time_us,
             items: [Detection2dItem::default(); MAX_DETECTIONS],
         };
-        for (item, d) in message.items.iter_mut().zip(detections) {
-            let b = &d.detection.bbox;
-            *item = Detection2dItem {
-                class: d.class,
-                reserved: 0,
-                score: d.detection.score as f32,
-                bbox: [b.x, b.y, b.w, b.h].map(|v| v as f32),
-            };
-        }
+        message.items[..detections.len()].copy_from_slice(detections);
         let sample = self.detections2d.loan_uninit().map_err(|e| iox("detections2d loan")(&e))?;
         sample.write_payload(message).send().map_err(|e| iox("detections2d send")(&e))?;
         Ok(())
+    }
+}
+
+/// An image being written straight into shared memory ([`CameraPublisher::loan_image`]);
+/// dropped unsent, the memory goes back.
+#[derive(Debug)]
+pub struct ImageLoan(iceoryx2::sample_mut::SampleMut<ipc::Service, [u8], ()>);
+
+impl ImageLoan {
+    /// The image's bytes, in shared memory.
+    pub fn bytes_mut(&mut self) -> &mut [u8] {
+        self.0.payload_mut()
     }
 }
 
