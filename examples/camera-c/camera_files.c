@@ -269,6 +269,10 @@ int main(int argc, char **argv) {
     check(d2s_publish_detections2d(camera, frame, t, items2, n2));
     published++;
   }
+  /* Samples live in the publisher's shared memory: closing it at once could take the last
+   * frame's away before the logger has read them. */
+  struct timespec linger = {0, 500000000L};
+  nanosleep(&linger, NULL);
   d2s_publisher_close(camera);
   free(vo.rows);
   free(boxes3d.rows);

@@ -168,6 +168,13 @@ fn export(
     Ok((exported.warning, exported.written))
 }
 
+/// The tracker's class id of a class name (`"car"`, `"cone"`, …: the work-zone profile), or
+/// None: what a camera process publishes as a detection's class (`dash2sim.camera`).
+#[pyfunction]
+fn class_id(name: &str) -> Option<u16> {
+    dash2sim_core::pipeline::profile::class_id(name)
+}
+
 /// The module `dash2sim._native`.
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -178,5 +185,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(finish, m)?)?;
     m.add_function(wrap_pyfunction!(verify, m)?)?;
     m.add_function(wrap_pyfunction!(export, m)?)?;
+    m.add_function(wrap_pyfunction!(class_id, m)?)?;
     Ok(())
 }

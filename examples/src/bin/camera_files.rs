@@ -27,6 +27,9 @@ use dash2sim_linux::ingest::detections;
 use dash2sim_linux::record::bridge::{device_now, CameraPublisher, DEFAULT_PREFIX};
 use dash2sim_linux::record::sources::{read_detections2d, read_vo_csv};
 
+/// How long the publisher stays open after the last frame.
+const LINGER: Duration = Duration::from_millis(500);
+
 /// Publish a folder of VO poses and detections as a camera process would.
 #[derive(Debug, Parser)]
 #[command(name = "camera_files", version, about)]
@@ -81,6 +84,9 @@ fn run(args: &Args) -> Result<usize, Box<dyn std::error::Error>> {
         camera.detections3d(frame, t, frames3d.get(&frame).map_or(&[], Vec::as_slice))?;
         camera.detections2d(frame, t, boxes2d.get(&frame).map_or(&[], Vec::as_slice))?;
     }
+    // Samples live in the publisher's shared memory: closing it at once could take the last
+    // frame's away before the logger has read them.
+    std::thread::sleep(LINGER);
     Ok(frames.len())
 }
 

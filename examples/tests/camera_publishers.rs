@@ -1,0 +1,170 @@
+//! The publishers' contract: the same folder of camera outputs published by the Rust
+//! `camera_files` and by the C one (`examples/camera-c/camera_files.c`, compiled here with
+//! `cc` against the C ABI's header and shared library) is logged byte for byte the same by
+//! `dash2sim record --camera`, each a real process; a C camera process killed mid-run is a
+//! restart in the log, as the Rust one is (`live_record.rs`). The Python publisher's side of
+//! the contract is `adapters/python/tests/test_camera.py`.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::Duration;
+
+use dash2sim_core::binlog::Record;
+use dash2sim_linux::log;
+
+/// The tests here run real processes against the clock: one at a time.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// The build's output folder (`target/release`) and its `deps`, where this test runs from.
+fn deps_dir() -> PathBuf {
+    std::env::current_exe().expect("test binary").parent().expect("deps").to_path_buf()
+}
+
+/// The workspace's `dash2sim` binary, built beside this test by `cargo test --workspace`.
+fn dash2sim() -> PathBuf {
+    let path = deps_dir().parent().expect("target dir").join("dash2sim");
+    assert!(path.is_file(), "{} is missing: build it (cargo build --release -p dash2sim)", path.display());
+    path
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("dash2sim-publishers-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir
+}
+
+/// A generated drive's camera outputs: vo.csv, detections3d.csv, det2d.txt.
+fn drive(dir: &Path, seconds: u32) -> PathBuf {
+    let out = dir.join("drive");
+    let status = Command::new(dash2sim())
+        .args(["scenario", "generate", "--seed", "3", "--duration", &seconds.to_string(), "-o"])
+        .arg(&out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .expect("dash2sim scenario generate");
+    assert!(status.success());
+    out
+}
+
+/// The C camera process, compiled against the header and the shared library.
+fn c_publisher(dir: &Path) -> PathBuf {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("workspace");
+    let exe = dir.join("camera_files_c");
+    let output = Command::new("cc")
+        .args(["-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-ffp-contract=off", "-I"])
+        .arg(root.join("adapters/camera-c/include"))
+        .arg(root.join("examples/camera-c/camera_files.c"))
+        .arg("-L")
+        .arg(deps_dir())
+        .arg(format!("-Wl,-rpath,{}", deps_dir().display()))
+        .args(["-ldash2sim_camera", "-lm", "-o"])
+        .arg(&exe)
+        .output()
+        .expect("cc");
+    assert!(output.status.success(), "cc: {}", String::from_utf8_lossy(&output.stderr));
+    exe
+}
+
+/// `dash2sim record --camera PREFIX` into `out` for `seconds`, started and given time to
+/// subscribe (samples published before a subscriber exists are not kept for it).
+fn logger(prefix: &str, out: &Path, seconds: f64) -> Child {
+    let child = Command::new(dash2sim())
+        .args(["record", "--camera", prefix, "--origin", "60.2711,24.8572,20", "--seconds", &seconds.to_string()])
+        .arg("-o")
+        .arg(out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("dash2sim record");
+    std::thread::sleep(Duration::from_millis(1500));
+    child
+}
+
+fn finished(child: Child, what: &str) -> Output {
+    let output = child.wait_with_output().expect(what);
+    assert!(output.status.success(), "{what}: {}", String::from_utf8_lossy(&output.stderr));
+    output
+}
+
+/// The one log file `record` wrote into `dir`.
+fn log_file(dir: &Path) -> PathBuf {
+    let files: Vec<PathBuf> = std::fs::read_dir(dir).expect("log dir").map(|e| e.expect("entry").path()).collect();
+    assert_eq!(files.len(), 1, "{files:?}");
+    files[0].clone()
+}
+
+/// Publish `drive` with `publisher` while `record` logs it; the log's bytes.
+fn logged_by(publisher: &Path, drive: &Path, dir: &Path, name: &str) -> Vec<u8> {
+    let prefix = format!("dash2sim-test/publishers/{name}/{}", std::process::id());
+    let out = dir.join(name);
+    let record = logger(&prefix, &out, 5.0);
+    let published = Command::new(publisher)
+        .arg(drive)
+        .args(["--prefix", &prefix, "--speedup", "4", "--file-times"])
+        .output()
+        .expect("publisher");
+    assert!(published.status.success(), "{name}: {}", String::from_utf8_lossy(&published.stderr));
+    assert_eq!(String::from_utf8_lossy(&published.stdout).trim(), "31 frames published", "{name}");
+    finished(record, "record");
+    std::fs::read(log_file(&out)).expect("log")
+}
+
+#[test]
+fn the_rust_and_the_c_publisher_are_logged_byte_identically() {
+    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let dir = scratch("identical");
+    let drive = drive(&dir, 3);
+    let c = c_publisher(&dir);
+    let from_rust = logged_by(Path::new(env!("CARGO_BIN_EXE_camera_files")), &drive, &dir, "rust");
+    let from_c = logged_by(&c, &drive, &dir, "c");
+
+    // The log holds what was published: every frame, VO pose and 3D detection of the files,
+    // and the 2D tracks made of the 2D detections.
+    let log = log::decode(&from_rust, "rust").expect("log");
+    let count = |f: fn(&Record) -> bool| log.records.iter().filter(|r| f(r)).count();
+    let lines = |name: &str| std::fs::read_to_string(drive.join(name)).expect(name).lines().count() - 1;
+    assert_eq!(count(|r| matches!(r, Record::FrameMeta(_))), 31);
+    assert_eq!(count(|r| matches!(r, Record::VoPose(_))), lines("vo.csv"));
+    assert_eq!(count(|r| matches!(r, Record::Detection3d(_))), lines("detections3d.csv"));
+    assert!(count(|r| matches!(r, Record::Track2d(_))) > 0, "2D tracks from the 2D detections");
+    assert!(
+        from_rust == from_c,
+        "the C publisher's log differs from the Rust one's ({} vs {} bytes)",
+        from_c.len(),
+        from_rust.len()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_c_camera_process_killed_mid_run_is_a_restart_in_the_log() {
+    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let dir = scratch("killed");
+    let drive = drive(&dir, 10);
+    let c = c_publisher(&dir);
+    let prefix = format!("dash2sim-test/publishers/killed/{}", std::process::id());
+    let out = dir.join("log");
+    let record = logger(&prefix, &out, 6.0);
+    let publish = || Command::new(&c).arg(&drive).args(["--prefix", &prefix]).stdout(Stdio::null()).spawn().expect("C");
+    let mut first = publish();
+    std::thread::sleep(Duration::from_millis(1500));
+    first.kill().expect("SIGKILL");
+    let _ = first.wait();
+    std::thread::sleep(Duration::from_millis(300));
+    let mut second = publish();
+    finished(record, "the logger kept running");
+    let _ = second.kill();
+    let _ = second.wait();
+
+    let log = log::read(&log_file(&out)).expect("log");
+    let frames = log::inspect::frames(&log);
+    assert_eq!(frames.restarts, 1, "the restart is in the frame numbers: {frames:?}");
+    let restarted = dash2sim_core::pipeline::Issue::CameraRestarted.text().as_bytes();
+    assert!(
+        log.records.iter().any(|r| matches!(r, Record::Event(e) if e.text.starts_with(restarted))),
+        "the restart is an event"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
