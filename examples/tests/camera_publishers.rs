@@ -48,23 +48,39 @@ fn drive(dir: &Path, seconds: u32) -> PathBuf {
     out
 }
 
-/// The C camera process, compiled against the header and the shared library.
-fn c_publisher(dir: &Path) -> PathBuf {
+/// The C camera process, compiled against the header and the shared library (or, with
+/// `statically`, the static one and the system libraries Rust's standard library needs).
+fn c_publisher_linked(dir: &Path, statically: bool) -> PathBuf {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("workspace");
-    let exe = dir.join("camera_files_c");
-    let output = Command::new("cc")
-        .args(["-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-ffp-contract=off", "-I"])
+    let exe = dir.join(if statically { "camera_files_c_static" } else { "camera_files_c" });
+    let mut cc = Command::new("cc");
+    cc.args(["-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-ffp-contract=off", "-I"])
         .arg(root.join("adapters/camera-c/include"))
-        .arg(root.join("examples/camera-c/camera_files.c"))
-        .arg("-L")
-        .arg(deps_dir())
-        .arg(format!("-Wl,-rpath,{}", deps_dir().display()))
-        .args(["-ldash2sim_camera", "-lm", "-o"])
-        .arg(&exe)
-        .output()
-        .expect("cc");
+        .arg(root.join("examples/camera-c/camera_files.c"));
+    if statically {
+        cc.arg(deps_dir().join("libdash2sim_camera.a")).args([
+            "-lgcc_s",
+            "-lutil",
+            "-lrt",
+            "-lpthread",
+            "-lm",
+            "-ldl",
+            "-lc",
+            "-Wl,--gc-sections",
+        ]);
+    } else {
+        cc.arg("-L")
+            .arg(deps_dir())
+            .arg(format!("-Wl,-rpath,{}", deps_dir().display()))
+            .args(["-ldash2sim_camera", "-lm"]);
+    }
+    let output = cc.arg("-o").arg(&exe).output().expect("cc");
     assert!(output.status.success(), "cc: {}", String::from_utf8_lossy(&output.stderr));
     exe
+}
+
+fn c_publisher(dir: &Path) -> PathBuf {
+    c_publisher_linked(dir, false)
 }
 
 /// `dash2sim record --camera PREFIX` into `out` for `seconds`, started and given time to
@@ -135,6 +151,17 @@ fn the_rust_and_the_c_publisher_are_logged_byte_identically() {
         from_c.len(),
         from_rust.len()
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_c_publisher_linked_statically_is_logged_as_the_shared_one() {
+    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let dir = scratch("static");
+    let drive = drive(&dir, 3);
+    let from_static = logged_by(&c_publisher_linked(&dir, true), &drive, &dir, "static");
+    let from_shared = logged_by(&c_publisher(&dir), &drive, &dir, "shared");
+    assert!(from_static == from_shared, "the statically linked C publisher's log differs");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

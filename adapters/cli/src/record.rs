@@ -186,6 +186,12 @@ pub fn run(args: &RecordArgs) -> Result<()> {
                 report.dropped,
                 report.issues
             );
+            if report.write_failures > 0 {
+                println!(
+                    "the log's writes failed {} times (a full or failing disk): each file ends at its last complete frame, the failure is an event in the next",
+                    report.write_failures
+                );
+            }
         }
         return Ok(());
     }

@@ -1,5 +1,5 @@
 //! The live logger under faults: killed (SIGKILL) and restarted while the camera goes on
-//! publishing, and a sink slower than its input.
+//! publishing, a sink slower than its input, and a disk that fills up and frees again.
 
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::AtomicBool;
@@ -155,4 +155,209 @@ fn a_sink_slower_than_the_input_drops_inputs_counts_them_and_logs_them() {
     let speeds = log.records.iter().filter(|r| matches!(r, Record::VehicleSpeed(_))).count() as u64;
     assert_eq!(speeds, report.stats.speeds);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A disk that takes `budget` bytes, then refuses every write with ENOSPC until
+/// `frees_at`, then takes everything: one buffer per file.
+struct Disk {
+    files: Vec<Vec<u8>>,
+    budget: usize,
+    frees_at: Instant,
+}
+
+/// One file on the [`Disk`].
+struct DiskFile {
+    disk: std::sync::Arc<std::sync::Mutex<Disk>>,
+    index: usize,
+}
+
+#[derive(Debug)]
+struct DiskError(std::io::Error);
+
+impl std::fmt::Display for DiskError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
+impl std::error::Error for DiskError {}
+
+impl embedded_io::Error for DiskError {
+    fn kind(&self) -> embedded_io::ErrorKind {
+        embedded_io::ErrorKind::OutOfMemory
+    }
+}
+
+impl embedded_io::ErrorType for DiskFile {
+    type Error = DiskError;
+}
+
+impl embedded_io::Write for DiskFile {
+    fn write(&mut self, buf: &[u8]) -> Result<usize, DiskError> {
+        let mut disk = self.disk.lock().expect("disk");
+        let room = if Instant::now() >= disk.frees_at { buf.len() } else { disk.budget.min(buf.len()) };
+        if room == 0 && !buf.is_empty() {
+            return Err(DiskError(std::io::Error::from_raw_os_error(28)));
+        }
+        disk.budget = disk.budget.saturating_sub(room);
+        disk.files[self.index].extend_from_slice(&buf[..room]);
+        Ok(room)
+    }
+
+    fn flush(&mut self) -> Result<(), DiskError> {
+        Ok(())
+    }
+}
+
+#[test]
+fn a_full_disk_ends_the_file_at_its_last_complete_frame_and_recording_resumes_when_space_returns() {
+    let dir = std::env::temp_dir().join(format!("dash2sim-full-disk-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    // 4 s of wheel speed at 1 kHz, replayed in real time: a flush of the 4 KiB log buffer
+    // about every 0.7 s.
+    let capture: String =
+        (0..4000).map(|i| format!("({:.6}) can0 18FEF100#FF0050FFFFFFFFFF\n", i as f64 * 0.001)).collect();
+    let path = dir.join("bus.log");
+    std::fs::write(&path, capture).expect("capture");
+    let request = LiveRequest {
+        dir: dir.join("log"),
+        camera_prefix: None,
+        serial: None,
+        baud: 115_200,
+        can_interface: None,
+        can_replay: Some(path),
+        realtime: true,
+        segment: Duration::from_secs(600),
+        duration: Some(Duration::from_secs_f64(4.5)),
+        status: None,
+    };
+    let origin = dash2sim_core::geo::Geodetic::new(60.2711, 24.8572, 20.0).expect("origin");
+    let setup = Setup::work_zone(origin, None, *b"dash2sim-full\0\0\0");
+    // The disk takes 6 000 bytes (a flush and a half), then is full until 2 s in.
+    let start = Instant::now();
+    let disk = std::sync::Arc::new(std::sync::Mutex::new(Disk {
+        files: Vec::new(),
+        budget: 6_000,
+        frees_at: start + Duration::from_secs(2),
+    }));
+    let report = live::run_into(&request, &setup, &live::Origin::Given, &AtomicBool::new(false), |index| {
+        let mut d = disk.lock().expect("disk");
+        d.files.push(Vec::new());
+        assert_eq!(d.files.len(), index as usize + 1, "files are opened in order");
+        Ok(DiskFile { disk: disk.clone(), index: index as usize })
+    })
+    .expect("the recording goes on through a full disk");
+    println!("{report:?}");
+    let disk = disk.lock().expect("disk");
+    let sizes: Vec<usize> = disk.files.iter().map(Vec::len).collect();
+    println!("file sizes {sizes:?}");
+    assert!(report.write_failures >= 1, "{report:?}");
+    let speeds = |l: &log::LogContents| {
+        l.records
+            .iter()
+            .filter_map(|r| if let Record::VehicleSpeed(v) = r { Some(v.t_us) } else { None })
+            .collect::<Vec<_>>()
+    };
+
+    // The first file: everything the disk took, read back to its last complete frame.
+    assert_eq!(sizes[0], 6_000);
+    let first = log::decode(&disk.files[0], "first").expect("the first file reads");
+    assert!(first.stats.damaged <= 1, "only the torn tail is damaged: {:?}", first.stats);
+    let before = speeds(&first);
+    assert!(before.len() > 100, "{} speed samples before the disk filled", before.len());
+
+    // Every file with bytes reads back; together they hold the drive in order, nothing
+    // twice. A file opened while the disk was full holds what its writer got out once the
+    // disk freed up (it keeps its buffer and tries again), or nothing.
+    let mut all: Vec<i64> = Vec::new();
+    for (k, bytes) in disk.files.iter().enumerate().filter(|(_, b)| !b.is_empty()) {
+        let contents = log::decode(bytes, "file").unwrap_or_else(|e| panic!("file {k}: {e}"));
+        all.extend(speeds(&contents));
+    }
+    // (Two frames read within one microsecond share a time.)
+    assert!(all.windows(2).all(|w| w[0] <= w[1]), "in order");
+    assert!(all.len() as u64 <= report.stats.speeds, "nothing twice");
+
+    // The last file is whole, says what happened and holds the drive after the gap.
+    let last = log::decode(disk.files.last().expect("files"), "last").expect("the last file reads");
+    assert_eq!(last.stats.damaged, 0);
+    let said = last.records.iter().find_map(|r| match r {
+        Record::Event(e) => {
+            std::str::from_utf8(&e.text).ok().filter(|t| t.starts_with("log writes failed")).map(str::to_owned)
+        }
+        _ => None,
+    });
+    let said = said.expect("the failure is an event in the new file");
+    assert!(said.contains("No space left on device"), "{said}");
+    let after = speeds(&last);
+    assert!(!after.is_empty() && after[0] > *before.last().expect("before"), "the drive goes on after the gap");
+    // 4 000 samples were taken; the ones lost are those of the full disk's 2 s at most.
+    assert!(all.len() >= 4000 - 2100, "{} of 4000 samples logged", all.len());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A real full disk: `dash2sim record` writing into a 64 KiB tmpfs that a filler file has
+/// all but filled; the filler is removed 2 s in. Needs the right to mount (root in a
+/// container that allows it); says it skipped otherwise.
+#[test]
+fn record_on_a_real_full_file_system_resumes_when_space_returns() {
+    let dir = std::env::temp_dir().join(format!("dash2sim-tmpfs-{}", std::process::id()));
+    let mount = dir.join("card");
+    std::fs::create_dir_all(&mount).expect("dir");
+    let mounted = Command::new("mount")
+        .args(["-t", "tmpfs", "-o", "size=64k", "tmpfs"])
+        .arg(&mount)
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !mounted {
+        println!(
+            "skipped: cannot mount a tmpfs here (not root, or no CAP_SYS_ADMIN); the injected-sink test covers ENOSPC"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+        return;
+    }
+    let capture: String =
+        (0..5000).map(|i| format!("({:.6}) can0 18FEF100#FF0050FFFFFFFFFF\n", i as f64 * 0.001)).collect();
+    let bus = dir.join("bus.log");
+    std::fs::write(&bus, capture).expect("capture");
+    // Leave about 8 KiB of the card free.
+    let filler = mount.join("filler");
+    let free = rustix::fs::statvfs(&mount).map(|s| s.f_bavail * s.f_frsize).expect("statvfs");
+    std::fs::write(&filler, vec![0u8; (free as usize).saturating_sub(8192)]).expect("filler");
+    let logs = mount.join("logs");
+    let record = Command::new(env!("CARGO_BIN_EXE_dash2sim"))
+        .args(["record", "--can-replay"])
+        .arg(&bus)
+        .args(["--realtime", "--seconds", "5", "--origin", "60.2711,24.8572", "--json", "-o"])
+        .arg(&logs)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("dash2sim record");
+    std::thread::sleep(Duration::from_secs(2));
+    std::fs::remove_file(&filler).expect("free the card");
+    let output = record.wait_with_output().expect("record");
+    let files: Vec<std::path::PathBuf> = {
+        let mut f: Vec<_> = std::fs::read_dir(&logs).expect("logs").map(|e| e.expect("entry").path()).collect();
+        f.sort();
+        f
+    };
+    let contents: Vec<Vec<u8>> = files.iter().map(|f| std::fs::read(f).expect("log")).collect();
+    let _ = Command::new("umount").arg(&mount).status();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&output.stdout).expect("json summary");
+    println!("{summary}; files {:?}", contents.iter().map(Vec::len).collect::<Vec<_>>());
+    assert!(summary["write_failures"].as_u64().is_some_and(|n| n >= 1), "{summary}");
+    assert!(contents.iter().all(|c| !c.is_empty()), "a file that never took a byte is removed");
+    let first = log::decode(&contents[0], "first").expect("the first file reads");
+    assert!(first.stats.damaged <= 1);
+    let last = log::decode(contents.last().expect("files"), "last").expect("the last file reads");
+    assert!(
+        last.records.iter().any(
+            |r| matches!(r, Record::Event(e) if e.text.starts_with(b"log writes failed (No space left on device"))
+        ),
+        "the failure is an event in the file written after the card freed up"
+    );
 }

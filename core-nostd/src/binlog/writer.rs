@@ -157,6 +157,10 @@ impl<W: Write, const N: usize> Writer<W, N> {
                 self.tracks = Some(frame);
             }
         } else {
+            // Room first: the encoding moves the streams' predictors on, so the frame must
+            // not fail after it (a failed flush would leave the next records' deltas
+            // relative to one never written).
+            self.make_room()?;
             let n = self.streams.encode(record, &mut payload).ok_or(WriteError::RecordTooLarge)?;
             let frame = self.frame(record.kind().code(), &payload[..n])?;
             self.count(record.kind(), t, frame);
@@ -169,6 +173,11 @@ impl<W: Write, const N: usize> Writer<W, N> {
 
     /// Send the `Tracks3d` frame being filled, if any.
     fn end_tracks_frame(&mut self) -> Result<(), WriteError<W::Error>> {
+        if self.tracks.is_none() {
+            return Ok(());
+        }
+        // Room before finishing the frame (see `write`); on failure it stays for a retry.
+        self.make_room()?;
         let Some(mut f) = self.tracks.take() else { return Ok(()) };
         let (t, records) = (f.t_us, f.count().div_ceil(MAX_TRACKS));
         let payload = self.streams.tracks_finish(&mut f);
@@ -211,6 +220,13 @@ impl<W: Write, const N: usize> Writer<W, N> {
         Ok(self.io)
     }
 
+    /// The sink back without writing what is still buffered: for a sink that failed (a full
+    /// disk, an I/O error), whose file then ends at the last complete frame it took — what a
+    /// reader recovers, as after a power cut.
+    pub fn abandon(self) -> W {
+        self.io
+    }
+
     /// Close the open segment and flush, keeping the writer (a later record opens a new
     /// segment). [`Writer::finish`] without giving the sink back — for a large writer
     /// that should not be moved.
@@ -220,15 +236,21 @@ impl<W: Write, const N: usize> Writer<W, N> {
         self.flush()
     }
 
+    /// Flush unless the buffer has room for a frame.
+    fn make_room(&mut self) -> Result<(), WriteError<W::Error>> {
+        if N - self.len < MAX_FRAME + SYNC.len() {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
     /// Frame `payload` as kind `code` into the buffer (flushing first if needed); returns
     /// the frame's length.
     fn frame(&mut self, code: u8, payload: &[u8]) -> Result<usize, WriteError<W::Error>> {
         if payload.len() > MAX_PAYLOAD {
             return Err(WriteError::RecordTooLarge);
         }
-        if N - self.len < MAX_FRAME + SYNC.len() {
-            self.flush()?;
-        }
+        self.make_room()?;
         let start = self.len;
         let mut at = start;
         let ok = put(&mut self.buffer, &mut at, payload.len() as u64);
@@ -243,7 +265,9 @@ impl<W: Write, const N: usize> Writer<W, N> {
     }
 
     fn open_segment(&mut self, t0: i64) -> Result<(), WriteError<W::Error>> {
-        if N - self.len < MAX_FRAME + SYNC.len() {
+        // Room for the sync marker and the frame, so that the frame does not flush (and
+        // perhaps fail) with a lone marker in the buffer.
+        if N - self.len < MAX_FRAME + 2 * SYNC.len() {
             self.flush()?;
         }
         self.buffer[self.len..self.len + SYNC.len()].copy_from_slice(&SYNC);

@@ -475,6 +475,34 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
         Ok(old)
     }
 
+    /// After the sink failed (a full disk, an I/O error): continue the log on `io`, a new
+    /// file, as [`Pipeline::rotate`] does, but without writing to the failed sink again —
+    /// what it still held is lost, and its file ends at the last complete frame it took
+    /// (readers recover it as after a power cut). The new file starts with the clock offset
+    /// and an error event saying why (`failure`). Returns the failed sink.
+    pub fn resume_after_failure(
+        &mut self,
+        io: W,
+        failure: core::fmt::Arguments<'_>,
+    ) -> Result<W, PipelineError<W::Error>> {
+        let state = &mut self.state;
+        let next = Writer::buffered(io, &state.log.header, state.config.writer);
+        let failed = core::mem::replace(&mut state.log.writer, next).abandon();
+        state.log.rotations = state.log.rotations.saturating_add(1);
+        let now = state.log.now;
+        if let Some(offset) = state.log.clock.offset() {
+            let record = ClockOffset { t_us: state.log.time(now), offset_us: offset, reason: 1 };
+            state.log.write(&Record::ClockOffset(record))?;
+        }
+        let rotations = state.log.rotations;
+        state.log.event(
+            now,
+            3,
+            format_args!("log writes failed ({failure}); the log continues on a new file (rotation {rotations})"),
+        )?;
+        Ok(failed)
+    }
+
     /// `n` inputs were dropped before they reached the pipeline (the host's queue was
     /// full); counted and written as an event like every refused input.
     pub fn note_dropped(&mut self, t: Timestamp, n: u64) -> Result<(), PipelineError<W::Error>> {

@@ -18,6 +18,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use dash2sim_can::source::FrameSource;
+use dash2sim_core::binlog::WriteError;
 use dash2sim_core::can::CanFrame;
 use dash2sim_core::pipeline::profile::{work_zone_meta, work_zone_trackers};
 use dash2sim_core::pipeline::replay::{feed, Input, Reader, Recorder};
@@ -32,14 +33,28 @@ use crate::{Error, Result};
 pub const QUEUE: usize = 4096;
 
 /// The log files' sink: a file written directly (no user-space buffer beyond the log
-/// writer's own), so that what the writer flushed survives the process being killed.
+/// writer's own), so that what the writer flushed survives the process being killed. A file
+/// that never took a byte (opened on a full disk) is removed when the sink is dropped.
 #[derive(Debug)]
-pub struct FileSink(File);
+pub struct FileSink {
+    file: File,
+    path: PathBuf,
+    written: u64,
+}
 
 impl FileSink {
     /// A new file at `path` (an existing one is not overwritten).
     pub fn create(path: &Path) -> Result<FileSink> {
-        File::options().write(true).create_new(true).open(path).map(FileSink).map_err(|e| Error::file(path, e))
+        let file = File::options().write(true).create_new(true).open(path).map_err(|e| Error::file(path, e))?;
+        Ok(FileSink { file, path: path.to_path_buf(), written: 0 })
+    }
+}
+
+impl Drop for FileSink {
+    fn drop(&mut self) {
+        if self.written == 0 {
+            let _ = std::fs::remove_file(&self.path);
+        }
     }
 }
 
@@ -67,11 +82,13 @@ impl embedded_io::ErrorType for FileSink {
 
 impl embedded_io::Write for FileSink {
     fn write(&mut self, buf: &[u8]) -> Result<usize, FileError> {
-        self.0.write(buf).map_err(FileError)
+        let n = self.file.write(buf).map_err(FileError)?;
+        self.written += n as u64;
+        Ok(n)
     }
 
     fn flush(&mut self) -> Result<(), FileError> {
-        self.0.flush().map_err(FileError)
+        self.file.flush().map_err(FileError)
     }
 }
 
@@ -146,7 +163,14 @@ pub struct LiveReport {
     pub files: u32,
     /// Refused inputs (all reasons).
     pub issues: u64,
+    /// Times the log's sink failed (a full disk, an I/O error): each ended its file at the
+    /// last complete frame and, once a new file could be written, is an event there.
+    pub write_failures: u32,
 }
+
+/// How often a failed sink's replacement is tried (a full disk is retried until space
+/// returns; the pipeline runs on meanwhile and what it would have logged is lost).
+pub const RETRY_FAILED_SINK: Duration = Duration::from_secs(1);
 
 fn send(queue: &SyncSender<(Timestamp, BusInput)>, dropped: &AtomicU64, input: BusInput) -> bool {
     match queue.try_send((device_now(), input)) {
@@ -247,7 +271,7 @@ pub fn run(request: &LiveRequest, setup: &Setup, origin: &Origin, stop: &AtomicB
 
 /// [`run`] into the sinks `open` gives: the first file is `open(0)`, each rotation opens
 /// the next (tests give a slow sink here).
-pub fn run_into<S: embedded_io::Write>(
+pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
     request: &LiveRequest,
     setup: &Setup,
     origin: &Origin,
@@ -282,7 +306,19 @@ pub fn run_into<S: embedded_io::Write>(
     let mut pipeline: Box<Pipeline<'_, S>> = Box::new(Pipeline::new(open(index)?, config, &mut trackers));
     let (mut file_started, mut last_status) = (Instant::now(), Instant::now());
     let mut dropped_noted = 0u64;
-    let log_error = |e: dash2sim_core::binlog::WriteError<S::Error>| Error::other(format!("log: {e}"));
+    let log_error = |e: WriteError<S::Error>| Error::other(format!("log: {e}"));
+    // A sink that fails (a full disk, an I/O error) does not stop the recording: its file
+    // ends at its last complete frame, the pipeline runs on, and a new file is tried until
+    // one can be written (the failure is an event there).
+    let (mut failure, mut retried, mut write_failures): (Option<String>, Option<Instant>, u32) = (None, None, 0);
+    let failed = |result: std::result::Result<(), WriteError<S::Error>>, failure: &mut Option<String>| match result {
+        Ok(()) => Ok(()),
+        Err(WriteError::Io(e)) => {
+            failure.get_or_insert_with(|| e.to_string());
+            Ok(())
+        }
+        Err(e) => Err(log_error(e)),
+    };
     // What came before the first fix, in its order, with its own times.
     if let Some(waited) = &waited {
         let mut reader =
@@ -312,24 +348,35 @@ pub fn run_into<S: embedded_io::Write>(
                     };
                 })
                 .map_err(Error::other)?;
-            result.map_err(log_error)?;
+            failed(result, &mut failure)?;
         }
         while let Ok((t, input)) = inputs.try_recv() {
             busy = true;
-            match input {
+            let result = match input {
                 BusInput::Serial(bytes) => pipeline.push_serial(t, &bytes),
                 BusInput::Can(frame) => pipeline.push_can(t, &frame),
-            }
-            .map_err(log_error)?;
+            };
+            failed(result, &mut failure)?;
         }
         let lost = dropped.load(Ordering::Relaxed);
         if lost > dropped_noted {
-            pipeline.note_dropped(device_now(), lost - dropped_noted).map_err(log_error)?;
+            failed(pipeline.note_dropped(device_now(), lost - dropped_noted), &mut failure)?;
             dropped_noted = lost;
         }
-        if file_started.elapsed() >= request.segment {
+        if failure.is_some() && retried.is_none_or(|t| t.elapsed() >= RETRY_FAILED_SINK) {
+            // A new file, at most once a second: on a full disk opening it may fail, or
+            // only its writes (then the failure comes back through `failed`).
+            retried = Some(Instant::now());
+            if let Ok(sink) = open(index + 1) {
+                let why = failure.take().unwrap_or_default();
+                index += 1;
+                write_failures += 1;
+                failed(pipeline.resume_after_failure(sink, format_args!("{why}")).map(drop), &mut failure)?;
+                file_started = Instant::now();
+            }
+        } else if failure.is_none() && file_started.elapsed() >= request.segment {
             index += 1;
-            pipeline.rotate(open(index)?).map_err(log_error)?;
+            failed(pipeline.rotate(open(index)?).map(drop), &mut failure)?;
             file_started = Instant::now();
         }
         if let Some(status) = request.status.filter(|_| last_status.elapsed() >= Duration::from_millis(500)) {
@@ -350,9 +397,14 @@ pub fn run_into<S: embedded_io::Write>(
         }
     }
     let issues = pipeline.issues().total();
-    let (_, stats, _) = pipeline.finish().map_err(log_error)?;
+    let stats = *pipeline.stats();
+    // Closing writes the last segment: on a sink that fails it is lost like the rest.
+    if failure.is_some() || matches!(pipeline.finish(), Err(WriteError::Io(_))) {
+        write_failures += 1;
+    }
     drop(inputs);
-    Ok(LiveReport { stats, frames, dropped: dropped.load(Ordering::Relaxed), files: index + 1, issues })
+    let dropped = dropped.load(Ordering::Relaxed);
+    Ok(LiveReport { stats, frames, dropped, files: index + 1, issues, write_failures })
 }
 
 /// The inputs of a live recording while it waits for its first fix.
