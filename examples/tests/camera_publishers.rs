@@ -106,7 +106,11 @@ fn finished(child: Child, what: &str) -> Output {
 
 /// The one log file `record` wrote into `dir`.
 fn log_file(dir: &Path) -> PathBuf {
-    let files: Vec<PathBuf> = std::fs::read_dir(dir).expect("log dir").map(|e| e.expect("entry").path()).collect();
+    let files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .expect("log dir")
+        .map(|e| e.expect("entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "d2slog"))
+        .collect();
     assert_eq!(files.len(), 1, "{files:?}");
     files[0].clone()
 }

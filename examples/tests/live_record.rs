@@ -80,6 +80,8 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
         segment: Duration::from_secs(600),
         duration: Some(Duration::from_secs_f64(SECONDS + 2.5)),
         status: None,
+        storage: Default::default(),
+        keep: None,
     };
     let logger = std::thread::spawn(move || live::run(&request, &setup, &live::Origin::Given, &AtomicBool::new(false)));
     std::thread::sleep(Duration::from_millis(300));
@@ -110,8 +112,11 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
     assert_eq!(report.frames, frames);
     assert_eq!(report.dropped, 0);
 
-    let files: Vec<_> =
-        std::fs::read_dir(dir.join("log")).expect("log dir").map(|e| e.expect("entry").path()).collect();
+    let files: Vec<_> = std::fs::read_dir(dir.join("log"))
+        .expect("log dir")
+        .map(|e| e.expect("entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "d2slog"))
+        .collect();
     assert_eq!(files.len(), 1);
     let log = log::read(&files[0]).expect("log");
     assert_eq!(log.stats.damaged, 0);
@@ -164,6 +169,8 @@ fn the_camera_process_killed_and_restarted_is_a_gap_in_the_log_not_the_end_of_it
         segment: Duration::from_secs(600),
         duration: Some(Duration::from_secs(6)),
         status: None,
+        storage: Default::default(),
+        keep: None,
     };
     let logger = std::thread::spawn(move || live::run(&request, &setup, &live::Origin::Given, &AtomicBool::new(false)));
     std::thread::sleep(Duration::from_millis(300));
@@ -182,7 +189,11 @@ fn the_camera_process_killed_and_restarted_is_a_gap_in_the_log_not_the_end_of_it
     let second = camera("3").wait().expect("second camera_sim");
     assert!(second.success());
     let report = logger.join().expect("logger thread").expect("the logger kept running");
-    let files: Vec<_> = std::fs::read_dir(&dir).expect("log dir").map(|e| e.expect("entry").path()).collect();
+    let files: Vec<_> = std::fs::read_dir(&dir)
+        .expect("log dir")
+        .map(|e| e.expect("entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "d2slog"))
+        .collect();
     let log = log::read(&files[0]).expect("log");
     let frames = log::inspect::frames(&log);
     println!("{report:?}; {frames:?}");

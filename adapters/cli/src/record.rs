@@ -107,6 +107,13 @@ pub struct RecordArgs {
     /// Live: stop after S seconds (else on SIGINT / SIGTERM).
     #[arg(long)]
     pub seconds: Option<f64>,
+    /// Live: loop recording — the folder's log files stay below SIZE (`64k`, `500M`, `2G`);
+    /// the oldest files go first, kept ones (a verified window, SIGUSR1, a `KEEP` file) last
+    #[arg(long, value_name = "SIZE")]
+    pub quota: Option<String>,
+    /// Live: keep at least SIZE of the file system free, deleting as for `--quota`
+    #[arg(long, value_name = "SIZE")]
+    pub min_free: Option<String>,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
@@ -137,6 +144,8 @@ impl RecordArgs {
             realtime: self.realtime,
             segment_minutes: self.segment_minutes,
             seconds: self.seconds,
+            quota: self.quota.clone(),
+            min_free: self.min_free.clone(),
             status: std::io::stderr().is_terminal().then_some(status_line as fn(&LiveStatus)),
         }
     }
@@ -186,6 +195,9 @@ pub fn run(args: &RecordArgs) -> Result<()> {
                 report.dropped,
                 report.issues
             );
+            if report.deleted_files > 0 {
+                println!("{} files deleted to stay within --quota / --min-free (index.json)", report.deleted_files);
+            }
             if report.write_failures > 0 {
                 println!(
                     "the log's writes failed {} times (a full or failing disk): each file ends at its last complete frame, the failure is an event in the next",

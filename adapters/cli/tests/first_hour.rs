@@ -96,7 +96,7 @@ fn a_live_recording_without_an_origin_takes_the_first_fix() {
     assert!(out.status.success(), "{}", stderr(&out));
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).expect("summary JSON");
     assert!(summary["fixes"].as_u64().is_some_and(|n| n > 10), "{summary}");
-    let files = walk(&logs);
+    let files: Vec<_> = walk(&logs).into_iter().filter(|p| p.extension().is_some_and(|e| e == "d2slog")).collect();
     assert_eq!(files.len(), 1, "{files:?}");
     let log = log::read(&files[0]).expect("a log");
     let header = log.header.expect("a header");

@@ -29,7 +29,11 @@ fn logger(dir: &std::path::Path, prefix: &str) -> Child {
 }
 
 fn log_files(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
-    let mut files: Vec<_> = std::fs::read_dir(dir).expect("log dir").map(|e| e.expect("entry").path()).collect();
+    let mut files: Vec<_> = std::fs::read_dir(dir)
+        .expect("log dir")
+        .map(|e| e.expect("entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "d2slog"))
+        .collect();
     files.sort();
     files
 }
@@ -95,6 +99,35 @@ fn a_logger_killed_and_restarted_leaves_its_flushed_log_and_the_camera_unaffecte
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A live recording of `frames` wheel-speed frames (CCVS1) `step_s` apart, written to a
+/// candump capture in `dir` and replayed (`realtime`: at their pace) for `duration`.
+fn wheel_speed_replay(
+    dir: &std::path::Path,
+    frames: usize,
+    step_s: f64,
+    realtime: bool,
+    duration: Duration,
+) -> LiveRequest {
+    let capture: String =
+        (0..frames).map(|i| format!("({:.6}) can0 18FEF100#FF0050FFFFFFFFFF\n", i as f64 * step_s)).collect();
+    let path = dir.join("bus.log");
+    std::fs::write(&path, capture).expect("capture");
+    LiveRequest {
+        dir: dir.join("log"),
+        camera_prefix: None,
+        serial: None,
+        baud: 115_200,
+        can_interface: None,
+        can_replay: Some(path),
+        realtime,
+        segment: Duration::from_secs(600),
+        duration: Some(duration),
+        status: None,
+        storage: Default::default(),
+        keep: None,
+    }
+}
+
 /// A log sink that takes `delay` per write: a disk far slower than the inputs.
 struct SlowSink {
     bytes: std::sync::Arc<std::sync::Mutex<Vec<u8>>>,
@@ -123,26 +156,11 @@ fn a_sink_slower_than_the_input_drops_inputs_counts_them_and_logs_them() {
     std::fs::create_dir_all(&dir).expect("dir");
     // 20 000 wheel-speed frames (CCVS1, 20 ms apart), replayed as fast as the reader goes.
     const FRAMES: usize = 20_000;
-    let capture: String =
-        (0..FRAMES).map(|i| format!("({:.6}) can0 18FEF100#FF0050FFFFFFFFFF\n", i as f64 * 0.02)).collect();
-    let path = dir.join("bus.log");
-    std::fs::write(&path, capture).expect("capture");
-    let request = LiveRequest {
-        dir: dir.join("log"),
-        camera_prefix: None,
-        serial: None,
-        baud: 115_200,
-        can_interface: None,
-        can_replay: Some(path),
-        realtime: false,
-        segment: Duration::from_secs(600),
-        duration: Some(Duration::from_secs(3)),
-        status: None,
-    };
+    let request = wheel_speed_replay(&dir, FRAMES, 0.02, false, Duration::from_secs(3));
     let origin = dash2sim_core::geo::Geodetic::new(60.2711, 24.8572, 20.0).expect("origin");
     let setup = Setup::work_zone(origin, None, *b"dash2sim-slow\0\0\0");
     let bytes = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
-    let report = live::run_into(&request, &setup, &live::Origin::Given, &AtomicBool::new(false), |_| {
+    let report = live::run_into(&request, &setup, &live::Origin::Given, &AtomicBool::new(false), None, |_| {
         Ok(SlowSink { bytes: bytes.clone(), delay: Duration::from_millis(20) })
     })
     .expect("live run");
@@ -215,22 +233,7 @@ fn a_full_disk_ends_the_file_at_its_last_complete_frame_and_recording_resumes_wh
     std::fs::create_dir_all(&dir).expect("dir");
     // 4 s of wheel speed at 1 kHz, replayed in real time: a flush of the 4 KiB log buffer
     // about every 0.7 s.
-    let capture: String =
-        (0..4000).map(|i| format!("({:.6}) can0 18FEF100#FF0050FFFFFFFFFF\n", i as f64 * 0.001)).collect();
-    let path = dir.join("bus.log");
-    std::fs::write(&path, capture).expect("capture");
-    let request = LiveRequest {
-        dir: dir.join("log"),
-        camera_prefix: None,
-        serial: None,
-        baud: 115_200,
-        can_interface: None,
-        can_replay: Some(path),
-        realtime: true,
-        segment: Duration::from_secs(600),
-        duration: Some(Duration::from_secs_f64(4.5)),
-        status: None,
-    };
+    let request = wheel_speed_replay(&dir, 4000, 0.001, true, Duration::from_secs_f64(4.5));
     let origin = dash2sim_core::geo::Geodetic::new(60.2711, 24.8572, 20.0).expect("origin");
     let setup = Setup::work_zone(origin, None, *b"dash2sim-full\0\0\0");
     // The disk takes 6 000 bytes (a flush and a half), then is full until 2 s in.
@@ -240,7 +243,7 @@ fn a_full_disk_ends_the_file_at_its_last_complete_frame_and_recording_resumes_wh
         budget: 6_000,
         frees_at: start + Duration::from_secs(2),
     }));
-    let report = live::run_into(&request, &setup, &live::Origin::Given, &AtomicBool::new(false), |index| {
+    let report = live::run_into(&request, &setup, &live::Origin::Given, &AtomicBool::new(false), None, |index| {
         let mut d = disk.lock().expect("disk");
         d.files.push(Vec::new());
         assert_eq!(d.files.len(), index as usize + 1, "files are opened in order");
@@ -339,7 +342,11 @@ fn record_on_a_real_full_file_system_resumes_when_space_returns() {
     std::fs::remove_file(&filler).expect("free the card");
     let output = record.wait_with_output().expect("record");
     let files: Vec<std::path::PathBuf> = {
-        let mut f: Vec<_> = std::fs::read_dir(&logs).expect("logs").map(|e| e.expect("entry").path()).collect();
+        let mut f: Vec<_> = std::fs::read_dir(&logs)
+            .expect("logs")
+            .map(|e| e.expect("entry").path())
+            .filter(|p| p.extension().is_some_and(|e| e == "d2slog"))
+            .collect();
         f.sort();
         f
     };

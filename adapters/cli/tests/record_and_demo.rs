@@ -139,7 +139,11 @@ fn live_record_closes_its_log_cleanly_on_sigterm() {
     assert!(killed.success());
     let status = child.wait().expect("record exits");
     assert!(status.success(), "SIGTERM ends the recording cleanly: {status:?}");
-    let files: Vec<_> = std::fs::read_dir(&out).expect("log dir").map(|e| e.expect("entry").path()).collect();
+    let files: Vec<_> = std::fs::read_dir(&out)
+        .expect("log dir")
+        .map(|e| e.expect("entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "d2slog"))
+        .collect();
     assert_eq!(files.len(), 1);
     let log = dash2sim_linux::log::read(&files[0]).expect("a log");
     assert_eq!(log.stats.damaged, 0);

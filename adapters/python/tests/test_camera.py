@@ -87,7 +87,7 @@ def publish(prefix: str, drive: Path, *args: str) -> subprocess.Popen:
 
 
 def only_file(folder: Path) -> Path:
-    files = list(folder.iterdir())
+    files = list(folder.glob("*.d2slog"))
     assert len(files) == 1, files
     return files[0]
 

@@ -460,18 +460,10 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
     /// rotation; anchoring, tracking and verification go on undisturbed. Returns the old
     /// sink, flushed.
     pub fn rotate(&mut self, io: W) -> Result<W, PipelineError<W::Error>> {
-        let state = &mut self.state;
-        state.log.writer.close()?;
-        let next = Writer::buffered(io, &state.log.header, state.config.writer);
-        let old = core::mem::replace(&mut state.log.writer, next).finish()?;
-        state.log.rotations = state.log.rotations.saturating_add(1);
-        let now = state.log.now;
-        if let Some(offset) = state.log.clock.offset() {
-            let record = ClockOffset { t_us: state.log.time(now), offset_us: offset, reason: 1 };
-            state.log.write(&Record::ClockOffset(record))?;
-        }
-        let rotations = state.log.rotations;
-        state.log.event(now, 2, format_args!("log continued on a new file (rotation {rotations})"))?;
+        self.state.log.writer.close()?;
+        let old = self.switch_file(io).finish()?;
+        let rotations = self.state.log.rotations;
+        self.start_file(2, format_args!("log continued on a new file (rotation {rotations})"))?;
         Ok(old)
     }
 
@@ -485,22 +477,40 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
         io: W,
         failure: core::fmt::Arguments<'_>,
     ) -> Result<W, PipelineError<W::Error>> {
-        let state = &mut self.state;
-        let next = Writer::buffered(io, &state.log.header, state.config.writer);
-        let failed = core::mem::replace(&mut state.log.writer, next).abandon();
-        state.log.rotations = state.log.rotations.saturating_add(1);
-        let now = state.log.now;
-        if let Some(offset) = state.log.clock.offset() {
-            let record = ClockOffset { t_us: state.log.time(now), offset_us: offset, reason: 1 };
-            state.log.write(&Record::ClockOffset(record))?;
-        }
-        let rotations = state.log.rotations;
-        state.log.event(
-            now,
+        let failed = self.switch_file(io).abandon();
+        let rotations = self.state.log.rotations;
+        self.start_file(
             3,
             format_args!("log writes failed ({failure}); the log continues on a new file (rotation {rotations})"),
         )?;
         Ok(failed)
+    }
+
+    /// A writer on `io` in place of the current one, which is returned; one rotation more.
+    fn switch_file(&mut self, io: W) -> Writer<W, BUF> {
+        let log = &mut self.state.log;
+        let next = Writer::buffered(io, &log.header, self.state.config.writer);
+        log.rotations = log.rotations.saturating_add(1);
+        core::mem::replace(&mut log.writer, next)
+    }
+
+    /// A new file's first records: the clock offset in force and an event saying why.
+    fn start_file(&mut self, level: u8, why: core::fmt::Arguments<'_>) -> Result<(), PipelineError<W::Error>> {
+        let log = &mut self.state.log;
+        let now = log.now;
+        if let Some(offset) = log.clock.offset() {
+            let record = ClockOffset { t_us: log.time(now), offset_us: offset, reason: 1 };
+            log.write(&Record::ClockOffset(record))?;
+        }
+        log.event(now, level, why)
+    }
+
+    /// An event from the host at the pipeline's current time: what the device's storage did
+    /// (a file kept, files deleted for the quota). `level` as `foxglove.Log` (0 debug … 4
+    /// fatal); a text longer than an event holds is cut.
+    pub fn note(&mut self, level: u8, text: core::fmt::Arguments<'_>) -> Result<(), PipelineError<W::Error>> {
+        let now = self.state.log.now;
+        self.state.log.event(now, level, text)
     }
 
     /// `n` inputs were dropped before they reached the pipeline (the host's queue was

@@ -68,12 +68,14 @@ pub fn record(drive: Drive, dir: &Path, log_path: &Path, setup: &Setup, bar: &Pr
         // A bound in case the camera process hangs; it normally ends the run.
         duration: Some(Duration::from_secs_f64(drive.seconds + 60.0)),
         status: None,
+        storage: Default::default(),
+        keep: None,
     };
     let stop = AtomicBool::new(false);
     let started = Instant::now();
     let result = std::thread::scope(|scope| {
         let logger = scope.spawn(|| {
-            live::run_into(&request, setup, &live::Origin::Given, &stop, |index| match index {
+            live::run_into(&request, setup, &live::Origin::Given, &stop, None, |index| match index {
                 0 => FileSink::create(log_path),
                 _ => Err(Error::invalid("the demo's log does not rotate")),
             })

@@ -25,6 +25,7 @@ use dash2sim_core::pipeline::replay::{feed, Input, Reader, Recorder};
 use dash2sim_core::pipeline::{GnssSignals, Pipeline, PipelineStats, Trackers};
 use dash2sim_core::time::Timestamp;
 
+use super::storage::{self, Storage, StoragePolicy};
 use super::{FixFinder, Setup};
 use crate::record::bridge::{device_now, CameraInput, CameraSubscriber};
 use crate::{Error, Result};
@@ -115,6 +116,10 @@ pub struct LiveRequest {
     pub duration: Option<Duration>,
     /// Told how the recording goes twice a second (a status line), if set.
     pub status: Option<fn(&LiveStatus)>,
+    /// How much of the disk the folder may use (loop recording).
+    pub storage: StoragePolicy,
+    /// Set (by SIGUSR1, [`keep_on_signal`]) to keep the file being recorded.
+    pub keep: Option<Arc<AtomicBool>>,
 }
 
 /// How a live recording goes, for a status line.
@@ -163,6 +168,8 @@ pub struct LiveReport {
     pub files: u32,
     /// Refused inputs (all reasons).
     pub issues: u64,
+    /// Files deleted to keep the folder within its policy.
+    pub deleted_files: u32,
     /// Times the log's sink failed (a full disk, an I/O error): each ended its file at the
     /// last complete frame and, once a new file could be written, is an event there.
     pub write_failures: u32,
@@ -254,28 +261,110 @@ fn can_reader(
     })))
 }
 
-/// The `index`th file of a run started at `started` (Unix milliseconds): names sort by
-/// time, and an existing file is never overwritten (a logger restarted at once gets a new
-/// start time).
-fn new_file(dir: &Path, started: u128, index: u32) -> Result<FileSink> {
-    FileSink::create(&dir.join(format!("dash2sim-{started}-{index:04}.d2slog")))
+/// Run until `stop` is set (a signal) or the duration is over; then close the log cleanly.
+/// The log goes to rotating files in `request.dir`, kept within `request.storage` and named
+/// in the folder's index ([`storage`]).
+pub fn run(request: &LiveRequest, setup: &Setup, origin: &Origin, stop: &AtomicBool) -> Result<LiveReport> {
+    let mut storage = Storage::open(&request.dir, request.storage)?;
+    let started = storage::now_ms();
+    let dir = request.dir.clone();
+    let folder = Folder::new(&mut storage, started);
+    run_into(request, setup, origin, stop, Some(folder), |index| {
+        FileSink::create(&dir.join(storage::file_name(started, index)))
+    })
 }
 
-/// Run until `stop` is set (a signal) or the duration is over; then close the log cleanly.
-/// The log goes to rotating files in `request.dir`.
-pub fn run(request: &LiveRequest, setup: &Setup, origin: &Origin, stop: &AtomicBool) -> Result<LiveReport> {
-    std::fs::create_dir_all(&request.dir).map_err(|e| Error::file(&request.dir, e))?;
-    let started = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_millis());
-    run_into(request, setup, origin, stop, |index| new_file(&request.dir, started, index))
+/// The live loop's side of loop recording: the folder's index told of every file opened
+/// and closed; twice a second the file being recorded protected when it has earned it and
+/// the folder brought within its policy, each step an event in the log.
+#[derive(Debug)]
+pub struct Folder<'s> {
+    storage: &'s mut Storage,
+    started: u64,
+    /// Verified windows when the file being recorded was opened.
+    verified_at_open: u64,
+    tended: Option<Instant>,
+    deleted: u32,
+}
+
+/// Extra bytes the folder keeps free under its quota: the file being recorded grows by a
+/// writer's buffer at a time, and the folder is tended twice a second.
+pub const QUOTA_HEADROOM: u64 = 4 * 4096;
+
+impl<'s> Folder<'s> {
+    /// The folder of a run whose files are named from `started` (Unix ms).
+    pub fn new(storage: &'s mut Storage, started: u64) -> Self {
+        Folder { storage, started, verified_at_open: 0, tended: None, deleted: 0 }
+    }
+
+    fn opened(&mut self, index: u32, verified: u64) -> Result<()> {
+        self.verified_at_open = verified;
+        let path = self.storage.dir().join(storage::file_name(self.started, index));
+        self.storage.started(&path)
+    }
+
+    fn closed(&mut self) -> Result<()> {
+        self.storage.closed()
+    }
+
+    /// Protect the file being recorded if it holds a verified window or the user marked it
+    /// (`keep`, or a `KEEP` file in the folder), and delete what the policy says.
+    fn tend<W: embedded_io::Write>(
+        &mut self,
+        pipeline: &mut Pipeline<'_, W>,
+        keep: Option<&AtomicBool>,
+    ) -> Result<std::result::Result<(), WriteError<W::Error>>> {
+        if self.tended.is_some_and(|t| t.elapsed() < Duration::from_millis(500)) {
+            return Ok(Ok(()));
+        }
+        self.tended = Some(Instant::now());
+        let keep_file = self.storage.dir().join(storage::KEEP_FILE);
+        let reason = if pipeline.stats().windows_verified > self.verified_at_open {
+            Some("it holds a verified window")
+        } else if keep.is_some_and(|k| k.swap(false, Ordering::Relaxed)) {
+            Some("marked by the user (SIGUSR1)")
+        } else if std::fs::remove_file(&keep_file).is_ok() {
+            Some("marked by the user (KEEP file)")
+        } else {
+            None
+        };
+        if let Some(reason) = reason {
+            if self.storage.protect(reason)? {
+                if let Err(e) = pipeline.note(2, format_args!("this file is kept: {reason}")) {
+                    return Ok(Err(e));
+                }
+            }
+        }
+        for gone in self.storage.enforce(QUOTA_HEADROOM)? {
+            self.deleted += 1;
+            let written = match &gone.protected {
+                None => pipeline
+                    .note(2, format_args!("storage: deleted {} ({} bytes), the oldest file", gone.file, gone.bytes)),
+                Some(why) => pipeline.note(
+                    3,
+                    format_args!(
+                        "storage: only kept files were left to delete: deleted {} ({} bytes, kept because {why})",
+                        gone.file, gone.bytes
+                    ),
+                ),
+            };
+            if let Err(e) = written {
+                return Ok(Err(e));
+            }
+        }
+        Ok(Ok(()))
+    }
 }
 
 /// [`run`] into the sinks `open` gives: the first file is `open(0)`, each rotation opens
-/// the next (tests give a slow sink here).
+/// the next (tests give a slow sink here); `folder`, when given, is told of each file and
+/// tended (files, not other sinks).
 pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
     request: &LiveRequest,
     setup: &Setup,
     origin: &Origin,
     stop: &AtomicBool,
+    mut folder: Option<Folder<'_>>,
     mut open: impl FnMut(u32) -> Result<S>,
 ) -> Result<LiveReport> {
     let camera = request.camera_prefix.as_deref().map(CameraSubscriber::new).transpose().map_err(Error::other)?;
@@ -304,6 +393,12 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
     let mut trackers: Box<Trackers<'_, 64, 32>> = Box::new(work_zone_trackers());
     let mut index = 0;
     let mut pipeline: Box<Pipeline<'_, S>> = Box::new(Pipeline::new(open(index)?, config, &mut trackers));
+    // The folder's bookkeeping never stops the recording: what fails (an index that cannot
+    // be written on a full disk) is an event.
+    let mut storage_problem = None;
+    if let Some(f) = folder.as_mut() {
+        storage_problem = f.opened(index, 0).err();
+    }
     let (mut file_started, mut last_status) = (Instant::now(), Instant::now());
     let mut dropped_noted = 0u64;
     let log_error = |e: WriteError<S::Error>| Error::other(format!("log: {e}"));
@@ -373,11 +468,27 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
                 write_failures += 1;
                 failed(pipeline.resume_after_failure(sink, format_args!("{why}")).map(drop), &mut failure)?;
                 file_started = Instant::now();
+                if let Some(f) = folder.as_mut() {
+                    storage_problem =
+                        f.closed().and_then(|()| f.opened(index, pipeline.stats().windows_verified)).err();
+                }
             }
         } else if failure.is_none() && file_started.elapsed() >= request.segment {
             index += 1;
             failed(pipeline.rotate(open(index)?).map(drop), &mut failure)?;
             file_started = Instant::now();
+            if let Some(f) = folder.as_mut() {
+                storage_problem = f.closed().and_then(|()| f.opened(index, pipeline.stats().windows_verified)).err();
+            }
+        }
+        if let Some(f) = folder.as_mut() {
+            match f.tend(&mut pipeline, request.keep.as_deref()) {
+                Ok(written) => failed(written, &mut failure)?,
+                Err(e) => storage_problem = Some(e),
+            }
+        }
+        if let Some(problem) = storage_problem.take() {
+            failed(pipeline.note(3, format_args!("storage: {problem}")), &mut failure)?;
         }
         if let Some(status) = request.status.filter(|_| last_status.elapsed() >= Duration::from_millis(500)) {
             status(&LiveStatus {
@@ -397,14 +508,27 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
         }
     }
     let issues = pipeline.issues().total();
-    let stats = *pipeline.stats();
-    // Closing writes the last segment: on a sink that fails it is lost like the rest.
-    if failure.is_some() || matches!(pipeline.finish(), Err(WriteError::Io(_))) {
+    let mut stats = *pipeline.stats();
+    // Closing completes the last fix and writes the last segment: on a sink that fails,
+    // that is lost like the rest.
+    let lost_at_close = match pipeline.finish() {
+        Ok((_, finished, _)) => {
+            stats = finished;
+            false
+        }
+        Err(WriteError::Io(_)) => true,
+        Err(e) => return Err(log_error(e)),
+    };
+    if failure.is_some() || lost_at_close {
         write_failures += 1;
     }
     drop(inputs);
     let dropped = dropped.load(Ordering::Relaxed);
-    Ok(LiveReport { stats, frames, dropped, files: index + 1, issues, write_failures })
+    let deleted_files = folder.as_ref().map_or(0, |f| f.deleted);
+    if let Some(f) = folder.as_mut() {
+        f.closed()?;
+    }
+    Ok(LiveReport { stats, frames, dropped, files: index + 1, issues, write_failures, deleted_files })
 }
 
 /// The inputs of a live recording while it waits for its first fix.
@@ -494,7 +618,15 @@ impl Kept<'_> {
     }
 }
 
-/// Stop on SIGINT and SIGTERM: the flag the loop checks.
+/// A flag SIGUSR1 sets: "keep the file being recorded" (the loop clears it once it has).
+pub fn keep_on_signal() -> Result<Arc<AtomicBool>> {
+    let keep = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGUSR1, keep.clone())
+        .map_err(|e| Error::refused("signal handler", e))?;
+    Ok(keep)
+}
+
+/// A flag SIGINT and SIGTERM set: the live logger's stop.
 pub fn stop_on_signals() -> Result<Arc<AtomicBool>> {
     let stop = Arc::new(AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {

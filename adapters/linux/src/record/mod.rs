@@ -8,6 +8,7 @@ pub mod bridge;
 #[cfg(feature = "bridge")]
 pub mod live;
 pub mod sources;
+pub mod storage;
 pub mod track2d;
 
 use std::collections::BTreeMap;
@@ -118,6 +119,11 @@ pub struct RecordRequest {
     pub segment_minutes: f64,
     /// Live: stop after S seconds (else on SIGINT / SIGTERM).
     pub seconds: Option<f64>,
+    /// Live: the folder's log files stay below this size (`64k`, `500M`, `2G`): the oldest
+    /// unprotected files are deleted first (loop recording).
+    pub quota: Option<String>,
+    /// Live: keep at least this much of the file system free, deleting as for the quota.
+    pub min_free: Option<String>,
     /// Live: told how the recording goes twice a second (a status line), if set.
     #[cfg(feature = "bridge")]
     pub status: Option<fn(&live::LiveStatus)>,
@@ -149,6 +155,8 @@ impl RecordRequest {
             realtime: false,
             segment_minutes: DEFAULT_SEGMENT_MINUTES,
             seconds: None,
+            quota: None,
+            min_free: None,
             #[cfg(feature = "bridge")]
             status: None,
         }
@@ -541,6 +549,11 @@ pub fn live_request(args: &RecordRequest) -> Result<Option<live::LiveRequest>> {
         segment: std::time::Duration::from_secs_f64(args.segment_minutes * 60.0),
         duration,
         status: args.status,
+        storage: storage::StoragePolicy {
+            quota: args.quota.as_deref().map(storage::parse_size).transpose()?,
+            min_free: args.min_free.as_deref().map(storage::parse_size).transpose()?,
+        },
+        keep: None,
     }))
 }
 
@@ -642,7 +655,8 @@ pub fn record_live(
     warnings.iter().for_each(|w| warn(w));
     let setup = setup?;
     let stop = live::stop_on_signals()?;
-    live::run(request, &setup, &origin, &stop)
+    let request = live::LiveRequest { keep: Some(live::keep_on_signal()?), ..request.clone() };
+    live::run(&request, &setup, &origin, &stop)
 }
 
 fn display(p: &Option<PathBuf>) -> String {

@@ -1,0 +1,123 @@
+//! Loop recording: `dash2sim record --quota` on a drive larger than the quota, a real
+//! process writing real files — the folder never exceeds the quota, the files the user
+//! marked (a `KEEP` file, SIGUSR1) survive, every deletion is in the index and an event, and
+//! `inspect DIR` lists it all.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use dash2sim_core::binlog::Record;
+use dash2sim_linux::log;
+use dash2sim_linux::record::storage::{read_index, INDEX_FILE, KEEP_FILE};
+
+const QUOTA: u64 = 64 * 1024;
+
+fn folder_bytes(dir: &Path) -> u64 {
+    std::fs::read_dir(dir)
+        .map(|entries| {
+            entries.flatten().filter_map(|e| e.metadata().ok()).filter(|m| m.is_file()).map(|m| m.len()).sum()
+        })
+        .unwrap_or(0)
+}
+
+fn events(path: &Path) -> Vec<String> {
+    let Ok(contents) = log::read(path) else { return Vec::new() };
+    contents
+        .records
+        .iter()
+        .filter_map(
+            |r| if let Record::Event(e) = r { Some(String::from_utf8_lossy(&e.text).into_owned()) } else { None },
+        )
+        .collect()
+}
+
+#[test]
+fn a_quota_smaller_than_the_drive_keeps_the_folder_within_it_and_the_marked_files() {
+    let dir = std::env::temp_dir().join(format!("dash2sim-loop-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("dir");
+    // 12 s of wheel speed at 1 kHz in real time: about 6 KB of log a second, twice the quota
+    // in all; a new file every 1.2 s.
+    let capture: String =
+        (0..12_000).map(|i| format!("({:.6}) can0 18FEF100#FF0050FFFFFFFFFF\n", i as f64 * 0.001)).collect();
+    let bus = dir.join("bus.log");
+    std::fs::write(&bus, capture).expect("capture");
+    let logs = dir.join("logs");
+    let mut record = Command::new(env!("CARGO_BIN_EXE_dash2sim"))
+        .args(["record", "--can-replay"])
+        .arg(&bus)
+        .args(["--realtime", "--seconds", "12", "--segment-minutes", "0.02", "--quota", "64k"])
+        .args(["--origin", "60.2711,24.8572", "--json", "-o"])
+        .arg(&logs)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("dash2sim record");
+    let start = Instant::now();
+    let (mut largest, mut marked_by_file, mut marked_by_signal) = (0, false, false);
+    while record.try_wait().expect("record").is_none() {
+        largest = largest.max(folder_bytes(&logs));
+        if !marked_by_file && start.elapsed() > Duration::from_millis(2500) {
+            std::fs::write(logs.join(KEEP_FILE), b"").expect("KEEP");
+            marked_by_file = true;
+        }
+        if !marked_by_signal && start.elapsed() > Duration::from_millis(6500) {
+            let sent = Command::new("kill").args(["-USR1", &record.id().to_string()]).status().expect("kill");
+            assert!(sent.success());
+            marked_by_signal = true;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let output = record.wait_with_output().expect("record");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&output.stdout).expect("json");
+    println!("{summary}; the folder at most {largest} bytes");
+    assert!(largest <= QUOTA, "the folder reached {largest} bytes, over the {QUOTA}-byte quota");
+    assert!(summary["deleted_files"].as_u64().is_some_and(|n| n >= 3), "{summary}");
+
+    let index = read_index(&logs).expect("index");
+    let on_disk = |name: &str| logs.join(name).exists();
+    // The two marked files are kept and survive; the deleted ones are gone, unmarked, oldest
+    // first.
+    let kept: Vec<_> = index.segments.iter().filter(|e| e.protected.is_some()).collect();
+    let reasons: Vec<_> = kept.iter().filter_map(|e| e.protected.as_deref()).collect();
+    assert_eq!(reasons, ["marked by the user (KEEP file)", "marked by the user (SIGUSR1)"], "{index:?}");
+    assert!(kept.iter().all(|e| e.deleted.is_none() && on_disk(&e.file)), "marked files survive");
+    let deleted: Vec<_> = index.segments.iter().filter(|e| e.deleted.is_some()).collect();
+    assert_eq!(deleted.len() as u64, summary["deleted_files"].as_u64().expect("n"));
+    assert!(deleted.iter().all(|e| !on_disk(&e.file) && e.protected.is_none()));
+    let first_kept = index.segments.iter().position(|e| e.protected.is_some()).expect("kept");
+    assert!(index.segments[..first_kept].iter().all(|e| e.deleted.is_some()), "the oldest unmarked go first");
+    // Every file on disk is in the index, and nothing else of the recording's is there.
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&logs).expect("logs").flatten().map(|e| e.path()).collect();
+    files.retain(|p| p.extension().is_some_and(|e| e == "d2slog"));
+    let present: Vec<_> = index.segments.iter().filter(|e| e.deleted.is_none()).map(|e| logs.join(&e.file)).collect();
+    files.sort();
+    assert_eq!(files, present);
+    // Deletions and marks are events in the files recorded when they happened: those that
+    // survive name files the index calls deleted.
+    let said: Vec<String> = files.iter().flat_map(|f| events(f)).collect();
+    let deletions: Vec<&String> = said.iter().filter(|t| t.starts_with("storage: deleted ")).collect();
+    assert!(!deletions.is_empty(), "{said:?}");
+    for text in &deletions {
+        let name = text.trim_start_matches("storage: deleted ").split(' ').next().expect("name");
+        assert!(deleted.iter().any(|e| e.file == name), "{text}");
+    }
+    assert!(said.iter().any(|t| t == "this file is kept: marked by the user (SIGUSR1)"));
+
+    // `inspect DIR` lists the folder from its index.
+    let inspect = Command::new(env!("CARGO_BIN_EXE_dash2sim")).arg("inspect").arg(&logs).output().expect("inspect");
+    let text = String::from_utf8_lossy(&inspect.stdout);
+    assert!(inspect.status.success(), "{}", String::from_utf8_lossy(&inspect.stderr));
+    assert!(
+        text.contains(&format!("files named in {INDEX_FILE}")) && text.contains("kept: marked by the user (KEEP file)")
+    );
+    assert!(text.contains("deleted (over the quota)"), "{text}");
+    let empty = dir.join("empty");
+    std::fs::create_dir_all(&empty).expect("dir");
+    let refused = Command::new(env!("CARGO_BIN_EXE_dash2sim")).arg("inspect").arg(&empty).output().expect("inspect");
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("a folder, but not a live recording's"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
