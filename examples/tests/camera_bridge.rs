@@ -45,6 +45,7 @@ fn every_published_frame_arrives_with_its_pose_and_detections() {
         CameraInput::Detections2d(_, sequence, d) => {
             det2.insert(sequence, d.len());
         }
+        CameraInput::Keep(t) => panic!("camera_sim marks nothing to keep, yet a mark came at {t:?}"),
     };
     let published = run_camera(
         &subscriber,

@@ -166,6 +166,14 @@ int32_t d2s_publish_detections2d(struct d2s_publisher *publisher,
                                  const d2s_detection2d *detections,
                                  size_t count);
 
+// "Keep the file being recorded" (the dashcam's button, or an event the camera saw): the
+// logger protects the log file it is writing from loop recording's deletions
+// (`record --quota`).
+//
+// # Safety
+// `publisher` is null or an open publisher.
+int32_t d2s_mark_keep(struct d2s_publisher *publisher, int64_t device_time_us);
+
 // The device clock the logger stamps its other inputs with (`CLOCK_MONOTONIC`), µs.
 int64_t d2s_device_now_us(void);
 

@@ -327,6 +327,19 @@ pub unsafe extern "C" fn d2s_publish_detections2d(
     })
 }
 
+/// "Keep the file being recorded" (the dashcam's button, or an event the camera saw): the
+/// logger protects the log file it is writing from loop recording's deletions
+/// (`record --quota`).
+///
+/// # Safety
+/// `publisher` is null or an open publisher.
+#[no_mangle]
+pub unsafe extern "C" fn d2s_mark_keep(publisher: *mut D2sPublisher, device_time_us: i64) -> i32 {
+    with_publisher("d2s_mark_keep", publisher, |p| {
+        p.camera.keep(dash2sim_core::time::Timestamp::from_micros(device_time_us)).map_err(shared_memory)
+    })
+}
+
 /// The device clock the logger stamps its other inputs with (`CLOCK_MONOTONIC`), µs.
 #[no_mangle]
 pub extern "C" fn d2s_device_now_us() -> i64 {

@@ -33,6 +33,7 @@ fn null_and_out_of_range_arguments_are_refused_with_a_code_and_a_reason() {
         assert_eq!(d2s_publish_frame(null, 1, 0, 0), D2S_ERR_NULL);
         assert_eq!(d2s_publish_detections3d(null, 1, 0, std::ptr::null(), 0), D2S_ERR_NULL);
         assert_eq!(d2s_image_send(null, 1, 0, 0), D2S_ERR_NULL);
+        assert_eq!(d2s_mark_keep(null, 0), D2S_ERR_NULL);
         assert!(d2s_image_loan(null, 10, &mut status).is_null());
         d2s_publisher_close(null);
     }
@@ -95,6 +96,7 @@ fn what_c_publishes_arrives_at_the_logger_with_its_image() {
         assert_eq!(d2s_image_send(publisher, 5, 1_000_000, 8000), D2S_OK);
         assert_eq!(d2s_publish_vo(publisher, 5, 1_000_000, 2, [1.0, 2.0, 3.0].as_ptr(), rotation.as_ptr()), D2S_OK);
         assert_eq!(d2s_publish_detections3d(publisher, 5, 1_000_000, boxes.as_ptr(), 1), D2S_OK);
+        assert_eq!(d2s_mark_keep(publisher, 1_050_000), D2S_OK);
     }
     let mut inputs = Vec::new();
     subscriber.receive(|input| inputs.push(input)).expect("receive");
@@ -102,7 +104,8 @@ fn what_c_publishes_arrives_at_the_logger_with_its_image() {
     unsafe { d2s_publisher_close(publisher) };
     let expected = dash2sim_core::sim3::Pose::from_quaternion_wxyz(q, [1.0, 2.0, 3.0].into());
     let t = dash2sim_core::time::Timestamp::from_micros(1_000_000);
-    assert_eq!(inputs.len(), 3, "{inputs:?}");
+    assert_eq!(inputs.len(), 4, "{inputs:?}");
+    assert_eq!(inputs[3], CameraInput::Keep(dash2sim_core::time::Timestamp::from_micros(1_050_000)));
     assert_eq!(inputs[0], CameraInput::Frame { sequence: 5, t, exposure_us: 8000, image_bytes: 1000 });
     assert_eq!(inputs[1], CameraInput::Vo(t, 5, 2, expected), "the rotation bit for bit as record reads it");
     let CameraInput::Detections3d(_, 5, ref d) = inputs[2] else { panic!("{:?}", inputs[2]) };

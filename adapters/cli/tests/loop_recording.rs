@@ -1,7 +1,7 @@
 //! Loop recording: `dash2sim record --quota` on a drive larger than the quota, a real
-//! process writing real files — the folder never exceeds the quota, the files the user
-//! marked (a `KEEP` file, SIGUSR1) survive, every deletion is in the index and an event, and
-//! `inspect DIR` lists it all.
+//! process writing real files — the folder never exceeds the quota, the files marked to be
+//! kept (a `KEEP` file, the camera process's mark over the bridge, SIGUSR1) survive, every
+//! deletion is in the index and an event, and `inspect DIR` lists it all.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -9,9 +9,10 @@ use std::time::{Duration, Instant};
 
 use dash2sim_core::binlog::Record;
 use dash2sim_linux::log;
+use dash2sim_linux::record::bridge::{device_now, CameraPublisher};
 use dash2sim_linux::record::storage::{read_index, INDEX_FILE, KEEP_FILE};
 
-const QUOTA: u64 = 64 * 1024;
+const QUOTA: u64 = 80 * 1024;
 
 fn folder_bytes(dir: &Path) -> u64 {
     std::fs::read_dir(dir)
@@ -37,17 +38,18 @@ fn a_quota_smaller_than_the_drive_keeps_the_folder_within_it_and_the_marked_file
     let dir = std::env::temp_dir().join(format!("dash2sim-loop-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("dir");
-    // 12 s of wheel speed at 1 kHz in real time: about 6 KB of log a second, twice the quota
-    // in all; a new file every 1.2 s.
+    // 12 s of wheel speed at 1 kHz in real time: about 6 KB of log a second, almost twice
+    // the quota in all; a new file every 1.2 s.
     let capture: String =
         (0..12_000).map(|i| format!("({:.6}) can0 18FEF100#FF0050FFFFFFFFFF\n", i as f64 * 0.001)).collect();
     let bus = dir.join("bus.log");
     std::fs::write(&bus, capture).expect("capture");
     let logs = dir.join("logs");
+    let prefix = format!("dash2sim-test/loop/{}", std::process::id());
     let mut record = Command::new(env!("CARGO_BIN_EXE_dash2sim"))
-        .args(["record", "--can-replay"])
+        .args(["record", "--camera", &prefix, "--can-replay"])
         .arg(&bus)
-        .args(["--realtime", "--seconds", "12", "--segment-minutes", "0.02", "--quota", "64k"])
+        .args(["--realtime", "--seconds", "12", "--segment-minutes", "0.02", "--quota", "80k"])
         .args(["--origin", "60.2711,24.8572", "--json", "-o"])
         .arg(&logs)
         .stdout(Stdio::piped())
@@ -55,12 +57,17 @@ fn a_quota_smaller_than_the_drive_keeps_the_folder_within_it_and_the_marked_file
         .spawn()
         .expect("dash2sim record");
     let start = Instant::now();
-    let (mut largest, mut marked_by_file, mut marked_by_signal) = (0, false, false);
+    let camera = CameraPublisher::new(&prefix, false).expect("camera publisher");
+    let (mut largest, mut marked_by_file, mut marked_by_signal, mut marked_by_camera) = (0, false, false, false);
     while record.try_wait().expect("record").is_none() {
         largest = largest.max(folder_bytes(&logs));
         if !marked_by_file && start.elapsed() > Duration::from_millis(2500) {
             std::fs::write(logs.join(KEEP_FILE), b"").expect("KEEP");
             marked_by_file = true;
+        }
+        if !marked_by_camera && start.elapsed() > Duration::from_millis(4500) {
+            camera.keep(device_now()).expect("keep");
+            marked_by_camera = true;
         }
         if !marked_by_signal && start.elapsed() > Duration::from_millis(6500) {
             let sent = Command::new("kill").args(["-USR1", &record.id().to_string()]).status().expect("kill");
@@ -82,7 +89,11 @@ fn a_quota_smaller_than_the_drive_keeps_the_folder_within_it_and_the_marked_file
     // first.
     let kept: Vec<_> = index.segments.iter().filter(|e| e.protected.is_some()).collect();
     let reasons: Vec<_> = kept.iter().filter_map(|e| e.protected.as_deref()).collect();
-    assert_eq!(reasons, ["marked by the user (KEEP file)", "marked by the user (SIGUSR1)"], "{index:?}");
+    assert_eq!(
+        reasons,
+        ["marked by the user (KEEP file)", "marked by the camera process (bridge)", "marked by the user (SIGUSR1)"],
+        "{index:?}"
+    );
     assert!(kept.iter().all(|e| e.deleted.is_none() && on_disk(&e.file)), "marked files survive");
     let deleted: Vec<_> = index.segments.iter().filter(|e| e.deleted.is_some()).collect();
     assert_eq!(deleted.len() as u64, summary["deleted_files"].as_u64().expect("n"));

@@ -203,3 +203,22 @@ def test_an_image_loaned_in_shared_memory_arrives_where_it_was_written():
             publisher.detections3d(9, 0, [0] * 65, np.zeros((65, 7)), np.zeros(65))
         with pytest.raises(camera.BridgeError, match="shape"):
             publisher.detections2d(9, 0, [0, 0], np.zeros((2, 3)), np.zeros(2))
+
+
+def test_a_keep_mark_arrives_as_the_logger_reads_it():
+    import iceoryx2 as iox
+
+    prefix = f"dash2sim-test/python-keep/{os.getpid()}"
+    with camera.Publisher(prefix) as publisher:
+        node = iox.NodeBuilder.new().create(iox.ServiceType.Ipc)
+        service = (
+            node.service_builder(iox.ServiceName.new(f"{prefix}/keep"))
+            .publish_subscribe(camera.KeepMsg)
+            .subscriber_max_buffer_size(camera.SUBSCRIBER_BUFFER)
+            .enable_safe_overflow(True)
+            .open_or_create()
+        )
+        marks = service.subscriber_builder().create()
+        publisher.keep(42_000)
+        mark = marks.receive().payload().contents
+        assert (mark.version, mark.device_time_us) == (camera.LAYOUT_VERSION, 42_000)

@@ -308,22 +308,30 @@ impl<'s> Folder<'s> {
     }
 
     /// Protect the file being recorded if it holds a verified window or the user marked it
-    /// (`keep`, or a `KEEP` file in the folder), and delete what the policy says.
+    /// (`keep`: SIGUSR1; `camera_keep`: the camera process's mark over the bridge; a `KEEP`
+    /// file in the folder), and delete what the policy says.
     fn tend<W: embedded_io::Write>(
         &mut self,
         pipeline: &mut Pipeline<'_, W>,
         keep: Option<&AtomicBool>,
+        camera_keep: &AtomicBool,
     ) -> Result<std::result::Result<(), WriteError<W::Error>>> {
         if self.tended.is_some_and(|t| t.elapsed() < Duration::from_millis(500)) {
             return Ok(Ok(()));
         }
         self.tended = Some(Instant::now());
         let keep_file = self.storage.dir().join(storage::KEEP_FILE);
+        // Every mark is taken now, so that none is left over for the next file.
+        let by_signal = keep.is_some_and(|k| k.swap(false, Ordering::Relaxed));
+        let by_camera = camera_keep.swap(false, Ordering::Relaxed);
+        let by_file = std::fs::remove_file(&keep_file).is_ok();
         let reason = if pipeline.stats().windows_verified > self.verified_at_open {
             Some("it holds a verified window")
-        } else if keep.is_some_and(|k| k.swap(false, Ordering::Relaxed)) {
+        } else if by_signal {
             Some("marked by the user (SIGUSR1)")
-        } else if std::fs::remove_file(&keep_file).is_ok() {
+        } else if by_camera {
+            Some("marked by the camera process (bridge)")
+        } else if by_file {
             Some("marked by the user (KEEP file)")
         } else {
             None
@@ -379,10 +387,20 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
 
     let begun = Instant::now();
     let mut frames = 0u64;
+    // The camera process's "keep" marks (the bridge's keep service) until the folder sees them.
+    let camera_keep = AtomicBool::new(false);
     let (setup, waited) = match origin {
         Origin::Given => (setup.clone(), None),
         Origin::FirstFix => {
-            let waiting = Waiting { request, camera: camera.as_ref(), inputs: &inputs, dropped: &dropped, stop, begun };
+            let waiting = Waiting {
+                request,
+                camera: camera.as_ref(),
+                inputs: &inputs,
+                dropped: &dropped,
+                stop,
+                begun,
+                camera_keep: &camera_keep,
+            };
             let (fix, kept, seen) = waiting.for_fix(setup.gnss_signals.as_ref())?;
             frames = seen;
             (Setup { origin: fix, ..setup.clone() }, Some(kept))
@@ -440,6 +458,10 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
                         CameraInput::Vo(t, frame, session, pose) => pipeline.push_vo(t, frame, session, &pose),
                         CameraInput::Detections3d(t, frame, d) => pipeline.push_detections(t, frame, &d),
                         CameraInput::Detections2d(t, frame, d) => pipeline.push_detections2d(t, frame, &d),
+                        CameraInput::Keep(_) => {
+                            camera_keep.store(true, Ordering::Relaxed);
+                            Ok(())
+                        }
                     };
                 })
                 .map_err(Error::other)?;
@@ -482,7 +504,7 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
             }
         }
         if let Some(f) = folder.as_mut() {
-            match f.tend(&mut pipeline, request.keep.as_deref()) {
+            match f.tend(&mut pipeline, request.keep.as_deref(), &camera_keep) {
                 Ok(written) => failed(written, &mut failure)?,
                 Err(e) => storage_problem = Some(e),
             }
@@ -539,6 +561,8 @@ struct Waiting<'a> {
     dropped: &'a AtomicU64,
     stop: &'a AtomicBool,
     begun: Instant,
+    /// Set by the camera process's "keep" mark.
+    camera_keep: &'a AtomicBool,
 }
 
 impl Waiting<'_> {
@@ -560,6 +584,7 @@ impl Waiting<'_> {
                             CameraInput::Vo(t, frame, session, pose) => kept.keep(|k| k.vo(t, frame, session, &pose)),
                             CameraInput::Detections3d(t, frame, d) => kept.keep(|k| k.detections3d(t, frame, &d)),
                             CameraInput::Detections2d(t, frame, d) => kept.keep(|k| k.detections2d(t, frame, &d)),
+                            CameraInput::Keep(_) => self.camera_keep.store(true, Ordering::Relaxed),
                         }
                     })
                     .map_err(Error::other)?;

@@ -109,8 +109,16 @@ class Detections2dMsg(_Message):
     ]
 
 
+class KeepMsg(_Message):
+    _fields_ = [
+        ("version", ctypes.c_uint32),
+        ("reserved", ctypes.c_uint32),
+        ("device_time_us", ctypes.c_int64),
+    ]
+
+
 #: Every message type, in the order the Rust side reports them.
-MESSAGES = (FrameMetaMsg, VoPoseMsg, Detection3dItem, Detections3dMsg, Detection2dItem, Detections2dMsg)
+MESSAGES = (FrameMetaMsg, VoPoseMsg, Detection3dItem, Detections3dMsg, Detection2dItem, Detections2dMsg, KeepMsg)
 
 
 def class_id(name: str) -> int:
@@ -197,6 +205,7 @@ class Publisher:
             self._vo = self._publisher(prefix, "vo", VoPoseMsg)
             self._detections3d = self._publisher(prefix, "detections3d", Detections3dMsg)
             self._detections2d = self._publisher(prefix, "detections2d", Detections2dMsg)
+            self._keep = self._publisher(prefix, "keep", KeepMsg)
             self._image = None
             if images:
                 service = (
@@ -231,7 +240,7 @@ class Publisher:
 
     def close(self) -> None:
         """Closes the publishers (the logger sees the camera process go)."""
-        for name in ("_image", "_frame", "_vo", "_detections3d", "_detections2d"):
+        for name in ("_image", "_frame", "_vo", "_detections3d", "_detections2d", "_keep"):
             port = getattr(self, name, None)
             if port is not None:
                 port.delete()
@@ -256,6 +265,11 @@ class Publisher:
             self.send_image(loan, sequence, device_time_us, exposure_us)
             return
         self._send(self._frame, FrameMetaMsg(LAYOUT_VERSION, exposure_us, sequence, device_time_us, 0, 0))
+
+    def keep(self, device_time_us: int) -> None:
+        """"Keep the file being recorded" (a button press, an event the camera saw): the
+        logger protects the log file it is writing from loop recording's deletions."""
+        self._send(self._keep, KeepMsg(LAYOUT_VERSION, 0, device_time_us))
 
     def loan_image(self, nbytes: int) -> ImageLoan:
         """Shared memory for the next frame's image, ``nbytes`` long: write into

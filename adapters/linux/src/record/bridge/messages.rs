@@ -121,6 +121,21 @@ pub struct Detections2dMsg {
     pub items: [Detection2dItem; MAX_DETECTIONS],
 }
 
+/// "Keep the file being recorded": the camera process marks the moment (its user pressed the
+/// dashcam's button, or its detector saw something worth keeping); the logger protects the
+/// log file being written from loop recording's deletions.
+#[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
+#[type_name("dash2sim::KeepMsg")]
+#[repr(C)]
+pub struct KeepMsg {
+    /// [`LAYOUT_VERSION`].
+    pub version: u32,
+    /// Zero.
+    pub reserved: u32,
+    /// When, device clock, µs.
+    pub device_time_us: i64,
+}
+
 /// A message type as another language must declare it: its iceoryx2 type name, size,
 /// alignment and fields in order.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -171,5 +186,6 @@ pub fn layouts() -> Vec<Layout> {
         layout!(Detections3dMsg, version, count, sequence, device_time_us, items),
         layout!(Detection2dItem, class, reserved, score, bbox),
         layout!(Detections2dMsg, version, count, sequence, device_time_us, items),
+        layout!(KeepMsg, version, reserved, device_time_us),
     ]
 }

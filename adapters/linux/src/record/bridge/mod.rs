@@ -39,8 +39,8 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
 use messages::{
-    Detection2dItem, Detection3dItem, Detections2dMsg, Detections3dMsg, FrameMetaMsg, VoPoseMsg, LAYOUT_VERSION,
-    MAX_DETECTIONS,
+    Detection2dItem, Detection3dItem, Detections2dMsg, Detections3dMsg, FrameMetaMsg, KeepMsg, VoPoseMsg,
+    LAYOUT_VERSION, MAX_DETECTIONS,
 };
 
 /// The services' prefix unless told otherwise.
@@ -125,6 +125,7 @@ pub struct CameraPublisher {
     vo: Publisher<ipc::Service, VoPoseMsg, ()>,
     detections3d: Publisher<ipc::Service, Detections3dMsg, ()>,
     detections2d: Publisher<ipc::Service, Detections2dMsg, ()>,
+    keep: Publisher<ipc::Service, KeepMsg, ()>,
     image: Option<Publisher<ipc::Service, [u8], ()>>,
 }
 
@@ -137,6 +138,7 @@ impl CameraPublisher {
         let vo = service!(node, prefix, "vo", VoPoseMsg).publisher_builder().create();
         let detections3d = service!(node, prefix, "detections3d", Detections3dMsg).publisher_builder().create();
         let detections2d = service!(node, prefix, "detections2d", Detections2dMsg).publisher_builder().create();
+        let keep = service!(node, prefix, "keep", KeepMsg).publisher_builder().create();
         let image = if images {
             let service = node
                 .service_builder(&service_name(prefix, "image")?)
@@ -161,6 +163,7 @@ impl CameraPublisher {
             vo: vo.map_err(|e| iox("vo publisher")(&e))?,
             detections3d: detections3d.map_err(|e| iox("detections3d publisher")(&e))?,
             detections2d: detections2d.map_err(|e| iox("detections2d publisher")(&e))?,
+            keep: keep.map_err(|e| iox("keep publisher")(&e))?,
             image,
         })
     }
@@ -330,6 +333,17 @@ impl CameraPublisher {
     }
 }
 
+impl CameraPublisher {
+    /// "Keep the file being recorded" at device time `t` (a button press, an event the
+    /// camera saw): the logger protects it from loop recording's deletions.
+    pub fn keep(&self, t: Timestamp) -> Result<(), BridgeError> {
+        let message = KeepMsg { version: LAYOUT_VERSION, reserved: 0, device_time_us: micros(t) };
+        let sample = self.keep.loan_uninit().map_err(|e| iox("keep loan")(&e))?;
+        sample.write_payload(message).send().map_err(|e| iox("keep send")(&e))?;
+        Ok(())
+    }
+}
+
 /// An image being written straight into shared memory ([`CameraPublisher::loan_image`]);
 /// dropped unsent, the memory goes back.
 #[derive(Debug)]
@@ -362,6 +376,8 @@ pub enum CameraInput {
     Detections3d(Timestamp, u64, Vec<Detection3d>),
     /// The 2D detections of a frame.
     Detections2d(Timestamp, u64, Vec<ImageDetection>),
+    /// Keep the file being recorded (the camera process's mark).
+    Keep(Timestamp),
 }
 
 /// The logger's side: a subscriber per service.
@@ -372,6 +388,7 @@ pub struct CameraSubscriber {
     vo: Subscriber<ipc::Service, VoPoseMsg, ()>,
     detections3d: Subscriber<ipc::Service, Detections3dMsg, ()>,
     detections2d: Subscriber<ipc::Service, Detections2dMsg, ()>,
+    keep: Subscriber<ipc::Service, KeepMsg, ()>,
 }
 
 fn check(service: &'static str, version: u32) -> Result<(), BridgeError> {
@@ -391,12 +408,14 @@ impl CameraSubscriber {
         let vo = service!(node, prefix, "vo", VoPoseMsg).subscriber_builder().create();
         let detections3d = service!(node, prefix, "detections3d", Detections3dMsg).subscriber_builder().create();
         let detections2d = service!(node, prefix, "detections2d", Detections2dMsg).subscriber_builder().create();
+        let keep = service!(node, prefix, "keep", KeepMsg).subscriber_builder().create();
         Ok(CameraSubscriber {
             _node: node,
             frame: frame.map_err(|e| iox("frame subscriber")(&e))?,
             vo: vo.map_err(|e| iox("vo subscriber")(&e))?,
             detections3d: detections3d.map_err(|e| iox("detections3d subscriber")(&e))?,
             detections2d: detections2d.map_err(|e| iox("detections2d subscriber")(&e))?,
+            keep: keep.map_err(|e| iox("keep subscriber")(&e))?,
         })
     }
 
@@ -457,6 +476,11 @@ impl CameraSubscriber {
                 })
                 .collect();
             on(CameraInput::Detections2d(Timestamp::from_micros(s.device_time_us), s.sequence, detections));
+            n += 1;
+        }
+        while let Some(s) = self.keep.receive().map_err(|e| iox("keep receive")(&e))? {
+            check("keep", s.version)?;
+            on(CameraInput::Keep(Timestamp::from_micros(s.device_time_us)));
             n += 1;
         }
         Ok(n)
