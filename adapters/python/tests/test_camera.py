@@ -167,27 +167,28 @@ def test_a_python_camera_process_killed_mid_run_is_a_restart_in_the_log(dash2sim
     assert ", 1 restarts;" in summary, summary
 
 
+def subscriber(node, name: str, payload, buffer: int = camera.SUBSCRIBER_BUFFER):
+    """A subscriber of the service `name`, opened with the settings the logger uses."""
+    import iceoryx2 as iox
+
+    service = (
+        node.service_builder(iox.ServiceName.new(name))
+        .publish_subscribe(payload)
+        .subscriber_max_buffer_size(buffer)
+        .enable_safe_overflow(True)
+        .open_or_create()
+    )
+    return service.subscriber_builder().create()
+
+
 def test_an_image_loaned_in_shared_memory_arrives_where_it_was_written():
     import iceoryx2 as iox
 
     prefix = f"dash2sim-test/python-image/{os.getpid()}"
     with camera.Publisher(prefix, images=True) as publisher:
         node = iox.NodeBuilder.new().create(iox.ServiceType.Ipc)
-        image_service = (
-            node.service_builder(iox.ServiceName.new(f"{prefix}/image"))
-            .publish_subscribe(iox.Slice[ctypes.c_uint8])
-            .subscriber_max_buffer_size(2)
-            .enable_safe_overflow(True)
-            .open_or_create()
-        )
-        frame_service = (
-            node.service_builder(iox.ServiceName.new(f"{prefix}/frame"))
-            .publish_subscribe(camera.FrameMetaMsg)
-            .subscriber_max_buffer_size(camera.SUBSCRIBER_BUFFER)
-            .enable_safe_overflow(True)
-            .open_or_create()
-        )
-        images, frames = image_service.subscriber_builder().create(), frame_service.subscriber_builder().create()
+        images = subscriber(node, f"{prefix}/image", iox.Slice[ctypes.c_uint8], 2)
+        frames = subscriber(node, f"{prefix}/frame", camera.FrameMetaMsg)
         loan = publisher.loan_image(640 * 480 * 3)
         loan.array[:] = np.arange(loan.array.size) % 251
         publisher.send_image(loan, 7, 123_456, 8000)
@@ -211,14 +212,7 @@ def test_a_keep_mark_arrives_as_the_logger_reads_it():
     prefix = f"dash2sim-test/python-keep/{os.getpid()}"
     with camera.Publisher(prefix) as publisher:
         node = iox.NodeBuilder.new().create(iox.ServiceType.Ipc)
-        service = (
-            node.service_builder(iox.ServiceName.new(f"{prefix}/keep"))
-            .publish_subscribe(camera.KeepMsg)
-            .subscriber_max_buffer_size(camera.SUBSCRIBER_BUFFER)
-            .enable_safe_overflow(True)
-            .open_or_create()
-        )
-        marks = service.subscriber_builder().create()
+        marks = subscriber(node, f"{prefix}/keep", camera.KeepMsg)
         publisher.keep(42_000)
         mark = marks.receive().payload().contents
         assert (mark.version, mark.device_time_us) == (camera.LAYOUT_VERSION, 42_000)

@@ -208,29 +208,26 @@ class Publisher:
             self._keep = self._publisher(prefix, "keep", KeepMsg)
             self._image = None
             if images:
-                service = (
-                    self._node.service_builder(iox.ServiceName.new(f"{prefix}/image"))
-                    .publish_subscribe(iox.Slice[ctypes.c_uint8])
-                    .subscriber_max_buffer_size(2)
-                    .enable_safe_overflow(True)
-                    .open_or_create()
-                )
+                service = self._service(prefix, "image", iox.Slice[ctypes.c_uint8], 2)
                 self._image = service.publisher_builder().initial_max_slice_len(MAX_IMAGE_BYTES).create()
         except Exception as e:
             if isinstance(e, BridgeError):
                 raise
             raise BridgeError(f"{prefix}: {e!r} (a publisher or logger of another dash2sim message layout?)") from e
 
-    def _publisher(self, prefix: str, leaf: str, message: type) -> Any:
+    def _service(self, prefix: str, leaf: str, payload: Any, buffer: int = SUBSCRIBER_BUFFER) -> Any:
+        """The service `prefix/leaf`, opened (or created) with the logger's settings."""
         iox = self._iox
-        service = (
+        return (
             self._node.service_builder(iox.ServiceName.new(f"{prefix}/{leaf}"))
-            .publish_subscribe(message)
-            .subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
+            .publish_subscribe(payload)
+            .subscriber_max_buffer_size(buffer)
             .enable_safe_overflow(True)
             .open_or_create()
         )
-        return service.publisher_builder().create()
+
+    def _publisher(self, prefix: str, leaf: str, message: type) -> Any:
+        return self._service(prefix, leaf, message).publisher_builder().create()
 
     def __enter__(self) -> "Publisher":
         return self
