@@ -106,13 +106,14 @@ fn coarse_gnss(log: &LogContents, truth: &Trajectory, sigma_h: f64, sigma_v: f64
             other => records.push(other.clone()),
         }
     }
-    LogContents { records, damage: Vec::new(), ..*log }
+    LogContents { records, damage: Vec::new(), signing: log.signing.clone(), ..*log }
 }
 
 fn without_speed(log: &LogContents) -> LogContents {
     LogContents {
         records: log.records.iter().filter(|r| !matches!(r, Record::VehicleSpeed(_))).cloned().collect(),
         damage: Vec::new(),
+        signing: log.signing.clone(),
         ..*log
     }
 }
@@ -186,7 +187,7 @@ fn finished_anchors_used(log: &LogContents, anchors: &str) -> usize {
 }
 
 fn log_clone(log: &LogContents) -> LogContents {
-    LogContents { records: log.records.clone(), damage: log.damage.clone(), ..*log }
+    LogContents { records: log.records.clone(), damage: log.damage.clone(), signing: log.signing.clone(), ..*log }
 }
 
 /// The median and the largest of `values`.

@@ -26,7 +26,7 @@ fn run(log: &LogContents, anchor_text: Option<&str>, map: Option<&[u8]>) -> dash
 /// both have.
 fn ego_rmse(online: &LogContents, finished: &[Record], recorded: &Recorded) -> (f64, f64) {
     let a = judge_log(&recorded.scenario, online).ego_errors;
-    let finished = LogContents { records: finished.to_vec(), damage: Vec::new(), ..*online };
+    let finished = LogContents { records: finished.to_vec(), damage: Vec::new(), signing: Vec::new(), ..*online };
     let b = judge_log(&recorded.scenario, &finished).ego_errors;
     let common: Vec<usize> = a.keys().filter(|k| b.contains_key(k)).copied().collect();
     let rms = |m: &std::collections::HashMap<usize, f64>| {
@@ -110,6 +110,7 @@ fn bad_input_is_refused_with_its_reason() {
     let no_gnss = LogContents {
         records: log.records.iter().filter(|r| !matches!(r, Record::GnssFix(_))).cloned().collect(),
         damage: Vec::new(),
+        signing: Vec::new(),
         ..*log
     };
     let error = run(&no_gnss, None, None).expect_err("nothing to anchor to");

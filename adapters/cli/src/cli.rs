@@ -80,8 +80,14 @@ enum Command {
     Plot(crate::plot::PlotArgs),
     /// What a 4D log holds: header, records per type, time span, gaps, damage, bytes.
     Inspect {
-        /// The log.
+        /// The log, or a live recording's folder.
         log: PathBuf,
+        /// Check every segment's signature against this public key (64 hex digits, or the
+        /// `.pub` file of `keygen`): ok / unsigned / bad signature / chain broken / another
+        /// key, per segment; a folder's files are checked in recording order, one chain.
+        /// Exits with failure when a segment is not ok.
+        #[arg(long, value_name = "PUB")]
+        verify_key: Option<String>,
         /// Also list the log's events: time, level and text of every message the device
         /// wrote (refused inputs, anchoring, dropped inputs, …).
         #[arg(long)]
@@ -89,6 +95,13 @@ enum Command {
         /// Print JSON on stdout.
         #[arg(long)]
         json: bool,
+    },
+    /// A new device key pair for signed logs: PREFIX.key (secret, for `record --key`) and
+    /// PREFIX.pub (for `inspect --verify-key`, `finish --require-signed`).
+    Keygen {
+        /// Where the two files go: PREFIX.key and PREFIX.pub.
+        #[arg(short, long, value_name = "PREFIX")]
+        output: PathBuf,
     },
     /// Export a 4D log: MCAP with Foxglove schemas, TUM (evo), GeoJSON (QGIS), nuPlan
     /// (log database and map; docs/nuplan.md).
@@ -411,7 +424,9 @@ pub fn run() -> ExitCode {
         Command::Record(args) => crate::record::run(&args),
         Command::Finish(args) => crate::finish::run(&args),
         Command::Plot(args) => crate::plot::run(args),
-        Command::Inspect { log, events, json } => crate::inspect::run(&log, events, json),
+        Command::Inspect { log, verify_key: Some(key), json, .. } => crate::inspect::verify_key(&log, &key, json),
+        Command::Inspect { log, events, json, verify_key: None } => crate::inspect::run(&log, events, json),
+        Command::Keygen { output } => crate::inspect::keygen(&output),
         Command::Export(args) => crate::export::run(*args),
         Command::Verify(a) => crate::verify::run(&a),
     };

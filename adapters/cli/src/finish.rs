@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use clap::Args;
 use dash2sim_linux::finish::windows::{DriveVerification, Verdict};
 use dash2sim_linux::finish::{self, FinishRequest, FinishedFile};
+use dash2sim_linux::log::signing;
 
 use crate::record::DeviceArgs;
 use dash2sim_linux::Result;
@@ -30,6 +31,10 @@ pub struct FinishArgs {
     /// Keyframe spacing of the re-anchoring, s.
     #[arg(long, default_value_t = finish::DEFAULT_KEYFRAME_S)]
     pub keyframe: f64,
+    /// Refuse the log unless every segment is signed by this public key (64 hex digits, or
+    /// the `.pub` file of `dash2sim keygen`), unaltered and in an unbroken chain.
+    #[arg(long, value_name = "PUB")]
+    pub require_signed: Option<String>,
     /// Print the report as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -45,6 +50,7 @@ pub fn run(args: &FinishArgs) -> Result<()> {
         map: args.map.clone(),
         device: args.device.clone().into(),
         keyframe: args.keyframe,
+        require_signed: args.require_signed.as_deref().map(signing::read_public).transpose()?,
     };
     let finished = finish::finish_file(&request)?;
     let anchors = &finished.report.anchors;

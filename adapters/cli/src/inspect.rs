@@ -2,9 +2,10 @@
 
 use std::path::Path;
 
+use dash2sim_core::binlog::signature::key_id;
 use dash2sim_core::binlog::Kind;
 use dash2sim_linux::log::inspect::{dropped_inputs, events, frames, gaps, report};
-use dash2sim_linux::log::read;
+use dash2sim_linux::log::{read, signing};
 use dash2sim_linux::record::storage::{read_index, INDEX_FILE};
 use dash2sim_linux::{Error, Result};
 use serde_json::json;
@@ -52,6 +53,12 @@ pub fn run(path: &Path, with_events: bool, as_json: bool) -> Result<()> {
         "  damage      {} stretches, {} bytes; {} records lost with them; {} of unknown kinds",
         log.stats.damaged, log.stats.damaged_bytes, log.stats.lost, log.stats.unknown
     );
+    if log.stats.signatures > 0 {
+        println!(
+            "  signatures  {} of {} segments carry one (`--verify-key PUB` checks them)",
+            log.stats.signatures, log.stats.segments
+        );
+    }
     let f = frames(&log);
     if f.logged > 0 {
         println!(
@@ -119,5 +126,70 @@ fn folder(dir: &Path, as_json: bool) -> Result<()> {
         "  {present} files present ({bytes} bytes), {kept} of them kept; {} deleted",
         index.segments.len() - present
     );
+    Ok(())
+}
+
+/// `dash2sim inspect --verify-key`: each segment's signature, per file (a folder's files
+/// in recording order, one chain); fails when a segment is not trusted.
+pub fn verify_key(path: &Path, key: &str, as_json: bool) -> Result<()> {
+    let public = signing::read_public(key)?;
+    let files = if path.is_dir() { recorded_files(path)? } else { vec![(path.to_path_buf(), false)] };
+    let logs = files.iter().map(|(f, _)| read(f).map_err(Error::other)).collect::<Result<Vec<_>>>()?;
+    let names: Vec<String> = files.iter().map(|(f, _)| f.display().to_string()).collect();
+    let checked = names.iter().zip(&logs).zip(&files).map(|((name, log), (_, after_deleted))| signing::Checked {
+        name,
+        log,
+        after_deleted: *after_deleted,
+    });
+    let seals = signing::check(&public, checked)?;
+    let untrusted: usize = seals.iter().map(|f| f.segments.len() - f.trusted()).sum();
+    if as_json {
+        println!("{}", json!({ "key_id": signing::hex(&key_id(&public)), "files": seals, "untrusted": untrusted }));
+    } else {
+        println!("signatures against key {} ({} files)", signing::hex(&key_id(&public)), seals.len());
+        for file in &seals {
+            println!("  {}: {} of {} segments ok", file.file, file.trusted(), file.segments.len());
+            for s in file.segments.iter().filter(|s| !s.trusted || s.verdict != "ok") {
+                let key = s.other_key.as_ref().map(|id| format!(" (key id {id})")).unwrap_or_default();
+                println!("    segment {:>4}  {}{key}", s.seq, s.verdict);
+            }
+        }
+    }
+    if untrusted > 0 {
+        return Err(Error::invalid(format!("{untrusted} segments are not signed by the key, unaltered and in order")));
+    }
+    Ok(())
+}
+
+/// A recording folder's present log files, oldest first, each with whether the file
+/// before it was deleted by loop recording (by the index when it has one, else by name,
+/// which is the start time).
+fn recorded_files(dir: &Path) -> Result<Vec<(std::path::PathBuf, bool)>> {
+    if let Ok(index) = read_index(dir) {
+        let mut previous_deleted = false;
+        let mut files = Vec::new();
+        for e in &index.segments {
+            if e.deleted.is_none() {
+                files.push((dir.join(&e.file), previous_deleted));
+            }
+            previous_deleted = e.deleted.is_some();
+        }
+        return Ok(files);
+    }
+    let mut files: Vec<_> = std::fs::read_dir(dir)
+        .map_err(|e| Error::file(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "d2slog"))
+        .collect();
+    files.sort();
+    Ok(files.into_iter().map(|f| (f, false)).collect())
+}
+
+/// `dash2sim keygen -o PREFIX`.
+pub fn keygen(prefix: &Path) -> Result<()> {
+    let (secret, public, key) = signing::keygen(prefix)?;
+    println!("secret key {} (give it to `record --key`; keep it on the device)", secret.display());
+    println!("public key {} ({})", public.display(), signing::hex(&key));
+    println!("key id     {}", signing::hex(&key_id(&key)));
     Ok(())
 }

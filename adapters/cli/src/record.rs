@@ -114,6 +114,10 @@ pub struct RecordArgs {
     /// Live: keep at least SIZE of the file system free, deleting as for `--quota`
     #[arg(long, value_name = "SIZE")]
     pub min_free: Option<String>,
+    /// Sign every segment of the log with the device's secret key in FILE (`dash2sim
+    /// keygen`); the chain of signatures runs across the rotated files (docs/binlog.md)
+    #[arg(long, value_name = "FILE")]
+    pub key: Option<PathBuf>,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
@@ -146,6 +150,7 @@ impl RecordArgs {
             seconds: self.seconds,
             quota: self.quota.clone(),
             min_free: self.min_free.clone(),
+            key: self.key.clone(),
             status: std::io::stderr().is_terminal().then_some(status_line as fn(&LiveStatus)),
         }
     }

@@ -1,7 +1,9 @@
 //! Loop recording: `dash2sim record --quota` on a drive larger than the quota, a real
 //! process writing real files — the folder never exceeds the quota, the files marked to be
 //! kept (a `KEEP` file, the camera process's mark over the bridge, SIGUSR1) survive, every
-//! deletion is in the index and an event, and `inspect DIR` lists it all.
+//! deletion is in the index and an event, and `inspect DIR` lists it all. The recording is
+//! signed: `inspect DIR --verify-key` follows the chain across the files, past the deleted
+//! ones, and finds a file removed by hand.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -46,11 +48,17 @@ fn a_quota_smaller_than_the_drive_keeps_the_folder_within_it_and_the_marked_file
     std::fs::write(&bus, capture).expect("capture");
     let logs = dir.join("logs");
     let prefix = format!("dash2sim-test/loop/{}", std::process::id());
+    let key = dir.join("device");
+    let keygen =
+        Command::new(env!("CARGO_BIN_EXE_dash2sim")).arg("keygen").arg("-o").arg(&key).output().expect("keygen");
+    assert!(keygen.status.success(), "{}", String::from_utf8_lossy(&keygen.stderr));
     let mut record = Command::new(env!("CARGO_BIN_EXE_dash2sim"))
         .args(["record", "--camera", &prefix, "--can-replay"])
         .arg(&bus)
         .args(["--realtime", "--seconds", "12", "--segment-minutes", "0.02", "--quota", "80k"])
-        .args(["--origin", "60.2711,24.8572", "--json", "-o"])
+        .args(["--origin", "60.2711,24.8572", "--json", "--key"])
+        .arg(key.with_extension("key"))
+        .arg("-o")
         .arg(&logs)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -130,5 +138,52 @@ fn a_quota_smaller_than_the_drive_keeps_the_folder_within_it_and_the_marked_file
     let refused = Command::new(env!("CARGO_BIN_EXE_dash2sim")).arg("inspect").arg(&empty).output().expect("inspect");
     assert!(!refused.status.success());
     assert!(String::from_utf8_lossy(&refused.stderr).contains("a folder, but not a live recording's"));
+
+    // Signed: every present file verifies, the chain followed across the files and past
+    // the deleted ones (a file after a deleted one continues a segment not given).
+    let verify = |what: &Path| {
+        let out = Command::new(env!("CARGO_BIN_EXE_dash2sim"))
+            .arg("inspect")
+            .arg(what)
+            .arg("--verify-key")
+            .arg(key.with_extension("pub"))
+            .args(["--json"])
+            .output()
+            .expect("inspect --verify-key");
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+        (out.status.success(), report)
+    };
+    let (ok, report) = verify(&logs);
+    assert!(ok, "{report}");
+    assert_eq!(report["files"].as_array().map(Vec::len), Some(files.len()));
+    let verdicts: Vec<&str> = report["files"]
+        .as_array()
+        .expect("files")
+        .iter()
+        .flat_map(|f| f["segments"].as_array().expect("segments").iter().map(|s| s["verdict"].as_str().expect("v")))
+        .collect();
+    assert!(verdicts.contains(&"ok (continues a segment not given)"), "{verdicts:?}");
+    // A file's first segment "ok": it follows the last segment of the file before it.
+    assert!(verdicts.contains(&"ok"), "{verdicts:?}");
+    // A file taken out of the middle by hand (the index still names it): the chain breaks
+    // at the file after it.
+    // (Out of three present in a row: a file removed after a deleted one would look like a
+    // deletion, which only the index records.)
+    let removed = index.segments.windows(3).find(|w| w.iter().all(|e| e.deleted.is_none()));
+    let three = removed.expect("three files in a row");
+    let (gone, after) = (three[1].clone(), three[2].clone());
+    std::fs::rename(logs.join(&gone.file), dir.join(&gone.file)).expect("move out");
+    let listed: Vec<_> = index.segments.iter().filter(|e| e.file != gone.file).cloned().collect();
+    let mut edited = index.clone();
+    edited.segments = listed;
+    std::fs::write(logs.join(INDEX_FILE), serde_json::to_vec(&edited).expect("index")).expect("index");
+    let (ok, report) = verify(&logs);
+    assert!(!ok, "a removed file ({gone:?}) must not verify: {report}");
+    let file = report["files"]
+        .as_array()
+        .expect("files")
+        .iter()
+        .find(|f| f["file"].as_str().is_some_and(|n| n.ends_with(&after.file)));
+    assert_eq!(file.expect("the file after")["segments"][0]["verdict"], "chain broken", "{report}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -18,6 +18,7 @@
 
 mod codec;
 mod reader;
+pub mod signature;
 pub mod varint;
 mod writer;
 
@@ -33,8 +34,8 @@ pub const MAGIC: [u8; 6] = *b"D2SLOG";
 pub const VERSION_MAJOR: u8 = 1;
 /// Format minor version written (1.1 added `Detection3d` and `ClockOffset`; 1.2 the VO
 /// session of a `VoPose` and `MountEstimate`; 1.3 the σ of an `EgoPose`; 1.4 the GNSS
-/// latency of an `AnchorEstimate`).
-pub const VERSION_MINOR: u8 = 4;
+/// latency of an `AnchorEstimate`; 1.5 the segments' signature trailers, [`signature`]).
+pub const VERSION_MINOR: u8 = 5;
 /// Header length in bytes (v1.0).
 pub const HEADER_LEN: usize = 48;
 /// Marks the start of every segment; a reader looks for it after damage.

@@ -7,6 +7,7 @@
 //! damage may have changed are reported lost until the next segment starts afresh.
 
 use super::codec::Streams;
+use super::signature::{Digest, SegmentDigest, Trailer, SIGNATURE};
 use super::varint::{get, unzigzag};
 use super::{Header, HeaderError, Kind, Record, CRC32C, HEADER_LEN, INDEX, MAX_FRAME, MAX_PAYLOAD, SEGMENT, SYNC};
 
@@ -39,6 +40,14 @@ pub enum Event {
         records: u64,
         /// Bytes before the index.
         bytes: u64,
+    },
+    /// A segment's signature trailer (v1.5, [`super::signature`]), right after its index.
+    Signature {
+        /// The trailer.
+        trailer: Trailer,
+        /// SHA-512 of the segment's bytes as read (the file's header included for its
+        /// first segment); `None` when the trailer did not directly follow an index.
+        digest: Option<Digest>,
     },
     /// An intact frame of a kind this reader does not know (skipped).
     Unknown {
@@ -74,6 +83,8 @@ pub struct Stats {
     pub lost: u64,
     /// Frames of unknown kinds.
     pub unknown: u64,
+    /// Signature trailers.
+    pub signatures: u64,
     /// Earliest and latest record time, µs.
     pub time_span: Option<(i64, i64)>,
 }
@@ -124,6 +135,8 @@ pub struct Decoder<const N: usize = DECODER_BUFFER> {
     damage: Option<u64>,
     streams: Streams,
     stats: Stats,
+    /// The digest of the segment being read, for its signature.
+    digest: SegmentDigest,
 }
 
 impl<const N: usize> Default for Decoder<N> {
@@ -149,6 +162,7 @@ impl<const N: usize> Decoder<N> {
             damage: None,
             streams: Streams::default(),
             stats: Stats::default(),
+            digest: SegmentDigest::new(),
         }
     }
 
@@ -191,7 +205,9 @@ impl<const N: usize> Decoder<N> {
         self.end_damage(on);
     }
 
+    /// Consume `n` bytes (every byte of the input passes here once, in order).
     fn skip(&mut self, n: usize) {
+        self.digest.absorb(&self.buffer[self.start..self.start + n]);
         self.start += n;
         self.offset += n as u64;
     }
@@ -242,6 +258,7 @@ impl<const N: usize> Decoder<N> {
             }
             if avail.starts_with(&SYNC) {
                 self.end_damage(on);
+                self.digest.segment_starts();
                 self.skip(SYNC.len());
                 continue;
             }
@@ -255,13 +272,16 @@ impl<const N: usize> Decoder<N> {
                         self.damage = Some(self.offset);
                         self.streams.break_streams();
                     }
+                    self.digest.other_frame();
                     self.skip(1);
                 }
                 Frame::Valid(code, range, total) => {
                     self.end_damage(on);
-                    let payload = &self.buffer[self.start + range.start..self.start + range.end];
-                    handle(&mut self.streams, &mut self.stats, code, payload, total, on);
+                    let at = self.start;
+                    // Consumed (and digested) first: an index completes its segment's digest.
                     self.skip(total);
+                    let payload = &self.buffer[at + range.start..at + range.end];
+                    handle(&mut self.streams, &mut self.stats, &mut self.digest, code, payload, total, on);
                 }
             }
         }
@@ -272,12 +292,18 @@ impl<const N: usize> Decoder<N> {
 fn handle(
     streams: &mut Streams,
     stats: &mut Stats,
+    digest: &mut SegmentDigest,
     code: u8,
     payload: &[u8],
     total: usize,
     on: &mut impl FnMut(Event),
 ) {
     let mut at = 0;
+    match code {
+        INDEX => digest.index_read(),
+        SIGNATURE => {}
+        _ => digest.other_frame(),
+    }
     match code {
         SEGMENT => {
             let (Some(seq), Some(t0)) = (get(payload, &mut at), get(payload, &mut at)) else {
@@ -289,6 +315,17 @@ fn handle(
             stats.segments += 1;
             on(Event::Segment { seq, t0_us });
         }
+        SIGNATURE => match Trailer::decode(payload) {
+            Some(trailer) => {
+                stats.signatures += 1;
+                on(Event::Signature { trailer, digest: digest.take() });
+            }
+            // A trailer format this reader does not know: the segment reads as unsigned.
+            None => {
+                stats.unknown += 1;
+                on(Event::Unknown { code });
+            }
+        },
         INDEX => {
             let fields = (get(payload, &mut at), get(payload, &mut at), get(payload, &mut at), get(payload, &mut at));
             if let (Some(seq), Some(records), Some(_span), Some(bytes)) = fields {

@@ -9,8 +9,15 @@
 use embedded_io::Write;
 
 use super::codec::{Streams, TracksFrame};
+use super::signature::{Sealer, SIGNATURE, TRAILER_LEN};
 use super::varint::{put, zigzag};
 use super::{Header, Kind, Record, CRC32C, HEADER_LEN, INDEX, MAX_FRAME, MAX_PAYLOAD, MAX_TRACKS, SEGMENT, SYNC};
+
+/// Longest index payload: seq, records, time span, bytes, then a (kind, count) pair per kind.
+const MAX_INDEX: usize = 4 * 10 + 2 * 10 * Kind::ALL.len();
+// A segment's index and trailer go into the room `make_room` leaves for one frame, so that
+// no flush (which may fail) comes between them.
+const _: () = assert!(MAX_INDEX + TRAILER_LEN + 2 * (2 + 1 + 4) <= MAX_FRAME);
 
 /// When the buffer goes to the underlying writer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -88,6 +95,10 @@ pub struct Writer<W: Write, const N: usize> {
     next_seq: u32,
     /// The `Tracks3d` frame being filled (all tracks of one time share a frame).
     tracks: Option<TracksFrame>,
+    /// The file's header (the first segment's signature covers it).
+    header: Header,
+    /// Signs each segment when set.
+    sealer: Option<Sealer>,
 }
 
 impl<W: Write, const N: usize> Writer<W, N> {
@@ -116,10 +127,29 @@ impl<W: Write, const N: usize> Writer<W, N> {
             segment: None,
             next_seq: 0,
             tracks: None,
+            header: *header,
+            sealer: None,
         };
         w.buffer[..HEADER_LEN].copy_from_slice(&header.encode());
         w.len = HEADER_LEN;
         w
+    }
+
+    /// Sign every segment from the next one on with `sealer`'s key (format v1.5,
+    /// [`super::signature`]). Set it before the first record, so that the file's first
+    /// segment, whose signature covers the header, is signed too.
+    pub fn seal_with(&mut self, sealer: Sealer) {
+        self.sealer = Some(sealer);
+    }
+
+    /// The sealer back (its chain goes on in the next file's writer).
+    pub fn take_sealer(&mut self) -> Option<Sealer> {
+        self.sealer.take()
+    }
+
+    /// The sealer signing this log, if any.
+    pub fn sealer(&self) -> Option<&Sealer> {
+        self.sealer.as_ref()
     }
 
     /// Append one record (records should come in time order; small reorderings cost a
@@ -251,6 +281,12 @@ impl<W: Write, const N: usize> Writer<W, N> {
             return Err(WriteError::RecordTooLarge);
         }
         self.make_room()?;
+        self.put_frame(code, payload)
+    }
+
+    /// Frame `payload` into the buffer, which has room; the segment's digest takes it
+    /// unless it is the trailer.
+    fn put_frame(&mut self, code: u8, payload: &[u8]) -> Result<usize, WriteError<W::Error>> {
         let start = self.len;
         let mut at = start;
         let ok = put(&mut self.buffer, &mut at, payload.len() as u64);
@@ -261,6 +297,9 @@ impl<W: Write, const N: usize> Writer<W, N> {
         let crc = CRC32C.checksum(&self.buffer[start..end]);
         self.buffer[end..end + 4].copy_from_slice(&crc.to_le_bytes());
         self.len = end + 4;
+        if let Some(sealer) = self.sealer.as_mut().filter(|_| code != SIGNATURE) {
+            sealer.absorb(&self.buffer[start..self.len]);
+        }
         Ok(self.len - start)
     }
 
@@ -272,6 +311,13 @@ impl<W: Write, const N: usize> Writer<W, N> {
         }
         self.buffer[self.len..self.len + SYNC.len()].copy_from_slice(&SYNC);
         self.len += SYNC.len();
+        if let Some(sealer) = &mut self.sealer {
+            sealer.begin();
+            if self.next_seq == 0 {
+                sealer.absorb(&self.header.encode());
+            }
+            sealer.absorb(&SYNC);
+        }
         let mut payload = [0u8; 24];
         let mut at = 0;
         put(&mut payload, &mut at, u64::from(self.next_seq));
@@ -293,7 +339,7 @@ impl<W: Write, const N: usize> Writer<W, N> {
     fn close_segment(&mut self) -> Result<(), WriteError<W::Error>> {
         let Some(s) = self.segment.take() else { return Ok(()) };
         // seq, records, time span, bytes before the index, then (kind, count) pairs.
-        let mut payload = [0u8; 4 * 10 + 2 * 10 * Kind::ALL.len()];
+        let mut payload = [0u8; MAX_INDEX];
         let mut at = 0;
         put(&mut payload, &mut at, u64::from(s.seq));
         put(&mut payload, &mut at, u64::from(s.records));
@@ -305,7 +351,13 @@ impl<W: Write, const N: usize> Writer<W, N> {
                 put(&mut payload, &mut at, u64::from(count));
             }
         }
-        self.frame(INDEX, &payload[..at])?;
+        // The index and the trailer without a flush between them (see MAX_INDEX).
+        self.make_room()?;
+        self.put_frame(INDEX, &payload[..at])?;
+        if let Some(sealer) = &mut self.sealer {
+            let trailer = sealer.seal().encode();
+            self.put_frame(SIGNATURE, &trailer)?;
+        }
         if self.config.flush != FlushPolicy::WhenFull {
             self.flush()?;
         }

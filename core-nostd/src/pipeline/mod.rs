@@ -52,6 +52,7 @@ use embedded_io::Write;
 use nalgebra::Vector3;
 
 use crate::anchor::{AnchorConfig, Anchorer, Observability};
+use crate::binlog::signature::Sealer;
 use crate::binlog::{
     quantise, AnchorEstimate, ClockOffset, Header, MountEstimate as MountRecord, Record, Verification, WriteError,
     Writer, WriterConfig,
@@ -486,10 +487,21 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
         Ok(failed)
     }
 
+    /// Sign every segment of the log with the device's key (format v1.5,
+    /// [`crate::binlog::signature`]); the chain runs on across rotated files. Call it before
+    /// the first input, so that the first segment is signed too.
+    pub fn sign_with(&mut self, sealer: Sealer) {
+        self.state.log.writer.seal_with(sealer);
+    }
+
     /// A writer on `io` in place of the current one, which is returned; one rotation more.
+    /// The signing key and its chain move to the new writer.
     fn switch_file(&mut self, io: W) -> Writer<W, BUF> {
         let log = &mut self.state.log;
-        let next = Writer::buffered(io, &log.header, self.state.config.writer);
+        let mut next = Writer::buffered(io, &log.header, self.state.config.writer);
+        if let Some(sealer) = log.writer.take_sealer() {
+            next.seal_with(sealer);
+        }
         log.rotations = log.rotations.saturating_add(1);
         core::mem::replace(&mut log.writer, next)
     }

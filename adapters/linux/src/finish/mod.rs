@@ -49,6 +49,9 @@ pub struct FinishRequest {
     pub device: Device,
     /// Keyframe spacing of the re-anchoring, s.
     pub keyframe: f64,
+    /// Refuse the log unless every segment is signed by this public key, unaltered and in
+    /// an unbroken chain.
+    pub require_signed: Option<[u8; 32]>,
 }
 
 /// The keyframe spacing of the re-anchoring when none is named, s.
@@ -875,6 +878,9 @@ pub fn finish_file(args: &FinishRequest) -> Result<FinishedFile> {
     let (mount, uere) = args.device.parse()?;
     let log = log::read(&args.log).map_err(Error::other)?;
     let name = args.log.display().to_string();
+    if let Some(public) = &args.require_signed {
+        log::signing::require_signed(public, &name, &log)?;
+    }
     let anchor_file = args.anchors.as_deref().map(anchors::read).transpose()?;
     let anchor_name = args.anchors.as_deref().map(Path::display).map(|d| d.to_string());
     let map = args.map.as_deref().map(|p| std::fs::read(p).map_err(|e| Error::file(p, e))).transpose()?;

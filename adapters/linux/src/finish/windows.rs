@@ -99,6 +99,7 @@ pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map
         damage: Vec::new(),
         stats: source.stats,
         bytes: 0,
+        signing: Vec::new(),
     };
     let (poses, agents) = crate::verify::from_contents(&contents, name, &view)?;
     let mut out = Vec::new();

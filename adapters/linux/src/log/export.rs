@@ -184,6 +184,7 @@ mod tests {
             ],
             damage: Vec::new(),
             stats: Default::default(),
+            signing: Vec::new(),
             bytes: 0,
         };
         let standing = standing_objects(&log);

@@ -8,6 +8,7 @@ pub mod inspect;
 pub mod mcap_export;
 #[cfg(feature = "parquet")]
 pub mod parquet_export;
+pub mod signing;
 
 use std::path::Path;
 
@@ -27,6 +28,9 @@ pub struct LogContents {
     pub stats: Stats,
     /// File length.
     pub bytes: u64,
+    /// The segment starts and signature trailers in file order, for a
+    /// [`SealCheck`](dash2sim_core::binlog::signature::SealCheck) ([`signing`]).
+    pub signing: Vec<Event>,
 }
 
 /// Why a file could not be read as a log at all.
@@ -55,6 +59,7 @@ pub fn decode(bytes: &[u8], name: &str) -> Result<LogContents, LogError> {
         damage: Vec::new(),
         stats: Stats::default(),
         bytes: bytes.len() as u64,
+        signing: Vec::new(),
     };
     let mut fatal = None;
     let mut on = |event: Event| match event {
@@ -62,7 +67,8 @@ pub fn decode(bytes: &[u8], name: &str) -> Result<LogContents, LogError> {
         Event::NotALog(e) => fatal = Some(e),
         Event::Record(r) => contents.records.push(r),
         Event::Damaged { offset, len } => contents.damage.push((offset, len)),
-        Event::Segment { .. } | Event::Index { .. } | Event::Unknown { .. } | Event::Lost(_) => {}
+        e @ (Event::Segment { .. } | Event::Signature { .. }) => contents.signing.push(e),
+        Event::Index { .. } | Event::Unknown { .. } | Event::Lost(_) => {}
     };
     for chunk in bytes.chunks(64 * 1024) {
         decoder.push(chunk, &mut on);

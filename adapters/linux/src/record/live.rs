@@ -411,6 +411,9 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
     let mut trackers: Box<Trackers<'_, 64, 32>> = Box::new(work_zone_trackers());
     let mut index = 0;
     let mut pipeline: Box<Pipeline<'_, S>> = Box::new(Pipeline::new(open(index)?, config, &mut trackers));
+    if let Some(key) = &setup.key {
+        pipeline.sign_with(key.sealer());
+    }
     // The folder's bookkeeping never stops the recording: what fails (an index that cannot
     // be written on a full disk) is an event.
     let mut storage_problem = None;

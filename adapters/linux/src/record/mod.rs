@@ -26,6 +26,7 @@ use dash2sim_core::pipeline::{
 };
 
 use crate::ingest::origin::parse_origin;
+use crate::log::signing::SecretKey;
 use crate::{Error, Result};
 use dash2sim_core::pipeline::profile::{self, work_zone_meta, work_zone_pipeline, work_zone_trackers};
 
@@ -124,6 +125,8 @@ pub struct RecordRequest {
     pub quota: Option<String>,
     /// Live: keep at least this much of the file system free, deleting as for the quota.
     pub min_free: Option<String>,
+    /// Sign every segment with the device's secret key in this file (`dash2sim keygen`).
+    pub key: Option<PathBuf>,
     /// Live: told how the recording goes twice a second (a status line), if set.
     #[cfg(feature = "bridge")]
     pub status: Option<fn(&live::LiveStatus)>,
@@ -157,6 +160,7 @@ impl RecordRequest {
             seconds: None,
             quota: None,
             min_free: None,
+            key: None,
             #[cfg(feature = "bridge")]
             status: None,
         }
@@ -350,6 +354,8 @@ pub struct Setup {
     pub map: Option<Vec<u8>>,
     /// Device id of the header.
     pub device_id: [u8; 16],
+    /// The device's signing key, if the log is signed.
+    pub key: Option<SecretKey>,
 }
 
 impl Setup {
@@ -382,6 +388,7 @@ impl Setup {
             gnss_signals: None,
             map,
             device_id,
+            key: None,
         }
     }
 }
@@ -392,6 +399,9 @@ pub fn run_stream(stream: &[u8], setup: &Setup) -> Result<Recording> {
     let config = setup.config(&meta)?;
     let mut trackers: Box<Trackers<'_, 64, 32>> = Box::new(work_zone_trackers());
     let mut pipeline: Box<Pipeline<'_, Vec<u8>>> = Box::new(Pipeline::new(Vec::new(), config, &mut trackers));
+    if let Some(key) = &setup.key {
+        pipeline.sign_with(key.sealer());
+    }
     let mut reader = Reader::new(stream).map_err(Error::other)?;
     let mut inputs = 0u64;
     while let Some(entry) = reader.next_input() {
@@ -616,6 +626,7 @@ fn setup_from_args(
         gnss_signals,
         map,
         device_id: device_id(&args.device_id)?,
+        key: args.key.as_deref().map(SecretKey::read).transpose()?,
     })
 }
 

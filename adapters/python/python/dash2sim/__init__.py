@@ -65,13 +65,16 @@ def finish(
     mode: str = "gravity",
     uere: float = 2.5,
     keyframe: float = 0.5,
+    require_signed: Optional[str] = None,
 ) -> Dict[str, Any]:
     """Finish a device's log offline into ``output`` (``dash2sim finish --json``).
 
     The whole drive is re-anchored at once from VO, GNSS, wheel speed and the optional
     ``anchors`` CSV; the 3D tracks are smoothed; with a ``map`` tile the finished drive is
     verified per 15 s window and as a whole (``report["verification"]``). Returns the report.
-    Raises :class:`Dash2SimError` when the log cannot be read or has nothing to anchor to.
+    Raises :class:`Dash2SimError` when the log cannot be read or has nothing to anchor to,
+    or — with ``require_signed`` (a public key: 64 hex digits or a ``.pub`` file) — when a
+    segment is not signed by that key, was altered, or the chain of segments is broken.
     """
     report = _native.finish(
         os.fspath(log),
@@ -82,6 +85,7 @@ def finish(
         mode,
         float(uere),
         float(keyframe),
+        require_signed,
     )
     return json.loads(report)
 

@@ -22,6 +22,7 @@ def finish(
     mode: str = "gravity",
     uere: float = 2.5,
     keyframe: float = 0.5,
+    require_signed: Optional[str] = None,
 ) -> str: ...
 def verify(
     log: str,

@@ -101,6 +101,8 @@ class Task:
     out: str
     fingerprint: str
     previous_files: List[str]
+    #: Refuse the log unless every segment is signed by this public key (64 hex digits).
+    require_signed: Optional[str] = None
 
 
 @dataclass
@@ -180,7 +182,7 @@ def _finish_and_export(task: Task, out: Path) -> Dict[str, Any]:
     finished = out / "finished" / f"{task.log_id}.d2slog"
     finished.parent.mkdir(parents=True, exist_ok=True)
     partial = finished.with_name(f".{finished.name}.partial")
-    report = dash2sim.finish(task.log, partial, map=task.map)
+    report = dash2sim.finish(task.log, partial, map=task.map, require_signed=task.require_signed)
     os.replace(partial, finished)
     info = dash2sim.inspect(finished)
     origin = info["header"]["origin"]
@@ -250,7 +252,22 @@ def read_manifest(out: Path) -> Dict[str, Dict[str, Any]]:
     return entries
 
 
-def plan(logs: Path, out: Path, default_map: Optional[Path], retry_failed: bool) -> tuple:
+def public_key(given: str) -> str:
+    """A public key given as 64 hex digits or as the ``.pub`` file of ``dash2sim keygen``."""
+    text = given.strip()
+    if len(text) != 64 or any(c not in "0123456789abcdefABCDEF" for c in text):
+        try:
+            text = Path(given).read_text().strip()
+        except OSError as e:
+            raise ValueError(f"--require-signed {given}: neither 64 hex digits nor a public key file ({e})") from e
+    if len(text) != 64 or any(c not in "0123456789abcdefABCDEF" for c in text):
+        raise ValueError(f"--require-signed {given}: not a public key (64 hex digits)")
+    return text.lower()
+
+
+def plan(
+    logs: Path, out: Path, default_map: Optional[Path], retry_failed: bool, require_signed: Optional[str] = None
+) -> tuple:
     """The tasks to run and the number of logs skipped because their entry is current."""
     done = read_manifest(out)
     tasks, skipped, found = [], 0, find_logs(logs, out)
@@ -258,12 +275,15 @@ def plan(logs: Path, out: Path, default_map: Optional[Path], retry_failed: bool)
         beside = log.with_suffix(".map")
         map_path = beside if beside.exists() or default_map is None else default_map
         fingerprint = f"{file_sha256(log)}:{file_sha256(map_path)}:{dash2sim.__version__}"
+        if require_signed:
+            # Another requirement is another result: the log is done again.
+            fingerprint += f":signed-by:{require_signed}"
         previous = done.get(log.stem)
         if previous and previous["fingerprint"] == fingerprint and not (retry_failed and previous["status"] == "failed"):
             skipped += 1
             continue
         files = previous["files"] if previous else []
-        tasks.append(Task(log.stem, str(log), str(map_path), str(out), fingerprint, files))
+        tasks.append(Task(log.stem, str(log), str(map_path), str(out), fingerprint, files, require_signed))
     return tasks, skipped, len(found)
 
 
@@ -288,20 +308,25 @@ def run(
     scheduler: Optional[str] = None,
     retry_failed: bool = False,
     progress: Optional[Callable[[int, int, Dict[str, Any]], None]] = None,
+    require_signed: Optional[str] = None,
 ) -> CorpusResult:
     """Finish and verify every log under ``logs`` into ``out`` on Dask.
 
     ``scheduler`` is the address of a running Dask scheduler (``tcp://host:8786``); without
     it a local cluster of ``workers`` single-threaded worker processes is started for the
     run. Workers must see ``logs`` and ``out`` at the same paths (a shared file system).
-    ``progress(done, total, entry)`` is called as each log completes.
+    ``progress(done, total, entry)`` is called as each log completes. With
+    ``require_signed`` (a public key: 64 hex digits or a ``.pub`` file) a log that is not
+    signed by that key in every segment, or was altered, or whose chain of segments is
+    broken, fails with the reason in its manifest entry.
     """
     started = time.perf_counter()
     logs_path, out_path = Path(logs), Path(out)
     if not logs_path.is_dir():
         raise FileNotFoundError(f"{logs_path}: not a folder of logs")
     out_path.mkdir(parents=True, exist_ok=True)
-    tasks, skipped, total = plan(logs_path, out_path, Path(map) if map else None, retry_failed)
+    key = public_key(require_signed) if require_signed else None
+    tasks, skipped, total = plan(logs_path, out_path, Path(map) if map else None, retry_failed, key)
     used_workers, cluster_seconds = 0, 0.0
     if tasks:
         used_workers, cluster_seconds = _run_on_dask(tasks, workers, scheduler, progress)
@@ -376,6 +401,12 @@ def main(argv: Optional[Iterable[str]] = None) -> int:
     parser.add_argument("--workers", type=int, default=2, help="worker processes of the local cluster (default 2)")
     parser.add_argument("--scheduler", help="address of a running Dask scheduler instead of a local cluster")
     parser.add_argument("--retry-failed", action="store_true", help="process again the logs that failed before")
+    parser.add_argument(
+        "--require-signed",
+        metavar="PUB",
+        help="refuse (as failed, with the reason) every log not signed by this public key in every segment: "
+        "64 hex digits or the .pub file of dash2sim keygen",
+    )
     parser.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     args = parser.parse_args(list(argv) if argv is not None else None)
@@ -388,6 +419,7 @@ def main(argv: Optional[Iterable[str]] = None) -> int:
             scheduler=args.scheduler,
             retry_failed=args.retry_failed,
             progress=None if args.quiet else _print_progress,
+            require_signed=args.require_signed,
         )
     except (OSError, ValueError) as e:
         print(f"dash2sim.corpus: error: {e}", file=sys.stderr)
