@@ -4,15 +4,15 @@
 //! real one gives ([`board`]) into `Pipeline<64 3D tracks, 32 2D tracks>` with the drive's
 //! map tile, and the 4D log goes to `target/drive-mcu.d2slog` on the host (CI compares it
 //! byte for byte with the host's `dash2sim record --replay`); the RAM it took is measured by
-//! stack painting. Then the parts on their own: anchor a synthetic VO track (scale 0.4, rotated) to
-//! GNSS fixes and wheel speed on a Cortex-M7, then track a car passing a row of cones
-//! with the 3D track manager, verify two drives against an embedded map tile (the
-//! drivable-area check and the nuPlan-style score), and report over semihosting. Exits with
-//! failure if the recovered scale or rotation is wrong, the tracks are or the verdicts are,
-//! so CI can run it under QEMU as a test of the bare-metal build. (Reading a 4D log back is
-//! the host's work; the device only writes it, and CI compares what it wrote byte for byte.
-//! The decoder demonstration left to keep the flash budget when issue #31 added the mount
-//! calibration and VO sessions.)
+//! stack painting. Every segment of the log is signed (Ed25519, `demo.key`). Then the
+//! scoring on its own: verify two drives against an embedded map tile (the drivable-area
+//! check and the nuPlan-style score), and report over semihosting. Exits with failure if the
+//! log cannot be written or the verdicts are wrong, so CI can run it under QEMU as a test of
+//! the bare-metal build. (Reading a 4D log back is the host's work; the device only writes
+//! it, and CI compares what it wrote byte for byte. The decoder demonstration left to keep
+//! the flash budget when issue #31 added the mount calibration and VO sessions; the
+//! stand-alone anchoring and tracking demonstrations — both run inside the pipeline, whose
+//! log CI compares — when issue #35 added signing.)
 #![no_std]
 #![no_main]
 
@@ -21,6 +21,7 @@ mod board;
 use core::panic::PanicInfo;
 
 use board::{CameraMessage, HostFile, ReplayBoard};
+use dash2sim_core::binlog::signature::Sealer;
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::pipeline::profile::{work_zone_pipeline, work_zone_trackers, WORK_ZONE_META};
 use dash2sim_core::pipeline::{replay, ImageDetection, Pipeline, PipelineConfig, Trackers};
@@ -30,100 +31,11 @@ use static_cell::ConstStaticCell;
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
-use dash2sim_core::anchor::{AnchorConfig, Anchorer, Observability};
-use dash2sim_core::box3d::Box3d;
 use dash2sim_core::decimal::Decimal;
 use dash2sim_core::drivable::{Channel, Checker};
 use dash2sim_core::map::MapView;
-use dash2sim_core::nalgebra::Vector3;
 use dash2sim_core::obb::{Pose2, PACIFICA};
 use dash2sim_core::score::{ScoreConfig, Scorer, Scores};
-use dash2sim_core::sim3::{rotation_z, Sim3};
-use dash2sim_core::time::Timestamp;
-use dash2sim_core::track3d::{
-    Association, ClassConfig, Config3d, Detection3d, Tracker3d, AB3DMOT_MEASUREMENT_NOISE, AB3DMOT_PROCESS_NOISE,
-};
-
-/// A curving, accelerating drive in ENU (m) at `t` seconds.
-fn drive(t: f64) -> Vector3<f64> {
-    let s = 10.0 * t + 0.25 * t * t;
-    let heading = s / 400.0;
-    Vector3::new(400.0 * libm::sin(heading), 400.0 * (1.0 - libm::cos(heading)), 0.0)
-}
-
-/// A car at 1.5 m/frame passing eight cones, 30 frames, the car's heading flipped by π
-/// every fourth frame: the car must keep one id, move at 1.5 m/frame and be dynamic; the
-/// cones must keep theirs and be static.
-#[inline(never)]
-fn track_cones_and_a_car() -> bool {
-    const CLASSES: [ClassConfig; 2] = [
-        ClassConfig {
-            association: Association::Giou(-0.2),
-            min_size: [3.0, 1.5, 1.2],
-            max_size: [6.0, 2.5, 2.2],
-            max_ground_offset: 0.3,
-            process_noise: AB3DMOT_PROCESS_NOISE,
-            measurement_noise: AB3DMOT_MEASUREMENT_NOISE,
-            initial_velocity_variance: 1e4,
-        },
-        ClassConfig {
-            association: Association::Distance(2.0),
-            min_size: [0.2, 0.2, 0.4],
-            max_size: [0.6, 0.6, 1.0],
-            max_ground_offset: 0.3,
-            process_noise: [1e-3, 1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4],
-            measurement_noise: [0.25, 0.25, 0.01, 1e4, 1e-3, 1e-3, 1e-3],
-            initial_velocity_variance: 0.01,
-        },
-    ];
-    let config = Config3d { classes: &CLASSES, min_hits: 3, max_age: 2, ground_z: 0.0, static_speed: 0.3 };
-    let mut tracker = Tracker3d::<16>::new(config);
-    let (mut car_ids, mut car_speed, mut cones_static, mut last_cone_ids) = (0u32, 0.0, true, [0u32; 8]);
-    for k in 0..30u32 {
-        let fk = f64::from(k);
-        let yaw = if k % 4 == 3 { core::f64::consts::PI } else { 0.0 };
-        let mut detections =
-            [Detection3d::new(0, Box3d { x: 1.5 * fk, y: 0.0, z: 0.75, yaw, l: 4.5, w: 1.9, h: 1.5 }, 0.9); 9];
-        for (i, d) in detections.iter_mut().skip(1).enumerate() {
-            let wobble = 0.1 * libm::sin(fk + i as f64);
-            *d = Detection3d::new(
-                1,
-                Box3d { x: 10.0 * i as f64 + wobble, y: 3.0, z: 0.35, yaw: 0.0, l: 0.36, w: 0.36, h: 0.7 },
-                0.8,
-            );
-        }
-        let mut cone_ids = [0u32; 8];
-        let result = tracker.update(u64::from(k), &detections, |o| {
-            if o.class == 0 {
-                car_ids |= 1 << o.id.min(31);
-                car_speed = libm::hypot(o.velocity[0], o.velocity[1]);
-            } else {
-                cones_static &= o.is_static;
-                let slot = libm::round(o.bbox.x / 10.0) as usize;
-                if let Some(id) = cone_ids.get_mut(slot) {
-                    *id = o.id;
-                }
-            }
-        });
-        if result.is_err() {
-            return false;
-        }
-        if k > 3 && cone_ids != last_cone_ids {
-            hprintln!("cone ids changed at frame {}", k);
-            return false;
-        }
-        last_cone_ids = cone_ids;
-    }
-    hprintln!(
-        "Tracker3d<16> ({} bytes): car ids {:#b}, car speed {} m/frame, cones static {}, {:?}",
-        core::mem::size_of::<Tracker3d<'_, 16>>(),
-        car_ids,
-        Decimal::new(car_speed, 4),
-        cones_static,
-        tracker.stats()
-    );
-    car_ids.count_ones() == 1 && libm::fabs(car_speed - 1.5) < 0.05 && cones_static && tracker.stats().rejected == 0
-}
 
 /// A straight two-lane road, 300 m east (built from `road.osm`; tests/tests/mcu_tile.rs
 /// keeps it current).
@@ -228,6 +140,10 @@ fn record_drive(cost: &mut Cost) -> bool {
         return false;
     };
     let mut pipeline = Pipeline::<'_, HostFile, 64, 24, 2304>::new(sink, config, trackers);
+    // Every segment signed (format v1.5): the example's key is `demo.key`'s, which CI gives
+    // the host's `record --key` for the byte-for-byte comparison. A real device is given its
+    // own key at provisioning (`dash2sim keygen`) and keeps it in protected flash.
+    pipeline.sign_with(Sealer::new(&DEMO_KEY));
     let mut serial = [0u8; 128];
     let mut detections3d: heapless::Vec<_, 64> = heapless::Vec::new();
     let mut detections2d: heapless::Vec<ImageDetection, 24> = heapless::Vec::new();
@@ -341,6 +257,9 @@ fn stack_high_water() -> usize {
     top - at
 }
 
+/// The example's signing key (the seed in `demo.key`; public key in `demo.pub`).
+const DEMO_KEY: [u8; 32] = *b"dash2sim MCU example: demo key!!";
+
 #[entry]
 fn main() -> ! {
     paint_stack();
@@ -381,58 +300,8 @@ fn main() -> ! {
         pipeline_stack,
         statics + pipeline_stack
     );
-    let ok = anchor_a_synthetic_track();
-    let tracked = track_cones_and_a_car();
     let verified = verify_drives();
-    exit(recorded && checked.is_some() && ok && tracked && verified)
-}
-
-/// Anchor a synthetic VO track (scale 0.4, rotated) to GNSS fixes and wheel speed.
-/// Each demonstration runs in its own frame (never inlined), so that none of them adds to
-/// `main`'s while the pipeline runs and the stack high-water stays the pipeline's.
-#[inline(never)]
-fn anchor_a_synthetic_track() -> bool {
-    let truth = Sim3 { rotation: rotation_z(2.0), translation: Vector3::new(5.0, -3.0, 1.0), scale: 0.4 };
-    let to_vo = truth.inverse();
-    let mut anchorer: Anchorer = Anchorer::new(AnchorConfig::default());
-    let mut first_observable = None;
-    for k in 0..=3000u32 {
-        let t = f64::from(k) * 0.01;
-        let stamp = Timestamp::from_micros(i64::from(k) * 10_000);
-        if k % 2 == 0 {
-            let speed = (drive(t + 0.01) - drive(t)).norm() * 100.0;
-            let _ = anchorer.push_speed(stamp, speed);
-        }
-        if k % 10 == 0 && k > 0 {
-            let _ = anchorer.push_gnss(stamp, drive(t), 1.0);
-        }
-        if k % 5 == 0 {
-            let _ = anchorer.push_vo(stamp, to_vo.transform_point(&drive(t)));
-        }
-        if first_observable.is_none() && anchorer.quality().observability == Observability::Observable {
-            first_observable = Some(t);
-        }
-    }
-    match anchorer.estimate() {
-        Some(est) => {
-            let q = anchorer.quality();
-            match first_observable {
-                Some(t) => hprintln!("dash2sim-core on Cortex-M7: observable after {} s", Decimal::new(t, 2)),
-                None => hprintln!("dash2sim-core on Cortex-M7: an estimate, never observable"),
-            }
-            hprintln!(
-                "scale {} (truth 0.4), anchors used {}, rms residual {} m",
-                Decimal::new(est.scale, 6),
-                q.anchors_used,
-                Decimal::new(q.rms_residual_m, 6)
-            );
-            libm::fabs(est.scale / 0.4 - 1.0) < 1e-4 && (est.rotation - truth.rotation).norm() < 1e-4
-        }
-        None => {
-            hprintln!("no estimate: {:?}", anchorer.quality().observability);
-            false
-        }
-    }
+    exit(recorded && checked.is_some() && verified)
 }
 
 /// End the QEMU run with the status.
