@@ -149,3 +149,47 @@ def test_geohash_matches_the_reference_cells():
     # Values from the geohash definition (Niemeyer): the 57.64911, 10.40744 example.
     assert job.geohash(57.64911, 10.40744, 11) == "u4pruydqqvj"
     assert job.geohash(60.2711, 24.8572) == "ud9w"
+
+
+def test_require_signed_refuses_unsigned_altered_and_foreign_logs(dash2sim_bin, cluster, tmp_path):
+    """`--require-signed`: a log signed by the key goes through; an altered one, an unsigned
+    one and another device's fail with the reason `finish --require-signed` gives."""
+    from conftest import REPO
+
+    mcu = REPO / "examples" / "mcu"
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    run_cli(dash2sim_bin, "keygen", "-o", tmp_path / "other")
+
+    def record(name: str, *key: str) -> Path:
+        path = logs / f"{name}.d2slog"
+        done = run_cli(dash2sim_bin, "record", "--replay", mcu / "drive.d2sin", "--map", mcu / "drive.d2smap",
+                       *key, "-o", path)
+        assert done.returncode == 0, done.stderr
+        shutil.copy(mcu / "drive.d2smap", path.with_suffix(".map"))
+        return path
+
+    signed = record("signed", "--key", str(mcu / "demo.key"))
+    altered = bytearray(signed.read_bytes())
+    altered[len(altered) // 2] ^= 0x01
+    (logs / "altered.d2slog").write_bytes(bytes(altered))
+    shutil.copy(signed.with_suffix(".map"), logs / "altered.map")
+    record("unsigned")
+    record("foreign", "--key", str(tmp_path / "other.key"))
+
+    out = tmp_path / "out"
+    result = job.run(logs, out, scheduler=cluster, require_signed=str(mcu / "demo.pub"))
+    rows = manifest(out)
+    assert result.failed == 3 and rows["signed"]["status"] in ("verified", "rejected"), rows["signed"]
+    assert "bad signature" in rows["altered"]["reason"]
+    assert "segment 0 of 6: unsigned" in rows["unsigned"]["reason"]
+    assert "signed by another key (key id" in rows["foreign"]["reason"]
+    cli = run_cli(dash2sim_bin, "finish", logs / "altered.d2slog", "-o", tmp_path / "f.d2slog",
+                  "--require-signed", mcu / "demo.pub")
+    assert cli.stderr.strip() == f"dash2sim: error: {rows['altered']['reason']}"
+    # Without the requirement the same folder is processed again (another fingerprint), and
+    # the unsigned and foreign logs finish.
+    again = job.run(logs, out, scheduler=cluster)
+    assert again.processed == 4 and manifest(out)["unsigned"]["status"] != "failed"
+    with pytest.raises(ValueError, match="not a public key|neither 64 hex digits"):
+        job.run(logs, out, scheduler=cluster, require_signed=str(tmp_path / "nothing.pub"))
