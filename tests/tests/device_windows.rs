@@ -17,6 +17,7 @@ fn device_windows_verify_where_the_truth_does_and_never_over_a_collision() {
     let (mut agree, mut total, mut truth_verified, mut both_verified) = (0, 0, 0, 0);
     let (mut comfortable, mut windows) = (0, 0);
     let (mut sigma_poses, mut within_2sigma) = (0, 0);
+    let mut collisions = 0;
     for seed in 2011..2017 {
         for driver in [Driver::Careful, Driver::Careless] {
             let config = ScenarioConfig { driver, ..ScenarioConfig::drive(seed, Profile::Typical, Receiver::Good) };
@@ -34,6 +35,15 @@ fn device_windows_verify_where_the_truth_does_and_never_over_a_collision() {
                 })
                 .collect();
             println!("seed {seed} {}: comfort, speed limit ×1e4 {judged:?}", driver.name());
+            // The windows counted as collisions (what keeps a file under loop recording) are
+            // those whose collision multiplier is below 1.
+            let collided = log
+                .records
+                .iter()
+                .filter(|record| matches!(record, Record::Verification(v) if v.collisions_e4 < 10_000))
+                .count() as u64;
+            assert_eq!(r.recording.stats.collision_windows, collided, "seed {seed}");
+            collisions += collided;
             windows += judged.len();
             comfortable += judged.iter().filter(|(comfort, _)| *comfort == 10_000).count();
             let log_name = format!("windows-{seed}.d2slog");
@@ -78,6 +88,8 @@ fn device_windows_verify_where_the_truth_does_and_never_over_a_collision() {
     // comfort in nearly every window; smoothed, the comfort of a drive the generator made
     // comfortable is seen in most.
     println!("{comfortable} of {windows} device windows comfortable");
+    println!("{collisions} device windows with a collision");
+    assert!(collisions > 0, "the careless drives collide: the count above is not vacuous");
     assert!(total >= 24, "{total} windows");
     assert!(comfortable * 4 >= windows * 3, "three in four windows comfortable: {comfortable} of {windows}");
     // The windows' verdicts hang on the ego's 2 m error too (drivable area, the lane): the

@@ -3,7 +3,7 @@
 //! kept (a `KEEP` file, the camera process's mark over the bridge, SIGUSR1) survive, every
 //! deletion is in the index and an event, and `inspect DIR` lists it all. The recording is
 //! signed: `inspect DIR --verify-key` follows the chain across the files, past the deleted
-//! ones, and finds a file removed by hand.
+//! ones, and finds two files swapped by hand. An emergency stop on the bus keeps its file.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -41,9 +41,16 @@ fn a_quota_smaller_than_the_drive_keeps_the_folder_within_it_and_the_marked_file
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("dir");
     // 12 s of wheel speed at 1 kHz in real time: about 6 KB of log a second, almost twice
-    // the quota in all; a new file every 1.2 s.
-    let capture: String =
-        (0..12_000).map(|i| format!("({:.6}) can0 18FEF100#FF0050FFFFFFFFFF\n", i as f64 * 0.001)).collect();
+    // the quota in all; a new file every 1.2 s. 80 km/h, and an emergency stop at 6 m/s²
+    // from 11 s (to 26 km/h): the last file, which holds it, is kept.
+    let capture: String = (0..12_000)
+        .map(|i| {
+            let t = i as f64 * 0.001;
+            let kmh = (80.0 - 21.6 * (t - 11.0).max(0.0)).max(26.0);
+            let raw = (kmh * 256.0).round() as u16;
+            format!("({t:.6}) can0 18FEF100#FF{:02X}{:02X}FFFFFFFFFF\n", raw & 0xff, raw >> 8)
+        })
+        .collect();
     let bus = dir.join("bus.log");
     std::fs::write(&bus, capture).expect("capture");
     let logs = dir.join("logs");
@@ -99,9 +106,15 @@ fn a_quota_smaller_than_the_drive_keeps_the_folder_within_it_and_the_marked_file
     let reasons: Vec<_> = kept.iter().filter_map(|e| e.protected.as_deref()).collect();
     assert_eq!(
         reasons,
-        ["marked by the user (KEEP file)", "marked by the camera process (bridge)", "marked by the user (SIGUSR1)"],
+        [
+            "marked by the user (KEEP file)",
+            "marked by the camera process (bridge)",
+            "marked by the user (SIGUSR1)",
+            "harsh braking"
+        ],
         "{index:?}"
     );
+    assert_eq!(summary["harsh_brakings"], 1, "{summary}");
     assert!(kept.iter().all(|e| e.deleted.is_none() && on_disk(&e.file)), "marked files survive");
     let deleted: Vec<_> = index.segments.iter().filter(|e| e.deleted.is_some()).collect();
     assert_eq!(deleted.len() as u64, summary["deleted_files"].as_u64().expect("n"));
@@ -165,25 +178,23 @@ fn a_quota_smaller_than_the_drive_keeps_the_folder_within_it_and_the_marked_file
     assert!(verdicts.contains(&"ok (continues a segment not given)"), "{verdicts:?}");
     // A file's first segment "ok": it follows the last segment of the file before it.
     assert!(verdicts.contains(&"ok"), "{verdicts:?}");
-    // A file taken out of the middle by hand (the index still names it): the chain breaks
-    // at the file after it.
-    // (Out of three present in a row: a file removed after a deleted one would look like a
-    // deletion, which only the index records.)
-    let removed = index.segments.windows(3).find(|w| w.iter().all(|e| e.deleted.is_none()));
-    let three = removed.expect("three files in a row");
-    let (gone, after) = (three[1].clone(), three[2].clone());
-    std::fs::rename(logs.join(&gone.file), dir.join(&gone.file)).expect("move out");
-    let listed: Vec<_> = index.segments.iter().filter(|e| e.file != gone.file).cloned().collect();
-    let mut edited = index.clone();
-    edited.segments = listed;
-    std::fs::write(logs.join(INDEX_FILE), serde_json::to_vec(&edited).expect("index")).expect("index");
+    // Two files in a row swapped by hand (their contents): the chain breaks at the second.
+    // (A file removed from the middle shows the same way, `signed_logs.rs` and the core's
+    // tests; here every file before a present one was deleted by the quota, which the chain
+    // cannot tell from a removal — the index says which.)
+    let pair = index.segments.windows(2).rev().find(|w| w.iter().all(|e| e.deleted.is_none()));
+    let pair = pair.unwrap_or_else(|| panic!("two files in a row: {index:?}"));
+    let (a, b) = (logs.join(&pair[0].file), logs.join(&pair[1].file));
+    let (bytes_a, bytes_b) = (std::fs::read(&a).expect("a"), std::fs::read(&b).expect("b"));
+    std::fs::write(&a, &bytes_b).expect("swap");
+    std::fs::write(&b, &bytes_a).expect("swap");
     let (ok, report) = verify(&logs);
-    assert!(!ok, "a removed file ({gone:?}) must not verify: {report}");
-    let file = report["files"]
+    assert!(!ok, "swapped files must not verify: {report}");
+    let second = report["files"]
         .as_array()
         .expect("files")
         .iter()
-        .find(|f| f["file"].as_str().is_some_and(|n| n.ends_with(&after.file)));
-    assert_eq!(file.expect("the file after")["segments"][0]["verdict"], "chain broken", "{report}");
+        .find(|f| f["file"].as_str().is_some_and(|n| n.ends_with(&pair[1].file)));
+    assert_eq!(second.expect("the second file")["segments"][0]["verdict"], "chain broken", "{report}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -27,6 +27,8 @@ pub(super) struct GnssIngest {
     pub(super) signal_epoch: Option<(Timestamp, Timestamp)>,
     /// The latest vehicle speed, m/s.
     pub(super) last_speed: f64,
+    /// Harsh braking from the vehicle speed.
+    pub(super) braking: super::braking::Braking,
 }
 
 /// A GNSS fix from NMEA or NMEA 2000, in the form the pipeline uses.
@@ -161,7 +163,18 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         self.log.stats.speeds = self.log.stats.speeds.saturating_add(1);
         self.gnss.last_speed = mps;
         let record = VehicleSpeed { t_us: self.log.time(t), speed_mm_s: quantise(mps, 1e-3), source };
-        self.log.write(&Record::VehicleSpeed(record))
+        self.log.write(&Record::VehicleSpeed(record))?;
+        let Some(from) = self.gnss.braking.push(t, mps) else { return Ok(()) };
+        self.log.stats.harsh_brakings = self.log.stats.harsh_brakings.saturating_add(1);
+        self.log.event(
+            t,
+            3,
+            format_args!(
+                "harsh braking: over {} m/s² from {} m/s",
+                Decimal::new(super::braking::HARSH_BRAKING_MPS2, 1),
+                Decimal::new(from, 1)
+            ),
+        )
     }
 
     pub(super) fn on_fix(&mut self, rx: Timestamp, fix: &Fix) -> Result<(), PipelineError<W::Error>> {

@@ -31,6 +31,7 @@
 //! leaves the state as it was. The only error a push returns is the log's own (`Io`).
 
 mod anchoring;
+pub mod braking;
 pub mod calibration;
 pub mod carry;
 pub mod clock;
@@ -260,6 +261,10 @@ pub struct PipelineStats {
     pub windows: u64,
     /// Verified windows.
     pub windows_verified: u64,
+    /// Windows with an at-fault collision (their `no_at_fault_collisions` below 1).
+    pub collision_windows: u64,
+    /// Harsh brakings ([`braking`]).
+    pub harsh_brakings: u64,
     /// Records written.
     pub records: u64,
 }

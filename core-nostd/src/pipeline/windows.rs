@@ -99,6 +99,9 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         if s.verified {
             self.log.stats.windows_verified = self.log.stats.windows_verified.saturating_add(1);
         }
+        if s.no_at_fault_collisions < 1.0 {
+            self.log.stats.collision_windows = self.log.stats.collision_windows.saturating_add(1);
+        }
         self.log.write(&Record::Verification(verification_record(self.log.time(t), &s)))?;
         let verdict = if s.verified { "verified" } else { "not verified" };
         self.log.event(

@@ -281,8 +281,9 @@ pub fn run(request: &LiveRequest, setup: &Setup, origin: &Origin, stop: &AtomicB
 pub struct Folder<'s> {
     storage: &'s mut Storage,
     started: u64,
-    /// Verified windows when the file being recorded was opened.
-    verified_at_open: u64,
+    /// The pipeline's totals when the file being recorded was opened (its verified windows,
+    /// collisions and harsh brakings are those after them).
+    at_open: PipelineStats,
     tended: Option<Instant>,
     deleted: u32,
 }
@@ -294,17 +295,32 @@ pub const QUOTA_HEADROOM: u64 = 4 * 4096;
 impl<'s> Folder<'s> {
     /// The folder of a run whose files are named from `started` (Unix ms).
     pub fn new(storage: &'s mut Storage, started: u64) -> Self {
-        Folder { storage, started, verified_at_open: 0, tended: None, deleted: 0 }
+        Folder { storage, started, at_open: PipelineStats::default(), tended: None, deleted: 0 }
     }
 
-    fn opened(&mut self, index: u32, verified: u64) -> Result<()> {
-        self.verified_at_open = verified;
+    fn opened(&mut self, index: u32, stats: PipelineStats) -> Result<()> {
+        self.at_open = stats;
         let path = self.storage.dir().join(storage::file_name(self.started, index));
         self.storage.started(&path)
     }
 
     fn closed(&mut self) -> Result<()> {
         self.storage.closed()
+    }
+
+    /// Why the file being recorded is worth keeping by what the pipeline saw since it was
+    /// opened: a collision in a verification window, a harsh braking, a verified window.
+    fn earned(&self, now: &PipelineStats) -> Option<&'static str> {
+        let then = &self.at_open;
+        if now.collision_windows > then.collision_windows {
+            Some("a collision in a verification window")
+        } else if now.harsh_brakings > then.harsh_brakings {
+            Some("harsh braking")
+        } else if now.windows_verified > then.windows_verified {
+            Some("it holds a verified window")
+        } else {
+            None
+        }
     }
 
     /// Protect the file being recorded if it holds a verified window or the user marked it
@@ -325,8 +341,8 @@ impl<'s> Folder<'s> {
         let by_signal = keep.is_some_and(|k| k.swap(false, Ordering::Relaxed));
         let by_camera = camera_keep.swap(false, Ordering::Relaxed);
         let by_file = std::fs::remove_file(&keep_file).is_ok();
-        let reason = if pipeline.stats().windows_verified > self.verified_at_open {
-            Some("it holds a verified window")
+        let reason = if let Some(earned) = self.earned(pipeline.stats()) {
+            Some(earned)
         } else if by_signal {
             Some("marked by the user (SIGUSR1)")
         } else if by_camera {
@@ -418,7 +434,7 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
     // be written on a full disk) is an event.
     let mut storage_problem = None;
     if let Some(f) = folder.as_mut() {
-        storage_problem = f.opened(index, 0).err();
+        storage_problem = f.opened(index, PipelineStats::default()).err();
     }
     let (mut file_started, mut last_status) = (Instant::now(), Instant::now());
     let mut dropped_noted = 0u64;
@@ -494,16 +510,23 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
                 failed(pipeline.resume_after_failure(sink, format_args!("{why}")).map(drop), &mut failure)?;
                 file_started = Instant::now();
                 if let Some(f) = folder.as_mut() {
-                    storage_problem =
-                        f.closed().and_then(|()| f.opened(index, pipeline.stats().windows_verified)).err();
+                    storage_problem = f.closed().and_then(|()| f.opened(index, *pipeline.stats())).err();
                 }
             }
         } else if failure.is_none() && file_started.elapsed() >= request.segment {
+            // What the file earned since the last look keeps it, before it closes.
+            if let Some(f) = folder.as_mut() {
+                f.tended = None;
+                match f.tend(&mut pipeline, request.keep.as_deref(), &camera_keep) {
+                    Ok(written) => failed(written, &mut failure)?,
+                    Err(e) => storage_problem = Some(e),
+                }
+            }
             index += 1;
             failed(pipeline.rotate(open(index)?).map(drop), &mut failure)?;
             file_started = Instant::now();
             if let Some(f) = folder.as_mut() {
-                storage_problem = f.closed().and_then(|()| f.opened(index, pipeline.stats().windows_verified)).err();
+                storage_problem = f.closed().and_then(|()| f.opened(index, *pipeline.stats())).err();
             }
         }
         if let Some(f) = folder.as_mut() {
@@ -532,6 +555,15 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
             std::thread::sleep(Duration::from_millis(1));
         }
     }
+    // What the last file earned since the last look keeps it (the pipeline's closing, below,
+    // may still close a window: that protection is in the index only, as the log is closed).
+    if let Some(f) = folder.as_mut() {
+        f.tended = None;
+        match f.tend(&mut pipeline, request.keep.as_deref(), &camera_keep) {
+            Ok(written) => failed(written, &mut failure)?,
+            Err(e) => failed(pipeline.note(3, format_args!("storage: {e}")), &mut failure)?,
+        }
+    }
     let issues = pipeline.issues().total();
     let mut stats = *pipeline.stats();
     // Closing completes the last fix and writes the last segment: on a sink that fails,
@@ -551,6 +583,9 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
     let dropped = dropped.load(Ordering::Relaxed);
     let deleted_files = folder.as_ref().map_or(0, |f| f.deleted);
     if let Some(f) = folder.as_mut() {
+        if let Some(reason) = f.earned(&stats) {
+            f.storage.protect(reason)?;
+        }
         f.closed()?;
     }
     Ok(LiveReport { stats, frames, dropped, files: index + 1, issues, write_failures, deleted_files })
