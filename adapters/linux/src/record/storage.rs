@@ -10,6 +10,7 @@
 
 use std::path::{Path, PathBuf};
 
+use dash2sim_core::binlog::HEADER_LEN;
 use serde::{Deserialize, Serialize};
 
 use crate::{Error, Result};
@@ -20,6 +21,8 @@ pub const INDEX_FILE: &str = "index.json";
 pub const KEEP_FILE: &str = "KEEP";
 /// The index's format version.
 pub const INDEX_VERSION: u32 = 1;
+/// Why a file created but never written before a crash was removed.
+const EMPTY: &str = "empty after a crash";
 
 /// How much of the disk a recording may use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -104,22 +107,67 @@ pub struct Storage {
 
 impl Storage {
     /// The folder `dir` (created if missing), continuing its index when it has one (a
-    /// restarted logger): an entry left open by a crash is closed with its size on disk.
+    /// restarted logger), and put right after a crash or a power cut
+    /// ([`Storage::recover`]).
     pub fn open(dir: &Path, policy: StoragePolicy) -> Result<Storage> {
         std::fs::create_dir_all(dir).map_err(|e| Error::file(dir, e))?;
         let index = if dir.join(INDEX_FILE).exists() {
-            let mut index = read_index(dir)?;
-            for entry in index.segments.iter_mut().filter(|e| e.deleted.is_none() && e.ended_ms.is_none()) {
-                entry.bytes = std::fs::metadata(dir.join(&entry.file)).map_or(0, |m| m.len());
-                entry.ended_ms = Some(entry.started_ms);
-            }
-            index
+            read_index(dir)?
         } else {
             Index { version: INDEX_VERSION, segments: Vec::new() }
         };
-        let storage = Storage { dir: dir.to_path_buf(), policy, index };
+        let mut storage = Storage { dir: dir.to_path_buf(), policy, index };
+        storage.recover()?;
         storage.save()?;
         Ok(storage)
+    }
+
+    /// What a crash can leave between a file and the index (each step of the index is
+    /// atomic, but a file is created, and deleted, beside it): an entry left open is closed
+    /// with its size on disk; a file the index does not name (created just before the crash)
+    /// is named; a file shorter than a log's header (created, never written) is removed; an
+    /// entry whose file is gone (deleted just before the crash) is marked deleted.
+    fn recover(&mut self) -> Result<()> {
+        let dir = &self.dir;
+        for entry in self.index.segments.iter_mut().filter(|e| e.deleted.is_none()) {
+            entry.ended_ms.get_or_insert(entry.started_ms);
+            match std::fs::metadata(dir.join(&entry.file)) {
+                Ok(m) if m.len() < HEADER_LEN as u64 => {
+                    let path = dir.join(&entry.file);
+                    std::fs::remove_file(&path).map_err(|e| Error::file(&path, e))?;
+                    entry.deleted = Some(EMPTY.to_owned());
+                }
+                Ok(m) => entry.bytes = m.len(),
+                Err(_) => entry.deleted = Some("missing after a crash".to_owned()),
+            }
+        }
+        let mut unnamed: Vec<(String, std::fs::Metadata)> = std::fs::read_dir(dir)
+            .map_err(|e| Error::file(dir, e))?
+            .filter_map(|e| e.ok())
+            .filter_map(|e| Some((e.file_name().into_string().ok()?, e.metadata().ok()?)))
+            .filter(|(name, m)| m.is_file() && name.ends_with(".d2slog"))
+            .filter(|(name, _)| !self.index.segments.iter().any(|e| &e.file == name))
+            .collect();
+        unnamed.sort_by(|a, b| a.0.cmp(&b.0));
+        for (file, m) in unnamed {
+            let modified = m.modified().ok().and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
+            let at = modified.map_or_else(now_ms, |d| d.as_millis() as u64);
+            let mut deleted = None;
+            if m.len() < HEADER_LEN as u64 {
+                let path = dir.join(&file);
+                std::fs::remove_file(&path).map_err(|e| Error::file(&path, e))?;
+                deleted = Some(EMPTY.to_owned());
+            }
+            self.index.segments.push(SegmentEntry {
+                file,
+                started_ms: at,
+                ended_ms: Some(at),
+                bytes: m.len(),
+                protected: None,
+                deleted,
+            });
+        }
+        Ok(())
     }
 
     /// The index as it stands.
