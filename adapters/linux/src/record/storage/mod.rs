@@ -1,7 +1,8 @@
 //! Loop recording: a live recording's folder kept within a quota, as a dashcam keeps its SD
 //! card — when the folder would outgrow it (or the file system's free space would fall
 //! below a floor), the oldest closed files go first, except the protected ones: a file that
-//! holds a verified window or that the user marked. When only protected files are left to
+//! holds a collision, a harsh braking or a verified window, or that the user marked. When
+//! only protected files are left to
 //! delete, the oldest of those goes, and the log says so: recording never stops.
 //!
 //! The folder's `index.json` names every file the recording started, with its time span,
@@ -11,7 +12,9 @@
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::binlog::HEADER_LEN;
-use serde::{Deserialize, Serialize};
+
+mod index;
+pub use index::{is_log_name, Index, IndexError, SegmentEntry, INDEX_VERSION};
 
 use crate::{Error, Result};
 
@@ -19,8 +22,6 @@ use crate::{Error, Result};
 pub const INDEX_FILE: &str = "index.json";
 /// A file of this name in the folder marks the file being recorded as kept (then removed).
 pub const KEEP_FILE: &str = "KEEP";
-/// The index's format version.
-pub const INDEX_VERSION: u32 = 1;
 /// Why a file created but never written before a crash was removed.
 const EMPTY: &str = "empty after a crash";
 
@@ -31,32 +32,6 @@ pub struct StoragePolicy {
     pub quota: Option<u64>,
     /// The file system keeps at least this many bytes free.
     pub min_free: Option<u64>,
-}
-
-/// One log file of the folder.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct SegmentEntry {
-    /// File name in the folder.
-    pub file: String,
-    /// When recording into it began, Unix ms.
-    pub started_ms: u64,
-    /// When it was closed, Unix ms (none while it is being recorded, or after a crash).
-    pub ended_ms: Option<u64>,
-    /// Its size when last seen, bytes.
-    pub bytes: u64,
-    /// Why it is kept, if it is.
-    pub protected: Option<String>,
-    /// Why it was deleted, if it was (the entry stays, so that every deletion is on record).
-    pub deleted: Option<String>,
-}
-
-/// The folder's index.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Index {
-    /// [`INDEX_VERSION`].
-    pub version: u32,
-    /// Every file, oldest first.
-    pub segments: Vec<SegmentEntry>,
 }
 
 /// A file deleted to keep within the policy.
@@ -70,18 +45,12 @@ pub struct Deletion {
     pub protected: Option<String>,
 }
 
-/// The index of `dir` (an error naming the file when it is missing or unreadable).
+/// The index of `dir` (an error naming the file when it is missing, unreadable or not an
+/// index this dash2sim reads).
 pub fn read_index(dir: &Path) -> Result<Index> {
     let path = dir.join(INDEX_FILE);
     let text = std::fs::read_to_string(&path).map_err(|e| Error::file(&path, e))?;
-    let index: Index = serde_json::from_str(&text).map_err(|e| Error::file(&path, e))?;
-    if index.version != INDEX_VERSION {
-        return Err(Error::file(
-            &path,
-            format!("index version {}, this dash2sim reads {INDEX_VERSION}", index.version),
-        ));
-    }
-    Ok(index)
+    Index::parse(&text).map_err(|e| Error::file(&path, e))
 }
 
 /// Now, Unix ms.
@@ -107,8 +76,9 @@ pub struct Storage {
 
 impl Storage {
     /// The folder `dir` (created if missing), continuing its index when it has one (a
-    /// restarted logger), and put right after a crash or a power cut
-    /// ([`Storage::recover`]).
+    /// restarted logger), and put right after a crash or a power cut: a file created just
+    /// before it named, one never written removed, an entry whose file is gone marked
+    /// deleted, an open entry closed with its size.
     pub fn open(dir: &Path, policy: StoragePolicy) -> Result<Storage> {
         std::fs::create_dir_all(dir).map_err(|e| Error::file(dir, e))?;
         let index = if dir.join(INDEX_FILE).exists() {
@@ -145,7 +115,7 @@ impl Storage {
             .map_err(|e| Error::file(dir, e))?
             .filter_map(|e| e.ok())
             .filter_map(|e| Some((e.file_name().into_string().ok()?, e.metadata().ok()?)))
-            .filter(|(name, m)| m.is_file() && name.ends_with(".d2slog"))
+            .filter(|(name, m)| m.is_file() && is_log_name(name))
             .filter(|(name, _)| !self.index.segments.iter().any(|e| &e.file == name))
             .collect();
         unnamed.sort_by(|a, b| a.0.cmp(&b.0));
@@ -325,23 +295,23 @@ mod tests {
     fn the_oldest_unprotected_files_go_first_and_protected_ones_only_when_nothing_else_is_left() {
         let dir = folder("order");
         let mut storage = Storage::open(&dir, StoragePolicy { quota: Some(10_000), min_free: None }).expect("open");
-        record(&mut storage, &dir, "a", 3000, true);
-        record(&mut storage, &dir, "b", 3000, false);
-        record(&mut storage, &dir, "c", 3000, false);
+        record(&mut storage, &dir, "a.d2slog", 3000, true);
+        record(&mut storage, &dir, "b.d2slog", 3000, false);
+        record(&mut storage, &dir, "c.d2slog", 3000, false);
         assert!(storage.enforce(0).expect("enforce").is_empty(), "9 000 bytes and the index fit");
-        record(&mut storage, &dir, "d", 3000, false);
+        record(&mut storage, &dir, "d.d2slog", 3000, false);
         let gone = storage.enforce(0).expect("enforce");
-        assert_eq!(gone.iter().map(|d| d.file.as_str()).collect::<Vec<_>>(), ["b"], "the oldest unprotected");
-        assert!(dir.join("a").exists() && !dir.join("b").exists());
+        assert_eq!(gone.iter().map(|d| d.file.as_str()).collect::<Vec<_>>(), ["b.d2slog"], "the oldest unprotected");
+        assert!(dir.join("a.d2slog").exists() && !dir.join("b.d2slog").exists());
         // Only protected files left besides the newest: the oldest protected one goes.
-        record(&mut storage, &dir, "e", 7000, true);
+        record(&mut storage, &dir, "e.d2slog", 7000, true);
         let gone = storage.enforce(0).expect("enforce");
-        assert_eq!(gone.iter().map(|d| d.file.as_str()).collect::<Vec<_>>(), ["c", "d", "a"]);
+        assert_eq!(gone.iter().map(|d| d.file.as_str()).collect::<Vec<_>>(), ["c.d2slog", "d.d2slog", "a.d2slog"]);
         assert_eq!(gone[2].protected.as_deref(), Some("marked by the user"));
         // Every deletion is in the index, which another reader sees whole.
         let index = read_index(&dir).expect("index");
         let deleted: Vec<_> = index.segments.iter().filter(|e| e.deleted.is_some()).map(|e| e.file.as_str()).collect();
-        assert_eq!(deleted, ["a", "b", "c", "d"]);
+        assert_eq!(deleted, ["a.d2slog", "b.d2slog", "c.d2slog", "d.d2slog"]);
         assert!(!dir.join(format!("{INDEX_FILE}.partial")).exists());
         let _ = std::fs::remove_dir_all(&dir);
     }
@@ -350,8 +320,8 @@ mod tests {
     fn a_restarted_logger_continues_the_index_and_closes_what_a_crash_left_open() {
         let dir = folder("restart");
         let mut storage = Storage::open(&dir, StoragePolicy::default()).expect("open");
-        storage.started(&dir.join("x")).expect("start");
-        std::fs::write(dir.join("x"), [1u8; 100]).expect("write");
+        storage.started(&dir.join("x.d2slog")).expect("start");
+        std::fs::write(dir.join("x.d2slog"), [1u8; 100]).expect("write");
         drop(storage);
         let storage = Storage::open(&dir, StoragePolicy::default()).expect("reopen");
         let entry = &storage.index().segments[0];
