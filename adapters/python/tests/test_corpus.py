@@ -152,8 +152,9 @@ def test_geohash_matches_the_reference_cells():
 
 
 def test_require_signed_refuses_unsigned_altered_and_foreign_logs(dash2sim_bin, cluster, tmp_path):
-    """`--require-signed`: a log signed by the key goes through; an altered one, an unsigned
-    one and another device's fail with the reason `finish --require-signed` gives."""
+    """`--require-signed`: a log signed by the key goes through; an altered one, one with two
+    segments swapped, one with a segment removed, an unsigned one and another device's fail
+    with the reason `finish --require-signed` gives."""
     from conftest import REPO
 
     mcu = REPO / "examples" / "mcu"
@@ -176,11 +177,22 @@ def test_require_signed_refuses_unsigned_altered_and_foreign_logs(dash2sim_bin, 
     shutil.copy(signed.with_suffix(".map"), logs / "altered.map")
     record("unsigned")
     record("foreign", "--key", str(tmp_path / "other.key"))
+    # The second and third segments swapped; the second removed.
+    data = signed.read_bytes()
+    sync = b"\xd2\x5c\x0f\xe1"
+    starts = [i for i in range(len(data)) if data.startswith(sync, i)] + [len(data)]
+    s = starts
+    (logs / "swapped.d2slog").write_bytes(data[: s[1]] + data[s[2] : s[3]] + data[s[1] : s[2]] + data[s[3] :])
+    (logs / "removed.d2slog").write_bytes(data[: s[1]] + data[s[2] :])
+    for name in ("swapped", "removed"):
+        shutil.copy(signed.with_suffix(".map"), logs / f"{name}.map")
 
     out = tmp_path / "out"
     result = job.run(logs, out, scheduler=cluster, require_signed=str(mcu / "demo.pub"))
     rows = manifest(out)
-    assert result.failed == 3 and rows["signed"]["status"] in ("verified", "rejected"), rows["signed"]
+    assert result.failed == 5 and rows["signed"]["status"] in ("verified", "rejected"), rows["signed"]
+    assert "segment 2 of 6: chain broken" in rows["swapped"]["reason"]
+    assert "segment 2 of 5: chain broken" in rows["removed"]["reason"]
     assert "bad signature" in rows["altered"]["reason"]
     assert "segment 0 of 6: unsigned" in rows["unsigned"]["reason"]
     assert "signed by another key (key id" in rows["foreign"]["reason"]
@@ -190,6 +202,6 @@ def test_require_signed_refuses_unsigned_altered_and_foreign_logs(dash2sim_bin, 
     # Without the requirement the same folder is processed again (another fingerprint), and
     # the unsigned and foreign logs finish.
     again = job.run(logs, out, scheduler=cluster)
-    assert again.processed == 4 and manifest(out)["unsigned"]["status"] != "failed"
+    assert again.processed == 6 and manifest(out)["unsigned"]["status"] != "failed"
     with pytest.raises(ValueError, match="not a public key|neither 64 hex digits"):
         job.run(logs, out, scheduler=cluster, require_signed=str(tmp_path / "nothing.pub"))
