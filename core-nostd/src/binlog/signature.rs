@@ -145,12 +145,6 @@ impl Sealer {
         self.key.public.to_bytes()
     }
 
-    /// Continue a chain whose last signature was `previous` (a device restarting after the
-    /// segment it signed last).
-    pub fn continue_after(&mut self, previous: &[u8; 64]) {
-        self.link = link_of(previous);
-    }
-
     /// Start a segment's digest.
     pub(super) fn begin(&mut self) {
         self.digest = Sha512::new();

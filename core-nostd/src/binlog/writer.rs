@@ -147,11 +147,6 @@ impl<W: Write, const N: usize> Writer<W, N> {
         self.sealer.take()
     }
 
-    /// The sealer signing this log, if any.
-    pub fn sealer(&self) -> Option<&Sealer> {
-        self.sealer.as_ref()
-    }
-
     /// Append one record (records should come in time order; small reorderings cost a
     /// few bytes, not correctness).
     pub fn write(&mut self, record: &Record) -> Result<(), WriteError<W::Error>> {

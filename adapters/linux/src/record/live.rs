@@ -323,16 +323,19 @@ impl<'s> Folder<'s> {
         }
     }
 
-    /// Protect the file being recorded if it holds a verified window or the user marked it
-    /// (`keep`: SIGUSR1; `camera_keep`: the camera process's mark over the bridge; a `KEEP`
-    /// file in the folder), and delete what the policy says.
+    /// Protect the file being recorded if it earned it ([`Folder::earned`]) or the user
+    /// marked it (`keep`: SIGUSR1; `camera_keep`: the camera process's mark over the bridge;
+    /// a `KEEP` file in the folder), and delete what the policy says. Twice a second, or
+    /// now when `closing` (the file is about to close: what it earned since the last look
+    /// must keep it).
     fn tend<W: embedded_io::Write>(
         &mut self,
         pipeline: &mut Pipeline<'_, W>,
         keep: Option<&AtomicBool>,
         camera_keep: &AtomicBool,
+        closing: bool,
     ) -> Result<std::result::Result<(), WriteError<W::Error>>> {
-        if self.tended.is_some_and(|t| t.elapsed() < Duration::from_millis(500)) {
+        if !closing && self.tended.is_some_and(|t| t.elapsed() < Duration::from_millis(500)) {
             return Ok(Ok(()));
         }
         self.tended = Some(Instant::now());
@@ -499,6 +502,13 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
             failed(pipeline.note_dropped(device_now(), lost - dropped_noted), &mut failure)?;
             dropped_noted = lost;
         }
+        let rotating = failure.is_none() && file_started.elapsed() >= request.segment;
+        if let Some(f) = folder.as_mut() {
+            match f.tend(&mut pipeline, request.keep.as_deref(), &camera_keep, rotating) {
+                Ok(written) => failed(written, &mut failure)?,
+                Err(e) => storage_problem = Some(e),
+            }
+        }
         if failure.is_some() && retried.is_none_or(|t| t.elapsed() >= RETRY_FAILED_SINK) {
             // A new file, at most once a second: on a full disk opening it may fail, or
             // only its writes (then the failure comes back through `failed`).
@@ -510,29 +520,17 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
                 failed(pipeline.resume_after_failure(sink, format_args!("{why}")).map(drop), &mut failure)?;
                 file_started = Instant::now();
                 if let Some(f) = folder.as_mut() {
-                    storage_problem = f.closed().and_then(|()| f.opened(index, *pipeline.stats())).err();
+                    storage_problem =
+                        storage_problem.or(f.closed().and_then(|()| f.opened(index, *pipeline.stats())).err());
                 }
             }
-        } else if failure.is_none() && file_started.elapsed() >= request.segment {
-            // What the file earned since the last look keeps it, before it closes.
-            if let Some(f) = folder.as_mut() {
-                f.tended = None;
-                match f.tend(&mut pipeline, request.keep.as_deref(), &camera_keep) {
-                    Ok(written) => failed(written, &mut failure)?,
-                    Err(e) => storage_problem = Some(e),
-                }
-            }
+        } else if rotating {
             index += 1;
             failed(pipeline.rotate(open(index)?).map(drop), &mut failure)?;
             file_started = Instant::now();
             if let Some(f) = folder.as_mut() {
-                storage_problem = f.closed().and_then(|()| f.opened(index, *pipeline.stats())).err();
-            }
-        }
-        if let Some(f) = folder.as_mut() {
-            match f.tend(&mut pipeline, request.keep.as_deref(), &camera_keep) {
-                Ok(written) => failed(written, &mut failure)?,
-                Err(e) => storage_problem = Some(e),
+                storage_problem =
+                    storage_problem.or(f.closed().and_then(|()| f.opened(index, *pipeline.stats())).err());
             }
         }
         if let Some(problem) = storage_problem.take() {
@@ -558,8 +556,7 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
     // What the last file earned since the last look keeps it (the pipeline's closing, below,
     // may still close a window: that protection is in the index only, as the log is closed).
     if let Some(f) = folder.as_mut() {
-        f.tended = None;
-        match f.tend(&mut pipeline, request.keep.as_deref(), &camera_keep) {
+        match f.tend(&mut pipeline, request.keep.as_deref(), &camera_keep, true) {
             Ok(written) => failed(written, &mut failure)?,
             Err(e) => failed(pipeline.note(3, format_args!("storage: {e}")), &mut failure)?,
         }
