@@ -202,6 +202,30 @@ impl<'a> Checker<'a> {
         &self.footprint
     }
 
+    /// Of the lanes whose area comes within `within` m of the footprint centre at `pose` and
+    /// that head the pose's way (within 90°), the nearest to the centre: the lane a pose
+    /// whose position is in doubt by `within` may as well be in
+    /// ([`crate::score::Scorer::step_in_doubt`]). `within` is clamped to [`SEARCH_RADIUS`].
+    pub fn lane_headed_within(&self, pose: &Pose2, within: f64) -> Option<CentreLane> {
+        let centre = self.footprint.at(pose).centre;
+        let within = within.min(SEARCH_RADIUS);
+        let mut best: Option<(f64, CentreLane)> = None;
+        self.map.for_each_near(centre.x, centre.y, within, |item| {
+            let Item::Lane(i) = item else { return };
+            let Some(lane) = self.map.lane(i) else { return };
+            let outside = lane.distance_outside(centre.x, centre.y).max(0.0);
+            if outside > within || best.is_some_and(|(d, _)| d <= outside) {
+                return;
+            }
+            let p = lane.project(centre.x, centre.y);
+            if libm::cos(p.heading - pose.heading) > 0.0 {
+                let found = CentreLane { lane: i, along: p.along, heading: p.heading, speed_limit: lane.speed_limit };
+                best = Some((outside, found));
+            }
+        });
+        best.map(|(_, lane)| lane)
+    }
+
     /// Check the footprint with its rear axle at `pose`. `previous` is the centre's lane at
     /// the pose before: where lanes overlap (junctions) the centre stays in it, as nuPlan
     /// keeps ego on the lane it is following.

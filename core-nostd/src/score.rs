@@ -24,7 +24,7 @@
 
 use heapless::Deque;
 
-use crate::drivable::{Channel, Checker, PoseCheck};
+use crate::drivable::{Channel, Checker, PoseCheck, TOLERANCE};
 use crate::obb::{OrientedBox, Pose2};
 
 /// A log is verified above this score.
@@ -421,6 +421,24 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
 
     /// Score the ego with its rear axle at `pose` at time `t` (s), among `agents`.
     pub fn step(&mut self, t: f64, pose: &Pose2, agents: &[Agent]) -> Result<StepReport, ScoreError> {
+        self.step_in_doubt(t, pose, agents, 0.0)
+    }
+
+    /// [`Scorer::step`] for a pose whose position is in doubt by `doubt` m (a device's ego,
+    /// `k` of its stated σ): the map's metrics give it the benefit of the doubt. A corner
+    /// breaks drivable-area compliance only when it is outside by [`TOLERANCE`] and `doubt`
+    /// more, and a centre in no lane heading the ego's way is taken to be in the nearest one
+    /// that does within `doubt` ([`Checker::lane_headed_within`]), for the driving direction
+    /// and the speed limit. Collisions and time to collision are judged as [`Scorer::step`]
+    /// judges them: the agents are placed through the same ego, so its error moves them
+    /// with it. The report's check is the pose's own; `doubt` ≤ 0 (or not finite) is none.
+    pub fn step_in_doubt(
+        &mut self,
+        t: f64,
+        pose: &Pose2,
+        agents: &[Agent],
+        doubt: f64,
+    ) -> Result<StepReport, ScoreError> {
         if !(t.is_finite() && pose.is_finite()) {
             return Err(ScoreError::NotFinite);
         }
@@ -438,17 +456,23 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         self.poses += 1;
 
         let check = self.checker.check(pose, self.channel, self.lane.map(|(l, _)| l));
+        let doubt = if doubt.is_finite() { doubt.max(0.0) } else { 0.0 };
         self.worst_corner = self.worst_corner.max(check.worst());
-        if !check.compliant() {
+        if check.worst() >= TOLERANCE + doubt {
             self.noncompliant += 1;
         }
+        let centre_lane = match check.centre_lane {
+            Some(c) if doubt == 0.0 || libm::cos(c.heading - pose.heading) > 0.0 => Some(c),
+            own if doubt > 0.0 => self.checker.lane_headed_within(pose, doubt).or(own),
+            own => own,
+        };
 
         // Driving direction: progress along the lane the centre stays in.
-        let progress = match (check.centre_lane, self.lane) {
+        let progress = match (centre_lane, self.lane) {
             (Some(now), Some((lane, along))) if now.lane == lane => now.along - along,
             _ => 0.0,
         };
-        self.lane = check.centre_lane.map(|c| (c.lane, c.along));
+        self.lane = centre_lane.map(|c| (c.lane, c.along));
         if self.direction.is_full() {
             self.direction.pop_front();
         }
@@ -461,7 +485,7 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         self.min_direction = self.min_direction.min(direction_progress);
 
         // Speed limit of the lane the centre is in.
-        if let Some(limit) = check.centre_lane.and_then(|c| c.speed_limit) {
+        if let Some(limit) = centre_lane.and_then(|c| c.speed_limit) {
             self.overspeed += (speed - limit).max(0.0) * dt;
         }
 

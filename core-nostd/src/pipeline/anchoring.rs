@@ -214,6 +214,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             yaw_e4: quantise(ego.pose.heading, 1e-4),
             sigma_mm: quantise(sigma.min(1e6), 1e-3),
         }))?;
+        self.windows.doubt_m = self.config.window_doubt_sigmas * sigma;
         for (at, smoothed) in self.anchoring.lag.push(t, eased) {
             self.score(at, &smoothed)?;
         }

@@ -75,6 +75,9 @@ pub use signals::{FrameId, GnssFrame, GnssSignals};
 
 /// The default time constant of the ego's corrections, s ([`ease`]).
 pub const EASE_S: f64 = 1.0;
+/// The default doubt the windows grant the ego's position, in its stated σ
+/// ([`PipelineConfig::window_doubt_sigmas`]).
+pub const WINDOW_DOUBT_SIGMAS: f64 = 1.0;
 /// nuPlan's scenario length, s: the verification window.
 pub const SCENARIO_SECONDS: f64 = 15.0;
 
@@ -164,6 +167,11 @@ pub struct PipelineConfig<'a> {
     /// verification windows score, s (0: none; [`ease`]); the log's ego stays the anchored
     /// one.
     pub ease_s: f64,
+    /// The verification windows give the map's metrics the benefit of this many of the
+    /// ego's stated σ (`EgoPose::sigma_mm`) of doubt about where the ego is
+    /// ([`Scorer::step_in_doubt`](crate::score::Scorer::step_in_doubt)); 0: nuPlan's own
+    /// judgement, as `verify` makes it.
+    pub window_doubt_sigmas: f64,
 }
 
 impl<'a> PipelineConfig<'a> {
@@ -188,6 +196,7 @@ impl<'a> PipelineConfig<'a> {
             max_pose_age: Duration::from_millis(50),
             anchor_interval: Duration::from_millis(1000),
             ease_s: EASE_S,
+            window_doubt_sigmas: WINDOW_DOUBT_SIGMAS,
         }
     }
 }

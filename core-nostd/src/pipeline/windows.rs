@@ -29,6 +29,9 @@ pub(super) struct Windows<'a, const T3: usize> {
     pub(super) window: Option<Window<'a>>,
     /// The windows' latest at-fault collision, carried across a window's end ([`edge`]).
     pub(super) edge_collisions: edge::EdgeCollisions,
+    /// How far the ego's position is in doubt (m): the configured number of the latest
+    /// anchored or carried pose's σ.
+    pub(super) doubt_m: f64,
 }
 
 impl<const T3: usize> Default for Windows<'_, T3> {
@@ -39,6 +42,7 @@ impl<const T3: usize> Default for Windows<'_, T3> {
             agents_t: 0.0,
             window: None,
             edge_collisions: edge::EdgeCollisions::default(),
+            doubt_m: 0.0,
         }
     }
 }
@@ -77,7 +81,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         self.windows.agents_t = ts;
         let Some(window) = self.windows.window.as_mut() else { return Ok(()) };
         // A refused pose (not finite, time not increasing) leaves the window as it was.
-        if let Ok(report) = window.scorer.step(ts, ego, &self.windows.agents) {
+        if let Ok(report) = window.scorer.step_in_doubt(ts, ego, &self.windows.agents, self.windows.doubt_m) {
             if let Some(collision) = &report.collision {
                 self.windows.edge_collisions.push(ts, collision);
             }

@@ -1,0 +1,62 @@
+//! The map's metrics for a pose whose position is in doubt (`Scorer::step_in_doubt`, what
+//! the device's verification windows use): an excursion smaller than the doubt is forgiven,
+//! a larger one is not, and without doubt the judgement is nuPlan's own.
+
+use dash2sim_core::drivable::{Channel, Checker};
+use dash2sim_core::map::MapView;
+use dash2sim_core::obb::{Pose2, PACIFICA};
+use dash2sim_core::score::{ScoreConfig, Scorer, Scores};
+use dash2sim_tests::road::{straight_road, tile};
+
+/// A two-way road along the x axis: the forward lane (heading east) from y = −3.5 to 0, the
+/// backward lane from 0 to 3.5.
+fn two_way() -> Vec<u8> {
+    tile(&straight_road(), &[("lanes", "2"), ("lanes:forward", "1"), ("lanes:backward", "1"), ("width", "7")])
+}
+
+/// Three seconds eastward at 10 m/s with the rear axle at `y`, scored with `doubt` m.
+fn drive_east(map: MapView<'_>, y: f64, doubt: f64) -> Scores {
+    let mut scorer: Scorer<'_, '_, 1> =
+        Scorer::new(Checker::new(map, PACIFICA), Channel::Insensitive, ScoreConfig::default());
+    for k in 0..30 {
+        let t = 0.1 * f64::from(k);
+        let pose = Pose2::new(100.0 + 10.0 * t, y, 0.0);
+        scorer.step_in_doubt(t, &pose, &[], doubt).expect("a finite pose, later each time");
+    }
+    scorer.finish(None)
+}
+
+#[test]
+fn an_excursion_off_the_road_is_forgiven_only_within_the_doubt() {
+    let bytes = two_way();
+    let map = MapView::parse(&bytes).expect("valid tile");
+    // The right-hand corners 0.8 m beyond the road's edge at y = −3.5.
+    let y = -3.5 - 0.8 + PACIFICA.width / 2.0;
+    let strict = drive_east(map, y, 0.0);
+    assert_eq!(strict.drivable_area, 0.0, "{strict:?}");
+    assert!((strict.worst_corner - 0.8).abs() < 0.05, "the worst corner is reported as it is: {strict:?}");
+    assert_eq!(drive_east(map, y, 0.4).drivable_area, 0.0, "0.8 m is beyond 0.3 m and a doubt of 0.4 m");
+    let doubted = drive_east(map, y, 1.0);
+    assert_eq!(doubted.drivable_area, 1.0, "{doubted:?}");
+    assert!((doubted.worst_corner - 0.8).abs() < 0.05, "the doubt does not move the pose: {doubted:?}");
+    // On the road, the doubt changes nothing.
+    assert_eq!(drive_east(map, -1.75, 0.0).score, drive_east(map, -1.75, 2.0).score);
+}
+
+#[test]
+fn a_centre_just_over_the_divider_is_forgiven_and_a_wrong_way_drive_is_not() {
+    let bytes = two_way();
+    let map = MapView::parse(&bytes).expect("valid tile");
+    // The centre (on the rear axle's line) 0.6 m into the oncoming lane, heading east.
+    let over = drive_east(map, 0.6, 0.0);
+    assert_eq!(over.driving_direction, 0.0, "10 m against the lane each second: {over:?}");
+    assert_eq!(drive_east(map, 0.6, 0.4).driving_direction, 0.0);
+    let forgiven = drive_east(map, 0.6, 1.0);
+    assert_eq!(forgiven.driving_direction, 1.0, "{forgiven:?}");
+    assert!(forgiven.verified, "{forgiven:?}");
+    // In the middle of the oncoming lane: 1.75 m from the nearest lane heading east.
+    let wrong_way = drive_east(map, 1.75, 1.0);
+    assert_eq!(wrong_way.driving_direction, 0.0, "{wrong_way:?}");
+    assert!(!wrong_way.verified);
+    assert_eq!(drive_east(map, 1.75, 2.0).driving_direction, 1.0, "a doubt of 2 m cannot tell the lanes apart");
+}
