@@ -1,6 +1,7 @@
-//! The score on hostile input: any poses (NaN, infinite, huge, repeated or backward times)
-//! and any agents (NaN or huge boxes and velocities) never panic; bad poses are refused
-//! with their reason and leave the state alone; the final metrics stay in range.
+//! The score on hostile input: any poses (NaN, infinite, huge, repeated or backward times),
+//! any doubt about them and any agents (NaN or huge boxes and velocities) never panic; bad
+//! poses are refused with their reason and leave the state alone; the final metrics stay in
+//! range.
 
 use dash2sim_core::drivable::{Channel, Checker};
 use dash2sim_core::map::MapView;
@@ -37,6 +38,7 @@ proptest! {
     #[test]
     fn hostile_drives_never_panic_and_scores_stay_in_range(
         steps in prop::collection::vec((-0.2..0.3f64, value(), value(), value(), prop::collection::vec(agent(), 0..4)), 1..60),
+        doubt in value(),
     ) {
         let bytes = tile(&straight_road(), &[("lanes", "2"), ("maxspeed", "50")]);
         let map = MapView::parse(&bytes).expect("valid");
@@ -46,7 +48,8 @@ proptest! {
         for (dt, x, y, heading, agents) in &steps {
             t += dt;
             let pose = Pose2::new(*x, *y, *heading);
-            match scorer.step(t, &pose, agents) {
+            // A device's doubt (`step_in_doubt`) may be anything too: NaN and infinite are none.
+            match scorer.step_in_doubt(t, &pose, agents, doubt) {
                 Ok(report) => {
                     prop_assert!(pose.is_finite());
                     prop_assert!(last_ok.is_none_or(|l| t > l));
