@@ -2,7 +2,9 @@
 //! corrections eased in and smoothed a second late, against agents that include those the
 //! tracker lost within the lag. On typical-profile drives (seeds the sweep never runs, both
 //! drivers) the raw anchored ego failed comfort in nearly every window; here it passes
-//! comfort in most, and no window in which the true drive collides is verified. The same
+//! comfort in most, the verdicts agree with the truth's in four windows of five (the map's
+//! metrics allowing for the ego's σ), and no window in which the true drive collides is
+//! verified. The same
 //! drives hold the device's stated σ to its error: every ego pose states one, and most
 //! lie within 2σ of the truth.
 
@@ -92,10 +94,13 @@ fn device_windows_verify_where_the_truth_does_and_never_over_a_collision() {
     assert!(collisions > 0, "the careless drives collide: the count above is not vacuous");
     assert!(total >= 24, "{total} windows");
     assert!(comfortable * 4 >= windows * 3, "three in four windows comfortable: {comfortable} of {windows}");
-    // The windows' verdicts hang on the ego's 2 m error too (drivable area, the lane): the
-    // sweep states their agreement (docs/fidelity.md); here only that the smoothing made
-    // some of the truth's verified windows verified.
+    // The windows' map metrics allow for the ego's stated σ (`Scorer::step_in_doubt`):
+    // without it, its 2 m error against the work zone's lanes failed drivable area or the
+    // driving direction where the truth kept inside (18 of these 30 windows agreed, 10 of
+    // the truth's 22 verified ones verified; 27 and 19 with it). Issue #31's target is 80 %
+    // over the sweep (84.3 % on 453 typical windows, docs/fidelity.md).
     assert!(both_verified > 0);
+    assert!(agree * 5 >= total * 4, "{agree} of {total} windows agree with the truth's");
     // Issue #31's target is 90 % over the sweep (94.7 % on 200 typical drives,
     // docs/fidelity.md); on these twelve the bound leaves room for their spread.
     println!("{within_2sigma} of {sigma_poses} device poses within 2σ of the truth");
