@@ -4,9 +4,8 @@
 //! drivers) the raw anchored ego failed comfort in nearly every window; here it passes
 //! comfort in most, the verdicts agree with the truth's in four windows of five (the map's
 //! metrics allowing for the ego's σ), and no window in which the true drive collides is
-//! verified. The same
-//! drives hold the device's stated σ to its error: every ego pose states one, and most
-//! lie within 2σ of the truth.
+//! verified. The same drives hold the device's stated σ to its error: every ego pose states
+//! one, and most lie within 2σ of the truth.
 
 use dash2sim_core::binlog::Record;
 use dash2sim_linux::sim::fidelity::drive::{assess, Anchors, Recorded};
