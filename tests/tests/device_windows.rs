@@ -106,3 +106,41 @@ fn device_windows_verify_where_the_truth_does_and_never_over_a_collision() {
     assert!(sigma_poses > 1000, "{sigma_poses} poses with a σ");
     assert!(within_2sigma * 100 >= sigma_poses * 85, "{within_2sigma} of {sigma_poses} within 2σ");
 }
+
+/// A window ends at a gap in the ego (a VO re-initialisation, before the carry or the new
+/// session's anchor takes over): the device saw nothing in the gap, so no verdict may cover
+/// it. A window holds the ego poses after the previous window's record up to its own.
+#[test]
+fn no_window_spans_a_gap_in_the_ego() {
+    let mut gaps = 0;
+    // Typical drives (seeds the sweep never runs) whose VO re-initialises with no pose for
+    // 1.2–2 s.
+    for seed in [2005, 2018] {
+        let config = ScenarioConfig::drive(seed, Profile::Typical, Receiver::Good);
+        let r = record_config(&config, &format!("window-gaps-{seed}"));
+        let mut previous: Option<i64> = None;
+        let mut in_window: Vec<i64> = Vec::new();
+        let mut ego: Vec<i64> = Vec::new();
+        for record in &r.log.records {
+            match record {
+                Record::EgoPose(p) => ego.push(p.t_us),
+                Record::Verification(v) => {
+                    in_window.clear();
+                    in_window.extend(ego.iter().copied().filter(|&t| previous.is_none_or(|p| t > p) && t <= v.t_us));
+                    for pair in in_window.windows(2) {
+                        assert!(
+                            pair[1] - pair[0] <= 1_000_000,
+                            "seed {seed}: the window ending at {} µs spans a gap of {} µs in the ego",
+                            v.t_us,
+                            pair[1] - pair[0]
+                        );
+                    }
+                    previous = Some(v.t_us);
+                }
+                _ => {}
+            }
+        }
+        gaps += ego.windows(2).filter(|pair| pair[1] - pair[0] > 1_000_000).count();
+    }
+    assert!(gaps > 0, "the drives have gaps in the ego: the check above is not vacuous");
+}

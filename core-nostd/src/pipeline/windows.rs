@@ -4,7 +4,7 @@
 
 use embedded_io::Write;
 
-use super::{edge, verification_record, PipelineError, State};
+use super::{edge, lag, verification_record, PipelineError, State};
 use crate::binlog::Record;
 use crate::decimal::Decimal;
 use crate::drivable::{Channel, Checker};
@@ -51,6 +51,8 @@ impl<const T3: usize> Default for Windows<'_, T3> {
 #[derive(Clone, Debug)]
 pub(super) struct Window<'a> {
     pub(super) start: f64,
+    /// The time of the last pose it scored.
+    pub(super) last: Timestamp,
     pub(super) scorer: Scorer<'a, 'static, 1>,
     /// The multiplier of a collision in the last second of the window before ([`edge`]).
     pub(super) inherited_collision: Option<f64>,
@@ -63,10 +65,19 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
     pub(super) fn score(&mut self, t: Timestamp, ego: &Pose2) -> Result<(), PipelineError<W::Error>> {
         let Some(map) = self.config.map else { return Ok(()) };
         let ts = t.as_secs_f64();
+        // A gap in the ego (a VO session not yet observable after the carry gave up) ends the
+        // window at its last pose: the device did not see what happened in the gap, and a
+        // window verified over it would vouch for it.
+        if let Some(last) = self.windows.window.as_ref().map(|w| w.last) {
+            if (t - last).as_secs_f64() > lag::MAX_GAP_S {
+                self.close_window(last)?;
+            }
+        }
         if self.windows.window.is_none() {
             let checker = Checker::new(map, self.config.footprint);
             self.windows.window = Some(Window {
                 start: ts,
+                last: t,
                 scorer: Scorer::new(checker, Channel::Insensitive, self.config.score),
                 inherited_collision: self.windows.edge_collisions.carried_into(ts),
             });
@@ -82,6 +93,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         let Some(window) = self.windows.window.as_mut() else { return Ok(()) };
         // A refused pose (not finite, time not increasing) leaves the window as it was.
         if let Ok(report) = window.scorer.step_in_doubt(ts, ego, &self.windows.agents, self.windows.doubt_m) {
+            window.last = t;
             if let Some(collision) = &report.collision {
                 self.windows.edge_collisions.push(ts, collision);
             }

@@ -171,7 +171,9 @@ pub fn truth_ego(scenario: &Scenario) -> Vec<(f64, Pose2)> {
 }
 
 /// The device's verification windows beside the truth's over the same stretches: window k
-/// holds the anchored poses after window k − 1's last, up to its own record's time.
+/// holds the ego poses (anchored or carried) after window k − 1's last, up to its own
+/// record's time, so it starts at the first of them — after a gap in the ego, the window
+/// the gap ended is not stretched over it.
 fn window_pairs(
     scenario: &Scenario,
     log: &LogContents,
@@ -179,20 +181,21 @@ fn window_pairs(
     agents: &AgentsByTime,
 ) -> Result<Vec<WindowPair>> {
     let truth = truth_ego(scenario);
-    let mut previous_end: Option<f64> = None;
-    let first_pose = log.records.iter().find_map(|r| match r {
-        Record::EgoPose(p) => drive_time(log, p.t_us),
-        _ => None,
-    });
+    let mut previous_end = f64::NEG_INFINITY;
+    let poses: Vec<f64> = log
+        .records
+        .iter()
+        .filter_map(|r| match r {
+            Record::EgoPose(p) => drive_time(log, p.t_us),
+            _ => None,
+        })
+        .collect();
     let mut pairs = Vec::new();
     for record in &log.records {
         let Record::Verification(v) = record else { continue };
         let Some(end) = drive_time(log, v.t_us) else { continue };
-        let start = match previous_end {
-            Some(e) => truth.iter().map(|(t, _)| *t).find(|t| *t > e + 1e-6).unwrap_or(end),
-            None => first_pose.unwrap_or(end),
-        };
-        previous_end = Some(end);
+        let start = poses.iter().copied().find(|t| *t > previous_end + 1e-6).unwrap_or(end).min(end);
+        previous_end = end;
         let stretch: Vec<(f64, Pose2)> =
             truth.iter().copied().filter(|(t, _)| *t >= start - 1e-6 && *t <= end + 1e-6).collect();
         if stretch.is_empty() {
