@@ -159,7 +159,13 @@ impl PoseCheck {
 
     /// nuPlan's verdict: no corner outside by [`TOLERANCE`] or more.
     pub fn compliant(&self) -> bool {
-        self.worst() < TOLERANCE
+        self.compliant_within(0.0)
+    }
+
+    /// The verdict for a pose in doubt by `margin` m: no corner outside by [`TOLERANCE`]
+    /// and `margin` more ([`crate::score::Scorer::step_in_doubt`]).
+    pub fn compliant_within(&self, margin: f64) -> bool {
+        self.worst() < TOLERANCE + margin
     }
 }
 

@@ -24,7 +24,7 @@
 
 use heapless::Deque;
 
-use crate::drivable::{Channel, Checker, PoseCheck, TOLERANCE};
+use crate::drivable::{Channel, Checker, PoseCheck};
 use crate::obb::{OrientedBox, Pose2};
 
 /// A log is verified above this score.
@@ -426,10 +426,10 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
 
     /// [`Scorer::step`] for a pose whose position is in doubt by `doubt` m (a device's ego,
     /// `k` of its stated σ): the map's metrics give it the benefit of the doubt. A corner
-    /// breaks drivable-area compliance only when it is outside by [`TOLERANCE`] and `doubt`
-    /// more, and a centre in no lane heading the ego's way is taken to be in the nearest one
-    /// that does within `doubt` ([`Checker::lane_headed_within`]), for the driving direction
-    /// and the speed limit. Collisions and time to collision are judged as [`Scorer::step`]
+    /// breaks drivable-area compliance only when it is outside by nuPlan's 0.3 m and `doubt`
+    /// more ([`PoseCheck::compliant_within`]), and a centre in no lane heading the ego's way
+    /// is taken to be in the nearest one that does within `doubt`
+    /// ([`Checker::lane_headed_within`]), for the driving direction and the speed limit. Collisions and time to collision are judged as [`Scorer::step`]
     /// judges them: the agents are placed through the same ego, so its error moves them
     /// with it. The report's check is the pose's own; `doubt` ≤ 0 (or not finite) is none.
     pub fn step_in_doubt(
@@ -458,7 +458,7 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         let check = self.checker.check(pose, self.channel, self.lane.map(|(l, _)| l));
         let doubt = if doubt.is_finite() { doubt.max(0.0) } else { 0.0 };
         self.worst_corner = self.worst_corner.max(check.worst());
-        if check.worst() >= TOLERANCE + doubt {
+        if !check.compliant_within(doubt) {
             self.noncompliant += 1;
         }
         let centre_lane = match check.centre_lane {

@@ -97,7 +97,7 @@ fn device_windows_verify_where_the_truth_does_and_never_over_a_collision() {
     // without it, its 2 m error against the work zone's lanes failed drivable area or the
     // driving direction where the truth kept inside (18 of these 30 windows agreed, 10 of
     // the truth's 22 verified ones verified; 27 and 19 with it). Issue #31's target is 80 %
-    // over the sweep (84.3 % on 453 typical windows, docs/fidelity.md).
+    // over the sweep (85.5 % of 461 typical windows, docs/fidelity.md).
     assert!(both_verified > 0);
     assert!(agree * 5 >= total * 4, "{agree} of {total} windows agree with the truth's");
     // Issue #31's target is 90 % over the sweep (94.7 % on 200 typical drives,

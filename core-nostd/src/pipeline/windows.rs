@@ -65,8 +65,8 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
     pub(super) fn score(&mut self, t: Timestamp, ego: &Pose2) -> Result<(), PipelineError<W::Error>> {
         let Some(map) = self.config.map else { return Ok(()) };
         let ts = t.as_secs_f64();
-        // A gap in the ego (a VO session not yet observable after the carry gave up) ends the
-        // window at its last pose: the device did not see what happened in the gap, and a
+        // A gap in the ego (a VO re-initialisation's missing frames, or a new session not yet
+        // observable after the carry gave up) ends the window at its last pose: the device did not see what happened in the gap, and a
         // window verified over it would vouch for it.
         if let Some(last) = self.windows.window.as_ref().map(|w| w.last) {
             if (t - last).as_secs_f64() > lag::MAX_GAP_S {
