@@ -5,7 +5,9 @@
 //! constant (wheel-speed quantisation at 50 Hz alone moves it by ~0.1 m/s²). A braking is
 //! harsh from [`HARSH_BRAKING_MPS2`] — 0.41 g, inside the 0.3–0.45 g band fleet telematics
 //! flag — and over when the deceleration falls below half of it, so one stop is counted once.
-//! A gap over a second, or time going back, starts afresh. A few dozen bytes: no history.
+//! A gap over a second, or time going back, starts afresh; a sample stamped at the same
+//! instant as the one before (frames read in a burst, stamped on receipt) is passed over.
+//! A few dozen bytes: no history.
 
 use crate::time::Timestamp;
 
@@ -30,6 +32,10 @@ pub(super) struct Braking {
 impl Braking {
     /// A speed sample (m/s); the speed at which a harsh braking begins, when one does.
     pub(super) fn push(&mut self, t: Timestamp, mps: f64) -> Option<f64> {
+        if self.last.is_some_and(|(t0, _)| t0 == t) && mps.is_finite() {
+            // No time between them to divide by: the earlier sample stays the reference.
+            return None;
+        }
         let previous = self.last.replace((t, mps));
         let (t0, v0) = previous?;
         let dt = (t - t0).as_secs_f64();
@@ -68,6 +74,22 @@ mod tests {
             }
         }
         out
+    }
+
+    #[test]
+    fn an_emergency_stop_read_in_bursts_is_still_seen() {
+        // 1 kHz wheel speed read ten frames at a time, each burst stamped on receipt: the
+        // same instant for ten samples (a busy logger). Such a burst had reset the filter.
+        let mut b = Braking::default();
+        let mut seen = 0;
+        for k in 0..12_000i64 {
+            let t = k as f64 * 0.001;
+            let v = (22.0 - 6.0 * (t - 5.0).max(0.0)).max(7.0);
+            if b.push(Timestamp::from_micros((k / 10) * 10_000), v).is_some() {
+                seen += 1;
+            }
+        }
+        assert_eq!(seen, 1);
     }
 
     #[test]
