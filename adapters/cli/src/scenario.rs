@@ -58,6 +58,10 @@ pub struct SweepArgs {
     /// Finishing's anchors: `street` (simulated from the true path every 50 m) or `none`.
     #[arg(long, value_enum, default_value = "street")]
     pub anchors: Anchors,
+    /// Tell finishing the receiver's true latency instead of estimating it: an oracle that
+    /// bounds what a better latency estimate could gain (the summary is marked as one).
+    #[arg(long)]
+    pub oracle_latency: bool,
     /// Length of each drive, s.
     #[arg(long, default_value_t = 40.0)]
     pub duration: f64,
@@ -194,6 +198,7 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         profile: args.profile,
         receiver: args.receiver,
         anchors: args.anchors,
+        oracle_latency: args.oracle_latency,
         duration: args.duration,
         jobs: args.jobs,
         output: args.output.clone(),

@@ -166,3 +166,37 @@ fn bad_seeds_profiles_and_output_folders_are_refused_with_a_message() {
     assert!(!out.status.success() && stderr(&out).contains("ideal, typical, hard"), "{}", stderr(&out));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn an_oracle_latency_sweep_hands_finishing_the_true_latency_and_says_so() {
+    let dir = scratch("oracle");
+    let run = |extra: &[&str], name: &str| {
+        let out_dir = dir.join(name);
+        let mut args = vec!["scenario", "sweep", "--seeds", "7003", "--driver", "careful", "--anchors", "none", "-q"];
+        args.extend_from_slice(extra);
+        let out_path = path(&out_dir);
+        args.extend_from_slice(&["-o", &out_path]);
+        let out = dash2sim(&args);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let summary: Value =
+            serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).expect("summary.json")).expect("json");
+        let row: Value = serde_json::from_str(
+            std::fs::read_to_string(out_dir.join("runs.jsonl")).expect("runs.jsonl").lines().next().expect("a row"),
+        )
+        .expect("a JSON line");
+        (String::from_utf8_lossy(&out.stdout).into_owned(), summary, row)
+    };
+    let (text, summary, row) = run(&[], "estimated");
+    assert_eq!(summary["oracle_latency"], false);
+    assert!(!text.contains("ORACLE"), "{text}");
+    let estimated = row["latency_error_s"].as_f64().expect("a latency error");
+    // Estimated from the fixes, the latency is some milliseconds off (9 ms on seed 7003).
+    assert!(estimated.abs() > 1e-3, "{row}");
+
+    let (text, summary, row) = run(&["--oracle-latency"], "oracle");
+    assert_eq!(summary["oracle_latency"], true);
+    assert!(text.contains("ORACLE: finishing was told"), "{text}");
+    let told = row["latency_error_s"].as_f64().expect("a latency error");
+    assert!(told.abs() < 1e-3, "finishing was handed the latency: {row}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -225,7 +225,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value> {
         tile: &tile,
         setup: &setup,
     };
-    let assessed = assess(&recorded, args.anchors, &anchors_path)?;
+    let assessed = assess(&recorded, args.anchors, &anchors_path, None)?;
     spinner.finish_and_clear();
     let finished_path = out.join("finished.d2slog");
     write_file(&finished_path, &assessed.finished_bytes)?;

@@ -259,8 +259,15 @@ pub struct Recorded<'a> {
 
 /// Judge a recorded drive: finish it with `anchors` (the anchors CSV written to
 /// `anchors_path`), verify the truth, the online and the finished log on the drive's map
-/// tile, and set the device's windows against the truth's.
-pub fn assess(recorded: &Recorded<'_>, anchors: Anchors, anchors_path: &Path) -> Result<Assessment> {
+/// tile, and set the device's windows against the truth's. `told_latency_s`, when given, is
+/// the receiver's latency handed to finishing in place of its own estimate (the sweep's
+/// `--oracle-latency`, a bound; the product never has it).
+pub fn assess(
+    recorded: &Recorded<'_>,
+    anchors: Anchors,
+    anchors_path: &Path,
+    told_latency_s: Option<f64>,
+) -> Result<Assessment> {
     let Recorded { scenario, drive_dir, log, log_name, tile, setup } = *recorded;
     let map = MapView::parse(tile).map_err(Error::other)?;
     let anchors_text = match anchors {
@@ -277,13 +284,22 @@ pub fn assess(recorded: &Recorded<'_>, anchors: Anchors, anchors_path: &Path) ->
         .transpose()
         .map_err(|(line, why)| Error::line(anchors_path, line, why))?;
     let anchors_name = anchors_path.display().to_string();
+    let settings = crate::finish::solve::Settings { gravity_aligned: true, ..Default::default() };
+    let settings = match told_latency_s {
+        Some(latency) => crate::finish::solve::Settings {
+            latency_prior: (latency, 1e-4),
+            latency_search: (0.0, -1.0, 0.0),
+            ..settings
+        },
+        None => settings,
+    };
     let finished = crate::finish::finish(
         log,
         log_name,
         anchor_file.as_ref().map(|f| (anchors_name.as_str(), f)),
         Some(tile),
         setup.mount,
-        crate::finish::solve::Settings { gravity_aligned: true, ..Default::default() },
+        settings,
         setup.gnss.uere_m,
     )?;
     let header = log.header.ok_or_else(|| Error::invalid("the recorded log has no header"))?;

@@ -202,6 +202,9 @@ pub struct Summary {
     pub receiver: &'static str,
     /// Finishing's anchors.
     pub anchors: &'static str,
+    /// Finishing was told the receiver's true latency (`--oracle-latency`): the figures
+    /// are a bound, not the product's.
+    pub oracle_latency: bool,
     /// Seeds, `A-B`.
     pub seeds: String,
     /// Drivers.
@@ -305,6 +308,7 @@ impl Summary {
             profile: args.profile.name(),
             receiver: args.receiver.name(),
             anchors: args.anchors.name(),
+            oracle_latency: args.oracle_latency,
             seeds: format!("{}-{}", args.seeds.start(), args.seeds.end()),
             drivers: rows.iter().map(|r| r.driver).fold(Vec::new(), |mut v, d| {
                 if !v.contains(&d) {
@@ -357,6 +361,12 @@ impl Summary {
             self.anchors,
             self.duration_s
         );
+        if self.oracle_latency {
+            let _ = writeln!(
+                t,
+                "  ORACLE: finishing was told each receiver's true latency; these figures bound what estimating it could gain, they are not the product's"
+            );
+        }
         let _ = writeln!(
             t,
             "  drives        {} ({} failed to run, {} never anchored on the device, {} with a VO re-initialisation)",

@@ -59,6 +59,10 @@ pub struct SweepRequest {
     pub receiver: Receiver,
     /// Finishing's anchors: street (simulated from the true path every 50 m) or none.
     pub anchors: Anchors,
+    /// Hand finishing the receiver's true latency instead of letting it estimate one: an
+    /// oracle that bounds what a better latency estimate could gain. Its figures are a
+    /// bound, never the product's (the summary says so).
+    pub oracle_latency: bool,
     /// Length of each drive, s.
     pub duration: f64,
     /// Drives run at once (default: one per core).
@@ -360,7 +364,8 @@ fn try_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Res
         tile: &tile,
         setup: &setup,
     };
-    let assessment = assess(&recorded, args.anchors, &work.join("anchors.csv"))?;
+    let told_latency_s = args.oracle_latency.then_some(config.gnss.latency_s);
+    let assessment = assess(&recorded, args.anchors, &work.join("anchors.csv"), told_latency_s)?;
     if args.keep {
         let finished = work.join("finished.d2slog");
         std::fs::write(&finished, &assessment.finished_bytes).map_err(|e| Error::file(&finished, e))?;
