@@ -60,6 +60,21 @@ pub const DEFAULT_KEYFRAME_S: f64 = 0.5;
 /// Smoothing of the finished ego's planar track: position σ of the VO-derived positions
 /// (m) and the car's white acceleration (m/s² per √s).
 const EGO_SMOOTHING: (f64, f64) = (0.05, 0.5);
+/// σ of the wheels' speed as the finished ego's smoother takes it, m/s: a vehicle bus's
+/// speed is some tens of milliseconds old (no latency is solved for the wheels), and at
+/// 1 m/s² of braking 0.1 s of it is 0.1 m/s.
+const WHEEL_SPEED_SIGMA: f64 = 0.1;
+/// Half the span of wheel speeds averaged for one VO pose, s.
+const WHEEL_SPEED_HALF_SPAN_S: f64 = 0.05;
+
+/// The wheels' mean speed over [`WHEEL_SPEED_HALF_SPAN_S`] either side of `t`, odometer
+/// units; `None` when no speed was logged that close. `speeds` in time order.
+fn wheel_speed_at(speeds: &[(f64, f64)], t: f64) -> Option<f64> {
+    let from = speeds.partition_point(|s| s.0 < t - WHEEL_SPEED_HALF_SPAN_S);
+    let near = speeds[from..].iter().take_while(|s| s.0 <= t + WHEEL_SPEED_HALF_SPAN_S).map(|s| s.1);
+    let (sum, n) = near.fold((0.0, 0usize), |(sum, n), v| (sum + v, n + 1));
+    (n > 0).then(|| sum / n as f64).filter(|v| v.is_finite())
+}
 
 /// What finishing produced, for the report and the tests.
 #[derive(Debug)]
@@ -351,7 +366,8 @@ pub fn finish(
     // Each session smoothed on its own (a constant-velocity smoother across a gap would
     // turn the two sessions' disagreement into a velocity), then the sessions joined.
     let mut planar_poses: Vec<PlanarPose> = Vec::new();
-    let mut starts: Vec<usize> = Vec::new();
+    // Where each session begins in `planar_poses`, and its wheel factor.
+    let mut starts: Vec<(usize, f64)> = Vec::new();
     for solved in &sessions {
         let vo = &drive.vo[solved.range.clone()];
         let bodies: Vec<(f64, Pose)> = vo
@@ -363,10 +379,17 @@ pub fn finish(
             .collect();
         let mut planar: Vec<tracks::Sample> = bodies
             .iter()
-            .map(|(t, b)| tracks::Sample { t: *t, x: b.translation.x, y: b.translation.y, ..tracks::Sample::default() })
+            .map(|(t, b)| tracks::Sample {
+                t: *t,
+                x: b.translation.x,
+                y: b.translation.y,
+                speed: wheel_speed_at(&drive.speeds, *t).map(|v| (v * solved.solution.wheel_factor, WHEEL_SPEED_SIGMA)),
+                ..tracks::Sample::default()
+            })
             .collect();
-        tracks::smooth_planar(&mut planar, (0.0, 0.0), EGO_SMOOTHING.0, EGO_SMOOTHING.1);
-        starts.push(planar_poses.len());
+        let velocity = starting_velocity(&planar);
+        tracks::smooth_planar(&mut planar, velocity, EGO_SMOOTHING.0, EGO_SMOOTHING.1);
+        starts.push((planar_poses.len(), solved.solution.wheel_factor));
         for ((t, body), p) in bodies.iter().zip(&planar) {
             let heading = dash2sim_core::pipeline::mount::heading(&body.rotation);
             let sigma = solved.solution.horizontal_sigma_at(*t);
@@ -382,9 +405,9 @@ pub fn finish(
             });
         }
     }
-    join_sessions(&mut planar_poses, &starts);
+    join_sessions(&mut planar_poses, &starts, &drive.speeds);
     let mut ego: BTreeMap<i64, EgoPose> = BTreeMap::new();
-    let bridged = bridge_gaps(&planar_poses, frame_interval(&drive.vo));
+    let bridged = bridge_gaps(&planar_poses, frame_interval(&drive.vo), &drive.speeds);
     let bridged_s: f64 = bridged.iter().map(|g| g.seconds).sum();
     for pose in planar_poses.iter().chain(bridged.iter().flat_map(|g| &g.poses)) {
         let t_us = quantise(pose.t, 1e-6);
@@ -621,26 +644,41 @@ const MAX_BRIDGE_S: f64 = 5.0;
 const JOIN_RAMP_S: f64 = 5.0;
 
 /// Two sessions solved apart meet with the errors of their ends, independent of each other:
-/// across the gap the car went on at its speed, so the second session's first pose should be
-/// the first session's last one moved on by the mean of their velocities over the gap. Each
-/// end is moved by half of the disagreement (the mean of two independent estimates), the
-/// shift falling linearly to nothing [`JOIN_RAMP_S`] into each session, where its own GNSS
-/// and anchors hold it. `starts` are the indices where sessions begin.
-fn join_sessions(poses: &mut [PlanarPose], starts: &[usize]) {
+/// across the gap the car went on as the wheels say, so the second session's first pose
+/// should be the first session's last one moved on by the wheels' distance over the gap
+/// (the wheel factor of the two sessions applied; without speeds, the mean of their
+/// velocities times the gap) along their mean direction. Each end is moved by half of the
+/// disagreement (the mean of two independent estimates), the shift easing out to nothing
+/// [`JOIN_RAMP_S`] into each session, where its own GNSS and anchors hold it: a smoothstep,
+/// so that the shift adds no step in velocity, which the comfort metrics would read as a
+/// jerk. `starts` are the indices where sessions begin, with their wheel factors.
+fn join_sessions(poses: &mut [PlanarPose], starts: &[(usize, f64)], speeds: &[(f64, f64)]) {
     let n = poses.len();
-    for &b in starts.iter().filter(|&&b| b > 0 && b < n) {
+    for (k, &(b, factor)) in starts.iter().enumerate().filter(|(_, (b, _))| *b > 0 && *b < n) {
         let (end, start) = (poses[b - 1], poses[b]);
         let gap = start.t - end.t;
         if !(gap > 0.0 && gap <= MAX_BRIDGE_S) {
             continue;
         }
-        let predicted_x = end.x + 0.5 * (end.vx + start.vx) * gap;
-        let predicted_y = end.y + 0.5 * (end.vy + start.vy) * gap;
+        let (mean_vx, mean_vy) = (0.5 * (end.vx + start.vx), 0.5 * (end.vy + start.vy));
+        let factor = k.checked_sub(1).and_then(|j| starts.get(j)).map_or(factor, |&(_, f)| 0.5 * (f + factor));
+        let travelled = solve::wheel_distance(speeds, end.t, start.t)
+            .map(|d| d * factor)
+            .filter(|d| d.is_finite())
+            .unwrap_or_else(|| mean_vx.hypot(mean_vy) * gap);
+        // Along the ends' mean direction; nowhere when the car stands.
+        let speed = mean_vx.hypot(mean_vy);
+        let (ux, uy) = if speed > 0.0 { (mean_vx / speed, mean_vy / speed) } else { (0.0, 0.0) };
+        let predicted_x = end.x + travelled * ux;
+        let predicted_y = end.y + travelled * uy;
         let (dx, dy) = (0.5 * (start.x - predicted_x), 0.5 * (start.y - predicted_y));
         if !(dx.is_finite() && dy.is_finite()) {
             continue;
         }
-        let weight = |from_gap: f64| (1.0 - from_gap / JOIN_RAMP_S).max(0.0);
+        let weight = |from_gap: f64| {
+            let x = (from_gap / JOIN_RAMP_S).clamp(0.0, 1.0);
+            1.0 - x * x * (3.0 - 2.0 * x)
+        };
         for p in poses[..b].iter_mut().rev().take_while(|p| end.t - p.t < JOIN_RAMP_S) {
             let w = weight(end.t - p.t);
             (p.x, p.y) = (p.x + w * dx, p.y + w * dy);
@@ -655,6 +693,20 @@ fn join_sessions(poses: &mut [PlanarPose], starts: &[usize]) {
     }
 }
 
+/// A session's velocity at its first pose, for the smoother to start from: the chord over
+/// its first [`STARTING_CHORD_S`] (a smoother started at rest would pull the session's first
+/// second towards a standstill the car never made).
+fn starting_velocity(planar: &[tracks::Sample]) -> (f64, f64) {
+    let Some(first) = planar.first() else { return (0.0, 0.0) };
+    match planar.iter().find(|s| s.t - first.t >= STARTING_CHORD_S) {
+        Some(s) => ((s.x - first.x) / (s.t - first.t), (s.y - first.y) / (s.t - first.t)),
+        None => (0.0, 0.0),
+    }
+}
+
+/// The span whose chord gives a session's starting velocity, s.
+const STARTING_CHORD_S: f64 = 0.5;
+
 /// The VO's frame interval: the median spacing of its poses, s.
 fn frame_interval(vo: &[VoSample]) -> f64 {
     let gaps: Vec<f64> = vo.windows(2).map(|w| w[1].t - w[0].t).filter(|d| *d > 0.0).collect();
@@ -668,9 +720,12 @@ fn frame_interval(vo: &[VoSample]) -> f64 {
 
 /// Where the VO lost track (a re-initialisation, a stretch of dropped frames) the finished
 /// ego has no pose, and a hole reads as a stop and a start to the metrics. Gaps up to
-/// [`MAX_BRIDGE_S`] are filled at the frame rate by a cubic Hermite curve between the
-/// smoothed poses and velocities at their two ends (the heading and the height linearly).
-fn bridge_gaps(poses: &[PlanarPose], interval: f64) -> Vec<Bridge> {
+/// [`MAX_BRIDGE_S`] are filled at the frame rate along a cubic Hermite curve between the
+/// smoothed poses at their two ends, leaving each along its heading. Where the wheels cover
+/// the gap the curve is laid out by distance and each pose put where the odometer says the
+/// car was (a car that braked in the gap brakes there too); without them, by time with the
+/// ends' velocities. The heading and the height go linearly.
+fn bridge_gaps(poses: &[PlanarPose], interval: f64, speeds: &[(f64, f64)]) -> Vec<Bridge> {
     let mut out = Vec::new();
     for w in poses.windows(2) {
         let (a, b) = (&w[0], &w[1]);
@@ -680,19 +735,38 @@ fn bridge_gaps(poses: &[PlanarPose], interval: f64) -> Vec<Bridge> {
         }
         let steps = (gap / interval).round().max(2.0) as usize;
         let turn = dash2sim_core::track3d::wrap_angle(b.heading - a.heading);
+        // By distance: tangents along the ends' headings as long as the chord, and each
+        // pose at the odometer's fraction of the gap's distance.
+        let chord = (b.x - a.x).hypot(b.y - a.y);
+        let (speed_a, speed_b) = (a.vx.hypot(a.vy), b.vx.hypot(b.vy));
+        let by_distance = solve::wheel_distance(speeds, a.t, b.t)
+            .filter(|&d| d > 0.5 && chord > 0.5 && speed_a > 0.0 && speed_b > 0.0)
+            .map(|d| {
+                let tangents =
+                    (a.vx * chord / speed_a, a.vy * chord / speed_a, b.vx * chord / speed_b, b.vy * chord / speed_b);
+                (d, tangents)
+            });
         let poses = (1..steps)
             .map(|k| {
                 let u = k as f64 / steps as f64;
+                let t = a.t + u * gap;
+                let (s, (ax, ay, bx, by)) = match by_distance {
+                    Some((d, tangents)) => {
+                        let s = solve::wheel_distance(speeds, a.t, t).map_or(u, |part| (part / d).clamp(0.0, 1.0));
+                        (s, tangents)
+                    }
+                    None => (u, (gap * a.vx, gap * a.vy, gap * b.vx, gap * b.vy)),
+                };
                 let (h00, h10, h01, h11) = (
-                    2.0 * u.powi(3) - 3.0 * u * u + 1.0,
-                    u.powi(3) - 2.0 * u * u + u,
-                    -2.0 * u.powi(3) + 3.0 * u * u,
-                    u.powi(3) - u * u,
+                    2.0 * s.powi(3) - 3.0 * s * s + 1.0,
+                    s.powi(3) - 2.0 * s * s + s,
+                    -2.0 * s.powi(3) + 3.0 * s * s,
+                    s.powi(3) - s * s,
                 );
                 PlanarPose {
-                    t: a.t + u * gap,
-                    x: h00 * a.x + h10 * gap * a.vx + h01 * b.x + h11 * gap * b.vx,
-                    y: h00 * a.y + h10 * gap * a.vy + h01 * b.y + h11 * gap * b.vy,
+                    t,
+                    x: h00 * a.x + h10 * ax + h01 * b.x + h11 * bx,
+                    y: h00 * a.y + h10 * ay + h01 * b.y + h11 * by,
                     z: a.z + u * (b.z - a.z),
                     heading: dash2sim_core::track3d::wrap_angle(a.heading + u * turn),
                     vx: f64::NAN,
@@ -895,4 +969,67 @@ pub fn finish_file(args: &FinishRequest) -> Result<FinishedFile> {
     let bytes = log::import::encode_in_order(&header, &finished.records)?;
     std::fs::write(&args.output, &bytes).map_err(|e| Error::file(&args.output, e))?;
     Ok(FinishedFile { report: finished.report, output: args.output.display().to_string(), bytes: bytes.len() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A pose on the x axis, heading east.
+    fn east(t: f64, x: f64, speed: f64) -> PlanarPose {
+        PlanarPose { t, x, y: 0.0, z: 0.0, heading: 0.0, vx: speed, vy: 0.0, sigma: 0.1 }
+    }
+
+    /// The wheels at 50 Hz from `t0` to `t1` at a steady `speed`.
+    fn steady_wheels(t0: f64, t1: f64, speed: f64) -> Vec<(f64, f64)> {
+        let n = ((t1 - t0) * 50.0).round() as usize;
+        (0..=n).map(|k| (t0 + k as f64 * 0.02, speed)).collect()
+    }
+
+    #[test]
+    fn a_bridge_advances_as_the_wheels_say_whatever_the_ends_velocities() {
+        // 20 m/s throughout a 2 s gap; the second session's first smoothed velocity reads
+        // 15 m/s, as a smoother's end can.
+        let poses = [east(0.0, 0.0, 20.0), east(2.0, 40.0, 15.0)];
+        let bridged = bridge_gaps(&poses, 0.1, &steady_wheels(-1.0, 3.0, 20.0));
+        assert_eq!(bridged.len(), 1);
+        let made = &bridged[0].poses;
+        assert_eq!(made.len(), 19);
+        for p in made {
+            assert!((p.x - 20.0 * p.t).abs() < 0.05, "at {:.1} s: {:.3} m, the wheels say {:.3}", p.t, p.x, 20.0 * p.t);
+        }
+        // Without speeds the curve keeps to the ends' velocities: 1.25 m off at mid-gap.
+        let by_time = bridge_gaps(&poses, 0.1, &[]);
+        let middle = by_time[0].poses.iter().find(|p| (p.t - 1.0).abs() < 1e-9).map_or(f64::NAN, |p| p.x);
+        assert!((middle - 21.25).abs() < 1e-9, "{middle}");
+    }
+
+    #[test]
+    fn sessions_are_joined_at_the_wheels_distance_and_the_shift_eases_in() {
+        // Session one ends at 0 m at 10 s; session two starts 1 s later at 21 m (its own
+        // offset error 1 m), its first velocity read as 18 m/s. The wheels: 20 m/s.
+        let mut poses: Vec<PlanarPose> =
+            (0..=50).map(|k| east(5.0 + 0.1 * k as f64, 2.0 * k as f64 - 100.0, 20.0)).collect();
+        let start = poses.len();
+        poses.extend(
+            (0..=50).map(|k| east(11.0 + 0.1 * k as f64, 21.0 + 2.0 * k as f64, if k == 0 { 18.0 } else { 20.0 })),
+        );
+        let before = poses.clone();
+        join_sessions(&mut poses, &[(0, 1.0), (start, 1.0)], &steady_wheels(4.0, 17.0, 20.0));
+        let (end, first) = (poses[start - 1], poses[start]);
+        assert!((first.x - end.x - 20.0).abs() < 1e-6, "joined {:.3} m apart; the wheels went 20 m", first.x - end.x);
+        assert!(
+            (end.x - 0.5).abs() < 1e-6 && (first.x - 20.5).abs() < 1e-6,
+            "each end takes half: {} {}",
+            end.x,
+            first.x
+        );
+        // The shift has no slope at the gap: 0.1 s in, it has barely changed (a linear
+        // ramp would have changed by 1 cm, a 0.1 m/s step in velocity).
+        let shift = |k: usize| poses[k].x - before[k].x;
+        assert!((shift(start) - shift(start + 1)).abs() < 1e-3, "{} {}", shift(start), shift(start + 1));
+        assert!((shift(start - 1) - shift(start - 2)).abs() < 1e-3);
+        // And it is gone 5 s into each session.
+        assert!(shift(start + 50).abs() < 1e-9 && shift(start - 51).abs() < 1e-9);
+    }
 }

@@ -749,6 +749,12 @@ fn keyframes(vo: &[VoSample], spacing: f64) -> Vec<usize> {
     out
 }
 
+/// Distance the wheels covered from `t0` to `t1`, odometer units (the wheel factor not
+/// applied); `None` where the speeds leave it unknown.
+pub(crate) fn wheel_distance(speeds: &[(f64, f64)], t0: f64, t1: f64) -> Option<f64> {
+    odometer(speeds, &[t0, t1]).first().copied().filter(|d| d.is_finite())
+}
+
 /// Distance the wheels covered between keyframes (trapezoids; NaN where a gap of more
 /// than 1 s leaves it unknown).
 fn odometer(speeds: &[(f64, f64)], keyframe_t: &[f64]) -> Vec<f64> {
