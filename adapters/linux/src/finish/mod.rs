@@ -1005,6 +1005,28 @@ mod tests {
     }
 
     #[test]
+    fn a_session_s_smoother_starts_at_the_session_s_own_speed_not_at_rest() {
+        // A session that begins at 20 m/s east, its positions 5 cm off alternately.
+        let samples: Vec<tracks::Sample> = (0..50)
+            .map(|k| tracks::Sample {
+                t: 0.1 * k as f64,
+                x: 2.0 * k as f64 + if k % 2 == 0 { 0.05 } else { -0.05 },
+                ..tracks::Sample::default()
+            })
+            .collect();
+        let start = starting_velocity(&samples);
+        assert!((start.0 - 20.0).abs() < 0.5 && start.1.abs() < 1e-9, "{start:?}");
+        let first_speed = |velocity: (f64, f64)| {
+            let mut smoothed = samples.clone();
+            tracks::smooth_planar(&mut smoothed, velocity, EGO_SMOOTHING.0, EGO_SMOOTHING.1);
+            smoothed[0].vx.hypot(smoothed[0].vy)
+        };
+        let (own, at_rest) = (first_speed(start), first_speed((0.0, 0.0)));
+        assert!((own - 20.0).abs() < 0.3, "started at its own speed: {own:.2} m/s");
+        assert!((at_rest - 20.0).abs() > 2.0 * (own - 20.0).abs(), "at rest {at_rest:.2}, own {own:.2}");
+    }
+
+    #[test]
     fn sessions_are_joined_at_the_wheels_distance_and_the_shift_eases_in() {
         // Session one ends at 0 m at 10 s; session two starts 1 s later at 21 m (its own
         // offset error 1 m), its first velocity read as 18 m/s. The wheels: 20 m/s.

@@ -138,6 +138,14 @@ pub struct Settings {
     pub latency_search: (f64, f64, f64),
 }
 
+impl Settings {
+    /// These settings with the GNSS latency held at `latency_s`: no search, and a prior
+    /// tight enough that the solve does not move it.
+    pub fn with_latency_held(self, latency_s: f64) -> Self {
+        Settings { latency_prior: (latency_s, 1e-4), latency_search: (0.0, -1.0, 0.0), ..self }
+    }
+}
+
 impl Default for Settings {
     fn default() -> Self {
         Settings {
@@ -874,16 +882,11 @@ pub fn solve(inputs: Inputs<'_>, settings: Settings, anchor_enabled: &[bool]) ->
     // function of it has several minima on real GNSS (its errors wander), and a descent
     // from one guess ends in whichever is nearest. Each candidate is solved with the
     // latency held and coarser keyframes; the fit is Σ min(u², gate²) over the fixes.
-    let coarse = Settings {
-        keyframe_s: settings.keyframe_s.max(2.0),
-        max_iterations: 12,
-        latency_search: (0.0, -1.0, 0.0),
-        ..settings
-    };
+    let coarse = Settings { keyframe_s: settings.keyframe_s.max(2.0), max_iterations: 12, ..settings };
     let mut best = (f64::INFINITY, settings.latency_prior.0);
     let mut tau = first;
     while tau <= last + 1e-9 {
-        let held = Settings { latency_prior: (tau, 1e-4), ..coarse };
+        let held = coarse.with_latency_held(tau);
         if let Ok((_, fit)) = solve_from(inputs, held, anchor_enabled, tau) {
             if fit < best.0 {
                 best = (fit, tau);

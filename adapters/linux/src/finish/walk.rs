@@ -38,14 +38,9 @@ pub fn anchored_walk(
     let mut tried: Vec<((f64, f64), Vec<f64>)> = Vec::new();
     'walks: for factor in WALK_FACTORS {
         let walk = (base.0 * factor, base.1 * factor);
-        let trial = Settings {
-            scale_walk: walk.0,
-            rotation_walk: walk.1,
-            latency_prior: (latency_s, 1e-4),
-            latency_search: (0.0, -1.0, 0.0),
-            max_iterations: TRIAL_ITERATIONS,
-            ..settings
-        };
+        let trial =
+            Settings { scale_walk: walk.0, rotation_walk: walk.1, max_iterations: TRIAL_ITERATIONS, ..settings }
+                .with_latency_held(latency_s);
         let mut errors = vec![f64::NAN; inputs.anchors.len()];
         for fold in 0..FOLDS {
             let mut given = vec![false; enabled.len()];
@@ -137,7 +132,7 @@ mod tests {
         // The tight walk's trial of the first fold solves: the tight walk kept below is a
         // choice, not the fallback for trials that all failed.
         let first_fold: Vec<bool> = (0..anchors.len()).map(|p| p % FOLDS != 0).collect();
-        let trial = Settings { latency_prior: (0.0, 1e-4), latency_search: (0.0, -1.0, 0.0), ..Settings::default() };
+        let trial = Settings::default().with_latency_held(0.0);
         let trial = Settings { scale_walk: trial.anchored_walk.0, rotation_walk: trial.anchored_walk.1, ..trial };
         assert!(solve::solve(inputs, trial, &first_fold).is_ok(), "the tight walk's trial solves");
         anchored_walk(inputs, Settings::default(), &[true; 15], 0.0).expect("solvable")

@@ -286,11 +286,7 @@ pub fn assess(
     let anchors_name = anchors_path.display().to_string();
     let settings = crate::finish::solve::Settings { gravity_aligned: true, ..Default::default() };
     let settings = match told_latency_s {
-        Some(latency) => crate::finish::solve::Settings {
-            latency_prior: (latency, 1e-4),
-            latency_search: (0.0, -1.0, 0.0),
-            ..settings
-        },
+        Some(latency) => settings.with_latency_held(latency),
         None => settings,
     };
     let finished = crate::finish::finish(
