@@ -48,6 +48,7 @@ pub mod drivable;
 pub mod ekf;
 pub mod frame_order;
 pub mod geo;
+pub mod imu;
 pub mod map;
 pub mod nmea;
 pub mod obb;

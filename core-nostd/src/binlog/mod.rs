@@ -34,8 +34,9 @@ pub const MAGIC: [u8; 6] = *b"D2SLOG";
 pub const VERSION_MAJOR: u8 = 1;
 /// Format minor version written (1.1 added `Detection3d` and `ClockOffset`; 1.2 the VO
 /// session of a `VoPose` and `MountEstimate`; 1.3 the σ of an `EgoPose`; 1.4 the GNSS
-/// latency of an `AnchorEstimate`; 1.5 the segments' signature trailers, [`signature`]).
-pub const VERSION_MINOR: u8 = 5;
+/// latency of an `AnchorEstimate`; 1.5 the segments' signature trailers, [`signature`];
+/// 1.6 the IMU's `ImuDelta` and `ImuEstimate`).
+pub const VERSION_MINOR: u8 = 6;
 /// Header length in bytes (v1.0).
 pub const HEADER_LEN: usize = 48;
 /// Marks the start of every segment; a reader looks for it after damage.
@@ -620,6 +621,51 @@ records! {
         /// 1 when calibrated (enough samples and σ small enough), 0 while the nominal
         /// mount still weighs in.
         calibrated: Absolute,
+    }
+    /// The IMU's samples preintegrated over an interval (v1.6), raw on the sensor's own
+    /// axes: no bias removed, gravity included (`imu::preintegrate`).
+    ImuDelta = 0x1E {
+        /// Time at the interval's end, µs.
+        t_us: DeltaDelta,
+        /// The interval's length, µs.
+        dt_us: Delta,
+        /// Rotation over the interval (rotation vector) about the sensor's x, 1e-6 rad.
+        dtheta_x_e6: Delta,
+        /// About y, 1e-6 rad.
+        dtheta_y_e6: Delta,
+        /// About z, 1e-6 rad.
+        dtheta_z_e6: Delta,
+        /// Velocity change from the specific force along the sensor's x (its axes at the
+        /// interval's start), mm/s.
+        dv_x_mm_s: Delta,
+        /// Along y, mm/s.
+        dv_y_mm_s: Delta,
+        /// Along z, mm/s.
+        dv_z_mm_s: Delta,
+        /// Samples in the interval.
+        samples: Delta,
+    }
+    /// What the device made of its IMU so far (v1.6), about once a second: the body's
+    /// tilt from gravity and the gyro's bias.
+    ImuEstimate = 0x1F {
+        /// Time, µs.
+        t_us: Delta,
+        /// The body's pitch (Z-Y-X, x forward, z up; positive nose down), 1e-6 rad.
+        pitch_e6: Delta,
+        /// The body's roll, 1e-6 rad.
+        roll_e6: Delta,
+        /// Gyro bias about the body's x, 1e-7 rad/s.
+        bias_x_e7: Delta,
+        /// About the body's y, 1e-7 rad/s.
+        bias_y_e7: Delta,
+        /// About the body's z, 1e-7 rad/s.
+        bias_z_e7: Delta,
+        /// 1-σ of the bias about the vertical, 1e-7 rad/s.
+        bias_sigma_e7: Delta,
+        /// Standstills the bias rests on.
+        standstills: Delta,
+        /// GNSS course intervals it rests on.
+        courses: Delta,
     }
 }
 

@@ -53,7 +53,12 @@ impl Anchoring {
     pub(super) fn new(config: &PipelineConfig<'_>) -> Self {
         Anchoring {
             local: LocalFrame::new(config.origin),
-            anchorer: Anchorer::new(config.anchor),
+            anchorer: Anchorer::new(match config.relative_motion {
+                super::RelativeMotion::Vo => config.anchor,
+                super::RelativeMotion::ImuWheels => {
+                    crate::anchor::AnchorConfig { mode: crate::anchor::AnchorMode::GravityAligned, ..config.anchor }
+                }
+            }),
             observability: Observability::TooFewAnchors,
             last_anchor_record: None,
             calibration: MountCalibration::new(config.mount, config.calibration),

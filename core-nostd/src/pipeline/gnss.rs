@@ -162,6 +162,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         }
         self.log.stats.speeds = self.log.stats.speeds.saturating_add(1);
         self.gnss.last_speed = mps;
+        self.inertial.on_speed(t, mps);
         let record = VehicleSpeed { t_us: self.log.time(t), speed_mm_s: quantise(mps, 1e-3), source };
         self.log.write(&Record::VehicleSpeed(record))?;
         let Some(from) = self.gnss.braking.push(t, mps) else { return Ok(()) };
@@ -234,6 +235,10 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             mode: fix.mode,
         };
         self.log.write(&Record::GnssFix(record))?;
+        if let (Some(speed), Some(track)) = (fix.speed, fix.track_deg) {
+            let up = self.inertial.up();
+            self.inertial.bias.push_course(rx.as_secs_f64(), track.to_radians(), speed, &up);
+        }
         let g = &self.config.gnss;
         let sigma = gnss_sigma(fix.hdop, fix.gst, g.uere_m).unwrap_or(g.default_sigma_m);
         let enu = self.anchoring.local.geodetic_to_enu(&position);

@@ -44,11 +44,23 @@ pub enum Issue {
     CameraRestarted,
     /// A VO session number lower than the one before (taken as a new session).
     VoSessionBackwards,
+    /// An IMU sample not finite or beyond any consumer sensor's full scale.
+    ImuRefused,
+    /// An IMU sample not after the previous one.
+    ImuOutOfOrder,
+    /// IMU samples refused because the stream's units are not rad/s and m/s² (gravity
+    /// reads about 1: g; the gyro turns ~57 times as fast as the GNSS course: °/s).
+    ImuUnits,
+    /// IMU samples refused because gravity is far off the body's up: the sensor's axes or
+    /// its mount are not as configured.
+    ImuAxes,
+    /// A VO pose not used: the relative motion is gyro + wheels.
+    VoNotUsed,
 }
 
 impl Issue {
     /// Every reason, in counter order.
-    pub const ALL: [Issue; 18] = [
+    pub const ALL: [Issue; 23] = [
         Issue::VoNotFinite,
         Issue::VoOutOfOrder,
         Issue::SpeedRefused,
@@ -67,6 +79,11 @@ impl Issue {
         Issue::InputsDropped,
         Issue::CameraRestarted,
         Issue::VoSessionBackwards,
+        Issue::ImuRefused,
+        Issue::ImuOutOfOrder,
+        Issue::ImuUnits,
+        Issue::ImuAxes,
+        Issue::VoNotUsed,
     ];
 
     /// How the event names it.
@@ -90,6 +107,11 @@ impl Issue {
             Issue::InputsDropped => "inputs dropped before the pipeline (logger behind)",
             Issue::CameraRestarted => "camera process restarted (frame numbers started again)",
             Issue::VoSessionBackwards => "VO session number went back (taken as a new session)",
+            Issue::ImuRefused => "IMU sample refused (not finite or beyond full scale)",
+            Issue::ImuOutOfOrder => "IMU sample out of order",
+            Issue::ImuUnits => "IMU sample refused (units not rad/s and m/s²)",
+            Issue::ImuAxes => "IMU sample refused (axes or mount not as configured)",
+            Issue::VoNotUsed => "VO pose not used (the relative motion is gyro + wheels)",
         }
     }
 

@@ -38,6 +38,7 @@ pub mod clock;
 pub mod ease;
 pub mod edge;
 mod gnss;
+pub mod inertial;
 pub mod issues;
 pub mod lag;
 pub mod mount;
@@ -60,6 +61,7 @@ use crate::binlog::{
 };
 use crate::can::signal::Signal;
 use crate::geo::Geodetic;
+use crate::imu::so3::yaw_pitch_roll as euler;
 use crate::map::MapView;
 use crate::obb::{Footprint, PACIFICA};
 use crate::score::{AgentKind, ScoreConfig, Scores};
@@ -69,6 +71,7 @@ use crate::track2d::{Detection, Tracker2d, TrackerConfig};
 use crate::track3d::{Config3d, Detection3d, Tracker3d};
 pub use calibration::{CalibrationConfig, MountCalibration, MountEstimate};
 pub use clock::{Clock, OffsetChange};
+pub use inertial::ImuConfig;
 pub use issues::{Issue, Issues};
 pub use mount::CameraMount;
 pub use signals::{FrameId, GnssFrame, GnssSignals};
@@ -108,6 +111,19 @@ impl SpeedSource {
             SpeedSource::Signal { .. } => 3,
         }
     }
+}
+
+/// Where the relative motion the anchorer anchors comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum RelativeMotion {
+    /// The camera's VO poses ([`Pipeline::push_vo`]).
+    #[default]
+    Vo,
+    /// Gyro + wheels dead reckoning ([`Pipeline::push_imu`] and the vehicle speed): a
+    /// dashcam without VO. Its frame is levelled by gravity, so the anchorer estimates yaw,
+    /// scale and translation only ([`AnchorMode::GravityAligned`](crate::anchor::AnchorMode)),
+    /// which a straight road observes; VO poses pushed are not used.
+    ImuWheels,
 }
 
 /// How a fix's 1-σ horizontal error is found: the receiver's GST statistics when given,
@@ -172,6 +188,10 @@ pub struct PipelineConfig<'a> {
     /// ([`Scorer::step_in_doubt`](crate::score::Scorer::step_in_doubt)); 0: nuPlan's own
     /// judgement, as `verify` makes it.
     pub window_doubt_sigmas: f64,
+    /// The IMU's axes on the camera and what is made of it.
+    pub imu: ImuConfig,
+    /// Where the relative motion comes from.
+    pub relative_motion: RelativeMotion,
 }
 
 impl<'a> PipelineConfig<'a> {
@@ -197,6 +217,8 @@ impl<'a> PipelineConfig<'a> {
             anchor_interval: Duration::from_millis(1000),
             ease_s: EASE_S,
             window_doubt_sigmas: WINDOW_DOUBT_SIGMAS,
+            imu: ImuConfig::default(),
+            relative_motion: RelativeMotion::Vo,
         }
     }
 }
@@ -274,6 +296,10 @@ pub struct PipelineStats {
     pub collision_windows: u64,
     /// Harsh brakings ([`braking`]).
     pub harsh_brakings: u64,
+    /// IMU samples used.
+    pub imu_samples: u64,
+    /// Impacts the G-sensor saw ([`crate::imu::impact`]).
+    pub impacts: u64,
     /// Records written.
     pub records: u64,
 }
@@ -316,6 +342,8 @@ struct State<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> {
     tracking: tracking::Tracking<'a, T3, T2>,
     /// The verification windows and the agents they score ([`windows`]).
     windows: windows::Windows<'a, T3>,
+    /// The IMU ([`inertial`]).
+    inertial: inertial::Inertial,
 }
 
 /// The pipeline: `T3` 3D tracks (and 3D detections per frame), `T2` 2D tracks (and 2D
@@ -354,6 +382,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
                 anchoring: anchoring::Anchoring::new(&config),
                 tracking: tracking::Tracking::new(trackers),
                 windows: windows::Windows::default(),
+                inertial: inertial::Inertial::new(&config),
             },
         }
     }
@@ -430,7 +459,30 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
         pose: &Pose,
     ) -> Result<(), PipelineError<W::Error>> {
         let t = self.state.log.monotonic(t)?;
+        if self.state.config.relative_motion == RelativeMotion::ImuWheels {
+            return self.state.log.issue(t, Issue::VoNotUsed, 1);
+        }
         self.state.on_vo(t, frame, session, pose)
+    }
+
+    /// A sample of the IMU, taken at device time `t` (the sensor's own time mapped to the
+    /// device clock by the caller): checked, preintegrated into the log, and used for the
+    /// attitude, the gyro's bias, the impact trigger and — with
+    /// [`RelativeMotion::ImuWheels`] — the dead-reckoned relative motion.
+    pub fn push_imu(&mut self, t: Timestamp, sample: &crate::imu::ImuSample) -> Result<(), PipelineError<W::Error>> {
+        let t = self.state.log.monotonic(t)?;
+        self.state.on_imu(t, sample)
+    }
+
+    /// The body's pitch and roll (rad) from the IMU's gravity, once it has a sample.
+    pub fn imu_pitch_roll(&self) -> Option<[f64; 2]> {
+        self.state.inertial.pitch_roll()
+    }
+
+    /// The gyro's bias as estimated so far (body axes, rad/s) and its σ about the vertical.
+    pub fn gyro_bias(&self) -> (Vector3<f64>, f64) {
+        let b = &self.state.inertial.bias;
+        (*b.bias(), b.sigma())
     }
 
     /// The camera mount as calibrated so far.
@@ -569,11 +621,6 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
         state.log.event(now, 2, format_args!("pipeline finished: {s}, {issues} issues"))?;
         state.log.writer.close()
     }
-}
-
-/// Yaw, pitch, roll (Z-Y-X) of a rotation, rad.
-fn euler(r: &nalgebra::Matrix3<f64>) -> [f64; 3] {
-    [libm::atan2(r[(1, 0)], r[(0, 0)]), libm::asin((-r[(2, 0)]).clamp(-1.0, 1.0)), libm::atan2(r[(2, 1)], r[(2, 2)])]
 }
 
 /// A window's scores as a record (the device's and `dash2sim finish`'s).

@@ -41,20 +41,7 @@ impl CameraMount {
     /// Camera → body rotation.
     pub fn rotation(&self) -> Matrix3<f64> {
         let [r, p, y] = self.roll_pitch_yaw;
-        let (sr, cr) = libm::sincos(r);
-        let (sp, cp) = libm::sincos(p);
-        let (sy, cy) = libm::sincos(y);
-        Matrix3::new(
-            cy * cp,
-            cy * sp * sr - sy * cr,
-            cy * sp * cr + sy * sr,
-            sy * cp,
-            sy * sp * sr + cy * cr,
-            sy * sp * cr - cy * sr,
-            -sp,
-            cp * sr,
-            cp * cr,
-        )
+        crate::imu::so3::from_roll_pitch_yaw(r, p, y)
     }
 
     /// The ego's world pose (rear axle) when the camera is at `camera` (ENU), as a body

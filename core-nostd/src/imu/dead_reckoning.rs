@@ -1,0 +1,78 @@
+//! Gyro + wheels as the relative motion: where the camera publishes no VO (a dashcam without
+//! the compute for it, or a VO outage) the car's own trajectory is still known up to a
+//! similarity — the attitude from the gyro ([`Attitude`]), the distance from the wheels.
+//!
+//! The body's origin moves along its own forward axis at the wheels' speed (a car does not
+//! slide sideways); integrated, that is a trajectory in a frame of its own whose z is up
+//! (the attitude is levelled by gravity) and whose scale is the wheels' — the same kind of
+//! thing a VO gives, anchored the same way: its scale is the wheel factor, its drift the
+//! gyro's heading drift and the wheels' slip.
+
+use nalgebra::{Matrix3, Vector3};
+
+use super::attitude::Attitude;
+use crate::sim3::Pose;
+
+/// The dead-reckoned body.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct DeadReckoning {
+    position: Vector3<f64>,
+    travelled_m: f64,
+}
+
+impl DeadReckoning {
+    /// Move by `speed_mps` over `dt` s along the body's forward axis as `attitude` has it.
+    pub fn advance(&mut self, dt: f64, speed_mps: f64, attitude: &Attitude) {
+        if !(dt > 0.0 && dt.is_finite() && speed_mps.is_finite()) {
+            return;
+        }
+        let forward = attitude.rotation().column(0).into_owned();
+        self.position += forward * (speed_mps * dt);
+        self.travelled_m += speed_mps.abs() * dt;
+    }
+
+    /// The body's pose in the dead-reckoning frame.
+    pub fn body_pose(&self, attitude: &Attitude) -> Pose {
+        Pose { rotation: *attitude.rotation(), translation: self.position }
+    }
+
+    /// The pose of a camera mounted at `position` (body frame, m) with rotation
+    /// `camera_to_body`: what the pipeline anchors in place of a VO pose.
+    pub fn camera_pose(&self, attitude: &Attitude, camera_to_body: &Matrix3<f64>, position: &Vector3<f64>) -> Pose {
+        let r = attitude.rotation();
+        Pose { rotation: r * camera_to_body, translation: self.position + r * position }
+    }
+
+    /// Distance travelled, m.
+    pub fn travelled_m(&self) -> f64 {
+        self.travelled_m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::imu::attitude::motion_acceleration;
+    use crate::imu::GRAVITY;
+
+    #[test]
+    fn a_quarter_circle_at_constant_speed_ends_where_geometry_says() {
+        let (speed, rate, dt) = (10.0, 0.1, 0.01);
+        let mut attitude = Attitude::default();
+        let mut dr = DeadReckoning::default();
+        let gyro = Vector3::new(0.0, 0.0, rate);
+        let force = Vector3::new(0.0, speed * rate, GRAVITY);
+        attitude.update(dt, &gyro, &force, &motion_acceleration(speed, 0.0, &gyro));
+        let steps = (core::f64::consts::FRAC_PI_2 / rate / dt) as usize;
+        for _ in 0..steps {
+            attitude.update(dt, &gyro, &force, &motion_acceleration(speed, 0.0, &gyro));
+            dr.advance(dt, speed, &attitude);
+        }
+        // A quarter of a circle of radius 100 m, from east to north.
+        let p = dr.body_pose(&attitude).translation;
+        assert!((p.x - 100.0).abs() < 0.6 && (p.y - 100.0).abs() < 0.6 && p.z.abs() < 1e-9, "{p:?}");
+        assert!((dr.travelled_m() - steps as f64 * dt * speed).abs() < 1e-9);
+        let camera = dr.camera_pose(&attitude, &Matrix3::identity(), &Vector3::new(1.8, 0.0, 1.3));
+        assert!((camera.translation - (p + Vector3::new(-0.0, 1.8, 1.3))).norm() < 0.02, "{:?}", camera.translation);
+    }
+}

@@ -1,0 +1,263 @@
+//! The IMU stage: each sample checked, preintegrated into the log, and — once its gravity
+//! says its units and axes are as configured — into the attitude, the gyro's bias, the
+//! impact trigger and, where the relative motion is gyro + wheels
+//! ([`RelativeMotion::ImuWheels`]), the dead reckoning whose poses are anchored in place of
+//! a VO's ([`crate::imu`]).
+
+use embedded_io::Write;
+use nalgebra::{Matrix3, Vector3};
+
+use super::issues::Issue;
+use super::{quantise, PipelineConfig, PipelineError, RelativeMotion, State};
+use crate::binlog::{ImuDelta, ImuEstimate, Record};
+use crate::decimal::Decimal;
+use crate::imu::attitude::{motion_acceleration, Attitude};
+use crate::imu::bias::GyroBias;
+use crate::imu::dead_reckoning::DeadReckoning;
+use crate::imu::impact::Impact;
+use crate::imu::preintegrate::Preintegrator;
+use crate::imu::{check, ImuSample, UnitCheck, UnitVerdict, GRAVITY};
+use crate::sim3::Pose;
+use crate::time::{Duration, Timestamp};
+
+/// A gap between samples longer than this (s) is not integrated across.
+const MAX_SAMPLE_GAP_S: f64 = 0.5;
+/// A wheel speed older than this (s) is not used.
+const MAX_SPEED_AGE_S: f64 = 0.5;
+/// Time constant of the wheel speed's low-passed derivative, s.
+const SPEED_DERIVATIVE_TAU_S: f64 = 0.2;
+/// A gyro whose rate is this many times the course's is not in rad/s.
+const MAX_GYRO_SCALE: f64 = 3.0;
+/// The VO session number of dead-reckoned poses.
+pub const DEAD_RECKONING_SESSION: u32 = 0;
+
+/// The IMU's settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImuConfig {
+    /// The sensor's axes on the camera.
+    pub mount: crate::imu::ImuMount,
+    /// Specific force past gravity and motion that is an impact, m/s².
+    pub impact_threshold_mps2: f64,
+    /// The log's preintegrated interval.
+    pub delta_interval: Duration,
+    /// How often the estimate (tilt, bias) is written.
+    pub estimate_interval: Duration,
+    /// How often a dead-reckoned pose is anchored (gyro + wheels as the relative motion).
+    pub pose_interval: Duration,
+}
+
+impl Default for ImuConfig {
+    fn default() -> Self {
+        ImuConfig {
+            mount: crate::imu::ImuMount::default(),
+            impact_threshold_mps2: crate::imu::impact::DEFAULT_THRESHOLD_MPS2,
+            delta_interval: Duration::from_millis(100),
+            estimate_interval: Duration::from_millis(1000),
+            pose_interval: Duration::from_millis(50),
+        }
+    }
+}
+
+/// What the IMU stage keeps between samples.
+#[derive(Debug)]
+pub(super) struct Inertial {
+    /// Sensor → body rotation.
+    sensor_to_body: Matrix3<f64>,
+    last: Option<Timestamp>,
+    units: UnitCheck,
+    /// Why the stream is refused, once it is.
+    refused: Option<Issue>,
+    preintegrator: Preintegrator,
+    attitude: Attitude,
+    pub(super) bias: GyroBias,
+    impact: Impact,
+    dead_reckoning: DeadReckoning,
+    frame: u64,
+    last_pose: Option<Timestamp>,
+    last_estimate: Option<Timestamp>,
+    /// The latest wheel speed (time, m/s) and its low-passed derivative, m/s².
+    speed: Option<(Timestamp, f64)>,
+    acceleration: f64,
+}
+
+impl Inertial {
+    pub(super) fn new(config: &PipelineConfig<'_>) -> Self {
+        Inertial {
+            sensor_to_body: config.mount.rotation() * config.imu.mount.rotation(),
+            last: None,
+            units: UnitCheck::default(),
+            refused: None,
+            preintegrator: Preintegrator::default(),
+            attitude: Attitude::default(),
+            bias: GyroBias::default(),
+            impact: Impact::default(),
+            dead_reckoning: DeadReckoning::default(),
+            frame: 0,
+            last_pose: None,
+            last_estimate: None,
+            speed: None,
+            acceleration: 0.0,
+        }
+    }
+
+    /// A wheel speed sample: kept, with its derivative, for the motion the IMU sees.
+    pub(super) fn on_speed(&mut self, t: Timestamp, mps: f64) {
+        if let Some((t0, v0)) = self.speed {
+            let dt = (t - t0).as_secs_f64();
+            if dt <= 0.0 {
+                return;
+            }
+            if dt < MAX_SPEED_AGE_S {
+                let gain = 1.0 - libm::exp(-dt / SPEED_DERIVATIVE_TAU_S);
+                self.acceleration += ((mps - v0) / dt - self.acceleration) * gain;
+            } else {
+                self.acceleration = 0.0;
+            }
+        }
+        self.speed = Some((t, mps));
+    }
+
+    fn speed_at(&self, t: Timestamp) -> Option<f64> {
+        self.speed.filter(|(ts, _)| (t - *ts).as_secs_f64() < MAX_SPEED_AGE_S).map(|(_, v)| v)
+    }
+
+    /// The body's up in body axes (the attitude's, or the body's z before it has one).
+    pub(super) fn up(&self) -> Vector3<f64> {
+        self.attitude.rotation().transpose() * Vector3::z()
+    }
+
+    /// The body's pitch and roll from gravity, once levelled.
+    pub fn pitch_roll(&self) -> Option<[f64; 2]> {
+        self.attitude.is_initialised().then(|| self.attitude.pitch_roll())
+    }
+}
+
+impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, T3, T2, BUF> {
+    pub(super) fn on_imu(&mut self, t: Timestamp, sample: &ImuSample) -> Result<(), PipelineError<W::Error>> {
+        if check(sample).is_err() {
+            return self.log.issue(t, Issue::ImuRefused, 1);
+        }
+        let imu = &mut self.inertial;
+        if imu.last.is_some_and(|last| t <= last) {
+            return self.log.issue(t, Issue::ImuOutOfOrder, 1);
+        }
+        let dt = imu.last.map_or(0.0, |last| (t - last).as_secs_f64());
+        let dt = if dt > MAX_SAMPLE_GAP_S { 0.0 } else { dt };
+        imu.last = Some(t);
+        if let Some(issue) = imu.refused {
+            return self.log.issue(t, issue, 1);
+        }
+        self.log.stats.imu_samples = self.log.stats.imu_samples.saturating_add(1);
+        let (gyro, force) = (Vector3::from(sample.gyro), Vector3::from(sample.accel));
+        imu.preintegrator.push(dt, &gyro, &force);
+        if imu.preintegrator.elapsed() >= self.config.imu.delta_interval.as_secs_f64() {
+            let d = imu.preintegrator.take();
+            self.log.write(&Record::ImuDelta(ImuDelta {
+                t_us: self.log.time(t),
+                dt_us: quantise(d.dt, 1e-6),
+                dtheta_x_e6: quantise(d.dtheta.x, 1e-6),
+                dtheta_y_e6: quantise(d.dtheta.y, 1e-6),
+                dtheta_z_e6: quantise(d.dtheta.z, 1e-6),
+                dv_x_mm_s: quantise(d.dv.x, 1e-3),
+                dv_y_mm_s: quantise(d.dv.y, 1e-3),
+                dv_z_mm_s: quantise(d.dv.z, 1e-3),
+                samples: i64::from(d.samples),
+            }))?;
+        }
+        let imu = &mut self.inertial;
+        let gyro = imu.sensor_to_body * gyro;
+        let force = imu.sensor_to_body * force;
+        match imu.units.push(&gyro, &force) {
+            UnitVerdict::Undecided => return Ok(()),
+            UnitVerdict::Consistent => {}
+            UnitVerdict::InG => {
+                imu.refused = Some(Issue::ImuUnits);
+                return self.log.event(
+                    t,
+                    4,
+                    format_args!("IMU refused: its specific force at rest is about 1, not 9.8 m/s² (given in g?)"),
+                );
+            }
+            UnitVerdict::AxesOff(tilt) => {
+                imu.refused = Some(Issue::ImuAxes);
+                return self.log.event(
+                    t,
+                    4,
+                    format_args!(
+                        "IMU refused: gravity is {}° off the body's up (its axes or its mount are not as configured)",
+                        Decimal::new(tilt.to_degrees(), 1)
+                    ),
+                );
+            }
+        }
+        let speed = imu.speed_at(t);
+        let up = imu.up();
+        imu.bias.push(dt, &gyro, &up, speed);
+        if let Some(scale) = imu.bias.scale().filter(|s| !(1.0 / MAX_GYRO_SCALE..MAX_GYRO_SCALE).contains(s)) {
+            imu.refused = Some(Issue::ImuUnits);
+            return self.log.event(
+                t,
+                4,
+                format_args!(
+                    "IMU refused: the gyro turns {} times as fast as the GNSS course (rates in °/s, or the wrong axis?)",
+                    Decimal::new(scale, 1)
+                ),
+            );
+        }
+        let rate = gyro - imu.bias.bias();
+        let motion = motion_acceleration(speed.unwrap_or(0.0), imu.acceleration, &rate);
+        imu.attitude.update(dt, &rate, &force, &motion);
+        let unexplained = force - motion - imu.up() * GRAVITY;
+        if let Some(g) = imu.impact.push(dt, &unexplained, self.config.imu.impact_threshold_mps2) {
+            self.log.stats.impacts = self.log.stats.impacts.saturating_add(1);
+            self.log.event(t, 3, format_args!("impact: {} g past gravity and motion", Decimal::new(g / GRAVITY, 2)))?;
+        }
+        self.estimate_due(t)?;
+        if self.config.relative_motion == RelativeMotion::ImuWheels {
+            self.dead_reckon(t, dt, speed)?;
+        }
+        Ok(())
+    }
+
+    /// The tilt and bias as a record, once per `estimate_interval`.
+    fn estimate_due(&mut self, t: Timestamp) -> Result<(), PipelineError<W::Error>> {
+        let imu = &mut self.inertial;
+        if imu.last_estimate.is_some_and(|last| t - last < self.config.imu.estimate_interval) {
+            return Ok(());
+        }
+        let Some([pitch, roll]) = imu.pitch_roll() else { return Ok(()) };
+        imu.last_estimate = Some(t);
+        let b = imu.bias.bias();
+        let (standstills, courses) = imu.bias.evidence();
+        let record = ImuEstimate {
+            t_us: self.log.time(t),
+            pitch_e6: quantise(pitch, 1e-6),
+            roll_e6: quantise(roll, 1e-6),
+            bias_x_e7: quantise(b.x, 1e-7),
+            bias_y_e7: quantise(b.y, 1e-7),
+            bias_z_e7: quantise(b.z, 1e-7),
+            bias_sigma_e7: quantise(imu.bias.sigma(), 1e-7),
+            standstills: i64::from(standstills),
+            courses: i64::from(courses),
+        };
+        self.log.write(&Record::ImuEstimate(record))
+    }
+
+    /// Gyro + wheels: the body moved along its forward axis; a camera pose anchored in
+    /// place of a VO pose every `pose_interval`.
+    fn dead_reckon(&mut self, t: Timestamp, dt: f64, speed: Option<f64>) -> Result<(), PipelineError<W::Error>> {
+        let imu = &mut self.inertial;
+        let Some(speed) = speed else { return Ok(()) };
+        imu.dead_reckoning.advance(dt, speed, &imu.attitude);
+        if imu.last_pose.is_some_and(|last| t - last < self.config.imu.pose_interval) {
+            return Ok(());
+        }
+        imu.last_pose = Some(t);
+        let mount = self.config.mount;
+        let pose: Pose =
+            imu.dead_reckoning.camera_pose(&imu.attitude, &mount.rotation(), &Vector3::from(mount.position));
+        let frame = imu.frame;
+        imu.frame = imu.frame.saturating_add(1);
+        self.on_vo(t, frame, DEAD_RECKONING_SESSION, &pose)
+    }
+}
