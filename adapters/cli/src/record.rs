@@ -4,7 +4,8 @@ use std::io::IsTerminal as _;
 use std::path::PathBuf;
 
 use clap::Args;
-use dash2sim_core::pipeline::Issue;
+use dash2sim_core::imu::ImuMount;
+use dash2sim_core::pipeline::{Issue, RelativeMotion};
 use dash2sim_linux::record::live::LiveStatus;
 use dash2sim_linux::record::{self, Device, RecordRequest, Sources, SpeedMessage, VoFrame};
 use dash2sim_linux::{Error, Result};
@@ -29,11 +30,22 @@ pub struct SourcesArgs {
     /// 2D detections, MOTChallenge CSV (frames numbered as the VO poses).
     #[arg(long)]
     pub detections2d: Option<PathBuf>,
+    /// IMU samples: CSV `t_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z` (device seconds,
+    /// rad/s, m/s² on the sensor's axes; docs/imu.md).
+    #[arg(long)]
+    pub imu: Option<PathBuf>,
 }
 
 impl From<SourcesArgs> for Sources {
     fn from(a: SourcesArgs) -> Self {
-        Sources { vo: a.vo, nmea: a.nmea, can: a.can, detections: a.detections, detections2d: a.detections2d }
+        Sources {
+            vo: a.vo,
+            nmea: a.nmea,
+            can: a.can,
+            detections: a.detections,
+            detections2d: a.detections2d,
+            imu: a.imu,
+        }
     }
 }
 
@@ -170,11 +182,49 @@ pub struct DeviceArgs {
     /// 1-σ GNSS error model: UERE, m (σ = HDOP × UERE unless the receiver sends GST).
     #[arg(long, default_value_t = record::DEFAULT_UERE_M)]
     pub uere: f64,
+    /// The IMU's axes on the camera: `ROLL,PITCH,YAW` (rad, sensor → camera).
+    #[arg(long, default_value = "0,0,0", value_parser = parse_imu_mount)]
+    pub imu_mount: ImuMount,
+    /// Where the relative motion comes from: the camera's VO, or gyro + wheels dead
+    /// reckoning (`imu-wheels`: a dashcam without VO; needs --imu and a vehicle speed).
+    #[arg(long, value_enum, default_value = "vo")]
+    pub relative_motion: Motion,
+}
+
+/// `--relative-motion`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Motion {
+    /// The camera's VO poses.
+    Vo,
+    /// Gyro + wheels dead reckoning.
+    ImuWheels,
+}
+
+/// `--imu-mount ROLL,PITCH,YAW`.
+fn parse_imu_mount(text: &str) -> std::result::Result<ImuMount, String> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
+        .collect::<Option<_>>()
+        .ok_or_else(|| format!("{text:?}: expected ROLL,PITCH,YAW numbers (rad)"))?;
+    match v[..] {
+        [r, p, y] => Ok(ImuMount { roll_pitch_yaw: [r, p, y] }),
+        _ => Err(format!("{text:?}: expected 3 numbers, ROLL,PITCH,YAW (rad)")),
+    }
 }
 
 impl From<DeviceArgs> for Device {
     fn from(a: DeviceArgs) -> Self {
-        Device { mount: a.mount, mode: a.mode, uere: a.uere }
+        Device {
+            mount: a.mount,
+            mode: a.mode,
+            uere: a.uere,
+            imu_mount: a.imu_mount,
+            relative_motion: match a.relative_motion {
+                Motion::Vo => RelativeMotion::Vo,
+                Motion::ImuWheels => RelativeMotion::ImuWheels,
+            },
+        }
     }
 }
 

@@ -89,7 +89,7 @@ fn finish(
         "full" => VoFrame::Full,
         other => return Err(error(format!("mode {other:?}: give \"gravity\" or \"full\""))),
     };
-    let device = Device { mount, mode, uere };
+    let device = Device { mount, mode, uere, ..Device::default() };
     let args = FinishRequest { log, output, anchors, map, device, keyframe, require_signed };
     py.detach(|| {
         let finished = dash2sim_linux::finish::finish_file(&args)?;

@@ -9,6 +9,13 @@
 //! specific force's magnitude says something unexplained is going on (a pothole, braking
 //! the wheels did not see). The correction is perpendicular to up, so it never touches the
 //! heading: yaw is the gyro's alone (the anchorer finds where it points).
+//!
+//! A gyro bias about a horizontal axis tilts the attitude steadily, and a proportional
+//! pull alone would leave it tilted by bias × time constant (0.035 rad/s × 2 s = 4° on
+//! comma's EON). The correction is therefore also integrated into an estimate of that
+//! bias (Mahony, Hamel and Pflimlin's complementary filter on SO(3), 2008), with a time
+//! constant of [`TILT_BIAS_TIME_CONSTANT_S`]: the horizontal bias is gravity's to find, the
+//! vertical one is the course's ([`super::bias`]).
 
 use nalgebra::{Matrix3, Vector3};
 
@@ -16,6 +23,14 @@ use super::{so3, GRAVITY};
 
 /// Time constant with which the tilt follows gravity, s.
 pub const TILT_TIME_CONSTANT_S: f64 = 2.0;
+/// For this long after it is levelled (s), the tilt follows gravity faster
+/// ([`SETTLING_TIME_CONSTANT_S`]) and no bias is integrated: the first level is taken from
+/// one sample, whatever the car was doing then.
+pub const SETTLING_S: f64 = 5.0;
+/// The tilt's time constant while settling, s.
+pub const SETTLING_TIME_CONSTANT_S: f64 = 0.5;
+/// Time constant with which the horizontal gyro bias follows the tilt correction, s.
+pub const TILT_BIAS_TIME_CONSTANT_S: f64 = 10.0;
 /// A sample whose compensated specific force is this far from 1 g (m/s²) does not correct.
 const MAX_FORCE_ERROR: f64 = 2.0;
 /// Updates between renormalisations of the rotation.
@@ -25,13 +40,23 @@ const RENORMALISE_EVERY: u32 = 256;
 #[derive(Clone, Copy, Debug)]
 pub struct Attitude {
     rotation: Matrix3<f64>,
+    /// The gyro's bias about the horizontal axes the tilt correction has found (body axes).
+    tilt_bias: Vector3<f64>,
     initialised: bool,
+    /// Time since it was levelled, s (counted up to [`SETTLING_S`]).
+    age_s: f64,
     updates: u32,
 }
 
 impl Default for Attitude {
     fn default() -> Self {
-        Attitude { rotation: Matrix3::identity(), initialised: false, updates: 0 }
+        Attitude {
+            rotation: Matrix3::identity(),
+            tilt_bias: Vector3::zeros(),
+            initialised: false,
+            age_s: 0.0,
+            updates: 0,
+        }
     }
 }
 
@@ -45,6 +70,17 @@ impl Attitude {
     /// The attitude so far (body → level frame).
     pub fn rotation(&self) -> &Matrix3<f64> {
         &self.rotation
+    }
+
+    /// The gyro's bias about the horizontal axes, as the tilt correction found it (body
+    /// axes, rad/s).
+    pub fn tilt_bias(&self) -> &Vector3<f64> {
+        &self.tilt_bias
+    }
+
+    /// Forget the horizontal bias (another estimate, a standstill's, has all of it).
+    pub fn reset_tilt_bias(&mut self) {
+        self.tilt_bias = Vector3::zeros();
     }
 
     /// Whether a first sample has levelled it.
@@ -70,15 +106,26 @@ impl Attitude {
             }
             return;
         }
-        if dt > 0.0 && dt.is_finite() {
-            self.rotation *= so3::exp(&(gyro * dt));
+        if !(dt > 0.0 && dt.is_finite()) {
+            return;
         }
+        self.rotation *= so3::exp(&((gyro - self.tilt_bias) * dt));
+        let settling = self.age_s < SETTLING_S;
+        self.age_s = (self.age_s + dt).min(SETTLING_S);
         let error = (magnitude - GRAVITY).abs();
         if error < MAX_FORCE_ERROR && magnitude > 0.0 {
             let measured_up = gravity / magnitude;
             let predicted_up = self.rotation.transpose() * Vector3::z();
-            let gain = (dt / TILT_TIME_CONSTANT_S).clamp(0.0, 1.0) * (1.0 - error / MAX_FORCE_ERROR);
-            self.rotation *= so3::exp(&(measured_up.cross(&predicted_up) * gain));
+            let trust = 1.0 - error / MAX_FORCE_ERROR;
+            let tau = if settling { SETTLING_TIME_CONSTANT_S } else { TILT_TIME_CONSTANT_S };
+            let gain = (dt / tau).clamp(0.0, 1.0) * trust;
+            let tilt_error = measured_up.cross(&predicted_up);
+            self.rotation *= so3::exp(&(tilt_error * gain));
+            if !settling {
+                // Steady state: (bias − estimate) = kP·e, so the estimate moves by kI·e.
+                let integral = dt * trust / (TILT_TIME_CONSTANT_S * TILT_BIAS_TIME_CONSTANT_S);
+                self.tilt_bias -= tilt_error * integral;
+            }
         }
         self.updates += 1;
         if self.updates % RENORMALISE_EVERY == 0 {
@@ -147,13 +194,28 @@ mod tests {
     }
 
     #[test]
+    fn a_horizontal_gyro_bias_is_found_and_no_longer_tilts_the_car() {
+        let bias = Vector3::new(0.01, -0.035, 0.0);
+        let mut with = Attitude::default();
+        for _ in 0..12_000 {
+            with.update(0.01, &bias, &force_at(0.0, 0.0), &Vector3::zeros());
+        }
+        assert!((with.tilt_bias() - bias).norm() < 1e-4, "{:?}", with.tilt_bias());
+        let [p, r] = with.pitch_roll();
+        assert!(p.abs() < 1e-4 && r.abs() < 1e-4, "{p} {r}");
+        with.reset_tilt_bias();
+        assert_eq!(with.tilt_bias(), &Vector3::zeros());
+    }
+
+    #[test]
     fn a_wrong_start_is_pulled_to_gravity_within_a_few_time_constants() {
         let mut a = Attitude::default();
         a.update(0.01, &Vector3::zeros(), &force_at(0.2, 0.0), &Vector3::zeros());
-        for _ in 0..1000 {
+        for _ in 0..6000 {
             a.update(0.01, &Vector3::zeros(), &force_at(0.0, 0.0), &Vector3::zeros());
         }
-        // 10 s = 5 time constants: e^-5 of 0.2 rad.
+        // The bias integrator takes part of the start for a bias and gives it back over its
+        // own time constant: after a minute, under 1 % of 0.2 rad is left.
         assert!(a.pitch_roll()[0].abs() < 0.2 * 0.01, "{:?}", a.pitch_roll());
     }
 }

@@ -32,8 +32,13 @@ const RANDOM_WALK_RAD_S_PER_SQRT_S: f64 = 1e-4;
 const GATE_SIGMA: f64 = 5.0;
 /// Course intervals compared: between 0.05 s and this, s.
 const MAX_COURSE_INTERVAL_S: f64 = 3.0;
-/// Σ (course rate² · Δt) from which the scale is judged, rad²/s.
-const SCALE_EVIDENCE: f64 = 0.02;
+/// Σ (course rate² · Δt) from which the scale is judged, rad²/s (a turn at 0.1 rad/s for
+/// five seconds).
+const SCALE_EVIDENCE: f64 = 0.05;
+/// The scale compares turns over at least this long, s (the course's noise over 0.1 s
+/// would swamp it).
+const SCALE_INTERVAL_S: f64 = 1.0;
+
 
 /// The estimator's state.
 #[derive(Clone, Copy, Debug)]
@@ -49,9 +54,12 @@ pub struct GyroBias {
     turned: f64,
     turned_s: f64,
     last_course: Option<(f64, f64)>,
-    /// Course rate against gyro rate: Σxy, Σxx (for the scale).
-    sxy: f64,
-    sxx: f64,
+    /// The scale's longer interval: its start (time, course) and the gyro's turn since.
+    scale_start: Option<(f64, f64)>,
+    scale_turned: f64,
+    /// The gyro's raw rate y against the course's x over the scale's intervals, weighted by
+    /// their length: Σw, Σx, Σy, Σxy, Σxx (a line with an intercept: the bias is unknown).
+    sums: [f64; 5],
     standstills: u32,
     courses: u32,
 }
@@ -67,8 +75,9 @@ impl Default for GyroBias {
             turned: 0.0,
             turned_s: 0.0,
             last_course: None,
-            sxy: 0.0,
-            sxx: 0.0,
+            scale_start: None,
+            scale_turned: 0.0,
+            sums: [0.0; 5],
             standstills: 0,
             courses: 0,
         }
@@ -94,7 +103,9 @@ impl GyroBias {
     /// The gyro's rate over the course's (1 for a gyro in rad/s), once the drive has
     /// turned enough to tell.
     pub fn scale(&self) -> Option<f64> {
-        (self.sxx >= SCALE_EVIDENCE).then(|| self.sxy / self.sxx)
+        let [w, x, y, xy, xx] = self.sums;
+        let spread = xx - x * x / w;
+        (w > 0.0 && spread >= SCALE_EVIDENCE).then(|| (xy - x * y / w) / spread)
     }
 
     /// One raw gyro sample (body axes, rad/s) over `dt` s, with the body's up (body axes)
@@ -106,6 +117,7 @@ impl GyroBias {
         self.variance += RANDOM_WALK_RAD_S_PER_SQRT_S * RANDOM_WALK_RAD_S_PER_SQRT_S * dt;
         self.turned += gyro.dot(up) * dt;
         self.turned_s += dt;
+        self.scale_turned += gyro.dot(up) * dt;
         if speed_mps.is_some_and(|v| v.abs() < STANDSTILL_MPS) {
             self.standstill_s += dt;
             self.standstill_sum += gyro;
@@ -138,8 +150,10 @@ impl GyroBias {
         self.turned_s = 0.0;
         if !fast {
             self.last_course = None;
+            self.scale_start = None;
             return;
         }
+        self.compare_scale(t, course_rad);
         let Some((t0, c0)) = previous else { return };
         let dt = t - t0;
         if !(0.05..=MAX_COURSE_INTERVAL_S).contains(&dt) || turned_s <= 0.0 {
@@ -151,8 +165,6 @@ impl GyroBias {
         let measured = gyro_rate - course_rate;
         let noise = core::f64::consts::SQRT_2 * COURSE_VELOCITY_SIGMA_MPS / speed_mps / dt;
         let current = self.bias.dot(up);
-        self.sxy += course_rate * (gyro_rate - current) * dt;
-        self.sxx += course_rate * course_rate * dt;
         let innovation = measured - current;
         let s = self.variance + noise * noise;
         if innovation * innovation > GATE_SIGMA * GATE_SIGMA * s {
@@ -162,6 +174,33 @@ impl GyroBias {
         self.bias += up * (gain * innovation);
         self.variance *= 1.0 - gain;
         self.courses = self.courses.saturating_add(1);
+    }
+}
+
+impl GyroBias {
+    /// The gyro's turn (bias removed) against the course's over [`SCALE_INTERVAL_S`].
+    fn compare_scale(&mut self, t: f64, course_rad: f64) {
+        let Some((t0, c0)) = self.scale_start else {
+            self.scale_start = Some((t, course_rad));
+            self.scale_turned = 0.0;
+            return;
+        };
+        let dt = t - t0;
+        if dt < SCALE_INTERVAL_S {
+            return;
+        }
+        let course_rate = -wrap(course_rad - c0) / dt;
+        if dt <= 2.0 * MAX_COURSE_INTERVAL_S {
+            let gyro_rate = self.scale_turned / dt;
+            let [w, x, y, xy, xx] = &mut self.sums;
+            *w += dt;
+            *x += course_rate * dt;
+            *y += gyro_rate * dt;
+            *xy += course_rate * gyro_rate * dt;
+            *xx += course_rate * course_rate * dt;
+        }
+        self.scale_start = Some((t, course_rad));
+        self.scale_turned = 0.0;
     }
 }
 

@@ -126,6 +126,11 @@ impl Inertial {
         self.attitude.rotation().transpose() * Vector3::z()
     }
 
+    /// The gyro's bias, every axis: the course's (or a standstill's) and the tilt's.
+    pub(super) fn gyro_bias(&self) -> Vector3<f64> {
+        self.bias.bias() + self.attitude.tilt_bias()
+    }
+
     /// The body's pitch and roll from gravity, once levelled.
     pub fn pitch_roll(&self) -> Option<[f64; 2]> {
         self.attitude.is_initialised().then(|| self.attitude.pitch_roll())
@@ -192,7 +197,12 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         }
         let speed = imu.speed_at(t);
         let up = imu.up();
+        let standstills = imu.bias.evidence().0;
         imu.bias.push(dt, &gyro, &up, speed);
+        if imu.bias.evidence().0 != standstills {
+            // The standstill's mean has the bias about every axis.
+            imu.attitude.reset_tilt_bias();
+        }
         if let Some(scale) = imu.bias.scale().filter(|s| !(1.0 / MAX_GYRO_SCALE..MAX_GYRO_SCALE).contains(s)) {
             imu.refused = Some(Issue::ImuUnits);
             return self.log.event(
@@ -205,7 +215,8 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             );
         }
         let rate = gyro - imu.bias.bias();
-        let motion = motion_acceleration(speed.unwrap_or(0.0), imu.acceleration, &rate);
+        let motion =
+            motion_acceleration(speed.unwrap_or(0.0), imu.acceleration, &(rate - imu.attitude.tilt_bias()));
         imu.attitude.update(dt, &rate, &force, &motion);
         let unexplained = force - motion - imu.up() * GRAVITY;
         if let Some(g) = imu.impact.push(dt, &unexplained, self.config.imu.impact_threshold_mps2) {
@@ -227,7 +238,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         }
         let Some([pitch, roll]) = imu.pitch_roll() else { return Ok(()) };
         imu.last_estimate = Some(t);
-        let b = imu.bias.bias();
+        let b = imu.bias.bias() + imu.attitude.tilt_bias();
         let (standstills, courses) = imu.bias.evidence();
         let record = ImuEstimate {
             t_us: self.log.time(t),

@@ -481,8 +481,8 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
 
     /// The gyro's bias as estimated so far (body axes, rad/s) and its σ about the vertical.
     pub fn gyro_bias(&self) -> (Vector3<f64>, f64) {
-        let b = &self.state.inertial.bias;
-        (*b.bias(), b.sigma())
+        let imu = &self.state.inertial;
+        (imu.gyro_bias(), imu.bias.sigma())
     }
 
     /// The camera mount as calibrated so far.

@@ -12,8 +12,9 @@
 //! | 3 VO pose | frame u64, position 3 × f64, rotation 9 × f64 (row-major, camera → VO), VO session u32 (absent in older streams: 0) |
 //! | 4 3D detections | frame u64, then per detection: class u16, score f32, x y z yaw l w h f32 (camera frame), covariance xx xy yy f32 (all zero: none) |
 //! | 5 2D detections | frame u64, then per detection: class u16, score f32, left top width height f32 |
+//! | 6 IMU sample | gyro x y z f32 (rad/s), specific force x y z f32 (m/s²), the sensor's axes |
 //!
-//! Detections are `f32` on purpose: the stream is what a camera process sends, and half
+//! Detections and IMU samples are `f32` on purpose: the stream is what a camera process sends, and half
 //! the bytes let a 20 s drive fit a microcontroller's flash. The reader never panics; a
 //! malformed entry ends the stream with [`ReplayError`].
 
@@ -26,6 +27,7 @@ use crate::box2d::Box2d;
 use crate::box3d::Box3d;
 use crate::can::frame::{id_from_raw, raw_id};
 use crate::can::CanFrame;
+use crate::imu::ImuSample;
 use crate::sim3::Pose;
 use crate::time::Timestamp;
 use crate::track2d::Detection;
@@ -39,6 +41,8 @@ pub const ENTRY_HEAD: usize = 1 + 8 + 2;
 pub const DETECTION3D_LEN: usize = 2 + 4 + 7 * 4 + 3 * 4;
 /// Bytes of one 2D detection.
 pub const DETECTION2D_LEN: usize = 2 + 4 + 4 * 4;
+/// Bytes of an IMU entry's payload.
+pub const IMU_LEN: usize = 6 * 4;
 /// Bytes of a VO entry's payload.
 pub const VO_LEN: usize = 8 + 12 * 8 + 4;
 /// Bytes of a VO entry's payload in streams written before the session was added.
@@ -58,6 +62,8 @@ pub enum EntryKind {
     Detections3d = 4,
     /// 2D detections of a frame.
     Detections2d = 5,
+    /// An IMU sample.
+    Imu = 6,
 }
 
 /// One input.
@@ -73,6 +79,8 @@ pub enum Input<'a> {
     Detections3d(u64, &'a [u8]),
     /// 2D detections of a frame (decode with [`detections2d`]).
     Detections2d(u64, &'a [u8]),
+    /// An IMU sample.
+    Imu(ImuSample),
 }
 
 /// Why the stream could not be read on.
@@ -163,6 +171,7 @@ impl<'a> Reader<'a> {
             5 => u64_at(payload, 0)
                 .filter(|_| (len - 8) % DETECTION2D_LEN == 0)
                 .map(|frame| Input::Detections2d(frame, &payload[8..])),
+            6 => imu(payload).map(Input::Imu),
             _ => None,
         };
         Some(match input {
@@ -181,6 +190,14 @@ fn can_frame(p: &[u8]) -> Option<CanFrame> {
     let data = p.get(5..5 + dlc).filter(|d| d.len() + 5 == p.len())?;
     let id = id_from_raw(raw & 0x1FFF_FFFF, raw & 0x8000_0000 != 0)?;
     CanFrame::data_frame(id, data)
+}
+
+fn imu(p: &[u8]) -> Option<ImuSample> {
+    if p.len() != IMU_LEN {
+        return None;
+    }
+    let v = |k: usize| f32_at(p, 4 * k);
+    Some(ImuSample { gyro: [v(0)?, v(1)?, v(2)?], accel: [v(3)?, v(4)?, v(5)?] })
 }
 
 fn vo(p: &[u8]) -> Option<(u64, u32, Pose)> {
@@ -252,6 +269,7 @@ pub fn feed<W: Write, const T3: usize, const T2: usize, const BUF: usize>(
         Input::Serial(bytes) => pipeline.push_serial(t, bytes),
         Input::Can(frame) => pipeline.push_can(t, frame),
         Input::Vo(frame, session, pose) => pipeline.push_vo(t, *frame, *session, pose),
+        Input::Imu(sample) => pipeline.push_imu(t, sample),
         Input::Detections3d(frame, bytes) => {
             let mut out: heapless::Vec<Detection3d, T3> = heapless::Vec::new();
             // Beyond T3 the pipeline would count them as refused; so do we.
@@ -321,6 +339,15 @@ impl<W: Write> Recorder<W> {
         }
         p[VO_LEN_WITHOUT_SESSION..].copy_from_slice(&session.to_le_bytes());
         self.entry(EntryKind::Vo, t, &[&p])
+    }
+
+    /// An IMU sample (stored as `f32`: a MEMS sensor's 16-bit counts fit exactly).
+    pub fn imu(&mut self, t: Timestamp, sample: &ImuSample) -> Result<(), W::Error> {
+        let mut p = [0u8; IMU_LEN];
+        for (k, v) in sample.gyro.iter().chain(&sample.accel).enumerate() {
+            p[4 * k..4 * k + 4].copy_from_slice(&(*v as f32).to_le_bytes());
+        }
+        self.entry(EntryKind::Imu, t, &[&p])
     }
 
     /// The 3D detections of a frame (at most 1 400 per entry).

@@ -54,9 +54,9 @@ fn angle(deg: f64, width: usize, hemispheres: [char; 2]) -> (String, char) {
     (format!("{:0width$}{minutes:09.6}", whole as u32), if deg >= 0.0 { hemispheres[0] } else { hemispheres[1] })
 }
 
-/// The u-blox fixes as NMEA.
+/// A receiver's fixes as NMEA.
 #[derive(Debug)]
-pub struct UbloxNmea {
+pub struct ReceiverNmea {
     /// The raw NMEA text, as the receiver sends it.
     pub raw: String,
     /// The same as a serial capture: `(t_boot) sentence` per line.
@@ -68,7 +68,13 @@ pub struct UbloxNmea {
 }
 
 /// comma's u-blox CSV as GGA + RMC sentences (UTC from its millisecond stamps, HDOP 0.9).
-pub fn ublox_nmea(csv: &Path) -> Result<UbloxNmea> {
+pub fn ublox_nmea(csv: &Path) -> Result<ReceiverNmea> {
+    receiver_nmea(csv, 0.9)
+}
+
+/// One of comma's receiver CSVs (`t_boot_s,lat_deg,lon_deg,speed_mps,utc_timestamp_ms,
+/// alt_m,bearing_deg`) as GGA + RMC sentences with this HDOP.
+pub fn receiver_nmea(csv: &Path, hdop: f64) -> Result<ReceiverNmea> {
     let text = std::fs::read_to_string(csv).map_err(|e| Error::file(csv, e))?;
     let (mut raw, mut stamped) = (String::new(), String::new());
     let (mut offset, mut fixes) = (None, 0);
@@ -90,7 +96,7 @@ pub fn ublox_nmea(csv: &Path) -> Result<UbloxNmea> {
         let (lo, ew) = angle(lon, 3, ['E', 'W']);
         // 2018-08-02 (the drive's date), as ddmmyy.
         for sentence in [
-            nmea_line(&format!("GPGGA,{hms},{la},{ns},{lo},{ew},1,10,0.9,{alt:.2},M,0.0,M,,")),
+            nmea_line(&format!("GPGGA,{hms},{la},{ns},{lo},{ew},1,10,{hdop:.1},{alt:.2},M,0.0,M,,")),
             nmea_line(&format!("GPRMC,{hms},A,{la},{ns},{lo},{ew},{:.3},{bearing:.2},020818,,,A", speed / 0.514_444)),
         ] {
             stamped += &format!("({t_boot:.6}) {sentence}");
@@ -99,7 +105,7 @@ pub fn ublox_nmea(csv: &Path) -> Result<UbloxNmea> {
         fixes += 1;
     }
     let offset_s = offset.ok_or_else(|| Error::file(csv, "no fixes"))?;
-    Ok(UbloxNmea { raw, stamped, offset_s, fixes })
+    Ok(ReceiverNmea { raw, stamped, offset_s, fixes })
 }
 
 /// The minute recorded by the on-device pipeline.
@@ -144,7 +150,7 @@ pub fn record_minute(dir: &Path, work: &Path, model: &VoModel, noise_seed: u64) 
         dbc: vec![dir.join("opendbc-toyota/_toyota_2017.dbc")],
         speed_signal: Some("SPEED.SPEED".to_owned()),
         origin: Some(format!("{lat},{lon},{h}")),
-        device: Device { mount: mount(), mode: VoFrame::Full, uere: UERE },
+        device: Device { mount: mount(), mode: VoFrame::Full, uere: UERE, ..Device::default() },
         ..RecordRequest::from_files(&work.join("comma.d2slog"), sources)
     };
     let (recording, _) = record::record_files(&args)?;

@@ -6,6 +6,7 @@
 //! references say.
 
 pub mod comma;
+pub mod comma_imu;
 pub mod css;
 
 use crate::{Error, Result};

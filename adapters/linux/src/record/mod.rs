@@ -18,11 +18,12 @@ use dash2sim_can::SignalTable;
 use dash2sim_core::anchor::{AnchorConfig, AnchorMode};
 use dash2sim_core::can::signal::Signal;
 use dash2sim_core::geo::Geodetic;
+use dash2sim_core::imu::ImuMount;
 use dash2sim_core::map::MapView;
 use dash2sim_core::pipeline::replay::{feed, Input, Reader};
 use dash2sim_core::pipeline::{
-    CameraMount, ClassMeta, FrameId, GnssErrorModel, GnssFrame, GnssSignals, Issue, Issues, Pipeline, PipelineConfig,
-    PipelineStats, SpeedSource, Trackers,
+    CameraMount, ClassMeta, FrameId, GnssErrorModel, GnssFrame, GnssSignals, ImuConfig, Issue, Issues, Pipeline,
+    PipelineConfig, PipelineStats, RelativeMotion, SpeedSource, Trackers,
 };
 
 use crate::ingest::origin::parse_origin;
@@ -44,6 +45,9 @@ pub struct Sources {
     pub detections: Option<PathBuf>,
     /// 2D detections, MOTChallenge CSV (frames numbered as the VO poses).
     pub detections2d: Option<PathBuf>,
+    /// IMU samples: a CSV `t_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z` (device
+    /// seconds, rad/s and m/s² on the sensor's axes; [`sources::IMU_CSV_HEADER`]).
+    pub imu: Option<PathBuf>,
 }
 
 impl Sources {
@@ -55,6 +59,7 @@ impl Sources {
             can: vec![dir.join("speed.can.log")],
             detections: Some(dir.join("detections3d.csv")),
             detections2d: Some(dir.join("det2d.txt")),
+            imu: None,
         }
     }
 }
@@ -188,11 +193,21 @@ pub struct Device {
     pub mode: VoFrame,
     /// 1-σ GNSS error model: UERE, m (σ = HDOP × UERE unless the receiver sends GST).
     pub uere: f64,
+    /// The IMU's axes on the camera (sensor → camera rotation).
+    pub imu_mount: ImuMount,
+    /// Where the relative motion comes from: the camera's VO, or gyro + wheels.
+    pub relative_motion: RelativeMotion,
 }
 
 impl Default for Device {
     fn default() -> Self {
-        Device { mount: DEFAULT_MOUNT.to_owned(), mode: VoFrame::Gravity, uere: DEFAULT_UERE_M }
+        Device {
+            mount: DEFAULT_MOUNT.to_owned(),
+            mode: VoFrame::Gravity,
+            uere: DEFAULT_UERE_M,
+            imu_mount: ImuMount::default(),
+            relative_motion: RelativeMotion::Vo,
+        }
     }
 }
 
@@ -356,6 +371,10 @@ pub struct Setup {
     pub device_id: [u8; 16],
     /// The device's signing key, if the log is signed.
     pub key: Option<SecretKey>,
+    /// The IMU's axes on the camera.
+    pub imu_mount: ImuMount,
+    /// Where the relative motion comes from.
+    pub relative_motion: RelativeMotion,
 }
 
 impl Setup {
@@ -372,6 +391,8 @@ impl Setup {
             speed: self.speed,
             gnss_signals: self.gnss_signals,
             map,
+            imu: ImuConfig { mount: self.imu_mount, ..base.imu },
+            relative_motion: self.relative_motion,
             ..base
         })
     }
@@ -389,6 +410,8 @@ impl Setup {
             map,
             device_id,
             key: None,
+            imu_mount: ImuMount::default(),
+            relative_motion: RelativeMotion::Vo,
         }
     }
 }
@@ -518,9 +541,12 @@ pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts)> 
         }
         inputs.detections2d(p)?;
     }
+    if let Some(p) = &args.imu {
+        inputs.imu(p)?;
+    }
     if inputs.is_empty() {
         return Err(Error::invalid(
-            "nothing to record: give files (--vo, --nmea, --can, --detections, or --replay of a saved input stream) \
+            "nothing to record: give files (--vo, --nmea, --can, --detections, --imu, or --replay of a saved input stream) \
              or live sources (--camera, --serial, --can-iface, --can-replay), with inputs in them",
         ));
     }
@@ -627,6 +653,8 @@ fn setup_from_args(
         map,
         device_id: device_id(&args.device_id)?,
         key: args.key.as_deref().map(SecretKey::read).transpose()?,
+        imu_mount: args.device.imu_mount,
+        relative_motion: args.device.relative_motion,
     })
 }
 

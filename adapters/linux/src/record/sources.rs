@@ -9,6 +9,7 @@
 //! | `--can F.log` | candump `-l` (or any candump dialect with timestamps) | the candump stamp |
 //! | `--detections F.csv` | 3D detections in the camera frame (`detections` CSV) | the `t_s` column |
 //! | `--detections2d F.txt` | MOTChallenge detections (`frame,-1,left,top,w,h,score,…`) | the VO stamp of the frame |
+//! | `--imu F.csv` | IMU samples (`t_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z`) | the `t_s` column |
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -16,6 +17,7 @@ use std::path::Path;
 use dash2sim_can::source::FrameSource;
 use dash2sim_core::box2d::Box2d;
 use dash2sim_core::can::CanFrame;
+use dash2sim_core::imu::ImuSample;
 use dash2sim_core::pipeline::replay::Recorder;
 use dash2sim_core::pipeline::ImageDetection;
 use dash2sim_core::sim3::Pose;
@@ -35,6 +37,7 @@ enum Input {
     Vo(u64, u32, Pose),
     Detections3d(u64, Vec<Detection3d>),
     Detections2d(u64, Vec<ImageDetection>),
+    Imu(ImuSample),
 }
 
 impl Input {
@@ -42,9 +45,10 @@ impl Input {
         match self {
             Input::Can(_) => 0,
             Input::Serial(_) => 1,
-            Input::Vo(..) => 2,
-            Input::Detections3d(..) => 3,
-            Input::Detections2d(..) => 4,
+            Input::Imu(_) => 2,
+            Input::Vo(..) => 3,
+            Input::Detections3d(..) => 4,
+            Input::Detections2d(..) => 5,
         }
     }
 }
@@ -68,6 +72,8 @@ pub struct SourceCounts {
     /// Frames with 2D detections skipped because no other input gives their time (no VO
     /// pose, no 3D detections: the VO had lost track and nothing was seen in 3D).
     pub detection2d_frames_without_time: u64,
+    /// IMU samples.
+    pub imu_samples: u64,
     /// Lines of the captures that could not be read, `FILE: what` (at most ten per file,
     /// then how many more); reading went on after each.
     /// Not in the summary: `record` reports them on stderr as it reads.
@@ -231,6 +237,16 @@ impl Inputs {
         Ok(())
     }
 
+    /// IMU samples ([`read_imu_csv`]).
+    pub fn imu(&mut self, path: &Path) -> Result<()> {
+        for (n, (t, sample)) in read_imu_csv(path)?.into_iter().enumerate() {
+            let t_us = micros(t).ok_or_else(|| Error::line(path, n + 2, out_of_range(t)))?;
+            self.push(t_us, Input::Imu(sample));
+            self.counts.imu_samples += 1;
+        }
+        Ok(())
+    }
+
     /// Nothing was read.
     pub fn is_empty(&self) -> bool {
         self.items.is_empty()
@@ -247,6 +263,7 @@ impl Inputs {
                 Input::Vo(frame, session, pose) => recorder.vo(t, *frame, *session, pose),
                 Input::Detections3d(frame, d) => recorder.detections3d(t, *frame, d),
                 Input::Detections2d(frame, d) => recorder.detections2d(t, *frame, d),
+                Input::Imu(sample) => recorder.imu(t, sample),
             };
             written.map_err(Error::other)?;
         }
@@ -280,6 +297,48 @@ pub fn read_detections2d(path: &Path) -> Result<BTreeMap<u64, Vec<ImageDetection
         frames.entry(frame as u64).or_default().push(ImageDetection { class: 0, detection: Detection { bbox, score } });
     }
     Ok(frames)
+}
+
+/// The header of an IMU CSV.
+pub const IMU_CSV_HEADER: &str = "t_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z";
+
+/// An IMU CSV: `t_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z` — the device time of each
+/// sample (s), the angular rate (rad/s) and the specific force (m/s², 9.81 up at rest) on
+/// the sensor's own axes (`--imu-mount` says how they sit on the camera). Times must go
+/// forward; every value must be a finite number. Units the pipeline can tell are wrong (g,
+/// °/s) or axes that gravity contradicts are refused there, counted and logged.
+pub fn read_imu_csv(path: &Path) -> Result<Vec<(f64, ImuSample)>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
+    match lines.next() {
+        Some((_, header)) if header.trim() == IMU_CSV_HEADER => {}
+        Some((n, header)) => {
+            return Err(Error::line(path, n + 1, format!("header `{}`: expected `{IMU_CSV_HEADER}`", header.trim())))
+        }
+        None => return Err(Error::file(path, format!("empty: expected the header `{IMU_CSV_HEADER}`"))),
+    }
+    let mut out: Vec<(f64, ImuSample)> = Vec::new();
+    for (n, line) in lines {
+        let at = |message: String| Error::line(path, n + 1, message);
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        if fields.len() != 7 {
+            return Err(at(format!("{} fields, expected 7 ({IMU_CSV_HEADER})", fields.len())));
+        }
+        let mut v = [0.0f64; 7];
+        for (slot, field) in v.iter_mut().zip(&fields) {
+            *slot = field
+                .parse()
+                .ok()
+                .filter(|x: &f64| x.is_finite())
+                .ok_or_else(|| at(format!("`{field}` is not a finite number")))?;
+        }
+        let [t, gx, gy, gz, ax, ay, az] = v;
+        if let Some((previous, _)) = out.last().filter(|(p, _)| *p >= t) {
+            return Err(at(format!("time {t} s does not follow {previous} s: the samples must go forward in time")));
+        }
+        out.push((t, ImuSample { gyro: [gx, gy, gz], accel: [ax, ay, az] }));
+    }
+    Ok(out)
 }
 
 /// The header of a VO CSV.
@@ -354,6 +413,27 @@ mod tests {
         let path = std::env::temp_dir().join(format!("dash2sim-vo-{}-{name}.csv", std::process::id()));
         std::fs::write(&path, format!("{VO_CSV_HEADER}\n{body}")).expect("write");
         path
+    }
+
+    #[test]
+    fn a_bad_imu_csv_names_the_line_and_what_is_wrong() {
+        for (name, body, expected) in [
+            ("back", "0.02,0,0,0,0,0,9.8\n0.01,0,0,0,0,0,9.8\n", ":3: time 0.01 s does not follow 0.02 s"),
+            ("nan", "0.0,NaN,0,0,0,0,9.8\n", ":2: `NaN` is not a finite number"),
+            ("short", "0.0,0,0,0\n", ":2: 4 fields, expected 7"),
+        ] {
+            let path = std::env::temp_dir().join(format!("dash2sim-imu-{}-{name}.csv", std::process::id()));
+            std::fs::write(&path, format!("{IMU_CSV_HEADER}\n{body}")).expect("write");
+            let e = read_imu_csv(&path).expect_err(name);
+            assert!(e.to_string().contains(expected), "{name}: {e}");
+            let _ = std::fs::remove_file(path);
+        }
+        let path = std::env::temp_dir().join(format!("dash2sim-imu-{}-good.csv", std::process::id()));
+        std::fs::write(&path, format!("{IMU_CSV_HEADER}\n0.00,0.1,0,0,0,0,9.8\n0.01,0,0,0,0.5,0,9.8\n")).expect("write");
+        let samples = read_imu_csv(&path).expect("read");
+        assert_eq!(samples.len(), 2);
+        assert_eq!(samples[1].1.accel, [0.5, 0.0, 9.8]);
+        let _ = std::fs::remove_file(path);
     }
 
     #[test]
