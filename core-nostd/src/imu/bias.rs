@@ -39,7 +39,6 @@ const SCALE_EVIDENCE: f64 = 0.05;
 /// would swamp it).
 const SCALE_INTERVAL_S: f64 = 1.0;
 
-
 /// The estimator's state.
 #[derive(Clone, Copy, Debug)]
 pub struct GyroBias {

@@ -2,11 +2,17 @@
 //! the compute for it, or a VO outage) the car's own trajectory is still known up to a
 //! similarity — the attitude from the gyro ([`Attitude`]), the distance from the wheels.
 //!
-//! The body's origin moves along its own forward axis at the wheels' speed (a car does not
+//! The body's origin moves along its own heading at the wheels' speed (a car does not
 //! slide sideways); integrated, that is a trajectory in a frame of its own whose z is up
 //! (the attitude is levelled by gravity) and whose scale is the wheels' — the same kind of
 //! thing a VO gives, anchored the same way: its scale is the wheel factor, its drift the
 //! gyro's heading drift and the wheels' slip.
+//!
+//! The trajectory stays in the horizontal plane: the sensor's forward axis is not the car's
+//! direction of travel in pitch (comma's EON looks 3.8° below it), and integrating along it
+//! sank the comma2k19 minute by 66 m in a kilometre, which no gravity-aligned similarity
+//! can take out. The height is left to the anchors until the mount's pitch is calibrated
+//! against the drive (issue #54).
 
 use nalgebra::{Matrix3, Vector3};
 
@@ -21,13 +27,19 @@ pub struct DeadReckoning {
 }
 
 impl DeadReckoning {
-    /// Move by `speed_mps` over `dt` s along the body's forward axis as `attitude` has it.
+    /// Move by `speed_mps` over `dt` s along the body's heading as `attitude` has it (its
+    /// forward axis projected on the horizontal).
     pub fn advance(&mut self, dt: f64, speed_mps: f64, attitude: &Attitude) {
         if !(dt > 0.0 && dt.is_finite() && speed_mps.is_finite()) {
             return;
         }
-        let forward = attitude.rotation().column(0).into_owned();
-        self.position += forward * (speed_mps * dt);
+        let mut forward = attitude.rotation().column(0).into_owned();
+        forward.z = 0.0;
+        let n = forward.norm();
+        if n < 0.5 {
+            return;
+        }
+        self.position += forward * (speed_mps * dt / n);
         self.travelled_m += speed_mps.abs() * dt;
     }
 
@@ -54,6 +66,22 @@ mod tests {
     use super::*;
     use crate::imu::attitude::motion_acceleration;
     use crate::imu::GRAVITY;
+
+    #[test]
+    fn a_pitched_sensor_moves_the_car_along_the_road_not_into_it() {
+        let (speed, dt) = (20.0, 0.01);
+        let mut attitude = Attitude::default();
+        // Gravity as a sensor pitched 4° nose down reads it.
+        let pitch = 4f64.to_radians();
+        let force = crate::imu::so3::from_roll_pitch_yaw(0.0, pitch, 0.0).transpose() * Vector3::new(0.0, 0.0, GRAVITY);
+        let mut dr = DeadReckoning::default();
+        for _ in 0..1000 {
+            attitude.update(dt, &Vector3::zeros(), &force, &Vector3::zeros());
+            dr.advance(dt, speed, &attitude);
+        }
+        let p = dr.body_pose(&attitude).translation;
+        assert!((p.x - 200.0).abs() < 1e-6 && p.y.abs() < 1e-9 && p.z.abs() < 1e-9, "{p:?}");
+    }
 
     #[test]
     fn a_quarter_circle_at_constant_speed_ends_where_geometry_says() {

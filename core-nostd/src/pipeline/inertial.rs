@@ -215,8 +215,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             );
         }
         let rate = gyro - imu.bias.bias();
-        let motion =
-            motion_acceleration(speed.unwrap_or(0.0), imu.acceleration, &(rate - imu.attitude.tilt_bias()));
+        let motion = motion_acceleration(speed.unwrap_or(0.0), imu.acceleration, &(rate - imu.attitude.tilt_bias()));
         imu.attitude.update(dt, &rate, &force, &motion);
         let unexplained = force - motion - imu.up() * GRAVITY;
         if let Some(g) = imu.impact.push(dt, &unexplained, self.config.imu.impact_threshold_mps2) {

@@ -67,7 +67,9 @@ fn npy_rows(path: &Path, columns: usize) -> Result<Vec<Vec<f64>>> {
         return Err(Error::file(path, format!("shape {shape:?}: expected {columns} columns")));
     }
     let flat: Vec<f64> = file.into_vec().map_err(|e| Error::file(path, e))?;
-    Ok((0..rows).map(|r| (0..cols).map(|c| flat[if fortran { c * rows + r } else { r * cols + c }]).collect()).collect())
+    Ok((0..rows)
+        .map(|r| (0..cols).map(|c| flat[if fortran { c * rows + r } else { r * cols + c }]).collect())
+        .collect())
 }
 
 /// The minute's IMU as the `record --imu` CSV: the raw gyro (`gyro_uncalibrated`: no bias
@@ -181,15 +183,6 @@ pub fn run(dir: &Path, work: &Path, receiver: Receiver) -> Result<ImuMinute> {
     write(&args.output, &recording.log)?;
     let log = log::read(&args.output).map_err(Error::other)?;
     let times = device_times(&log.records)?;
-    for (r, t) in log.records.iter().zip(&times) {
-        match r {
-            Record::ImuEstimate(e) if e.t_us % 5_000_000 < 1_000_000 => eprintln!("DEBUG {t:.2} {e:?}"),
-            Record::VoPose(v) if v.t_us % 6_000_000 < 50_000 => eprintln!("DEBUG {t:.2} {v:?}"),
-            Record::AnchorEstimate(a) if a.t_us % 10_000_000 < 1_000_000 => eprintln!("DEBUG {t:.2} {a:?}"),
-            Record::Event(e) => eprintln!("DEBUG {t:.2} {}", String::from_utf8_lossy(&e.text)),
-            _ => {}
-        }
-    }
     let online = compare(&log.records, &times, &truth)?;
     let first_fix = times.iter().zip(&log.records).find_map(|(t, r)| matches!(r, Record::GnssFix(_)).then_some(*t));
     let first_ego = times.iter().zip(&log.records).find_map(|(t, r)| matches!(r, Record::EgoPose(_)).then_some(*t));
@@ -209,10 +202,8 @@ pub fn run(dir: &Path, work: &Path, receiver: Receiver) -> Result<ImuMinute> {
         pitch.push((e.pitch_e6 as f64 * 1e-6 - p).to_degrees());
         roll.push((e.roll_e6 as f64 * 1e-6 - rl).to_degrees());
     }
-    let reference_bias = npy_rows(
-        &dir.join("b0c9d2329ad1606b_2018-08-02--08-34-47_40/processed_log/IMU/gyro_bias/value"),
-        3,
-    )?;
+    let reference_bias =
+        npy_rows(&dir.join("b0c9d2329ad1606b_2018-08-02--08-34-47_40/processed_log/IMU/gyro_bias/value"), 3)?;
     // Sensor axes (forward, right, down) → body (forward, left, up): z changes sign.
     let reference_gyro_bias_z = -reference_bias.last().map_or(f64::NAN, |b| b[2]);
 

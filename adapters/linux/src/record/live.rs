@@ -309,13 +309,16 @@ impl<'s> Folder<'s> {
     }
 
     /// Why the file being recorded is worth keeping by what the pipeline saw since it was
-    /// opened: a collision in a verification window, a harsh braking, a verified window.
+    /// opened: a collision in a verification window, a harsh braking, an impact, a verified
+    /// window.
     fn earned(&self, now: &PipelineStats) -> Option<&'static str> {
         let then = &self.at_open;
         if now.collision_windows > then.collision_windows {
             Some("a collision in a verification window")
         } else if now.harsh_brakings > then.harsh_brakings {
             Some("harsh braking")
+        } else if now.impacts > then.impacts {
+            Some("an impact (the G-sensor's trigger)")
         } else if now.windows_verified > then.windows_verified {
             Some("it holds a verified window")
         } else {

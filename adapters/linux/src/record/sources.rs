@@ -429,7 +429,8 @@ mod tests {
             let _ = std::fs::remove_file(path);
         }
         let path = std::env::temp_dir().join(format!("dash2sim-imu-{}-good.csv", std::process::id()));
-        std::fs::write(&path, format!("{IMU_CSV_HEADER}\n0.00,0.1,0,0,0,0,9.8\n0.01,0,0,0,0.5,0,9.8\n")).expect("write");
+        std::fs::write(&path, format!("{IMU_CSV_HEADER}\n0.00,0.1,0,0,0,0,9.8\n0.01,0,0,0,0.5,0,9.8\n"))
+            .expect("write");
         let samples = read_imu_csv(&path).expect("read");
         assert_eq!(samples.len(), 2);
         assert_eq!(samples[1].1.accel, [0.5, 0.0, 9.8]);
