@@ -642,3 +642,66 @@ fn the_anchor_record_carries_the_estimated_gnss_latency() {
     // Not estimated yet: written as 0, which costs nothing in the payload.
     assert_eq!(anchor_record(5, &estimate, &quality(None)).latency_us, 0);
 }
+
+/// The straight drive with an IMU at 100 Hz on the camera's (levelled) axes reading `accel`
+/// and a biased gyro, VO pushed too; the relative motion as `motion`.
+fn drive_imu(
+    buffer: &mut [u8],
+    motion: RelativeMotion,
+    accel: [f64; 3],
+) -> (usize, PipelineStats, Issues, Vector3<f64>) {
+    let classes = cone_class();
+    let mut trackers = trackers(&classes);
+    let total = buffer.len();
+    let config = PipelineConfig { relative_motion: motion, ..config() };
+    let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> = Pipeline::new(buffer, config, &mut trackers);
+    let gyro = [0.004, -0.003, 0.02];
+    let mut frame = 0;
+    for step in 0..30 * 100 {
+        let t = step * 10_000;
+        let _ = p.push_imu(us(t), &crate::imu::ImuSample { gyro, accel });
+        if step % 2 == 0 {
+            let _ = p.push_can(us(t), &ccvs1(10.0));
+        }
+        if step % 20 == 0 {
+            let _ = p.push_serial(us(t + LATENCY_US), nmea(t, UTC0 + t).as_bytes());
+        }
+        if step % 10 == 0 {
+            frame += 1;
+            let _ = p.push_vo(us(t), frame, 0, &vo_pose(t));
+        }
+    }
+    let (bias, _) = p.gyro_bias();
+    let (rest, stats, issues) = p.finish().unwrap_or_else(|_| unreachable!());
+    (total - rest.len(), stats, issues, bias)
+}
+
+#[test]
+fn gyro_and_wheels_are_anchored_on_a_straight_road_where_the_camera_gives_no_vo() {
+    let mut buffer = [0u8; 400_000];
+    let (used, stats, issues, bias) = drive_imu(&mut buffer, RelativeMotion::ImuWheels, [0.0, 0.0, 9.81]);
+    let log = decode(&buffer[..used]);
+    assert!(stats.anchored_frames > 300, "{stats:?}");
+    assert_eq!(issues.get(Issue::VoNotUsed), 300, "every VO pose is counted as not used");
+    assert_eq!(stats.imu_samples, 3000);
+    // The rear axle at the end: 10 m/s east for 30 s along y = 100 m.
+    let ego = log.last_ego.unwrap_or_default();
+    let (x, y) = (ego.x_mm as f64 * 1e-3, ego.y_mm as f64 * 1e-3);
+    assert!((x - 299.9).abs() < 1.0 && (y - 100.0).abs() < 1.0, "{x} {y}");
+    // The vertical bias from the course, the horizontal ones from gravity.
+    assert!((bias - Vector3::new(0.004, -0.003, 0.02)).norm() < 2e-3, "{bias:?}");
+    // 3000 samples span 29.99 s: 299 whole intervals of 0.1 s.
+    assert_eq!(count(&log, Kind::ImuDelta), 299, "one preintegrated interval per 0.1 s");
+    assert!(count(&log, Kind::ImuEstimate) >= 28);
+}
+
+#[test]
+fn an_imu_in_g_is_refused_with_an_error_event_and_nothing_else_is_lost() {
+    let mut buffer = [0u8; 400_000];
+    let (used, stats, issues, _) = drive_imu(&mut buffer, RelativeMotion::Vo, [0.0, 0.0, 1.0]);
+    let log = decode(&buffer[..used]);
+    // The first second decides; every sample after it is refused and counted.
+    assert_eq!(issues.get(Issue::ImuUnits), 2900, "{issues:?}");
+    assert!(log.events.iter().any(|e| e.contains("given in g")), "{:?}", log.events);
+    assert!(stats.anchored_frames > 100, "the VO drive goes on: {stats:?}");
+}
