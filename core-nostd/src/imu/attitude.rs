@@ -128,7 +128,7 @@ impl Attitude {
             }
         }
         self.updates += 1;
-        if self.updates % RENORMALISE_EVERY == 0 {
+        if self.updates.is_multiple_of(RENORMALISE_EVERY) {
             self.rotation = so3::renormalise(&self.rotation);
         }
     }
