@@ -18,7 +18,7 @@ use dash2sim_linux::sim::scenario::sensors::GnssModel;
 use dash2sim_linux::sim::scenario::write::write_scenario;
 use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
 
-const KINDS: [&str; 5] = ["serial chunk", "CAN frame", "VO pose", "3D detections", "2D detections"];
+const KINDS: [&str; 6] = ["serial chunk", "CAN frame", "VO pose", "3D detections", "2D detections", "IMU sample"];
 
 fn kind(input: &Input<'_>) -> usize {
     match input {
@@ -27,6 +27,7 @@ fn kind(input: &Input<'_>) -> usize {
         Input::Vo(..) => 2,
         Input::Detections3d(..) => 3,
         Input::Detections2d(..) => 4,
+        Input::Imu(_) => 5,
     }
 }
 
