@@ -108,10 +108,11 @@ impl GyroBias {
     }
 
     /// One raw gyro sample (body axes, rad/s) over `dt` s, with the body's up (body axes)
-    /// and the wheels' speed (None: not known).
-    pub fn push(&mut self, dt: f64, gyro: &Vector3<f64>, up: &Vector3<f64>, speed_mps: Option<f64>) {
+    /// and the wheels' speed (None: not known). True when a standstill just ended and its
+    /// mean became the bias on every axis.
+    pub fn push(&mut self, dt: f64, gyro: &Vector3<f64>, up: &Vector3<f64>, speed_mps: Option<f64>) -> bool {
         if !(dt > 0.0 && dt.is_finite()) {
-            return;
+            return false;
         }
         self.variance += RANDOM_WALK_RAD_S_PER_SQRT_S * RANDOM_WALK_RAD_S_PER_SQRT_S * dt;
         self.turned += gyro.dot(up) * dt;
@@ -121,14 +122,16 @@ impl GyroBias {
             self.standstill_s += dt;
             self.standstill_sum += gyro;
             self.standstill_n = self.standstill_n.saturating_add(1);
+            false
         } else {
-            self.end_standstill();
+            self.end_standstill()
         }
     }
 
-    /// The car moved (or the input ended): a standstill long enough gives the bias.
-    pub fn end_standstill(&mut self) {
-        if self.standstill_s >= STANDSTILL_S && self.standstill_n > 0 {
+    /// The car moved: a standstill long enough gives the bias (true when it did).
+    fn end_standstill(&mut self) -> bool {
+        let taken = self.standstill_s >= STANDSTILL_S && self.standstill_n > 0;
+        if taken {
             self.bias = self.standstill_sum / f64::from(self.standstill_n);
             // The mean of ≥ 50 samples of a 0.005 rad/s-noise gyro: well below the course's.
             self.variance = self.variance.min(1e-8);
@@ -137,6 +140,7 @@ impl GyroBias {
         self.standstill_s = 0.0;
         self.standstill_sum = Vector3::zeros();
         self.standstill_n = 0;
+        taken
     }
 
     /// A GNSS course (rad, clockwise from north) at time `t` (s) and the speed it was
@@ -221,7 +225,7 @@ mod tests {
             let noise = if k % 2 == 0 { 0.003 } else { -0.003 };
             b.push(0.01, &(truth + Vector3::repeat(noise)), &Vector3::z(), Some(0.0));
         }
-        b.push(0.01, &truth, &Vector3::z(), Some(3.0));
+        assert!(b.push(0.01, &truth, &Vector3::z(), Some(3.0)), "the car moved: the standstill is taken");
         assert!((b.bias() - truth).norm() < 1e-4, "{:?}", b.bias());
         assert_eq!(b.evidence(), (1, 0));
     }
@@ -232,7 +236,7 @@ mod tests {
         for _ in 0..20 {
             b.push(0.01, &Vector3::new(0.0, 0.0, 0.05), &Vector3::z(), Some(0.0));
         }
-        b.push(0.01, &Vector3::zeros(), &Vector3::z(), Some(1.0));
+        assert!(!b.push(0.01, &Vector3::zeros(), &Vector3::z(), Some(1.0)));
         assert_eq!(b.bias(), &Vector3::zeros());
     }
 

@@ -23,7 +23,6 @@ use crate::sim3::Pose;
 #[derive(Clone, Copy, Debug, Default)]
 pub struct DeadReckoning {
     position: Vector3<f64>,
-    travelled_m: f64,
 }
 
 impl DeadReckoning {
@@ -40,12 +39,6 @@ impl DeadReckoning {
             return;
         }
         self.position += forward * (speed_mps * dt / n);
-        self.travelled_m += speed_mps.abs() * dt;
-    }
-
-    /// The body's pose in the dead-reckoning frame.
-    pub fn body_pose(&self, attitude: &Attitude) -> Pose {
-        Pose { rotation: *attitude.rotation(), translation: self.position }
     }
 
     /// The pose of a camera mounted at `position` (body frame, m) with rotation
@@ -53,11 +46,6 @@ impl DeadReckoning {
     pub fn camera_pose(&self, attitude: &Attitude, camera_to_body: &Matrix3<f64>, position: &Vector3<f64>) -> Pose {
         let r = attitude.rotation();
         Pose { rotation: r * camera_to_body, translation: self.position + r * position }
-    }
-
-    /// Distance travelled, m.
-    pub fn travelled_m(&self) -> f64 {
-        self.travelled_m
     }
 }
 
@@ -79,7 +67,7 @@ mod tests {
             attitude.update(dt, &Vector3::zeros(), &force, &Vector3::zeros());
             dr.advance(dt, speed, &attitude);
         }
-        let p = dr.body_pose(&attitude).translation;
+        let p = dr.camera_pose(&attitude, &Matrix3::identity(), &Vector3::zeros()).translation;
         assert!((p.x - 200.0).abs() < 1e-6 && p.y.abs() < 1e-9 && p.z.abs() < 1e-9, "{p:?}");
     }
 
@@ -97,9 +85,8 @@ mod tests {
             dr.advance(dt, speed, &attitude);
         }
         // A quarter of a circle of radius 100 m, from east to north.
-        let p = dr.body_pose(&attitude).translation;
+        let p = dr.camera_pose(&attitude, &Matrix3::identity(), &Vector3::zeros()).translation;
         assert!((p.x - 100.0).abs() < 0.6 && (p.y - 100.0).abs() < 0.6 && p.z.abs() < 1e-9, "{p:?}");
-        assert!((dr.travelled_m() - steps as f64 * dt * speed).abs() < 1e-9);
         let camera = dr.camera_pose(&attitude, &Matrix3::identity(), &Vector3::new(1.8, 0.0, 1.3));
         assert!((camera.translation - (p + Vector3::new(-0.0, 1.8, 1.3))).norm() < 0.02, "{:?}", camera.translation);
     }

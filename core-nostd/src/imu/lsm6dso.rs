@@ -364,8 +364,8 @@ mod tests {
 
     #[test]
     fn a_fifo_count_beyond_the_fifo_is_bounded() {
-        // 0x3FF words claimed; the driver reads at most the FIFO's 512 and stops on the
-        // first failing read (the mock has none left to give).
+        // 0x3FF words claimed: the driver reads the FIFO's 512 and no more (a 513th read
+        // would find the mock with no transaction left, and fail the test).
         let mut t = vec![Transaction::write_read(A, vec![0x3A], vec![0xFF, 0b11])];
         for _ in 0..FIFO_WORDS {
             t.push(word(0x1F, [0; 6]));

@@ -146,7 +146,8 @@ impl UnitCheck {
         let verdict = if (0.5..2.0).contains(&magnitude) {
             UnitVerdict::InG
         } else {
-            let tilt = libm::acos((mean.z / magnitude).clamp(-1.0, 1.0));
+            let tilt =
+                if magnitude > 0.0 { libm::acos((mean.z / magnitude).clamp(-1.0, 1.0)) } else { core::f64::consts::PI };
             if tilt > Self::MAX_TILT_RAD || !(0.5 * GRAVITY..1.5 * GRAVITY).contains(&magnitude) {
                 UnitVerdict::AxesOff(tilt)
             } else {

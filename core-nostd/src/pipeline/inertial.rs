@@ -197,9 +197,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         }
         let speed = imu.speed_at(t);
         let up = imu.up();
-        let standstills = imu.bias.evidence().0;
-        imu.bias.push(dt, &gyro, &up, speed);
-        if imu.bias.evidence().0 != standstills {
+        if imu.bias.push(dt, &gyro, &up, speed) {
             // The standstill's mean has the bias about every axis.
             imu.attitude.reset_tilt_bias();
         }
@@ -237,7 +235,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         }
         let Some([pitch, roll]) = imu.pitch_roll() else { return Ok(()) };
         imu.last_estimate = Some(t);
-        let b = imu.bias.bias() + imu.attitude.tilt_bias();
+        let b = imu.gyro_bias();
         let (standstills, courses) = imu.bias.evidence();
         let record = ImuEstimate {
             t_us: self.log.time(t),
@@ -253,7 +251,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         self.log.write(&Record::ImuEstimate(record))
     }
 
-    /// Gyro + wheels: the body moved along its forward axis; a camera pose anchored in
+    /// Gyro + wheels: the body moved along its heading; a camera pose anchored in
     /// place of a VO pose every `pose_interval`.
     fn dead_reckon(&mut self, t: Timestamp, dt: f64, speed: Option<f64>) -> Result<(), PipelineError<W::Error>> {
         let imu = &mut self.inertial;

@@ -299,6 +299,17 @@ pub fn read_detections2d(path: &Path) -> Result<BTreeMap<u64, Vec<ImageDetection
     Ok(frames)
 }
 
+/// The numbered data lines of a CSV whose first line (blank lines and `#` comments aside)
+/// must be `header`; a missing or other header is an error naming the line.
+fn rows_after_header<'a>(path: &Path, text: &'a str, header: &str) -> Result<Vec<(usize, &'a str)>> {
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
+    match lines.next() {
+        Some((_, first)) if first.trim() == header => Ok(lines.collect()),
+        Some((n, first)) => Err(Error::line(path, n + 1, format!("header `{}`: expected `{header}`", first.trim()))),
+        None => Err(Error::file(path, format!("empty: expected the header `{header}`"))),
+    }
+}
+
 /// The header of an IMU CSV.
 pub const IMU_CSV_HEADER: &str = "t_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z";
 
@@ -309,16 +320,8 @@ pub const IMU_CSV_HEADER: &str = "t_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel
 /// °/s) or axes that gravity contradicts are refused there, counted and logged.
 pub fn read_imu_csv(path: &Path) -> Result<Vec<(f64, ImuSample)>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
-    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
-    match lines.next() {
-        Some((_, header)) if header.trim() == IMU_CSV_HEADER => {}
-        Some((n, header)) => {
-            return Err(Error::line(path, n + 1, format!("header `{}`: expected `{IMU_CSV_HEADER}`", header.trim())))
-        }
-        None => return Err(Error::file(path, format!("empty: expected the header `{IMU_CSV_HEADER}`"))),
-    }
     let mut out: Vec<(f64, ImuSample)> = Vec::new();
-    for (n, line) in lines {
+    for (n, line) in rows_after_header(path, &text, IMU_CSV_HEADER)? {
         let at = |message: String| Error::line(path, n + 1, message);
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
         if fields.len() != 7 {
@@ -350,16 +353,8 @@ pub const VO_CSV_HEADER: &str = "frame,t_s,x,y,z,qx,qy,qz,qw,session";
 /// Frame numbers must increase; sessions must not go back.
 pub fn read_vo_csv(path: &Path) -> Result<Vec<VoRow>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
-    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
-    match lines.next() {
-        Some((_, header)) if header.trim() == VO_CSV_HEADER => {}
-        Some((n, header)) => {
-            return Err(Error::line(path, n + 1, format!("header `{}`: expected `{VO_CSV_HEADER}`", header.trim())))
-        }
-        None => return Err(Error::file(path, format!("empty: expected the header `{VO_CSV_HEADER}`"))),
-    }
     let mut out: Vec<VoRow> = Vec::new();
-    for (n, line) in lines {
+    for (n, line) in rows_after_header(path, &text, VO_CSV_HEADER)? {
         let at = |message: String| Error::line(path, n + 1, message);
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
         if fields.len() != 10 {
