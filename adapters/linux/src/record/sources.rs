@@ -404,10 +404,15 @@ pub struct VoRow {
 mod tests {
     use super::*;
 
-    fn vo_csv(name: &str, body: &str) -> std::path::PathBuf {
-        let path = std::env::temp_dir().join(format!("dash2sim-vo-{}-{name}.csv", std::process::id()));
-        std::fs::write(&path, format!("{VO_CSV_HEADER}\n{body}")).expect("write");
+    /// A CSV file with `header` and `body` in the temporary folder.
+    fn csv(name: &str, header: &str, body: &str) -> std::path::PathBuf {
+        let path = std::env::temp_dir().join(format!("dash2sim-csv-{}-{name}.csv", std::process::id()));
+        std::fs::write(&path, format!("{header}\n{body}")).expect("write");
         path
+    }
+
+    fn vo_csv(name: &str, body: &str) -> std::path::PathBuf {
+        csv(&format!("vo-{name}"), VO_CSV_HEADER, body)
     }
 
     #[test]
@@ -417,15 +422,12 @@ mod tests {
             ("nan", "0.0,NaN,0,0,0,0,9.8\n", ":2: `NaN` is not a finite number"),
             ("short", "0.0,0,0,0\n", ":2: 4 fields, expected 7"),
         ] {
-            let path = std::env::temp_dir().join(format!("dash2sim-imu-{}-{name}.csv", std::process::id()));
-            std::fs::write(&path, format!("{IMU_CSV_HEADER}\n{body}")).expect("write");
+            let path = csv(&format!("imu-{name}"), IMU_CSV_HEADER, body);
             let e = read_imu_csv(&path).expect_err(name);
             assert!(e.to_string().contains(expected), "{name}: {e}");
             let _ = std::fs::remove_file(path);
         }
-        let path = std::env::temp_dir().join(format!("dash2sim-imu-{}-good.csv", std::process::id()));
-        std::fs::write(&path, format!("{IMU_CSV_HEADER}\n0.00,0.1,0,0,0,0,9.8\n0.01,0,0,0,0.5,0,9.8\n"))
-            .expect("write");
+        let path = csv("imu-good", IMU_CSV_HEADER, "0.00,0.1,0,0,0,0,9.8\n0.01,0,0,0,0.5,0,9.8\n");
         let samples = read_imu_csv(&path).expect("read");
         assert_eq!(samples.len(), 2);
         assert_eq!(samples[1].1.accel, [0.5, 0.0, 9.8]);
