@@ -13,6 +13,8 @@
 //! | `/speed` | `dash2sim.VehicleSpeed` | vehicle speed |
 //! | `/anchor` | `dash2sim.AnchorEstimate` | the VO → ENU anchor and its quality |
 //! | `/verification` | `dash2sim.Verification` | nuPlan-style metrics, score, verdict |
+//! | `/imu` | `dash2sim.ImuRates` | the IMU's preintegrated intervals as mean rates: angular velocity (rad/s) and specific force (m/s²), the sensor's axes |
+//! | `/imu/estimate` | `dash2sim.ImuEstimate` | the body's pitch and roll from gravity, the gyro's bias |
 //!
 //! Chunks are zstd-compressed; every record carries a CRC.
 
@@ -105,6 +107,24 @@ fn schemas() -> Vec<(&'static str, String)> {
                 "dash2sim.AnchorEstimate",
                 &format!(
                     r#""timestamp":{TIME},"scale":{{"type":"number"}},"yaw_rad":{{"type":"number"}},"pitch_rad":{{"type":"number"}},"roll_rad":{{"type":"number"}},"translation":{v},"observability":{{"type":"string"}},"anchors":{{"type":"integer","minimum":0}},"rms_residual_m":{{"type":"number","minimum":0}},"gnss_latency_s":{{"type":"number"}}"#
+                ),
+            ),
+        ),
+        (
+            "dash2sim.ImuRates",
+            schema(
+                "dash2sim.ImuRates",
+                &format!(
+                    r#""timestamp":{TIME},"interval_s":{{"type":"number","minimum":0}},"angular_velocity":{v},"specific_force":{v},"samples":{{"type":"integer","minimum":0}}"#
+                ),
+            ),
+        ),
+        (
+            "dash2sim.ImuEstimate",
+            schema(
+                "dash2sim.ImuEstimate",
+                &format!(
+                    r#""timestamp":{TIME},"pitch_rad":{{"type":"number"}},"roll_rad":{{"type":"number"}},"gyro_bias":{v},"gyro_bias_sigma":{{"type":"number","minimum":0}},"standstills":{{"type":"integer","minimum":0}},"courses":{{"type":"integer","minimum":0}}"#
                 ),
             ),
         ),
@@ -272,6 +292,30 @@ pub fn messages(log: &LogContents, map: Option<&MapView<'_>>) -> Vec<(&'static s
                 json!({"timestamp": time(s.t_us), "speed_mps": s.speed_mm_s as f64 * 1e-3,
                        "source": usize::try_from(s.source).ok().and_then(|i| SPEED_SOURCES.get(i)).copied().unwrap_or("other")}),
             )),
+            Record::ImuDelta(d) if d.dt_us > 0 => {
+                // Mean rates over the interval: what a plot of a gyro and an accelerometer shows.
+                let per_s = 1e6 / d.dt_us as f64;
+                let rate = |e6: i64| e6 as f64 * 1e-6 * per_s;
+                let force = |mm_s: i64| mm_s as f64 * 1e-3 * per_s;
+                out.push((
+                    "/imu",
+                    "dash2sim.ImuRates",
+                    d.t_us,
+                    json!({"timestamp": time(d.t_us), "interval_s": d.dt_us as f64 * 1e-6,
+                           "angular_velocity": {"x": rate(d.dtheta_x_e6), "y": rate(d.dtheta_y_e6), "z": rate(d.dtheta_z_e6)},
+                           "specific_force": {"x": force(d.dv_x_mm_s), "y": force(d.dv_y_mm_s), "z": force(d.dv_z_mm_s)},
+                           "samples": d.samples.max(0)}),
+                ));
+            }
+            Record::ImuEstimate(e) => out.push((
+                "/imu/estimate",
+                "dash2sim.ImuEstimate",
+                e.t_us,
+                json!({"timestamp": time(e.t_us), "pitch_rad": e.pitch_e6 as f64 * 1e-6, "roll_rad": e.roll_e6 as f64 * 1e-6,
+                       "gyro_bias": {"x": e.bias_x_e7 as f64 * 1e-7, "y": e.bias_y_e7 as f64 * 1e-7, "z": e.bias_z_e7 as f64 * 1e-7},
+                       "gyro_bias_sigma": (e.bias_sigma_e7 as f64 * 1e-7).max(0.0),
+                       "standstills": e.standstills.max(0), "courses": e.courses.max(0)}),
+            )),
             Record::Event(e) => out.push((
                 "/events",
                 "foxglove.Log",
@@ -352,4 +396,46 @@ pub fn write(
     }
     writer.finish().map_err(err)?;
     Ok(counts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dash2sim_core::binlog::{ImuDelta, ImuEstimate};
+
+    #[test]
+    fn the_imu_s_intervals_become_plottable_rates_and_its_estimate_a_message_of_its_own() {
+        let log = LogContents {
+            records: vec![
+                Record::ImuDelta(ImuDelta {
+                    t_us: 100_000,
+                    dt_us: 100_000,
+                    dtheta_z_e6: 5_000,
+                    dv_z_mm_s: 981,
+                    samples: 10,
+                    ..ImuDelta::default()
+                }),
+                Record::ImuEstimate(ImuEstimate {
+                    t_us: 200_000,
+                    pitch_e6: 30_000,
+                    bias_z_e7: -683_600,
+                    ..Default::default()
+                }),
+            ],
+            header: None,
+            damage: Vec::new(),
+            stats: Default::default(),
+            bytes: 0,
+            signing: Vec::new(),
+        };
+        let m = messages(&log, None);
+        let (topic, schema, t, imu) = &m[0];
+        assert_eq!((*topic, *schema, *t), ("/imu", "dash2sim.ImuRates", 100_000));
+        assert!((imu["angular_velocity"]["z"].as_f64().unwrap_or(0.0) - 0.05).abs() < 1e-12, "{imu}");
+        assert!((imu["specific_force"]["z"].as_f64().unwrap_or(0.0) - 9.81).abs() < 1e-9, "{imu}");
+        let (topic, _, _, estimate) = &m[1];
+        assert_eq!(*topic, "/imu/estimate");
+        assert!((estimate["gyro_bias"]["z"].as_f64().unwrap_or(0.0) + 0.06836).abs() < 1e-12, "{estimate}");
+        assert!(schemas().iter().any(|(name, _)| *name == "dash2sim.ImuRates"));
+    }
 }
