@@ -286,6 +286,9 @@ pub fn run(args: &RecordArgs) -> Result<()> {
     if s.windows > 0 {
         println!("  verification: {} of {} windows verified", s.windows_verified, s.windows);
     }
+    if s.imu_samples > 0 {
+        println!("  IMU: {} samples, {} impacts", s.imu_samples, s.impacts);
+    }
     if counts.detection2d_frames_without_time > 0 {
         println!(
             "  {} frames of 2D detections skipped: no VO pose or 3D detection gives their time",
