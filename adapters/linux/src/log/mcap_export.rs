@@ -369,10 +369,10 @@ pub fn write(
     let file = std::fs::File::create(path).map_err(|e| Error::file(path, e))?;
     let options = mcap::WriteOptions::new().compression(Some(mcap::Compression::Zstd)).profile("");
     let mut writer = mcap::Writer::with_options(BufWriter::new(file), options).map_err(err)?;
-    let mut schema_ids = BTreeMap::new();
-    for (name, text) in schemas() {
-        schema_ids.insert(name, writer.add_schema(name, "jsonschema", text.as_bytes()).map_err(err)?);
-    }
+    // A schema is written with the first channel that uses it: a log without an IMU carries
+    // no IMU schema.
+    let known: BTreeMap<&'static str, String> = schemas().into_iter().collect();
+    let mut schema_ids: BTreeMap<&'static str, u16> = BTreeMap::new();
     let mut channels: BTreeMap<&'static str, u16> = BTreeMap::new();
     let mut counts: BTreeMap<&'static str, u64> = BTreeMap::new();
     for (topic, schema_name, t_us, message) in messages(log, map) {
@@ -382,7 +382,15 @@ pub fn write(
         let channel = match channels.get(topic) {
             Some(&c) => c,
             None => {
-                let schema = schema_ids.get(schema_name).copied().unwrap_or(0);
+                let schema = match (schema_ids.get(schema_name), known.get(schema_name)) {
+                    (Some(&id), _) => id,
+                    (None, Some(text)) => {
+                        let id = writer.add_schema(schema_name, "jsonschema", text.as_bytes()).map_err(err)?;
+                        schema_ids.insert(schema_name, id);
+                        id
+                    }
+                    (None, None) => 0,
+                };
                 let c = writer.add_channel(schema, topic, "json", &BTreeMap::new()).map_err(err)?;
                 channels.insert(topic, c);
                 c
