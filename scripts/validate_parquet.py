@@ -21,7 +21,7 @@ TYPES = {"double": pa.float64(), "int64": pa.int64(), "string": pa.string(), "bo
 # The log's record kind behind each table (`inspect --json` counts; tracks3d has a row per
 # track state, checked against the records otherwise).
 KINDS = {"ego": "EgoPose", "gnss": "GnssFix", "speed": "VehicleSpeed", "anchors": "AnchorEstimate",
-         "verification": "Verification", "events": "Event"}
+         "verification": "Verification", "events": "Event", "imu": "ImuDelta", "imu_estimates": "ImuEstimate"}
 
 
 DUCKDB = duckdb.connect()
@@ -54,7 +54,7 @@ def main():
     ap.add_argument("--export", nargs=2, action="append", metavar=("LOG", "DIR"), required=True)
     args = ap.parse_args()
     schema = documented(args.doc)
-    assert len(schema) == 7, f"{args.doc}: {len(schema)} tables documented"
+    assert len(schema) == 9, f"{args.doc}: {len(schema)} tables documented"
     failures = 0
     for log, folder in args.export:
         inspect = json.loads(subprocess.run([args.dash2sim, "inspect", log, "--json"], check=True,

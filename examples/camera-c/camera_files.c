@@ -1,5 +1,5 @@
 /* A camera process in C: publishes recorded camera outputs from a folder (vo.csv,
- * detections3d.csv, det2d.txt — the files `dash2sim record` reads, docs/cli.md) over
+ * detections3d.csv, det2d.txt, imu.csv — the files `dash2sim record` reads, docs/cli.md) over
  * dash2sim's shared-memory bridge at their frame rate, through the C ABI
  * (adapters/camera-c/include/dash2sim_camera.h), then prints "N frames published".
  *
@@ -44,6 +44,11 @@ typedef struct {
   uint64_t frame;
   d2s_detection2d box;
 } box2d_row;
+
+typedef struct {
+  double t;
+  float gyro[3], accel[3];
+} imu_row;
 
 /* A growing array of `size`-byte rows. */
 typedef struct {
@@ -120,6 +125,28 @@ static table read_vo(const char *dir) {
     double wxyz[4] = {v[8], v[5], v[6], v[7]};
     memcpy(row->wxyz, wxyz, sizeof wxyz);
     row->session = (uint32_t)v[9];
+  }
+  fclose(file);
+  return t;
+}
+
+static table read_imu(const char *dir) {
+  table t = {NULL, 0, 0, sizeof(imu_row)};
+  char path[4096], line[1024], *f[8];
+  FILE *file = open_in(dir, "imu.csv", path, sizeof path);
+  if (!file) return t;
+  for (size_t n = 1; fgets(line, sizeof line, file); n++) {
+    if (line[0] == '#' || line[0] == '\n' || strncmp(line, "t_s,", 4) == 0) continue;
+    double v[7];
+    if (split(line, f, 8) != 7) bad_line(path, n, "expected t_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z");
+    for (int k = 0; k < 7; k++)
+      if (!number(f[k], &v[k])) bad_line(path, n, "a field is not a finite number");
+    imu_row *row = table_push(&t);
+    row->t = v[0];
+    for (int k = 0; k < 3; k++) {
+      row->gyro[k] = (float)v[1 + k];
+      row->accel[k] = (float)v[4 + k];
+    }
   }
   fclose(file);
   return t;
@@ -217,7 +244,8 @@ int main(int argc, char **argv) {
     fprintf(stderr, "usage: camera_files_c DRIVE_DIR [--prefix P] [--speedup X] [--file-times]\n");
     return 2;
   }
-  table vo = read_vo(dir), boxes3d = read_boxes3d(dir), boxes2d = read_boxes2d(dir);
+  table vo = read_vo(dir), boxes3d = read_boxes3d(dir), boxes2d = read_boxes2d(dir), imu = read_imu(dir);
+  const imu_row *samples = imu.rows;
   const vo_row *poses = vo.rows;
   const box3d_row *b3 = boxes3d.rows;
   const box2d_row *b2 = boxes2d.rows;
@@ -233,7 +261,7 @@ int main(int argc, char **argv) {
   int64_t device_start = d2s_device_now_us();
   /* The frames in order: a merge of the VO's and the 3D detections' frame numbers (both
    * files are in frame order); the 2D detections follow their frame. */
-  size_t i = 0, j = 0, k = 0, published = 0;
+  size_t i = 0, j = 0, k = 0, m = 0, published = 0;
   double first = -1;
   while (i < vo.count || j < boxes3d.count) {
     uint64_t frame = i < vo.count ? poses[i].frame : UINT64_MAX;
@@ -242,6 +270,11 @@ int main(int argc, char **argv) {
     double t_s = has_pose ? poses[i].t : b3[j].t;
     if (first < 0) first = t_s;
     sleep_until(&start, (t_s - first) / speedup);
+    /* The IMU samples stamped up to this frame (a camera reads its IMU's FIFO once a frame). */
+    for (; m < imu.count && samples[m].t <= t_s; m++) {
+      int64_t t_imu = file_times ? micros(samples[m].t) : device_start + (micros(samples[m].t) - micros(first));
+      check(d2s_publish_imu(camera, t_imu, samples[m].gyro, samples[m].accel));
+    }
     int64_t t = file_times ? micros(t_s) : device_start + (micros(t_s) - micros(first));
 
     check(d2s_publish_frame(camera, frame, t, 0));
@@ -277,6 +310,7 @@ int main(int argc, char **argv) {
   free(vo.rows);
   free(boxes3d.rows);
   free(boxes2d.rows);
+  free(imu.rows);
   printf("%zu frames published\n", published);
   return 0;
 }

@@ -34,6 +34,7 @@ fn every_published_frame_arrives_with_its_pose_and_detections() {
     let prefix = prefix("frames");
     let subscriber = CameraSubscriber::new(&prefix).expect("subscriber");
     let (mut frames, mut poses, mut det3, mut det2) = (Vec::new(), BTreeMap::new(), BTreeMap::new(), BTreeMap::new());
+    let mut imu = Vec::new();
     let mut collect = |input: CameraInput| match input {
         CameraInput::Frame { sequence, .. } => frames.push(sequence),
         CameraInput::Vo(_, sequence, session, pose) => {
@@ -46,6 +47,7 @@ fn every_published_frame_arrives_with_its_pose_and_detections() {
             det2.insert(sequence, d.len());
         }
         CameraInput::Keep(t) => panic!("camera_sim marks nothing to keep, yet a mark came at {t:?}"),
+        CameraInput::Imu(t, sample) => imu.push((t, sample)),
     };
     let published = run_camera(
         &subscriber,
@@ -70,6 +72,16 @@ fn every_published_frame_arrives_with_its_pose_and_detections() {
     // Capture times are the shared device clock, increasing with the frames.
     let times: Vec<i64> = det3.values().map(|(t, _)| t.micros()).collect();
     assert!(times.windows(2).all(|w| w[0] < w[1]));
+    // The IMU's samples up to the last frame, every one, as f32 and spaced as generated
+    // (the publisher's clock runs `--speedup` 5 times faster).
+    let sent: Vec<_> = scenario.imu.iter().filter(|(t, _)| *t <= 5.0).collect();
+    assert_eq!(imu.len(), sent.len(), "every IMU sample arrives");
+    for ((t, got), ((t0, _), (t_sent, sample))) in imu.iter().zip(imu.first().iter().cycle().zip(&sent)) {
+        assert_eq!(got.gyro, sample.gyro.map(|v| f64::from(v as f32)));
+        assert_eq!(got.accel, sample.accel.map(|v| f64::from(v as f32)));
+        let spacing = (*t - *t0).as_secs_f64() * 5.0;
+        assert!((spacing - (t_sent - sent[0].0)).abs() < 1e-5, "{spacing} vs {}", t_sent - sent[0].0);
+    }
 }
 
 #[test]

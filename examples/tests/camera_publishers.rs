@@ -149,6 +149,21 @@ fn the_rust_and_the_c_publisher_are_logged_byte_identically() {
     assert_eq!(count(|r| matches!(r, Record::VoPose(_))), lines("vo.csv"));
     assert_eq!(count(|r| matches!(r, Record::Detection3d(_))), lines("detections3d.csv"));
     assert!(count(|r| matches!(r, Record::Track2d(_))) > 0, "2D tracks from the 2D detections");
+    // The IMU samples up to the last frame, preintegrated (every 0.1 s: the last interval's
+    // few are still in the preintegrator when the recording stops).
+    let last_frame: f64 = std::fs::read_to_string(drive.join("vo.csv"))
+        .expect("vo.csv")
+        .lines()
+        .last()
+        .and_then(|l| l.split(',').nth(1)?.parse().ok())
+        .expect("last frame time");
+    let sent = dash2sim_linux::record::sources::read_imu_csv(&drive.join("imu.csv"))
+        .expect("imu.csv")
+        .iter()
+        .filter(|(t, _)| *t <= last_frame)
+        .count() as i64;
+    let integrated: i64 = log.records.iter().map(|r| if let Record::ImuDelta(d) = r { d.samples } else { 0 }).sum();
+    assert!((sent - 11..=sent).contains(&integrated), "{integrated} of {sent} IMU samples preintegrated");
     assert!(
         from_rust == from_c,
         "the C publisher's log differs from the Rust one's ({} vs {} bytes)",

@@ -24,7 +24,9 @@ fn the_mcu_example_drive_is_todays_and_records_on_the_host() {
     let scenario =
         generate(&ScenarioConfig { seed: 1, duration_s: 20.0, gnss: GnssModel::good(), ..ScenarioConfig::default() });
     write_scenario(&scenario, &work).expect("scenario");
-    let (stream, _) = record::read_sources(&Sources::scenario(&work)).expect("sources");
+    // Without the drive's IMU: the MCU example reads none yet (issue #54's embedded-hal part
+    // is its driver on a replaying I2C bus, not built).
+    let (stream, _) = record::read_sources(&Sources { imu: None, ..Sources::scenario(&work) }).expect("sources");
     let committed = std::fs::read(root.join("drive.d2sin")).expect("drive.d2sin");
     assert!(stream == committed, "examples/mcu/drive.d2sin is stale; {REBUILD}");
     let osm = dash2sim_linux::ingest::osm::read(&work.join("road.osm")).expect("osm");

@@ -283,3 +283,35 @@ fn the_vo_orientation_carries_noise_in_the_typical_profile_and_none_in_the_ideal
     // Typical: 0.1° white per axis on each orientation, a step sees two: ≈ 0.25° mean.
     assert!((0.1..0.5).contains(&typical), "{typical}");
 }
+
+/// The IMU's reading against the truth: what a channel that should read zero (the roll
+/// rate: the generated roads are flat) reads on average, and its sample-to-sample noise
+/// (first differences over √2, which the slow motion does not reach).
+fn roll_rate_bias_and_noise(s: &Scenario) -> (f64, f64) {
+    let roll: Vec<f64> = s.imu.iter().map(|(_, sample)| sample.gyro[0]).collect();
+    let mean = roll.iter().sum::<f64>() / roll.len() as f64;
+    let steps: Vec<f64> = roll.windows(2).map(|w| (w[1] - w[0]) / 2f64.sqrt()).collect();
+    (mean, std_dev(&steps))
+}
+
+#[test]
+fn the_imu_carries_a_turn_on_bias_and_road_vibration_in_the_typical_profile_and_white_noise_only_in_the_ideal() {
+    let dps = 1f64.to_radians();
+    let typical: Vec<(f64, f64)> =
+        (1..=30).map(|seed| roll_rate_bias_and_noise(&drive(seed, Profile::Typical))).collect();
+    // The bias: within the datasheet's ±1 °/s (and what the mount's tilt mixes in of the
+    // turn), spread across it from drive to drive.
+    assert!(typical.iter().all(|(b, _)| b.abs() < dps + 2e-3), "{typical:?}");
+    let (lo, hi) = typical.iter().fold((f64::MAX, f64::MIN), |(lo, hi), (b, _)| (lo.min(*b), hi.max(*b)));
+    assert!(hi - lo > dps, "biases across ±1 °/s: {lo}..{hi}");
+    // The noise: white at the datasheet's density and vibration at ~0.003 rad/s near 20 m/s.
+    assert!(typical.iter().all(|(_, n)| (0.0015..0.005).contains(n)), "{typical:?}");
+    let ideal = drive(1, Profile::Ideal);
+    let (bias, noise) = roll_rate_bias_and_noise(&ideal);
+    assert!(bias.abs() < 1e-4, "no bias in the ideal profile: {bias}");
+    let white = 3.8e-3 * dps * 50f64.sqrt();
+    assert!((noise / white - 1.0).abs() < 0.1, "{noise} vs the datasheet's {white}");
+    // The output rate: 104 Hz (the LSM6DSO's) in the typical profile, 100 Hz in the ideal.
+    let rate = |s: &Scenario| (s.imu.len() - 1) as f64 / (s.imu[s.imu.len() - 1].0 - s.imu[0].0);
+    assert!((rate(&drive(1, Profile::Typical)) - 104.0).abs() < 0.5 && (rate(&ideal) - 100.0).abs() < 0.5);
+}

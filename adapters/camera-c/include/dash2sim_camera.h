@@ -174,6 +174,19 @@ int32_t d2s_publish_detections2d(struct d2s_publisher *publisher,
 // `publisher` is null or an open publisher.
 int32_t d2s_mark_keep(struct d2s_publisher *publisher, int64_t device_time_us);
 
+// One sample of the camera's IMU at `device_time_us` (the device clock), on the sensor's
+// own axes: `gyro` the angular rate about x, y, z (rad/s), `accel` the specific force along
+// them (m/s²; at rest +9.81 along "up"). The logger turns them to the camera's axes by
+// `record --imu-mount` and refuses a stream in g or in °/s with an error event.
+//
+// # Safety
+// `publisher` is null or an open publisher; `gyro` and `accel` are null or point to 3
+// floats each.
+int32_t d2s_publish_imu(struct d2s_publisher *publisher,
+                        int64_t device_time_us,
+                        const float *gyro,
+                        const float *accel);
+
 // The device clock the logger stamps its other inputs with (`CLOCK_MONOTONIC`), µs.
 int64_t d2s_device_now_us(void);
 

@@ -17,6 +17,7 @@
 //! d2s_publish_vo(camera, 1, t, 0, position, rotation);
 //! d2s_publish_detections3d(camera, 1, t, boxes, n);
 //! d2s_publish_detections2d(camera, 1, t, boxes2d, m);
+//! d2s_publish_imu(camera, t_imu, gyro, accel); /* per IMU sample */
 //! d2s_publisher_close(camera);
 //! ```
 
@@ -27,7 +28,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use dash2sim_core::nalgebra::Vector3;
 use dash2sim_core::sim3::Pose;
 use dash2sim_linux::record::bridge::messages::{
-    self, Detection2dItem, Detection3dItem, FrameMetaMsg, VoPoseMsg, LAYOUT_VERSION, MAX_DETECTIONS,
+    self, Detection2dItem, Detection3dItem, FrameMetaMsg, ImuMsg, VoPoseMsg, LAYOUT_VERSION, MAX_DETECTIONS,
 };
 use dash2sim_linux::record::bridge::{self, CameraPublisher, ImageLoan, MAX_IMAGE_BYTES};
 
@@ -337,6 +338,34 @@ pub unsafe extern "C" fn d2s_publish_detections2d(
 pub unsafe extern "C" fn d2s_mark_keep(publisher: *mut D2sPublisher, device_time_us: i64) -> i32 {
     with_publisher("d2s_mark_keep", publisher, |p| {
         p.camera.keep(dash2sim_core::time::Timestamp::from_micros(device_time_us)).map_err(shared_memory)
+    })
+}
+
+/// One sample of the camera's IMU at `device_time_us` (the device clock), on the sensor's
+/// own axes: `gyro` the angular rate about x, y, z (rad/s), `accel` the specific force along
+/// them (m/s²; at rest +9.81 along "up"). The logger turns them to the camera's axes by
+/// `record --imu-mount` and refuses a stream in g or in °/s with an error event.
+///
+/// # Safety
+/// `publisher` is null or an open publisher; `gyro` and `accel` are null or point to 3
+/// floats each.
+#[no_mangle]
+pub unsafe extern "C" fn d2s_publish_imu(
+    publisher: *mut D2sPublisher,
+    device_time_us: i64,
+    gyro: *const f32,
+    accel: *const f32,
+) -> i32 {
+    with_publisher("d2s_publish_imu", publisher, |p| {
+        if gyro.is_null() || accel.is_null() {
+            return fail(D2S_ERR_NULL, "the gyro or accel is null");
+        }
+        // SAFETY: the caller's promise: 3 floats each.
+        let (gyro, accel) = unsafe { (*gyro.cast::<[f32; 3]>(), *accel.cast::<[f32; 3]>()) };
+        if !gyro.iter().chain(&accel).all(|v| v.is_finite()) {
+            return fail(D2S_ERR_RANGE, "the IMU sample is not finite");
+        }
+        p.camera.send_imu(ImuMsg { device_time_us, gyro, accel, ..ImuMsg::default() }).map_err(shared_memory)
     })
 }
 

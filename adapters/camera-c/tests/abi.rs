@@ -97,6 +97,12 @@ fn what_c_publishes_arrives_at_the_logger_with_its_image() {
         assert_eq!(d2s_publish_vo(publisher, 5, 1_000_000, 2, [1.0, 2.0, 3.0].as_ptr(), rotation.as_ptr()), D2S_OK);
         assert_eq!(d2s_publish_detections3d(publisher, 5, 1_000_000, boxes.as_ptr(), 1), D2S_OK);
         assert_eq!(d2s_mark_keep(publisher, 1_050_000), D2S_OK);
+        let (gyro, accel) = ([0.01f32, -0.02, 0.3], [0.5f32, -0.25, 9.81]);
+        assert_eq!(d2s_publish_imu(publisher, 1_010_000, gyro.as_ptr(), accel.as_ptr()), D2S_OK);
+        assert_eq!(d2s_publish_imu(publisher, 1_020_000, gyro.as_ptr(), std::ptr::null()), D2S_ERR_NULL);
+        let nan = [f32::NAN, 0.0, 0.0];
+        assert_eq!(d2s_publish_imu(publisher, 1_020_000, nan.as_ptr(), accel.as_ptr()), D2S_ERR_RANGE);
+        assert!(last_error().contains("not finite"), "{}", last_error());
     }
     let mut inputs = Vec::new();
     subscriber.receive(|input| inputs.push(input)).expect("receive");
@@ -104,11 +110,16 @@ fn what_c_publishes_arrives_at_the_logger_with_its_image() {
     unsafe { d2s_publisher_close(publisher) };
     let expected = dash2sim_core::sim3::Pose::from_quaternion_wxyz(q, [1.0, 2.0, 3.0].into());
     let t = dash2sim_core::time::Timestamp::from_micros(1_000_000);
-    assert_eq!(inputs.len(), 4, "{inputs:?}");
-    assert_eq!(inputs[3], CameraInput::Keep(dash2sim_core::time::Timestamp::from_micros(1_050_000)));
-    assert_eq!(inputs[0], CameraInput::Frame { sequence: 5, t, exposure_us: 8000, image_bytes: 1000 });
-    assert_eq!(inputs[1], CameraInput::Vo(t, 5, 2, expected), "the rotation bit for bit as record reads it");
-    let CameraInput::Detections3d(_, 5, ref d) = inputs[2] else { panic!("{:?}", inputs[2]) };
+    assert_eq!(inputs.len(), 5, "{inputs:?}");
+    let imu = dash2sim_core::imu::ImuSample {
+        gyro: [0.01f32, -0.02, 0.3].map(f64::from),
+        accel: [0.5f32, -0.25, 9.81].map(f64::from),
+    };
+    assert_eq!(inputs[0], CameraInput::Imu(dash2sim_core::time::Timestamp::from_micros(1_010_000), imu));
+    assert_eq!(inputs[4], CameraInput::Keep(dash2sim_core::time::Timestamp::from_micros(1_050_000)));
+    assert_eq!(inputs[1], CameraInput::Frame { sequence: 5, t, exposure_us: 8000, image_bytes: 1000 });
+    assert_eq!(inputs[2], CameraInput::Vo(t, 5, 2, expected), "the rotation bit for bit as record reads it");
+    let CameraInput::Detections3d(_, 5, ref d) = inputs[3] else { panic!("{:?}", inputs[3]) };
     assert_eq!((d.len(), d[0].class, d[0].bbox.x), (1, 2, 10.0));
 }
 

@@ -70,6 +70,16 @@ pub fn run(path: &Path, with_events: bool, as_json: bool) -> Result<()> {
             dropped_inputs(&log)
         );
     }
+    if let Some(imu) = &r.imu {
+        println!("  IMU         {} samples in {} intervals ({:.1} Hz)", imu.samples, imu.intervals, imu.rate_hz);
+        if let Some(e) = &imu.last_estimate {
+            let [bx, by, bz] = e.gyro_bias_rad_s;
+            println!(
+                "              last estimate at {:.1} s: pitch {:.2}°, roll {:.2}°; gyro bias ({bx:.5}, {by:.5}, {bz:.5}) rad/s, ± {:.5} about the vertical, from {} standstills and {} GNSS course intervals",
+                e.t_s, e.pitch_deg, e.roll_deg, e.bias_sigma_rad_s, e.standstills, e.courses
+            );
+        }
+    }
     for (offset, len) in log.damage.iter().take(10) {
         println!("    {len} bytes at offset {offset}");
     }

@@ -200,6 +200,15 @@ pub enum Motion {
     ImuWheels,
 }
 
+impl From<Motion> for RelativeMotion {
+    fn from(motion: Motion) -> Self {
+        match motion {
+            Motion::Vo => RelativeMotion::Vo,
+            Motion::ImuWheels => RelativeMotion::ImuWheels,
+        }
+    }
+}
+
 /// `--imu-mount ROLL,PITCH,YAW`.
 fn parse_imu_mount(text: &str) -> std::result::Result<ImuMount, String> {
     let v: Vec<f64> = text
@@ -220,10 +229,7 @@ impl From<DeviceArgs> for Device {
             mode: a.mode,
             uere: a.uere,
             imu_mount: a.imu_mount,
-            relative_motion: match a.relative_motion {
-                Motion::Vo => RelativeMotion::Vo,
-                Motion::ImuWheels => RelativeMotion::ImuWheels,
-            },
+            relative_motion: a.relative_motion.into(),
         }
     }
 }

@@ -62,6 +62,10 @@ pub struct SweepArgs {
     /// bounds what a better latency estimate could gain (the summary is marked as one).
     #[arg(long)]
     pub oracle_latency: bool,
+    /// Where the device's relative motion comes from: the camera's `vo`, or `imu-wheels`
+    /// (the camera publishes no VO: gyro + wheels dead reckoning from the drive's IMU).
+    #[arg(long, value_enum, default_value = "vo")]
+    pub relative_motion: crate::record::Motion,
     /// Length of each drive, s.
     #[arg(long, default_value_t = 40.0)]
     pub duration: f64,
@@ -199,6 +203,7 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         receiver: args.receiver,
         anchors: args.anchors,
         oracle_latency: args.oracle_latency,
+        relative_motion: args.relative_motion.into(),
         duration: args.duration,
         jobs: args.jobs,
         output: args.output.clone(),

@@ -645,6 +645,8 @@ fn export_parquet_writes_a_table_per_record_kind_in_si_units_and_utc() {
         ("speed", "VehicleSpeed"),
         ("anchors", "AnchorEstimate"),
         ("verification", "Verification"),
+        ("imu", "ImuDelta"),
+        ("imu_estimates", "ImuEstimate"),
         ("events", "Event"),
     ] {
         let (rows, _) = parquet_table(&out_dir.join(format!("{table}.parquet")));

@@ -1,5 +1,5 @@
 """A camera process in Python: publishes recorded camera outputs from a folder (vo.csv,
-detections3d.csv, det2d.txt — the files ``dash2sim record`` reads, docs/cli.md) over
+detections3d.csv, det2d.txt, imu.csv — the files ``dash2sim record`` reads, docs/cli.md) over
 dash2sim's shared-memory bridge at their frame rate with ``dash2sim.camera.Publisher``,
 then prints "N frames published".
 
@@ -24,6 +24,7 @@ import numpy as np
 from dash2sim.camera import DEFAULT_PREFIX, Publisher, class_id, device_now_us, micros, rotation_from_quaternion
 
 VO_HEADER = "frame,t_s,x,y,z,qx,qy,qz,qw,session"
+IMU_HEADER = "t_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z"
 
 
 def read_rows(path: Path, header: str | None = None) -> list[list[str]]:
@@ -33,7 +34,7 @@ def read_rows(path: Path, header: str | None = None) -> list[list[str]]:
     rows = []
     with path.open(newline="") as f:
         for n, row in enumerate(csv.reader(f), start=1):
-            if not row or row[0].startswith("#") or (n == 1 and header is not None and row[0] == "frame"):
+            if not row or row[0].startswith("#") or (n == 1 and header is not None and row[0] == header.split(",")[0]):
                 continue
             rows.append(row)
     return rows
@@ -41,7 +42,7 @@ def read_rows(path: Path, header: str | None = None) -> list[list[str]]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description="Publish a folder of VO poses and detections as a camera process would.")
-    parser.add_argument("dir", type=Path, help="the folder with vo.csv, detections3d.csv and det2d.txt")
+    parser.add_argument("dir", type=Path, help="the folder with vo.csv, detections3d.csv, det2d.txt and imu.csv")
     parser.add_argument("--prefix", default=DEFAULT_PREFIX, help="service prefix")
     parser.add_argument("--speedup", type=float, default=1.0, help="publish this many times faster")
     parser.add_argument("--file-times", action="store_true", help="stamp frames with the files' times")
@@ -64,17 +65,28 @@ def main() -> int:
     boxes2d = defaultdict(list)
     for row in read_rows(args.dir / "det2d.txt"):
         boxes2d[int(float(row[0]))].append([float(v) for v in row[2:7]])
+    imu = [[float(v) for v in row] for row in read_rows(args.dir / "imu.csv", IMU_HEADER)]
 
     frames = sorted(times)
     first = times[frames[0]] if frames else 0.0
     with Publisher(args.prefix) as camera:
         start, device_start = time.monotonic(), device_now_us()
+
+        def moved(t_s: float) -> int:
+            return micros(t_s) if args.file_times else device_start + micros(t_s) - micros(first)
+
+        next_imu = 0
         for frame in frames:
             t_s = times[frame]
             wait = start + (t_s - first) / args.speedup - time.monotonic()
             if wait > 0:
                 time.sleep(wait)
-            t = micros(t_s) if args.file_times else device_start + micros(t_s) - micros(first)
+            # The IMU samples stamped up to this frame (a camera reads its IMU's FIFO once a frame).
+            while next_imu < len(imu) and imu[next_imu][0] <= t_s:
+                sample = imu[next_imu]
+                camera.imu(moved(sample[0]), sample[1:4], sample[4:7])
+                next_imu += 1
+            t = moved(t_s)
             camera.frame(frame, t)
             if frame in poses:
                 position, rotation, session = poses[frame]

@@ -216,3 +216,21 @@ def test_a_keep_mark_arrives_as_the_logger_reads_it():
         publisher.keep(42_000)
         mark = marks.receive().payload().contents
         assert (mark.version, mark.device_time_us) == (camera.LAYOUT_VERSION, 42_000)
+
+
+def test_an_imu_sample_arrives_as_the_logger_reads_it_and_a_nan_is_refused():
+    import iceoryx2 as iox
+
+    prefix = f"dash2sim-test/python-imu/{os.getpid()}"
+    with camera.Publisher(prefix) as publisher:
+        node = iox.NodeBuilder.new().create(iox.ServiceType.Ipc)
+        samples = subscriber(node, f"{prefix}/imu", camera.ImuMsg, camera.IMU_SUBSCRIBER_BUFFER)
+        publisher.imu(10_000, [0.01, -0.02, 0.3], np.array([0.5, -0.25, 9.81]))
+        sample = samples.receive().payload().contents
+        assert (sample.version, sample.device_time_us) == (camera.LAYOUT_VERSION, 10_000)
+        assert np.allclose(list(sample.gyro), [0.01, -0.02, 0.3]) and np.allclose(list(sample.accel), [0.5, -0.25, 9.81])
+        with pytest.raises(camera.BridgeError, match="not finite"):
+            publisher.imu(20_000, [float("nan"), 0, 0], [0, 0, 9.81])
+        with pytest.raises(camera.BridgeError, match="shape"):
+            publisher.imu(20_000, [0, 0], [0, 0, 9.81])
+        assert samples.receive() is None, "a refused sample is not sent"

@@ -41,6 +41,9 @@ pub const VERSION_MINOR: u8 = 6;
 pub const HEADER_LEN: usize = 48;
 /// Marks the start of every segment; a reader looks for it after damage.
 pub const SYNC: [u8; 4] = [0xD2, 0x5C, 0x0F, 0xE1];
+/// [`FrameMeta`]'s flag of a pose the device dead-reckoned (gyro + wheels, v1.6), not a
+/// camera frame: its frame numbers are the dead reckoning's own, at its own rate.
+pub const FRAME_DEAD_RECKONED: i64 = 2;
 /// Largest payload a record may have.
 pub const MAX_PAYLOAD: usize = 1024;
 /// Longest frame: length varint, kind, payload, CRC.
@@ -492,7 +495,8 @@ records! {
         t_us: DeltaDelta,
         /// Frame number.
         frame: DeltaDelta,
-        /// Flags (bit 0: keyframe of VO).
+        /// Flags (bit 0: keyframe of VO; bit 1, [`FRAME_DEAD_RECKONED`]: a dead-reckoned
+        /// pose, not a camera frame).
         flags: Absolute,
     }
     /// A 2D detection.

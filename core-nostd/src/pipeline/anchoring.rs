@@ -7,9 +7,11 @@ use embedded_io::Write;
 use super::anchor_record;
 use super::calibration::{MountCalibration, MountEstimate};
 use super::issues::Issue;
-use super::{carry, ease, euler, lag, mount, mount_record, quantise, PipelineConfig, PipelineError, State};
+use super::{
+    carry, ease, euler, lag, mount, mount_record, quantise, PipelineConfig, PipelineError, RelativeMotion, State,
+};
 use crate::anchor::{Anchorer, Observability};
-use crate::binlog::{EgoPose, FrameMeta, Record, VoPose};
+use crate::binlog::{EgoPose, FrameMeta, Record, VoPose, FRAME_DEAD_RECKONED};
 use crate::decimal::Decimal;
 use crate::geo::LocalFrame;
 use crate::obb::Pose2;
@@ -54,8 +56,8 @@ impl Anchoring {
         Anchoring {
             local: LocalFrame::new(config.origin),
             anchorer: Anchorer::new(match config.relative_motion {
-                super::RelativeMotion::Vo => config.anchor,
-                super::RelativeMotion::ImuWheels => {
+                RelativeMotion::Vo => config.anchor,
+                RelativeMotion::ImuWheels => {
                     crate::anchor::AnchorConfig { mode: crate::anchor::AnchorMode::GravityAligned, ..config.anchor }
                 }
             }),
@@ -144,7 +146,9 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         let t_us = self.log.time(t);
         // The log keeps the camera's own numbers (sequence gaps and restarts show there).
         let frame_i64 = i64::try_from(raw_frame).unwrap_or(i64::MAX);
-        self.log.write(&Record::FrameMeta(FrameMeta { t_us, frame: frame_i64, flags: 0 }))?;
+        // Under gyro + wheels every pose is dead-reckoned (the camera's VO is not used).
+        let flags = if self.config.relative_motion == RelativeMotion::ImuWheels { FRAME_DEAD_RECKONED } else { 0 };
+        self.log.write(&Record::FrameMeta(FrameMeta { t_us, frame: frame_i64, flags }))?;
         let [yaw, pitch, roll] = euler(&pose.rotation);
         let p = &pose.translation;
         self.log.write(&Record::VoPose(VoPose {

@@ -72,7 +72,12 @@ pub(super) struct Inertial {
     pub(super) bias: GyroBias,
     impact: Impact,
     dead_reckoning: DeadReckoning,
+    /// The dead reckoning's own frame numbers (until the camera's come).
     frame: u64,
+    /// Dead reckoning has begun (the attitude settled, a wheel speed known).
+    reckoning: bool,
+    /// The last camera frame a pose was made at.
+    camera_frame: Option<u64>,
     last_pose: Option<Timestamp>,
     last_estimate: Option<Timestamp>,
     /// The latest wheel speed (time, m/s) and its low-passed derivative, m/s².
@@ -93,6 +98,8 @@ impl Inertial {
             impact: Impact::default(),
             dead_reckoning: DeadReckoning::default(),
             frame: 0,
+            reckoning: false,
+            camera_frame: None,
             last_pose: None,
             last_estimate: None,
             speed: None,
@@ -252,20 +259,45 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
     }
 
     /// Gyro + wheels: the body moved along its heading; a camera pose anchored in
-    /// place of a VO pose every `pose_interval`.
+    /// place of a VO pose every `pose_interval` — until the camera's frames come (with
+    /// their detections): from then on a pose is made at each of them instead
+    /// ([`State::dead_reckoned_frame`]).
     fn dead_reckon(&mut self, t: Timestamp, dt: f64, speed: Option<f64>) -> Result<(), PipelineError<W::Error>> {
         let imu = &mut self.inertial;
         let Some(speed) = speed else { return Ok(()) };
         imu.dead_reckoning.advance(dt, speed, &imu.attitude);
-        if imu.last_pose.is_some_and(|last| t - last < self.config.imu.pose_interval) {
+        imu.reckoning = true;
+        if imu.camera_frame.is_some() || imu.last_pose.is_some_and(|last| t - last < self.config.imu.pose_interval) {
             return Ok(());
         }
         imu.last_pose = Some(t);
-        let mount = self.config.mount;
-        let pose: Pose =
-            imu.dead_reckoning.camera_pose(&imu.attitude, &mount.rotation(), &Vector3::from(mount.position));
-        let frame = imu.frame;
-        imu.frame = imu.frame.saturating_add(1);
+        let pose = self.dead_reckoned_pose();
+        let frame = self.inertial.frame;
+        self.inertial.frame = frame.saturating_add(1);
+        self.on_vo(t, frame, DEAD_RECKONING_SESSION, &pose)
+    }
+
+    /// The camera's pose as dead reckoning has it now.
+    fn dead_reckoned_pose(&self) -> Pose {
+        let (imu, mount) = (&self.inertial, &self.config.mount);
+        imu.dead_reckoning.camera_pose(&imu.attitude, &mount.rotation(), &Vector3::from(mount.position))
+    }
+
+    /// Under gyro + wheels, the pose of camera frame `frame` (its detections arrive at `t`),
+    /// once per frame: the detections are placed with the pose of their own frame, and the
+    /// log's frames are the camera's (each flagged dead-reckoned), as a VO camera's are.
+    pub(super) fn dead_reckoned_frame(&mut self, t: Timestamp, frame: u64) -> Result<(), PipelineError<W::Error>> {
+        let imu = &self.inertial;
+        let later = self.anchoring.vo.is_none_or(|v| t > v.t);
+        if self.config.relative_motion != RelativeMotion::ImuWheels
+            || !imu.reckoning
+            || imu.camera_frame == Some(frame)
+            || !later
+        {
+            return Ok(());
+        }
+        self.inertial.camera_frame = Some(frame);
+        let pose = self.dead_reckoned_pose();
         self.on_vo(t, frame, DEAD_RECKONING_SESSION, &pose)
     }
 }

@@ -499,6 +499,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
         detections: &[Detection3d],
     ) -> Result<(), PipelineError<W::Error>> {
         let t = self.state.log.monotonic(t)?;
+        self.state.dead_reckoned_frame(t, frame)?;
         self.state.on_detections(t, frame, detections)
     }
 
@@ -510,6 +511,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
         detections: &[ImageDetection],
     ) -> Result<(), PipelineError<W::Error>> {
         let t = self.state.log.monotonic(t)?;
+        self.state.dead_reckoned_frame(t, frame)?;
         self.state.on_detections2d(t, frame, detections)
     }
 

@@ -27,7 +27,7 @@ use dash2sim_core::pipeline::profile::{work_zone_pipeline, work_zone_trackers, W
 use dash2sim_core::pipeline::{replay, ImageDetection, Pipeline, PipelineConfig, Trackers};
 use embedded_can::nb::Can as _;
 use embedded_io::{Read as _, ReadReady as _};
-use static_cell::ConstStaticCell;
+use static_cell::StaticCell;
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
@@ -119,17 +119,27 @@ impl Cost {
     }
 }
 
+/// The trackers (92 KB) in a static that costs no flash. A const-initialised static (as
+/// `ConstStaticCell` makes) puts its initial image in `.data`, which a board's loader copies
+/// from flash; this one is zeroed `.bss`, built at run time. The core has no `unsafe` to
+/// build them field by field in place, so they are built in a temporary on the stack and
+/// moved: called from `main` before the pipeline runs, that temporary's frame (92 KB) is
+/// gone before the pipeline's deeper one (107 KB) is used, and the stack's high-water mark
+/// is the pipeline's. `None` when called a second time.
+#[inline(never)]
+fn trackers() -> Option<&'static mut Trackers<'static, 64, 24>> {
+    static TRACKERS: StaticCell<Trackers<'static, 64, 24>> = StaticCell::new();
+    TRACKERS.try_init_with(work_zone_trackers)
+}
+
 /// The pipeline over the replayed drive, the log to the host.
-fn record_drive(cost: &mut Cost) -> bool {
+fn record_drive(cost: &mut Cost, trackers: &'static mut Trackers<'static, 64, 24>) -> bool {
     let Ok(map) = MapView::parse(DRIVE_TILE) else {
         hprintln!("the drive's map tile was refused");
         return false;
     };
     let [lat, lon, height] = map.header().origin;
     let Ok(origin) = Geodetic::new(lat, lon, height) else { return false };
-    // The trackers (96 KB) are const-constructed in their static place: never on the stack.
-    static TRACKERS: ConstStaticCell<Trackers<'static, 64, 24>> = ConstStaticCell::new(work_zone_trackers());
-    let trackers = TRACKERS.take();
     let config = PipelineConfig {
         device_id: *b"dash2sim-mcu\0\0\0\0",
         map: Some(map),
@@ -270,7 +280,8 @@ fn main() -> ! {
     syst.clear_current();
     syst.enable_counter();
     let mut cost = Cost::calibrate();
-    let recorded = record_drive(&mut cost);
+    let Some(trackers) = trackers() else { exit(false) };
+    let recorded = record_drive(&mut cost, trackers);
     let frames = f64::from(cost.kinds[2].0.max(1));
     let all: f64 = cost.kinds.iter().map(|k| k.1).sum();
     hprintln!("instructions per frame (10 Hz; under QEMU -icount): {} on average", Decimal::new(all / frames, 0));

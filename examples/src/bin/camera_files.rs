@@ -1,5 +1,6 @@
 //! A camera process that publishes recorded camera outputs from a folder — `vo.csv`,
-//! `detections3d.csv` and `det2d.txt`, the files `dash2sim record` reads (docs/cli.md) — over
+//! `detections3d.csv`, `det2d.txt` and `imu.csv`, the files `dash2sim record` reads
+//! (docs/cli.md) — over
 //! the shared-memory bridge at their frame rate, then prints `N frames published`.
 //!
 //! The Rust one of three such programs: `examples/camera-c/camera_files.c` (the C ABI) and
@@ -9,8 +10,10 @@
 //!
 //! Every frame number that has a VO pose or 3D detections is published, in order: its
 //! metadata, its VO pose (if the VO had one), its 3D and its 2D detections (empty lists
-//! where the detector found nothing). A frame's device time is the VO's stamp (else the 3D
-//! detections'), moved to now on the device clock (`--file-times` keeps the files' times).
+//! where the detector found nothing), after the IMU samples stamped up to it (a camera SoC
+//! reads its IMU's FIFO once a frame). A frame's device time is the VO's stamp (else the 3D
+//! detections'), moved to now on the device clock (`--file-times` keeps the files' times); an
+//! IMU sample's is moved by as much.
 //!
 //! `cargo run --release -p dash2sim-examples --bin camera_files -- DRIVE_DIR`
 
@@ -25,7 +28,7 @@ use dash2sim_core::time::Timestamp;
 use dash2sim_core::track3d::Detection3d;
 use dash2sim_linux::ingest::detections;
 use dash2sim_linux::record::bridge::{device_now, CameraPublisher, DEFAULT_PREFIX};
-use dash2sim_linux::record::sources::{read_detections2d, read_vo_csv};
+use dash2sim_linux::record::sources::{read_detections2d, read_imu_csv, read_vo_csv};
 
 /// How long the publisher stays open after the last frame.
 const LINGER: Duration = Duration::from_millis(500);
@@ -34,7 +37,7 @@ const LINGER: Duration = Duration::from_millis(500);
 #[derive(Debug, Parser)]
 #[command(name = "camera_files", version, about)]
 struct Args {
-    /// The folder with vo.csv, detections3d.csv and det2d.txt (`dash2sim scenario generate`
+    /// The folder with vo.csv, detections3d.csv, det2d.txt and imu.csv (`dash2sim scenario generate`
     /// writes one; a missing file publishes nothing of its kind).
     dir: PathBuf,
     /// Service prefix.
@@ -53,6 +56,7 @@ fn run(args: &Args) -> Result<usize, Box<dyn std::error::Error>> {
     let vo = file("vo.csv").map(|p| read_vo_csv(&p)).transpose()?.unwrap_or_default();
     let boxes3d = file("detections3d.csv").map(|p| detections::read(&p)).transpose()?.unwrap_or_default();
     let boxes2d = file("det2d.txt").map(|p: PathBuf| read_detections2d(&p)).transpose()?.unwrap_or_default();
+    let imu = file("imu.csv").map(|p| read_imu_csv(&p)).transpose()?.unwrap_or_default();
 
     let mut times: BTreeMap<u64, f64> = vo.iter().map(|row| (row.frame, row.t)).collect();
     let mut frames3d: BTreeMap<u64, Vec<Detection3d>> = BTreeMap::new();
@@ -71,12 +75,19 @@ fn run(args: &Args) -> Result<usize, Box<dyn std::error::Error>> {
     let camera = CameraPublisher::new(&args.prefix, false)?;
     let first = times.values().next().copied().unwrap_or(0.0);
     let (start, device_start) = (Instant::now(), device_now());
+    let moved = |t_s: f64| -> Result<Timestamp, String> {
+        let t = micros(t_s, &args.dir)?;
+        Ok(if args.file_times { t } else { device_start + (t - micros(first, &args.dir)?) })
+    };
+    let mut imu = imu.iter().peekable();
     for &frame in &frames {
         let t_s = times[&frame];
         let due = start + Duration::from_secs_f64(((t_s - first) / args.speedup).max(0.0));
         std::thread::sleep(due.saturating_duration_since(Instant::now()));
-        let t = micros(t_s, &args.dir)?;
-        let t = if args.file_times { t } else { device_start + (t - micros(first, &args.dir)?) };
+        while let Some((t_imu, sample)) = imu.next_if(|(t_imu, _)| *t_imu <= t_s) {
+            camera.imu(moved(*t_imu)?, sample)?;
+        }
+        let t = moved(t_s)?;
         camera.frame(frame, t, 0, None)?;
         if let Some(row) = poses.get(&frame) {
             camera.vo(frame, t, &row.pose, row.session)?;

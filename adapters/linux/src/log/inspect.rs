@@ -109,6 +109,69 @@ pub fn dropped_inputs(log: &LogContents) -> u64 {
         .unwrap_or(0)
 }
 
+/// What a log says of its IMU (`inspect`'s IMU line): how much it kept, and what the
+/// device last made of it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ImuReport {
+    /// Preintegrated intervals (`ImuDelta`).
+    pub intervals: u64,
+    /// Samples in them.
+    pub samples: u64,
+    /// Samples per second over the intervals' time, Hz.
+    pub rate_hz: f64,
+    /// The device's last estimate (`ImuEstimate`), if it made one.
+    pub last_estimate: Option<ImuEstimateReport>,
+}
+
+/// The device's estimate of its IMU at one time.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ImuEstimateReport {
+    /// When, s.
+    pub t_s: f64,
+    /// The body's pitch (positive nose down), degrees.
+    pub pitch_deg: f64,
+    /// The body's roll, degrees.
+    pub roll_deg: f64,
+    /// The gyro's bias about the body's x, y, z, rad/s.
+    pub gyro_bias_rad_s: [f64; 3],
+    /// 1-σ of the bias about the vertical, rad/s.
+    pub bias_sigma_rad_s: f64,
+    /// Standstills the bias rests on.
+    pub standstills: i64,
+    /// GNSS course intervals it rests on.
+    pub courses: i64,
+}
+
+/// The log's IMU, if it has one.
+pub fn imu(log: &LogContents) -> Option<ImuReport> {
+    let (mut intervals, mut samples, mut time_us, mut last) = (0u64, 0u64, 0i64, None);
+    for record in &log.records {
+        match record {
+            Record::ImuDelta(d) => {
+                intervals += 1;
+                samples += u64::try_from(d.samples).unwrap_or(0);
+                time_us = time_us.saturating_add(d.dt_us);
+            }
+            Record::ImuEstimate(e) => last = Some(e),
+            _ => {}
+        }
+    }
+    if intervals == 0 && last.is_none() {
+        return None;
+    }
+    let last_estimate = last.map(|e| ImuEstimateReport {
+        t_s: seconds(e.t_us),
+        pitch_deg: (e.pitch_e6 as f64 * 1e-6).to_degrees(),
+        roll_deg: (e.roll_e6 as f64 * 1e-6).to_degrees(),
+        gyro_bias_rad_s: [e.bias_x_e7, e.bias_y_e7, e.bias_z_e7].map(|b| b as f64 * 1e-7),
+        bias_sigma_rad_s: e.bias_sigma_e7 as f64 * 1e-7,
+        standstills: e.standstills,
+        courses: e.courses,
+    });
+    let rate_hz = if time_us > 0 { samples as f64 / seconds(time_us) } else { 0.0 };
+    Some(ImuReport { intervals, samples, rate_hz, last_estimate })
+}
+
 /// What a log holds (`dash2sim inspect --json`).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Report {
@@ -144,6 +207,8 @@ pub struct Report {
     pub frames: Frames,
     /// Inputs the recorder dropped before its pipeline.
     pub dropped_inputs: u64,
+    /// The IMU, if the log has one.
+    pub imu: Option<ImuReport>,
 }
 
 /// A log's header as the report gives it.
@@ -230,6 +295,7 @@ pub fn report(log: &LogContents) -> Report {
         gaps: gaps(log).into_iter().map(|(k, from, to)| Gap { kind: k.name(), from, to }).collect(),
         frames: frames(log),
         dropped_inputs: dropped_inputs(log),
+        imu: imu(log),
     }
 }
 
@@ -277,5 +343,31 @@ mod tests {
         assert_eq!(dropped_inputs(&log), 17);
         let json = serde_json::to_value(report(&log)).expect("serialises");
         assert_eq!((json["frames"]["missing"].as_u64(), json["frames"]["sequence_gaps"].as_u64()), (Some(2), Some(1)));
+    }
+
+    #[test]
+    fn the_imu_line_counts_samples_over_the_intervals_time_and_reads_the_last_estimate() {
+        use dash2sim_core::binlog::{ImuDelta, ImuEstimate};
+        let delta = |t_us| Record::ImuDelta(ImuDelta { t_us, dt_us: 100_000, samples: 10, ..ImuDelta::default() });
+        let estimate = |t_us, bias_z_e7| {
+            Record::ImuEstimate(ImuEstimate { t_us, pitch_e6: 17_453, bias_z_e7, courses: 4, ..ImuEstimate::default() })
+        };
+        let header = Header { device_id: [0; 16], origin: [0; 3] };
+        let mut records =
+            vec![delta(100_000), delta(200_000), estimate(200_000, 1_000), delta(300_000), estimate(300_000, 2_000)];
+        let log =
+            crate::log::decode(&crate::log::import::encode(&header, &mut records).expect("encodes"), "t").expect("log");
+        let imu = imu(&log).expect("an IMU");
+        assert_eq!((imu.intervals, imu.samples), (3, 30));
+        assert!((imu.rate_hz - 100.0).abs() < 1e-9, "{}", imu.rate_hz);
+        let e = imu.last_estimate.expect("an estimate");
+        assert_eq!((e.t_s, e.courses), (0.3, 4));
+        assert!((e.gyro_bias_rad_s[2] - 2e-4).abs() < 1e-12, "{:?}", e.gyro_bias_rad_s);
+        assert!((e.pitch_deg - 1.0).abs() < 1e-3, "{}", e.pitch_deg);
+        // A log without an IMU says nothing of one.
+        let mut none = vec![Record::FrameMeta(FrameMeta { t_us: 1, frame: 1, flags: 0 })];
+        let log =
+            crate::log::decode(&crate::log::import::encode(&header, &mut none).expect("encodes"), "t").expect("log");
+        assert_eq!(report(&log).imu, None);
     }
 }

@@ -261,6 +261,30 @@ pub fn tables(log: &LogContents, log_id: &str) -> Result<LogTables> {
         .f64("worst_corner_outside_m", column(&windows, |v| v.worst_corner_mm as f64 * 1e-3));
     batches.push(("verification", table.batch()?));
 
+    let deltas = rows(log, |r| if let Record::ImuDelta(d) = r { Some(d) } else { None });
+    let table = Table::new(log_id, column(&deltas, |d| d.t_us))
+        .f64("dt_s", column(&deltas, |d| d.dt_us as f64 * 1e-6))
+        .f64("dtheta_x_rad", column(&deltas, |d| d.dtheta_x_e6 as f64 * 1e-6))
+        .f64("dtheta_y_rad", column(&deltas, |d| d.dtheta_y_e6 as f64 * 1e-6))
+        .f64("dtheta_z_rad", column(&deltas, |d| d.dtheta_z_e6 as f64 * 1e-6))
+        .f64("dv_x_mps", column(&deltas, |d| d.dv_x_mm_s as f64 * 1e-3))
+        .f64("dv_y_mps", column(&deltas, |d| d.dv_y_mm_s as f64 * 1e-3))
+        .f64("dv_z_mps", column(&deltas, |d| d.dv_z_mm_s as f64 * 1e-3))
+        .i64("samples", column(&deltas, |d| d.samples));
+    batches.push(("imu", table.batch()?));
+
+    let estimates = rows(log, |r| if let Record::ImuEstimate(e) = r { Some(e) } else { None });
+    let table = Table::new(log_id, column(&estimates, |e| e.t_us))
+        .f64("pitch_rad", column(&estimates, |e| e.pitch_e6 as f64 * 1e-6))
+        .f64("roll_rad", column(&estimates, |e| e.roll_e6 as f64 * 1e-6))
+        .f64("gyro_bias_x_rad_s", column(&estimates, |e| e.bias_x_e7 as f64 * 1e-7))
+        .f64("gyro_bias_y_rad_s", column(&estimates, |e| e.bias_y_e7 as f64 * 1e-7))
+        .f64("gyro_bias_z_rad_s", column(&estimates, |e| e.bias_z_e7 as f64 * 1e-7))
+        .f64("gyro_bias_z_sigma_rad_s", column(&estimates, |e| e.bias_sigma_e7 as f64 * 1e-7))
+        .i64("standstills", column(&estimates, |e| e.standstills))
+        .i64("courses", column(&estimates, |e| e.courses));
+    batches.push(("imu_estimates", table.batch()?));
+
     let events = rows(log, |r| if let Record::Event(e) = r { Some(e) } else { None });
     let table = Table::new(log_id, column(&events, |e| e.t_us))
         .i64("level", column(&events, |e| i64::from(e.level)))

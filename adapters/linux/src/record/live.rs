@@ -487,6 +487,7 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
                             camera_keep.store(true, Ordering::Relaxed);
                             Ok(())
                         }
+                        CameraInput::Imu(t, sample) => pipeline.push_imu(t, &sample),
                     };
                 })
                 .map_err(Error::other)?;
@@ -623,6 +624,7 @@ impl Waiting<'_> {
                             CameraInput::Detections3d(t, frame, d) => kept.keep(|k| k.detections3d(t, frame, &d)),
                             CameraInput::Detections2d(t, frame, d) => kept.keep(|k| k.detections2d(t, frame, &d)),
                             CameraInput::Keep(_) => self.camera_keep.store(true, Ordering::Relaxed),
+                            CameraInput::Imu(t, sample) => kept.keep(|k| k.imu(t, &sample)),
                         }
                     })
                     .map_err(Error::other)?;

@@ -51,15 +51,17 @@ pub struct Sources {
 }
 
 impl Sources {
-    /// The files `dash2sim scenario generate` writes into `dir`.
+    /// The files `dash2sim scenario generate` writes into `dir` (a folder generated before
+    /// the simulator had an IMU has no `imu.csv`, and is recorded without one).
     pub fn scenario(dir: &Path) -> Self {
+        let imu = dir.join("imu.csv");
         Sources {
             vo: Some(dir.join("vo.csv")),
             nmea: Some(dir.join("gnss.serial.log")),
             can: vec![dir.join("speed.can.log")],
             detections: Some(dir.join("detections3d.csv")),
             detections2d: Some(dir.join("det2d.txt")),
-            imu: None,
+            imu: imu.exists().then_some(imu),
         }
     }
 }
@@ -534,9 +536,10 @@ pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts)> 
         inputs.detections(p, profile::class_id)?;
     }
     if let Some(p) = &args.detections2d {
-        if args.vo.is_none() {
+        if args.vo.is_none() && args.detections.is_none() {
             return Err(Error::invalid(
-                "--detections2d needs --vo: 2D detections are stamped with their frame's VO time",
+                "--detections2d needs --vo or --detections: 2D detections are stamped with their frame's VO time \
+                 (or, without VO, its 3D detections' time)",
             ));
         }
         inputs.detections2d(p)?;

@@ -34,7 +34,17 @@ __all__ = ["Dash2SimError", "read_log", "inspect", "finish", "verify", "export",
 __version__: str = _native.__version__
 
 #: The tables :func:`read_log` returns and ``export(parquet=...)`` writes (docs/parquet.md).
-TABLES: Tuple[str, ...] = ("ego", "gnss", "speed", "anchors", "tracks3d", "verification", "events")
+TABLES: Tuple[str, ...] = (
+    "ego",
+    "gnss",
+    "speed",
+    "anchors",
+    "tracks3d",
+    "verification",
+    "imu",
+    "imu_estimates",
+    "events",
+)
 
 PathLike = Union[str, "os.PathLike[str]"]
 

@@ -13,6 +13,7 @@ with the same services and message layouts as the Rust ``CameraPublisher`` and t
         camera.vo(42, t, position, rotation)         # camera -> VO frame, any scale
         camera.detections3d(42, t, classes, boxes, scores)   # (N,), (N, 7), (N,)
         camera.detections2d(42, t, classes, boxes2d, scores2d)
+        camera.imu(device_now_us(), gyro, accel)    # per IMU sample: rad/s, m/s^2
 
 The message structures below mirror ``dash2sim_linux::record::bridge::messages``; the
 package's tests compare their sizes, offsets and type names with what the Rust side reports
@@ -38,6 +39,8 @@ MAX_IMAGE_BYTES = 1920 * 1080 * 3
 DEFAULT_PREFIX = "dash2sim/camera"
 #: Samples the logger keeps per service (the services' setting; both sides must agree).
 SUBSCRIBER_BUFFER = 64
+#: Samples the logger keeps on the IMU service (2.56 s at 400 Hz).
+IMU_SUBSCRIBER_BUFFER = 1024
 
 
 class _Message(ctypes.Structure):
@@ -117,8 +120,27 @@ class KeepMsg(_Message):
     ]
 
 
+class ImuMsg(_Message):
+    _fields_ = [
+        ("version", ctypes.c_uint32),
+        ("reserved", ctypes.c_uint32),
+        ("device_time_us", ctypes.c_int64),
+        ("gyro", ctypes.c_float * 3),
+        ("accel", ctypes.c_float * 3),
+    ]
+
+
 #: Every message type, in the order the Rust side reports them.
-MESSAGES = (FrameMetaMsg, VoPoseMsg, Detection3dItem, Detections3dMsg, Detection2dItem, Detections2dMsg, KeepMsg)
+MESSAGES = (
+    FrameMetaMsg,
+    VoPoseMsg,
+    Detection3dItem,
+    Detections3dMsg,
+    Detection2dItem,
+    Detections2dMsg,
+    KeepMsg,
+    ImuMsg,
+)
 
 
 def class_id(name: str) -> int:
@@ -206,6 +228,7 @@ class Publisher:
             self._detections3d = self._publisher(prefix, "detections3d", Detections3dMsg)
             self._detections2d = self._publisher(prefix, "detections2d", Detections2dMsg)
             self._keep = self._publisher(prefix, "keep", KeepMsg)
+            self._imu = self._service(prefix, "imu", ImuMsg, IMU_SUBSCRIBER_BUFFER).publisher_builder().create()
             self._image = None
             if images:
                 service = self._service(prefix, "image", iox.Slice[ctypes.c_uint8], 2)
@@ -237,7 +260,7 @@ class Publisher:
 
     def close(self) -> None:
         """Closes the publishers (the logger sees the camera process go)."""
-        for name in ("_image", "_frame", "_vo", "_detections3d", "_detections2d", "_keep"):
+        for name in ("_image", "_frame", "_vo", "_detections3d", "_detections2d", "_keep", "_imu"):
             port = getattr(self, name, None)
             if port is not None:
                 port.delete()
@@ -267,6 +290,18 @@ class Publisher:
         """"Keep the file being recorded" (a button press, an event the camera saw): the
         logger protects the log file it is writing from loop recording's deletions."""
         self._send(self._keep, KeepMsg(LAYOUT_VERSION, 0, device_time_us))
+
+    def imu(self, device_time_us: int, gyro: Sequence[float], accel: Sequence[float]) -> None:
+        """One IMU sample on the sensor's own axes: the angular rate about x, y, z (rad/s)
+        and the specific force along them (m/s^2; at rest +9.81 along "up"). The logger
+        turns them to the camera's axes (``record --imu-mount``) and refuses a stream in g
+        or deg/s with an error event; a value that is not finite is refused here."""
+        g = _rows("gyro", gyro, None, 3)
+        a = _rows("accel", accel, None, 3)
+        message = ImuMsg(LAYOUT_VERSION, 0, device_time_us)
+        message.gyro[:] = g.tolist()
+        message.accel[:] = a.tolist()
+        self._send(self._imu, message)
 
     def loan_image(self, nbytes: int) -> ImageLoan:
         """Shared memory for the next frame's image, ``nbytes`` long: write into

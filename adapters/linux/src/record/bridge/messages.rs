@@ -136,6 +136,27 @@ pub struct KeepMsg {
     pub device_time_us: i64,
 }
 
+/// One sample of the camera's inertial sensor (dashcam SoCs read it beside the image
+/// sensor), on the sensor's own axes; `dash2sim record --imu-mount` gives their rotation
+/// to the camera. One message per sample: at 100–400 Hz a batch would save little and
+/// cost every publisher a buffer.
+#[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
+#[type_name("dash2sim::ImuMsg")]
+#[repr(C)]
+pub struct ImuMsg {
+    /// [`LAYOUT_VERSION`].
+    pub version: u32,
+    /// Zero.
+    pub reserved: u32,
+    /// Sample time, device clock, µs (the sensor's own time stamp mapped to it, when it
+    /// has one).
+    pub device_time_us: i64,
+    /// Angular rate about the sensor's x, y, z, rad/s.
+    pub gyro: [f32; 3],
+    /// Specific force along the sensor's x, y, z, m/s² (at rest, +9.81 along "up").
+    pub accel: [f32; 3],
+}
+
 /// A message type as another language must declare it: its iceoryx2 type name, size,
 /// alignment and fields in order.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -187,5 +208,6 @@ pub fn layouts() -> Vec<Layout> {
         layout!(Detection2dItem, class, reserved, score, bbox),
         layout!(Detections2dMsg, version, count, sequence, device_time_us, items),
         layout!(KeepMsg, version, reserved, device_time_us),
+        layout!(ImuMsg, version, reserved, device_time_us, gyro, accel),
     ]
 }

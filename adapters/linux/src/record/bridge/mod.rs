@@ -2,8 +2,10 @@
 //!
 //! On a dashcam the camera process (video, VO, detectors) and the logger are separate
 //! processes. The camera process publishes, per frame, its metadata (and optionally the
-//! image, zero-copy), the VO pose and the 3D and 2D detections on four iceoryx2
-//! publish-subscribe services under one prefix (default [`DEFAULT_PREFIX`]); the logger
+//! image, zero-copy), the VO pose and the 3D and 2D detections, and, per sample, its IMU's
+//! readings, on iceoryx2 publish-subscribe services under one prefix (default
+//! [`DEFAULT_PREFIX`]: `frame`, `vo`, `detections3d`, `detections2d`, `imu`, and `keep` for
+//! its "keep this file" marks); the logger
 //! subscribes and feeds the on-device pipeline. The message types ([`messages`]) are
 //! `#[repr(C)]` and defined once here for both sides; iceoryx2 refuses to connect two sides
 //! whose payload types differ in name, size or alignment, and every message carries
@@ -28,6 +30,7 @@ pub mod messages;
 
 use dash2sim_core::box2d::Box2d;
 use dash2sim_core::box3d::Box3d;
+use dash2sim_core::imu::ImuSample;
 use dash2sim_core::nalgebra::{Matrix3, Vector3};
 use dash2sim_core::pipeline::ImageDetection;
 use dash2sim_core::sim3::Pose;
@@ -39,7 +42,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
 use messages::{
-    Detection2dItem, Detection3dItem, Detections2dMsg, Detections3dMsg, FrameMetaMsg, KeepMsg, VoPoseMsg,
+    Detection2dItem, Detection3dItem, Detections2dMsg, Detections3dMsg, FrameMetaMsg, ImuMsg, KeepMsg, VoPoseMsg,
     LAYOUT_VERSION, MAX_DETECTIONS,
 };
 
@@ -49,6 +52,8 @@ pub const DEFAULT_PREFIX: &str = "dash2sim/camera";
 pub const MAX_IMAGE_BYTES: usize = 1920 * 1080 * 3;
 /// Samples a subscriber keeps per service before the oldest is overwritten (3.2 s at 20 Hz).
 pub const SUBSCRIBER_BUFFER: usize = 64;
+/// Samples the IMU service keeps (2.56 s at 400 Hz, the same time as the others at 100 Hz).
+pub const IMU_SUBSCRIBER_BUFFER: usize = 1024;
 
 /// What went wrong on the bridge.
 #[derive(Debug)]
@@ -90,10 +95,13 @@ fn service_name(prefix: &str, leaf: &str) -> Result<ServiceName, BridgeError> {
 /// Opens (or creates) the service `prefix/leaf` for messages of type `T`.
 macro_rules! service {
     ($node:expr, $prefix:expr, $leaf:literal, $t:ty) => {
+        service!($node, $prefix, $leaf, $t, SUBSCRIBER_BUFFER)
+    };
+    ($node:expr, $prefix:expr, $leaf:literal, $t:ty, $buffer:expr) => {
         $node
             .service_builder(&service_name($prefix, $leaf)?)
             .publish_subscribe::<$t>()
-            .subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
+            .subscriber_max_buffer_size($buffer)
             .enable_safe_overflow(true)
             .open_or_create()
             .map_err(|e| {
@@ -126,6 +134,7 @@ pub struct CameraPublisher {
     detections3d: Publisher<ipc::Service, Detections3dMsg, ()>,
     detections2d: Publisher<ipc::Service, Detections2dMsg, ()>,
     keep: Publisher<ipc::Service, KeepMsg, ()>,
+    imu: Publisher<ipc::Service, ImuMsg, ()>,
     image: Option<Publisher<ipc::Service, [u8], ()>>,
 }
 
@@ -139,6 +148,7 @@ impl CameraPublisher {
         let detections3d = service!(node, prefix, "detections3d", Detections3dMsg).publisher_builder().create();
         let detections2d = service!(node, prefix, "detections2d", Detections2dMsg).publisher_builder().create();
         let keep = service!(node, prefix, "keep", KeepMsg).publisher_builder().create();
+        let imu = service!(node, prefix, "imu", ImuMsg, IMU_SUBSCRIBER_BUFFER).publisher_builder().create();
         let image = if images {
             let service = node
                 .service_builder(&service_name(prefix, "image")?)
@@ -164,6 +174,7 @@ impl CameraPublisher {
             detections3d: detections3d.map_err(|e| iox("detections3d publisher")(&e))?,
             detections2d: detections2d.map_err(|e| iox("detections2d publisher")(&e))?,
             keep: keep.map_err(|e| iox("keep publisher")(&e))?,
+            imu: imu.map_err(|e| iox("imu publisher")(&e))?,
             image,
         })
     }
@@ -342,6 +353,27 @@ impl CameraPublisher {
         sample.write_payload(message).send().map_err(|e| iox("keep send")(&e))?;
         Ok(())
     }
+
+    /// One IMU sample at device time `t`, on the sensor's axes (rad/s, m/s²). Sent as f32:
+    /// a consumer sensor's 16-bit readings lose nothing.
+    pub fn imu(&self, t: Timestamp, sample: &ImuSample) -> Result<(), BridgeError> {
+        self.send_imu(ImuMsg {
+            version: LAYOUT_VERSION,
+            reserved: 0,
+            device_time_us: micros(t),
+            gyro: sample.gyro.map(|v| v as f32),
+            accel: sample.accel.map(|v| v as f32),
+        })
+    }
+
+    /// An IMU message as it is, stamped with [`LAYOUT_VERSION`]. The C ABI publishes
+    /// through this.
+    pub fn send_imu(&self, mut message: ImuMsg) -> Result<(), BridgeError> {
+        message.version = LAYOUT_VERSION;
+        let sample = self.imu.loan_uninit().map_err(|e| iox("imu loan")(&e))?;
+        sample.write_payload(message).send().map_err(|e| iox("imu send")(&e))?;
+        Ok(())
+    }
 }
 
 /// An image being written straight into shared memory ([`CameraPublisher::loan_image`]);
@@ -378,6 +410,8 @@ pub enum CameraInput {
     Detections2d(Timestamp, u64, Vec<ImageDetection>),
     /// Keep the file being recorded (the camera process's mark).
     Keep(Timestamp),
+    /// An IMU sample.
+    Imu(Timestamp, ImuSample),
 }
 
 /// The logger's side: a subscriber per service.
@@ -389,6 +423,7 @@ pub struct CameraSubscriber {
     detections3d: Subscriber<ipc::Service, Detections3dMsg, ()>,
     detections2d: Subscriber<ipc::Service, Detections2dMsg, ()>,
     keep: Subscriber<ipc::Service, KeepMsg, ()>,
+    imu: Subscriber<ipc::Service, ImuMsg, ()>,
 }
 
 fn check(service: &'static str, version: u32) -> Result<(), BridgeError> {
@@ -409,6 +444,7 @@ impl CameraSubscriber {
         let detections3d = service!(node, prefix, "detections3d", Detections3dMsg).subscriber_builder().create();
         let detections2d = service!(node, prefix, "detections2d", Detections2dMsg).subscriber_builder().create();
         let keep = service!(node, prefix, "keep", KeepMsg).subscriber_builder().create();
+        let imu = service!(node, prefix, "imu", ImuMsg, IMU_SUBSCRIBER_BUFFER).subscriber_builder().create();
         Ok(CameraSubscriber {
             _node: node,
             frame: frame.map_err(|e| iox("frame subscriber")(&e))?,
@@ -416,13 +452,23 @@ impl CameraSubscriber {
             detections3d: detections3d.map_err(|e| iox("detections3d subscriber")(&e))?,
             detections2d: detections2d.map_err(|e| iox("detections2d subscriber")(&e))?,
             keep: keep.map_err(|e| iox("keep subscriber")(&e))?,
+            imu: imu.map_err(|e| iox("imu subscriber")(&e))?,
         })
     }
 
-    /// Everything waiting, service by service (frames, VO poses, 3D, 2D detections: within
-    /// one frame the pose comes before its detections); returns how many.
+    /// Everything waiting, service by service: IMU samples, frames, VO poses, 3D and 2D
+    /// detections, keep marks. Within one frame the pose comes before its detections; the IMU
+    /// comes first because a camera process publishes the samples up to a frame before the
+    /// frame (so that, read in any number of passes, they reach the pipeline in the order of
+    /// their stamps). Returns how many.
     pub fn receive(&self, mut on: impl FnMut(CameraInput)) -> Result<usize, BridgeError> {
         let mut n = 0;
+        while let Some(s) = self.imu.receive().map_err(|e| iox("imu receive")(&e))? {
+            check("imu", s.version)?;
+            let sample = ImuSample { gyro: s.gyro.map(f64::from), accel: s.accel.map(f64::from) };
+            on(CameraInput::Imu(Timestamp::from_micros(s.device_time_us), sample));
+            n += 1;
+        }
         while let Some(s) = self.frame.receive().map_err(|e| iox("frame receive")(&e))? {
             check("frame", s.version)?;
             on(CameraInput::Frame {

@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use dash2sim_core::binlog::Record;
+use dash2sim_core::binlog::{Record, FRAME_DEAD_RECKONED};
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Pose2, PACIFICA};
 
@@ -16,6 +16,7 @@ use crate::log::{self, LogContents};
 use crate::record::Setup;
 use crate::sim::scenario::judge::{judge_log, LogJudgement};
 use crate::sim::scenario::street::street_anchors;
+use crate::sim::scenario::write::START_UNIX_S;
 use crate::sim::scenario::Scenario;
 use crate::verify::{AgentsByTime, Metrics, VerifyReport};
 use crate::{Error, Result};
@@ -131,13 +132,19 @@ pub struct Assessment {
     pub windows: Vec<WindowPair>,
 }
 
-/// The drive time (s from its first frame) of log time `t_us`, through the frame numbers.
+/// The drive time (s from its first frame) of log time `t_us`, through the camera's frame
+/// numbers; a log without camera frames (gyro + wheels: its frames are the dead reckoning's)
+/// through its UTC clock, which the generated receiver sets to the drive's start at
+/// [`START_UNIX_S`] (within the clock's tens of milliseconds).
 pub fn drive_time(log: &LogContents, t_us: i64) -> Option<f64> {
     let first = log.records.iter().find_map(|r| match r {
-        Record::FrameMeta(f) if f.frame == 1 => Some(f.t_us),
+        Record::FrameMeta(f) if f.frame == 1 && f.flags & FRAME_DEAD_RECKONED == 0 => Some(f.t_us),
         _ => None,
-    })?;
-    Some((t_us - first) as f64 * 1e-6)
+    });
+    match first {
+        Some(first) => Some((t_us - first) as f64 * 1e-6),
+        None => Some(t_us as f64 * 1e-6 - START_UNIX_S),
+    }
 }
 
 /// The VO's true scale at drive time `t` (the pose of the nearest earlier tracked frame).

@@ -81,13 +81,14 @@ pub fn draw(rows: &[Row], summary: &Summary, path: &Path) -> Result<()> {
     chart.configure_series_labels().position(SeriesLabelPosition::UpperLeft).border_style(BLACK).draw().map_err(err)?;
 
     let title = format!(
-        "{} drives, seeds {}, {} profile, {} receiver, {} anchors (simulated{}); verdicts: rows the truth, columns the log",
+        "{} drives, seeds {}, {} profile, {} receiver, {} anchors (simulated{}{}); verdicts: rows the truth, columns the log",
         summary.drives,
         summary.seeds,
         summary.profile,
         summary.receiver,
         summary.anchors,
-        if summary.oracle_latency { ", ORACLE: true GNSS latency" } else { "" }
+        if summary.oracle_latency { ", ORACLE: true GNSS latency" } else { "" },
+        if summary.relative_motion == "imu-wheels" { ", no VO: gyro + wheels" } else { "" }
     );
     bottom.draw(&Text::new(title, (30, 20), ("sans-serif", 20))).map_err(err)?;
     let tables: [(&str, &Confusion); 4] = [

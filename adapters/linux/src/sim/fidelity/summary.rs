@@ -4,6 +4,7 @@
 
 use std::fmt::Write as _;
 
+use dash2sim_core::pipeline::RelativeMotion;
 use serde::Serialize;
 
 use super::sweep::{Row, SweepRequest, Verdict, Verdicts};
@@ -205,6 +206,8 @@ pub struct Summary {
     /// Finishing was told the receiver's true latency (`--oracle-latency`): the figures
     /// are a bound, not the product's.
     pub oracle_latency: bool,
+    /// The device's relative motion: `vo`, or `imu-wheels` (the camera published no VO).
+    pub relative_motion: &'static str,
     /// Seeds, `A-B`.
     pub seeds: String,
     /// Drivers.
@@ -309,6 +312,10 @@ impl Summary {
             receiver: args.receiver.name(),
             anchors: args.anchors.name(),
             oracle_latency: args.oracle_latency,
+            relative_motion: match args.relative_motion {
+                RelativeMotion::Vo => "vo",
+                RelativeMotion::ImuWheels => "imu-wheels",
+            },
             seeds: format!("{}-{}", args.seeds.start(), args.seeds.end()),
             drivers: rows.iter().map(|r| r.driver).fold(Vec::new(), |mut v, d| {
                 if !v.contains(&d) {
@@ -366,6 +373,10 @@ impl Summary {
                 t,
                 "  ORACLE: finishing was told each receiver's true latency; these figures bound what estimating it could gain, they are not the product's"
             );
+        }
+        if self.relative_motion == "imu-wheels" {
+            let _ =
+                writeln!(t, "  NO VO: the camera published none; the relative motion is gyro + wheels dead reckoning");
         }
         let _ = writeln!(
             t,

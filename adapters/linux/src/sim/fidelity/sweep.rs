@@ -9,6 +9,7 @@ use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::geo::Geodetic;
+use dash2sim_core::pipeline::RelativeMotion;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -63,6 +64,10 @@ pub struct SweepRequest {
     /// oracle that bounds what a better latency estimate could gain. Its figures are a
     /// bound, never the product's (the summary says so).
     pub oracle_latency: bool,
+    /// Where the device's relative motion comes from: the camera's VO, or (a camera that
+    /// publishes no VO at all) gyro + wheels dead reckoning; the drives' VO is then not
+    /// recorded.
+    pub relative_motion: RelativeMotion,
     /// Length of each drive, s.
     pub duration: f64,
     /// Drives run at once (default: one per core).
@@ -349,8 +354,15 @@ fn try_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Res
     let origin = Geodetic::new(lat, lon, height).map_err(Error::other)?;
     let tile = road_tile(&drive_dir, origin)?;
     // The demo's device: the same setup, so that a row equals `demo --offline`'s summary.
-    let setup = Setup::work_zone(origin, Some(tile.clone()), *b"dash2sim-demo\0\0\0");
-    let (stream, _) = record::read_sources(&record::Sources::scenario(&drive_dir))?;
+    let setup = Setup {
+        relative_motion: args.relative_motion,
+        ..Setup::work_zone(origin, Some(tile.clone()), *b"dash2sim-demo\0\0\0")
+    };
+    let mut sources = record::Sources::scenario(&drive_dir);
+    if args.relative_motion == RelativeMotion::ImuWheels {
+        sources.vo = None;
+    }
+    let (stream, _) = record::read_sources(&sources)?;
     let recording = record::run_stream(&stream, &setup)?;
     let log_path = work.join("drive.d2slog");
     std::fs::write(&log_path, &recording.log).map_err(|e| Error::file(&log_path, e))?;

@@ -12,13 +12,15 @@
 //! Sensor streams: frames at 10 Hz with 3D detections in the ego frame and 2D detections
 //! in the image ([`sensors::DetectorModel`]), gravity-aligned VO with unknown, wandering
 //! scale and heading, re-initialised now and then ([`vo::VoModel`]), GNSS at 5 Hz
-//! ([`sensors::GnssModel`]), wheel speed at 50 Hz ([`sensors::WheelModel`]). How far each is
-//! from ideal is the drive's sensor profile ([`profile::Profile`]).
+//! ([`sensors::GnssModel`]), wheel speed at 50 Hz ([`sensors::WheelModel`]), a MEMS IMU at
+//! 100–104 Hz in the camera's housing ([`imu::ImuModel`]). How far each is from ideal is the
+//! drive's sensor profile ([`profile::Profile`]).
 
 pub mod actors;
 pub mod command;
 pub mod corpus;
 pub mod evaluate;
+pub mod imu;
 pub mod judge;
 pub mod profile;
 #[cfg(feature = "bridge")]
@@ -74,6 +76,8 @@ pub struct ScenarioConfig {
     pub wheel: WheelModel,
     /// Street-imagery anchors, when finishing is given them.
     pub anchors: StreetAnchorModel,
+    /// The inertial sensor in the camera's housing.
+    pub imu: imu::ImuModel,
     /// How the ego is driven through the work zone.
     pub driver: Driver,
     /// The sensor profile the models above were drawn from (a label: generation reads the
@@ -124,6 +128,7 @@ impl Default for ScenarioConfig {
             vo: VoModel { translation_noise: 0.01, ..VoModel::gravity_aligned() },
             wheel: WheelModel::default(),
             anchors: StreetAnchorModel::default(),
+            imu: imu::ImuModel::ideal(),
             driver: Driver::Careful,
             profile: Profile::Ideal,
             receiver: Receiver::Phone,
@@ -177,6 +182,8 @@ pub struct Scenario {
     pub gnss: Vec<GnssSample>,
     /// Wheel speed, (t, m/s).
     pub speed: Vec<(f64, f64)>,
+    /// The IMU's samples, (device time s, sample on the sensor's axes).
+    pub imu: Vec<(f64, dash2sim_core::imu::ImuSample)>,
 }
 
 /// Independent random streams, so that changing one sensor model leaves the others' draws alone.
@@ -187,6 +194,8 @@ enum Stream {
     Gnss = 3,
     Wheel = 4,
     Vo = 5,
+    // 6 is the profile's per-drive draws (`profile::PROFILE_STREAM`).
+    Imu = 7,
 }
 
 fn rng(seed: u64, stream: Stream) -> ChaCha8Rng {
@@ -420,7 +429,9 @@ pub fn generate(config: &ScenarioConfig) -> Scenario {
     }
     let wheel_states = plan.drive(&road, config.duration_s, config.speed_rate_hz);
     let speed = sensors::wheel_speed(&mut rng(config.seed, Stream::Wheel), &wheel_states, &config.wheel);
-    Scenario { config: *config, road, zones, frames, vo, gnss, speed }
+    let imu_states = plan.drive(&road, config.duration_s, config.imu.rate_hz);
+    let imu = config.imu.samples(&mut rng(config.seed, Stream::Imu), &imu_states, camera);
+    Scenario { config: *config, road, zones, frames, vo, gnss, speed, imu }
 }
 
 /// The real camera's poses (ENU; camera axes x forward, y left, z up), through its real

@@ -164,8 +164,11 @@ impl ScenarioConfig {
         };
         let anchors =
             StreetAnchorModel { outlier_rate: if hard { 0.10 } else { 0.05 }, ..StreetAnchorModel::default() };
+        // Drawn last, so that the draws above stay what they were before the IMU.
+        let imu = super::imu::ImuModel::draw(rng, hard);
         ScenarioConfig {
             vo,
+            imu,
             camera: super::sensors::Camera { mount_error, ..base.camera },
             gnss,
             wheel,

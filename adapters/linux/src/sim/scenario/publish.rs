@@ -1,7 +1,8 @@
 //! A camera process for tests, demos and load runs: publishes a generated work-zone drive
 //! over the shared-memory bridge at its real frame rate (or `--speedup` times faster) — per
 //! frame its metadata (and, with `--images`, a 1920×1080 RGB image), the VO pose and the 3D
-//! and 2D detections — stamped with the shared device clock at their capture times. With `--nmea-out` /
+//! and 2D detections, and before each frame the IMU samples since the last — stamped with the
+//! shared device clock at their capture times. With `--nmea-out` /
 //! `--can-out` it is the rest of the vehicle too: the GNSS receiver's sentences and the
 //! wheel-speed CAN frames (candump text) written to a serial device, FIFO or file at their
 //! own rates.
@@ -238,8 +239,14 @@ pub fn run(args: &PublishRequest) -> Result<u64> {
     let frames_per_lap = scenario.frames.len() as u64;
     let mut published = 0u64;
     for lap in 0..args.laps {
+        let mut imu = scenario.imu.iter().peekable();
         for (i, frame) in scenario.frames.iter().enumerate() {
             pace().wait(lap, frame.ego.t);
+            // The IMU's samples up to this frame, each with its own time: a camera SoC reads
+            // the sensor's FIFO in batches, once a frame.
+            while let Some((t_imu, sample)) = imu.next_if(|(t_imu, _)| *t_imu <= frame.ego.t) {
+                camera.imu(pace().capture_time(lap, *t_imu), sample).map_err(Error::other)?;
+            }
             let t = pace().capture_time(lap, frame.ego.t);
             let sequence = u64::from(lap) * frames_per_lap + u64::from(frame.index);
             camera.frame(sequence, t, 8_000, image.as_deref()).map_err(Error::other)?;

@@ -98,6 +98,10 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
     }
     out.flush()?;
 
+    let mut out = create(dir, "imu.csv", &mut written)?;
+    super::imu::write_csv(&mut out, &scenario.imu)?;
+    out.flush()?;
+
     let mut out = create(dir, "objects.csv", &mut written)?;
     writeln!(out, "{}", crate::ingest::objects::HEADER)?;
     for f in &scenario.frames {
@@ -365,6 +369,7 @@ fn summary(scenario: &Scenario, files: &[PathBuf]) -> serde_json::Value {
         "detector": {"covariance_factor": c.detector.covariance_factor, "confusion": c.detector.confusion,
                      "occlusion": c.detector.occlusion, "false_positives_per_frame": c.detector.false_positives},
         "street_anchors": c.anchors,
+        "imu": super::imu::summary(&c.imu),
         "counts": {
             "frames": scenario.frames.len(),
             "objects": scenario.frames.first().map_or(0, |f| f.objects.len()),
@@ -374,6 +379,7 @@ fn summary(scenario: &Scenario, files: &[PathBuf]) -> serde_json::Value {
             "gnss_fixes": scenario.gnss.len(),
             "gnss_multipath_fixes": scenario.gnss.iter().filter(|g| g.multipath).count(),
             "speed_samples": scenario.speed.len(),
+            "imu_samples": scenario.imu.len(),
         },
         "files": files.iter().filter_map(|p| p.file_name()).map(|n| n.to_string_lossy().into_owned()).collect::<Vec<_>>(),
     })
