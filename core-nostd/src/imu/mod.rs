@@ -16,6 +16,8 @@
 //!   GNSS course says how fast the car really turns);
 //! * [`dead_reckoning`]: gyro + wheels as the relative motion, a trajectory in a frame of
 //!   its own with its z vertical, anchored as a VO trajectory is;
+//! * [`forward`]: the car's forward axis in the body frame, from its braking and speeding
+//!   up — how far the housing (and the camera in it) is turned on the car;
 //! * [`preintegrate`]: what the log keeps — the samples preintegrated over a short
 //!   interval (Δ angle, Δ velocity), raw, so that offline finishing can redo everything;
 //! * [`impact`]: the G-sensor's trigger, a specific-force spike past a threshold;
@@ -28,6 +30,7 @@
 pub mod attitude;
 pub mod bias;
 pub mod dead_reckoning;
+pub mod forward;
 pub mod impact;
 pub mod lsm6dso;
 pub mod preintegrate;

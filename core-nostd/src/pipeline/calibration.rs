@@ -234,6 +234,13 @@ impl MountCalibration {
         }
     }
 
+    /// Forget the samples and start again from the nominal mount: what the poses said
+    /// before no longer holds (the dead-reckoned camera was turned once the car's forward
+    /// axis was found).
+    pub fn restart(&mut self) {
+        *self = MountCalibration::new(self.nominal, self.config);
+    }
+
     /// Samples refused as too far from the nominal mount.
     pub fn outliers(&self) -> u32 {
         self.outliers

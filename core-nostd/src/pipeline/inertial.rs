@@ -14,6 +14,7 @@ use crate::decimal::Decimal;
 use crate::imu::attitude::{motion_acceleration, Attitude};
 use crate::imu::bias::GyroBias;
 use crate::imu::dead_reckoning::DeadReckoning;
+use crate::imu::forward::ForwardAxis;
 use crate::imu::impact::Impact;
 use crate::imu::preintegrate::Preintegrator;
 use crate::imu::{check, ImuSample, UnitCheck, UnitVerdict, GRAVITY};
@@ -72,6 +73,10 @@ pub(super) struct Inertial {
     pub(super) bias: GyroBias,
     impact: Impact,
     dead_reckoning: DeadReckoning,
+    /// The car's forward axis in the body frame, from its accelerations.
+    forward: ForwardAxis,
+    /// It was known when the last dead-reckoned pose was made.
+    forward_known: bool,
     /// The dead reckoning's own frame numbers (until the camera's come).
     frame: u64,
     /// Dead reckoning has begun (the attitude settled, a wheel speed known).
@@ -97,6 +102,8 @@ impl Inertial {
             bias: GyroBias::default(),
             impact: Impact::default(),
             dead_reckoning: DeadReckoning::default(),
+            forward: ForwardAxis::default(),
+            forward_known: false,
             frame: 0,
             reckoning: false,
             camera_frame: None,
@@ -220,6 +227,10 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             );
         }
         let rate = gyro - imu.bias.bias();
+        if let Some(v) = speed {
+            // The sensor rides in the camera's housing, as far ahead of the rear axle.
+            imu.forward.push(dt, &force, v, rate.z, self.config.mount.position[0]);
+        }
         let motion = motion_acceleration(speed.unwrap_or(0.0), imu.acceleration, &(rate - imu.attitude.tilt_bias()));
         imu.attitude.update(dt, &rate, &force, &motion);
         let unexplained = force - motion - imu.up() * GRAVITY;
@@ -277,10 +288,24 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         self.on_vo(t, frame, DEAD_RECKONING_SESSION, &pose)
     }
 
-    /// The camera's pose as dead reckoning has it now.
-    fn dead_reckoned_pose(&self) -> Pose {
-        let (imu, mount) = (&self.inertial, &self.config.mount);
-        imu.dead_reckoning.camera_pose(&imu.attitude, &mount.rotation(), &Vector3::from(mount.position))
+    /// The camera's pose as dead reckoning has it now. The car moves along the body's x as
+    /// the nominal mounts make it; once the car's own forward axis is known (the housing
+    /// turned on the car by `δ`: [`ForwardAxis`]), the camera is turned by `−δ` about the
+    /// vertical in the dead reckoning's frame — the same as moving along the car's axis in
+    /// a frame turned by `δ`, without a kink in the trajectory — so that the mount
+    /// calibration finds the camera's yaw on the car, with which the detections are placed.
+    /// The first time it is known, the calibration starts again.
+    fn dead_reckoned_pose(&mut self) -> Pose {
+        let (imu, mount) = (&mut self.inertial, &self.config.mount);
+        let mut pose = imu.dead_reckoning.camera_pose(&imu.attitude, &mount.rotation(), &Vector3::from(mount.position));
+        if let Some(yaw) = imu.forward.yaw() {
+            pose.rotation = crate::sim3::rotation_z(-yaw) * pose.rotation;
+            if !imu.forward_known {
+                imu.forward_known = true;
+                self.anchoring.calibration.restart();
+            }
+        }
+        pose
     }
 
     /// Under gyro + wheels, the pose of camera frame `frame` (its detections arrive at `t`),
