@@ -29,6 +29,8 @@ const MAX_SPEED_AGE_S: f64 = 0.5;
 const SPEED_DERIVATIVE_TAU_S: f64 = 0.2;
 /// A gyro whose rate is this many times the course's is not in rad/s.
 const MAX_GYRO_SCALE: f64 = 3.0;
+/// How long dead reckoning waits for a camera frame before it makes poses on its own clock.
+const CAMERA_FRAME_WAIT: Duration = Duration::from_millis(500);
 /// The VO session number of dead-reckoned poses.
 pub const DEAD_RECKONING_SESSION: u32 = 0;
 
@@ -79,8 +81,8 @@ pub(super) struct Inertial {
     forward_known: bool,
     /// The dead reckoning's own frame numbers (until the camera's come).
     frame: u64,
-    /// Dead reckoning has begun (the attitude settled, a wheel speed known).
-    reckoning: bool,
+    /// Since when dead reckoning has run (the attitude settled, a wheel speed known).
+    reckoning: Option<Timestamp>,
     /// The last camera frame a pose was made at.
     camera_frame: Option<u64>,
     last_pose: Option<Timestamp>,
@@ -105,7 +107,7 @@ impl Inertial {
             forward: ForwardAxis::default(),
             forward_known: false,
             frame: 0,
-            reckoning: false,
+            reckoning: None,
             camera_frame: None,
             last_pose: None,
             last_estimate: None,
@@ -277,8 +279,15 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         let imu = &mut self.inertial;
         let Some(speed) = speed else { return Ok(()) };
         imu.dead_reckoning.advance(dt, speed, &imu.attitude);
-        imu.reckoning = true;
-        if imu.camera_frame.is_some() || imu.last_pose.is_some_and(|last| t - last < self.config.imu.pose_interval) {
+        let since = *imu.reckoning.get_or_insert(t);
+        // Its own poses only where no camera frame comes: not while a camera's first frame
+        // may still be on its way (a pose of each clock at the start is an uneven step, and
+        // the comfort metrics read it as a jerk).
+        let waiting = t - since < CAMERA_FRAME_WAIT;
+        if waiting
+            || imu.camera_frame.is_some()
+            || imu.last_pose.is_some_and(|last| t - last < self.config.imu.pose_interval)
+        {
             return Ok(());
         }
         imu.last_pose = Some(t);
@@ -315,7 +324,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         let imu = &self.inertial;
         let later = self.anchoring.vo.is_none_or(|v| t > v.t);
         if self.config.relative_motion != RelativeMotion::ImuWheels
-            || !imu.reckoning
+            || imu.reckoning.is_none()
             || imu.camera_frame == Some(frame)
             || !later
         {
