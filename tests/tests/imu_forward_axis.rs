@@ -2,7 +2,7 @@
 //! car's braking and speeding up, against the generator's truth: how far the sensor is
 //! turned on the car (the camera's yaw on its mount plus the sensor's in the housing). On
 //! typical generated drives of 60 s (the ego brakes for the work zone and speeds up after
-//! it), seeds no estimator was tuned on; the estimator is fed the samples, the wheels'
+//! it), seeds 5001–5020, picked after the estimator was built and diagnosed on others; the estimator is fed the samples, the wheels'
 //! reported speed and the gyro's rate as the device has them (its bias unknown).
 
 use dash2sim_core::imu::forward::ForwardAxis;
@@ -12,7 +12,7 @@ use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
 #[test]
 fn braking_and_speeding_up_show_how_far_the_sensor_is_turned_on_the_car() {
     let mut errors = Vec::new();
-    for seed in 3001..=3020 {
+    for seed in 5001..=5020 {
         let config =
             ScenarioConfig { duration_s: 60.0, ..ScenarioConfig::drive(seed, Profile::Typical, Receiver::Good) };
         let drive = generate(&config);
@@ -36,7 +36,7 @@ fn braking_and_speeding_up_show_how_far_the_sensor_is_turned_on_the_car() {
         errors.iter().fold(0f64, |m, e| m.max(e.abs()))
     );
     // Against a truth spread over ±4° (camera ±3°, sensor ±1°; RMS about 1.8°, which is
-    // the error of assuming the nominal mount). Measured: RMS 0.85°, worst 2.05°.
+    // the error of assuming the nominal mount). Measured: RMS 0.88°, worst 1.71°.
     assert!(rms < 1.0 && errors.iter().all(|e| e.abs() < 2.5), "{errors:?}");
 }
 
@@ -44,7 +44,7 @@ fn braking_and_speeding_up_show_how_far_the_sensor_is_turned_on_the_car() {
 /// reckoning, the camera turned by the forward axis once it is known, and the mount
 /// calibration started again from there — the camera's yaw on the car it ends with, against
 /// the truth, and against taking the nominal mount (what the device had without the IMU's
-/// forward axis). Typical 60 s drives, seeds 3001–3010.
+/// forward axis). Typical 60 s drives, seeds 5001–5010.
 #[test]
 fn without_vo_the_camera_s_yaw_on_the_car_comes_from_the_imu() {
     use dash2sim_core::binlog::Record;
@@ -52,7 +52,7 @@ fn without_vo_the_camera_s_yaw_on_the_car_comes_from_the_imu() {
     use dash2sim_core::pipeline::RelativeMotion;
     use dash2sim_linux::record::{self, Setup, Sources};
     let (mut calibrated, mut nominal) = (Vec::new(), Vec::new());
-    for seed in 3001..=3010 {
+    for seed in 5001..=5010 {
         let config =
             ScenarioConfig { duration_s: 60.0, ..ScenarioConfig::drive(seed, Profile::Typical, Receiver::Good) };
         let dir = std::env::temp_dir().join(format!("dash2sim-forward-{}-{seed}", std::process::id()));
@@ -77,7 +77,7 @@ fn without_vo_the_camera_s_yaw_on_the_car_comes_from_the_imu() {
     }
     let rms = |v: &[f64]| (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt();
     println!("camera yaw on the car, no VO: RMS {:.2}° calibrated, {:.2}° nominal", rms(&calibrated), rms(&nominal));
-    // Measured: RMS 1.16° against the nominal mount's 1.78°. What is left is the forward
+    // Measured: RMS 1.40° against the nominal mount's 2.14°. What is left is the forward
     // axis's own error (0.85° above) and the sensor's turn in the housing (±1°), which
     // nothing without the camera's own motion can separate from the camera's.
     assert!(rms(&calibrated) < 0.75 * rms(&nominal), "{calibrated:?} vs {nominal:?}");
