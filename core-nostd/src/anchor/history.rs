@@ -27,6 +27,13 @@ impl<const N: usize> VoHistory<N> {
         VoHistory { samples: Deque::new() }
     }
 
+    /// The positions in other coordinates, p → `r`·p.
+    pub fn turn(&mut self, r: &nalgebra::Matrix3<f64>) {
+        for s in self.samples.iter_mut() {
+            s.position = r * s.position;
+        }
+    }
+
     pub fn latest(&self) -> Option<&VoSample> {
         self.samples.back()
     }

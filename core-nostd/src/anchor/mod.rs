@@ -41,6 +41,10 @@
 //!   scale is taken — the last observable ones are held (a straight drive leaves roll
 //!   about the road axis unknown) and no wild estimate is reported. [`AnchorMode::GravityAligned`] (yaw, scale, translation) needs only
 //!   horizontal spread and is the better choice when the VO frame's vertical is known.
+//! * **Gravity.** A VO frame's vertical measured by the dashcam's accelerometer
+//!   ([`Anchorer::level`]) turns the session's coordinates so that it is their z, and the
+//!   fit becomes gravity-aligned from then on: the roll about a straight road, which no
+//!   position observes, is what gravity gives.
 
 mod history;
 mod wheel;
@@ -66,11 +70,13 @@ const MAX_CONSECUTIVE_REJECTIONS: u32 = 30;
 const JUMP_TRAVEL_FACTOR: f64 = 1.1;
 /// The jump test compares with the last accepted fix only within this time, s.
 const JUMP_TEST_WINDOW_S: f64 = 10.0;
-/// Degrees of freedom from which the residuals, not the stated σ, set the noise level.
-const MIN_DOF_FOR_POSTERIOR: f64 = 10.0;
-/// The a-posteriori variance factor is not trusted below this (a fit that absorbs its
-/// own noise must not claim near-perfect precision).
-const MIN_VARIANCE_FACTOR: f64 = 0.01;
+/// Of a fix's own σ (scaled by the variance factor), the share the rotation and scale may
+/// add at the current position and still be observable, when that is more than
+/// `max_geometry_sigma_m`: a phone's 8 m fixes are not held to a metre of geometry, which
+/// would add 1 % to their error, but to 2 m, which adds 3 %.
+const GEOMETRY_SHARE_OF_FIX: f64 = 0.25;
+/// Residual components per fix (east, north, up) in the a-posteriori variance factor.
+const RESIDUAL_COMPONENTS: f64 = 3.0;
 
 /// Which similarity the anchorer estimates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -310,8 +316,13 @@ pub struct Anchorer<const K: usize = 9> {
     weight_squares: f64,
     /// Rotation and scale of the latest observable fit.
     held: Option<(nalgebra::Matrix3<f64>, f64)>,
-    /// A prior on the rotation of this VO session ([`Anchorer::set_rotation_prior`]).
+    /// A prior on the rotation of this VO session ([`Anchorer::set_rotation_prior`]), VO → ENU.
     prior: Option<RotationPrior>,
+    /// VO → the levelled frame the fit works in ([`Anchorer::level`]; identity until then).
+    level: nalgebra::Matrix3<f64>,
+    /// The session's vertical is known: the fit is gravity-aligned whatever the configured
+    /// mode.
+    levelled: bool,
     /// Information discount of the latest update (correlation × variance factor).
     inflation: f64,
     /// A-posteriori variance factor of the latest update.
@@ -347,6 +358,8 @@ impl<const K: usize> Anchorer<K> {
             weight_squares: 0.0,
             held: None,
             prior: None,
+            level: nalgebra::Matrix3::identity(),
+            levelled: false,
             inflation: 1.0,
             variance_factor: 1.0,
             estimate: None,
@@ -384,7 +397,48 @@ impl<const K: usize> Anchorer<K> {
 
     /// The latest VO position mapped into ENU with the current estimate.
     pub fn current_position(&self) -> Option<Vector3<f64>> {
-        Some(self.estimate?.transform_point(&self.history.latest()?.position))
+        Some(self.estimate?.transform_point(&(self.level.transpose() * self.history.latest()?.position)))
+    }
+
+    /// The degrees of freedom being estimated: the configured mode, or gravity-aligned once
+    /// the session is levelled.
+    pub fn mode(&self) -> AnchorMode {
+        if self.levelled {
+            AnchorMode::GravityAligned
+        } else {
+            self.config.mode
+        }
+    }
+
+    /// The current VO session's vertical (ENU up in VO coordinates, any length), as the
+    /// dashcam's accelerometer measures it through the camera's attitude: the session's
+    /// coordinates are turned so that it is their z — the moments, the recent VO, the
+    /// held rotation, exactly, so nothing learnt is lost — and the fit is gravity-aligned
+    /// from then on ([`AnchorMode::GravityAligned`]): on a straight road the roll about
+    /// the road, which no position observes, is gravity's. May be called again as the
+    /// vertical is refined; a new VO session forgets it. Refused (state unchanged) unless
+    /// `up` is finite and not zero.
+    pub fn level(&mut self, up: &Vector3<f64>) -> Result<(), AnchorError> {
+        if !up.iter().all(|v| v.is_finite()) {
+            return Err(AnchorError::NonFinite);
+        }
+        let current = self.level * up;
+        let Some(turn) = rotation_onto_z(&current) else { return Err(AnchorError::NonFinite) };
+        self.level = turn * self.level;
+        self.levelled = true;
+        self.history.turn(&turn);
+        self.wheel.turn(&turn);
+        let mode = self.mode();
+        for h in &mut self.hypotheses {
+            h.moments.turn_x(&turn);
+            h.recent.mean_x = turn * h.recent.mean_x;
+            h.fit = h.moments.align(align_mode(mode)).ok();
+        }
+        if let Some((rotation, scale)) = self.held {
+            // Only the yaw of the held rotation is the gravity-aligned fit's to keep.
+            self.held = yaw_rotation(&(rotation * turn.transpose())).ok().map(|(r, _)| (r, scale));
+        }
+        Ok(())
     }
 
     /// The wheel factor (true distance / wheel distance) as calibrated against the GNSS
@@ -456,6 +510,7 @@ impl<const K: usize> Anchorer<K> {
         if self.history.latest().is_some_and(|s| t <= s.t) {
             return Err(AnchorError::OutOfOrder);
         }
+        let position = self.level * position;
         let odometer_m = self.odometer.at(t);
         if let Some(odo) = odometer_m {
             self.wheel.push_frame(t, &position, odo, self.config.wheel_time_constant_s);
@@ -570,10 +625,7 @@ impl<const K: usize> Anchorer<K> {
         let since_last = self.last_accepted.map_or(0.0, |(t0, _, _)| (fix.t - t0).as_secs_f64());
         let forget = libm::exp(-since_last / self.config.forgetting_time_constant_s);
         let keep_recent = libm::exp(-since_last / self.config.translation_time_constant_s);
-        let align_mode = match self.config.mode {
-            AnchorMode::Full => AlignMode::Sim3,
-            AnchorMode::GravityAligned => AlignMode::YawScale,
-        };
+        let align_mode = align_mode(self.mode());
         let scoring = self.quality.observability == Observability::Observable;
         let gate2 = self.config.gate_sigma * self.config.gate_sigma;
         for (h, (x, _)) in self.hypotheses.iter_mut().zip(paired) {
@@ -649,8 +701,12 @@ impl<const K: usize> Anchorer<K> {
         let m = &h.moments;
         // Variance inflation: GNSS errors are correlated over `gnss_correlation_time_s`,
         // so neighbouring fixes are not independent; and the stated σ is scaled by the
-        // a-posteriori variance factor σ0² = Σwr²/(n_eff − p) once there are enough
-        // degrees of freedom (before that, never below the stated σ).
+        // a-posteriori variance factor σ0² = Σw‖r‖²/(3·n_eff − p) — dimensionless: w = 1/σ²,
+        // each fix three residual components, p the similarity's parameters — when the
+        // residuals say the fixes are worse than stated, never below it: a short window's
+        // residuals understate an error correlated for longer than the window (the fit
+        // takes its common part into the translation). A receiver whose σ is right gives
+        // σ0² about 1 (its vertical error is larger than the horizontal σ it states).
         let correlation = if self.mean_fix_interval_s > 0.0 {
             (self.config.gnss_correlation_time_s / self.mean_fix_interval_s).max(1.0)
         } else {
@@ -658,15 +714,20 @@ impl<const K: usize> Anchorer<K> {
         };
         let fit = gnss_fit;
         let n_eff = if self.weight_squares > 0.0 { m.weight() * m.weight() / self.weight_squares } else { 0.0 };
-        let dof = n_eff - 7.0;
-        let sigma0_sq = if dof > 0.0 { m.weighted_sse(&fit) / (m.weight() / n_eff) / dof } else { f64::INFINITY };
-        let variance_factor =
-            if dof >= MIN_DOF_FOR_POSTERIOR { sigma0_sq.max(MIN_VARIANCE_FACTOR) } else { sigma0_sq.max(1.0) };
+        let parameters = match self.mode() {
+            AnchorMode::Full => 7.0,
+            AnchorMode::GravityAligned => 5.0,
+        };
+        let dof = RESIDUAL_COMPONENTS * n_eff - parameters;
+        let sigma0_sq = if dof > 0.0 { m.weighted_sse(&fit) / dof } else { f64::INFINITY };
+        let variance_factor = sigma0_sq.max(1.0);
         let inflation = correlation * variance_factor;
         self.inflation = inflation;
         self.variance_factor = variance_factor;
         let prior_information = self.prior.map_or(0.0, |p| p.information);
-        let fit = self.prior.and_then(|p| with_rotation_prior(fit, m, inflation, &p, self.config.mode)).unwrap_or(fit);
+        // The prior is on VO → ENU; the fit is on the levelled frame.
+        let prior = self.prior.map(|p| RotationPrior { rotation: p.rotation * self.level.transpose(), ..p });
+        let fit = prior.and_then(|p| with_rotation_prior(fit, m, inflation, &p, self.mode())).unwrap_or(fit);
         let sxx = m.covariance_x() * m.weight();
         let trace = sxx.trace().max(0.0);
         // The translation is pinned at the recent centroid: rotation and scale errors act
@@ -677,7 +738,7 @@ impl<const K: usize> Anchorer<K> {
         // (S = Σw x'x'ᵀ) from the fixes, plus the prior's, the same about every axis, so
         // the eigen-axes are those of S. A rotation error θ about a moves the current point
         // by θ·c·‖a × offset‖.
-        let (rotation_sigma, rotation_var_m2) = match self.config.mode {
+        let (rotation_sigma, rotation_var_m2) = match self.mode() {
             AnchorMode::Full => {
                 let Some(eig) =
                     nalgebra::SymmetricEigen::try_new(sxx, f64::EPSILON * 5.0, MAX_DECOMPOSITION_ITERATIONS)
@@ -717,9 +778,11 @@ impl<const K: usize> Anchorer<K> {
         let long_window = Sim3 { translation: m.mean_y() - fit.rotation * m.mean_x() * fit.scale, ..fit };
         self.quality.rms_residual_m =
             if m.weight() > 0.0 { libm::sqrt(m.weighted_sse(&long_window) / m.weight()) } else { 0.0 };
+        let geometry_bound =
+            self.config.max_geometry_sigma_m.max(GEOMETRY_SHARE_OF_FIX * fix_sigma * libm::sqrt(variance_factor));
         self.quality.observability = if m.count() < self.config.min_anchors {
             Observability::TooFewAnchors
-        } else if geometry_sigma.is_nan() || geometry_sigma > self.config.max_geometry_sigma_m {
+        } else if geometry_sigma.is_nan() || geometry_sigma > geometry_bound {
             Observability::Collinear
         } else if scale_rel_sigma.is_nan() || scale_rel_sigma > self.config.max_scale_rel_sigma {
             Observability::ScaleUncertain
@@ -737,11 +800,40 @@ impl<const K: usize> Anchorer<K> {
             translation: recent.translation(&rotation, scale),
             scale,
         });
-        // Extreme (finite) inputs can still overflow the product: never report that.
-        if let Some(t) = candidate.filter(Sim3::is_valid) {
+        // Extreme (finite) inputs can still overflow the product: never report that. The
+        // estimate is VO → ENU: the levelling first.
+        if let Some(t) = candidate.map(|t| Sim3 { rotation: t.rotation * self.level, ..t }).filter(Sim3::is_valid) {
             self.estimate = Some(t);
         }
     }
+}
+
+fn align_mode(mode: AnchorMode) -> AlignMode {
+    match mode {
+        AnchorMode::Full => AlignMode::Sim3,
+        AnchorMode::GravityAligned => AlignMode::YawScale,
+    }
+}
+
+/// The smallest rotation taking `v` onto +z; `None` for a zero vector.
+fn rotation_onto_z(v: &Vector3<f64>) -> Option<nalgebra::Matrix3<f64>> {
+    let n = v.norm();
+    if !(n.is_finite() && n > 0.0) {
+        return None;
+    }
+    let u = v / n;
+    let axis = u.cross(&Vector3::z());
+    let sin = axis.norm();
+    if sin < 1e-12 {
+        // Already up, or straight down (half a turn about x).
+        return Some(if u.z > 0.0 {
+            nalgebra::Matrix3::identity()
+        } else {
+            nalgebra::Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0))
+        });
+    }
+    let angle = libm::atan2(sin, u.z);
+    Some(*nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(axis), angle).matrix())
 }
 
 /// The fit's rotation with the prior's weighed in: the rotation maximising

@@ -64,16 +64,22 @@ fn recovers_the_similarity_of_a_noise_free_drive() {
     let q = run.anchorer.quality();
     assert_eq!(q.observability, Observability::Observable);
     let est = run.anchorer.estimate().expect("estimate");
-    // The wheel odometer integrates speed (trapezoids): a few ppm of path error.
-    assert!((est.scale / run.truth.scale - 1.0).abs() < 1e-5, "scale {}", est.scale);
+    // The wheel odometer integrates speed (trapezoids): ten ppm of path error, which the
+    // fused scale shares (the fixes' own scale is weighed at their stated σ).
+    assert!((est.scale / run.truth.scale - 1.0).abs() < 2e-5, "scale {}", est.scale);
     assert!((est.rotation - run.truth.rotation).norm() < 1e-6);
-    assert!((est.translation - run.truth.translation).norm() < 1e-3);
-    assert!(q.rms_residual_m < 1e-3);
+    // The scale's ten ppm at the fixes' centroid, some hundred metres out.
+    assert!(
+        (est.translation - run.truth.translation).norm() < 1e-2,
+        "{}",
+        (est.translation - run.truth.translation).norm()
+    );
+    assert!(q.rms_residual_m < 1e-2, "{q:?}");
     assert_eq!(q.latency_s, Some(0.0));
-    // The position rests on the latest fixes (σ 1 m stated, the residuals' variance
-    // factor at its floor of 0.01): √(2·0.01) m and the geometry's share.
+    // The position rests on the latest fixes (σ 1 m stated; residuals of nothing do not
+    // make it smaller, the stated σ is the floor): √2 m and the geometry's share.
     assert!(q.position_sigma_m >= q.geometry_sigma_m, "{q:?}");
-    assert!((q.position_sigma_m - libm::sqrt(0.02 + q.geometry_sigma_m * q.geometry_sigma_m)).abs() < 1e-9, "{q:?}");
+    assert!((q.position_sigma_m - libm::sqrt(2.0 + q.geometry_sigma_m * q.geometry_sigma_m)).abs() < 1e-9, "{q:?}");
 }
 
 #[test]
@@ -232,12 +238,12 @@ fn yaw_error_deg(anchorer: &Anchorer, truth: &Sim3) -> f64 {
 
 #[test]
 fn a_rotation_prior_anchors_a_straight_session_in_seconds() {
-    let (without, observable_without, _) = straight_session(None, 3.0);
-    assert!(observable_without.is_none(), "three seconds of a straight road alone: {:?}", without.quality());
-    let (with, observable_with, truth) = straight_session(Some((0.5f64.to_radians(), 1f64.to_radians())), 3.0);
+    let (without, observable_without, _) = straight_session(None, 2.0);
+    assert!(observable_without.is_none(), "two seconds of a straight road alone: {:?}", without.quality());
+    let (with, observable_with, truth) = straight_session(Some((0.5f64.to_radians(), 1f64.to_radians())), 2.0);
     assert!(observable_with.is_some_and(|t| t <= 2.0), "{observable_with:?} {:?}", with.quality());
     assert!(yaw_error_deg(&with, &truth).abs() < 1.0, "{}", yaw_error_deg(&with, &truth));
-    // About the prior's own σ, forgotten for three seconds (1° · e^(3/24)); the fixes alone
+    // About the prior's own σ, forgotten for two seconds (1° · e^(2/24)); the fixes alone
     // say far less.
     let (sigma_with, sigma_without) = (with.quality().rotation_sigma_rad, without.quality().rotation_sigma_rad);
     assert!(sigma_with < 1.2f64.to_radians(), "{:?}", with.quality());
@@ -265,4 +271,94 @@ fn a_prior_that_is_not_a_rotation_is_refused() {
     assert_eq!(a.set_rotation_prior(rotation_z(1.0), f64::INFINITY), Err(AnchorError::InvalidSigma));
     assert_eq!(a.set_rotation_prior(rotation_z(1.0), 1e-200), Err(AnchorError::InvalidSigma));
     assert!(a.prior.is_none());
+}
+
+/// A straight session of a phone-grade receiver: VO in an arbitrary 3D frame (scale 0.4),
+/// 25 m/s along a line, fixes every 2 s with σ 8.3 m of deterministic noise, the wheels;
+/// the anchorer in full Sim(3) mode, levelled by `level_at` (the VO's true vertical, s)
+/// when given. Returns it after `seconds`, with the time it first became observable.
+fn phone_session(level_at: Option<f64>, seconds: f64) -> (Anchorer, Option<f64>, Sim3) {
+    let truth = arbitrary();
+    let inverse = truth.inverse();
+    let mut anchorer: Anchorer = Anchorer::new(AnchorConfig::default());
+    let up_in_vo = truth.rotation.transpose() * Vector3::z();
+    let path = |t: f64| Vector3::new(25.0 * t * libm::cos(1.1), 25.0 * t * libm::sin(1.1), 0.0);
+    let mut observable = None;
+    for k in 0..=(seconds * 100.0) as usize {
+        let t = k as f64 * 0.01;
+        if level_at.is_some_and(|at| (t - at).abs() < 0.005) {
+            anchorer.level(&(up_in_vo * 3.0)).expect("a vertical");
+        }
+        if k % 2 == 0 {
+            anchorer.push_speed(ts(t), 25.0).expect("valid speed");
+        }
+        if k % 200 == 0 && k > 0 {
+            let n = k as f64 / 200.0;
+            let noise = Vector3::new(11.7 * libm::sin(n * 12.9898), 11.7 * libm::sin(n * 78.233 + 1.0), 0.0);
+            anchorer.push_gnss(ts(t), path(t) + noise, 8.3).expect("valid fix");
+        }
+        if k % 5 == 0 {
+            anchorer.push_vo(ts(t), inverse.transform_point(&path(t))).expect("valid VO");
+        }
+        if observable.is_none() && anchorer.quality().observability == Observability::Observable {
+            observable = Some(t);
+        }
+    }
+    (anchorer, observable, truth)
+}
+
+#[test]
+fn gravity_anchors_a_straight_road_that_positions_alone_cannot() {
+    fn rotation_error_deg(anchorer: &Anchorer, truth: &Sim3) -> f64 {
+        let turn = anchorer.estimate().expect("an estimate").rotation * truth.rotation.transpose();
+        libm::acos(((turn.trace() - 1.0) / 2.0).clamp(-1.0, 1.0)).to_degrees()
+    }
+    // A minute on a straight road: the positions may be placed, but the roll about the
+    // road stays unknown to the fixes (a bend would show it wrong).
+    let (alone, _, truth) = phone_session(None, 60.0);
+    assert_eq!(alone.mode(), AnchorMode::Full);
+    assert!(alone.quality().rotation_sigma_rad > 1.0, "{:?}", alone.quality());
+    // Levelled from the start: observable within 15 s of the first fix (at 2 s), the whole
+    // rotation known (its yaw to the fixes' precision), the scale and the position right.
+    let (levelled, observable, _) = phone_session(Some(0.0), 60.0);
+    assert_eq!(levelled.mode(), AnchorMode::GravityAligned);
+    assert!(observable.is_some_and(|t| t <= 17.0), "{observable:?} {:?}", levelled.quality());
+    assert!(levelled.quality().rotation_sigma_rad < 1f64.to_radians(), "{:?}", levelled.quality());
+    let error = rotation_error_deg(&levelled, &truth);
+    assert!(error < 1.0, "rotation off by {error}° (without gravity {}°)", rotation_error_deg(&alone, &truth));
+    let e = levelled.estimate().expect("an estimate");
+    assert!((e.scale / truth.scale - 1.0).abs() < 0.02, "scale {} vs {}", e.scale, truth.scale);
+    let position = levelled.current_position().expect("a position");
+    let true_position = Vector3::new(1500.0 * libm::cos(1.1), 1500.0 * libm::sin(1.1), 0.0);
+    assert!((position - true_position).norm() < 10.0, "{position}");
+}
+
+#[test]
+fn levelling_late_loses_nothing_the_session_learnt() {
+    // The moments are turned, not restarted: levelled after 9 s (four fixes in) or before
+    // the first, the fits agree — to what the first fixes' robust weights, taken against
+    // the full fit rather than the levelled one, make of them.
+    let (early, _, _) = phone_session(Some(0.0), 30.0);
+    let (late, _, _) = phone_session(Some(9.0), 30.0);
+    assert_eq!(early.quality().anchors_used, late.quality().anchors_used);
+    let (a, b) = (early.estimate().expect("early"), late.estimate().expect("late"));
+    let turn = a.rotation * b.rotation.transpose();
+    let angle = libm::acos(((turn.trace() - 1.0) / 2.0).clamp(-1.0, 1.0)).to_degrees();
+    assert!(angle < 0.1, "{angle}°");
+    assert!((a.scale / b.scale - 1.0).abs() < 5e-3, "{} vs {}", a.scale, b.scale);
+    let (p, q) = (early.current_position().expect("early"), late.current_position().expect("late"));
+    // Within a third of the fixes' σ (8.3 m): the latency hypotheses, scored against
+    // different early fits, lead to slightly different recent translations.
+    assert!((p - q).norm() < 3.0, "{p} vs {q}");
+}
+
+#[test]
+fn a_vertical_that_is_not_a_direction_is_refused() {
+    let mut a: Anchorer = Anchorer::new(AnchorConfig::default());
+    assert_eq!(a.level(&Vector3::zeros()), Err(AnchorError::NonFinite));
+    assert_eq!(a.level(&Vector3::new(0.0, f64::NAN, 1.0)), Err(AnchorError::NonFinite));
+    assert_eq!(a.mode(), AnchorMode::Full);
+    // Straight down is a vertical too (half a turn).
+    assert_eq!(a.level(&Vector3::new(0.0, 0.0, -2.0)), Ok(()));
+    assert_eq!(a.mode(), AnchorMode::GravityAligned);
 }

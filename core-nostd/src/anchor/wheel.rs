@@ -78,6 +78,16 @@ impl WheelScale {
         *self = WheelScale { vo_path: 0.0, wheel_path: 0.0, last_frame: None, vo_arc: 0.0, chord_start: None, ..*self };
     }
 
+    /// The VO positions kept in other coordinates, p → `r`·p (lengths are unchanged).
+    pub fn turn(&mut self, r: &nalgebra::Matrix3<f64>) {
+        if let Some((_, p, _)) = &mut self.last_frame {
+            *p = r * *p;
+        }
+        if let Some(c) = &mut self.chord_start {
+            c.vo = r * c.vo;
+        }
+    }
+
     /// A VO frame with the odometer reading at its time.
     pub fn push_frame(&mut self, t: Timestamp, position: &Vector3<f64>, odometer_m: f64, time_constant_s: f64) {
         if let Some((t0, p0, o0)) = self.last_frame {

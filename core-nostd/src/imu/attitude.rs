@@ -83,6 +83,11 @@ impl Attitude {
         self.tilt_bias = Vector3::zeros();
     }
 
+    /// How long since it was levelled, s (counted up to [`SETTLING_S`]).
+    pub fn levelled_for_s(&self) -> f64 {
+        self.age_s
+    }
+
     /// Whether a first sample has levelled it.
     pub fn is_initialised(&self) -> bool {
         self.initialised

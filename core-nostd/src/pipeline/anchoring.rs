@@ -49,6 +49,8 @@ pub(super) struct Anchoring {
     pub(super) ego: Option<Ego>,
     /// Seconds per frame number (for track velocities in m/s).
     pub(super) frame_interval: f64,
+    /// The VO session's vertical from gravity.
+    pub(super) vertical: super::vertical::Vertical,
 }
 
 impl Anchoring {
@@ -76,6 +78,7 @@ impl Anchoring {
             vo: None,
             ego: None,
             frame_interval: 0.1,
+            vertical: super::vertical::Vertical::default(),
         }
     }
 }
@@ -119,6 +122,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         if let Some(v) = self.anchoring.vo.filter(|v| v.session != session) {
             self.new_session(t, &v, session, pose)?;
         }
+        self.level_session(t, session, pose)?;
         if self.anchoring.anchorer.push_vo(t, pose.translation).is_err() {
             return self.log.issue(t, Issue::VoOutOfOrder, 1);
         }
@@ -213,6 +217,9 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         } else {
             self.anchoring.last_camera = Some((t, camera, anchored.heading, sigma));
             self.anchoring.turn_rate.push(t.as_secs_f64(), anchored.heading);
+            if self.log.stats.anchored_frames == 0 {
+                self.windows.open_from = t.as_secs_f64() + super::windows::SETTLE_AFTER_ANCHORED_S;
+            }
             self.log.stats.anchored_frames = self.log.stats.anchored_frames.saturating_add(1);
         }
         self.log.write(&Record::EgoPose(EgoPose {

@@ -31,6 +31,9 @@ const SPEED_DERIVATIVE_TAU_S: f64 = 0.2;
 const MAX_GYRO_SCALE: f64 = 3.0;
 /// How long dead reckoning waits for a camera frame before it makes poses on its own clock.
 const CAMERA_FRAME_WAIT: Duration = Duration::from_millis(500);
+/// How long the attitude follows gravity before its vertical levels a VO session, s: three
+/// of its settling time constants.
+const LEVEL_AFTER_S: f64 = 3.0 * crate::imu::attitude::SETTLING_TIME_CONSTANT_S;
 /// The VO session number of dead-reckoned poses.
 pub const DEAD_RECKONING_SESSION: u32 = 0;
 
@@ -140,6 +143,14 @@ impl Inertial {
     /// The body's up in body axes (the attitude's, or the body's z before it has one).
     pub(super) fn up(&self) -> Vector3<f64> {
         self.attitude.rotation().transpose() * Vector3::z()
+    }
+
+    /// Up in the camera's axes (`mount`: camera → body, the one the samples were turned to
+    /// the body with), once the attitude has followed gravity for [`LEVEL_AFTER_S`] and the
+    /// stream is not refused.
+    pub(super) fn up_in_camera(&self, mount: &Matrix3<f64>) -> Option<Vector3<f64>> {
+        let settled = self.attitude.is_initialised() && self.attitude.levelled_for_s() >= LEVEL_AFTER_S;
+        (settled && self.refused.is_none()).then(|| mount.transpose() * self.up())
     }
 
     /// The gyro's bias, every axis: the course's (or a standstill's) and the tilt's.

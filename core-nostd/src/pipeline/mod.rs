@@ -47,6 +47,7 @@ pub mod replay;
 pub mod signals;
 mod sink;
 mod tracking;
+mod vertical;
 mod windows;
 
 use embedded_can::Frame;

@@ -19,6 +19,11 @@ pub(super) const KEEP_LOST_S: f64 = 1.5;
 /// At most this many of them.
 pub(super) const KEPT_AGENTS: usize = 16;
 
+/// The first window opens this long after the device's first anchored pose, s: the
+/// anchor's first corrections (its rotation and scale still settling, eased in) are its
+/// own motion, not the driver's, and would be scored as jerks and speeds.
+pub(super) const SETTLE_AFTER_ANCHORED_S: f64 = 3.0;
+
 /// The open window and the agents it scores.
 #[derive(Debug)]
 pub(super) struct Windows<'a, const T3: usize> {
@@ -32,6 +37,9 @@ pub(super) struct Windows<'a, const T3: usize> {
     /// How far the ego's position is in doubt (m): the configured number of the latest
     /// anchored or carried pose's σ.
     pub(super) doubt_m: f64,
+    /// No window opens before this time (s): the first anchored pose's and
+    /// [`SETTLE_AFTER_ANCHORED_S`]; never until the device has anchored.
+    pub(super) open_from: f64,
 }
 
 impl<const T3: usize> Default for Windows<'_, T3> {
@@ -43,6 +51,7 @@ impl<const T3: usize> Default for Windows<'_, T3> {
             window: None,
             edge_collisions: edge::EdgeCollisions::default(),
             doubt_m: 0.0,
+            open_from: f64::INFINITY,
         }
     }
 }
@@ -73,7 +82,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                 self.close_window(last)?;
             }
         }
-        if self.windows.window.is_none() {
+        if self.windows.window.is_none() && ts >= self.windows.open_from {
             let checker = Checker::new(map, self.config.footprint);
             self.windows.window = Some(Window {
                 start: ts,

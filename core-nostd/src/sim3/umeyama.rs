@@ -127,6 +127,14 @@ impl Moments {
         Ok(())
     }
 
+    /// The source points in other coordinates, x → `r`·x (a rotation): the moments of the
+    /// same pairs, exactly.
+    pub fn turn_x(&mut self, r: &Matrix3<f64>) {
+        self.mean_x = r * self.mean_x;
+        self.sxx = r * self.sxx * r.transpose();
+        self.syx *= r.transpose();
+    }
+
     /// Multiply every past weight by `factor` in (0, 1]: exponential forgetting.
     /// Means are unchanged; the effective number of points shrinks.
     pub fn forget(&mut self, factor: f64) {

@@ -10,6 +10,7 @@
 
 pub mod anchors;
 pub mod raw;
+pub mod reckon;
 pub mod solve;
 pub mod tracks;
 pub mod walk;
@@ -18,7 +19,7 @@ pub mod windows;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use dash2sim_core::binlog::{quantise, AnchorEstimate, EgoPose, Header, Record};
+use dash2sim_core::binlog::{quantise, AnchorEstimate, EgoPose, Header, Record, FRAME_DEAD_RECKONED};
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::nalgebra::{Rotation3, Vector3};
 use dash2sim_core::pipeline::{
@@ -277,8 +278,11 @@ struct Drive {
 
 fn drive(log: &LogContents, frame: &LocalFrame, uere: f64) -> Drive {
     let (mut vo, mut fixes, mut speeds) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut dead_reckoned, mut bias) = (Vec::new(), Vec::new());
     for r in &log.records {
         match r {
+            Record::FrameMeta(m) if m.flags & FRAME_DEAD_RECKONED != 0 => dead_reckoned.push(log::seconds(m.t_us)),
+            Record::ImuEstimate(e) => bias.push((log::seconds(e.t_us), e.bias_z_e7 as f64 * 1e-7)),
             Record::VoPose(p) => vo.push(VoSample {
                 t: log::seconds(p.t_us),
                 session: u32::try_from(p.session).unwrap_or(u32::MAX),
@@ -311,6 +315,11 @@ fn drive(log: &LogContents, frame: &LocalFrame, uere: f64) -> Drive {
     fixes.sort_by(|a, b| by_time(&a.t, &b.t));
     speeds.sort_by(|a, b| by_time(&a.0, &b.0));
     speeds.dedup_by(|a, b| a.0 <= b.0);
+    // Dead-reckoned poses (gyro + wheels) with the bias the drive found in the end.
+    dead_reckoned.sort_by(by_time);
+    bias.sort_by(|a, b| by_time(&a.0, &b.0));
+    let flags: Vec<bool> = vo.iter().map(|s| dead_reckoned.binary_search_by(|t| by_time(t, &s.t)).is_ok()).collect();
+    reckon::with_final_bias(&mut vo, &flags, &bias);
     Drive { vo, fixes, speeds }
 }
 
