@@ -75,6 +75,16 @@ const JUMP_TEST_WINDOW_S: f64 = 10.0;
 /// `max_geometry_sigma_m`: a phone's 8 m fixes are not held to a metre of geometry, which
 /// would add 1 % to their error, but to 2 m, which adds 3 %.
 const GEOMETRY_SHARE_OF_FIX: f64 = 0.25;
+/// How far the residuals of the long window understate the fixes' error variance: the
+/// fit takes an error's part common to the window (correlated for seconds to minutes) into
+/// its translation. Measured where the error is known: on the sweep's good receiver (whose
+/// stated σ is its true one; seeds 7001–7100) the residuals gave σ0² ≈ 0.25 where 1 is
+/// right; on comma2k19's u-blox 0.025 where its error against the fused poses (1.2 m for a
+/// stated 2.5 m) makes it 0.1–0.2.
+const RESIDUAL_UNDERSTATEMENT: f64 = 4.0;
+/// The a-posteriori variance factor is not taken below this, whatever the residuals say
+/// (a receiver that states its σ pessimistically is still held to a third of it).
+const MIN_VARIANCE_FACTOR: f64 = 0.1;
 /// Residual components per fix (east, north, up) in the a-posteriori variance factor.
 const RESIDUAL_COMPONENTS: f64 = 3.0;
 
@@ -702,11 +712,9 @@ impl<const K: usize> Anchorer<K> {
         // Variance inflation: GNSS errors are correlated over `gnss_correlation_time_s`,
         // so neighbouring fixes are not independent; and the stated σ is scaled by the
         // a-posteriori variance factor σ0² = Σw‖r‖²/(3·n_eff − p) — dimensionless: w = 1/σ²,
-        // each fix three residual components, p the similarity's parameters — when the
-        // residuals say the fixes are worse than stated, never below it: a short window's
-        // residuals understate an error correlated for longer than the window (the fit
-        // takes its common part into the translation). A receiver whose σ is right gives
-        // σ0² about 1 (its vertical error is larger than the horizontal σ it states).
+        // each fix three residual components, p the similarity's parameters — times what
+        // residuals understate ([`RESIDUAL_UNDERSTATEMENT`]), never below
+        // [`MIN_VARIANCE_FACTOR`].
         let correlation = if self.mean_fix_interval_s > 0.0 {
             (self.config.gnss_correlation_time_s / self.mean_fix_interval_s).max(1.0)
         } else {
@@ -720,7 +728,7 @@ impl<const K: usize> Anchorer<K> {
         };
         let dof = RESIDUAL_COMPONENTS * n_eff - parameters;
         let sigma0_sq = if dof > 0.0 { m.weighted_sse(&fit) / dof } else { f64::INFINITY };
-        let variance_factor = sigma0_sq.max(1.0);
+        let variance_factor = (RESIDUAL_UNDERSTATEMENT * sigma0_sq).max(MIN_VARIANCE_FACTOR);
         let inflation = correlation * variance_factor;
         self.inflation = inflation;
         self.variance_factor = variance_factor;

@@ -76,10 +76,10 @@ fn recovers_the_similarity_of_a_noise_free_drive() {
     );
     assert!(q.rms_residual_m < 1e-2, "{q:?}");
     assert_eq!(q.latency_s, Some(0.0));
-    // The position rests on the latest fixes (σ 1 m stated; residuals of nothing do not
-    // make it smaller, the stated σ is the floor): √2 m and the geometry's share.
+    // The position rests on the latest fixes (σ 1 m stated, the residuals' variance
+    // factor at its floor of 0.1): √(2·0.1) m and the geometry's share.
     assert!(q.position_sigma_m >= q.geometry_sigma_m, "{q:?}");
-    assert!((q.position_sigma_m - libm::sqrt(2.0 + q.geometry_sigma_m * q.geometry_sigma_m)).abs() < 1e-9, "{q:?}");
+    assert!((q.position_sigma_m - libm::sqrt(0.2 + q.geometry_sigma_m * q.geometry_sigma_m)).abs() < 1e-9, "{q:?}");
 }
 
 #[test]

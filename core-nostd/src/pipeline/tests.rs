@@ -267,8 +267,11 @@ fn a_new_vo_session_is_anchored_on_its_own() {
     assert_eq!(issues.get(Issue::DetectionsWithoutPose), 10);
     assert_eq!(issues.total(), 20, "{issues:?}");
     assert!(log.events.iter().any(|e| e.starts_with("VO session 1 began 1.1 s after")), "{:?}", log.events);
-    let observable = log.events.iter().filter(|e| e.starts_with("anchor: Observable")).count();
-    assert_eq!(observable, 2, "anchored once per session: {:?}", log.events);
+    // Anchored in each session: before the new one began, and again in it.
+    let began = log.events.iter().position(|e| e.starts_with("VO session 1 began")).unwrap_or(usize::MAX);
+    let observable: heapless::Vec<usize, 16> =
+        log.events.iter().enumerate().filter(|(_, e)| e.starts_with("anchor: Observable")).map(|(k, _)| k).collect();
+    assert!(observable.iter().any(|&k| k < began) && observable.iter().any(|&k| k > began), "{:?}", log.events);
     // Until then the ego was carried by the last anchored pose and the wheels.
     assert!(stats.carried_frames > 5, "{stats:?}");
     assert!(log.events.iter().any(|e| e.starts_with("ego anchored again in VO session 1, ")));
@@ -339,7 +342,7 @@ fn a_clean_drive_is_anchored_tracked_and_timed_in_utc() {
     let log = decode(&buffer[..len]);
     assert_eq!(log.damaged, 0);
     assert_eq!(issues.total(), 0, "{issues:?} {:?} {:?}", log.events, nmea(0, UTC0));
-    assert!(stats.anchored_frames > 100, "{stats:?}");
+    assert!(stats.anchored_frames > 150, "{stats:?}");
     assert_eq!(count(&log, Kind::EgoPose), stats.anchored_frames);
     assert_eq!(count(&log, Kind::VoPose), 200);
     assert_eq!(count(&log, Kind::GnssFix), 100);
@@ -409,7 +412,7 @@ fn bad_inputs_are_counted_written_as_events_and_lose_nothing_else() {
     assert!(log.events.len() < 60, "{} events", log.events.len());
     // Everything good still went in.
     assert_eq!(count(&log, Kind::VoPose), 200);
-    assert!(stats.anchored_frames > 100, "{stats:?}");
+    assert!(stats.anchored_frames > 150, "{stats:?}");
 }
 
 #[test]
@@ -445,7 +448,7 @@ fn a_device_clock_reset_keeps_the_log_going_in_utc() {
     assert!(log.clock_reasons.contains(&3), "UTC taken again after the reset: {:?}", log.clock_reasons);
     let ego = log.last_ego.unwrap_or_default();
     assert!((ego.t_us - (UTC0 + 19_900_000 - LATENCY_US)).abs() < 1_000, "the last pose in UTC: {ego:?}");
-    assert!(stats.anchored_frames > 80, "{stats:?}");
+    assert!(stats.anchored_frames > 130, "{stats:?}");
 }
 
 /// One input of any kind, with any time and content.
@@ -627,7 +630,7 @@ fn gnss_from_dbc_signals_anchors_the_drive_and_puts_the_log_in_utc() {
     assert_eq!(stats.fixes, 95);
     assert_eq!(log.clock_reasons.as_slice(), &[0], "UTC from the time frames, and only from this fix's");
     assert_eq!(issues.get(Issue::GnssTimeIgnored), 0);
-    assert!(stats.anchored_frames > 100, "{stats:?}");
+    assert!(stats.anchored_frames > 150, "{stats:?}");
     let ego = log.last_ego.unwrap_or_default();
     assert!((ego.x_mm as f64 * 1e-3 - 199.0).abs() < 2.1, "{ego:?}");
     assert!((ego.t_us - (UTC0 + 19_900_000 - LATENCY_US)).abs() < 1_000, "{ego:?}");

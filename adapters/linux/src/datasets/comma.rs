@@ -206,10 +206,16 @@ pub struct Compared {
 
 /// The ego poses of `records` (at device times `device`) against the fused poses.
 pub fn compare(records: &[Record], device: &[f64], truth: &Trajectory) -> Result<Compared> {
+    compare_from(records, device, truth, f64::NEG_INFINITY)
+}
+
+/// [`compare`] over the ego poses at or after device time `from` only (s): another track
+/// compared over the same stretch.
+pub fn compare_from(records: &[Record], device: &[f64], truth: &Trajectory, from: f64) -> Result<Compared> {
     let t0 = *truth.stamps.first().ok_or_else(|| Error::invalid("no fused poses"))?;
     let mut pairs = Vec::new();
     let mut first = None;
-    for (r, &t) in records.iter().zip(device) {
+    for (r, &t) in records.iter().zip(device).filter(|(_, t)| **t >= from) {
         if let Record::EgoPose(p) = r {
             if let Some(x) = truth_at(truth, t) {
                 first.get_or_insert(t - t0);
@@ -297,6 +303,8 @@ pub struct Online {
 pub struct Finished {
     /// Its ego track.
     pub compared: Compared,
+    /// The same over the stretch the device had anchored (from its first ego pose on).
+    pub compared_where_online: Compared,
     /// The scale's relative σ.
     pub scale_sigma_relative: f64,
     /// The GNSS latency estimated, s.
@@ -326,6 +334,10 @@ pub fn run(dir: &Path, out: &Path) -> Result<Report> {
     let finished = crate::finish::finish(log, &name, None, None, mount, Default::default(), UERE)?;
     let finished_device = device_times(&finished.records)?;
     let finished_compared = compare(&finished.records, &finished_device, truth)?;
+    let online_from =
+        log.records.iter().zip(&minute.device).find_map(|(r, t)| matches!(r, Record::EgoPose(_)).then_some(*t));
+    let compared_where_online =
+        compare_from(&finished.records, &finished_device, truth, online_from.unwrap_or(f64::INFINITY))?;
     let header = log.header.ok_or_else(|| Error::invalid("the recorded log has no header"))?;
     let finished_bytes = log::import::encode_in_order(&header, &finished.records)?;
     let finished_path = out.join("finished.d2slog");
@@ -363,6 +375,7 @@ pub fn run(dir: &Path, out: &Path) -> Result<Report> {
         online: Online { compared: online, anchor_scale_error_at_end: online_scale },
         finished: Finished {
             compared: finished_compared,
+            compared_where_online,
             scale_sigma_relative: a.scale_sigma_relative,
             gnss_latency_s: a.gnss_latency_s,
             wheel_factor: a.wheel_factor,
