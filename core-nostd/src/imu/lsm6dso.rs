@@ -20,6 +20,7 @@
 use embedded_hal::i2c::{ErrorKind, I2c};
 
 use super::{ImuSample, GRAVITY};
+use crate::time::Timestamp;
 
 /// The I²C address with SA0 low.
 pub const ADDRESS_LOW: u8 = 0x6A;
@@ -27,12 +28,15 @@ pub const ADDRESS_LOW: u8 = 0x6A;
 pub const ADDRESS_HIGH: u8 = 0x6B;
 /// What `WHO_AM_I` reads on an LSM6DSO.
 pub const WHO_AM_I_VALUE: u8 = 0x6C;
-/// Seconds per timestamp tick (25 µs, DS12140 §6.4; the chip's ±1.5 % trim is not applied).
-pub const TIMESTAMP_TICK_S: f64 = 25e-6;
+/// Microseconds per timestamp tick (25 µs, DS12140 §6.4; the chip's ±1.5 % trim is not
+/// applied).
+pub const TIMESTAMP_TICK_US: i64 = 25;
 /// FIFO words the sensor holds (9 KB / 7 B per word).
 pub const FIFO_WORDS: u16 = 512;
 
-mod reg {
+/// The registers the driver uses (DS12140 §9).
+#[allow(missing_docs)]
+pub mod reg {
     pub const FIFO_CTRL3: u8 = 0x09;
     pub const FIFO_CTRL4: u8 = 0x0A;
     pub const WHO_AM_I: u8 = 0x0F;
@@ -44,8 +48,9 @@ mod reg {
     pub const FIFO_DATA_OUT_TAG: u8 = 0x78;
 }
 
-/// FIFO word tags (DS12140 table 113).
-mod tag {
+/// FIFO word tags (DS12140 table 113), in bits 7..3 of a word's tag byte.
+#[allow(missing_docs)]
+pub mod tag {
     pub const GYRO: u8 = 0x01;
     pub const ACCEL: u8 = 0x02;
     pub const TIMESTAMP: u8 = 0x04;
@@ -88,10 +93,39 @@ impl Default for Config {
     }
 }
 
-/// m/s² per count at ±16 g (0.488 mg/LSB).
-const ACCEL_SCALE: f64 = 0.488e-3 * GRAVITY;
-/// rad/s per count at ±500 °/s (17.5 m°/s per LSB).
-const GYRO_SCALE: f64 = 17.5e-3 * core::f64::consts::PI / 180.0;
+/// m/s² per count at ±16 g (0.488 mg/LSB), in `f32`: the sensor's 16-bit counts times it
+/// are what an `f32` holds, as the replay stream and a Cortex-M's single-precision FPU do,
+/// so a sample read through the driver and one read back from a recording are the same.
+const ACCEL_SCALE: f32 = (0.488e-3 * GRAVITY) as f32;
+/// rad/s per count at ±500 °/s (17.5 m°/s per LSB), in `f32` (see [`ACCEL_SCALE`]).
+const GYRO_SCALE: f32 = (17.5e-3 * core::f64::consts::PI / 180.0) as f32;
+
+/// A sample as the sensor's counts: gyro, accelerometer (rounded to the nearest count,
+/// saturating at the full scale).
+pub fn counts(sample: &ImuSample) -> [[i16; 3]; 2] {
+    // `as` saturates a float beyond i16's range and makes NaN 0.
+    let count = |v: f64, scale: f32| libm::roundf(v as f32 / scale) as i16;
+    [sample.gyro.map(|v| count(v, GYRO_SCALE)), sample.accel.map(|v| count(v, ACCEL_SCALE))]
+}
+
+/// A sample from the sensor's counts: gyro, accelerometer.
+pub fn from_counts(gyro: [i16; 3], accel: [i16; 3]) -> ImuSample {
+    ImuSample {
+        gyro: gyro.map(|c| f64::from(f32::from(c) * GYRO_SCALE)),
+        accel: accel.map(|c| f64::from(f32::from(c) * ACCEL_SCALE)),
+    }
+}
+
+/// A sample as the sensor would have delivered it: quantised to its counts.
+pub fn quantised(sample: &ImuSample) -> ImuSample {
+    let [gyro, accel] = counts(sample);
+    from_counts(gyro, accel)
+}
+
+/// The sensor's 32-bit timestamp counter at `t` (its ticks since the device's time 0).
+pub fn ticks(t: Timestamp) -> u32 {
+    (t.micros() / TIMESTAMP_TICK_US) as u32
+}
 
 /// What went wrong on the bus or in the sensor.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -173,9 +207,10 @@ impl<I: I2c> Lsm6dso<I> {
         Ok(())
     }
 
-    /// Drain the FIFO: every complete sample to `each` with the sensor's time (s since its
-    /// counter started). Returns how many were delivered, or the overrun.
-    pub fn read_fifo(&mut self, mut each: impl FnMut(f64, ImuSample)) -> Result<u16, Error<I::Error>> {
+    /// Drain the FIFO: every complete sample to `each` with the sensor's time (since its
+    /// counter started, which a device starts with its own clock). Returns how many were
+    /// delivered, or the overrun.
+    pub fn read_fifo(&mut self, mut each: impl FnMut(Timestamp, ImuSample)) -> Result<u16, Error<I::Error>> {
         let mut status = [0u8; 2];
         self.read_registers(reg::FIFO_STATUS1, &mut status)?;
         let words = (u16::from(status[1] & 0b11) << 8 | u16::from(status[0])).min(FIFO_WORDS);
@@ -200,11 +235,8 @@ impl<I: I2c> Lsm6dso<I> {
             if let (Some(time), Some(g), Some(a)) = (self.time, self.gyro, self.accel) {
                 self.gyro = None;
                 self.accel = None;
-                let sample = ImuSample {
-                    gyro: g.map(|v| f64::from(v) * GYRO_SCALE),
-                    accel: a.map(|v| f64::from(v) * ACCEL_SCALE),
-                };
-                each(time as f64 * TIMESTAMP_TICK_S, sample);
+                let micros = i64::try_from(time).unwrap_or(i64::MAX).saturating_mul(TIMESTAMP_TICK_US);
+                each(Timestamp::from_micros(micros), from_counts(g, a));
                 delivered = delivered.saturating_add(1);
             }
         }
@@ -329,15 +361,20 @@ mod tests {
         t.push(word(tag::TIMESTAMP, timestamp(40_770)));
         let mut bus = Mock::new(&t);
         let mut imu = Lsm6dso::new(bus.clone(), A);
-        let mut got = heapless::Vec::<(f64, ImuSample), 4>::new();
+        let mut got = heapless::Vec::<(Timestamp, ImuSample), 4>::new();
         assert_eq!(imu.read_fifo(|t, s| got.push((t, s)).unwrap_or_default()), Ok(2));
         bus.done();
         assert_eq!(got.len(), 2);
         let (t0, s0) = got[0];
-        assert!((t0 - 1.0).abs() < 1e-12);
-        assert!((s0.gyro[2] - 1000.0 * 17.5e-3 * core::f64::consts::PI / 180.0).abs() < 1e-12);
-        assert!((s0.accel[2] - 2049.0 * 0.488e-3 * GRAVITY).abs() < 1e-9, "1 g: {}", s0.accel[2]);
-        assert!((got[1].0 - 40_385.0 * 25e-6).abs() < 1e-12);
+        assert_eq!(t0, Timestamp::from_micros(1_000_000));
+        assert!((s0.gyro[2] - 1000.0 * 17.5e-3 * core::f64::consts::PI / 180.0).abs() < 1e-6);
+        assert!((s0.accel[2] - 2049.0 * 0.488e-3 * GRAVITY).abs() < 1e-5, "1 g: {}", s0.accel[2]);
+        assert_eq!(got[1].0, Timestamp::from_micros(40_385 * 25));
+        // What the driver delivers is what a recording keeps (f32) and reads back, and its
+        // counts are the sensor's.
+        assert_eq!(counts(&s0), [[100, -200, 1000], [0, 0, 2049]]);
+        assert!(s0.gyro.iter().chain(&s0.accel).all(|v| f64::from(*v as f32) == *v));
+        assert_eq!(quantised(&s0), s0);
     }
 
     #[test]

@@ -188,17 +188,7 @@ impl<'a> Fields<'a> {
         if raw.is_empty() {
             return Ok(None);
         }
-        if let Some(v) = exact_decimal(raw) {
-            return Ok(Some(v));
-        }
-        let bad = FieldError { index: self.index };
-        let text = core::str::from_utf8(raw).map_err(|_| bad)?;
-        let v: f64 = text.parse().map_err(|_| bad)?;
-        if v.is_finite() {
-            Ok(Some(v))
-        } else {
-            Err(bad)
-        }
+        exact_decimal(raw).map(Some).ok_or(FieldError { index: self.index })
     }
 
     /// The next field as an unsigned integer; `Ok(None)` when empty.
@@ -225,10 +215,12 @@ impl<'a> Fields<'a> {
 /// Powers of ten exactly representable in `f64`.
 const POW10: [f64; 16] = [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15];
 
-/// `[-+]digits[.digits]` with at most 15 significant digits, converted exactly: the
-/// mantissa and the power of ten are both exact in `f64`, so one division rounds
-/// correctly — the same value `str::parse` gives (Clinger's fast path). `None` for any
-/// other form, which then takes the general parser.
+/// `[-+]digits[.digits]`, the only form NMEA 0183 numbers take. Up to 15 digits it is
+/// converted exactly: the mantissa and the power of ten are both exact in `f64`, so one
+/// division rounds correctly — the same value `str::parse` gives (Clinger's fast path).
+/// Fraction digits past the fifteenth are dropped (a part in 10¹⁵: no receiver resolves
+/// it), which spares a device the general parser and its tables (13 KB of flash). `None`
+/// for any other form (an exponent, two dots, no digit) or more than 15 integer digits.
 fn exact_decimal(raw: &[u8]) -> Option<f64> {
     let (negative, digits) = match raw.split_first()? {
         (b'-', rest) => (true, rest),
@@ -246,7 +238,13 @@ fn exact_decimal(raw: &[u8]) -> Option<f64> {
             continue;
         }
         let d = b.wrapping_sub(b'0');
-        if d > 9 || count == 15 {
+        if d > 9 {
+            return None;
+        }
+        if count == 15 {
+            if seen_dot {
+                continue;
+            }
             return None;
         }
         mantissa = mantissa * 10 + u64::from(d);
@@ -278,8 +276,9 @@ mod tests {
     }
 
     #[test]
-    fn exact_decimal_declines_what_it_cannot_do_exactly() {
-        assert_eq!(exact_decimal(b"1234567890.1234567"), None, "more than 15 digits");
+    fn exact_decimal_keeps_fifteen_digits_and_refuses_other_forms() {
+        assert_eq!(exact_decimal(b"1234567890.1234567"), Some(1234567890.12345), "15 digits kept");
+        assert_eq!(exact_decimal(b"1234567890123456"), None, "16 integer digits");
         assert_eq!(exact_decimal(b"1e5"), None);
         assert_eq!(exact_decimal(b"."), None);
         assert_eq!(exact_decimal(b"1.2.3"), None);

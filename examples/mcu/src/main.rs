@@ -1,7 +1,8 @@
 //! dash2sim on a microcontroller. First the whole on-device pipeline: a 20 s generated
 //! work-zone drive embedded in the binary (`drive.d2sin`: VO poses, the GNSS receiver's NMEA
-//! bytes, CAN frames, 3D and 2D detections) is replayed by a board behind the traits a
-//! real one gives ([`board`]) into `Pipeline<64 3D tracks, 32 2D tracks>` with the drive's
+//! bytes, CAN frames, the IMU's samples at 104 Hz, 3D and 2D detections) is replayed by a
+//! board behind the traits a real one gives ([`board`]; the IMU is read through the core's
+//! LSM6DSO driver on an `embedded_hal::i2c::I2c` bus that answers as the sensor would) into `Pipeline<64 3D tracks, 32 2D tracks>` with the drive's
 //! map tile, and the 4D log goes to `target/drive-mcu.d2slog` on the host (CI compares it
 //! byte for byte with the host's `dash2sim record --replay`); the RAM it took is measured by
 //! stack painting. Every segment of the log is signed (Ed25519, `demo.key`). Then the
@@ -20,9 +21,12 @@ mod board;
 
 use core::panic::PanicInfo;
 
-use board::{CameraMessage, HostFile, ReplayBoard};
+use core::cell::RefCell;
+
+use board::{CameraMessage, HostFile, ImuBus, ReplayBoard};
 use dash2sim_core::binlog::signature::Sealer;
 use dash2sim_core::geo::Geodetic;
+use dash2sim_core::imu::lsm6dso::{self, Lsm6dso};
 use dash2sim_core::pipeline::profile::{work_zone_pipeline, work_zone_trackers, WORK_ZONE_META};
 use dash2sim_core::pipeline::{replay, ImageDetection, Pipeline, PipelineConfig, Trackers};
 use embedded_can::nb::Can as _;
@@ -85,12 +89,12 @@ static DRIVE_TILE: &[u8] = include_bytes!("../drive.d2smap");
 /// calibrated on a loop of known length).
 struct Cost {
     instructions_per_tick: f64,
-    /// Per input kind (serial, CAN, VO, 3D detections, 2D detections): inputs, total and
-    /// largest instructions.
-    kinds: [(u32, f64, f64); 5],
+    /// Per input kind (serial, CAN, VO, 3D detections, 2D detections, IMU FIFO reads):
+    /// inputs, total and largest instructions.
+    kinds: [(u32, f64, f64); 6],
 }
 
-const KINDS: [&str; 5] = ["serial chunk", "CAN frame", "VO pose", "3D detections", "2D detections"];
+const KINDS: [&str; 6] = ["serial chunk", "CAN frame", "VO pose", "3D detections", "2D detections", "IMU FIFO read"];
 
 fn ticks_since(start: u32) -> u32 {
     start.wrapping_sub(cortex_m::peripheral::SYST::get_current()) & 0x00FF_FFFF
@@ -106,7 +110,7 @@ impl Cost {
             core::arch::asm!("2:", "subs {0}, #1", "bne 2b", inout(reg) n => _)
         };
         let ticks = f64::from(ticks_since(start).max(1));
-        Cost { instructions_per_tick: 2.0 * f64::from(n) / ticks, kinds: [(0, 0.0, 0.0); 5] }
+        Cost { instructions_per_tick: 2.0 * f64::from(n) / ticks, kinds: [(0, 0.0, 0.0); 6] }
     }
 
     fn add(&mut self, kind: usize, start: u32) {
@@ -132,6 +136,12 @@ fn trackers() -> Option<&'static mut Trackers<'static, 64, 24>> {
     TRACKERS.try_init_with(work_zone_trackers)
 }
 
+/// A frame from the board's CAN controller, if one is waiting (the board's borrow ends
+/// here, not with the caller's `if let`).
+fn can_frame(board: &RefCell<ReplayBoard>) -> Option<dash2sim_core::can::CanFrame> {
+    board.borrow_mut().can().receive().ok()
+}
+
 /// The pipeline over the replayed drive, the log to the host.
 fn record_drive(cost: &mut Cost, trackers: &'static mut Trackers<'static, 64, 24>) -> bool {
     let Ok(map) = MapView::parse(DRIVE_TILE) else {
@@ -145,10 +155,16 @@ fn record_drive(cost: &mut Cost, trackers: &'static mut Trackers<'static, 64, 24
         map: Some(map),
         ..work_zone_pipeline(origin, &WORK_ZONE_META)
     };
-    let (Some(sink), Some(mut board)) = (HostFile::create("target/drive-mcu.d2slog\0"), ReplayBoard::new(DRIVE)) else {
+    let (Some(sink), Some(board)) = (HostFile::create("target/drive-mcu.d2slog\0"), ReplayBoard::new(DRIVE)) else {
         hprintln!("no host file or no input stream");
         return false;
     };
+    let board = RefCell::new(board);
+    let mut imu = Lsm6dso::new(ImuBus(&board), lsm6dso::ADDRESS_LOW);
+    if let Err(e) = imu.init(lsm6dso::Config::default()) {
+        hprintln!("IMU: {}", e);
+        return false;
+    }
     let mut pipeline = Pipeline::<'_, HostFile, 64, 24, 2304>::new(sink, config, trackers);
     // Every segment signed (format v1.5): the example's key is `demo.key`'s, which CI gives
     // the host's `record --key` for the byte-for-byte comparison. A real device is given its
@@ -158,17 +174,35 @@ fn record_drive(cost: &mut Cost, trackers: &'static mut Trackers<'static, 64, 24
     let mut detections3d: heapless::Vec<_, 64> = heapless::Vec::new();
     let mut detections2d: heapless::Vec<ImageDetection, 24> = heapless::Vec::new();
     let mut inputs = 0u32;
-    while let Some(t) = board.now() {
+    let now = || board.borrow().now();
+    while let Some(t) = now() {
         inputs += 1;
-        let (kind, result) = if board.uart().read_ready() == Ok(true) {
-            let n = board.uart().read(&mut serial).unwrap_or(0);
+        let ready = board.borrow_mut().uart().read_ready() == Ok(true);
+        let (kind, result) = if ready {
+            let n = board.borrow_mut().uart().read(&mut serial).unwrap_or(0);
             let start = cortex_m::peripheral::SYST::get_current();
             (0, (pipeline.push_serial(t, &serial[..n]), start))
-        } else if let Ok(frame) = board.can().receive() {
+        } else if board.borrow().imu_ready() {
+            // The sensor's FIFO, drained as a device's interrupt handler would: each sample
+            // stamped with the sensor's own clock.
+            let start = cortex_m::peripheral::SYST::get_current();
+            let mut pushed = Ok(());
+            let read = imu.read_fifo(|ts, sample| {
+                if pushed.is_ok() {
+                    pushed = pipeline.push_imu(ts, &sample);
+                }
+            });
+            if read.is_err() {
+                hprintln!("IMU: the FIFO read failed");
+                return false;
+            }
+            (5, (pushed, start))
+        } else if let Some(frame) = can_frame(&board) {
             let start = cortex_m::peripheral::SYST::get_current();
             (1, (pipeline.push_can(t, &frame), start))
         } else {
-            match board.camera() {
+            let message = board.borrow_mut().camera();
+            match message {
                 Some(CameraMessage::Vo(frame, session, pose)) => {
                     let start = cortex_m::peripheral::SYST::get_current();
                     (2, (pipeline.push_vo(t, frame, session, &pose), start))
@@ -204,7 +238,13 @@ fn record_drive(cost: &mut Cost, trackers: &'static mut Trackers<'static, 64, 24
         s,
         issues.total()
     );
-    !board.malformed && s.anchored_frames > 100 && s.track_states > 100 && s.windows >= 1 && issues.total() == 0
+    let malformed = board.borrow().malformed;
+    !malformed
+        && s.imu_samples >= 2000
+        && s.anchored_frames > 100
+        && s.track_states > 100
+        && s.windows >= 1
+        && issues.total() == 0
 }
 
 /// The drivable-area check on its own, on the drive's map: footprints on every centreline

@@ -17,6 +17,17 @@ use super::solve::VoSample;
 /// order.
 pub type BiasHistory = [(f64, f64)];
 
+/// A dead-reckoned sample already redone: its time and session, its position as logged and
+/// as corrected, and its heading correction δψ (rad).
+#[derive(Clone, Copy)]
+struct Redone {
+    t: f64,
+    session: u32,
+    logged: Vector3<f64>,
+    corrected: Vector3<f64>,
+    delta: f64,
+}
+
 /// The bias at `t`: linear between the records, the nearest one's outside them.
 fn bias_at(history: &BiasHistory, t: f64) -> Option<f64> {
     let k = history.partition_point(|(ts, _)| *ts <= t);
@@ -37,28 +48,27 @@ fn yaw(angle: f64) -> Matrix3<f64> {
 pub fn with_final_bias(vo: &mut [VoSample], dead_reckoned: &[bool], history: &BiasHistory) -> f64 {
     let Some(&(_, final_bias)) = history.last() else { return 0.0 };
     let mut largest = 0.0f64;
-    // The previous dead-reckoned sample as logged, as corrected, and its δψ.
-    let mut previous: Option<(f64, u32, Vector3<f64>, Vector3<f64>, f64)> = None;
+    let mut previous: Option<Redone> = None;
     for (sample, &reckoned) in vo.iter_mut().zip(dead_reckoned) {
         if !reckoned {
             previous = None;
             continue;
         }
         let logged = sample.position;
-        let (position, delta) = match previous.filter(|p| p.1 == sample.session) {
+        let (position, delta) = match previous.filter(|p| p.session == sample.session) {
             None => (logged, 0.0),
-            Some((t0, _, logged0, corrected0, delta0)) => {
-                let (b0, b1) = (bias_at(history, t0), bias_at(history, sample.t));
+            Some(p) => {
+                let (b0, b1) = (bias_at(history, p.t), bias_at(history, sample.t));
                 let rate = |b: Option<f64>| b.map_or(0.0, |b| b - final_bias);
-                let delta = delta0 + 0.5 * (rate(b0) + rate(b1)) * (sample.t - t0);
-                let step = yaw(0.5 * (delta0 + delta)) * (logged - logged0);
-                (corrected0 + step, delta)
+                let delta = p.delta + 0.5 * (rate(b0) + rate(b1)) * (sample.t - p.t);
+                let step = yaw(0.5 * (p.delta + delta)) * (logged - p.logged);
+                (p.corrected + step, delta)
             }
         };
         sample.position = position;
         sample.rotation = yaw(delta) * sample.rotation;
         largest = largest.max(delta.abs());
-        previous = Some((sample.t, sample.session, logged, position, delta));
+        previous = Some(Redone { t: sample.t, session: sample.session, logged, corrected: position, delta });
     }
     largest
 }
