@@ -31,6 +31,9 @@ pub(super) struct Anchoring {
     /// The camera's world pose, the ego heading and the position's σ (m) at the latest
     /// anchored frame.
     pub(super) last_camera: Option<(Timestamp, Pose, f64, f64)>,
+    /// The gyro's heading at that frame (rad), when the dashcam has an IMU: the turn across
+    /// a VO gap is measured from it.
+    pub(super) last_camera_gyro: Option<f64>,
     /// The anchored ego's turn rate, carried with the attitude across a VO gap.
     pub(super) turn_rate: carry::TurnRate,
     /// The ego the windows score, with the corrections eased in, and the VO session and
@@ -68,6 +71,7 @@ impl Anchoring {
             calibration: MountCalibration::new(config.mount, config.calibration),
             carry: None,
             last_camera: None,
+            last_camera_gyro: None,
             turn_rate: carry::TurnRate::default(),
             ease: ease::Ease::new(config.ease_s),
             eased_vo: None,
@@ -184,7 +188,8 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             }
             None => {
                 let speed = self.gnss.last_speed * self.anchoring.anchorer.wheel_factor().unwrap_or(1.0);
-                match self.anchoring.carry.as_mut().and_then(|c| c.push(t.as_secs_f64(), pose, speed)) {
+                let turn = self.gap_turn(t).map_or(0.0, |turn| turn.angle);
+                match self.anchoring.carry.as_mut().and_then(|c| c.push(t.as_secs_f64(), pose, speed, turn)) {
                     Some(anchor) => (anchor, true),
                     None => return Ok(()),
                 }
@@ -216,6 +221,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             self.log.stats.carried_frames = self.log.stats.carried_frames.saturating_add(1);
         } else {
             self.anchoring.last_camera = Some((t, camera, anchored.heading, sigma));
+            self.anchoring.last_camera_gyro = self.inertial.heading();
             self.anchoring.turn_rate.push(t.as_secs_f64(), anchored.heading);
             if self.log.stats.anchored_frames == 0 {
                 self.windows.open_from = t.as_secs_f64() + super::windows::SETTLE_AFTER_ANCHORED_S;
@@ -255,8 +261,8 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         self.anchoring.anchorer.new_vo_session();
         if let Some((tc, camera, _, _)) = self.anchoring.last_camera {
             let gap = (t - tc).as_secs_f64();
-            let (rotation, sigma) =
-                carry::rotation_prior(&camera, gap, self.anchoring.turn_rate.rate(), first, old_rotation_sigma);
+            let turn = self.gap_turn(t).unwrap_or(carry::Turn::extrapolated(self.anchoring.turn_rate.rate(), gap));
+            let (rotation, sigma) = carry::rotation_prior(&camera, turn, first, old_rotation_sigma);
             // Refused only when the old session's rotation σ is not finite: then no prior.
             let _ = self.anchoring.anchorer.set_rotation_prior(rotation, sigma);
         }
@@ -280,6 +286,13 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                 last.session
             ),
         )
+    }
+
+    /// How far the car turned since the last anchored frame, by the gyro (none without an
+    /// IMU, or before its attitude settled then).
+    fn gap_turn(&self, t: Timestamp) -> Option<carry::Turn> {
+        let (tc, ..) = self.anchoring.last_camera?;
+        self.inertial.turn_since(self.anchoring.last_camera_gyro?, (t - tc).as_secs_f64())
     }
 
     /// The pose into the mount calibration; the estimate as a record when it is due, an

@@ -5,10 +5,11 @@
 //! drive). The car has not gone anywhere unknown in the meantime: where the old session
 //! last put the camera, the car's speed from the wheels, and the VO's own motion in the new
 //! session say where it is. [`Carry`] makes a provisional similarity from them — the new
-//! session's first camera orientation is taken to be the old session's last (the car turns
-//! little in a gap of a second or two), its first position the last one moved on by the
-//! wheel speed over the gap along the heading, its scale the wheel distance over the VO
-//! path length since — and the pipeline places the ego and the detections through it,
+//! session's first camera orientation is the old session's last turned by what the gyro
+//! measured over the gap (or not turned, without one: the car turns little in a second or
+//! two), its first position the last one moved on by the wheel speed over the gap along the
+//! heading, its scale the wheel distance over the VO path length since — and the pipeline
+//! places the ego and the detections through it,
 //! flagged by events, until the anchorer's own estimate takes over, for at most
 //! [`MAX_CARRY_S`]. Its error grows with the turn during the gap and the wheel factor's
 //! error; the anchorer's is bounded.
@@ -16,6 +17,10 @@
 //! The same carried attitude is the anchorer's prior on the new session's rotation
 //! ([`rotation_prior`]): with it the fixes need only a few seconds of a straight road to
 //! anchor the session, instead of a bend.
+//!
+//! How far the car turned during the gap comes from the gyro when the dashcam has one (its
+//! heading, bias removed, is good to a few hundredths of a degree over a second or two);
+//! without it, from the ego's turn rate before the gap, extrapolated ([`Turn`]).
 
 use nalgebra::{Matrix3, Vector3};
 
@@ -74,23 +79,34 @@ impl TurnRate {
     }
 }
 
+/// How far the car turned about the vertical during a VO gap (rad, left positive), and
+/// how sure that is (1-σ, rad).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Turn {
+    /// The turn, rad.
+    pub angle: f64,
+    /// Its 1-σ error, rad.
+    pub sigma: f64,
+}
+
+impl Turn {
+    /// The ego's `turn_rate` before the gap, extrapolated over `gap_s`: its error is taken
+    /// as half the turn.
+    pub fn extrapolated(turn_rate: f64, gap_s: f64) -> Self {
+        let angle = turn_rate * gap_s.max(0.0);
+        Turn { angle, sigma: 0.5 * libm::fabs(angle) }
+    }
+}
+
 /// The new session's rotation (VO → ENU) as the carry sees it, and its 1-σ error (rad):
 /// the camera's world attitude `from` at the old session's last anchored frame, turned on
-/// about the vertical at the ego's `turn_rate` over the `gap_s`, through the new session's
-/// `first` VO pose. The error adds, to the old session's rotation σ, half the turn
-/// extrapolated over the gap and one frame's attitude error.
-pub fn rotation_prior(
-    from: &Pose,
-    gap_s: f64,
-    turn_rate: f64,
-    first: &Pose,
-    old_sigma_rad: f64,
-) -> (Matrix3<f64>, f64) {
-    let turn = turn_rate * gap_s.max(0.0);
-    let rotation = rotation_z(turn) * from.rotation * first.rotation.transpose();
-    let half_turn = 0.5 * turn;
+/// about the vertical by the `turn` during the gap, through the new session's `first` VO
+/// pose. The error adds, to the old session's rotation σ, the turn's and one frame's
+/// attitude error.
+pub fn rotation_prior(from: &Pose, turn: Turn, first: &Pose, old_sigma_rad: f64) -> (Matrix3<f64>, f64) {
+    let rotation = rotation_z(turn.angle) * from.rotation * first.rotation.transpose();
     let sigma = libm::sqrt(
-        old_sigma_rad * old_sigma_rad + half_turn * half_turn + FIRST_FRAME_SIGMA_RAD * FIRST_FRAME_SIGMA_RAD,
+        old_sigma_rad * old_sigma_rad + turn.sigma * turn.sigma + FIRST_FRAME_SIGMA_RAD * FIRST_FRAME_SIGMA_RAD,
     );
     (rotation, sigma)
 }
@@ -103,8 +119,8 @@ pub struct Carry {
     from_t: f64,
     /// The ego's heading then, rad.
     heading: f64,
-    /// The new session's first VO pose and its time.
-    first: Option<(f64, Pose)>,
+    /// The new session's first VO pose and its time, and the turn (rad) since `from`.
+    first: Option<(f64, Pose, f64)>,
     /// Where the camera was at the new session's first pose (world).
     first_world: Vector3<f64>,
     /// The latest VO position and time of the new session.
@@ -130,17 +146,20 @@ impl Carry {
     }
 
     /// The new session's VO pose at `t` s, the car's speed then (m/s, wheel factor
-    /// applied): the provisional similarity, once the wheels have gone far enough to give
-    /// the scale.
-    pub fn push(&mut self, t: f64, pose: &Pose, speed_mps: f64) -> Option<Sim3> {
+    /// applied) and how far it has turned since the old session's last anchored frame
+    /// (rad; the gyro's, or 0 without one — only the first pose's is used): the provisional
+    /// similarity, once the wheels have gone far enough to give the scale.
+    pub fn push(&mut self, t: f64, pose: &Pose, speed_mps: f64, turn: f64) -> Option<Sim3> {
         if !(t.is_finite() && pose.is_finite() && speed_mps.is_finite()) || t - self.from_t > MAX_CARRY_S {
             return None;
         }
-        let Some((_, first)) = self.first else {
+        let Some((_, first, first_turn)) = self.first else {
             let gap = (t - self.from_t).max(0.0);
-            let (s, c) = libm::sincos(self.heading);
+            let turn = if turn.is_finite() { turn } else { 0.0 };
+            // Along the arc's chord: the mean heading over the gap.
+            let (s, c) = libm::sincos(self.heading + 0.5 * turn);
             self.first_world = self.from.translation + Vector3::new(c, s, 0.0) * speed_mps * gap;
-            self.first = Some((t, *pose));
+            self.first = Some((t, *pose, turn));
             self.last = Some((t, pose.translation));
             return None;
         };
@@ -153,7 +172,7 @@ impl Carry {
             return None;
         }
         let scale = self.wheel_m / self.vo_path;
-        let rotation = self.from.rotation * first.rotation.transpose();
+        let rotation = rotation_z(first_turn) * self.from.rotation * first.rotation.transpose();
         let translation = self.first_world - rotation * first.translation * scale;
         Some(Sim3 { rotation, scale, translation })
     }
@@ -180,12 +199,12 @@ mod tests {
         let from = Pose { rotation: rotation_z(0.0), translation: camera(10.0) };
         let mut carry = Carry::new(from, 10.0, 0.0);
         let vo = |t: f64| Pose { rotation: to_vo, translation: to_vo * (camera(t) - camera(11.0)) * 4.0 };
-        assert_eq!(carry.push(11.0, &vo(11.0), 10.0), None, "no scale from one pose");
-        assert_eq!(carry.push(11.1, &vo(11.1), 10.0), None, "1 m of wheels is not enough");
+        assert_eq!(carry.push(11.0, &vo(11.0), 10.0, 0.0), None, "no scale from one pose");
+        assert_eq!(carry.push(11.1, &vo(11.1), 10.0, 0.0), None, "1 m of wheels is not enough");
         let mut s = None;
         for k in 2..10 {
             let t = 11.0 + 0.1 * f64::from(k);
-            s = carry.push(t, &vo(t), 10.0).or(s);
+            s = carry.push(t, &vo(t), 10.0, 0.0).or(s);
         }
         let s = s.unwrap_or_else(|| unreachable!("2 m of wheels give the scale"));
         assert!((s.scale - 0.25).abs() < 1e-9, "{s:?}");
@@ -193,7 +212,39 @@ mod tests {
         assert!((p - camera(12.5)).norm() < 1e-9, "{p:?}");
         assert!((s.rotation * to_vo - Matrix3::identity()).norm() < 1e-12);
         assert_eq!(carry.since(), 10.0);
-        assert_eq!(carry.push(20.5, &vo(20.5), 10.0), None, "not carried beyond MAX_CARRY_S");
+        assert_eq!(carry.push(20.5, &vo(20.5), 10.0, 0.0), None, "not carried beyond MAX_CARRY_S");
+    }
+
+    #[test]
+    fn the_turn_during_the_gap_turns_the_carried_session() {
+        // The car heads east until the gap; during its 2 s it turns left by 0.2 rad, which
+        // the gyro measured. The new VO frame is the world turned by 2 rad: through the
+        // carry, the new session's camera heads 0.2 rad left of east, as the car does.
+        let to_vo = rotation_z(-2.0);
+        let from = Pose { rotation: rotation_z(0.0), translation: Vector3::new(100.0, 5.0, 1.3) };
+        let mut carry = Carry::new(from, 10.0, 0.0);
+        let heading: f64 = 0.2;
+        let direction = Vector3::new(libm::cos(heading), libm::sin(heading), 0.0);
+        let camera = |t: f64| Vector3::new(100.0, 5.0, 1.3) + direction * 10.0 * (t - 10.0);
+        let vo = |t: f64| Pose { rotation: to_vo * rotation_z(heading), translation: to_vo * camera(t) * 4.0 };
+        let mut s = None;
+        for k in 0..10 {
+            let t = 12.0 + 0.1 * f64::from(k);
+            s = carry.push(t, &vo(t), 10.0, heading).or(s);
+        }
+        let s = s.unwrap_or_else(|| unreachable!("2 m of wheels give the scale"));
+        let world = s.rotation * vo(12.5).rotation;
+        let carried = libm::atan2(world[(1, 0)], world[(0, 0)]);
+        assert!((carried - heading).abs() < 1e-9, "carried heading {carried}");
+        // Without the gyro's turn, the 0.2 rad of the gap would be the carried ego's error.
+        let mut blind = Carry::new(from, 10.0, 0.0);
+        let mut b = None;
+        for k in 0..10 {
+            let t = 12.0 + 0.1 * f64::from(k);
+            b = blind.push(t, &vo(t), 10.0, 0.0).or(b);
+        }
+        let w = b.unwrap_or_else(|| unreachable!("a scale")).rotation * vo(12.5).rotation;
+        assert!((libm::atan2(w[(1, 0)], w[(0, 0)]) - heading).abs() > 0.19);
     }
 
     #[test]
@@ -220,11 +271,14 @@ mod tests {
         let to_vo = rotation_z(-2.0);
         let from = Pose { rotation: rotation_z(0.5), translation: Vector3::zeros() };
         let first = Pose { rotation: to_vo * rotation_z(0.6), translation: Vector3::zeros() };
-        let (rotation, sigma) = rotation_prior(&from, 1.0, 0.1, &first, 0.01);
+        let (rotation, sigma) = rotation_prior(&from, Turn::extrapolated(0.1, 1.0), &first, 0.01);
         assert!((rotation * to_vo - Matrix3::identity()).norm() < 1e-12, "{rotation}");
         let expected = (0.01f64 * 0.01 + 0.05 * 0.05 + FIRST_FRAME_SIGMA_RAD * FIRST_FRAME_SIGMA_RAD).sqrt();
         assert!((sigma - expected).abs() < 1e-15);
-        let (_, straight) = rotation_prior(&from, 1.0, 0.0, &first, 0.0);
+        let (_, straight) = rotation_prior(&from, Turn::extrapolated(0.0, 1.0), &first, 0.0);
         assert_eq!(straight, FIRST_FRAME_SIGMA_RAD);
+        // A gyro's turn is as sure as the gyro says.
+        let (_, gyro) = rotation_prior(&from, Turn { angle: 0.1, sigma: 0.001 }, &first, 0.0);
+        assert!((gyro - (1e-6 + FIRST_FRAME_SIGMA_RAD * FIRST_FRAME_SIGMA_RAD).sqrt()).abs() < 1e-15);
     }
 }

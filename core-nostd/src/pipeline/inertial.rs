@@ -7,6 +7,7 @@
 use embedded_io::Write;
 use nalgebra::{Matrix3, Vector3};
 
+use super::carry::Turn;
 use super::issues::Issue;
 use super::{quantise, PipelineConfig, PipelineError, RelativeMotion, State};
 use crate::binlog::{ImuDelta, ImuEstimate, Record};
@@ -34,6 +35,8 @@ const CAMERA_FRAME_WAIT: Duration = Duration::from_millis(500);
 /// How long the attitude follows gravity before its vertical levels a VO session, s: three
 /// of its settling time constants.
 const LEVEL_AFTER_S: f64 = 3.0 * crate::imu::attitude::SETTLING_TIME_CONSTANT_S;
+/// Relative σ of a consumer gyro's scale (sensitivity tolerance, a percent).
+const GYRO_SCALE_REL_SIGMA: f64 = 0.01;
 /// The VO session number of dead-reckoned poses.
 pub const DEAD_RECKONING_SESSION: u32 = 0;
 
@@ -149,8 +152,29 @@ impl Inertial {
     /// the body with), once the attitude has followed gravity for [`LEVEL_AFTER_S`] and the
     /// stream is not refused.
     pub(super) fn up_in_camera(&self, mount: &Matrix3<f64>) -> Option<Vector3<f64>> {
-        let settled = self.attitude.is_initialised() && self.attitude.levelled_for_s() >= LEVEL_AFTER_S;
-        (settled && self.refused.is_none()).then(|| mount.transpose() * self.up())
+        self.settled().then(|| mount.transpose() * self.up())
+    }
+
+    /// The attitude has followed gravity for [`LEVEL_AFTER_S`] and the stream is not refused.
+    fn settled(&self) -> bool {
+        self.attitude.is_initialised() && self.attitude.levelled_for_s() >= LEVEL_AFTER_S && self.refused.is_none()
+    }
+
+    /// The body's heading as the gyro has carried it (rad, left positive; its zero is
+    /// wherever the attitude started), once settled.
+    pub(super) fn heading(&self) -> Option<f64> {
+        let r = self.attitude.rotation();
+        self.settled().then(|| libm::atan2(r[(1, 0)], r[(0, 0)]))
+    }
+
+    /// How far the car turned since the gyro's heading was `from` (rad), and how sure that
+    /// is: the bias's σ about the vertical over `gap_s` and 1 % of the turn for the gyro's
+    /// scale.
+    pub(super) fn turn_since(&self, from: f64, gap_s: f64) -> Option<Turn> {
+        let angle = crate::track3d::wrap_angle(self.heading()? - from);
+        let drift = self.bias.sigma() * gap_s.max(0.0);
+        let scale = GYRO_SCALE_REL_SIGMA * angle;
+        Some(Turn { angle, sigma: libm::sqrt(drift * drift + scale * scale) })
     }
 
     /// The gyro's bias, every axis: the course's (or a standstill's) and the tilt's.

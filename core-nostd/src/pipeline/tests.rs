@@ -16,7 +16,7 @@ use crate::geo::LocalFrame;
 use crate::score::AgentKind;
 use crate::sim3::rotation_z;
 use crate::track2d::TrackerConfig;
-use crate::track3d::{Association, ClassConfig};
+use crate::track3d::{wrap_angle, Association, ClassConfig};
 
 const ORIGIN_LAT: f64 = 60.0;
 const ORIGIN_LON: f64 = 25.0;
@@ -76,9 +76,14 @@ fn sentence(body: &str) -> heapless::String<128> {
 
 /// GGA + RMC of the fix at device time `t_us` whose UTC is `utc_us`.
 fn nmea(t_us: i64, utc_us: i64) -> heapless::String<256> {
-    let p = camera_at(t_us);
+    nmea_fix(&camera_at(t_us), 90.0, utc_us)
+}
+
+/// GGA + RMC of a fix at `p` (ENU) at 10 m/s on `course_deg` (clockwise from north), whose
+/// UTC is `utc_us`.
+fn nmea_fix(p: &Vector3<f64>, course_deg: f64, utc_us: i64) -> heapless::String<256> {
     let frame = LocalFrame::new(Geodetic::new(ORIGIN_LAT, ORIGIN_LON, 0.0).unwrap_or_else(|_| unreachable!()));
-    let g = frame.enu_to_geodetic(&p).unwrap_or_else(|_| unreachable!());
+    let g = frame.enu_to_geodetic(p).unwrap_or_else(|_| unreachable!());
     let tod = utc_us.rem_euclid(86_400_000_000) / 10_000; // centiseconds
     let (h, m, s, cs) = (tod / 360_000, tod / 6000 % 60, tod / 100 % 60, tod % 100);
     let lat_min = (g.lat_deg - 60.0) * 60.0;
@@ -90,8 +95,10 @@ fn nmea(t_us: i64, utc_us: i64) -> heapless::String<256> {
         g.height_m
     );
     let mut rmc: heapless::String<128> = heapless::String::new();
-    let _ =
-        write!(rmc, "GPRMC,{h:02}{m:02}{s:02}.{cs:02},A,60{lat_min:09.6},N,025{lon_min:09.6},E,19.44,90.0,010626,,,A");
+    let _ = write!(
+        rmc,
+        "GPRMC,{h:02}{m:02}{s:02}.{cs:02},A,60{lat_min:09.6},N,025{lon_min:09.6},E,19.44,{course_deg:.1},010626,,,A"
+    );
     let mut out = heapless::String::new();
     let _ = out.push_str(&sentence(&gga));
     let _ = out.push_str(&sentence(&rmc));
@@ -707,4 +714,96 @@ fn an_imu_in_g_is_refused_with_an_error_event_and_nothing_else_is_lost() {
     assert_eq!(issues.get(Issue::ImuUnits), 2900, "{issues:?}");
     assert!(log.events.iter().any(|e| e.contains("given in g")), "{:?}", log.events);
     assert!(stats.anchored_frames > 100, "the VO drive goes on: {stats:?}");
+}
+
+/// A car that starts turning left (0.1 rad/s) at 16 s, inside a 2 s VO gap (15.5–17.5 s),
+/// with a gyro (`imu`) or without: the ego's heading error (rad) at its poses from the gap's
+/// end to 20 s, the largest, and how many poses there were.
+fn turn_in_a_vo_gap(imu: bool) -> (f64, usize) {
+    const OMEGA: f64 = 0.1;
+    const TURN_AT: f64 = 16.0;
+    let heading = |t: f64| OMEGA * (t - TURN_AT).max(0.0);
+    let rear = |t: f64| {
+        if t < TURN_AT {
+            Vector3::new(10.0 * t, 100.0, 0.0)
+        } else {
+            let a = OMEGA * (t - TURN_AT);
+            Vector3::new(10.0 * TURN_AT + 10.0 / OMEGA * libm::sin(a), 100.0 + 10.0 / OMEGA * (1.0 - libm::cos(a)), 0.0)
+        }
+    };
+    let camera = |t: f64| rear(t) + rotation_z(heading(t)) * Vector3::new(1.8, 0.0, 1.3);
+    let vo = |t: f64| -> Option<(u32, Pose)> {
+        let world = Pose { rotation: rotation_z(heading(t)), translation: camera(t) };
+        if t < 15.5 {
+            let to_vo = rotation_z(-1.0);
+            Some((0, Pose { rotation: to_vo * world.rotation, translation: to_vo * world.translation * 2.0 }))
+        } else if t < 17.5 {
+            None
+        } else {
+            let to_vo = rotation_z(2.2);
+            let offset = Vector3::new(150.0, 90.0, 0.0);
+            Some((
+                1,
+                Pose { rotation: to_vo * world.rotation, translation: to_vo * (world.translation - offset) * 0.3 },
+            ))
+        }
+    };
+    let mut buffer = [0u8; 400_000];
+    let classes = cone_class();
+    let mut trackers = trackers(&classes);
+    let total = buffer.len();
+    let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> = Pipeline::new(&mut buffer[..], config(), &mut trackers);
+    let mut frame = 0;
+    for step in 0..22 * 100 {
+        let t_us = step * 10_000;
+        let t = t_us as f64 * 1e-6;
+        if imu {
+            // Body axes: the turn about z (and a small bias), the centripetal force to the left.
+            let rate = if t >= TURN_AT { OMEGA } else { 0.0 };
+            let sample = crate::imu::ImuSample { gyro: [0.0, 0.0, rate + 0.002], accel: [0.0, 10.0 * rate, 9.81] };
+            let _ = p.push_imu(us(t_us), &sample);
+        }
+        if step % 2 == 0 {
+            let _ = p.push_can(us(t_us), &ccvs1(10.0));
+        }
+        if step % 20 == 0 {
+            let course = 90.0 - heading(t).to_degrees();
+            let _ = p.push_serial(us(t_us + LATENCY_US), nmea_fix(&camera(t), course, UTC0 + t_us).as_bytes());
+        }
+        if step % 10 == 0 {
+            frame += 1;
+            if let Some((session, pose)) = vo(t) {
+                let _ = p.push_vo(us(t_us), frame, session, &pose);
+            }
+        }
+    }
+    let (rest, _, _) = p.finish().unwrap_or_else(|_| unreachable!());
+    let used = total - rest.len();
+    let (mut worst, mut poses) = (0.0f64, 0);
+    let mut decoder: Decoder = Decoder::default();
+    let mut on = |e: LogEvent| {
+        if let LogEvent::Record(Record::EgoPose(pose)) = e {
+            let t = (pose.t_us - UTC0 + LATENCY_US) as f64 * 1e-6;
+            if (17.5..20.0).contains(&t) {
+                worst = worst.max(libm::fabs(wrap_angle(pose.yaw_e4 as f64 * 1e-4 - heading(t))));
+                poses += 1;
+            }
+        }
+    };
+    decoder.push(&buffer[..used], &mut on);
+    decoder.finish(&mut on);
+    (worst, poses)
+}
+
+#[test]
+fn the_gyro_carries_the_heading_across_a_vo_gap() {
+    // The car began to turn in the gap: the turn rate before it says nothing of that, the
+    // gyro measured it.
+    let (with_gyro, poses) = turn_in_a_vo_gap(true);
+    let (without, poses_without) = turn_in_a_vo_gap(false);
+    // The ego has a pose at nearly every frame from the gap's end on (22 of 25 in 2.5 s: the
+    // carry waits for 2 m of wheels to scale the new session), carried, then anchored in it.
+    assert!(poses >= 20 && poses_without >= 20, "{poses} {poses_without}");
+    assert!(with_gyro < 0.5f64.to_radians(), "heading off by {}° with the gyro", with_gyro.to_degrees());
+    assert!(without > 3f64.to_radians(), "heading off by {}° without", without.to_degrees());
 }
