@@ -75,6 +75,7 @@ pub use clock::{Clock, OffsetChange};
 pub use inertial::ImuConfig;
 pub use issues::{Issue, Issues};
 pub use mount::CameraMount;
+pub use windows::SETTLE_AFTER_ANCHORED_S;
 pub use signals::{FrameId, GnssFrame, GnssSignals};
 
 /// The default time constant of the ego's corrections, s ([`ease`]).

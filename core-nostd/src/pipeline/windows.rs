@@ -22,7 +22,7 @@ pub(super) const KEPT_AGENTS: usize = 16;
 /// The first window opens this long after the device's first anchored pose, s: the
 /// anchor's first corrections (its rotation and scale still settling, eased in) are its
 /// own motion, not the driver's, and would be scored as jerks and speeds.
-pub(super) const SETTLE_AFTER_ANCHORED_S: f64 = 3.0;
+pub const SETTLE_AFTER_ANCHORED_S: f64 = 3.0;
 
 /// The open window and the agents it scores.
 #[derive(Debug)]

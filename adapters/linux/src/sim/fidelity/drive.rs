@@ -197,11 +197,14 @@ fn window_pairs(
             _ => None,
         })
         .collect();
+    // The device's first window opens a settling time after its first anchored pose.
+    let first_open = poses.first().map(|t| t + dash2sim_core::pipeline::SETTLE_AFTER_ANCHORED_S);
     let mut pairs = Vec::new();
     for record in &log.records {
         let Record::Verification(v) = record else { continue };
         let Some(end) = drive_time(log, v.t_us) else { continue };
-        let start = poses.iter().copied().find(|t| *t > previous_end + 1e-6).unwrap_or(end).min(end);
+        let after = first_open.map_or(previous_end, |open| previous_end.max(open - 2e-6));
+        let start = poses.iter().copied().find(|t| *t > after + 1e-6).unwrap_or(end).min(end);
         previous_end = end;
         let stretch: Vec<(f64, Pose2)> =
             truth.iter().copied().filter(|(t, _)| *t >= start - 1e-6 && *t <= end + 1e-6).collect();
