@@ -75,8 +75,8 @@ pub use clock::{Clock, OffsetChange};
 pub use inertial::ImuConfig;
 pub use issues::{Issue, Issues};
 pub use mount::CameraMount;
-pub use windows::SETTLE_AFTER_ANCHORED_S;
 pub use signals::{FrameId, GnssFrame, GnssSignals};
+pub use windows::SETTLE_AFTER_ANCHORED_S;
 
 /// The default time constant of the ego's corrections, s ([`ease`]).
 pub const EASE_S: f64 = 1.0;
