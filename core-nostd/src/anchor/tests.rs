@@ -197,37 +197,62 @@ fn fuzz_regression_overflowing_translation() {
     replay_anchor_input(include_bytes!("../../../fuzz/regressions/anchor_inputs-overflowing-translation.bin"));
 }
 
-/// A new VO session on a straight road at 10 m/s (gravity-aligned, turned by `yaw` and
-/// scaled by 1/4), fixes at 5 Hz with σ 1.5 m of deterministic noise and the wheels:
-/// the anchorer after `seconds`, with the time it first became observable.
+/// A straight road at `speed` m/s along `heading`, seen through `truth` (VO → ENU): the
+/// wheels at 50 Hz, a fix every `fix_every` hundredths of a second with deterministic noise
+/// of `fix_sigma` per axis (uncorrelated from fix to fix), VO every 50 ms.
+struct StraightRoad {
+    truth: Sim3,
+    speed: f64,
+    heading: f64,
+    fix_every: usize,
+    fix_sigma: f64,
+}
+
+impl StraightRoad {
+    /// `seconds` of it into `anchorer`, `before(t, anchorer)` at each 10 ms step: the time
+    /// the anchorer first became observable.
+    fn drive(&self, anchorer: &mut Anchorer, seconds: f64, mut before: impl FnMut(f64, &mut Anchorer)) -> Option<f64> {
+        let inverse = self.truth.inverse();
+        let direction = Vector3::new(libm::cos(self.heading), libm::sin(self.heading), 0.0);
+        let path = |t: f64| direction * self.speed * t;
+        let amplitude = self.fix_sigma * core::f64::consts::SQRT_2;
+        let mut observable = None;
+        for k in 0..=(seconds * 100.0) as usize {
+            let t = k as f64 * 0.01;
+            before(t, anchorer);
+            if k % 2 == 0 {
+                anchorer.push_speed(ts(t), self.speed).expect("valid speed");
+            }
+            if k % self.fix_every == 0 && k > 0 {
+                let n = (k / self.fix_every) as f64;
+                let noise =
+                    Vector3::new(amplitude * libm::sin(n * 12.9898), amplitude * libm::sin(n * 78.233 + 1.0), 0.0);
+                anchorer.push_gnss(ts(t), path(t) + noise, self.fix_sigma).expect("valid fix");
+            }
+            if k % 5 == 0 {
+                anchorer.push_vo(ts(t), inverse.transform_point(&path(t))).expect("valid VO");
+            }
+            if observable.is_none() && anchorer.quality().observability == Observability::Observable {
+                observable = Some(t);
+            }
+        }
+        observable
+    }
+}
+
+/// A new VO session on a straight road at 10 m/s (gravity-aligned, turned by 2 rad and
+/// scaled by 1/4), fixes at 5 Hz with σ 1.5 m and the wheels, with a rotation prior
+/// `(yaw error, σ)` when given: the anchorer after `seconds`, with the time it first became
+/// observable.
 fn straight_session(prior: Option<(f64, f64)>, seconds: f64) -> (Anchorer, Option<f64>, Sim3) {
     let truth = Sim3 { rotation: rotation_z(2.0), translation: Vector3::new(50.0, -20.0, 0.0), scale: 4.0 };
-    let inverse = truth.inverse();
     let config = AnchorConfig { mode: AnchorMode::GravityAligned, ..AnchorConfig::default() };
     let mut anchorer: Anchorer = Anchorer::new(config);
     if let Some((yaw_error, sigma)) = prior {
         anchorer.set_rotation_prior(rotation_z(2.0 + yaw_error), sigma).expect("a rotation");
     }
-    let path = |t: f64| Vector3::new(10.0 * t * libm::cos(0.3), 10.0 * t * libm::sin(0.3), 0.0);
-    let mut observable = None;
-    for k in 0..=(seconds * 100.0) as usize {
-        let t = k as f64 * 0.01;
-        if k % 2 == 0 {
-            anchorer.push_speed(ts(t), 10.0).expect("valid speed");
-        }
-        if k % 20 == 0 && k > 0 {
-            // Noise of σ ≈ 1.5 m per axis, deterministic, uncorrelated from fix to fix.
-            let n = k as f64 / 20.0;
-            let noise = Vector3::new(2.1 * libm::sin(n * 12.9898), 2.1 * libm::sin(n * 78.233 + 1.0), 0.0);
-            anchorer.push_gnss(ts(t), path(t) + noise, 1.5).expect("valid fix");
-        }
-        if k % 10 == 0 {
-            anchorer.push_vo(ts(t), inverse.transform_point(&path(t))).expect("valid VO");
-        }
-        if observable.is_none() && anchorer.quality().observability == Observability::Observable {
-            observable = Some(t);
-        }
-    }
+    let road = StraightRoad { truth, speed: 10.0, heading: 0.3, fix_every: 20, fix_sigma: 1.5 };
+    let observable = road.drive(&mut anchorer, seconds, |_, _| {});
     (anchorer, observable, truth)
 }
 
@@ -274,36 +299,19 @@ fn a_prior_that_is_not_a_rotation_is_refused() {
 }
 
 /// A straight session of a phone-grade receiver: VO in an arbitrary 3D frame (scale 0.4),
-/// 25 m/s along a line, fixes every 2 s with σ 8.3 m of deterministic noise, the wheels;
-/// the anchorer in full Sim(3) mode, levelled by `level_at` (the VO's true vertical, s)
-/// when given. Returns it after `seconds`, with the time it first became observable.
+/// 25 m/s along a line, fixes every 2 s with σ 8.3 m, the wheels; the anchorer in full
+/// Sim(3) mode, levelled by `level_at` (the VO's true vertical, s) when given. Returns it
+/// after `seconds`, with the time it first became observable.
 fn phone_session(level_at: Option<f64>, seconds: f64) -> (Anchorer, Option<f64>, Sim3) {
     let truth = arbitrary();
-    let inverse = truth.inverse();
     let mut anchorer: Anchorer = Anchorer::new(AnchorConfig::default());
     let up_in_vo = truth.rotation.transpose() * Vector3::z();
-    let path = |t: f64| Vector3::new(25.0 * t * libm::cos(1.1), 25.0 * t * libm::sin(1.1), 0.0);
-    let mut observable = None;
-    for k in 0..=(seconds * 100.0) as usize {
-        let t = k as f64 * 0.01;
+    let road = StraightRoad { truth, speed: 25.0, heading: 1.1, fix_every: 200, fix_sigma: 8.3 };
+    let observable = road.drive(&mut anchorer, seconds, |t, a| {
         if level_at.is_some_and(|at| (t - at).abs() < 0.005) {
-            anchorer.level(&(up_in_vo * 3.0)).expect("a vertical");
+            a.level(&(up_in_vo * 3.0)).expect("a vertical");
         }
-        if k % 2 == 0 {
-            anchorer.push_speed(ts(t), 25.0).expect("valid speed");
-        }
-        if k % 200 == 0 && k > 0 {
-            let n = k as f64 / 200.0;
-            let noise = Vector3::new(11.7 * libm::sin(n * 12.9898), 11.7 * libm::sin(n * 78.233 + 1.0), 0.0);
-            anchorer.push_gnss(ts(t), path(t) + noise, 8.3).expect("valid fix");
-        }
-        if k % 5 == 0 {
-            anchorer.push_vo(ts(t), inverse.transform_point(&path(t))).expect("valid VO");
-        }
-        if observable.is_none() && anchorer.quality().observability == Observability::Observable {
-            observable = Some(t);
-        }
-    }
+    });
     (anchorer, observable, truth)
 }
 
