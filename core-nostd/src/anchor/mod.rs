@@ -85,6 +85,11 @@ const RESIDUAL_UNDERSTATEMENT: f64 = 4.0;
 /// The a-posteriori variance factor is not taken below this, whatever the residuals say
 /// (a receiver that states its σ pessimistically is still held to a third of it).
 const MIN_VARIANCE_FACTOR: f64 = 0.1;
+/// The most the VO's direction may turn between the halves of the second a course prior is
+/// taken over, rad (2°).
+const MAX_COURSE_BEND_RAD: f64 = 2.0 * core::f64::consts::PI / 180.0;
+/// The least the VO must have moved over that second for its direction to count, m.
+const MIN_COURSE_TRAVEL_M: f64 = 5.0;
 /// Residual components per fix (east, north, up) in the a-posteriori variance factor.
 const RESIDUAL_COMPONENTS: f64 = 3.0;
 
@@ -568,6 +573,40 @@ impl<const K: usize> Anchorer<K> {
             let _ = self.pending.push_back(fix);
         }
         Ok(())
+    }
+
+    /// A GNSS course over ground at `t` (rad clockwise from north, as NMEA gives it) with its
+    /// 1-σ (rad): while the session has neither an estimate nor a rotation prior and is
+    /// gravity-aligned, the direction the VO moved in over the second before — the camera
+    /// moves along the road whatever its yaw on the car — set against the course is the
+    /// session's yaw, taken as its rotation prior ([`Anchorer::set_rotation_prior`]). Only
+    /// on a straight second (its two halves' directions within 2°) and after 5 m of VO motion
+    /// at the latest scale the wheels know; returns whether it was taken.
+    pub fn push_course(&mut self, t: Timestamp, course_rad: f64, sigma_rad: f64) -> bool {
+        if self.estimate.is_some() || self.prior.is_some() || self.mode() != AnchorMode::GravityAligned {
+            return false;
+        }
+        // The second of VO up to its latest pose, which the fix is at most 0.2 s from.
+        let Some(end) = self.history.latest().map(|s| s.t).filter(|end| (t - *end).as_secs_f64().abs() <= 0.2) else {
+            return false;
+        };
+        let half = Duration::from_millis(500);
+        let (Some((p0, _)), Some((p1, _)), Some((p2, _))) =
+            (self.history.at(end - half - half), self.history.at(end - half), self.history.at(end))
+        else {
+            return false;
+        };
+        let direction = |a: Vector3<f64>, b: Vector3<f64>| libm::atan2(b.y - a.y, b.x - a.x);
+        let (first, second, whole) = (direction(p0, p1), direction(p1, p2), direction(p0, p2));
+        let bend = libm::fabs(libm::remainder(second - first, core::f64::consts::TAU));
+        let moved_m = self.wheel.uncalibrated_scale().map_or(0.0, |scale| scale * (p2 - p0).xy().norm());
+        if !(bend <= MAX_COURSE_BEND_RAD && moved_m >= MIN_COURSE_TRAVEL_M && course_rad.is_finite()) {
+            return false;
+        }
+        // ENU heading (from east, counter-clockwise) of the course, less the VO's.
+        let yaw = core::f64::consts::FRAC_PI_2 - course_rad - whole;
+        let rotation = crate::sim3::rotation_z(yaw) * self.level;
+        self.set_rotation_prior(rotation, sigma_rad).is_ok()
     }
 
     fn best_index(&self) -> usize {

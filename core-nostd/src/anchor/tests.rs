@@ -370,3 +370,52 @@ fn a_vertical_that_is_not_a_direction_is_refused() {
     assert_eq!(a.level(&Vector3::new(0.0, 0.0, -2.0)), Ok(()));
     assert_eq!(a.mode(), AnchorMode::GravityAligned);
 }
+
+#[test]
+fn the_gnss_course_gives_an_unanchored_session_its_yaw() {
+    // The phone's straight road, gravity-aligned: its fixes alone take a while; with the
+    // course of each fix (σ 1°) the session's yaw is known from the first fix on.
+    let truth = Sim3 { rotation: rotation_z(-2.5), translation: Vector3::new(3.0, 4.0, 0.0), scale: 0.4 };
+    let road = StraightRoad { truth, speed: 25.0, heading: 1.1, fix_every: 200, fix_sigma: 8.3 };
+    let config = AnchorConfig { mode: AnchorMode::GravityAligned, ..AnchorConfig::default() };
+    let course = core::f64::consts::FRAC_PI_2 - 1.1;
+    let mut alone: Anchorer = Anchorer::new(config);
+    road.drive(&mut alone, 10.5, |_, _| {});
+    let mut with: Anchorer = Anchorer::new(config);
+    let mut taken = 0;
+    let observable = road.drive(&mut with, 10.5, |t, a| {
+        // Each fix's course, pushed as the receiver sends it (just before the fix).
+        if (t * 100.0).round() as usize % 200 == 0 && t > 0.0 {
+            taken += usize::from(a.push_course(ts(t), course, 1f64.to_radians()));
+        }
+    });
+    assert_eq!(taken, 1, "taken once, while the session had no prior");
+    // Observable at the fifth fix, the least it asks for, with the yaw of the course.
+    assert!(observable.is_some_and(|t| t <= 10.0), "{observable:?}");
+    assert!(yaw_error_deg(&with, &truth).abs() < 1.0, "{}", yaw_error_deg(&with, &truth));
+    let (sigma_with, sigma_alone) = (with.quality().rotation_sigma_rad, alone.quality().rotation_sigma_rad);
+    assert!(sigma_with < 0.6 * sigma_alone, "yaw σ {sigma_with} with the course, {sigma_alone} from five fixes");
+}
+
+#[test]
+fn a_course_on_a_bend_or_before_the_vo_has_moved_is_not_taken() {
+    let config = AnchorConfig { mode: AnchorMode::GravityAligned, ..AnchorConfig::default() };
+    let mut a: Anchorer = Anchorer::new(config);
+    assert!(!a.push_course(ts(1.0), 0.3, 0.02), "no VO yet");
+    // A bend: 0.3 rad/s while the wheels read 10 m/s.
+    for k in 0..=300 {
+        let t = k as f64 * 0.01;
+        if k % 2 == 0 {
+            a.push_speed(ts(t), 10.0).expect("speed");
+        }
+        if k % 5 == 0 {
+            let h = 0.3 * t;
+            let p = Vector3::new(libm::sin(h), 1.0 - libm::cos(h), 0.0) * (10.0 / 0.3);
+            a.push_vo(ts(t), p).expect("VO");
+        }
+    }
+    assert!(!a.push_course(ts(3.0), 0.3, 0.02), "turning: the VO's direction is not the course's");
+    // Full mode, unlevelled: a yaw says too little of the rotation.
+    let mut full: Anchorer = Anchorer::new(AnchorConfig::default());
+    assert!(!full.push_course(ts(1.0), 0.3, 0.02));
+}

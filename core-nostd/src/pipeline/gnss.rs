@@ -13,6 +13,13 @@ use crate::binlog::{ClockOffset, GnssFix, Record, VehicleSpeed};
 use crate::can::{Decoded, Message};
 use crate::decimal::Decimal;
 use crate::geo::Geodetic;
+
+/// A course over ground counts from this speed up, m/s.
+const MIN_COURSE_SPEED_MPS: f64 = 5.0;
+/// A receiver's speed error, m/s: the course's σ is this over the speed.
+const COURSE_SPEED_SIGMA_MPS: f64 = 0.2;
+/// The course's σ is at least this, rad (1°).
+const MIN_COURSE_SIGMA_RAD: f64 = 1.0 * core::f64::consts::PI / 180.0;
 use crate::nmea::{Event as NmeaEvent, StreamEvent};
 use crate::time::Timestamp;
 
@@ -238,6 +245,13 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         if let (Some(speed), Some(track)) = (fix.speed, fix.track_deg) {
             let up = self.inertial.up();
             self.inertial.bias.push_course(rx.as_secs_f64(), track.to_radians(), speed, &up);
+            if speed >= MIN_COURSE_SPEED_MPS {
+                // A session not yet anchored takes its yaw from the course.
+                let sigma = (COURSE_SPEED_SIGMA_MPS / speed).max(MIN_COURSE_SIGMA_RAD);
+                if self.anchoring.anchorer.push_course(rx, track.to_radians(), sigma) {
+                    self.log.event(rx, 2, format_args!("anchor: the VO session's yaw from the GNSS course"))?;
+                }
+            }
         }
         let g = &self.config.gnss;
         let sigma = gnss_sigma(fix.hdop, fix.gst, g.uere_m).unwrap_or(g.default_sigma_m);
