@@ -385,7 +385,7 @@ fn the_gnss_course_gives_an_unanchored_session_its_yaw() {
     let mut taken = 0;
     let observable = road.drive(&mut with, 10.5, |t, a| {
         // Each fix's course, pushed as the receiver sends it (just before the fix).
-        if (t * 100.0).round() as usize % 200 == 0 && t > 0.0 {
+        if ((t * 100.0).round() as usize).is_multiple_of(200) && t > 0.0 {
             taken += usize::from(a.push_course(ts(t), course, 1f64.to_radians()));
         }
     });
