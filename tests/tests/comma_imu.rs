@@ -22,6 +22,12 @@ fn gyro_and_wheels_anchored_to_the_ublox_track_the_fused_poses() {
     // Pitch and roll from gravity follow the fused attitude to within a degree (median);
     // the constant part is the sensor's tilt on the camera.
     assert!(m.pitch_error_median_deg < 1.0 && m.roll_error_median_deg < 1.0, "{m:?}");
+    // Finishing redoes the reckoned attitude with the biases the drive found and gives the
+    // level track the road's heights: the pitch offset it finds from the fixes' heights is
+    // the camera's tilt on the car (the fused poses') plus the sensor's on the camera.
+    let expected = m.reference_camera_pitch_deg + m.pitch_offset_median_deg;
+    assert!((m.pitch_offset_found_deg - expected).abs() < 0.3, "{} vs {expected}", m.pitch_offset_found_deg);
+    assert!(m.finished.ape_rmse < 2.0, "finished ATE {}", m.finished.ape_rmse);
     // The IMU's records are a small part of the log.
     assert!(m.imu_bytes_per_minute < 0.2 * m.log_bytes_per_minute, "{m:?}");
 }

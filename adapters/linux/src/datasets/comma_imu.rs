@@ -124,6 +124,14 @@ pub struct ImuMinute {
     pub pitch_offset_median_deg: f64,
     /// See `pitch_offset_median_deg`.
     pub roll_offset_median_deg: f64,
+    /// The sensor's pitch above the road's grade that finishing found from the fixes'
+    /// heights, degrees, in the sense of `pitch_offset_median_deg` (Z-Y-X pitch, nose down
+    /// positive); NaN when it found none. It is the camera's tilt on the car plus the
+    /// sensor's on the camera (`pitch_offset_median_deg`).
+    pub pitch_offset_found_deg: f64,
+    /// The fused poses' camera pitch below the road's grade (the grade from the fused
+    /// positions themselves over ±0.5 s), median over the minute, degrees.
+    pub reference_camera_pitch_deg: f64,
     /// The device's gyro bias about the body's z at the end, rad/s, against the phone's own
     /// calibration (`processed_log/IMU/gyro_bias`, in body axes).
     pub gyro_bias_z: f64,
@@ -139,6 +147,23 @@ pub struct ImuMinute {
 /// right, z down).
 fn body_of(camera: &Matrix3<f64>) -> Matrix3<f64> {
     camera * Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0))
+}
+
+/// The camera's pitch below the road (nose down positive), degrees, median over the
+/// poses: the angle of its forward axis under the grade the poses' own positions climb
+/// over ±0.5 s (where the car has moved at least 5 m).
+fn camera_below_road(truth: &Trajectory) -> f64 {
+    let n = truth.poses.len();
+    let angles = (0..n).filter_map(|i| {
+        let span = |j: usize| truth.stamps.get(j).zip(truth.stamps.get(i)).map(|(a, b)| (a - b).abs());
+        let a = (0..i).rev().take_while(|&j| span(j).is_some_and(|s| s <= 0.5)).last()?;
+        let b = (i + 1..n).take_while(|&j| span(j).is_some_and(|s| s <= 0.5)).last()?;
+        let rise = truth.poses[b].translation - truth.poses[a].translation;
+        let run = rise.xy().norm();
+        let forward = truth.poses[i].rotation.column(0).into_owned();
+        (run >= 5.0).then(|| (rise.z.atan2(run) - forward.z.atan2(forward.xy().norm())).to_degrees())
+    });
+    median(angles.collect())
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -210,6 +235,8 @@ pub fn run(dir: &Path, work: &Path, receiver: Receiver) -> Result<ImuMinute> {
     let (mount, uere) = device.parse()?;
     let name = args.output.display().to_string();
     let finished = crate::finish::finish(&log, &name, None, None, mount, Default::default(), uere)?;
+    // The finish's offset is a grade's (nose up positive); the Z-Y-X pitch is nose down.
+    let found = finished.report.reckoning.and_then(|r| r.pitch_offset_deg).map_or(f64::NAN, |d| -d);
     let finished_times = device_times(&finished.records)?;
     let finished_compared = compare(&finished.records, &finished_times, &truth)?;
     let span = truth.stamps.last().copied().unwrap_or_default() - truth.stamps.first().copied().unwrap_or_default();
@@ -229,6 +256,8 @@ pub fn run(dir: &Path, work: &Path, receiver: Receiver) -> Result<ImuMinute> {
         wheel_factor: finished.report.anchoring.wheel_factor,
         pitch_error_median_deg: median(pitch.iter().map(|d| d.abs()).collect()),
         roll_error_median_deg: median(roll.iter().map(|d| d.abs()).collect()),
+        reference_camera_pitch_deg: camera_below_road(&truth),
+        pitch_offset_found_deg: found,
         pitch_offset_median_deg: median(pitch),
         roll_offset_median_deg: median(roll),
         gyro_bias_z: bias_z,

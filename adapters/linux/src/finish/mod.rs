@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 
 use dash2sim_core::binlog::{quantise, AnchorEstimate, EgoPose, Header, Record, FRAME_DEAD_RECKONED};
 use dash2sim_core::geo::{Geodetic, LocalFrame};
-use dash2sim_core::nalgebra::{Rotation3, Vector3};
+use dash2sim_core::nalgebra::{Matrix3, Rotation3, Vector3};
 use dash2sim_core::pipeline::{
     mount_record, similarity_record, CalibrationConfig, CameraMount, MountCalibration, MountEstimate,
 };
@@ -107,6 +107,8 @@ pub struct FinishReport {
     pub unsolved_sessions: Vec<UnsolvedSession>,
     /// The camera mount, calibrated over the whole drive.
     pub mount: MountReport,
+    /// The dead-reckoned poses (gyro + wheels) redone, when the log has any.
+    pub reckoning: Option<ReckoningReport>,
     /// GNSS fixes read, used, rejected.
     pub gnss: GnssReport,
     /// Wheel-speed samples read.
@@ -196,6 +198,21 @@ pub struct MountReport {
     pub calibrated: bool,
 }
 
+/// The dead-reckoned poses redone with what the whole drive shows ([`reckon`]).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct ReckoningReport {
+    /// The largest heading correction the gyro's final bias made, degrees.
+    pub heading_corrected_max_deg: f64,
+    /// The largest tilt correction its final horizontal bias made, degrees.
+    pub tilt_corrected_max_deg: f64,
+    /// The sensor's pitch above the road's grade the fixes' heights show (its tilt on the
+    /// camera and the accelerometer's forward bias), degrees; `None` when the fixes span
+    /// too little road to tell and the poses were left level.
+    pub pitch_offset_deg: Option<f64>,
+    /// The dead-reckoned distance with fixes beside it that measured it, m.
+    pub grade_baseline_m: Option<f64>,
+}
+
 /// GNSS fixes.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct GnssReport {
@@ -274,15 +291,19 @@ struct Drive {
     vo: Vec<VoSample>,
     fixes: Vec<Fix>,
     speeds: Vec<(f64, f64)>,
+    /// What redoing the dead-reckoned poses found, when there were any.
+    reckoning: Option<ReckoningReport>,
 }
 
-fn drive(log: &LogContents, frame: &LocalFrame, uere: f64) -> Drive {
+/// `camera_to_body`: the mount the device reckoned with (its poses are the attitude
+/// through it).
+fn drive(log: &LogContents, frame: &LocalFrame, uere: f64, camera_to_body: &Matrix3<f64>) -> Drive {
     let (mut vo, mut fixes, mut speeds) = (Vec::new(), Vec::new(), Vec::new());
     let (mut dead_reckoned, mut bias) = (Vec::new(), Vec::new());
     for r in &log.records {
         match r {
             Record::FrameMeta(m) if m.flags & FRAME_DEAD_RECKONED != 0 => dead_reckoned.push(log::seconds(m.t_us)),
-            Record::ImuEstimate(e) => bias.push((log::seconds(e.t_us), e.bias_z_e7 as f64 * 1e-7)),
+            Record::ImuEstimate(e) => bias.push((log::seconds(e.t_us), [e.bias_x_e7, e.bias_y_e7, e.bias_z_e7])),
             Record::VoPose(p) => vo.push(VoSample {
                 t: log::seconds(p.t_us),
                 session: u32::try_from(p.session).unwrap_or(u32::MAX),
@@ -293,6 +314,7 @@ fn drive(log: &LogContents, frame: &LocalFrame, uere: f64) -> Drive {
                     p.yaw_e4 as f64 * 1e-4,
                 )
                 .into_inner(),
+                grade_sigma: 0.0,
             }),
             Record::GnssFix(f) if f.mode >= 2 => {
                 let Ok(g) = Geodetic::new(f.lat_e7 as f64 * 1e-7, f.lon_e7 as f64 * 1e-7, f.alt_mm as f64 * 1e-3)
@@ -319,8 +341,17 @@ fn drive(log: &LogContents, frame: &LocalFrame, uere: f64) -> Drive {
     dead_reckoned.sort_by(by_time);
     bias.sort_by(|a, b| by_time(&a.0, &b.0));
     let flags: Vec<bool> = vo.iter().map(|s| dead_reckoned.binary_search_by(|t| by_time(t, &s.t)).is_ok()).collect();
-    reckon::with_final_bias(&mut vo, &flags, &bias);
-    Drive { vo, fixes, speeds }
+    let axis = |a: usize| -> Vec<(f64, f64)> { bias.iter().map(|(t, b)| (*t, b[a] as f64 * 1e-7)).collect() };
+    let heading_corrected = reckon::with_final_bias(&mut vo, &flags, &axis(2));
+    let tilt_corrected = reckon::with_final_tilt_bias(&mut vo, &flags, &axis(0), &axis(1), camera_to_body);
+    let grade = reckon::with_grade(&mut vo, &flags, &fixes, camera_to_body);
+    let reckoning = flags.contains(&true).then_some(ReckoningReport {
+        heading_corrected_max_deg: heading_corrected.to_degrees(),
+        tilt_corrected_max_deg: tilt_corrected.to_degrees(),
+        pitch_offset_deg: grade.map(|g| g.pitch_offset.to_degrees()),
+        grade_baseline_m: grade.map(|g| g.baseline_m),
+    });
+    Drive { vo, fixes, speeds, reckoning }
 }
 
 /// The anchors of a file in the log's frame, with those refused while reading.
@@ -353,7 +384,7 @@ pub fn finish(
         .ok_or_else(|| Error::invalid(format!("{name}: the header is damaged: no ENU origin to finish in")))?;
     let frame =
         log::frame(&header).ok_or_else(|| Error::invalid(format!("{name}: the header's origin is not a position")))?;
-    let drive = drive(log, &frame, uere);
+    let drive = drive(log, &frame, uere, &mount.rotation());
     let anchors = anchor_file.map(|(_, f)| anchors_in(f, &frame)).unwrap_or_default();
     let calibrated = calibrate_mount(&drive.vo, mount);
     let mount = calibrated.mount;
@@ -587,6 +618,7 @@ pub fn finish(
             samples: calibrated.samples,
             calibrated: calibrated.calibrated,
         },
+        reckoning: drive.reckoning,
         gnss: GnssReport { fixes: drive.fixes.len(), used: fixes_used, rejected: drive.fixes.len() - fixes_used },
         speed_samples: drive.speeds.len(),
         anchors: AnchorsReport {

@@ -1,4 +1,5 @@
-//! Dead-reckoned poses redone with the gyro's final bias.
+//! Dead-reckoned poses redone with what the whole drive shows: the gyro's final bias and
+//! the road's heights.
 //!
 //! Under gyro + wheels the device made each pose with the gyro bias it knew then. Until the
 //! GNSS course has measured it, that bias is wrong — comma's EON's is −0.068 rad/s, 4° of
@@ -8,10 +9,38 @@
 //! δψ(t) = ∫ (b(t′) − b_final) dt′ about the vertical. Each step of the trajectory is turned
 //! by its δψ and the positions re-accumulated, each camera turned with it; finishing then
 //! anchors the trajectory the device would have made had it known the bias from the start.
+//!
+//! The device reckons on the level: its poses say nothing of height, and a drive's road
+//! climbs and falls by metres (comma2k19's minute: ±8 m), which the solve, whose similarity
+//! only turns about the vertical, cannot bend a flat track into. The poses keep the body's
+//! attitude, whose pitch is the road's grade — plus a constant offset: the sensor's tilt on
+//! the camera and the accelerometer's bias along the direction of travel (comma's EON:
+//! about 0.5°, which is 1 % of grade, 17 m of height over the minute's 1.7 km). Integrated
+//! along the horizontal distance travelled the grade gives each pose's height; the offset
+//! is the one slope per distance that brings those heights onto the fixes' heights, every
+//! session with its own level ([`with_grade`]).
 
 use dash2sim_core::nalgebra::{Matrix3, Rotation3, Vector3};
 
-use super::solve::VoSample;
+use dash2sim_core::imu::attitude::{SETTLING_S, SETTLING_TIME_CONSTANT_S, TILT_TIME_CONSTANT_S};
+
+use super::solve::{Fix, VoSample};
+
+/// The road between two fixes over which their heights measure a grade, m: over less
+/// the fixes' height error (a metre or two, correlated for tens of seconds) outweighs it.
+const GRADE_BASELINE_M: f64 = 200.0;
+/// Pairs of fixes that measure the pitch offset before it is taken out: fewer, and the
+/// poses are left level.
+const MIN_GRADE_PAIRS: usize = 10;
+/// Fixes whose vertical σ is larger than this (m) say nothing of height (a 2D fix's height
+/// is a guess).
+const MAX_HEIGHT_SIGMA_M: f64 = 50.0;
+/// How far a dead-reckoned path's rise may stray from its attitude's grade per metre
+/// travelled (1-σ): the solve leaves the height to the fixes where they disagree by more.
+/// While the attitude settles its pitch is off by degrees (comma2k19's first 15 s: up to
+/// 5°, 0.09, from the gyro's horizontal bias of 2°/s until gravity has found it); after
+/// that by the sensor's noise, tenths of a degree.
+const RECKONED_GRADE_SIGMA: f64 = 0.03;
 
 /// The gyro's bias about the vertical as the device found it: (time s, rad/s), in time
 /// order.
@@ -73,6 +102,195 @@ pub fn with_final_bias(vo: &mut [VoSample], dead_reckoned: &[bool], history: &Bi
     largest
 }
 
+/// The attitude's tilt error, rad about the body's forward and left axes, carried from
+/// `from` to `to` (s) with the rate error `u(t)` = b_final − b(t): e′ = u − e/τ, τ the
+/// device's while it settles ([`SETTLING_TIME_CONSTANT_S`] for [`SETTLING_S`] after
+/// `levelled`) and [`TILT_TIME_CONSTANT_S`] after; steps of at most 0.05 s.
+fn carry_tilt_error(
+    mut error: Vector3<f64>,
+    (from, to): (f64, f64),
+    levelled: f64,
+    u: impl Fn(f64) -> Vector3<f64>,
+) -> Vector3<f64> {
+    const STEP_S: f64 = 0.05;
+    let steps = ((to - from) / STEP_S).ceil().clamp(0.0, 1e6) as usize;
+    for k in 0..steps {
+        let (t0, t1) =
+            (from + (to - from) * k as f64 / steps as f64, from + (to - from) * (k + 1) as f64 / steps as f64);
+        let tau = if t0 < levelled + SETTLING_S { SETTLING_TIME_CONSTANT_S } else { TILT_TIME_CONSTANT_S };
+        let decay = (-(t1 - t0) / tau).exp();
+        error = error * decay + u(0.5 * (t0 + t1)) * (tau * (1.0 - decay));
+    }
+    error
+}
+
+/// Turn the dead-reckoned samples of `vo` by the tilt their attitude had from the
+/// horizontal gyro bias it did not yet know: `x` and `y` are the bias about the body's
+/// forward and left axes as the device logged it (rad/s; its first record is where the
+/// attitude was levelled). Returns the largest correction, rad.
+///
+/// The attitude follows gravity; a rate error u = b_final − b(t) tilts it at u while
+/// gravity pulls it back with the attitude's time constant τ, so its error obeys
+/// e′ = u − e/τ, from 0 where it was levelled ([`carry_tilt_error`]). On comma's EON, whose
+/// bias about the left axis is 2°/s and took the device 18 s to find, this is the pitch
+/// error of 4–5° eight seconds in.
+pub fn with_final_tilt_bias(
+    vo: &mut [VoSample],
+    dead_reckoned: &[bool],
+    x: &BiasHistory,
+    y: &BiasHistory,
+    camera_to_body: &Matrix3<f64>,
+) -> f64 {
+    let (Some(&(levelled, _)), Some(&(_, final_x)), Some(&(_, final_y))) = (x.first(), x.last(), y.last()) else {
+        return 0.0;
+    };
+    let u = |t: f64| {
+        let rate = |history: &BiasHistory, last: f64| bias_at(history, t).map_or(0.0, |b| last - b);
+        Vector3::new(rate(x, final_x), rate(y, final_y), 0.0)
+    };
+    let mut largest = 0.0f64;
+    for run in runs(vo, dead_reckoned) {
+        let mut error = carry_tilt_error(Vector3::zeros(), (levelled, vo[run.start].t), levelled, u);
+        for i in run.clone() {
+            if i > run.start {
+                error = carry_tilt_error(error, (vo[i - 1].t, vo[i].t), levelled, u);
+            }
+            let turn = Rotation3::new(-error).into_inner();
+            vo[i].rotation = vo[i].rotation * camera_to_body.transpose() * turn * camera_to_body;
+            largest = largest.max(error.norm());
+        }
+    }
+    largest
+}
+
+/// What [`with_grade`] found: the pitch offset it took out, and over how much road.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Grade {
+    /// The sensor's pitch above the road's grade, rad (nose up positive): its tilt on the
+    /// camera and the accelerometer's forward bias together.
+    pub pitch_offset: f64,
+    /// The dead-reckoned distance with fixes beside it, m.
+    pub baseline_m: f64,
+}
+
+/// A run of dead-reckoned samples of one session, as indices into the samples.
+fn runs(vo: &[VoSample], dead_reckoned: &[bool]) -> Vec<std::ops::Range<usize>> {
+    let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
+    for (i, (sample, &reckoned)) in vo.iter().zip(dead_reckoned).enumerate() {
+        if !reckoned {
+            continue;
+        }
+        match runs.last_mut() {
+            Some(run) if run.end == i && vo[run.start].session == sample.session => run.end = i + 1,
+            _ => runs.push(i..i + 1),
+        }
+    }
+    runs
+}
+
+/// The body's grade at a dead-reckoned sample: its forward axis's rise over its run.
+fn grade_of(sample: &VoSample, camera_to_body: &Matrix3<f64>) -> f64 {
+    let forward = (sample.rotation * camera_to_body.transpose()).column(0).into_owned();
+    let run = forward.xy().norm();
+    if run > 0.5 {
+        forward.z / run
+    } else {
+        0.0
+    }
+}
+
+/// A run's height from its grades (`height`) and its horizontal distance (`distance`), per
+/// sample, from 0 at its first.
+fn profile(run: &[VoSample], camera_to_body: &Matrix3<f64>) -> (Vec<f64>, Vec<f64>) {
+    let (mut height, mut distance) = (vec![0.0; run.len()], vec![0.0; run.len()]);
+    for i in 1..run.len() {
+        let step = (run[i].position - run[i - 1].position).xy().norm();
+        let grade = 0.5 * (grade_of(&run[i - 1], camera_to_body) + grade_of(&run[i], camera_to_body));
+        height[i] = height[i - 1] + step * grade;
+        distance[i] = distance[i - 1] + step;
+    }
+    (height, distance)
+}
+
+/// `values` (one per sample of `run`) at time `t`, linear between samples; `None` outside.
+fn at_time(run: &[VoSample], values: &[f64], t: f64) -> Option<f64> {
+    let k = run.partition_point(|s| s.t <= t);
+    let (a, b) = (run.get(k.checked_sub(1)?)?, run.get(k)?);
+    let (va, vb) = (values.get(k - 1)?, values.get(k)?);
+    let alpha = if b.t > a.t { (t - a.t) / (b.t - a.t) } else { 0.0 };
+    Some(va + (vb - va) * alpha)
+}
+
+/// The median of `values` (reordered); `None` when empty.
+fn median(values: &mut [f64]) -> Option<f64> {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied()
+}
+
+/// Give the dead-reckoned samples of `vo` heights from their pitch, less the pitch offset
+/// the fixes' heights show, and turn their cameras by it; mark each with
+/// [`RECKONED_GRADE_SIGMA`]. `camera_to_body` is the mount the device reckoned with.
+///
+/// The offset is the median, over pairs of fixes [`GRADE_BASELINE_M`] of road apart, of
+/// the reckoned rise less the fixes' rise per metre: the attitude's settling spoils the
+/// first pairs, not the median. Fewer than [`MIN_GRADE_PAIRS`] pairs, and the heights are
+/// left level (and to the fixes) and `None` returned.
+pub fn with_grade(
+    vo: &mut [VoSample],
+    dead_reckoned: &[bool],
+    fixes: &[Fix],
+    camera_to_body: &Matrix3<f64>,
+) -> Option<Grade> {
+    let runs = runs(vo, dead_reckoned);
+    let mut profiles = Vec::with_capacity(runs.len());
+    let (mut slopes, mut baseline) = (Vec::new(), 0.0);
+    for run in &runs {
+        let samples = &vo[run.clone()];
+        let (height, distance) = profile(samples, camera_to_body);
+        // (distance, reckoned height, fix height) at each fix beside the run.
+        let beside: Vec<(f64, f64, f64)> = fixes
+            .iter()
+            .filter(|f| f.sigma_v <= MAX_HEIGHT_SIGMA_M)
+            .filter_map(|f| Some((at_time(samples, &distance, f.t)?, at_time(samples, &height, f.t)?, f.enu.z)))
+            .collect();
+        let mut later = 0;
+        for (i, a) in beside.iter().enumerate() {
+            later = later.max(i + 1);
+            while beside.get(later).is_some_and(|b| b.0 - a.0 < GRADE_BASELINE_M) {
+                later += 1;
+            }
+            let Some(b) = beside.get(later) else { break };
+            slopes.push(((b.1 - a.1) - (b.2 - a.2)) / (b.0 - a.0));
+        }
+        if let (Some(first), Some(last)) = (beside.first(), beside.last()) {
+            baseline += last.0 - first.0;
+        }
+        profiles.push((height, distance, beside));
+    }
+    let offset = (slopes.len() >= MIN_GRADE_PAIRS).then(|| median(&mut slopes)).flatten();
+    let slope = offset.unwrap_or(0.0);
+    let turn = camera_to_body.transpose()
+        * Rotation3::from_axis_angle(&Vector3::y_axis(), slope).into_inner()
+        * camera_to_body;
+    for (run, (height, distance, beside)) in runs.iter().zip(profiles) {
+        // Each run at the fixes' mean level; one without fixes where it started.
+        let n = beside.len() as f64;
+        let level = if beside.is_empty() {
+            vo[run.start].position.z
+        } else {
+            beside.iter().map(|(d, h, z)| z - (h - slope * d)).sum::<f64>() / n
+        };
+        for ((sample, h), d) in vo[run.clone()].iter_mut().zip(height).zip(distance) {
+            if offset.is_some() {
+                sample.position.z = level + h - slope * d;
+                sample.rotation *= turn;
+            }
+            sample.grade_sigma = RECKONED_GRADE_SIGMA;
+        }
+    }
+    offset.map(|pitch_offset| Grade { pitch_offset, baseline_m: baseline })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -101,7 +319,7 @@ mod tests {
                 let mid = 0.5 * (before + heading);
                 position += Vector3::new(mid.cos(), mid.sin(), 0.0) * v * dt;
             }
-            vo.push(VoSample { t, session: 0, position, rotation: yaw(heading) });
+            vo.push(VoSample { t, session: 0, position, rotation: yaw(heading), grade_sigma: 0.0 });
         }
         let history: Vec<(f64, f64)> = (0..=20).map(|s| (s as f64, known(s as f64))).collect();
         let end_before = (vo.last().expect("poses").position - truth(20.0).0).norm();
@@ -127,11 +345,105 @@ mod tests {
                 session: 0,
                 position: Vector3::new(k as f64, 0.0, 0.0),
                 rotation: yaw(0.0),
+                grade_sigma: 0.0,
             })
             .collect();
         let before: Vec<Vector3<f64>> = vo.iter().map(|s| s.position).collect();
         assert_eq!(with_final_bias(&mut vo, &[true; 10], &[]), 0.0);
         assert_eq!(with_final_bias(&mut vo, &[false; 10], &[(0.0, 0.1), (9.0, 0.0)]), 0.0);
         assert!(vo.iter().zip(&before).all(|(s, p)| s.position == *p));
+    }
+
+    /// The car on a level road; the device's attitude (the core's own filter) starts with
+    /// no horizontal bias known and learns the true 0.035 rad/s about the left axis over
+    /// ten seconds, as comma's EON's was learnt: the logged poses pitch by degrees, redone
+    /// they are level.
+    #[test]
+    fn a_late_horizontal_bias_is_taken_out_of_the_tilt() {
+        use dash2sim_core::imu::attitude::Attitude;
+        use dash2sim_core::imu::GRAVITY;
+        let (bias, dt) = (0.035, 0.01);
+        let known = |t: f64| bias * ((t - 4.0) / 10.0).clamp(0.0, 1.0);
+        let mut attitude = Attitude::default();
+        let up = Vector3::new(0.0, 0.0, GRAVITY);
+        attitude.update(dt, &Vector3::zeros(), &up, &Vector3::zeros());
+        let (mut vo, mut history) = (Vec::new(), Vec::new());
+        for k in 0..=3000 {
+            let t = k as f64 * dt;
+            // Past the attitude's settling; the device removes only the bias it knows.
+            if k > 0 {
+                attitude.update(dt, &Vector3::new(0.0, bias - known(t), 0.0), &up, &Vector3::zeros());
+            }
+            if k % 5 == 0 {
+                vo.push(VoSample {
+                    t,
+                    session: 0,
+                    position: Vector3::new(t * 20.0, 0.0, 0.0),
+                    rotation: *attitude.rotation(),
+                    grade_sigma: 0.0,
+                });
+            }
+            if k % 100 == 0 {
+                // What the device logs: what it was given and what its filter found.
+                history.push((t, known(t) + attitude.tilt_bias().y));
+            }
+        }
+        let pitch = |r: &Matrix3<f64>| (-r[(2, 0)]).asin();
+        let worst = |vo: &[VoSample]| vo.iter().map(|s| pitch(&s.rotation).abs()).fold(0.0f64, f64::max);
+        assert!(worst(&vo) > 0.03, "the logged poses pitch: {}", worst(&vo));
+        let zero: Vec<(f64, f64)> = history.iter().map(|(t, _)| (*t, 0.0)).collect();
+        let flags = vec![true; vo.len()];
+        let largest = with_final_tilt_bias(&mut vo, &flags, &zero, &history, &Matrix3::identity());
+        assert!(largest > 0.03, "{largest}");
+        // What is left is the settling's start and the bias the filter itself found.
+        assert!(worst(&vo[vo.len() / 5..]) < 0.01, "{}", worst(&vo[vo.len() / 5..]));
+    }
+
+    /// A minute over a hill (±10 m) with the sensor pitched 0.07 nose up on the road: the
+    /// flat reckoned track gets the hill's heights, the offset found from fixes with a
+    /// metre of error; a run with too few fixes is left level.
+    #[test]
+    fn heights_come_from_the_grade_less_the_offset_the_fixes_show() {
+        let (speed, offset) = (25.0, 0.07);
+        let height = |d: f64| 10.0 * (d / 300.0).sin();
+        let grade = |d: f64| 10.0 / 300.0 * (d / 300.0).cos();
+        let sample = |t: f64| {
+            let d = speed * t;
+            let pitch_up = (grade(d) + offset).atan();
+            VoSample {
+                t,
+                session: 0,
+                position: Vector3::new(d, 0.0, 0.0),
+                rotation: Rotation3::from_axis_angle(&Vector3::y_axis(), -pitch_up).into_inner(),
+                grade_sigma: 0.0,
+            }
+        };
+        let mut vo: Vec<VoSample> = (0..=1200).map(|k| sample(k as f64 * 0.05)).collect();
+        let fixes: Vec<Fix> = (0..=600)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                let error = (k as f64 * 0.37).sin() + 0.5 * (k as f64 * 0.011).cos();
+                Fix {
+                    t,
+                    enu: Vector3::new(speed * t, 0.0, height(speed * t) + 3.0 + error),
+                    sigma_h: 2.0,
+                    sigma_v: 3.0,
+                }
+            })
+            .collect();
+        let flags = vec![true; vo.len()];
+        let found = with_grade(&mut vo, &flags, &fixes, &Matrix3::identity()).expect("an offset");
+        assert!((found.pitch_offset - offset).abs() < 0.005, "{found:?}");
+        assert!(found.baseline_m > 1400.0, "{found:?}");
+        let worst = vo.iter().map(|s| (s.position.z - 3.0 - height(s.position.x)).abs()).fold(0.0f64, f64::max);
+        assert!(worst < 1.5, "heights {worst} m off");
+        assert!(vo.iter().all(|s| s.grade_sigma == RECKONED_GRADE_SIGMA));
+        let last = vo.last().expect("poses");
+        let left = (last.rotation[(2, 0)]).atan2(last.rotation[(0, 0)]) - grade(last.position.x).atan();
+        assert!(left.abs() < 0.005, "the camera keeps {left} rad of the offset");
+
+        let mut short: Vec<VoSample> = (0..=40).map(|k| sample(k as f64 * 0.05)).collect();
+        assert_eq!(with_grade(&mut short, &[true; 41], &fixes, &Matrix3::identity()), None);
+        assert!(short.iter().all(|s| s.position.z == 0.0 && s.grade_sigma == RECKONED_GRADE_SIGMA));
     }
 }

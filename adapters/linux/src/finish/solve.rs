@@ -49,6 +49,11 @@ pub struct VoSample {
     pub position: Vector3<f64>,
     /// Camera → VO rotation.
     pub rotation: Matrix3<f64>,
+    /// How uncertain the path's rise is per metre travelled: 0 for a camera's VO (its σ is
+    /// [`Settings::vo_sigma`] on every axis); a dead-reckoned path's height integrates the
+    /// grade its attitude shows and is left to the fixes where they disagree
+    /// ([`super::reckon`]).
+    pub grade_sigma: f64,
 }
 
 /// A GNSS fix in the log's ENU frame.
@@ -588,7 +593,9 @@ impl State<'_> {
             let chord = self.inputs.vo[self.keyframe_vo[k + 1]].position - self.inputs.vo[self.keyframe_vo[k]].position;
             let sd = self.scale_rotation(k) * chord;
             let r = self.p[k + 1] - self.p[k] - sd;
-            let sigma = Vector3::repeat(s.vo_sigma.0 + s.vo_sigma.1 * sd.norm());
+            let mut sigma = Vector3::repeat(s.vo_sigma.0 + s.vo_sigma.1 * sd.norm());
+            let grade_sigma = self.inputs.vo[self.keyframe_vo[k + 1]].grade_sigma;
+            sigma.z = sigma.z.hypot(grade_sigma * sd.xy().norm());
             let plus_skew = skew(&sd);
             let identity = [Vector3::x(), Vector3::y(), Vector3::z()];
             let minus_identity = [-Vector3::x(), -Vector3::y(), -Vector3::z()];
