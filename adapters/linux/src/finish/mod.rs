@@ -205,6 +205,10 @@ pub struct ReckoningReport {
     pub heading_corrected_max_deg: f64,
     /// The largest tilt correction its final horizontal bias made, degrees.
     pub tilt_corrected_max_deg: f64,
+    /// The sensor's yaw on the car as the device knew it last (the car's forward axis), by
+    /// which every camera is turned off its track, degrees (−δ); `None` when the device
+    /// never found it.
+    pub camera_turned_deg: Option<f64>,
     /// The sensor's pitch above the road's grade the fixes' heights show (its tilt on the
     /// camera and the accelerometer's forward bias), degrees; `None` when the fixes span
     /// too little road to tell and the poses were left level.
@@ -342,12 +346,14 @@ fn drive(log: &LogContents, frame: &LocalFrame, uere: f64, camera_to_body: &Matr
     bias.sort_by(|a, b| by_time(&a.0, &b.0));
     let flags: Vec<bool> = vo.iter().map(|s| dead_reckoned.binary_search_by(|t| by_time(t, &s.t)).is_ok()).collect();
     let axis = |a: usize| -> Vec<(f64, f64)> { bias.iter().map(|(t, b)| (*t, b[a] as f64 * 1e-7)).collect() };
+    let forward_axis = reckon::with_final_forward_axis(&mut vo, &flags, camera_to_body);
     let heading_corrected = reckon::with_final_bias(&mut vo, &flags, &axis(2));
     let tilt_corrected = reckon::with_final_tilt_bias(&mut vo, &flags, &axis(0), &axis(1), camera_to_body);
     let grade = reckon::with_grade(&mut vo, &flags, &fixes, camera_to_body);
     let reckoning = flags.contains(&true).then_some(ReckoningReport {
         heading_corrected_max_deg: heading_corrected.to_degrees(),
         tilt_corrected_max_deg: tilt_corrected.to_degrees(),
+        camera_turned_deg: forward_axis.map(f64::to_degrees),
         pitch_offset_deg: grade.map(|g| g.pitch_offset.to_degrees()),
         grade_baseline_m: grade.map(|g| g.baseline_m),
     });
@@ -387,6 +393,7 @@ pub fn finish(
     let drive = drive(log, &frame, uere, &mount.rotation());
     let anchors = anchor_file.map(|(_, f)| anchors_in(f, &frame)).unwrap_or_default();
     let calibrated = calibrate_mount(&drive.vo, mount);
+    let nominal_yaw = mount.roll_pitch_yaw[2];
     let mount = calibrated.mount;
     let lever = mount.rotation().transpose() * Vector3::from(mount.position);
     let Solved { sessions, unsolved, verdicts } = solve_sessions(&drive, &anchors, lever, settings);
@@ -472,7 +479,21 @@ pub fn finish(
             .get(&t)
             .map(|p| [p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3, p.z_mm as f64 * 1e-3, p.yaw_e4 as f64 * 1e-4])
     };
-    let (mut tracks, track_stats) = tracks::finish_tracks(&batches, &|t| ego_at(&online, t), &|t| ego_at(&ego, t));
+    // The device placed its detections through the mount it had then; the finished ego
+    // goes with the mount calibrated over the whole drive.
+    let device_mounts: Vec<(i64, f64)> = log
+        .records
+        .iter()
+        .filter_map(|r| if let Record::MountEstimate(m) = r { Some((m.t_us, m.yaw_e6 as f64 * 1e-6)) } else { None })
+        .collect();
+    let device_yaw = |t: i64| {
+        let k = device_mounts.partition_point(|(ts, _)| *ts <= t);
+        k.checked_sub(1).and_then(|i| device_mounts.get(i)).map_or(nominal_yaw, |m| m.1)
+    };
+    let camera = [mount.position[0], mount.position[1]];
+    let online_as_mounted =
+        |t: i64| ego_at(&online, t).map(|a| tracks::as_if_mounted(&a, camera, mount.roll_pitch_yaw[2] - device_yaw(t)));
+    let (mut tracks, track_stats) = tracks::finish_tracks(&batches, &online_as_mounted, &|t| ego_at(&ego, t));
     let raw: Vec<_> =
         log.records.iter().filter_map(|r| if let Record::Detection3d(d) = r { Some(*d) } else { None }).collect();
     let (raw_batches, raw_stats) = raw::track_raw(&raw, &ego, &mount);

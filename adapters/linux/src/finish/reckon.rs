@@ -13,12 +13,19 @@
 //! The device reckons on the level: its poses say nothing of height, and a drive's road
 //! climbs and falls by metres (comma2k19's minute: ±8 m), which the solve, whose similarity
 //! only turns about the vertical, cannot bend a flat track into. The poses keep the body's
-//! attitude, whose pitch is the road's grade — plus a constant offset: the sensor's tilt on
-//! the camera and the accelerometer's bias along the direction of travel (comma's EON:
-//! about 0.5°, which is 1 % of grade, 17 m of height over the minute's 1.7 km). Integrated
+//! attitude, whose pitch is the road's grade — plus a constant offset: the camera's tilt on
+//! the car, the sensor's on the camera and the accelerometer's bias along the direction of
+//! travel (comma's EON: 4.4°, 8 % of grade, 70 m of height over the minute's kilometre, of
+//! which 3.8° is the camera looking below the road). Integrated
 //! along the horizontal distance travelled the grade gives each pose's height; the offset
 //! is the one slope per distance that brings those heights onto the fixes' heights, every
-//! session with its own level ([`with_grade`]).
+//! session with its own level ([`with_grade`]). The cameras keep the offset: they do look
+//! that far off the road.
+//!
+//! The device finds the sensor's yaw on the car (the car's forward axis) only once the car
+//! has braked and sped up, and turns its cameras by it from then on; the ones before are
+//! turned by what it knew last ([`with_final_forward_axis`]), the tilt by the horizontal
+//! bias it knew last ([`with_final_tilt_bias`]).
 
 use dash2sim_core::nalgebra::{Matrix3, Rotation3, Vector3};
 
@@ -26,6 +33,10 @@ use dash2sim_core::imu::attitude::{SETTLING_S, SETTLING_TIME_CONSTANT_S, TILT_TI
 
 use super::solve::{Fix, VoSample};
 
+/// A camera this close to its track's direction at the end (rad) is taken as one whose
+/// device never found the car's forward axis: the camera and the track are then the same
+/// axis turned by the mount, to the poses' rounding (1e-4 rad).
+const FORWARD_AXIS_UNKNOWN_RAD: f64 = 1e-3;
 /// The road between two fixes over which their heights measure a grade, m: over less
 /// the fixes' height error (a metre or two, correlated for tens of seconds) outweighs it.
 const GRADE_BASELINE_M: f64 = 200.0;
@@ -163,6 +174,63 @@ pub fn with_final_tilt_bias(
     largest
 }
 
+/// A dead-reckoned camera's yaw away from the direction its track moves in, rad: 0 while
+/// the device did not know the car's forward axis (it reckons along the sensor's), −δ once
+/// it did (the camera turned by the sensor's yaw δ on the car); `None` where the track does
+/// not move.
+fn yaw_off_track(from: &VoSample, to: &VoSample, camera_to_body: &Matrix3<f64>) -> Option<f64> {
+    let step = (to.position - from.position).xy();
+    let heading = |s: &VoSample| {
+        let forward = (s.rotation * camera_to_body.transpose()).column(0).into_owned();
+        (forward.xy().norm() > 0.5).then(|| forward.y.atan2(forward.x))
+    };
+    let (a, b) = (heading(from)?, heading(to)?);
+    // The chord runs along the mean of its ends' headings (to second order in a turn).
+    let mid = a + 0.5 * wrap(b - a);
+    (step.norm() > 0.1).then(|| wrap(mid - step.y.atan2(step.x)))
+}
+
+/// An angle in (−π, π].
+fn wrap(angle: f64) -> f64 {
+    (angle + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+}
+
+/// Turn every dead-reckoned camera of `vo` by the sensor's yaw on the car as the device
+/// knew it last (the car's forward axis, `imu::forward`: found only once the car has braked
+/// and sped up, 34 s into the sweep's drives). The device turned its cameras from then on;
+/// the ones before point along the sensor's axis, and the detections they place, and the
+/// mount the whole drive calibrates, are off by that yaw. Returns the yaw taken (−δ, rad),
+/// `None` when the device never found it.
+pub fn with_final_forward_axis(
+    vo: &mut [VoSample],
+    dead_reckoned: &[bool],
+    camera_to_body: &Matrix3<f64>,
+) -> Option<f64> {
+    let runs = runs(vo, dead_reckoned);
+    let last = runs.iter().rev().find_map(|run| {
+        (run.start + 1..run.end).rev().find_map(|i| yaw_off_track(&vo[i - 1], &vo[i], camera_to_body))
+    })?;
+    if last.abs() < FORWARD_AXIS_UNKNOWN_RAD {
+        return None;
+    }
+    for run in runs {
+        // Each camera's own yaw off its track: its step's, the first's from the next step.
+        let offs: Vec<Option<f64>> = (run.start..run.end)
+            .map(|i| {
+                let (from, to) = if i > run.start { (i - 1, i) } else { (i, i + 1) };
+                vo.get(to).filter(|_| to < run.end).and_then(|t| yaw_off_track(&vo[from], t, camera_to_body))
+            })
+            .collect();
+        let mut off = 0.0;
+        for (i, known) in run.zip(offs) {
+            off = known.unwrap_or(off);
+            let turn = if off.abs() < FORWARD_AXIS_UNKNOWN_RAD { last } else { last - off };
+            vo[i].rotation = Rotation3::from_axis_angle(&Vector3::z_axis(), turn).into_inner() * vo[i].rotation;
+        }
+    }
+    Some(last)
+}
+
 /// What [`with_grade`] found: the pitch offset it took out, and over how much road.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Grade {
@@ -228,8 +296,10 @@ fn median(values: &mut [f64]) -> Option<f64> {
 }
 
 /// Give the dead-reckoned samples of `vo` heights from their pitch, less the pitch offset
-/// the fixes' heights show, and turn their cameras by it; mark each with
-/// [`RECKONED_GRADE_SIGMA`]. `camera_to_body` is the mount the device reckoned with.
+/// the fixes' heights show; mark each with [`RECKONED_GRADE_SIGMA`]. `camera_to_body` is
+/// the mount the device reckoned with. The cameras keep their attitude: the offset is
+/// mostly the camera's real tilt on the car, which the mount calibration then finds
+/// between the camera and its track.
 ///
 /// The offset is the median, over pairs of fixes [`GRADE_BASELINE_M`] of road apart, of
 /// the reckoned rise less the fixes' rise per metre: the attitude's settling spoils the
@@ -269,9 +339,6 @@ pub fn with_grade(
     }
     let offset = (slopes.len() >= MIN_GRADE_PAIRS).then(|| median(&mut slopes)).flatten();
     let slope = offset.unwrap_or(0.0);
-    let turn = camera_to_body.transpose()
-        * Rotation3::from_axis_angle(&Vector3::y_axis(), slope).into_inner()
-        * camera_to_body;
     for (run, (height, distance, beside)) in runs.iter().zip(profiles) {
         // Each run at the fixes' mean level; one without fixes where it started.
         let n = beside.len() as f64;
@@ -283,7 +350,6 @@ pub fn with_grade(
         for ((sample, h), d) in vo[run.clone()].iter_mut().zip(height).zip(distance) {
             if offset.is_some() {
                 sample.position.z = level + h - slope * d;
-                sample.rotation *= turn;
             }
             sample.grade_sigma = RECKONED_GRADE_SIGMA;
         }
@@ -432,15 +498,15 @@ mod tests {
             })
             .collect();
         let flags = vec![true; vo.len()];
+        let cameras: Vec<Matrix3<f64>> = vo.iter().map(|s| s.rotation).collect();
         let found = with_grade(&mut vo, &flags, &fixes, &Matrix3::identity()).expect("an offset");
         assert!((found.pitch_offset - offset).abs() < 0.005, "{found:?}");
         assert!(found.baseline_m > 1400.0, "{found:?}");
         let worst = vo.iter().map(|s| (s.position.z - 3.0 - height(s.position.x)).abs()).fold(0.0f64, f64::max);
         assert!(worst < 1.5, "heights {worst} m off");
         assert!(vo.iter().all(|s| s.grade_sigma == RECKONED_GRADE_SIGMA));
-        let last = vo.last().expect("poses");
-        let left = (last.rotation[(2, 0)]).atan2(last.rotation[(0, 0)]) - grade(last.position.x).atan();
-        assert!(left.abs() < 0.005, "the camera keeps {left} rad of the offset");
+        // The camera does look that far above the road: only the track drops the offset.
+        assert!(vo.iter().zip(&cameras).all(|(s, c)| s.rotation == *c));
 
         let mut short: Vec<VoSample> = (0..=40).map(|k| sample(k as f64 * 0.05)).collect();
         assert_eq!(with_grade(&mut short, &[true; 41], &fixes, &Matrix3::identity()), None);

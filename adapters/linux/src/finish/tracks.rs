@@ -94,6 +94,22 @@ pub fn finish_tracks(
     (out, stats)
 }
 
+/// The ego pose that, with a mount turned by `delta` more about the vertical (rad; about
+/// the camera at `camera`, forward and left in the body frame, m), places every state where
+/// `ego` with the old mount placed it.
+///
+/// The device placed each detection through the mount it had then (`MountEstimate`); the
+/// finished ego goes with the mount `finish` calibrated over the whole drive. Taken back
+/// through this pose instead of the device's, a state comes out through the finished ego
+/// as the finished mount would have placed it — a body-frame point p goes to
+/// c + R(δ)(p − c), which is the ego turned by −δ and moved by −R(h)(R(−δ)c − c).
+pub fn as_if_mounted(ego: &EgoAt, camera: [f64; 2], delta: f64) -> EgoAt {
+    let (sd, cd) = (-delta).sin_cos();
+    let shift = [cd * camera[0] - sd * camera[1] - camera[0], sd * camera[0] + cd * camera[1] - camera[1]];
+    let (sh, ch) = ego[3].sin_cos();
+    [ego[0] - (ch * shift[0] - sh * shift[1]), ego[1] - (sh * shift[0] + ch * shift[1]), ego[2], ego[3] - delta]
+}
+
 /// A state placed through the online ego `a`, placed again through the finished ego `b`.
 fn reexpress(t: &Track3d, a: &EgoAt, b: &EgoAt) -> Track3d {
     let (x, y) = (t.x_mm as f64 * 1e-3, t.y_mm as f64 * 1e-3);
@@ -382,6 +398,22 @@ mod tests {
         let moved = reexpress(&t, &[0.0, 0.0, 0.0, 0.0], &[5.0, 5.0, 1.0, FRAC_PI_2]);
         assert_eq!((moved.x_mm, moved.y_mm, moved.z_mm), (5000, 15000, 1000));
         assert_eq!(moved.yaw_e4, quantise(FRAC_PI_2, 1e-4));
+    }
+
+    #[test]
+    fn a_state_the_device_placed_with_its_mount_moves_with_the_finished_one() {
+        // The camera 1.8 m ahead of the rear axle saw a cone 10 m ahead of it; the device's
+        // mount had the camera straight, the finished one has it turned 2° to the left: the
+        // cone is 10 m along that direction from the camera, the ego unmoved.
+        let delta = 2f64.to_radians();
+        let ego = [3.0, -4.0, 0.5, 0.7];
+        let t = track(1, 3.0 + 11.8 * 0.7f64.cos(), -4.0 + 11.8 * 0.7f64.sin(), 1);
+        let moved = reexpress(&t, &as_if_mounted(&ego, [1.8, 0.0], delta), &ego);
+        let (h, c) = (0.7 + delta, [3.0 + 1.8 * 0.7f64.cos(), -4.0 + 1.8 * 0.7f64.sin()]);
+        assert!((moved.x_mm as f64 * 1e-3 - (c[0] + 10.0 * h.cos())).abs() < 2e-3, "{moved:?}");
+        assert!((moved.y_mm as f64 * 1e-3 - (c[1] + 10.0 * h.sin())).abs() < 2e-3, "{moved:?}");
+        assert_eq!(moved.yaw_e4, quantise(delta, 1e-4));
+        assert_eq!(as_if_mounted(&ego, [1.8, 0.0], 0.0), ego);
     }
 
     #[test]
