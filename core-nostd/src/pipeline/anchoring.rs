@@ -5,7 +5,7 @@
 use embedded_io::Write;
 
 use super::anchor_record;
-use super::calibration::{MountCalibration, MountEstimate};
+use super::calibration::{CalibrationConfig, MountCalibration, MountEstimate};
 use super::issues::Issue;
 use super::{
     carry, ease, euler, lag, mount, mount_record, quantise, PipelineConfig, PipelineError, RelativeMotion, State,
@@ -68,7 +68,13 @@ impl Anchoring {
             }),
             observability: Observability::TooFewAnchors,
             last_anchor_record: None,
-            calibration: MountCalibration::new(config.mount, config.calibration),
+            calibration: MountCalibration::new(
+                config.mount,
+                CalibrationConfig {
+                    pitch_from_ground: config.relative_motion == RelativeMotion::ImuWheels,
+                    ..config.calibration
+                },
+            ),
             carry: None,
             last_camera: None,
             last_camera_gyro: None,

@@ -20,12 +20,15 @@
 //! ([`CalibrationConfig::prior_sigma`]). Its σ comes from the samples' own spread — nothing
 //! is told how noisy the VO is — counting [`CalibrationConfig::correlated_samples`] samples
 //! as one, as a VO's errors are correlated over a second or so. The roll is the nominal
-//! mount's: the direction of travel says nothing about it.
+//! mount's: the direction of travel says nothing about it. Without VO the pitch is taken
+//! from where the detected objects stand instead ([`super::ground`]).
 
 use nalgebra::{Matrix3, Vector3};
 
+use super::ground::GroundPitch;
 use super::mount::CameraMount;
 use crate::sim3::Pose;
+use crate::track3d::Detection3d;
 
 /// Orientations kept to measure the turn over the baseline (1.6 s at 10 Hz).
 const HISTORY: usize = 16;
@@ -51,6 +54,10 @@ pub struct CalibrationConfig {
     pub max_sigma: f64,
     /// Consecutive samples counted as one independent sample.
     pub correlated_samples: f64,
+    /// The pitch from where the detected objects stand ([`super::ground`]) instead of the
+    /// direction of travel: for a camera whose motion nobody measures (gyro + wheels,
+    /// whose dead-reckoned camera is pitched as gravity says).
+    pub pitch_from_ground: bool,
 }
 
 impl Default for CalibrationConfig {
@@ -63,6 +70,7 @@ impl Default for CalibrationConfig {
             min_samples: 100,
             max_sigma: 0.1_f64.to_radians(),
             correlated_samples: 10.0,
+            pitch_from_ground: false,
         }
     }
 }
@@ -117,6 +125,7 @@ pub struct MountCalibration {
     outliers: u32,
     yaw: Running,
     pitch: Running,
+    ground: GroundPitch,
 }
 
 impl MountCalibration {
@@ -132,7 +141,14 @@ impl MountCalibration {
             outliers: 0,
             yaw: Running { mean: 0.0, m2: 0.0 },
             pitch: Running { mean: 0.0, m2: 0.0 },
+            ground: GroundPitch::new(nominal.roll_pitch_yaw[1]),
         }
+    }
+
+    /// A 3D detection (camera frame), when the pitch is taken from the ground
+    /// ([`CalibrationConfig::pitch_from_ground`]). Returns whether it was counted.
+    pub fn push_detection(&mut self, d: &Detection3d) -> bool {
+        self.config.pitch_from_ground && self.ground.push(&self.nominal, d)
     }
 
     /// The VO pose (camera → VO frame) of VO session `session` at `t` s. Poses must come
@@ -225,7 +241,11 @@ impl MountCalibration {
             ((prior * nominal + measured * running.mean) / information, libm::sqrt(1.0 / information))
         };
         let (yaw, sigma_yaw) = fuse(&self.yaw, yaw0);
-        let (pitch, sigma_pitch) = fuse(&self.pitch, pitch0);
+        let (pitch, sigma_pitch) = match (c.pitch_from_ground, self.ground.estimate()) {
+            (false, _) => fuse(&self.pitch, pitch0),
+            (true, Some(measured)) => measured,
+            (true, None) => (pitch0, c.prior_sigma),
+        };
         MountEstimate {
             mount: CameraMount { position: self.nominal.position, roll_pitch_yaw: [roll, pitch, yaw] },
             sigma: [sigma_yaw, sigma_pitch],
@@ -238,7 +258,9 @@ impl MountCalibration {
     /// before no longer holds (the dead-reckoned camera was turned once the car's forward
     /// axis was found).
     pub fn restart(&mut self) {
-        *self = MountCalibration::new(self.nominal, self.config);
+        // Where the objects stand does not depend on the camera's yaw.
+        let ground = core::mem::replace(&mut self.ground, GroundPitch::new(0.0));
+        *self = MountCalibration { ground, ..MountCalibration::new(self.nominal, self.config) };
     }
 
     /// Samples refused as too far from the nominal mount.

@@ -38,6 +38,7 @@ pub mod clock;
 pub mod ease;
 pub mod edge;
 mod gnss;
+pub mod ground;
 pub mod inertial;
 pub mod issues;
 pub mod lag;

@@ -66,6 +66,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         let mut placed: heapless::Vec<Detection3d, T3> = heapless::Vec::new();
         let mut excess = 0u64;
         for d in detections {
+            self.anchoring.calibration.push_detection(d);
             let world = mount::to_world(&ego.eased, &self.anchoring.mount.mount.to_body(d));
             if placed.push(world).is_err() {
                 excess += 1;
