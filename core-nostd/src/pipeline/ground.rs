@@ -21,7 +21,7 @@ use super::mount::CameraMount;
 use crate::track3d::Detection3d;
 
 /// Width of a bin, rad (0.1°).
-const BIN_RAD: f64 = 0.1 * core::f64::consts::PI / 180.0;
+pub const BIN_RAD: f64 = 0.1 * core::f64::consts::PI / 180.0;
 /// Bins either side of the nominal pitch.
 const HALF_BINS: usize = 50;
 /// Pitches further than this from the nominal one are not counted, rad (5°).

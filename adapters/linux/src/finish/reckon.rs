@@ -39,10 +39,10 @@ use super::solve::{Fix, VoSample};
 const FORWARD_AXIS_UNKNOWN_RAD: f64 = 1e-3;
 /// The road between two fixes over which their heights measure a grade, m: over less
 /// the fixes' height error (a metre or two, correlated for tens of seconds) outweighs it.
-const GRADE_BASELINE_M: f64 = 200.0;
+pub const GRADE_BASELINE_M: f64 = 200.0;
 /// Pairs of fixes that measure the pitch offset before it is taken out: fewer, and the
 /// poses are left level.
-const MIN_GRADE_PAIRS: usize = 10;
+pub const MIN_GRADE_PAIRS: usize = 10;
 /// Fixes whose vertical σ is larger than this (m) say nothing of height (a 2D fix's height
 /// is a guess).
 const MAX_HEIGHT_SIGMA_M: f64 = 50.0;
@@ -51,7 +51,7 @@ const MAX_HEIGHT_SIGMA_M: f64 = 50.0;
 /// While the attitude settles its pitch is off by degrees (comma2k19's first 15 s: up to
 /// 5°, 0.09, from the gyro's horizontal bias of 2°/s until gravity has found it); after
 /// that by the sensor's noise, tenths of a degree.
-const RECKONED_GRADE_SIGMA: f64 = 0.03;
+pub const RECKONED_GRADE_SIGMA: f64 = 0.03;
 
 /// The gyro's bias about the vertical as the device found it: (time s, rad/s), in time
 /// order.
@@ -142,7 +142,7 @@ fn carry_tilt_error(
 ///
 /// The attitude follows gravity; a rate error u = b_final − b(t) tilts it at u while
 /// gravity pulls it back with the attitude's time constant τ, so its error obeys
-/// e′ = u − e/τ, from 0 where it was levelled ([`carry_tilt_error`]). On comma's EON, whose
+/// e′ = u − e/τ, from 0 where it was levelled (`carry_tilt_error`). On comma's EON, whose
 /// bias about the left axis is 2°/s and took the device 18 s to find, this is the pitch
 /// error of 4–5° eight seconds in.
 pub fn with_final_tilt_bias(
