@@ -981,6 +981,7 @@ fn anchor_record(t: f64, sim3: &dash2sim_core::sim3::Sim3, solution: &Solution, 
     similarity_record(quantise(t, 1e-6), sim3, 2, anchors, solution.gnss_rms_m, solution.latency_s)
 }
 
+/// The median of `v` (NaN when empty).
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)

@@ -30,6 +30,8 @@
 use dash2sim_core::nalgebra::{Matrix3, Rotation3, Vector3};
 
 use dash2sim_core::imu::attitude::{SETTLING_S, SETTLING_TIME_CONSTANT_S, TILT_TIME_CONSTANT_S};
+use dash2sim_core::sim3::rotation_z;
+use dash2sim_core::track3d::wrap_angle;
 
 use super::solve::{Fix, VoSample};
 
@@ -78,10 +80,6 @@ fn bias_at(history: &BiasHistory, t: f64) -> Option<f64> {
     }
 }
 
-fn yaw(angle: f64) -> Matrix3<f64> {
-    Rotation3::from_axis_angle(&Vector3::z_axis(), angle).into_inner()
-}
-
 /// Redo the dead-reckoned samples of `vo` (those whose `dead_reckoned` flag is set; the
 /// others, a camera's VO, are left alone) with the last bias of `history`. Returns the
 /// largest heading correction made, rad (0 with no history).
@@ -101,12 +99,12 @@ pub fn with_final_bias(vo: &mut [VoSample], dead_reckoned: &[bool], history: &Bi
                 let (b0, b1) = (bias_at(history, p.t), bias_at(history, sample.t));
                 let rate = |b: Option<f64>| b.map_or(0.0, |b| b - final_bias);
                 let delta = p.delta + 0.5 * (rate(b0) + rate(b1)) * (sample.t - p.t);
-                let step = yaw(0.5 * (p.delta + delta)) * (logged - p.logged);
+                let step = rotation_z(0.5 * (p.delta + delta)) * (logged - p.logged);
                 (p.corrected + step, delta)
             }
         };
         sample.position = position;
-        sample.rotation = yaw(delta) * sample.rotation;
+        sample.rotation = rotation_z(delta) * sample.rotation;
         largest = largest.max(delta.abs());
         previous = Some(Redone { t: sample.t, session: sample.session, logged, corrected: position, delta });
     }
@@ -174,25 +172,18 @@ pub fn with_final_tilt_bias(
     largest
 }
 
-/// A dead-reckoned camera's yaw away from the direction its track moves in, rad: 0 while
-/// the device did not know the car's forward axis (it reckons along the sensor's), −δ once
-/// it did (the camera turned by the sensor's yaw δ on the car); `None` where the track does
-/// not move.
-fn yaw_off_track(from: &VoSample, to: &VoSample, camera_to_body: &Matrix3<f64>) -> Option<f64> {
-    let step = (to.position - from.position).xy();
-    let heading = |s: &VoSample| {
-        let forward = (s.rotation * camera_to_body.transpose()).column(0).into_owned();
-        (forward.xy().norm() > 0.5).then(|| forward.y.atan2(forward.x))
-    };
-    let (a, b) = (heading(from)?, heading(to)?);
-    // The chord runs along the mean of its ends' headings (to second order in a turn).
-    let mid = a + 0.5 * wrap(b - a);
-    (step.norm() > 0.1).then(|| wrap(mid - step.y.atan2(step.x)))
-}
-
-/// An angle in (−π, π].
-fn wrap(angle: f64) -> f64 {
-    (angle + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+/// Sample `i`'s camera's yaw away from the direction its track moves in there, rad: 0
+/// while the device did not know the car's forward axis (it reckons along the sensor's),
+/// −δ once it did (the camera turned by the sensor's yaw δ on the car); `None` where the
+/// track does not move. The direction is the chord between the samples either side of it
+/// (one side at a run's ends): a tangent to second order on a bend, and made of positions
+/// only, so a camera turned between two samples does not blur it.
+fn yaw_off_track(run: &[VoSample], i: usize, camera_to_body: &Matrix3<f64>) -> Option<f64> {
+    let (before, after) = (run.get(i.saturating_sub(1))?, run.get((i + 1).min(run.len() - 1))?);
+    let step = (after.position - before.position).xy();
+    let forward = (run.get(i)?.rotation * camera_to_body.transpose()).column(0).into_owned();
+    (step.norm() > 0.1 && forward.xy().norm() > 0.5)
+        .then(|| wrap_angle(forward.y.atan2(forward.x) - step.y.atan2(step.x)))
 }
 
 /// Turn every dead-reckoned camera of `vo` by the sensor's yaw on the car as the device
@@ -208,24 +199,20 @@ pub fn with_final_forward_axis(
 ) -> Option<f64> {
     let runs = runs(vo, dead_reckoned);
     let last = runs.iter().rev().find_map(|run| {
-        (run.start + 1..run.end).rev().find_map(|i| yaw_off_track(&vo[i - 1], &vo[i], camera_to_body))
+        let samples = &vo[run.clone()];
+        (0..samples.len()).rev().find_map(|i| yaw_off_track(samples, i, camera_to_body))
     })?;
     if last.abs() < FORWARD_AXIS_UNKNOWN_RAD {
         return None;
     }
     for run in runs {
-        // Each camera's own yaw off its track: its step's, the first's from the next step.
-        let offs: Vec<Option<f64>> = (run.start..run.end)
-            .map(|i| {
-                let (from, to) = if i > run.start { (i - 1, i) } else { (i, i + 1) };
-                vo.get(to).filter(|_| to < run.end).and_then(|t| yaw_off_track(&vo[from], t, camera_to_body))
-            })
-            .collect();
+        let offs: Vec<Option<f64>> =
+            (0..run.len()).map(|i| yaw_off_track(&vo[run.clone()], i, camera_to_body)).collect();
         let mut off = 0.0;
-        for (i, known) in run.zip(offs) {
+        for (sample, known) in vo[run].iter_mut().zip(offs) {
             off = known.unwrap_or(off);
             let turn = if off.abs() < FORWARD_AXIS_UNKNOWN_RAD { last } else { last - off };
-            vo[i].rotation = Rotation3::from_axis_angle(&Vector3::z_axis(), turn).into_inner() * vo[i].rotation;
+            sample.rotation = rotation_z(turn) * sample.rotation;
         }
     }
     Some(last)
@@ -289,12 +276,6 @@ fn at_time(run: &[VoSample], values: &[f64], t: f64) -> Option<f64> {
     Some(va + (vb - va) * alpha)
 }
 
-/// The median of `values` (reordered); `None` when empty.
-fn median(values: &mut [f64]) -> Option<f64> {
-    values.sort_by(f64::total_cmp);
-    values.get(values.len() / 2).copied()
-}
-
 /// Give the dead-reckoned samples of `vo` heights from their pitch, less the pitch offset
 /// the fixes' heights show; mark each with [`RECKONED_GRADE_SIGMA`]. `camera_to_body` is
 /// the mount the device reckoned with. The cameras keep their attitude: the offset is
@@ -337,7 +318,7 @@ pub fn with_grade(
         }
         profiles.push((height, distance, beside));
     }
-    let offset = (slopes.len() >= MIN_GRADE_PAIRS).then(|| median(&mut slopes)).flatten();
+    let offset = (slopes.len() >= MIN_GRADE_PAIRS).then(|| super::median(slopes));
     let slope = offset.unwrap_or(0.0);
     for (run, (height, distance, beside)) in runs.iter().zip(profiles) {
         // Each run at the fixes' mean level; one without fixes where it started.
@@ -385,7 +366,7 @@ mod tests {
                 let mid = 0.5 * (before + heading);
                 position += Vector3::new(mid.cos(), mid.sin(), 0.0) * v * dt;
             }
-            vo.push(VoSample { t, session: 0, position, rotation: yaw(heading), grade_sigma: 0.0 });
+            vo.push(VoSample { t, session: 0, position, rotation: rotation_z(heading), grade_sigma: 0.0 });
         }
         let history: Vec<(f64, f64)> = (0..=20).map(|s| (s as f64, known(s as f64))).collect();
         let end_before = (vo.last().expect("poses").position - truth(20.0).0).norm();
@@ -410,7 +391,7 @@ mod tests {
                 t: k as f64,
                 session: 0,
                 position: Vector3::new(k as f64, 0.0, 0.0),
-                rotation: yaw(0.0),
+                rotation: rotation_z(0.0),
                 grade_sigma: 0.0,
             })
             .collect();
@@ -511,5 +492,48 @@ mod tests {
         let mut short: Vec<VoSample> = (0..=40).map(|k| sample(k as f64 * 0.05)).collect();
         assert_eq!(with_grade(&mut short, &[true; 41], &fixes, &Matrix3::identity()), None);
         assert!(short.iter().all(|s| s.position.z == 0.0 && s.grade_sigma == RECKONED_GRADE_SIGMA));
+    }
+
+    /// A track along a gentle bend; the device found the sensor's yaw on the car 10 s in
+    /// (−0.03 rad) and refined it at 15 s (−0.035): every camera ends turned by the last,
+    /// the ones before as well. A device that never found it is left alone.
+    #[test]
+    fn every_camera_takes_the_forward_axis_the_device_knew_last() {
+        let known = |t: f64| {
+            if t < 10.0 {
+                0.0
+            } else if t < 15.0 {
+                -0.03
+            } else {
+                -0.035
+            }
+        };
+        let heading = |t: f64| 0.01 * t;
+        let track = |turned: &dyn Fn(f64) -> f64| -> Vec<VoSample> {
+            let mut position = Vector3::zeros();
+            (0..=400)
+                .map(|k| {
+                    let t = k as f64 * 0.05;
+                    if k > 0 {
+                        let mid = heading(t - 0.025);
+                        position += Vector3::new(mid.cos(), mid.sin(), 0.0) * 20.0 * 0.05;
+                    }
+                    VoSample { t, session: 0, position, rotation: rotation_z(heading(t) + turned(t)), grade_sigma: 0.0 }
+                })
+                .collect()
+        };
+        let mut vo = track(&known);
+        let flags = vec![true; vo.len()];
+        let last = with_final_forward_axis(&mut vo, &flags, &Matrix3::identity()).expect("a forward axis");
+        assert!((last + 0.035).abs() < 1e-3, "{last}");
+        for s in &vo {
+            let off = s.rotation[(1, 0)].atan2(s.rotation[(0, 0)]) - heading(s.t);
+            assert!((off + 0.035).abs() < 2e-3, "{} s: {off}", s.t);
+        }
+
+        let mut never = track(&|_| 0.0);
+        let before: Vec<Matrix3<f64>> = never.iter().map(|s| s.rotation).collect();
+        assert_eq!(with_final_forward_axis(&mut never, &flags, &Matrix3::identity()), None);
+        assert!(never.iter().zip(&before).all(|(s, r)| s.rotation == *r));
     }
 }
