@@ -27,7 +27,12 @@ fn gyro_and_wheels_anchored_to_the_ublox_track_the_fused_poses() {
     // the camera's tilt on the car (the fused poses') plus the sensor's on the camera.
     let expected = m.reference_camera_pitch_deg + m.pitch_offset_median_deg;
     assert!((m.pitch_offset_found_deg - expected).abs() < 0.3, "{} vs {expected}", m.pitch_offset_found_deg);
-    assert!(m.finished.ape_rmse < 2.0, "finished ATE {}", m.finished.ape_rmse);
+    // Finishing finds the heading drift the device's gyro bias left and trusts the grade
+    // less while the attitude settled: 0.7 m horizontally; in 3D the u-blox's heights,
+    // 1.1 m above the fused poses', weigh most.
+    assert!(m.finished.ape_horizontal < 0.8, "finished horizontal ATE {}", m.finished.ape_horizontal);
+    assert!(m.finished.ape_rmse < 1.6, "finished ATE {}", m.finished.ape_rmse);
+    assert!(m.finished.scale_error.abs() < 0.003, "finished scale {}", m.finished.scale_error);
     // The IMU's records are a small part of the log.
     assert!(m.imu_bytes_per_minute < 0.2 * m.log_bytes_per_minute, "{m:?}");
 }
@@ -44,4 +49,8 @@ fn gyro_and_wheels_anchored_to_the_phone_receiver_within_fifteen_seconds() {
     assert!(m.device.matched > 500, "{:?}", m.device);
     assert!(m.device.ape_rmse < 12.0, "device ATE {}", m.device.ape_rmse);
     assert!(m.finished.ape_rmse < m.device.ape_rmse, "finished {} device {}", m.finished.ape_rmse, m.device.ape_rmse);
+    // Horizontally within 2.5 m once the drift of the heading the sparse fixes left is
+    // found (7.5 m without); the phone's heights wander 14 m about the fused poses' (4.8 m
+    // above on average), which no input of the minute corrects.
+    assert!(m.finished.ape_horizontal < 2.5, "finished horizontal ATE {}", m.finished.ape_horizontal);
 }

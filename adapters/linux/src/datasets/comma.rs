@@ -197,6 +197,10 @@ pub struct Compared {
     /// See `ape_rmse`.
     #[serde(rename = "ape_max_m")]
     pub ape_max: f64,
+    /// The horizontal part of `ape_rmse`, m: what the receiver's heights (a phone's
+    /// wander by metres) do not reach.
+    #[serde(rename = "ape_horizontal_rmse_m")]
+    pub ape_horizontal: f64,
     /// The same after the best Sim(3) alignment, m.
     #[serde(rename = "ape_after_sim3_m")]
     pub ape_aligned: f64,
@@ -237,6 +241,7 @@ pub fn compare_from(records: &[Record], device: &[f64], truth: &Trajectory, from
         first_s: first.unwrap_or(f64::NAN),
         ape_rmse: rms(&mut pairs.iter().map(|(x, y)| (x - y).norm())),
         ape_max: pairs.iter().map(|(x, y)| (x - y).norm()).fold(0.0, f64::max),
+        ape_horizontal: rms(&mut pairs.iter().map(|(x, y)| (x - y).xy().norm())),
         ape_aligned: rms(&mut pairs.iter().map(|(x, y)| (sim3.transform_point(x) - y).norm())),
         scale_error: sim3.scale - 1.0,
     })

@@ -18,6 +18,7 @@ use serde::Serialize;
 
 use super::comma::{self, compare, Compared, ORIGIN, UERE};
 use super::{device_times, write};
+use crate::finish::solve::Settings;
 use crate::log;
 use crate::record::{self, Device, RecordRequest, VoFrame};
 use crate::trajectory::{Format, Trajectory};
@@ -234,7 +235,9 @@ pub fn run(dir: &Path, work: &Path, receiver: Receiver) -> Result<ImuMinute> {
 
     let (mount, uere) = device.parse()?;
     let name = args.output.display().to_string();
-    let finished = crate::finish::finish(&log, &name, None, None, mount, Default::default(), uere)?;
+    // Finished as `dash2sim finish` would, in the frame the device recorded in.
+    let settings = Settings { gravity_aligned: device.mode == VoFrame::Gravity, ..Settings::default() };
+    let finished = crate::finish::finish(&log, &name, None, None, mount, settings, uere)?;
     // The finish's offset is a grade's (nose up positive); the Z-Y-X pitch is nose down.
     let found = finished.report.reckoning.and_then(|r| r.pitch_offset_deg).map_or(f64::NAN, |d| -d);
     let finished_times = device_times(&finished.records)?;

@@ -151,6 +151,10 @@ pub struct AnchoringReport {
     pub gnss_latency_s: f64,
     /// The wheel-speed factor solved for.
     pub wheel_factor: f64,
+    /// A dead-reckoned path's heading drift rate solved for (the gyro bias about the
+    /// vertical the device's estimate left, with the opposite sign), degrees per second;
+    /// 0 for a camera's VO.
+    pub heading_drift_deg_s: f64,
     /// RMS of the GNSS residuals, m (null when none).
     pub gnss_rms_m: f64,
 }
@@ -319,6 +323,7 @@ fn drive(log: &LogContents, frame: &LocalFrame, uere: f64, camera_to_body: &Matr
                 )
                 .into_inner(),
                 grade_sigma: 0.0,
+                reckoned: false,
             }),
             Record::GnssFix(f) if f.mode >= 2 => {
                 let Ok(g) = Geodetic::new(f.lat_e7 as f64 * 1e-7, f.lon_e7 as f64 * 1e-7, f.alt_mm as f64 * 1e-3)
@@ -345,6 +350,9 @@ fn drive(log: &LogContents, frame: &LocalFrame, uere: f64, camera_to_body: &Matr
     dead_reckoned.sort_by(by_time);
     bias.sort_by(|a, b| by_time(&a.0, &b.0));
     let flags: Vec<bool> = vo.iter().map(|s| dead_reckoned.binary_search_by(|t| by_time(t, &s.t)).is_ok()).collect();
+    for (sample, &reckoned) in vo.iter_mut().zip(&flags) {
+        sample.reckoned = reckoned;
+    }
     let axis = |a: usize| -> Vec<(f64, f64)> { bias.iter().map(|(t, b)| (*t, b[a] as f64 * 1e-7)).collect() };
     let forward_axis = reckon::with_final_forward_axis(&mut vo, &flags, camera_to_body);
     let heading_corrected = reckon::with_final_bias(&mut vo, &flags, &axis(2));
@@ -673,6 +681,7 @@ fn anchoring_report(solution: &Solution) -> AnchoringReport {
         sigma0_squared: solution.sigma0_sq,
         gnss_latency_s: solution.latency_s,
         wheel_factor: solution.wheel_factor,
+        heading_drift_deg_s: solution.heading_drift.to_degrees(),
         gnss_rms_m: solution.gnss_rms_m,
     }
 }

@@ -29,7 +29,9 @@
 
 use dash2sim_core::nalgebra::{Matrix3, Rotation3, Vector3};
 
-use dash2sim_core::imu::attitude::{SETTLING_S, SETTLING_TIME_CONSTANT_S, TILT_TIME_CONSTANT_S};
+use dash2sim_core::imu::attitude::{
+    SETTLING_S, SETTLING_TIME_CONSTANT_S, TILT_BIAS_TIME_CONSTANT_S, TILT_TIME_CONSTANT_S,
+};
 use dash2sim_core::sim3::rotation_z;
 use dash2sim_core::track3d::wrap_angle;
 
@@ -50,10 +52,17 @@ pub const MIN_GRADE_PAIRS: usize = 10;
 const MAX_HEIGHT_SIGMA_M: f64 = 50.0;
 /// How far a dead-reckoned path's rise may stray from its attitude's grade per metre
 /// travelled (1-σ): the solve leaves the height to the fixes where they disagree by more.
-/// While the attitude settles its pitch is off by degrees (comma2k19's first 15 s: up to
-/// 5°, 0.09, from the gyro's horizontal bias of 2°/s until gravity has found it); after
-/// that by the sensor's noise, tenths of a degree.
+/// Once the attitude has settled its pitch is off by the sensor's noise, tenths of a
+/// degree; before, see [`SETTLING_GRADE_SIGMA`].
 pub const RECKONED_GRADE_SIGMA: f64 = 0.03;
+/// What the grade's σ adds when the attitude has just levelled, decaying with the time
+/// constant in which the core finds the gyro's horizontal bias
+/// ([`TILT_BIAS_TIME_CONSTANT_S`]): until then the tilt is off by that bias times the
+/// tilt's time constant, up to 0.07 rad for a consumer MEMS gyro's ±2°/s turn-on bias.
+/// Without it the first seconds' heights were lifted by the early grade against the fixes
+/// (comma2k19's minute: 3.9 m at the start, 1.44 m RMS vertical over the minute, 1.31 m
+/// with it).
+pub const SETTLING_GRADE_SIGMA: f64 = 0.1;
 
 /// The gyro's bias about the vertical as the device found it: (time s, rad/s), in time
 /// order.
@@ -319,6 +328,8 @@ pub fn with_grade(
         profiles.push((height, distance, beside));
     }
     let offset = (slopes.len() >= MIN_GRADE_PAIRS).then(|| super::median(slopes));
+    // The attitude levelled at the first dead-reckoned pose.
+    let levelled = runs.first().map_or(0.0, |run| vo[run.start].t);
     let slope = offset.unwrap_or(0.0);
     for (run, (height, distance, beside)) in runs.iter().zip(profiles) {
         // Each run at the fixes' mean level; one without fixes where it started.
@@ -332,7 +343,8 @@ pub fn with_grade(
             if offset.is_some() {
                 sample.position.z = level + h - slope * d;
             }
-            sample.grade_sigma = RECKONED_GRADE_SIGMA;
+            let settling = (-(sample.t - levelled) / TILT_BIAS_TIME_CONSTANT_S).exp();
+            sample.grade_sigma = RECKONED_GRADE_SIGMA + SETTLING_GRADE_SIGMA * settling;
         }
     }
     offset.map(|pitch_offset| Grade { pitch_offset, baseline_m: baseline })
@@ -366,7 +378,14 @@ mod tests {
                 let mid = 0.5 * (before + heading);
                 position += Vector3::new(mid.cos(), mid.sin(), 0.0) * v * dt;
             }
-            vo.push(VoSample { t, session: 0, position, rotation: rotation_z(heading), grade_sigma: 0.0 });
+            vo.push(VoSample {
+                t,
+                session: 0,
+                position,
+                rotation: rotation_z(heading),
+                grade_sigma: 0.0,
+                reckoned: false,
+            });
         }
         let history: Vec<(f64, f64)> = (0..=20).map(|s| (s as f64, known(s as f64))).collect();
         let end_before = (vo.last().expect("poses").position - truth(20.0).0).norm();
@@ -393,6 +412,7 @@ mod tests {
                 position: Vector3::new(k as f64, 0.0, 0.0),
                 rotation: rotation_z(0.0),
                 grade_sigma: 0.0,
+                reckoned: false,
             })
             .collect();
         let before: Vec<Vector3<f64>> = vo.iter().map(|s| s.position).collect();
@@ -428,6 +448,7 @@ mod tests {
                     position: Vector3::new(t * 20.0, 0.0, 0.0),
                     rotation: *attitude.rotation(),
                     grade_sigma: 0.0,
+                    reckoned: false,
                 });
             }
             if k % 100 == 0 {
@@ -463,6 +484,7 @@ mod tests {
                 position: Vector3::new(d, 0.0, 0.0),
                 rotation: Rotation3::from_axis_angle(&Vector3::y_axis(), -pitch_up).into_inner(),
                 grade_sigma: 0.0,
+                reckoned: false,
             }
         };
         let mut vo: Vec<VoSample> = (0..=1200).map(|k| sample(k as f64 * 0.05)).collect();
@@ -485,13 +507,17 @@ mod tests {
         assert!(found.baseline_m > 1400.0, "{found:?}");
         let worst = vo.iter().map(|s| (s.position.z - 3.0 - height(s.position.x)).abs()).fold(0.0f64, f64::max);
         assert!(worst < 1.5, "heights {worst} m off");
-        assert!(vo.iter().all(|s| s.grade_sigma == RECKONED_GRADE_SIGMA));
+        // The grade is trusted less while the attitude settles, then as much as ever.
+        let sigma = |k: usize| vo[k].grade_sigma - RECKONED_GRADE_SIGMA;
+        assert!((sigma(0) - SETTLING_GRADE_SIGMA).abs() < 1e-12, "{}", sigma(0));
+        assert!(vo.windows(2).all(|w| w[1].grade_sigma <= w[0].grade_sigma));
+        assert!(vo.last().is_some_and(|s| s.grade_sigma - RECKONED_GRADE_SIGMA < 1e-6));
         // The camera does look that far above the road: only the track drops the offset.
         assert!(vo.iter().zip(&cameras).all(|(s, c)| s.rotation == *c));
 
         let mut short: Vec<VoSample> = (0..=40).map(|k| sample(k as f64 * 0.05)).collect();
         assert_eq!(with_grade(&mut short, &[true; 41], &fixes, &Matrix3::identity()), None);
-        assert!(short.iter().all(|s| s.position.z == 0.0 && s.grade_sigma == RECKONED_GRADE_SIGMA));
+        assert!(short.iter().all(|s| s.position.z == 0.0 && s.grade_sigma >= RECKONED_GRADE_SIGMA));
     }
 
     /// A track along a gentle bend; the device found the sensor's yaw on the car 10 s in
@@ -518,7 +544,14 @@ mod tests {
                         let mid = heading(t - 0.025);
                         position += Vector3::new(mid.cos(), mid.sin(), 0.0) * 20.0 * 0.05;
                     }
-                    VoSample { t, session: 0, position, rotation: rotation_z(heading(t) + turned(t)), grade_sigma: 0.0 }
+                    VoSample {
+                        t,
+                        session: 0,
+                        position,
+                        rotation: rotation_z(heading(t) + turned(t)),
+                        grade_sigma: 0.0,
+                        reckoned: false,
+                    }
                 })
                 .collect()
         };

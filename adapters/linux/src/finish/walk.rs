@@ -110,7 +110,14 @@ mod tests {
                 let step = truth(t) - truth(t - 0.1);
                 position += turn.inverse() * Rotation3::from_axis_angle(&Vector3::z_axis(), heading) * step / scale;
             }
-            vo.push(VoSample { t, session: 0, position, rotation: Matrix3::identity(), grade_sigma: 0.0 });
+            vo.push(VoSample {
+                t,
+                session: 0,
+                position,
+                rotation: Matrix3::identity(),
+                grade_sigma: 0.0,
+                reckoned: false,
+            });
         }
         let fixes: Vec<Fix> = (0..=800)
             .map(|k| {
