@@ -219,6 +219,10 @@ pub struct ReckoningReport {
     pub pitch_offset_deg: Option<f64>,
     /// The dead-reckoned distance with fixes beside it that measured it, m.
     pub grade_baseline_m: Option<f64>,
+    /// How much further left the camera looks than the mount calibrated from its track,
+    /// by the static objects it saw ([`tracks::static_yaw`]), degrees; `None` with too few
+    /// of them. The finished mount and every object are turned by it.
+    pub static_objects_turned_deg: Option<f64>,
 }
 
 /// GNSS fixes.
@@ -364,6 +368,7 @@ fn drive(log: &LogContents, frame: &LocalFrame, uere: f64, camera_to_body: &Matr
         camera_turned_deg: forward_axis.map(f64::to_degrees),
         pitch_offset_deg: grade.map(|g| g.pitch_offset.to_degrees()),
         grade_baseline_m: grade.map(|g| g.baseline_m),
+        static_objects_turned_deg: None,
     });
     Drive { vo, fixes, speeds, reckoning }
 }
@@ -499,12 +504,22 @@ pub fn finish(
         k.checked_sub(1).and_then(|i| device_mounts.get(i)).map_or(nominal_yaw, |m| m.1)
     };
     let camera = [mount.position[0], mount.position[1]];
-    let online_as_mounted =
-        |t: i64| ego_at(&online, t).map(|a| tracks::as_if_mounted(&a, camera, mount.roll_pitch_yaw[2] - device_yaw(t)));
-    let (mut tracks, track_stats) = tracks::finish_tracks(&batches, &online_as_mounted, &|t| ego_at(&ego, t));
+    let online_turned = |t: i64, delta: f64| {
+        ego_at(&online, t).map(|a| tracks::as_if_mounted(&a, camera, mount.roll_pitch_yaw[2] + delta - device_yaw(t)))
+    };
+    // A dead-reckoned camera's yaw on the car is the forward axis the gyro found (to a
+    // degree or two); the static objects it saw say the rest. A camera's VO places its
+    // objects and its ego with the same rotation, so a mount's yaw cannot move them.
+    let static_yaw = drive.reckoning.and_then(|_| tracks::static_yaw(&batches, &online_turned, &|t| ego_at(&ego, t)));
+    let turn = static_yaw.unwrap_or(0.0);
+    let mut objects_mount = mount;
+    objects_mount.roll_pitch_yaw[2] += turn;
+    // The log's mount is the one the objects were placed with.
+    let calibrated = MountEstimate { mount: objects_mount, ..calibrated };
+    let (mut tracks, track_stats) = tracks::finish_tracks(&batches, &|t| online_turned(t, turn), &|t| ego_at(&ego, t));
     let raw: Vec<_> =
         log.records.iter().filter_map(|r| if let Record::Detection3d(d) = r { Some(*d) } else { None }).collect();
-    let (raw_batches, raw_stats) = raw::track_raw(&raw, &ego, &mount);
+    let (raw_batches, raw_stats) = raw::track_raw(&raw, &ego, &objects_mount);
     // Already placed through the finished ego: re-expressed onto itself, then smoothed and
     // merged as the device's tracks are.
     let (raw_tracks, raw_track_stats) = tracks::finish_tracks(&raw_batches, &|t| ego_at(&ego, t), &|t| ego_at(&ego, t));
@@ -647,7 +662,9 @@ pub fn finish(
             samples: calibrated.samples,
             calibrated: calibrated.calibrated,
         },
-        reckoning: drive.reckoning,
+        reckoning: drive
+            .reckoning
+            .map(|r| ReckoningReport { static_objects_turned_deg: static_yaw.map(f64::to_degrees), ..r }),
         gnss: GnssReport { fixes: drive.fixes.len(), used: fixes_used, rejected: drive.fixes.len() - fixes_used },
         speed_samples: drive.speeds.len(),
         anchors: AnchorsReport {

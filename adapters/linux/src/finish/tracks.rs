@@ -110,6 +110,71 @@ pub fn as_if_mounted(ego: &EgoAt, camera: [f64; 2], delta: f64) -> EgoAt {
     [ego[0] - (ch * shift[0] - sh * shift[1]), ego[1] - (sh * shift[0] + ch * shift[1]), ego[2], ego[3] - delta]
 }
 
+/// Static tracks needed before their stillness speaks for the camera's yaw, and the states
+/// each needs (seen from ranges far enough apart that a turn moves them).
+const MIN_STATIC_TRACKS: usize = 3;
+const MIN_STATIC_STATES: usize = 5;
+/// The turns tried, rad: ±3° (a dead-reckoned camera's yaw on the car is known to a
+/// degree or two) in steps of 0.02°.
+const STATIC_YAW_RANGE_RAD: f64 = 3.0 * PI / 180.0;
+const STATIC_YAW_STEP_RAD: f64 = 0.02 * PI / 180.0;
+
+/// How much further the camera looks to the left (rad) than the mount that placed the
+/// states says, from the objects that stand still: a camera turned by δ off the mount puts
+/// an object at range r by r·δ aside, and as the car closes in the object slides — a cone
+/// seen from 40 m and from 5 m moves 0.6 m per degree. The turn that holds the static
+/// tracks' states closest together (the sum of their distances from each track's median)
+/// is the camera's. `online(t, δ)` is the device's ego at `t` as if its mount had been
+/// turned by δ ([`as_if_mounted`]); `None` when fewer than [`MIN_STATIC_TRACKS`] static
+/// tracks were seen [`MIN_STATIC_STATES`] times.
+pub fn static_yaw(
+    batches: &[Tracks3d],
+    online: &impl Fn(i64, f64) -> Option<EgoAt>,
+    finished: &impl Fn(i64) -> Option<EgoAt>,
+) -> Option<f64> {
+    let mut by_id: BTreeMap<i64, Vec<(i64, Track3d, EgoAt)>> = BTreeMap::new();
+    for batch in batches {
+        let Some(b) = finished(batch.t_us) else { continue };
+        for track in &batch.tracks {
+            by_id.entry(track.id).or_default().push((batch.t_us, *track, b));
+        }
+    }
+    let statics: Vec<Vec<(i64, Track3d, EgoAt)>> = by_id
+        .into_values()
+        .filter(|states| {
+            let still = states.iter().filter(|(_, s, _)| s.is_static == 1).count();
+            states.len() >= MIN_STATIC_STATES && 2 * still > states.len()
+        })
+        .collect();
+    if statics.len() < MIN_STATIC_TRACKS {
+        return None;
+    }
+    let spread = |delta: f64| -> f64 {
+        let mut total = 0.0;
+        for states in &statics {
+            let placed: Vec<(f64, f64)> = states
+                .iter()
+                .filter_map(|(t, s, b)| online(*t, delta).map(|a| reexpress(s, &a, b)))
+                .map(|s| (s.x_mm as f64 * 1e-3, s.y_mm as f64 * 1e-3))
+                .collect();
+            let middle = |f: fn(&(f64, f64)) -> f64| {
+                let mut v: Vec<f64> = placed.iter().map(f).collect();
+                v.sort_by(f64::total_cmp);
+                v.get(v.len() / 2).copied().unwrap_or(0.0)
+            };
+            let (mx, my) = (middle(|p| p.0), middle(|p| p.1));
+            total += placed.iter().map(|(x, y)| (x - mx).hypot(y - my)).sum::<f64>();
+        }
+        total
+    };
+    let steps = (STATIC_YAW_RANGE_RAD / STATIC_YAW_STEP_RAD).round() as i64;
+    (-steps..=steps)
+        .map(|k| k as f64 * STATIC_YAW_STEP_RAD)
+        .map(|delta| (spread(delta), delta))
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, delta)| delta)
+}
+
 /// A state placed through the online ego `a`, placed again through the finished ego `b`.
 fn reexpress(t: &Track3d, a: &EgoAt, b: &EgoAt) -> Track3d {
     let (x, y) = (t.x_mm as f64 * 1e-3, t.y_mm as f64 * 1e-3);

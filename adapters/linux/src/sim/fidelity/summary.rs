@@ -126,6 +126,8 @@ pub struct Spreads {
     pub first_anchor_s: Spread,
     /// The device's mount error at the end of the drive (the larger of yaw and pitch), °.
     pub mount_error_deg: Spread,
+    /// The finished mount's yaw error, °.
+    pub finished_mount_yaw_error_deg: Spread,
     /// Mean NEES of each drive's device poses (2 when their σ is right).
     pub nees_online: Spread,
     /// Mean NEES of each drive's finished poses (2 when their σ is right).
@@ -290,6 +292,7 @@ impl Summary {
             idf1_finished: Spread::of(ok.iter().map(|r| r.finished_idf1)),
             first_anchor_s: Spread::of(ok.iter().map(|r| r.first_anchor_s)),
             mount_error_deg: Spread::of(ok.iter().map(|r| r.mount_error_deg)),
+            finished_mount_yaw_error_deg: Spread::of(ok.iter().map(|r| r.finished_mount_yaw_error_deg)),
             nees_online: Spread::of(ok.iter().map(|r| r.online_nees)),
             nees_finished: Spread::of(ok.iter().map(|r| r.finished_nees)),
             latency_error_finished_abs_s: Spread::of(ok.iter().map(|r| abs(r.latency_error_s))),
@@ -426,6 +429,7 @@ impl Summary {
         spread(&mut t, "MOTA finished", &s.mota_finished, 1.0, "");
         spread(&mut t, "first anchored after", &s.first_anchor_s, 1.0, "s");
         spread(&mut t, "mount error (device, end)", &s.mount_error_deg, 1.0, "°");
+        spread(&mut t, "mount yaw error (finished)", &s.finished_mount_yaw_error_deg, 1.0, "°");
         spread(&mut t, "NEES device (2: σ right)", &s.nees_online, 1.0, "");
         spread(&mut t, "NEES finished (2: σ right)", &s.nees_finished, 1.0, "");
         spread(&mut t, "|GNSS latency error| device", &s.latency_error_online_abs_s, 1000.0, "ms");

@@ -15,7 +15,7 @@ use serde::Serialize;
 
 use super::drive::{assess, Anchors, Assessment, Recorded, WindowPair};
 use super::summary::Summary;
-use crate::log::{self, LogContents};
+use crate::log;
 use crate::record::{self, Setup};
 use crate::sim::scenario::command::{config, MAX_DURATION_S};
 use crate::sim::scenario::profile::{Profile, Receiver};
@@ -180,6 +180,9 @@ pub struct Row {
     pub mount_error_deg: Option<f64>,
     /// The device called its mount calibrated by the end of the drive.
     pub mount_calibrated: bool,
+    /// The finished mount's yaw against the true one, degrees: what its objects were placed
+    /// with.
+    pub finished_mount_yaw_error_deg: Option<f64>,
     /// The device's poses stating a σ, and those of them within 2σ of the truth.
     pub online_sigma_poses: usize,
     /// See `online_sigma_poses`.
@@ -237,6 +240,7 @@ impl Row {
             first_anchor_s: None,
             vo_sessions: 0,
             mount_error_deg: None,
+            finished_mount_yaw_error_deg: None,
             mount_calibrated: false,
             online_sigma_poses: 0,
             online_within_2sigma: 0,
@@ -271,6 +275,7 @@ impl Row {
         self.vo_sessions = facts.vo_sessions;
         self.mount_error_deg = facts.mount_error_deg;
         self.mount_calibrated = facts.mount_calibrated;
+        self.finished_mount_yaw_error_deg = facts.finished_mount_yaw_error_deg;
         let sigma = a.online.judgement.sigma;
         self.online_sigma_poses = sigma.poses;
         self.online_within_2sigma = sigma.within_2sigma;
@@ -303,6 +308,7 @@ struct DriveFacts {
     vo_sessions: u32,
     mount_error_deg: Option<f64>,
     mount_calibrated: bool,
+    finished_mount_yaw_error_deg: Option<f64>,
     /// The receiver's latency and the wheels' scale as the generator drew them (what the
     /// estimates are judged against; never shown to them).
     true_latency_s: f64,
@@ -330,18 +336,17 @@ fn gnss_mean_error(scenario: &crate::sim::scenario::Scenario) -> Option<f64> {
     (sum[2] > 0.0).then(|| (sum[0] / sum[2]).hypot(sum[1] / sum[2]))
 }
 
-/// The device's last mount estimate against the scenario's true mount.
-fn mount_error(scenario: &crate::sim::scenario::Scenario, log: &LogContents) -> (Option<f64>, bool) {
-    let Some(m) = log.records.iter().rev().find_map(|r| match r {
+/// A log's last mount estimate against the scenario's true mount: its yaw and pitch
+/// errors, degrees, and whether it was called calibrated.
+fn mount_error(scenario: &crate::sim::scenario::Scenario, records: &[Record]) -> Option<(f64, f64, bool)> {
+    let m = records.iter().rev().find_map(|r| match r {
         Record::MountEstimate(m) => Some(*m),
         _ => None,
-    }) else {
-        return (None, false);
-    };
+    })?;
     let truth = scenario.config.camera.true_mount().roll_pitch_yaw;
     let yaw = (m.yaw_e6 as f64 * 1e-6 - truth[2]).to_degrees().abs();
     let pitch = (m.pitch_e6 as f64 * 1e-6 - truth[1]).to_degrees().abs();
-    (Some(yaw.max(pitch)), m.calibrated == 1)
+    Some((yaw, pitch, m.calibrated == 1))
 }
 
 fn try_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Result<(Assessment, DriveFacts)> {
@@ -382,11 +387,13 @@ fn try_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Res
         let finished = work.join("finished.d2slog");
         std::fs::write(&finished, &assessment.finished_bytes).map_err(|e| Error::file(&finished, e))?;
     }
-    let (mount_error_deg, mount_calibrated) = mount_error(&scenario, &log);
+    let device_mount = mount_error(&scenario, &log.records);
+    let finished = log::decode(&assessment.finished_bytes, "finished").map_err(Error::other)?;
     let facts = DriveFacts {
         vo_sessions: scenario.vo.reinits() + 1,
-        mount_error_deg,
-        mount_calibrated,
+        mount_error_deg: device_mount.map(|(yaw, pitch, _)| yaw.max(pitch)),
+        mount_calibrated: device_mount.is_some_and(|m| m.2),
+        finished_mount_yaw_error_deg: mount_error(&scenario, &finished.records).map(|m| m.0),
         true_latency_s: config.gnss.latency_s,
         true_wheel_scale: config.wheel.scale,
         gnss_mean_error_m: gnss_mean_error(&scenario),
@@ -399,7 +406,7 @@ const CSV_HEADER: &str = "seed,driver,profile,receiver,anchors,error,\
 truth_score,truth_verified,truth_failed,online_score,online_verified,online_failed,finished_score,finished_verified,finished_failed,\
 truth_score_cs,truth_verified_cs,online_score_cs,online_verified_cs,finished_score_cs,finished_verified_cs,finished_failed_cs,\
 online_ape_m,finished_ape_m,online_scale_error,finished_scale_error,online_mota,online_idf1,finished_mota,finished_idf1,\
-first_anchor_s,vo_sessions,mount_error_deg,mount_calibrated,online_within_2sigma,online_nees,finished_within_2sigma,finished_nees,latency_error_s,online_latency_error_s,gnss_mean_error_m,wheel_factor_error,windows,device_windows_verified,truth_windows_verified";
+first_anchor_s,vo_sessions,mount_error_deg,mount_calibrated,finished_mount_yaw_error_deg,online_within_2sigma,online_nees,finished_within_2sigma,finished_nees,latency_error_s,online_latency_error_s,gnss_mean_error_m,wheel_factor_error,windows,device_windows_verified,truth_windows_verified";
 
 fn csv_row(r: &Row) -> String {
     let opt = |x: Option<f64>| x.map_or_else(String::new, |v| format!("{v:.6}"));
@@ -414,7 +421,7 @@ fn csv_row(r: &Row) -> String {
     let marks = |f: fn(&WindowPair) -> bool| r.windows.iter().map(|w| if f(w) { '1' } else { '0' }).collect::<String>();
     let error = r.error.as_deref().map_or_else(String::new, |e| format!("\"{}\"", e.replace('"', "'")));
     format!(
-        "{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        "{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
         r.seed,
         r.driver,
         r.profile,
@@ -438,6 +445,7 @@ fn csv_row(r: &Row) -> String {
         r.vo_sessions,
         opt(r.mount_error_deg),
         u8::from(r.mount_calibrated),
+        opt(r.finished_mount_yaw_error_deg),
         opt(finite(r.online_within_2sigma as f64 / r.online_sigma_poses as f64)),
         opt(r.online_nees),
         opt(finite(r.finished_within_2sigma as f64 / r.finished_sigma_poses as f64)),
