@@ -110,10 +110,11 @@ pub fn as_if_mounted(ego: &EgoAt, camera: [f64; 2], delta: f64) -> EgoAt {
     [ego[0] - (ch * shift[0] - sh * shift[1]), ego[1] - (sh * shift[0] + ch * shift[1]), ego[2], ego[3] - delta]
 }
 
-/// Static tracks needed before their stillness speaks for the camera's yaw, and the states
-/// each needs (seen from ranges far enough apart that a turn moves them).
-const MIN_STATIC_TRACKS: usize = 3;
-const MIN_STATIC_STATES: usize = 5;
+/// Static tracks needed before their stillness speaks for the camera's yaw.
+pub const MIN_STATIC_TRACKS: usize = 3;
+/// The states each of them needs (seen from ranges far enough apart that a turn moves
+/// them).
+pub const MIN_STATIC_STATES: usize = 5;
 /// The turns tried, rad: ±3° (a dead-reckoned camera's yaw on the car is known to a
 /// degree or two) in steps of 0.02°.
 const STATIC_YAW_RANGE_RAD: f64 = 3.0 * PI / 180.0;
@@ -432,6 +433,50 @@ mod tests {
             is_static,
             ..Track3d::default()
         }
+    }
+
+    /// Drums 3–4 m either side of a road the car drives east along at 10 m/s, placed by a
+    /// device whose camera looked 1.5° further left than its mount said, each seen from 50 m
+    /// down to 5 m.
+    fn drums_seen_turned(drums: &[(f64, f64)], turned: f64) -> Vec<Tracks3d> {
+        let camera = [1.8, 0.0];
+        let (s, c) = (-turned).sin_cos();
+        (0..150)
+            .map(|k| {
+                let t_us = 100_000 * k;
+                let ego_x = k as f64;
+                let mut batch = Tracks3d { t_us, ..Tracks3d::default() };
+                for (id, (x, y)) in drums.iter().enumerate() {
+                    let (px, py) = (x - ego_x - camera[0], *y);
+                    if (5.0..=50.0).contains(&px) {
+                        // Where the device's mount put it: turned by −δ about the camera.
+                        let placed = (ego_x + camera[0] + c * px - s * py, s * px + c * py);
+                        let _ = batch.tracks.push(track(id as i64, placed.0, placed.1, 1));
+                    }
+                }
+                batch
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_camera_s_turn_is_the_one_that_holds_the_static_objects_still() {
+        let camera = [1.8, 0.0];
+        let ego = |t: i64| Some([t as f64 * 1e-5, 0.0, 0.0, 0.0]);
+        let online = |t: i64, delta: f64| ego(t).map(|e| as_if_mounted(&e, camera, delta));
+        let drums = [(60.0, 3.0), (80.0, -3.5), (100.0, 4.0), (120.0, -4.0)];
+        let turned = 1.5f64.to_radians();
+        let found = static_yaw(&drums_seen_turned(&drums, turned), &online, &ego).expect("four drums");
+        assert!((found - turned).abs() < 0.05f64.to_radians(), "found {}°", found.to_degrees());
+        // Placed through the found turn the drums stand where they are.
+        let (finished, _) = finish_tracks(&drums_seen_turned(&drums, turned), &|t| online(t, found), &ego);
+        for state in finished.iter().flat_map(|b| &b.tracks) {
+            let (x, y) = drums[state.id as usize];
+            let off = (state.x_mm as f64 * 1e-3 - x).hypot(state.y_mm as f64 * 1e-3 - y);
+            assert!(off < 0.05, "drum {} {off:.3} m off", state.id);
+        }
+        // Two drums say nothing: too few to tell a turn from where they stand.
+        assert_eq!(static_yaw(&drums_seen_turned(&drums[..2], turned), &online, &ego), None);
     }
 
     #[test]
