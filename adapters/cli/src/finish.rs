@@ -70,13 +70,14 @@ fn print_report(f: &FinishedFile) {
     let a = &r.anchoring;
     println!("{} → {} ({} records, {} bytes)", r.log, f.output, r.records, f.bytes);
     println!(
-        "  anchoring     {} keyframes, {} iterations: scale {:.6} ± {:.4} %, positions ± {:.2} m, GNSS latency {:.0} ms, wheel factor {:.4}",
+        "  anchoring     {} keyframes, {} iterations: scale {:.6} ± {:.4} %, positions ± {:.2} m, GNSS latency {:.0} ms (the log's UTC moved {:+.0} ms), wheel factor {:.4}",
         a.keyframes,
         a.iterations,
         a.scale,
         100.0 * a.scale_sigma_relative,
         a.position_sigma_m,
         1000.0 * a.gnss_latency_s,
+        1000.0 * r.utc_shift_s,
         a.wheel_factor,
     );
     println!(

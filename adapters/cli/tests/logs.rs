@@ -160,7 +160,9 @@ fn export_nuplan_writes_the_devkits_tables_and_layers_and_refuses_bad_input() {
         std::fs::read_dir(nuplan.join("db")).expect("db").map(|e| e.expect("entry").path()).collect();
     assert_eq!(dbs.len(), 1, "{dbs:?}");
     let name = dbs[0].file_name().and_then(|n| n.to_str()).unwrap_or_default().to_owned();
-    assert!(name.starts_with("2026.06.01.07.59") && name.ends_with("_dash2sim_finished.db"), "{name}");
+    // The drive starts at 08:00:00 UTC; the finished log's UTC is the world's (`finish`
+    // moved it by the receiver's latency), so its first record is not before.
+    assert!(name.starts_with("2026.06.01.08.00") && name.ends_with("_dash2sim_finished.db"), "{name}");
     let db = rusqlite::Connection::open(&dbs[0]).expect("sqlite");
     let one = |sql: &str| -> i64 { db.query_row(sql, [], |r| r.get(0)).expect(sql) };
     // The clock: exactly 20 Hz, one ego pose per tick, 30 s of drive.

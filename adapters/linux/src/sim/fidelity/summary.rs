@@ -46,7 +46,13 @@ impl Confusion {
 
     /// Fraction of pairs that agree (none without pairs).
     pub fn agreement(&self) -> Option<f64> {
-        let n = self.total();
+        self.agreement_with_failed(0)
+    }
+
+    /// Fraction of the pairs and `failed` drives that agree: a drive that did not come
+    /// through the product agrees with nothing.
+    pub fn agreement_with_failed(&self, failed: usize) -> Option<f64> {
+        let n = self.total() + failed;
         (n > 0).then(|| (self.truth_verified_log_verified + self.truth_rejected_log_rejected) as f64 / n as f64)
     }
 }
@@ -112,6 +118,12 @@ pub struct Spreads {
     pub ape_online_m: Spread,
     /// Finished ego APE, m.
     pub ape_finished_m: Spread,
+    /// The finished ego APE with its UTC stamps against the truth's UTC, m.
+    pub ape_finished_utc_m: Spread,
+    /// |the device's log's UTC − the drive's|, s.
+    pub clock_error_online_abs_s: Spread,
+    /// |the finished log's UTC − the drive's|, s.
+    pub clock_error_finished_abs_s: Spread,
     /// |online scale error| at the last observable estimate.
     pub scale_error_online_abs: Spread,
     /// |finished scale error|.
@@ -159,8 +171,9 @@ pub struct Disagreement {
     /// Metrics below 1 for the finished log and not for the truth, or the reverse.
     pub metrics: Vec<String>,
     /// `agents` (the finished ego against the true objects verifies as the truth does: the
-    /// tracks made the difference), `ego` (it does not), or `map` (the truth itself leaves
-    /// the map's drivable area or direction: the map and the road disagree).
+    /// tracks made the difference), `ego` (it does not), `map` (the truth itself leaves
+    /// the map's drivable area or direction: the map and the road disagree), or `failed`
+    /// (the drive did not come through the product; `metrics` holds why).
     pub cause: &'static str,
 }
 
@@ -168,6 +181,16 @@ pub struct Disagreement {
 const MAP_METRICS: [&str; 2] = ["drivable_area_compliance", "driving_direction_compliance"];
 
 fn disagreement(row: &Row) -> Option<Disagreement> {
+    if let Some(why) = &row.error {
+        return Some(Disagreement {
+            seed: row.seed,
+            driver: row.driver,
+            truth_score: f64::NAN,
+            finished_score: f64::NAN,
+            metrics: vec![why.clone()],
+            cause: "failed",
+        });
+    }
     let truth = &row.truth.as_ref()?.insensitive;
     let nothing = Verdict { score: 0.0, verified: false, failed: vec!["no ego poses".to_owned()] };
     let finished = row.finished.as_ref().map_or(&nothing, |v| &v.insensitive);
@@ -220,7 +243,8 @@ pub struct Summary {
     pub drives: usize,
     /// Drives that did not come through the product (their rows say why).
     pub failed_drives: usize,
-    /// Fraction of drives whose finished verdict equals the truth's (channel-insensitive).
+    /// Fraction of drives whose finished verdict equals the truth's (channel-insensitive);
+    /// a failed drive counts as a disagreement, as in every rate over drives.
     pub finished_agreement: Option<f64>,
     /// The same, channel-sensitive.
     pub finished_agreement_channel_sensitive: Option<f64>,
@@ -273,6 +297,7 @@ impl Summary {
     /// The summary of `rows`, run as `args` says.
     pub fn of(args: &SweepRequest, rows: &[Row]) -> Self {
         let ok: Vec<&Row> = rows.iter().filter(|r| r.error.is_none()).collect();
+        let failed = rows.len() - ok.len();
         let finished = Confusion::of(ok.iter().filter_map(|r| verdict_pair(r, |v| &v.insensitive)));
         let finished_cs = Confusion::of(ok.iter().filter_map(|r| verdict_pair(r, |v| &v.sensitive)));
         // A device that never anchored verified nothing.
@@ -285,6 +310,9 @@ impl Summary {
         let spread = Spreads {
             ape_online_m: Spread::of(ok.iter().map(|r| r.online_ape_m)),
             ape_finished_m: Spread::of(ok.iter().map(|r| r.finished_ape_m)),
+            ape_finished_utc_m: Spread::of(ok.iter().map(|r| r.finished_ape_utc_m)),
+            clock_error_online_abs_s: Spread::of(ok.iter().map(|r| abs(r.online_clock_error_s))),
+            clock_error_finished_abs_s: Spread::of(ok.iter().map(|r| abs(r.finished_clock_error_s))),
             scale_error_online_abs: Spread::of(ok.iter().map(|r| abs(r.online_scale_error))),
             scale_error_finished_abs: Spread::of(ok.iter().map(|r| abs(r.finished_scale_error))),
             mota_online: Spread::of(ok.iter().map(|r| r.online_mota)),
@@ -328,12 +356,12 @@ impl Summary {
             }),
             duration_s: args.duration,
             drives: rows.len(),
-            failed_drives: rows.len() - ok.len(),
-            finished_agreement: finished.agreement(),
-            finished_agreement_channel_sensitive: finished_cs.agreement(),
+            failed_drives: failed,
+            finished_agreement: finished.agreement_with_failed(failed),
+            finished_agreement_channel_sensitive: finished_cs.agreement_with_failed(failed),
             finished_false_verified: finished.truth_rejected_log_verified,
             finished_false_rejected: finished.truth_verified_log_rejected,
-            online_agreement: online.agreement(),
+            online_agreement: online.agreement_with_failed(failed),
             online_window_agreement: device_windows.agreement(),
             windows: device_windows.total(),
             device_verified_collision_windows: ok
@@ -352,7 +380,7 @@ impl Summary {
             finished_sigma_poses,
             confusion: Confusions { finished, finished_channel_sensitive: finished_cs, online, device_windows },
             spread,
-            disagreements: ok.iter().filter_map(|r| disagreement(r)).collect(),
+            disagreements: rows.iter().filter_map(disagreement).collect(),
         }
     }
 
@@ -423,6 +451,9 @@ impl Summary {
         let s = &self.spread;
         spread(&mut t, "APE online", &s.ape_online_m, 1.0, "m");
         spread(&mut t, "APE finished", &s.ape_finished_m, 1.0, "m");
+        spread(&mut t, "APE finished by UTC", &s.ape_finished_utc_m, 1.0, "m");
+        spread(&mut t, "|log clock error| device", &s.clock_error_online_abs_s, 1000.0, "ms");
+        spread(&mut t, "|log clock error| finished", &s.clock_error_finished_abs_s, 1000.0, "ms");
         spread(&mut t, "|scale error| online", &s.scale_error_online_abs, 100.0, "%");
         spread(&mut t, "|scale error| finished", &s.scale_error_finished_abs, 100.0, "%");
         spread(&mut t, "MOTA online", &s.mota_online, 1.0, "");
@@ -487,6 +518,46 @@ mod tests {
         // numpy.percentile([1, 2, 3, 4], 90) = 3.7
         assert!((quantile(&v, 0.9).unwrap_or(f64::NAN) - 3.7).abs() < 1e-12);
         assert_eq!(quantile(&[], 0.5), None);
+    }
+
+    /// A drive that failed to run counts against every rate over drives and is listed as a
+    /// disagreement of its own kind.
+    #[test]
+    fn a_failed_drive_is_a_disagreement_not_a_drive_left_out() {
+        use crate::sim::scenario::profile::{Profile, Receiver};
+        use crate::sim::scenario::Driver;
+        let args = SweepRequest {
+            seeds: 1..=3,
+            driver: super::super::sweep::Drivers::Careful,
+            profile: Profile::Typical,
+            receiver: Receiver::Good,
+            anchors: super::super::drive::Anchors::Street,
+            oracle_latency: true,
+            relative_motion: RelativeMotion::Vo,
+            duration: 40.0,
+            jobs: None,
+            output: std::path::PathBuf::new(),
+            keep: false,
+        };
+        let agreed = |seed: u64, verified: bool| {
+            let verdict = Verdict { score: if verified { 100.0 } else { 0.0 }, verified, failed: Vec::new() };
+            let both = Verdicts { insensitive: verdict.clone(), sensitive: verdict };
+            Row { truth: Some(both.clone()), finished: Some(both), ..Row::empty(seed, Driver::Careful, &args) }
+        };
+        let failed = Row {
+            error: Some("record: the drive's files are unreadable".to_owned()),
+            ..Row::empty(3, Driver::Careful, &args)
+        };
+        let rows = [agreed(1, true), agreed(2, false), failed];
+        let summary = Summary::of(&args, &rows);
+        assert_eq!(summary.failed_drives, 1);
+        assert_eq!(summary.finished_agreement, Some(2.0 / 3.0), "two of three drives agree");
+        assert_eq!(summary.disagreements.len(), 1);
+        assert_eq!((summary.disagreements[0].seed, summary.disagreements[0].cause), (3, "failed"));
+        assert!(summary.disagreements[0].metrics[0].contains("unreadable"));
+        // Every row says the oracle was in.
+        assert!(rows.iter().all(|r| r.oracle_latency));
+        assert!(summary.text().contains("1 failed"), "{}", summary.text());
     }
 
     #[test]

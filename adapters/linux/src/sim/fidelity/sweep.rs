@@ -143,6 +143,9 @@ pub struct Row {
     pub receiver: &'static str,
     /// Finishing's anchors.
     pub anchors: &'static str,
+    /// Finishing was told the receiver's true latency (`--oracle-latency`): this row is a
+    /// bound, not the product's.
+    pub oracle_latency: bool,
     /// Why the drive did not come through the product (then nothing else is filled).
     pub error: Option<String>,
     /// The true drive's verification.
@@ -159,6 +162,15 @@ pub struct Row {
     pub online_ape_m: Option<f64>,
     /// Finished ego APE (RMSE), m.
     pub finished_ape_m: Option<f64>,
+    /// The same two as a user measures them: each pose at its UTC stamp against the truth
+    /// at that instant, m.
+    pub online_ape_utc_m: Option<f64>,
+    /// See `online_ape_utc_m`.
+    pub finished_ape_utc_m: Option<f64>,
+    /// The device's log's UTC against the drive's (median over its frames), s.
+    pub online_clock_error_s: Option<f64>,
+    /// The finished log's, s.
+    pub finished_clock_error_s: Option<f64>,
     /// Online scale error at the last observable estimate (relative).
     pub online_scale_error: Option<f64>,
     /// Finished scale against the VO's mean true scale (relative).
@@ -216,13 +228,14 @@ fn finite(x: f64) -> Option<f64> {
 }
 
 impl Row {
-    fn empty(seed: u64, driver: Driver, args: &SweepRequest) -> Self {
+    pub(super) fn empty(seed: u64, driver: Driver, args: &SweepRequest) -> Self {
         Row {
             seed,
             driver: driver.name(),
             profile: args.profile.name(),
             receiver: args.receiver.name(),
             anchors: args.anchors.name(),
+            oracle_latency: args.oracle_latency,
             error: None,
             truth: None,
             online: None,
@@ -231,6 +244,10 @@ impl Row {
             finished_ego_true_agents: None,
             online_ape_m: None,
             finished_ape_m: None,
+            online_ape_utc_m: None,
+            finished_ape_utc_m: None,
+            online_clock_error_s: None,
+            finished_clock_error_s: None,
             online_scale_error: None,
             finished_scale_error: None,
             online_mota: None,
@@ -265,6 +282,10 @@ impl Row {
         self.finished_ego_true_agents = a.finished.ego_with_true_agents.as_ref().map(Verdicts::of);
         self.online_ape_m = ape(&a.online.judgement);
         self.finished_ape_m = ape(&a.finished.judgement);
+        self.online_ape_utc_m = finite(a.online.judgement.ego_rmse_utc);
+        self.finished_ape_utc_m = finite(a.finished.judgement.ego_rmse_utc);
+        self.online_clock_error_s = a.online.judgement.clock_error_s;
+        self.finished_clock_error_s = a.finished.judgement.clock_error_s;
         self.online_scale_error = a.online_scale.map(|(_, e)| e);
         self.finished_scale_error = finite(a.finished_scale.2);
         self.online_mota = finite(a.online.judgement.tracks.0);
@@ -402,10 +423,10 @@ fn try_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Res
 }
 
 /// The columns of `runs.csv`.
-const CSV_HEADER: &str = "seed,driver,profile,receiver,anchors,error,\
+const CSV_HEADER: &str = "seed,driver,profile,receiver,anchors,oracle_latency,error,\
 truth_score,truth_verified,truth_failed,online_score,online_verified,online_failed,finished_score,finished_verified,finished_failed,\
 truth_score_cs,truth_verified_cs,online_score_cs,online_verified_cs,finished_score_cs,finished_verified_cs,finished_failed_cs,\
-online_ape_m,finished_ape_m,online_scale_error,finished_scale_error,online_mota,online_idf1,finished_mota,finished_idf1,\
+online_ape_m,finished_ape_m,online_ape_utc_m,finished_ape_utc_m,online_clock_error_s,finished_clock_error_s,online_scale_error,finished_scale_error,online_mota,online_idf1,finished_mota,finished_idf1,\
 first_anchor_s,vo_sessions,mount_error_deg,mount_calibrated,finished_mount_yaw_error_deg,online_within_2sigma,online_nees,finished_within_2sigma,finished_nees,latency_error_s,online_latency_error_s,gnss_mean_error_m,wheel_factor_error,windows,device_windows_verified,truth_windows_verified";
 
 fn csv_row(r: &Row) -> String {
@@ -421,12 +442,13 @@ fn csv_row(r: &Row) -> String {
     let marks = |f: fn(&WindowPair) -> bool| r.windows.iter().map(|w| if f(w) { '1' } else { '0' }).collect::<String>();
     let error = r.error.as_deref().map_or_else(String::new, |e| format!("\"{}\"", e.replace('"', "'")));
     format!(
-        "{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        "{},{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
         r.seed,
         r.driver,
         r.profile,
         r.receiver,
         r.anchors,
+        u8::from(r.oracle_latency),
         verdict(r.truth.as_ref().map(|v| &v.insensitive)),
         verdict(r.online.as_ref().map(|v| &v.insensitive)),
         verdict(r.finished.as_ref().map(|v| &v.insensitive)),
@@ -435,6 +457,10 @@ fn csv_row(r: &Row) -> String {
         verdict(r.finished.as_ref().map(|v| &v.sensitive)),
         opt(r.online_ape_m),
         opt(r.finished_ape_m),
+        opt(r.online_ape_utc_m),
+        opt(r.finished_ape_utc_m),
+        opt(r.online_clock_error_s),
+        opt(r.finished_clock_error_s),
         opt(r.online_scale_error),
         opt(r.finished_scale_error),
         opt(r.online_mota),

@@ -10,6 +10,7 @@ use dash2sim_core::obb::Pose2;
 
 use super::actors::Class;
 use super::evaluate::score_tracks;
+use super::write::START_UNIX_S;
 use super::Scenario;
 use crate::log::{self, LogContents};
 
@@ -35,6 +36,13 @@ pub struct LogJudgement {
     pub tracks_by_class: std::collections::BTreeMap<String, u64>,
     /// How well the poses' stated σ covers their error, over the poses that state one.
     pub sigma: SigmaCoverage,
+    /// The log's UTC against the drive's: the log's time of each frame less the frame's
+    /// true UTC, median, s; none for a log without UTC or frames.
+    pub clock_error_s: Option<f64>,
+    /// The ego's horizontal error RMS as a user measures it: each pose at its own UTC stamp
+    /// against the truth at that instant (interpolated between frames), m; NaN without
+    /// UTC or poses.
+    pub ego_rmse_utc: f64,
 }
 
 /// The ego poses' stated horizontal σ (DRMS) against their error.
@@ -152,5 +160,38 @@ pub fn judge_log(scenario: &Scenario, log: &LogContents) -> LogJudgement {
         })
         .collect();
     j.tracks_relative = figures(&score_tracks(&anchored_only, &relative));
+    let in_utc = log.records.iter().any(|r| matches!(r, Record::ClockOffset(_)));
+    if in_utc {
+        let mut errors: Vec<f64> = frame_at
+            .iter()
+            .filter_map(|(t_us, frame)| {
+                let f = scenario.frames.get(usize::try_from(*frame).ok()?.checked_sub(1)?)?;
+                Some(*t_us as f64 * 1e-6 - (START_UNIX_S + f.ego.t))
+            })
+            .collect();
+        errors.sort_by(f64::total_cmp);
+        j.clock_error_s = errors.get(errors.len() / 2).copied();
+        j.ego_rmse_utc = utc_ape(scenario, log);
+    } else {
+        j.ego_rmse_utc = f64::NAN;
+    }
     j
+}
+
+/// The RMS horizontal error of the log's ego poses, each at its UTC stamp against the
+/// truth then (linear between the two frames around it), m; NaN with none in the drive.
+fn utc_ape(scenario: &Scenario, log: &LogContents) -> f64 {
+    let frames = &scenario.frames;
+    let (mut squares, mut n) = (0.0, 0usize);
+    for r in &log.records {
+        let Record::EgoPose(p) = r else { continue };
+        let t = p.t_us as f64 * 1e-6 - START_UNIX_S;
+        let k = frames.partition_point(|f| f.ego.t <= t);
+        let (Some(a), Some(b)) = (k.checked_sub(1).and_then(|i| frames.get(i)), frames.get(k)) else { continue };
+        let w = (t - a.ego.t) / (b.ego.t - a.ego.t);
+        let (x, y) = (a.ego.x + w * (b.ego.x - a.ego.x), a.ego.y + w * (b.ego.y - a.ego.y));
+        squares += (p.x_mm as f64 * 1e-3 - x).powi(2) + (p.y_mm as f64 * 1e-3 - y).powi(2);
+        n += 1;
+    }
+    (squares / n as f64).sqrt()
 }
