@@ -258,6 +258,9 @@ pub struct Summary {
     pub online_window_agreement: Option<f64>,
     /// The device's windows judged.
     pub windows: usize,
+    /// The drive time the device's windows cover, of all the drives' time (a failed
+    /// drive's included): a window the device never produced is time no verdict speaks for.
+    pub device_window_coverage: Option<f64>,
     /// Device windows verified where the truth has an at-fault collision.
     pub device_verified_collision_windows: usize,
     /// Median finished APE, m.
@@ -364,6 +367,11 @@ impl Summary {
             online_agreement: online.agreement_with_failed(failed),
             online_window_agreement: device_windows.agreement(),
             windows: device_windows.total(),
+            device_window_coverage: {
+                let covered: f64 = ok.iter().flat_map(|r| &r.windows).map(|w| (w.end_s - w.start_s).max(0.0)).sum();
+                let total = rows.len() as f64 * args.duration;
+                (total > 0.0).then(|| covered / total)
+            },
             device_verified_collision_windows: ok
                 .iter()
                 .flat_map(|r| &r.windows)
@@ -433,7 +441,8 @@ impl Summary {
         table(&mut t, "device windows vs truth's windows", &self.confusion.device_windows);
         let _ = writeln!(
             t,
-            "  device windows verified where the truth collides: {}",
+            "  device windows cover {} of the drives' time; verified where the truth collides: {}",
+            pct(self.device_window_coverage),
             self.device_verified_collision_windows
         );
         let spread = |t: &mut String, name: &str, s: &Spread, scale: f64, unit: &str| {
@@ -548,13 +557,27 @@ mod tests {
             error: Some("record: the drive's files are unreadable".to_owned()),
             ..Row::empty(3, Driver::Careful, &args)
         };
-        let rows = [agreed(1, true), agreed(2, false), failed];
+        let window = |start_s: f64, end_s: f64| super::super::drive::WindowPair {
+            start_s,
+            end_s,
+            device_score: 100.0,
+            device_verified: true,
+            device_failed: Vec::new(),
+            truth_score: 100.0,
+            truth_verified: true,
+            truth_collision: false,
+            truth_failed: Vec::new(),
+        };
+        let with_windows = Row { windows: vec![window(3.0, 18.0), window(18.0, 33.0)], ..agreed(1, true) };
+        let rows = [with_windows, agreed(2, false), failed];
         let summary = Summary::of(&args, &rows);
         assert_eq!(summary.failed_drives, 1);
         assert_eq!(summary.finished_agreement, Some(2.0 / 3.0), "two of three drives agree");
         assert_eq!(summary.disagreements.len(), 1);
         assert_eq!((summary.disagreements[0].seed, summary.disagreements[0].cause), (3, "failed"));
         assert!(summary.disagreements[0].metrics[0].contains("unreadable"));
+        // 30 s of windows over three 40 s drives, the failed one's included.
+        assert_eq!(summary.device_window_coverage, Some(0.25));
         // Every row says the oracle was in.
         assert!(rows.iter().all(|r| r.oracle_latency));
         assert!(summary.text().contains("1 failed"), "{}", summary.text());
