@@ -9,6 +9,7 @@
 //! finished log in the same format, whose first event says what it was finished from.
 
 pub mod anchors;
+pub mod clock;
 pub mod raw;
 pub mod reckon;
 pub mod solve;
@@ -575,7 +576,8 @@ pub fn finish(
         (0..drive.fixes.len()).filter(|&k| sessions.iter().any(|s| s.solution.fix_used.get(k) == Some(&true))).count();
     // The longest session speaks for the drive's scale, latency and wheel factor.
     let main = sessions.iter().max_by_key(|s| s.range.len()).map(|s| &s.solution).unwrap_or_else(|| unreachable!());
-    let utc_shift_us = utc_onto_the_fixes(&mut records, main.latency_s);
+    let utc_latency_s = clock::latency_from_speed(&log.records, &ego).unwrap_or(main.latency_s);
+    let utc_shift_us = clock::utc_onto_the_fixes(&mut records, utc_latency_s);
     let [_, pitch, yaw] = calibrated.mount.roll_pitch_yaw;
     let mount_text = format!(
         "camera mount yaw {:+.2}° pitch {:+.2}° ({} from {} straight-driving frames)",
@@ -696,26 +698,6 @@ pub fn finish(
         verification: verification.as_ref().map(|v| v.report.clone()),
     };
     Ok(Finished { records, report })
-}
-
-/// A device reads UTC off each fix as it arrives (`pipeline::clock`): its log's UTC is
-/// early by the receiver's latency, and everything in it — the ego, the tracks, the fixes'
-/// arrivals — is stamped that much before the instant it describes. The solve measured the
-/// latency (`latency_s`): every record and clock offset is moved later by it, so that the
-/// finished log's UTC is the world's. A log that never learnt UTC (no clock offset) is on
-/// the device's clock and is left there. Returns the shift, µs.
-fn utc_onto_the_fixes(records: &mut [Record], latency_s: f64) -> i64 {
-    if !records.iter().any(|r| matches!(r, Record::ClockOffset(_))) || !latency_s.is_finite() {
-        return 0;
-    }
-    let shift = quantise(latency_s, 1e-6);
-    for r in records.iter_mut() {
-        r.set_t_us(r.t_us().saturating_add(shift));
-        if let Record::ClockOffset(c) = r {
-            c.offset_us = c.offset_us.saturating_add(shift);
-        }
-    }
-    shift
 }
 
 fn anchoring_report(solution: &Solution) -> AnchoringReport {
@@ -1093,31 +1075,6 @@ pub fn finish_file(args: &FinishRequest) -> Result<FinishedFile> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_log_s_utc_moves_later_by_the_receiver_s_latency() {
-        use dash2sim_core::binlog::{ClockOffset, VehicleSpeed};
-        let speed = |t_us| Record::VehicleSpeed(VehicleSpeed { t_us, ..VehicleSpeed::default() });
-        let mut records = vec![
-            Record::ClockOffset(ClockOffset { t_us: 1_000_000, offset_us: 900_000, reason: 0 }),
-            speed(1_000_000),
-            Record::ClockOffset(ClockOffset { t_us: 2_000_000, offset_us: 900_400, reason: 1 }),
-            speed(2_500_000),
-        ];
-        assert_eq!(utc_onto_the_fixes(&mut records, 0.1234567), 123_457);
-        let times: Vec<i64> = records.iter().map(Record::t_us).collect();
-        assert_eq!(times, [1_123_457, 1_123_457, 2_123_457, 2_623_457]);
-        // The device's clock is where it was: UTC − offset is unchanged.
-        for r in &records {
-            if let Record::ClockOffset(c) = r {
-                assert!(c.t_us - c.offset_us == 100_000 || c.t_us - c.offset_us == 1_099_600, "{c:?}");
-            }
-        }
-        // A log on the device's clock has no UTC to correct.
-        let mut device_clock = vec![speed(5)];
-        assert_eq!(utc_onto_the_fixes(&mut device_clock, 0.1), 0);
-        assert_eq!(device_clock[0].t_us(), 5);
-    }
 
     /// A pose on the x axis, heading east.
     fn east(t: f64, x: f64, speed: f64) -> PlanarPose {
