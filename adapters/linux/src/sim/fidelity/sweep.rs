@@ -171,9 +171,9 @@ pub struct Row {
     pub online_clock_error_s: Option<f64>,
     /// The finished log's, s.
     pub finished_clock_error_s: Option<f64>,
-    /// Online scale error at the last observable estimate (relative).
+    /// Online scale error at the last observable estimate (relative); none without VO.
     pub online_scale_error: Option<f64>,
-    /// Finished scale against the VO's mean true scale (relative).
+    /// Finished scale against the VO's mean true scale (relative); none without VO.
     pub finished_scale_error: Option<f64>,
     /// MOTA of the online 3D tracks against the truth.
     pub online_mota: Option<f64>,
@@ -286,8 +286,11 @@ impl Row {
         self.finished_ape_utc_m = finite(a.finished.judgement.ego_rmse_utc);
         self.online_clock_error_s = a.online.judgement.clock_error_s;
         self.finished_clock_error_s = a.finished.judgement.clock_error_s;
-        self.online_scale_error = a.online_scale.map(|(_, e)| e);
-        self.finished_scale_error = finite(a.finished_scale.2);
+        // A scale is the VO's; a dead-reckoned path's is the wheels' (the wheel factor's row).
+        if facts.vo_recorded {
+            self.online_scale_error = a.online_scale.map(|(_, e)| e);
+            self.finished_scale_error = finite(a.finished_scale.2);
+        }
         self.online_mota = finite(a.online.judgement.tracks.0);
         self.online_idf1 = finite(a.online.judgement.tracks.1);
         self.finished_mota = finite(a.finished.judgement.tracks.0);
@@ -327,6 +330,8 @@ fn run_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Row
 /// What a drive's row takes from the scenario and the device's log besides the assessment.
 struct DriveFacts {
     vo_sessions: u32,
+    /// The camera's VO was recorded (not `--relative-motion imu-wheels`).
+    vo_recorded: bool,
     mount_error_deg: Option<f64>,
     mount_calibrated: bool,
     finished_mount_yaw_error_deg: Option<f64>,
@@ -412,6 +417,7 @@ fn try_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Res
     let finished = log::decode(&assessment.finished_bytes, "finished").map_err(Error::other)?;
     let facts = DriveFacts {
         vo_sessions: scenario.vo.reinits() + 1,
+        vo_recorded: args.relative_motion == RelativeMotion::Vo,
         mount_error_deg: device_mount.map(|(yaw, pitch, _)| yaw.max(pitch)),
         mount_calibrated: device_mount.is_some_and(|m| m.2),
         finished_mount_yaw_error_deg: mount_error(&scenario, &finished.records).map(|m| m.0),
