@@ -357,16 +357,15 @@ fn drive(log: &LogContents, frame: &LocalFrame, uere: f64, camera_to_body: &Matr
     // Dead-reckoned poses (gyro + wheels) with the bias the drive found in the end.
     dead_reckoned.sort_by(by_time);
     bias.sort_by(|a, b| by_time(&a.0, &b.0));
-    let flags: Vec<bool> = vo.iter().map(|s| dead_reckoned.binary_search_by(|t| by_time(t, &s.t)).is_ok()).collect();
-    for (sample, &reckoned) in vo.iter_mut().zip(&flags) {
-        sample.reckoned = reckoned;
+    for sample in vo.iter_mut() {
+        sample.reckoned = dead_reckoned.binary_search_by(|t| by_time(t, &sample.t)).is_ok();
     }
     let axis = |a: usize| -> Vec<(f64, f64)> { bias.iter().map(|(t, b)| (*t, b[a] as f64 * 1e-7)).collect() };
-    let forward_axis = reckon::with_final_forward_axis(&mut vo, &flags, camera_to_body);
-    let heading_corrected = reckon::with_final_bias(&mut vo, &flags, &axis(2));
-    let tilt_corrected = reckon::with_final_tilt_bias(&mut vo, &flags, &axis(0), &axis(1), camera_to_body);
-    let grade = reckon::with_grade(&mut vo, &flags, &fixes, camera_to_body);
-    let reckoning = flags.contains(&true).then_some(ReckoningReport {
+    let forward_axis = reckon::with_final_forward_axis(&mut vo, camera_to_body);
+    let heading_corrected = reckon::with_final_bias(&mut vo, &axis(2));
+    let tilt_corrected = reckon::with_final_tilt_bias(&mut vo, &axis(0), &axis(1), camera_to_body);
+    let grade = reckon::with_grade(&mut vo, &fixes, camera_to_body);
+    let reckoning = vo.iter().any(|s| s.reckoned).then_some(ReckoningReport {
         heading_corrected_max_deg: heading_corrected.to_degrees(),
         tilt_corrected_max_deg: tilt_corrected.to_degrees(),
         camera_turned_deg: forward_axis.map(f64::to_degrees),

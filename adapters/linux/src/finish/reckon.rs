@@ -89,15 +89,15 @@ fn bias_at(history: &BiasHistory, t: f64) -> Option<f64> {
     }
 }
 
-/// Redo the dead-reckoned samples of `vo` (those whose `dead_reckoned` flag is set; the
-/// others, a camera's VO, are left alone) with the last bias of `history`. Returns the
+/// Redo the dead-reckoned samples of `vo` (those marked `reckoned`; the others, a
+/// camera's VO, are left alone) with the last bias of `history`. Returns the
 /// largest heading correction made, rad (0 with no history).
-pub fn with_final_bias(vo: &mut [VoSample], dead_reckoned: &[bool], history: &BiasHistory) -> f64 {
+pub fn with_final_bias(vo: &mut [VoSample], history: &BiasHistory) -> f64 {
     let Some(&(_, final_bias)) = history.last() else { return 0.0 };
     let mut largest = 0.0f64;
     let mut previous: Option<Redone> = None;
-    for (sample, &reckoned) in vo.iter_mut().zip(dead_reckoned) {
-        if !reckoned {
+    for sample in vo.iter_mut() {
+        if !sample.reckoned {
             previous = None;
             continue;
         }
@@ -154,7 +154,6 @@ fn carry_tilt_error(
 /// error of 4–5° eight seconds in.
 pub fn with_final_tilt_bias(
     vo: &mut [VoSample],
-    dead_reckoned: &[bool],
     x: &BiasHistory,
     y: &BiasHistory,
     camera_to_body: &Matrix3<f64>,
@@ -167,7 +166,7 @@ pub fn with_final_tilt_bias(
         Vector3::new(rate(x, final_x), rate(y, final_y), 0.0)
     };
     let mut largest = 0.0f64;
-    for run in runs(vo, dead_reckoned) {
+    for run in runs(vo) {
         let mut error = carry_tilt_error(Vector3::zeros(), (levelled, vo[run.start].t), levelled, u);
         for i in run.clone() {
             if i > run.start {
@@ -201,12 +200,8 @@ fn yaw_off_track(run: &[VoSample], i: usize, camera_to_body: &Matrix3<f64>) -> O
 /// the ones before point along the sensor's axis, and the detections they place, and the
 /// mount the whole drive calibrates, are off by that yaw. Returns the yaw taken (−δ, rad),
 /// `None` when the device never found it.
-pub fn with_final_forward_axis(
-    vo: &mut [VoSample],
-    dead_reckoned: &[bool],
-    camera_to_body: &Matrix3<f64>,
-) -> Option<f64> {
-    let runs = runs(vo, dead_reckoned);
+pub fn with_final_forward_axis(vo: &mut [VoSample], camera_to_body: &Matrix3<f64>) -> Option<f64> {
+    let runs = runs(vo);
     let last = runs.iter().rev().find_map(|run| {
         let samples = &vo[run.clone()];
         (0..samples.len()).rev().find_map(|i| yaw_off_track(samples, i, camera_to_body))
@@ -238,10 +233,10 @@ pub struct Grade {
 }
 
 /// A run of dead-reckoned samples of one session, as indices into the samples.
-fn runs(vo: &[VoSample], dead_reckoned: &[bool]) -> Vec<std::ops::Range<usize>> {
+fn runs(vo: &[VoSample]) -> Vec<std::ops::Range<usize>> {
     let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
-    for (i, (sample, &reckoned)) in vo.iter().zip(dead_reckoned).enumerate() {
-        if !reckoned {
+    for (i, sample) in vo.iter().enumerate() {
+        if !sample.reckoned {
             continue;
         }
         match runs.last_mut() {
@@ -295,13 +290,8 @@ fn at_time(run: &[VoSample], values: &[f64], t: f64) -> Option<f64> {
 /// the reckoned rise less the fixes' rise per metre: the attitude's settling spoils the
 /// first pairs, not the median. Fewer than [`MIN_GRADE_PAIRS`] pairs, and the heights are
 /// left level (and to the fixes) and `None` returned.
-pub fn with_grade(
-    vo: &mut [VoSample],
-    dead_reckoned: &[bool],
-    fixes: &[Fix],
-    camera_to_body: &Matrix3<f64>,
-) -> Option<Grade> {
-    let runs = runs(vo, dead_reckoned);
+pub fn with_grade(vo: &mut [VoSample], fixes: &[Fix], camera_to_body: &Matrix3<f64>) -> Option<Grade> {
+    let runs = runs(vo);
     let mut profiles = Vec::with_capacity(runs.len());
     let (mut slopes, mut baseline) = (Vec::new(), 0.0);
     for run in &runs {
@@ -384,13 +374,12 @@ mod tests {
                 position,
                 rotation: rotation_z(heading),
                 grade_sigma: 0.0,
-                reckoned: false,
+                reckoned: true,
             });
         }
         let history: Vec<(f64, f64)> = (0..=20).map(|s| (s as f64, known(s as f64))).collect();
         let end_before = (vo.last().expect("poses").position - truth(20.0).0).norm();
-        let flags = vec![true; vo.len()];
-        let largest = with_final_bias(&mut vo, &flags, &history);
+        let largest = with_final_bias(&mut vo, &history);
         // Four seconds of a 0.03 rad/s error and half of it for two: 0.15 rad.
         assert!((largest - 0.15).abs() < 0.005, "{largest}");
         let worst = vo.iter().map(|s| (s.position - truth(s.t).0).norm()).fold(0.0f64, f64::max);
@@ -416,8 +405,11 @@ mod tests {
             })
             .collect();
         let before: Vec<Vector3<f64>> = vo.iter().map(|s| s.position).collect();
-        assert_eq!(with_final_bias(&mut vo, &[true; 10], &[]), 0.0);
-        assert_eq!(with_final_bias(&mut vo, &[false; 10], &[(0.0, 0.1), (9.0, 0.0)]), 0.0);
+        assert_eq!(with_final_bias(&mut vo, &[(0.0, 0.1), (9.0, 0.0)]), 0.0);
+        for sample in &mut vo {
+            sample.reckoned = true;
+        }
+        assert_eq!(with_final_bias(&mut vo, &[]), 0.0);
         assert!(vo.iter().zip(&before).all(|(s, p)| s.position == *p));
     }
 
@@ -448,7 +440,7 @@ mod tests {
                     position: Vector3::new(t * 20.0, 0.0, 0.0),
                     rotation: *attitude.rotation(),
                     grade_sigma: 0.0,
-                    reckoned: false,
+                    reckoned: true,
                 });
             }
             if k % 100 == 0 {
@@ -460,8 +452,7 @@ mod tests {
         let worst = |vo: &[VoSample]| vo.iter().map(|s| pitch(&s.rotation).abs()).fold(0.0f64, f64::max);
         assert!(worst(&vo) > 0.03, "the logged poses pitch: {}", worst(&vo));
         let zero: Vec<(f64, f64)> = history.iter().map(|(t, _)| (*t, 0.0)).collect();
-        let flags = vec![true; vo.len()];
-        let largest = with_final_tilt_bias(&mut vo, &flags, &zero, &history, &Matrix3::identity());
+        let largest = with_final_tilt_bias(&mut vo, &zero, &history, &Matrix3::identity());
         assert!(largest > 0.03, "{largest}");
         // What is left is the settling's start and the bias the filter itself found.
         assert!(worst(&vo[vo.len() / 5..]) < 0.01, "{}", worst(&vo[vo.len() / 5..]));
@@ -484,7 +475,7 @@ mod tests {
                 position: Vector3::new(d, 0.0, 0.0),
                 rotation: Rotation3::from_axis_angle(&Vector3::y_axis(), -pitch_up).into_inner(),
                 grade_sigma: 0.0,
-                reckoned: false,
+                reckoned: true,
             }
         };
         let mut vo: Vec<VoSample> = (0..=1200).map(|k| sample(k as f64 * 0.05)).collect();
@@ -500,9 +491,8 @@ mod tests {
                 }
             })
             .collect();
-        let flags = vec![true; vo.len()];
         let cameras: Vec<Matrix3<f64>> = vo.iter().map(|s| s.rotation).collect();
-        let found = with_grade(&mut vo, &flags, &fixes, &Matrix3::identity()).expect("an offset");
+        let found = with_grade(&mut vo, &fixes, &Matrix3::identity()).expect("an offset");
         assert!((found.pitch_offset - offset).abs() < 0.005, "{found:?}");
         assert!(found.baseline_m > 1400.0, "{found:?}");
         let worst = vo.iter().map(|s| (s.position.z - 3.0 - height(s.position.x)).abs()).fold(0.0f64, f64::max);
@@ -516,7 +506,7 @@ mod tests {
         assert!(vo.iter().zip(&cameras).all(|(s, c)| s.rotation == *c));
 
         let mut short: Vec<VoSample> = (0..=40).map(|k| sample(k as f64 * 0.05)).collect();
-        assert_eq!(with_grade(&mut short, &[true; 41], &fixes, &Matrix3::identity()), None);
+        assert_eq!(with_grade(&mut short, &fixes, &Matrix3::identity()), None);
         assert!(short.iter().all(|s| s.position.z == 0.0 && s.grade_sigma >= RECKONED_GRADE_SIGMA));
     }
 
@@ -550,14 +540,13 @@ mod tests {
                         position,
                         rotation: rotation_z(heading(t) + turned(t)),
                         grade_sigma: 0.0,
-                        reckoned: false,
+                        reckoned: true,
                     }
                 })
                 .collect()
         };
         let mut vo = track(&known);
-        let flags = vec![true; vo.len()];
-        let last = with_final_forward_axis(&mut vo, &flags, &Matrix3::identity()).expect("a forward axis");
+        let last = with_final_forward_axis(&mut vo, &Matrix3::identity()).expect("a forward axis");
         assert!((last + 0.035).abs() < 1e-3, "{last}");
         for s in &vo {
             let off = s.rotation[(1, 0)].atan2(s.rotation[(0, 0)]) - heading(s.t);
@@ -566,7 +555,7 @@ mod tests {
 
         let mut never = track(&|_| 0.0);
         let before: Vec<Matrix3<f64>> = never.iter().map(|s| s.rotation).collect();
-        assert_eq!(with_final_forward_axis(&mut never, &flags, &Matrix3::identity()), None);
+        assert_eq!(with_final_forward_axis(&mut never, &Matrix3::identity()), None);
         assert!(never.iter().zip(&before).all(|(s, r)| s.rotation == *r));
     }
 }

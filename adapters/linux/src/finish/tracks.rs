@@ -158,12 +158,13 @@ pub fn static_yaw(
                 .filter_map(|(t, s, b)| online(*t, delta).map(|a| reexpress(s, &a, b)))
                 .map(|s| (s.x_mm as f64 * 1e-3, s.y_mm as f64 * 1e-3))
                 .collect();
-            let middle = |f: fn(&(f64, f64)) -> f64| {
-                let mut v: Vec<f64> = placed.iter().map(f).collect();
-                v.sort_by(f64::total_cmp);
-                v.get(v.len() / 2).copied().unwrap_or(0.0)
-            };
-            let (mx, my) = (middle(|p| p.0), middle(|p| p.1));
+            if placed.is_empty() {
+                continue;
+            }
+            let (mx, my) = (
+                super::median(placed.iter().map(|p| p.0).collect()),
+                super::median(placed.iter().map(|p| p.1).collect()),
+            );
             total += placed.iter().map(|(x, y)| (x - mx).hypot(y - my)).sum::<f64>();
         }
         total
