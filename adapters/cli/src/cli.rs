@@ -219,6 +219,11 @@ enum ScenarioCommand {
         /// simulator), `typical` (a consumer dashcam) or `hard`.
         #[arg(long, value_enum, default_value = "typical")]
         profile: dash2sim_linux::sim::scenario::profile::Profile,
+        /// How the ego is driven: `careful`, `careless` (clips the taper's drums),
+        /// `shoulder`, `oncoming`, `speeding`, `tailgating`, `harsh`, `knife-edge`; `both` or
+        /// `all` write one folder per driver under OUTPUT (docs/scenario.md).
+        #[arg(long, value_parser = dash2sim_linux::sim::scenario::Drivers::parse, default_value = "careful")]
+        driver: dash2sim_linux::sim::scenario::Drivers,
     },
     /// Be the camera process: publish a generated drive over shared memory (iceoryx2) at its
     /// frame rate, and optionally the GNSS receiver's NMEA and the wheel-speed CAN frames
@@ -380,8 +385,8 @@ pub fn run() -> ExitCode {
         Command::Can(CanCommand::Decode { file, dbc, json }) => crate::decode::can(&file, &dbc, json),
         Command::Track2d { detections, output } => track2d(&detections, &output),
         Command::Mot(MotCommand::Eval { gt, test, max_distance, json }) => mot_eval(&gt, &test, max_distance, json),
-        Command::Scenario(ScenarioCommand::Generate { output, seed, duration, receiver, profile }) => {
-            crate::scenario::generate_to(seed, duration, profile, receiver, &output)
+        Command::Scenario(ScenarioCommand::Generate { output, seed, duration, receiver, profile, driver }) => {
+            crate::scenario::generate_to(seed, duration, profile, receiver, driver, &output)
         }
         Command::Scenario(ScenarioCommand::Publish(args)) => {
             dash2sim_linux::sim::scenario::publish::run(&args).map(|n| println!("{n} frames published"))

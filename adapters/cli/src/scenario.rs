@@ -6,13 +6,13 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use dash2sim_core::track3d::Config3d;
 use dash2sim_linux::sim::fidelity::drive::Anchors;
-use dash2sim_linux::sim::fidelity::sweep::{self, Drivers, SweepRequest};
+use dash2sim_linux::sim::fidelity::sweep::{self, SweepRequest};
 use dash2sim_linux::sim::scenario::command::config;
 use dash2sim_linux::sim::scenario::corpus::{self, CorpusRequest};
 use dash2sim_linux::sim::scenario::evaluate::evaluate_tracking;
 use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
 use dash2sim_linux::sim::scenario::write::{origin_option, write_scenario, START_UNIX_S};
-use dash2sim_linux::sim::scenario::{generate, tracker_classes, tracker_config, Frame};
+use dash2sim_linux::sim::scenario::{generate, tracker_classes, tracker_config, Drivers, Frame, ScenarioConfig};
 use dash2sim_linux::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
@@ -46,8 +46,9 @@ pub struct SweepArgs {
     /// Seeds, `A-B` (both included) or one seed.
     #[arg(long, value_parser = sweep::parse_seeds)]
     pub seeds: std::ops::RangeInclusive<u64>,
-    /// Drive each seed `careful`, `careless` or `both`.
-    #[arg(long, value_enum, default_value = "both")]
+    /// Drive each seed `careful`, `careless`, `both`, `all` or one other kind: `shoulder`,
+    /// `oncoming`, `speeding`, `tailgating`, `harsh`, `knife-edge` (docs/scenario.md).
+    #[arg(long, value_parser = Drivers::parse, default_value = "both")]
     pub driver: Drivers,
     /// How far the sensors are from ideal: `ideal`, `typical` or `hard` (docs/scenario.md).
     #[arg(long, value_enum, default_value = "typical")]
@@ -86,15 +87,38 @@ pub struct SweepArgs {
     pub keep: bool,
 }
 
-/// `dash2sim scenario generate`: drive `seed` written to `dir`, and what it holds.
-pub fn generate_to(seed: u64, duration_s: f64, profile: Profile, receiver: Receiver, dir: &Path) -> Result<()> {
-    let scenario = generate(&config(seed, duration_s, profile, receiver)?);
+/// `dash2sim scenario generate`: drive `seed` written to `dir` (one folder per driver, named
+/// after it, when there are several), and what each holds.
+pub fn generate_to(
+    seed: u64,
+    duration_s: f64,
+    profile: Profile,
+    receiver: Receiver,
+    drivers: Drivers,
+    dir: &Path,
+) -> Result<()> {
+    let several = drivers.list().len() > 1;
+    for &driver in drivers.list() {
+        let dir = if several { dir.join(driver.name()) } else { dir.to_path_buf() };
+        generate_one(&ScenarioConfig { driver, ..config(seed, duration_s, profile, receiver)? }, &dir)?;
+    }
+    Ok(())
+}
+
+fn generate_one(config: &ScenarioConfig, dir: &Path) -> Result<()> {
+    let scenario = generate(config);
+    let (seed, profile, receiver) = (config.seed, config.profile, config.receiver);
     let files = write_scenario(&scenario, dir).map_err(|e| Error::refused(format!("writing {}", dir.display()), e))?;
     let count = |f: fn(&Frame) -> usize| scenario.frames.iter().map(f).sum::<usize>();
+    let expectation = match config.driver.expectation() {
+        dash2sim_linux::sim::scenario::Expectation::Verifies => "its truth verifies".to_owned(),
+        dash2sim_linux::sim::scenario::Expectation::Fails(metric) => format!("its truth fails {metric}"),
+    };
     println!(
-        "scenario {seed} ({} profile, {} receiver): {} frames, {} objects, {} 3D and {} 2D detections, {} GNSS fixes ({} in multipath), {} speed samples, {} VO session(s)",
+        "scenario {seed} ({} profile, {} receiver, {} driver: {expectation}): {} frames, {} objects, {} 3D and {} 2D detections, {} GNSS fixes ({} in multipath), {} speed samples, {} VO session(s)",
         profile.name(),
         receiver.name(),
+        config.driver.name(),
         scenario.frames.len(),
         scenario.frames.first().map_or(0, |f| f.objects.len()),
         count(|f| f.detections_3d.len()),

@@ -57,8 +57,10 @@ pub struct DemoArgs {
     /// Length of the drive, s (10–600; live, the recording takes as long as the drive).
     #[arg(long, default_value_t = 40.0)]
     pub duration: f64,
-    /// `careful` (the corpus's drives: the log verifies) or `careless` (changes lanes inside
-    /// the taper and hits its drums: a log the verifier must reject).
+    /// `careful` (the corpus's drives: the log verifies), `careless` (changes lanes inside
+    /// the taper and hits its drums), or another kind of bad driving the verifier must
+    /// reject: `shoulder`, `oncoming`, `speeding`, `tailgating`, `harsh`; `knife-edge` is
+    /// careful on the edge (docs/scenario.md).
     #[arg(long, value_enum, default_value = "careful")]
     pub driver: Driver,
     /// How far the sensors are from ideal (docs/scenario.md): `ideal` (the old, kind

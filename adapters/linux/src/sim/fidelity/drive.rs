@@ -67,6 +67,18 @@ impl BothModes {
     }
 }
 
+/// The truth of a drive written to `drive_dir` ([`crate::sim::scenario::write::write_scenario`])
+/// verified both ways on its own road, among its true objects: what a driver kind's
+/// [`Expectation`](crate::sim::scenario::Expectation) holds.
+pub fn verify_truth(scenario: &Scenario, drive_dir: &Path) -> Result<BothModes> {
+    let [lat, lon, height] = scenario.config.origin;
+    let origin = dash2sim_core::geo::Geodetic::new(lat, lon, height).map_err(Error::other)?;
+    let tile = crate::sim::scenario::write::road_tile(drive_dir, origin)?;
+    let map = MapView::parse(&tile).map_err(|e| Error::refused("map", e))?;
+    let agents = crate::verify::read_objects(&drive_dir.join("objects.csv"))?;
+    BothModes::of(map, &truth_ego(scenario), &agents)
+}
+
 /// A log judged: against the truth, and verified both ways.
 #[derive(Clone, Debug)]
 pub struct Judged {

@@ -537,7 +537,7 @@ mod tests {
         use crate::sim::scenario::Driver;
         let args = SweepRequest {
             seeds: 1..=3,
-            driver: super::super::sweep::Drivers::Careful,
+            driver: crate::sim::scenario::Drivers::One(Driver::Careful),
             profile: Profile::Typical,
             receiver: Receiver::Good,
             anchors: super::super::drive::Anchors::Street,

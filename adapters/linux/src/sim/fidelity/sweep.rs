@@ -20,32 +20,10 @@ use crate::record::{self, Setup};
 use crate::sim::scenario::command::{config, MAX_DURATION_S};
 use crate::sim::scenario::profile::{Profile, Receiver};
 use crate::sim::scenario::write::{road_tile, write_scenario};
-use crate::sim::scenario::{generate, Driver};
+use crate::sim::scenario::{generate, Driver, Drivers};
 use crate::verify::VerifyReport;
 use crate::{Error, Result};
 use dash2sim_core::binlog::Record;
-
-/// Which drivers a sweep drives each seed with.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
-pub enum Drivers {
-    /// Careful only: every drive should verify.
-    Careful,
-    /// Careless only: every drive should be rejected.
-    Careless,
-    /// Each seed twice, careful and careless.
-    Both,
-}
-
-impl Drivers {
-    fn list(self) -> &'static [Driver] {
-        match self {
-            Drivers::Careful => &[Driver::Careful],
-            Drivers::Careless => &[Driver::Careless],
-            Drivers::Both => &[Driver::Careful, Driver::Careless],
-        }
-    }
-}
 
 /// A sweep (`dash2sim scenario sweep`).
 #[derive(Debug, Clone)]

@@ -203,7 +203,7 @@ pub struct Vehicle {
 
 impl Vehicle {
     /// Road coordinates at time `t`: (s, d).
-    fn road_position(&self, t: f64) -> (f64, f64) {
+    pub fn road_position(&self, t: f64) -> (f64, f64) {
         let s = self.s0 + self.speed * t;
         let d = match self.lane_change {
             Some((s0, s1, to)) => lane_change(s, s0, s1, self.d, to),
@@ -257,6 +257,42 @@ pub struct ZonePlan {
     pub slow: (f64, f64),
 }
 
+/// A swerve off the planned lane and back (a drive that leaves its lane on purpose).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Swerve {
+    /// Where the move out starts and ends, s.
+    pub out: (f64, f64),
+    /// Where the move back starts and ends, s.
+    pub back: (f64, f64),
+    /// How far from the planned lane, m (positive: left).
+    pub offset: f64,
+}
+
+impl Swerve {
+    fn offset_at(&self, s: f64) -> f64 {
+        if s < self.back.0 {
+            lane_change(s, self.out.0, self.out.1, 0.0, self.offset)
+        } else {
+            lane_change(s, self.back.0, self.back.1, self.offset, 0.0)
+        }
+    }
+}
+
+/// Following too closely: the ego closes on a slower vehicle in its lane and brakes only
+/// when braking at `brake` just stops it `gap` m behind (then keeps that gap).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tailgate {
+    /// The vehicles it closes on.
+    pub leads: Vec<Vehicle>,
+    /// Bumper-to-bumper gap it keeps, m.
+    pub gap: f64,
+    /// How hard it brakes, m/s².
+    pub brake: f64,
+}
+
+/// The nuPlan ego's rear axle → front bumper, m (the ego's size in every verdict).
+const EGO_FRONT_M: f64 = dash2sim_core::obb::PACIFICA.front;
+
 /// How the ego drives: cruise, slow for each zone, change lanes around each closure and back.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EgoPlan {
@@ -266,25 +302,55 @@ pub struct EgoPlan {
     pub cruise_speed: f64,
     /// Speed through the zone, m/s.
     pub zone_speed: f64,
-    /// Largest acceleration and deceleration, m/s².
+    /// Largest acceleration, m/s².
     pub max_accel: f64,
+    /// Largest deceleration, m/s² (it brakes for each zone this hard).
+    pub max_brake: f64,
+    /// How fast the acceleration may change, m/s³ (none: at once).
+    pub max_jerk: Option<f64>,
     /// Lateral offsets of the open lane and the closed lane.
     pub lanes: (f64, f64),
     /// The zones along the road, in order.
     pub zones: Vec<ZonePlan>,
+    /// A swerve out of the lane and back.
+    pub swerve: Option<Swerve>,
+    /// Vehicles it follows too closely.
+    pub tailgate: Option<Tailgate>,
 }
 
 impl EgoPlan {
     fn lateral(&self, s: f64) -> f64 {
         let (open, closed) = self.lanes;
+        let swerve = self.swerve.map_or(0.0, |w| w.offset_at(s));
         // The zone whose change back has not ended yet (past the last, the last).
-        let Some(zone) = self.zones.iter().find(|z| s < z.changes[1].1).or(self.zones.last()) else { return closed };
+        let Some(zone) = self.zones.iter().find(|z| s < z.changes[1].1).or(self.zones.last()) else {
+            return closed + swerve;
+        };
         let [(a0, a1), (b0, b1)] = zone.changes;
-        if s < b0 {
-            lane_change(s, a0, a1, closed, open)
-        } else {
-            lane_change(s, b0, b1, open, closed)
-        }
+        swerve + if s < b0 { lane_change(s, a0, a1, closed, open) } else { lane_change(s, b0, b1, open, closed) }
+    }
+
+    /// What the tailgating ego at `s` doing `v` m/s at `t` makes of the nearest vehicle ahead
+    /// in its lane, once it is close: whether it must brake now (braking at `brake` just stops
+    /// it `gap` behind), and the vehicle's speed (its speed from then on).
+    fn tailgate(&self, road: &Road, t: f64, s: f64, v: f64) -> Option<(bool, f64)> {
+        let tailgate = self.tailgate.as_ref()?;
+        let d = self.lateral(s);
+        tailgate
+            .leads
+            .iter()
+            .filter(|lead| lead.state(road, t).is_some())
+            .filter_map(|lead| {
+                let (ls, ld) = lead.road_position(t);
+                let gap = ls - lead.class.size()[0] / 2.0 - s - EGO_FRONT_M;
+                ((ld - d).abs() < 0.75 * road.lane_width && ls > s).then_some((gap, lead.speed))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .and_then(|(gap, speed)| {
+                let closing = v - speed;
+                let late = closing > 0.0 && closing * closing / (2.0 * tailgate.brake) >= gap - tailgate.gap;
+                (late || gap < tailgate.gap + 5.0).then_some((late, speed))
+            })
     }
 
     /// Integrate the plan at 100 Hz or a little faster (a whole number of steps per state);
@@ -293,14 +359,26 @@ impl EgoPlan {
         let per_frame = (100.0 / rate_hz).ceil().max(1.0) as usize;
         let dt = 1.0 / (rate_hz * per_frame as f64);
         let steps = (duration_s / dt).round() as usize;
-        let (mut s, mut v) = (self.s0, self.cruise_speed);
+        let (mut s, mut v, mut a) = (self.s0, self.cruise_speed, 0.0_f64);
         let mut states = Vec::with_capacity(steps / per_frame + 1);
         for k in 0..=steps {
             // Brake for the zone early enough to be at zone speed when it starts.
-            let braking = (self.cruise_speed.powi(2) - self.zone_speed.powi(2)) / (2.0 * self.max_accel);
+            let braking = (self.cruise_speed.powi(2) - self.zone_speed.powi(2)) / (2.0 * self.max_brake);
             let slow = self.zones.iter().any(|z| s + braking >= z.slow.0 && s < z.slow.1);
             let target = if slow { self.zone_speed } else { self.cruise_speed };
-            let a = ((target - v) / 1.0).clamp(-self.max_accel, self.max_accel);
+            let t = k as f64 * dt;
+            let mut wanted = ((target - v) / 1.0).clamp(-self.max_brake, self.max_accel);
+            if let (Some((late, lead_speed)), Some(tailgate)) = (self.tailgate(road, t, s, v), &self.tailgate) {
+                wanted = if late {
+                    -tailgate.brake
+                } else {
+                    ((target.min(lead_speed) - v) / 0.5).clamp(-self.max_brake, self.max_accel)
+                };
+            }
+            a = match self.max_jerk {
+                Some(jerk) => a + (wanted - a).clamp(-jerk * dt, jerk * dt),
+                None => wanted,
+            };
             if k % per_frame == 0 {
                 let d = self.lateral(s);
                 let (x, y) = road.point(s, d);
@@ -308,10 +386,10 @@ impl EgoPlan {
                 let (xn, yn) = road.point(s_next, self.lateral(s_next));
                 let heading = (yn - y).atan2(xn - x);
                 let speed = (xn - x).hypot(yn - y) / dt;
-                states.push(EgoState { t: k as f64 * dt, s, d, x, y, heading, speed });
+                states.push(EgoState { t, s, d, x, y, heading, speed });
             }
-            s += self.along_reference(road, s, v * dt + 0.5 * a * dt * dt);
-            v += a * dt;
+            s += self.along_reference(road, s, (v * dt + 0.5 * a * dt * dt).max(0.0));
+            v = (v + a * dt).max(0.0);
         }
         states
     }
@@ -350,8 +428,12 @@ mod tests {
             cruise_speed: 20.0,
             zone_speed: 20.0,
             max_accel: 1.5,
+            max_brake: 1.5,
+            max_jerk: None,
             lanes: (lane, lane),
             zones: vec![ZonePlan { changes: [(1e6, 1e6 + 1.0), (2e6, 2e6 + 1.0)], slow: (1e6, 1e6) }],
+            swerve: None,
+            tailgate: None,
         };
         let states = plan.drive(&road, 25.0, 10.0);
         assert!(states.iter().any(|e| (150.0..350.0).contains(&e.s)), "the drive passes the bend");

@@ -37,7 +37,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 use crate::trajectory::Trajectory;
-use actors::{lay_out_work_zone, Class, EgoPlan, EgoState, ObjectState, Vehicle, WorkZone, ZonePlan};
+use actors::{lay_out_work_zone, Class, EgoPlan, EgoState, ObjectState, Swerve, Tailgate, Vehicle, WorkZone, ZonePlan};
 use profile::{Profile, Receiver, StreetAnchorModel};
 use road::{Road, RoadPose, Segment};
 use sensors::{observable, Camera, Detection2d, DetectorModel, GnssModel, GnssSample, Object2d, WheelModel};
@@ -87,25 +87,123 @@ pub struct ScenarioConfig {
     pub receiver: Receiver,
 }
 
-/// How the ego is driven through the work zone.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// How the ego is driven: carefully, or badly in one of the ways a verifier must catch.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Driver {
     /// Changes into the open lane well before the taper (the drives of the Dash2Sim
     /// corpus: "the driver completed each route without any incidents").
     #[default]
     Careful,
-    /// Changes lanes only once the taper has begun and clips its drums: a log the
-    /// verifier must reject.
+    /// Changes lanes only once the taper has begun and clips its drums.
     Careless,
+    /// Drifts off the carriageway onto the shoulder before the work zone.
+    Shoulder,
+    /// Swerves across the divider into the oncoming lane and back.
+    Oncoming,
+    /// Keeps the careful driver's pace on a road signed 60 km/h.
+    Speeding,
+    /// Closes on a slower vehicle ahead and brakes only at the last moment, stopping a
+    /// metre behind it (time to collision below nuPlan's 0.95 s, without contact).
+    Tailgating,
+    /// Brakes for the zone at 5.5 m/s² and pulls away at 3.5 m/s².
+    Harsh,
+    /// Careful, on the edge: passes the closure's drums and cones 0.1–0.3 m clear and
+    /// brakes at 3 m/s² (its jerk limited); every metric holds.
+    KnifeEdge,
+}
+
+/// What the truth of a drive must score: the nuPlan metric a bad driver fails.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Expectation {
+    /// Every metric holds and the drive verifies.
+    Verifies,
+    /// This metric (nuPlan's name) is below 1 and the drive is rejected.
+    Fails(&'static str),
 }
 
 impl Driver {
+    /// Every driver, careful first.
+    pub const ALL: [Driver; 8] = [
+        Driver::Careful,
+        Driver::Careless,
+        Driver::Shoulder,
+        Driver::Oncoming,
+        Driver::Speeding,
+        Driver::Tailgating,
+        Driver::Harsh,
+        Driver::KnifeEdge,
+    ];
+
     /// Its name on the command line.
     pub fn name(self) -> &'static str {
         match self {
             Driver::Careful => "careful",
             Driver::Careless => "careless",
+            Driver::Shoulder => "shoulder",
+            Driver::Oncoming => "oncoming",
+            Driver::Speeding => "speeding",
+            Driver::Tailgating => "tailgating",
+            Driver::Harsh => "harsh",
+            Driver::KnifeEdge => "knife-edge",
+        }
+    }
+
+    /// The driver named `name` ([`Driver::name`]).
+    pub fn from_name(name: &str) -> Option<Driver> {
+        Driver::ALL.into_iter().find(|d| d.name() == name)
+    }
+
+    /// What the drive's truth must score.
+    pub fn expectation(self) -> Expectation {
+        match self {
+            Driver::Careful | Driver::KnifeEdge => Expectation::Verifies,
+            Driver::Careless => Expectation::Fails("no_at_fault_collisions"),
+            Driver::Shoulder => Expectation::Fails("drivable_area_compliance"),
+            Driver::Oncoming => Expectation::Fails("driving_direction_compliance"),
+            Driver::Speeding => Expectation::Fails("speed_limit_compliance"),
+            Driver::Tailgating => Expectation::Fails("time_to_collision_within_bound"),
+            Driver::Harsh => Expectation::Fails("ego_is_comfortable"),
+        }
+    }
+
+    /// Whether its drives should verify.
+    pub fn is_careful(self) -> bool {
+        self.expectation() == Expectation::Verifies
+    }
+}
+
+/// Which drivers a command drives each seed with: `careful`, `careless`, any other kind,
+/// `both` (careful and careless) or `all` ([`Driver::ALL`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Drivers {
+    /// One kind.
+    One(Driver),
+    /// Careful and careless.
+    Both,
+    /// Every kind.
+    All,
+}
+
+impl Drivers {
+    /// The drivers, careful first.
+    pub fn list(self) -> &'static [Driver] {
+        match self {
+            Drivers::One(d) => Driver::ALL.iter().position(|k| *k == d).map_or(&[], |k| &Driver::ALL[k..=k]),
+            Drivers::Both => &Driver::ALL[..2],
+            Drivers::All => &Driver::ALL,
+        }
+    }
+
+    /// `KIND`, `both` or `all` ([`Driver::name`]).
+    pub fn parse(text: &str) -> Result<Self, String> {
+        match text {
+            "both" => Ok(Drivers::Both),
+            "all" => Ok(Drivers::All),
+            _ => Driver::from_name(text).map(Drivers::One).ok_or_else(|| {
+                let kinds: Vec<&str> = Driver::ALL.iter().map(|d| d.name()).collect();
+                format!("`{text}` is not a driver: give one of {}, both or all", kinds.join(", "))
+            }),
         }
     }
 }
@@ -196,6 +294,7 @@ enum Stream {
     Vo = 5,
     // 6 is the profile's per-drive draws (`profile::PROFILE_STREAM`).
     Imu = 7,
+    Driver = 8,
 }
 
 fn rng(seed: u64, stream: Stream) -> ChaCha8Rng {
@@ -232,9 +331,14 @@ pub fn sections_for(duration_s: f64) -> usize {
     ((EGO_S0 + 22.0 * duration_s) / SECTION_M).ceil().max(1.0) as usize
 }
 
+/// The road's speed limit, m/s: 80 km/h.
+const SPEED_LIMIT: f64 = 80.0 / 3.6;
+/// The speeding driver's road is signed 60 km/h; it keeps the careful pace.
+const SPEEDING_LIMIT: f64 = 60.0 / 3.6;
+
 /// The road of `sections` sections: each a 150 m straight, a 38° bend of radius 300 m (200 m;
 /// left, then right, in turn) and an 800 m straight.
-fn road(sections: usize, heading: f64) -> Road {
+fn road(sections: usize, heading: f64, speed_limit: f64) -> Road {
     let segments = (0..sections)
         .flat_map(|k| {
             let curvature = if k % 2 == 0 { 1.0 / 300.0 } else { -1.0 / 300.0 };
@@ -247,7 +351,7 @@ fn road(sections: usize, heading: f64) -> Road {
         lane_width: 3.5,
         lanes_forward: 2,
         lanes_backward: 2,
-        speed_limit: 80.0 / 3.6,
+        speed_limit,
     }
 }
 
@@ -266,13 +370,101 @@ fn zone_plan(zone: &WorkZone, driver: Driver) -> ZonePlan {
     ZonePlan {
         changes: [
             match driver {
-                Driver::Careful => (zone.taper_start - 130.0, zone.taper_start - 70.0),
                 Driver::Careless => (zone.taper_start - 5.0, zone.taper_start + 35.0),
+                _ => (zone.taper_start - 130.0, zone.taper_start - 70.0),
             },
             (zone.end() + 30.0, zone.end() + 100.0),
         ],
         slow: (zone.taper_start - 100.0, zone.end() + 10.0),
     }
+}
+
+/// How `driver` drives a road with these zones.
+fn ego_plan(road: &Road, zones: &[WorkZone], driver: Driver) -> EgoPlan {
+    let careful = EgoPlan {
+        s0: EGO_S0,
+        cruise_speed: 22.0,
+        zone_speed: 15.0,
+        max_accel: 1.5,
+        max_brake: 1.5,
+        max_jerk: None,
+        lanes: (road.forward_lane(1), road.forward_lane(0)),
+        zones: zones.iter().map(|z| zone_plan(z, driver)).collect(),
+        swerve: None,
+        tailgate: None,
+    };
+    let closed = road.forward_lane(0);
+    match driver {
+        Driver::Careful | Driver::Careless | Driver::Speeding | Driver::Tailgating => careful,
+        // Two metres right of the outer lane: the right-hand corners well over the edge,
+        // ahead of the first sign.
+        Driver::Shoulder => EgoPlan {
+            swerve: Some(Swerve {
+                out: (EGO_S0 + 20.0, EGO_S0 + 70.0),
+                back: (EGO_S0 + 110.0, EGO_S0 + 160.0),
+                offset: -2.0,
+            }),
+            ..careful
+        },
+        // Across both forward lanes into the oncoming lane by the divider, ahead of the
+        // oncoming traffic, and back.
+        Driver::Oncoming => EgoPlan {
+            swerve: Some(Swerve {
+                out: (EGO_S0 + 10.0, EGO_S0 + 90.0),
+                back: (EGO_S0 + 130.0, EGO_S0 + 210.0),
+                offset: road.backward_lane(1) - closed,
+            }),
+            ..careful
+        },
+        Driver::Harsh => EgoPlan { max_accel: 3.5, max_brake: 5.5, ..careful },
+        Driver::KnifeEdge => EgoPlan { max_brake: 3.0, max_jerk: Some(2.0), ..careful },
+    }
+}
+
+/// The farthest any object of `zone`'s closure reaches towards the open lane: the largest
+/// lateral offset (d) of a box's edge among `statics` from the taper to the end of the
+/// closure. The zone lies on a straight, so d is the box's distance across the road.
+fn closure_reach(road: &Road, zone: &WorkZone, statics: &[ObjectState]) -> f64 {
+    let start = road.pose(zone.taper_start);
+    let (sin, cos) = start.heading.sin_cos();
+    statics
+        .iter()
+        .filter_map(|o| {
+            let (dx, dy) = (o.bbox.x - start.x, o.bbox.y - start.y);
+            let along = dx * cos + dy * sin;
+            (-1.0..=zone.closure_end() - zone.taper_start).contains(&along).then(|| {
+                let turn = o.bbox.yaw - start.heading;
+                let half = (o.bbox.l / 2.0 * turn.sin()).abs() + (o.bbox.w / 2.0 * turn.cos()).abs();
+                -dx * sin + dy * cos + half
+            })
+        })
+        .fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// The slower car the tailgating driver closes on: 30 m ahead of it in its lane when it
+/// reaches the section's start (time `arrival`), at 17 m/s, changing into the open lane as the
+/// ego does. No random draws: the other drivers' drives stay as they were.
+fn slow_lead(
+    road: &Road,
+    zone: &WorkZone,
+    offset: f64,
+    arrival: f64,
+    s_range: (f64, f64),
+    next_id: &mut u32,
+) -> Vehicle {
+    let speed = 17.0;
+    let change = (zone.taper_start - 130.0, zone.taper_start - 70.0, road.forward_lane(1));
+    let lead = Vehicle {
+        id: *next_id,
+        class: Class::Car,
+        s0: EGO_S0 + 30.0 + offset - speed * arrival,
+        speed,
+        d: road.forward_lane(0),
+        lane_change: Some(change),
+        s_range,
+    };
+    *next_id += 1;
+    lead
 }
 
 /// The traffic of a section whose zone is `zone`, the ego reaching the section's start at
@@ -323,28 +515,26 @@ fn traffic(
 /// 50 s has one, as it always had. The first section's layout and traffic are drawn first, so
 /// a longer drive starts as a shorter one of the same seed does.
 pub fn generate(config: &ScenarioConfig) -> Scenario {
+    let driver = config.driver;
     let mut layout = rng(config.seed, Stream::Layout);
     let sections = sections_for(config.duration_s);
-    let road = road(sections, layout.random_range(-3.1..3.1));
+    let speed_limit = if driver == Driver::Speeding { SPEEDING_LIMIT } else { SPEED_LIMIT };
+    let road = road(sections, layout.random_range(-3.1..3.1), speed_limit);
     let mut zones = vec![zone_of(0, &mut layout)];
     let mut next_id = 1;
     // Each section's statics and traffic, with the s-range in which the ego sees them.
     let mut objects_by_section: Vec<(Vec<ObjectState>, Vec<Vehicle>)> = Vec::new();
     let statics = lay_out_work_zone(&road, &zones[0], &mut layout, &mut next_id);
     let first_range = (f64::NEG_INFINITY, SECTION_M + 200.0);
-    let vehicles = traffic(&road, &zones[0], 0.0, 0.0, first_range, &mut layout, &mut next_id);
+    let mut vehicles = traffic(&road, &zones[0], 0.0, 0.0, first_range, &mut layout, &mut next_id);
+    if driver == Driver::Tailgating {
+        vehicles.push(slow_lead(&road, &zones[0], 0.0, 0.0, first_range, &mut next_id));
+    }
     objects_by_section.push((statics, vehicles));
     for k in 1..sections {
         zones.push(zone_of(k, &mut layout));
     }
-    let plan = EgoPlan {
-        s0: EGO_S0,
-        cruise_speed: 22.0,
-        zone_speed: 15.0,
-        max_accel: 1.5,
-        lanes: (road.forward_lane(1), road.forward_lane(0)),
-        zones: zones.iter().map(|z| zone_plan(z, config.driver)).collect(),
-    };
+    let mut plan = ego_plan(&road, &zones, driver);
     if sections > 1 {
         // When the ego reaches each section's start (its traffic is placed around it then).
         let path = plan.drive(&road, config.duration_s, 10.0);
@@ -355,12 +545,32 @@ pub fn generate(config: &ScenarioConfig) -> Scenario {
             let vehicles = match arrival {
                 Some(t) => {
                     let range = (start - 200.0, start + SECTION_M + 200.0);
-                    traffic(&road, zone, start, t, range, &mut layout, &mut next_id)
+                    let mut vehicles = traffic(&road, zone, start, t, range, &mut layout, &mut next_id);
+                    if driver == Driver::Tailgating {
+                        vehicles.push(slow_lead(&road, zone, start, t, range, &mut next_id));
+                    }
+                    vehicles
                 }
                 None => Vec::new(),
             };
             objects_by_section.push((statics, vehicles));
         }
+    }
+    match driver {
+        Driver::Tailgating => {
+            let leads = objects_by_section.iter().filter_map(|(_, vehicles)| vehicles.last().copied()).collect();
+            plan.tailgate = Some(Tailgate { leads, gap: 1.0, brake: 3.0 });
+        }
+        Driver::KnifeEdge => {
+            let clearance = rng(config.seed, Stream::Driver).random_range(0.1..0.3);
+            let reach = zones
+                .iter()
+                .zip(&objects_by_section)
+                .map(|(zone, (statics, _))| closure_reach(&road, zone, statics))
+                .fold(f64::NEG_INFINITY, f64::max);
+            plan.lanes.0 = reach + clearance + dash2sim_core::obb::PACIFICA.width / 2.0;
+        }
+        _ => {}
     }
 
     let egos = plan.drive(&road, config.duration_s, config.frame_rate_hz);
@@ -592,6 +802,43 @@ mod tests {
                 .collect();
             assert_eq!(seen.len(), Class::ALL.len(), "seed {seed}: {seen:?}");
             assert!(s.gnss.iter().any(|g| g.multipath) || seed != 1, "seed 1 has a multipath episode");
+        }
+    }
+
+    /// The least gap across the road between the ego's side and the closure's objects it
+    /// passes (the zone is on a straight), m.
+    fn closure_clearance(s: &Scenario) -> f64 {
+        let zone = &s.zones[0];
+        let start = s.road.pose(zone.taper_start);
+        let (sin, cos) = start.heading.sin_cos();
+        let half_width = dash2sim_core::obb::PACIFICA.width / 2.0;
+        let statics: Vec<&ObjectState> = s.frames[0].objects.iter().filter(|o| o.is_static()).collect();
+        let mut least = f64::INFINITY;
+        for e in s.frames.iter().map(|f| f.ego).filter(|e| (zone.taper_start - 10.0..zone.closure_end()).contains(&e.s))
+        {
+            let (front, rear) = (e.s + dash2sim_core::obb::PACIFICA.front, e.s - dash2sim_core::obb::PACIFICA.rear);
+            for o in &statics {
+                let (dx, dy) = (o.bbox.x - start.x, o.bbox.y - start.y);
+                let (along, across) = (zone.taper_start + dx * cos + dy * sin, -dx * sin + dy * cos);
+                let turn = o.bbox.yaw - start.heading;
+                let half_along = (o.bbox.l / 2.0 * turn.cos()).abs() + (o.bbox.w / 2.0 * turn.sin()).abs();
+                let half_across = (o.bbox.l / 2.0 * turn.sin()).abs() + (o.bbox.w / 2.0 * turn.cos()).abs();
+                if along + half_along >= rear && along - half_along <= front {
+                    least = least.min((e.d - half_width) - (across + half_across));
+                }
+            }
+        }
+        least
+    }
+
+    #[test]
+    fn the_knife_edge_driver_passes_the_closure_a_hand_breadth_clear_and_the_careful_one_wider() {
+        for seed in 1..=8 {
+            let drive = |driver| generate(&ScenarioConfig { seed, driver, ..ScenarioConfig::default() });
+            let (edge, careful) =
+                (closure_clearance(&drive(Driver::KnifeEdge)), closure_clearance(&drive(Driver::Careful)));
+            assert!((0.1 - 1e-6..=0.3 + 1e-6).contains(&edge), "seed {seed}: {edge} m clear");
+            assert!(careful > edge, "seed {seed}: careful {careful} m, knife-edge {edge} m");
         }
     }
 }

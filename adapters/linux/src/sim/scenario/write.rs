@@ -344,6 +344,12 @@ fn summary(scenario: &Scenario, files: &[PathBuf]) -> serde_json::Value {
         "classes": Class::ALL.iter().map(|k| k.name()).collect::<Vec<_>>(),
         "profile": c.profile.name(),
         "receiver": c.receiver.name(),
+        "driver": c.driver.name(),
+        // What the truth's verdict must be: the metric a bad driver fails, none for a careful one.
+        "expectation": match c.driver.expectation() {
+            super::Expectation::Verifies => json!({"verified": true, "fails": null}),
+            super::Expectation::Fails(metric) => json!({"verified": false, "fails": metric}),
+        },
         "camera": {"focal_px": c.camera.focal_px, "width": c.camera.width, "height": c.camera.height,
                    "mount_height_m": c.camera.mount_height, "mount_forward_m": c.camera.mount_forward,
                    "true_mount_error": {"yaw_deg": c.camera.mount_error.yaw.to_degrees(),
