@@ -68,6 +68,57 @@ pub struct Agent {
     pub velocity: (f64, f64),
 }
 
+impl Agent {
+    /// The agent with its box larger by `by` m on every side (smaller when negative, down
+    /// to a centimetre).
+    pub fn grown(&self, by: f64) -> Agent {
+        if by == 0.0 {
+            return *self;
+        }
+        let bbox = OrientedBox {
+            length: (self.bbox.length + 2.0 * by).max(0.01),
+            width: (self.bbox.width + 2.0 * by).max(0.01),
+            ..self.bbox
+        };
+        Agent { bbox, ..*self }
+    }
+}
+
+/// How far a pose's position and its agents' are in doubt (m, each `k` of a stated σ), and
+/// which way the doubt is taken ([`Scorer::step_with`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Doubt {
+    /// The benefit of the doubt: the best the drive can be within it.
+    For {
+        /// The ego's position, m.
+        ego: f64,
+        /// Each agent's position relative to the ego, m.
+        agents: f64,
+    },
+    /// The doubt held against the ego: the worst the drive can be within it.
+    Against {
+        /// The ego's position, m.
+        ego: f64,
+        /// Each agent's position relative to the ego, m.
+        agents: f64,
+    },
+}
+
+impl Doubt {
+    /// No doubt: nuPlan's own scoring.
+    pub const NONE: Doubt = Doubt::For { ego: 0.0, agents: 0.0 };
+
+    /// The ego's doubt (≥ 0) and how much larger each agent's box is on every side.
+    fn amounts(self) -> (f64, f64) {
+        let clean = |x: f64| if x.is_finite() { x.max(0.0) } else { 0.0 };
+        match self {
+            Doubt::For { ego, agents } => (clean(ego), -clean(agents)),
+            Doubt::Against { ego, agents } => (clean(ego), clean(agents)),
+        }
+    }
+}
+
 /// The six quantities nuPlan's comfort metric bounds — as bounds in [`ScoreConfig`], as
 /// the extremes a drive reached in [`Scores`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -215,6 +266,9 @@ pub struct StepReport {
     pub direction_progress: f64,
     /// A new collision, if any (the first of the step).
     pub collision: Option<Collision>,
+    /// Whether the pose counted as on the drivable area, its doubt taken as the step was
+    /// told ([`Scorer::step_with`]; without doubt, `check.compliant()`).
+    pub compliant: bool,
 }
 
 /// Savitzky–Golay (quadratic) first and second derivative at the centre of a window of
@@ -421,23 +475,40 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
 
     /// Score the ego with its rear axle at `pose` at time `t` (s), among `agents`.
     pub fn step(&mut self, t: f64, pose: &Pose2, agents: &[Agent]) -> Result<StepReport, ScoreError> {
-        self.step_in_doubt(t, pose, agents, 0.0)
+        self.step_with(t, pose, agents, Doubt::NONE)
     }
 
     /// [`Scorer::step`] for a pose whose position is in doubt by `doubt` m (a device's ego,
-    /// `k` of its stated σ): the map's metrics give it the benefit of the doubt. A corner
-    /// breaks drivable-area compliance only when it is outside by nuPlan's 0.3 m and `doubt`
-    /// more ([`PoseCheck::compliant_within`]), and a centre in no lane heading the ego's way
-    /// is taken to be in the nearest one that does within `doubt`
-    /// ([`Checker::lane_headed_within`]), for the driving direction and the speed limit. Collisions and time to collision are judged as [`Scorer::step`]
-    /// judges them: the agents are placed through the same ego, so its error moves them
-    /// with it. The report's check is the pose's own; `doubt` ≤ 0 (or not finite) is none.
+    /// `k` of its stated σ), given the benefit of the doubt on the map's metrics:
+    /// [`Scorer::step_with`] with [`Doubt::For`]`(doubt, 0)`. The device's windows score so.
     pub fn step_in_doubt(
         &mut self,
         t: f64,
         pose: &Pose2,
         agents: &[Agent],
         doubt: f64,
+    ) -> Result<StepReport, ScoreError> {
+        self.step_with(t, pose, agents, Doubt::For { ego: doubt, agents: 0.0 })
+    }
+
+    /// [`Scorer::step`] with the pose's position and the agents' in doubt, taken the way
+    /// `doubt` says. [`Doubt::For`] gives the ego the benefit of it: a corner breaks
+    /// drivable-area compliance only when it is outside by nuPlan's 0.3 m and the ego's doubt
+    /// more ([`PoseCheck::compliant_within`]); a centre in no lane heading the ego's way is
+    /// taken to be in the nearest one that does within the doubt
+    /// ([`Checker::lane_headed_within`]), for the driving direction and the speed limit; each
+    /// agent's box is smaller by its doubt on every side, for collisions and time to
+    /// collision. [`Doubt::Against`] holds it against the ego: the footprint must also be
+    /// compliant moved its doubt to either side, and each agent's box is larger by its doubt
+    /// on every side. Run once each way over a drive, the two scores bound what the drive
+    /// scores anywhere within the doubt ([`Scorer::finish`]). The report's check is the
+    /// pose's own; a doubt ≤ 0 or not finite is none.
+    pub fn step_with(
+        &mut self,
+        t: f64,
+        pose: &Pose2,
+        agents: &[Agent],
+        doubt: Doubt,
     ) -> Result<StepReport, ScoreError> {
         if !(t.is_finite() && pose.is_finite()) {
             return Err(ScoreError::NotFinite);
@@ -456,14 +527,19 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         self.poses += 1;
 
         let check = self.checker.check(pose, self.channel, self.lane.map(|(l, _)| l));
-        let doubt = if doubt.is_finite() { doubt.max(0.0) } else { 0.0 };
+        let (ego_doubt, agent_grow) = doubt.amounts();
         self.worst_corner = self.worst_corner.max(check.worst());
-        if !check.compliant_within(doubt) {
+        let compliant = match doubt {
+            Doubt::For { .. } => check.compliant_within(ego_doubt),
+            Doubt::Against { .. } => check.compliant() && (ego_doubt == 0.0 || self.compliant_aside(pose, ego_doubt)),
+        };
+        if !compliant {
             self.noncompliant += 1;
         }
+        let lenient = matches!(doubt, Doubt::For { .. }) && ego_doubt > 0.0;
         let centre_lane = match check.centre_lane {
-            Some(c) if doubt == 0.0 || libm::cos(c.heading - pose.heading) > 0.0 => Some(c),
-            own if doubt > 0.0 => self.checker.lane_headed_within(pose, doubt).or(own),
+            Some(c) if !lenient || libm::cos(c.heading - pose.heading) > 0.0 => Some(c),
+            own if lenient => self.checker.lane_headed_within(pose, ego_doubt).or(own),
             own => own,
         };
 
@@ -490,11 +566,13 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         }
 
         self.comfort.push(t, pose);
-        let collision = self.collide(pose, speed, agents, &check);
+        let collision = self.collide(pose, speed, agents, &check, agent_grow);
         let ttc = match collision {
             // nuPlan: an at-fault collision is a TTC of 0.
             Some(c) if c.at_fault => Some((0.0, c.id)),
-            _ if self.poses > 1 && speed > self.config.ttc_stopped_speed => self.ttc(pose, speed, agents, &check),
+            _ if self.poses > 1 && speed > self.config.ttc_stopped_speed => {
+                self.ttc(pose, speed, agents, &check, agent_grow)
+            }
             _ => None,
         };
         if let Some((ttc, _)) = ttc {
@@ -507,14 +585,31 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
             ttc_agent: ttc.map(|(_, id)| id),
             direction_progress,
             collision,
+            compliant,
         })
     }
 
-    /// nuPlan's collision classification for each agent's first contact.
-    fn collide(&mut self, pose: &Pose2, speed: f64, agents: &[Agent], check: &PoseCheck) -> Option<Collision> {
+    /// Whether the footprint stays compliant moved `by` m to its left and to its right.
+    fn compliant_aside(&self, pose: &Pose2, by: f64) -> bool {
+        [by, -by].iter().all(|&left| {
+            let (x, y) = pose.offset(0.0, left);
+            self.checker.check(&Pose2::new(x, y, pose.heading), self.channel, self.lane.map(|(l, _)| l)).compliant()
+        })
+    }
+
+    /// nuPlan's collision classification for each agent's first contact, each agent's box
+    /// larger by `grow` m on every side (smaller when negative).
+    fn collide(
+        &mut self,
+        pose: &Pose2,
+        speed: f64,
+        agents: &[Agent],
+        check: &PoseCheck,
+        grow: f64,
+    ) -> Option<Collision> {
         let ego = self.checker.footprint().at(pose);
         let mut first = None;
-        for agent in agents {
+        for agent in agents.iter().map(|a| a.grown(grow)) {
             if self.collided.contains(&agent.id) || !ego.overlaps(&agent.bbox) {
                 continue;
             }
@@ -548,14 +643,14 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
     /// agents beside count too while the ego is between lanes or off the drivable area;
     /// agents behind (beyond 150°) and agents already collided with never do. Each agent
     /// moves along its heading at its speed. The time and the agent it is to.
-    fn ttc(&self, pose: &Pose2, speed: f64, agents: &[Agent], check: &PoseCheck) -> Option<(f64, u32)> {
+    fn ttc(&self, pose: &Pose2, speed: f64, agents: &[Agent], check: &PoseCheck, grow: f64) -> Option<(f64, u32)> {
         let ego = self.checker.footprint().at(pose);
         let (s, c) = libm::sincos(pose.heading);
         let between_lanes = check.occupied.len() != 1 || !check.compliant();
         // The horizon itself is excluded, as numpy's arange(step, horizon, step).
         let steps = libm::ceil(self.config.ttc_horizon / self.config.ttc_step - 1e-9).clamp(1.0, 1000.0) as u32 - 1;
         let mut best: Option<(f64, u32)> = None;
-        for agent in agents {
+        for agent in agents.iter().map(|a| a.grown(grow)) {
             let (dx, dy) = (agent.bbox.centre.x - pose.x, agent.bbox.centre.y - pose.y);
             let distance = libm::hypot(dx, dy);
             let cos_angle = if distance > 1e-9 { (dx * c + dy * s) / distance } else { 1.0 };

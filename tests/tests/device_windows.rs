@@ -56,7 +56,8 @@ fn device_windows_verify_where_the_truth_does_and_never_over_a_collision() {
                 tile: &r.tile,
                 setup: &r.setup,
             };
-            let a = assess(&recorded, Anchors::None, &r.work.join("anchors.csv"), None).expect("assess");
+            let a = assess(&recorded, Anchors::None, &r.work.join("anchors.csv"), None, Default::default())
+                .expect("assess");
             for record in &log.records {
                 if let Record::EgoPose(p) = record {
                     assert!(p.sigma_mm > 0, "seed {seed}: an ego pose without its σ: {p:?}");

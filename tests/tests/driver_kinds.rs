@@ -1,12 +1,17 @@
 //! Every kind of driver the generator has, held to what its drive's truth must score
 //! (`Driver::expectation`, written to `scenario.json`): the careful and knife-edge drives
 //! verify with every metric whole, and each bad driver fails the nuPlan metric it is made
-//! to fail and is rejected — so a sweep's "0 verified" per kind tests that kind.
+//! to fail and is rejected — so a sweep's "0 verified" per kind tests that kind. And the
+//! verdict with its doubt (`verify --decide-at`) on those truths, their σ stated.
 
+use dash2sim_core::map::MapView;
+use dash2sim_core::obb::PACIFICA;
 use dash2sim_linux::sim::fidelity::drive::verify_truth;
 use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
-use dash2sim_linux::sim::scenario::write::write_scenario;
+use dash2sim_linux::sim::scenario::write::{road_tile, write_scenario};
 use dash2sim_linux::sim::scenario::{generate, Driver, Expectation, ScenarioConfig};
+use dash2sim_linux::verify::decide::{Decided, Decision, DoubtSettings};
+use dash2sim_linux::verify::{read_objects, replay_in_doubt};
 
 /// Seeds per kind: drives are 40 s long, as the sweep's.
 const SEEDS: std::ops::RangeInclusive<u64> = 1..=6;
@@ -36,4 +41,57 @@ fn each_drivers_truth_scores_as_its_kind_says() {
     }
     let _ = std::fs::remove_dir_all(&dir);
     assert!(report.is_empty(), "{}", report.join("\n"));
+}
+
+/// The verdict with its doubt on the truth of a drive, its poses stated `sigma` m (DRMS) and
+/// its objects `object_sigma` m.
+fn decided_with(driver: Driver, seed: u64, sigma: f64, object_sigma: f64) -> (f64, Decided) {
+    use dash2sim_core::geo::Geodetic;
+    use dash2sim_linux::sim::fidelity::drive::truth_ego;
+    let config = ScenarioConfig { driver, ..ScenarioConfig::drive(seed, Profile::Typical, Receiver::Good) };
+    let scenario = generate(&config);
+    let dir = std::env::temp_dir().join(format!("dash2sim-doubt-{}-{seed}-{}", std::process::id(), driver.name()));
+    write_scenario(&scenario, &dir).expect("write");
+    let [lat, lon, h] = config.origin;
+    let tile = road_tile(&dir, Geodetic::new(lat, lon, h).expect("origin")).expect("tile");
+    let map = MapView::parse(&tile).expect("map");
+    let agents = read_objects(&dir.join("objects.csv")).expect("objects");
+    let ego = truth_ego(&scenario);
+    let sigmas = vec![sigma; ego.len()];
+    let doubt = DoubtSettings { decide_at: 2.0, object_sigma_m: object_sigma };
+    let v = replay_in_doubt(map, &ego, &sigmas, &agents, false, PACIFICA, Some(doubt)).expect("replay");
+    let _ = std::fs::remove_dir_all(&dir);
+    (v.scores.score, v.decided.expect("asked for a decision"))
+}
+
+#[test]
+fn a_stated_sigma_makes_a_verdict_undecided_where_the_evidence_cannot_tell() {
+    for driver in [Driver::Careful, Driver::Shoulder, Driver::Careless] {
+        // No doubt: the decision is nuPlan's verdict, the interval the point.
+        let (score, sure) = decided_with(driver, 3, 0.0, 0.0);
+        let expected = if driver == Driver::Careful { Decision::Verified } else { Decision::Rejected };
+        assert_eq!((sure.decision, sure.score_interval), (expected, [score; 2]), "{}", driver.name());
+        assert!(sure.in_doubt.is_empty(), "{}: {:?}", driver.name(), sure.in_doubt);
+    }
+    // A σ of 2 m (a drive without anchors): the careful drive could be over the road's edge
+    // and the shoulder drive back on it; neither is decided, and each says why.
+    for driver in [Driver::Careful, Driver::Shoulder] {
+        let (score, doubtful) = decided_with(driver, 3, 2.0, 0.0);
+        assert_eq!(doubtful.decision, Decision::Undecided, "{}: {doubtful:?}", driver.name());
+        let [low, high] = doubtful.score_interval;
+        assert!(low <= score && score <= high, "{}: {score} outside {low}–{high}", driver.name());
+        assert!(low <= 90.0 && high > 90.0);
+        assert!(doubtful.in_doubt.iter().any(|w| w.starts_with("drivable area")), "{:?}", doubtful.in_doubt);
+    }
+    // The ego's σ does not move the drums it clipped (they were placed through it); a stated
+    // σ for the objects puts the collisions in doubt — but not the verdict: even with every
+    // drum shrunk to nothing the careless ego drives at them (time to collision fails).
+    let (_, ego_only) = decided_with(Driver::Careless, 3, 2.0, 0.0);
+    assert_ne!(ego_only.decision, Decision::Verified);
+    assert!(!ego_only.in_doubt.iter().any(|w| w.starts_with("collisions")), "{:?}", ego_only.in_doubt);
+    let (score, objects) = decided_with(Driver::Careless, 3, 0.0, 1.0);
+    assert_eq!(objects.decision, Decision::Rejected, "{objects:?}");
+    assert!(objects.score_interval[0] <= score && score <= objects.score_interval[1]);
+    assert!(objects.score_interval[1] > score, "shrunk drums are not hit: {objects:?}");
+    assert!(objects.in_doubt.iter().any(|w| w.starts_with("collisions")), "{:?}", objects.in_doubt);
 }

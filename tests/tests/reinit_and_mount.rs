@@ -98,7 +98,7 @@ fn each_vo_session_is_anchored_again_the_mount_calibrated_and_the_finished_ego_d
     let log_name = "reinit.d2slog".to_owned();
     let recorded =
         Recorded { scenario, drive_dir: &work.join("drive"), log, log_name: &log_name, tile: &r.tile, setup: &r.setup };
-    let a = assess(&recorded, Anchors::Street, &work.join("anchors.csv"), None).expect("assess");
+    let a = assess(&recorded, Anchors::Street, &work.join("anchors.csv"), None, Default::default()).expect("assess");
     assert_eq!(a.finish_report.sessions.len(), reinits as usize + 1, "{:?}", a.finish_report);
     // Every finished pose states its σ; most lie within 2σ of the truth (79 % on this drive
     // of three joins; the target, 90 %, is not met yet: docs/fidelity.md).

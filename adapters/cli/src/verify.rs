@@ -44,9 +44,18 @@ pub struct VerifyArgs {
     /// Only the poses up to this time.
     #[arg(long, allow_hyphen_values = true)]
     to: Option<f64>,
-    /// Print the report as JSON: each metric's score, the aggregate, `verified`.
+    /// Print the report as JSON: each metric's score, the aggregate, `verified`, and the
+    /// decision with its doubt (`decided`).
     #[arg(long)]
     json: bool,
+    /// Decide with this many σ of doubt: the log is verified when it verifies anywhere
+    /// within K of the ego's stated σ (and of the objects'), rejected when it verifies
+    /// nowhere within it, undecided otherwise (docs/verify.md).
+    #[arg(long, value_name = "K", default_value_t = verify::decide::DEFAULT_DECIDE_AT)]
+    decide_at: f64,
+    /// σ of each object's place relative to the ego, m: the log's tracks state none.
+    #[arg(long, value_name = "M", default_value_t = verify::decide::DEFAULT_OBJECT_SIGMA_M)]
+    object_sigma: f64,
 }
 
 /// `dash2sim verify`: a damaged log's warning on stderr, the report on stdout.
@@ -68,9 +77,13 @@ pub fn run(a: &VerifyArgs) -> Result<()> {
         footprint,
         poses: a.poses.as_deref(),
         window: (a.from.unwrap_or(f64::NEG_INFINITY), a.to.unwrap_or(f64::INFINITY)),
+        doubt: verify::decide::DoubtSettings { decide_at: a.decide_at, object_sigma_m: a.object_sigma },
     };
     if !valid {
         return Err(Error::invalid("--width and --front + --rear must be positive"));
+    }
+    if !(a.decide_at.is_finite() && a.decide_at >= 0.0 && a.object_sigma.is_finite() && a.object_sigma >= 0.0) {
+        return Err(Error::invalid("--decide-at and --object-sigma must be finite and ≥ 0"));
     }
     let (v, name) = verify::evaluate(&request, &mut |warning| eprintln!("warning: {warning}"))?;
     if a.json {
@@ -113,4 +126,23 @@ fn render(v: &Verification, name: &Path, channel_sensitive: bool) {
         }
     }
     println!("score {:.2} → {}", s.score, if s.verified { "verified" } else { "NOT verified (needs > 90)" });
+    if let Some(d) = &v.decided {
+        let k = d.settings.decide_at;
+        if d.poses_with_sigma == 0 && d.settings.object_sigma_m == 0.0 {
+            println!("no σ stated for the ego or the objects: decided as nuPlan's verdict → {}", d.decision.name());
+        } else {
+            println!(
+                "with {k}σ of doubt (the ego's σ median {:.2} m over {} poses, objects' {:.2} m): score {:.2}–{:.2} → {}",
+                d.ego_sigma_median_m,
+                d.poses_with_sigma,
+                d.settings.object_sigma_m,
+                d.score_interval[0],
+                d.score_interval[1],
+                d.decision.name()
+            );
+        }
+        for why in &d.in_doubt {
+            println!("  {}: {why}", d.decision.name());
+        }
+    }
 }

@@ -100,7 +100,8 @@ fn finish(
 
 /// Replay a log's ego against a map tile and score it (`dash2sim verify --json`).
 #[pyfunction]
-#[pyo3(signature = (log, map, channel_sensitive = false, start = None, end = None, footprint = None))]
+#[pyo3(signature = (log, map, channel_sensitive = false, start = None, end = None, footprint = None, decide_at = None, object_sigma = None))]
+#[allow(clippy::too_many_arguments)] // Python's keyword arguments, one each
 fn verify(
     py: Python<'_>,
     log: PathBuf,
@@ -109,7 +110,21 @@ fn verify(
     start: Option<f64>,
     end: Option<f64>,
     footprint: Option<(f64, f64, f64)>,
+    decide_at: Option<f64>,
+    object_sigma: Option<f64>,
 ) -> PyResult<String> {
+    let defaults = dash2sim_linux::verify::decide::DoubtSettings::default();
+    let doubt = dash2sim_linux::verify::decide::DoubtSettings {
+        decide_at: decide_at.unwrap_or(defaults.decide_at),
+        object_sigma_m: object_sigma.unwrap_or(defaults.object_sigma_m),
+    };
+    if !(doubt.decide_at >= 0.0
+        && doubt.object_sigma_m >= 0.0
+        && doubt.decide_at.is_finite()
+        && doubt.object_sigma_m.is_finite())
+    {
+        return Err(error("decide_at and object_sigma must be finite and ≥ 0".to_owned()));
+    }
     let footprint = footprint.map_or(PACIFICA, |(width, front, rear)| Footprint { width, front, rear });
     if !(footprint.width > 0.0 && footprint.front + footprint.rear > 0.0) {
         return Err(error("footprint: the width and front + rear must be positive".to_owned()));
@@ -122,6 +137,7 @@ fn verify(
         footprint,
         poses: None,
         window: (start.unwrap_or(f64::NEG_INFINITY), end.unwrap_or(f64::INFINITY)),
+        doubt,
     };
     py.detach(|| {
         let (verification, _) =

@@ -227,7 +227,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value> {
         tile: &tile,
         setup: &setup,
     };
-    let assessed = assess(&recorded, args.anchors, &anchors_path, None)?;
+    let assessed = assess(&recorded, args.anchors, &anchors_path, None, Default::default())?;
     spinner.finish_and_clear();
     let finished_path = out.join("finished.d2slog");
     write_file(&finished_path, &assessed.finished_bytes)?;

@@ -8,6 +8,7 @@
 //! objects of the frame nearest each pose (within [`OBJECT_TIME_TOLERANCE`]) are its agents.
 
 pub mod anchoring;
+pub mod decide;
 pub mod evaluate;
 pub mod mot;
 
@@ -20,7 +21,8 @@ use crate::{Error, Result};
 use dash2sim_core::drivable::{Channel, LaneSet};
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Footprint, OrientedBox, Pose2};
-use dash2sim_core::score::{Agent, AgentKind, ScoreConfig, Scorer, Scores, StepReport};
+use dash2sim_core::score::{Agent, AgentKind, Doubt, ScoreConfig, Scorer, Scores, StepReport};
+use decide::{Decided, DoubtSettings, WorstPose};
 
 /// Objects farther in time than this from a pose are not its agents, s.
 pub const OBJECT_TIME_TOLERANCE: f64 = 0.05;
@@ -44,10 +46,15 @@ pub struct VerifyRequest<'a> {
     pub poses: Option<&'a Path>,
     /// Only the poses within this time window, s (a nuPlan scenario's, for the cross-check).
     pub window: (f64, f64),
+    /// How much doubt the decision allows (`--decide-at`, `--object-sigma`).
+    pub doubt: DoubtSettings,
 }
 
 /// Agents by time (ms).
 pub type AgentsByTime = BTreeMap<i64, Vec<Agent>>;
+
+/// A log's ego poses (time, rear-axle pose), its agents, and the σ it states for each pose (m).
+pub type LoggedDrive = (Vec<(f64, Pose2)>, AgentsByTime, Vec<f64>);
 
 /// The recorded drive to replay.
 #[derive(Clone, Copy, Debug)]
@@ -62,16 +69,20 @@ pub enum EgoSource<'a> {
 /// (through geodetic coordinates when the origins differ; headings are kept — the frames
 /// of nearby origins differ by well under a milliradian per kilometre).
 /// A damaged log's stretches are skipped, and `warn` told so.
-pub fn from_log(
-    path: &Path,
-    map: &MapView<'_>,
-    warn: &mut dyn FnMut(&str),
-) -> Result<(Vec<(f64, Pose2)>, AgentsByTime)> {
+/// With the poses, the σ the log states for each (m; 0 where it states none: [`ego_sigmas`]).
+pub fn from_log(path: &Path, map: &MapView<'_>, warn: &mut dyn FnMut(&str)) -> Result<LoggedDrive> {
     let log = crate::log::read(path).map_err(Error::other)?;
     if log.stats.damaged > 0 {
         warn(&format!("{}: {} damaged stretches skipped", path.display(), log.stats.damaged));
     }
-    from_contents(&log, &path.display().to_string(), map)
+    let (poses, agents) = from_contents(&log, &path.display().to_string(), map)?;
+    Ok((poses, agents, ego_sigmas(&log)))
+}
+
+/// The horizontal σ a log states for each of its ego poses, in [`from_contents`]'s order,
+/// m (0 where it states none).
+pub fn ego_sigmas(log: &crate::log::LogContents) -> Vec<f64> {
+    crate::log::export::ego_poses(log).map(|p| p.sigma_mm.max(0) as f64 * 1e-3).collect()
 }
 
 /// [`from_log`] on a log already read (`name` for messages).
@@ -197,15 +208,32 @@ pub struct Verification {
     pub steps: Vec<(f64, Pose2, StepReport)>,
     /// Lanes on the channel (channel-sensitive mode).
     pub channel_lanes: Option<usize>,
+    /// The verdict with its doubt ([`replay_in_doubt`]); none from [`replay`].
+    pub decided: Option<Decided>,
 }
 
-/// Replay `poses` (time, rear-axle pose) on `map`.
+/// Replay `poses` (time, rear-axle pose) on `map`: nuPlan's score.
 pub fn replay(
     map: MapView<'_>,
     poses: &[(f64, Pose2)],
     objects: &BTreeMap<i64, Vec<Agent>>,
     channel_sensitive: bool,
     footprint: Footprint,
+) -> Result<Verification> {
+    replay_in_doubt(map, poses, &[], objects, channel_sensitive, footprint, None)
+}
+
+/// [`replay`], and with `doubt` the verdict with its doubt ([`decide`]): the drive scored
+/// again with `k` of each pose's σ (`sigmas`, m, by pose; missing or 0: none) and of the
+/// objects' for the ego, and once more against it.
+pub fn replay_in_doubt(
+    map: MapView<'_>,
+    poses: &[(f64, Pose2)],
+    sigmas: &[f64],
+    objects: &BTreeMap<i64, Vec<Agent>>,
+    channel_sensitive: bool,
+    footprint: Footprint,
+    doubt: Option<DoubtSettings>,
 ) -> Result<Verification> {
     // A map of polygons (Lanelet2) is checked through its fine index (channel-insensitive).
     let index = if channel_sensitive { None } else { crate::ingest::map_tile::polygon_index::build(&map) };
@@ -224,13 +252,42 @@ pub fn replay(
     }
     let channel = if channel_sensitive { Channel::Sensitive(&*channel_set) } else { Channel::Insensitive };
     let mut scorer = Scorer::new(checker, channel, ScoreConfig::default());
+    // With a doubt: the drive scored with it for the ego and against it, beside nuPlan's.
+    let mut bounds = doubt.map(|_| {
+        (Scorer::new(checker, channel, ScoreConfig::default()), Scorer::new(checker, channel, ScoreConfig::default()))
+    });
     let mut steps = Vec::with_capacity(poses.len());
+    let mut worst: Option<WorstPose> = None;
     for (k, (t, pose)) in poses.iter().enumerate() {
-        let report =
-            scorer.step(*t, pose, agents_at(objects, *t)).map_err(|e| Error::refused(format!("pose {}", k + 1), e))?;
+        let agents = agents_at(objects, *t);
+        let refused = |e| Error::refused(format!("pose {}", k + 1), e);
+        let report = scorer.step(*t, pose, agents).map_err(refused)?;
+        if let (Some((lenient, strict)), Some(settings)) = (bounds.as_mut(), doubt) {
+            // A log states the horizontal σ as DRMS (both axes together); a corner leaves the
+            // road along one of them, whose σ is DRMS / √2.
+            let ego = settings.decide_at * sigmas.get(k).copied().unwrap_or(0.0) / std::f64::consts::SQRT_2;
+            let objects = settings.decide_at * settings.object_sigma_m;
+            lenient.step_with(*t, pose, agents, Doubt::For { ego, agents: objects }).map_err(refused)?;
+            let against =
+                strict.step_with(*t, pose, agents, Doubt::Against { ego, agents: objects }).map_err(refused)?;
+            if !against.compliant && worst.is_none() {
+                worst = Some(WorstPose { t: *t, worst_corner_m: report.check.worst(), ego_doubt_m: ego });
+            }
+        }
         steps.push((*t, *pose, report));
     }
-    Ok(Verification { scores: scorer.finish(None), steps, channel_lanes: channel_sensitive.then(|| channel_set.len()) })
+    let scores = scorer.finish(None);
+    let decided = bounds.zip(doubt).map(|((lenient, strict), settings)| {
+        decide::decided(
+            &scores,
+            &lenient.finish(None),
+            &strict.finish(None),
+            settings,
+            sigmas,
+            worst.unwrap_or_default(),
+        )
+    });
+    Ok(Verification { scores, steps, channel_lanes: channel_sensitive.then(|| channel_set.len()), decided })
 }
 
 fn poses_csv(steps: &[(f64, Pose2, StepReport)]) -> String {
@@ -335,7 +392,7 @@ impl Metrics {
 }
 
 /// `dash2sim verify --json`: the score, the metrics and what lies behind them.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct VerifyReport {
     /// The eight metrics.
     pub metrics: Metrics,
@@ -353,6 +410,9 @@ pub struct VerifyReport {
     pub duration_s: f64,
     /// What lies behind the metrics.
     pub details: Details,
+    /// The verdict with the log's doubt: verified, rejected or undecided, the score's
+    /// interval, and each metric that could flip (none when not asked for).
+    pub decided: Option<Decided>,
 }
 
 /// What lies behind the metrics (non-finite values are null in JSON).
@@ -416,6 +476,7 @@ pub fn report(v: &Verification, channel_sensitive: bool) -> VerifyReport {
         channel_lanes: v.channel_lanes,
         poses: s.poses,
         duration_s: s.duration,
+        decided: v.decided.clone(),
         details: Details {
             noncompliant_poses: s.noncompliant_poses,
             worst_corner_outside_m: s.worst_corner,
@@ -445,22 +506,36 @@ pub fn report(v: &Verification, channel_sensitive: bool) -> VerifyReport {
 pub fn evaluate<'a>(request: &VerifyRequest<'a>, warn: &mut dyn FnMut(&str)) -> Result<(Verification, &'a Path)> {
     let bytes = std::fs::read(request.map).map_err(|e| Error::file(request.map, e))?;
     let map = MapView::parse(&bytes).map_err(|e| Error::file(request.map, e))?;
-    let (poses, mut objects, name) = match request.ego {
-        EgoSource::Tum(path) => (crate::ingest::ego::read_ego(path)?, BTreeMap::new(), path),
+    let (poses, mut objects, sigmas, name) = match request.ego {
+        EgoSource::Tum(path) => (crate::ingest::ego::read_ego(path)?, BTreeMap::new(), Vec::new(), path),
         EgoSource::Log(path) => {
-            let (poses, agents) = from_log(path, &map, warn)?;
-            (poses, agents, path)
+            let (poses, agents, sigmas) = from_log(path, &map, warn)?;
+            (poses, agents, sigmas, path)
         }
     };
     if let Some(path) = request.objects {
         objects = read_objects(path)?;
     }
     let (from, to) = request.window;
-    let poses: Vec<(f64, Pose2)> = poses.into_iter().filter(|(t, _)| *t >= from && *t <= to).collect();
+    let sigma_of = |k: usize| sigmas.get(k).copied().unwrap_or(0.0);
+    let (poses, sigmas): (Vec<(f64, Pose2)>, Vec<f64>) = poses
+        .into_iter()
+        .enumerate()
+        .filter(|(_, (t, _))| *t >= from && *t <= to)
+        .map(|(k, pose)| (pose, sigma_of(k)))
+        .unzip();
     if poses.is_empty() {
         return Err(Error::file(name, format!("no ego poses between {from} and {to} s")));
     }
-    let v = replay(map, &poses, &objects, request.channel_sensitive, request.footprint)?;
+    let v = replay_in_doubt(
+        map,
+        &poses,
+        &sigmas,
+        &objects,
+        request.channel_sensitive,
+        request.footprint,
+        Some(request.doubt),
+    )?;
     if let Some(path) = request.poses {
         std::fs::write(path, poses_csv(&v.steps)).map_err(|e| Error::file(path, e))?;
     }

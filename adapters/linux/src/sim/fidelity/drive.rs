@@ -18,6 +18,7 @@ use crate::sim::scenario::judge::{judge_log, LogJudgement};
 use crate::sim::scenario::street::street_anchors;
 use crate::sim::scenario::write::START_UNIX_S;
 use crate::sim::scenario::Scenario;
+use crate::verify::decide::DoubtSettings;
 use crate::verify::{AgentsByTime, Metrics, VerifyReport};
 use crate::{Error, Result};
 
@@ -58,9 +59,22 @@ pub struct BothModes {
 }
 
 impl BothModes {
+    /// nuPlan's verdicts of `ego` among `agents`.
     fn of(map: MapView<'_>, ego: &[(f64, Pose2)], agents: &AgentsByTime) -> Result<Self> {
+        Self::in_doubt(map, ego, &[], agents, None)
+    }
+
+    /// The same, and with `doubt` the verdicts with the doubt of the ego's stated `sigmas`
+    /// (m, by pose) and of the objects ([`crate::verify::decide`]).
+    fn in_doubt(
+        map: MapView<'_>,
+        ego: &[(f64, Pose2)],
+        sigmas: &[f64],
+        agents: &AgentsByTime,
+        doubt: Option<DoubtSettings>,
+    ) -> Result<Self> {
         let mode = |sensitive| -> Result<VerifyReport> {
-            let v = crate::verify::replay(map, ego, agents, sensitive, PACIFICA)?;
+            let v = crate::verify::replay_in_doubt(map, ego, sigmas, agents, sensitive, PACIFICA, doubt)?;
             Ok(crate::verify::report(&v, sensitive))
         };
         Ok(BothModes { insensitive: mode(false)?, sensitive: mode(true)? })
@@ -245,19 +259,21 @@ fn judge(
     name: &str,
     map: MapView<'_>,
     true_agents: &AgentsByTime,
+    doubt: DoubtSettings,
 ) -> Result<Judged> {
     let judgement = judge_log(scenario, log);
     if !log.records.iter().any(|r| matches!(r, Record::EgoPose(_))) {
         return Ok(Judged { judgement, verification: None, ego_with_true_agents: None });
     }
     let (ego, agents) = crate::verify::from_contents(log, name, &map)?;
+    let sigmas = crate::verify::ego_sigmas(log);
     // The true objects are on the drive's clock (0 at the first frame), the log's ego on
     // the log's: move the objects onto the log's clock.
     let first_frame_ms = drive_time(log, 0).map_or(0, |t| (-t * 1000.0).round() as i64);
     let true_agents: AgentsByTime = true_agents.iter().map(|(ms, a)| (ms + first_frame_ms, a.clone())).collect();
     Ok(Judged {
         judgement,
-        verification: Some(BothModes::of(map, &ego, &agents)?),
+        verification: Some(BothModes::in_doubt(map, &ego, &sigmas, &agents, Some(doubt))?),
         ego_with_true_agents: Some(BothModes::of(map, &ego, &true_agents)?),
     })
 }
@@ -283,12 +299,14 @@ pub struct Recorded<'a> {
 /// `anchors_path`), verify the truth, the online and the finished log on the drive's map
 /// tile, and set the device's windows against the truth's. `told_latency_s`, when given, is
 /// the receiver's latency handed to finishing in place of its own estimate (the sweep's
-/// `--oracle-latency`, a bound; the product never has it).
+/// `--oracle-latency`, a bound; the product never has it). The logs' decisions allow
+/// `doubt`.
 pub fn assess(
     recorded: &Recorded<'_>,
     anchors: Anchors,
     anchors_path: &Path,
     told_latency_s: Option<f64>,
+    doubt: DoubtSettings,
 ) -> Result<Assessment> {
     let Recorded { scenario, drive_dir, log, log_name, tile, setup } = *recorded;
     let map = MapView::parse(tile).map_err(Error::other)?;
@@ -326,8 +344,8 @@ pub fn assess(
 
     let truth_agents = crate::verify::read_objects(&drive_dir.join("objects.csv"))?;
     let truth = BothModes::of(map, &truth_ego(scenario), &truth_agents)?;
-    let online = judge(scenario, log, "the online log", map, &truth_agents)?;
-    let finished_judged = judge(scenario, &finished_log, "the finished log", map, &truth_agents)?;
+    let online = judge(scenario, log, "the online log", map, &truth_agents, doubt)?;
+    let finished_judged = judge(scenario, &finished_log, "the finished log", map, &truth_agents, doubt)?;
     let windows = window_pairs(scenario, log, map, &truth_agents)?;
 
     let samples = &scenario.vo.samples;

@@ -8,6 +8,7 @@ use dash2sim_core::pipeline::RelativeMotion;
 use serde::Serialize;
 
 use super::sweep::{Row, SweepRequest, Verdict, Verdicts};
+use crate::verify::decide::Decision;
 
 /// A log's verdicts against the truth's: rows truth, columns the log.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -54,6 +55,76 @@ impl Confusion {
     pub fn agreement_with_failed(&self, failed: usize) -> Option<f64> {
         let n = self.total() + failed;
         (n > 0).then(|| (self.truth_verified_log_verified + self.truth_rejected_log_rejected) as f64 / n as f64)
+    }
+}
+
+/// The log's decisions (with the doubt of its stated σ) for the drives of one truth verdict.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct DecisionRow {
+    /// Verified anywhere within the doubt.
+    pub verified: usize,
+    /// Rejected anywhere within it.
+    pub rejected: usize,
+    /// Neither.
+    pub undecided: usize,
+}
+
+/// The log's decisions against the truth's verdicts, 2 × 3, and the drives that did not
+/// come through the product.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct DecisionTable {
+    /// The drives the truth verifies.
+    pub truth_verified: DecisionRow,
+    /// The drives the truth rejects.
+    pub truth_rejected: DecisionRow,
+    /// Drives that did not come through the product (no log, no decision).
+    pub failed: usize,
+}
+
+impl DecisionTable {
+    fn add(&mut self, truth_verified: bool, log: Decision) {
+        let row = if truth_verified { &mut self.truth_verified } else { &mut self.truth_rejected };
+        match log {
+            Decision::Verified => row.verified += 1,
+            Decision::Rejected => row.rejected += 1,
+            Decision::Undecided => row.undecided += 1,
+        }
+    }
+
+    /// Every drive, failed ones included.
+    pub fn drives(&self) -> usize {
+        let row = |r: &DecisionRow| r.verified + r.rejected + r.undecided;
+        row(&self.truth_verified) + row(&self.truth_rejected) + self.failed
+    }
+
+    /// Decided verdicts that differ from the truth's.
+    pub fn wrong_decided(&self) -> usize {
+        self.truth_verified.rejected + self.truth_rejected.verified
+    }
+
+    /// Decided verdicts.
+    pub fn decided(&self) -> usize {
+        self.truth_verified.verified
+            + self.truth_verified.rejected
+            + self.truth_rejected.verified
+            + self.truth_rejected.rejected
+    }
+
+    /// Undecided drives.
+    pub fn undecided(&self) -> usize {
+        self.truth_verified.undecided + self.truth_rejected.undecided
+    }
+
+    /// Of the decided verdicts, the fraction equal to the truth's (none without any).
+    pub fn agreement_among_decided(&self) -> Option<f64> {
+        let decided = self.decided();
+        (decided > 0).then(|| (decided - self.wrong_decided()) as f64 / decided as f64)
+    }
+
+    /// Undecided drives of all the drives (failed ones count in the denominator).
+    pub fn undecided_rate(&self) -> Option<f64> {
+        let drives = self.drives();
+        (drives > 0).then(|| self.undecided() as f64 / drives as f64)
     }
 }
 
@@ -177,6 +248,18 @@ pub struct Disagreement {
     pub cause: &'static str,
 }
 
+/// A finished log without an ego: nothing verified, nothing decided.
+fn no_ego() -> Verdict {
+    Verdict {
+        score: 0.0,
+        verified: false,
+        failed: vec!["no ego poses".to_owned()],
+        decision: Decision::Undecided,
+        score_interval: [0.0, 100.0],
+        in_doubt: vec!["the log has no ego poses".to_owned()],
+    }
+}
+
 /// Metric names that only the map decides.
 const MAP_METRICS: [&str; 2] = ["drivable_area_compliance", "driving_direction_compliance"];
 
@@ -192,7 +275,7 @@ fn disagreement(row: &Row) -> Option<Disagreement> {
         });
     }
     let truth = &row.truth.as_ref()?.insensitive;
-    let nothing = Verdict { score: 0.0, verified: false, failed: vec!["no ego poses".to_owned()] };
+    let nothing = no_ego();
     let finished = row.finished.as_ref().map_or(&nothing, |v| &v.insensitive);
     if truth.verified == finished.verified {
         return None;
@@ -283,6 +366,17 @@ pub struct Summary {
     pub finished_within_2sigma: Option<f64>,
     /// The finished poses stating a σ.
     pub finished_sigma_poses: usize,
+    /// The finished logs' decisions with their doubt (`verify --decide-at 2`,
+    /// channel-insensitive) against the truth's verdicts, over every drive.
+    pub finished_decisions: DecisionTable,
+    /// The same per driver kind, in the order of `drivers`.
+    pub finished_decisions_by_driver: Vec<(&'static str, DecisionTable)>,
+    /// Finished decided verdicts that differ from the truth's.
+    pub wrong_decided: usize,
+    /// Finished logs undecided, of all the drives (failed ones included).
+    pub undecided_rate: Option<f64>,
+    /// Of the finished decided verdicts, the fraction equal to the truth's.
+    pub agreement_among_decided: Option<f64>,
     /// The confusion tables.
     pub confusion: Confusions,
     /// The spreads of the figures.
@@ -331,6 +425,26 @@ impl Summary {
             gnss_mean_error_m: Spread::of(ok.iter().map(|r| r.gnss_mean_error_m)),
             wheel_factor_error_finished_abs: Spread::of(ok.iter().map(|r| abs(r.wheel_factor_error))),
         };
+        let drivers: Vec<&'static str> = rows.iter().map(|r| r.driver).fold(Vec::new(), |mut v, d| {
+            if !v.contains(&d) {
+                v.push(d);
+            }
+            v
+        });
+        let decisions = |driver: Option<&str>| {
+            let mut table = DecisionTable::default();
+            for row in rows.iter().filter(|r| driver.is_none_or(|d| d == r.driver)) {
+                match (&row.error, &row.truth) {
+                    (None, Some(truth)) => {
+                        let finished = row.finished.as_ref().map_or_else(no_ego, |v| v.insensitive.clone());
+                        table.add(truth.insensitive.verified, finished.decision);
+                    }
+                    _ => table.failed += 1,
+                }
+            }
+            table
+        };
+        let finished_decisions = decisions(None);
         let with_mount = ok.iter().filter(|r| r.mount_error_deg.is_some()).count();
         let coverage = |poses: fn(&Row) -> usize, within: fn(&Row) -> usize| {
             let poses: usize = ok.iter().map(|r| poses(r)).sum();
@@ -351,12 +465,12 @@ impl Summary {
                 RelativeMotion::ImuWheels => "imu-wheels",
             },
             seeds: format!("{}-{}", args.seeds.start(), args.seeds.end()),
-            drivers: rows.iter().map(|r| r.driver).fold(Vec::new(), |mut v, d| {
-                if !v.contains(&d) {
-                    v.push(d);
-                }
-                v
-            }),
+            finished_decisions_by_driver: drivers.iter().map(|d| (*d, decisions(Some(d)))).collect(),
+            drivers,
+            wrong_decided: finished_decisions.wrong_decided(),
+            undecided_rate: finished_decisions.undecided_rate(),
+            agreement_among_decided: finished_decisions.agreement_among_decided(),
+            finished_decisions,
             duration_s: args.duration,
             drives: rows.len(),
             failed_drives: failed,
@@ -445,6 +559,33 @@ impl Summary {
             pct(self.device_window_coverage),
             self.device_verified_collision_windows
         );
+        let _ = writeln!(
+            t,
+            "  finished decisions with 2σ of doubt   verified  rejected  undecided  failed   (wrong decided {}, undecided {}, agreement among decided {})",
+            self.wrong_decided,
+            pct(self.undecided_rate),
+            pct(self.agreement_among_decided)
+        );
+        for (driver, d) in &self.finished_decisions_by_driver {
+            for (truth, row) in [("verifies", &d.truth_verified), ("rejects", &d.truth_rejected)] {
+                if row.verified + row.rejected + row.undecided > 0 {
+                    let name = format!("{driver}, truth {truth}");
+                    let _ =
+                        writeln!(t, "    {name:<36} {:>8}  {:>8}  {:>9}", row.verified, row.rejected, row.undecided);
+                }
+            }
+            if d.failed > 0 {
+                let _ = writeln!(
+                    t,
+                    "    {:<36} {:>8}  {:>8}  {:>9}  {:>6}",
+                    format!("{driver}, failed"),
+                    "",
+                    "",
+                    "",
+                    d.failed
+                );
+            }
+        }
         let spread = |t: &mut String, name: &str, s: &Spread, scale: f64, unit: &str| {
             let f = |x: Option<f64>| x.map_or_else(|| "–".to_owned(), |v| format!("{:.3}", v * scale));
             let _ = writeln!(
@@ -543,15 +684,29 @@ mod tests {
             anchors: super::super::drive::Anchors::Street,
             oracle_latency: true,
             relative_motion: RelativeMotion::Vo,
+            doubt: crate::verify::decide::DoubtSettings::default(),
             duration: 40.0,
             jobs: None,
             output: std::path::PathBuf::new(),
             keep: false,
         };
-        let agreed = |seed: u64, verified: bool| {
-            let verdict = Verdict { score: if verified { 100.0 } else { 0.0 }, verified, failed: Vec::new() };
-            let both = Verdicts { insensitive: verdict.clone(), sensitive: verdict };
-            Row { truth: Some(both.clone()), finished: Some(both), ..Row::empty(seed, Driver::Careful, &args) }
+        let verdict = |verified: bool, decision: Decision| {
+            let score = if verified { 100.0 } else { 0.0 };
+            let v = Verdict {
+                score,
+                verified,
+                failed: Vec::new(),
+                decision,
+                score_interval: [score; 2],
+                in_doubt: Vec::new(),
+            };
+            Verdicts { insensitive: v.clone(), sensitive: v }
+        };
+        let decided = |verified| if verified { Decision::Verified } else { Decision::Rejected };
+        let agreed = |seed: u64, verified: bool| Row {
+            truth: Some(verdict(verified, decided(verified))),
+            finished: Some(verdict(verified, decided(verified))),
+            ..Row::empty(seed, Driver::Careful, &args)
         };
         let failed = Row {
             error: Some("record: the drive's files are unreadable".to_owned()),
@@ -581,6 +736,18 @@ mod tests {
         // Every row says the oracle was in.
         assert!(rows.iter().all(|r| r.oracle_latency));
         assert!(summary.text().contains("1 failed"), "{}", summary.text());
+        // The 2 × 3 table: the failed drive is counted, and counts in the undecided rate's
+        // denominator.
+        let d = summary.finished_decisions;
+        assert_eq!((d.truth_verified.verified, d.truth_rejected.rejected, d.failed, d.drives()), (1, 1, 1, 3));
+        assert_eq!((summary.wrong_decided, summary.undecided_rate), (0, Some(0.0)));
+        let undecided = Row { finished: Some(verdict(true, Decision::Undecided)), ..agreed(4, false) };
+        let wrong = Row { finished: Some(verdict(true, Decision::Verified)), ..agreed(5, false) };
+        let summary = Summary::of(&args, &[agreed(1, true), undecided, wrong, Row::empty(6, Driver::Careful, &args)]);
+        assert_eq!(summary.wrong_decided, 1, "the truth rejects seed 5, its log is decided verified");
+        assert_eq!(summary.undecided_rate, Some(0.25), "one of four drives undecided");
+        assert_eq!(summary.agreement_among_decided, Some(0.5));
+        assert_eq!(summary.finished_decisions.failed, 1, "a row without a truth did not come through");
     }
 
     #[test]

@@ -21,6 +21,7 @@ use crate::sim::scenario::command::{config, MAX_DURATION_S};
 use crate::sim::scenario::profile::{Profile, Receiver};
 use crate::sim::scenario::write::{road_tile, write_scenario};
 use crate::sim::scenario::{generate, Driver, Drivers};
+use crate::verify::decide::{Decision, DoubtSettings};
 use crate::verify::VerifyReport;
 use crate::{Error, Result};
 use dash2sim_core::binlog::Record;
@@ -46,6 +47,8 @@ pub struct SweepRequest {
     /// publishes no VO at all) gyro + wheels dead reckoning; the drives' VO is then not
     /// recorded.
     pub relative_motion: RelativeMotion,
+    /// How much doubt the logs' decisions allow (`--decide-at`, `--object-sigma`).
+    pub doubt: DoubtSettings,
     /// Length of each drive, s.
     pub duration: f64,
     /// Drives run at once (default: one per core).
@@ -83,13 +86,24 @@ pub struct Verdict {
     pub verified: bool,
     /// nuPlan's names of the metrics below 1.
     pub failed: Vec<String>,
+    /// With the log's doubt (`verify --decide-at 2`): verified, rejected or undecided (the
+    /// truth's, which has none, is its point verdict).
+    pub decision: Decision,
+    /// The score's interval within the doubt.
+    pub score_interval: [f64; 2],
+    /// Each metric that could flip within the doubt, in words.
+    pub in_doubt: Vec<String>,
 }
 
 impl Verdict {
     fn of(report: &VerifyReport) -> Self {
         let failed =
             report.metrics.named().into_iter().filter(|(_, x)| *x < 1.0).map(|(name, _)| name.to_owned()).collect();
-        Verdict { score: report.score, verified: report.verified, failed }
+        let (decision, score_interval, in_doubt) = match &report.decided {
+            Some(d) => (d.decision, d.score_interval, d.in_doubt.clone()),
+            None => (Decision::of_interval(report.score, report.score), [report.score; 2], Vec::new()),
+        };
+        Verdict { score: report.score, verified: report.verified, failed, decision, score_interval, in_doubt }
     }
 }
 
@@ -386,7 +400,7 @@ fn try_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Res
         setup: &setup,
     };
     let told_latency_s = args.oracle_latency.then_some(config.gnss.latency_s);
-    let assessment = assess(&recorded, args.anchors, &work.join("anchors.csv"), told_latency_s)?;
+    let assessment = assess(&recorded, args.anchors, &work.join("anchors.csv"), told_latency_s, args.doubt)?;
     if args.keep {
         let finished = work.join("finished.d2slog");
         std::fs::write(&finished, &assessment.finished_bytes).map_err(|e| Error::file(&finished, e))?;
@@ -411,7 +425,8 @@ const CSV_HEADER: &str = "seed,driver,profile,receiver,anchors,oracle_latency,er
 truth_score,truth_verified,truth_failed,online_score,online_verified,online_failed,finished_score,finished_verified,finished_failed,\
 truth_score_cs,truth_verified_cs,online_score_cs,online_verified_cs,finished_score_cs,finished_verified_cs,finished_failed_cs,\
 online_ape_m,finished_ape_m,online_ape_utc_m,finished_ape_utc_m,online_clock_error_s,finished_clock_error_s,online_scale_error,finished_scale_error,online_mota,online_idf1,finished_mota,finished_idf1,\
-first_anchor_s,vo_sessions,mount_error_deg,mount_calibrated,finished_mount_yaw_error_deg,online_within_2sigma,online_nees,finished_within_2sigma,finished_nees,latency_error_s,online_latency_error_s,gnss_mean_error_m,wheel_factor_error,windows,device_windows_verified,truth_windows_verified";
+first_anchor_s,vo_sessions,mount_error_deg,mount_calibrated,finished_mount_yaw_error_deg,online_within_2sigma,online_nees,finished_within_2sigma,finished_nees,latency_error_s,online_latency_error_s,gnss_mean_error_m,wheel_factor_error,windows,device_windows_verified,truth_windows_verified,\
+finished_decision,finished_score_low,finished_score_high,online_decision";
 
 fn csv_row(r: &Row) -> String {
     let opt = |x: Option<f64>| x.map_or_else(String::new, |v| format!("{v:.6}"));
@@ -424,9 +439,13 @@ fn csv_row(r: &Row) -> String {
         None => ",".to_owned(),
     };
     let marks = |f: fn(&WindowPair) -> bool| r.windows.iter().map(|w| if f(w) { '1' } else { '0' }).collect::<String>();
+    let decided = |v: Option<&Verdict>| match v {
+        Some(v) => format!("{},{:.4},{:.4}", v.decision.name(), v.score_interval[0], v.score_interval[1]),
+        None => ",,".to_owned(),
+    };
     let error = r.error.as_deref().map_or_else(String::new, |e| format!("\"{}\"", e.replace('"', "'")));
     format!(
-        "{},{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        "{},{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
         r.seed,
         r.driver,
         r.profile,
@@ -467,6 +486,8 @@ fn csv_row(r: &Row) -> String {
         r.windows.len(),
         marks(|w| w.device_verified),
         marks(|w| w.truth_verified),
+        decided(r.finished.as_ref().map(|v| &v.insensitive)),
+        r.online.as_ref().map_or("", |v| v.insensitive.decision.name()),
     )
 }
 
