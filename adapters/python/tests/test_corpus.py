@@ -66,6 +66,8 @@ def test_every_log_is_recorded_with_the_command_line_s_verdict_or_reason(finishe
         drive = json.loads(cli.stdout)["verification"]["drive"]["channel_insensitive"]
         assert row["status"] == ("verified" if drive["verified"] else "rejected")
         assert row["score"] == drive["score"]
+        assert row["decision"] == drive["decision"] in ("verified", "rejected", "undecided")
+        assert row["score_low"] <= row["score"] <= row["score_high"]
         for metric in job.METRICS:
             assert row[metric] == drive["metrics"][metric], (log_id, metric)
         assert (tmp_path / "f.d2slog").read_bytes() == Path(out / "finished" / f"{log_id}.d2slog").read_bytes()

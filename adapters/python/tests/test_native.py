@@ -60,6 +60,10 @@ def test_finish_and_verify_give_the_command_line_s_reports_and_bytes(corpus, cor
             result = run_cli(dash2sim_bin, *args)
             assert result.returncode == 0, result.stderr
             assert dash2sim.verify(py_out, tile, channel_sensitive=sensitive) == json.loads(result.stdout)
+        # No doubt: the decision is nuPlan's verdict, its interval the point score.
+        sure = dash2sim.verify(py_out, tile, decide_at=0.0)
+        assert sure["decided"]["score_interval"] == [sure["score"], sure["score"]]
+        assert sure["decided"]["decision"] == ("verified" if sure["verified"] else "rejected")
     verdicts = {dash2sim.verify(tmp_path / f"{i}.py.d2slog", paths(corpus, i)[1])["verified"] for i in
                 [intact(corpus_plan)[0], intact(corpus_plan, "careless")[0]]}
     assert False in verdicts, "the careless driver's log is rejected"

@@ -11,7 +11,8 @@ use dash2sim_core::score::Scores;
 use serde::Serialize;
 
 use crate::log::{event, LogContents};
-use crate::verify::{replay, AgentsByTime, Metrics};
+use crate::verify::decide::{Decision, DoubtSettings};
+use crate::verify::{replay_in_doubt, AgentsByTime, Metrics, Verification};
 use crate::{Error, Result};
 
 /// nuPlan's scenario length, s.
@@ -60,7 +61,8 @@ pub struct BothVerdicts {
     pub channel_sensitive: Verdict,
 }
 
-/// Score, verdict and the metrics (`verify --json`'s `metrics`).
+/// Score, verdict and the metrics (`verify --json`'s `metrics`), and the decision with the
+/// finished poses' σ (`verify --decide-at 2`, [`crate::verify::decide`]).
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct Verdict {
     /// The score, 0–100.
@@ -69,16 +71,34 @@ pub struct Verdict {
     pub verified: bool,
     /// The eight metrics.
     pub metrics: Metrics,
+    /// Verified, rejected or undecided within 2σ of the finished ego's stated σ.
+    pub decision: Decision,
+    /// The score's interval within that doubt.
+    pub score_interval: [f64; 2],
 }
 
 impl Verdict {
-    fn of(s: &Scores) -> Self {
-        Verdict { score: s.score, verified: s.verified, metrics: Metrics::of(s) }
+    fn of(v: &Verification) -> Self {
+        let s = &v.scores;
+        let (decision, score_interval) = v
+            .decided
+            .as_ref()
+            .map_or((Decision::of_interval(s.score, s.score), [s.score; 2]), |d| (d.decision, d.score_interval));
+        Verdict { score: s.score, verified: s.verified, metrics: Metrics::of(s), decision, score_interval }
     }
 }
 
-fn both(map: MapView<'_>, poses: &[(f64, Pose2)], agents: &AgentsByTime) -> Result<(Scores, Scores)> {
-    Ok((replay(map, poses, agents, false, PACIFICA)?.scores, replay(map, poses, agents, true, PACIFICA)?.scores))
+/// The stretch `poses` (with their stated `sigmas`, m) verified without and with the
+/// channel, each decided with the default doubt.
+fn both(
+    map: MapView<'_>,
+    poses: &[(f64, Pose2)],
+    sigmas: &[f64],
+    agents: &AgentsByTime,
+) -> Result<(Verification, Verification)> {
+    let doubt = Some(DoubtSettings::default());
+    let mode = |sensitive| replay_in_doubt(map, poses, sigmas, agents, sensitive, PACIFICA, doubt);
+    Ok((mode(false)?, mode(true)?))
 }
 
 fn verdict(s: &Scores) -> &'static str {
@@ -102,6 +122,7 @@ pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map
         signing: Vec::new(),
     };
     let (poses, agents) = crate::verify::from_contents(&contents, name, &view)?;
+    let sigmas = crate::verify::ego_sigmas(&contents);
     let mut out = Vec::new();
     let mut windows = Vec::new();
     let mut start = 0;
@@ -110,9 +131,10 @@ pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map
         let end = start + poses[start..].partition_point(|(t, _)| *t < t0 + WINDOW_S);
         // A last window shorter than half a scenario is not one.
         if poses[end - 1].0 - t0 >= 0.5 * WINDOW_S || windows.is_empty() {
-            let (insensitive, sensitive) = both(view, &poses[start..end], &agents)?;
+            let stretch = both(view, &poses[start..end], sigmas.get(start..end).unwrap_or(&[]), &agents)?;
+            let (insensitive, sensitive) = (&stretch.0.scores, &stretch.1.scores);
             let t_us = (poses[end - 1].0 * 1e6).round() as i64;
-            out.push(Record::Verification(verification_record(t_us, &insensitive)));
+            out.push(Record::Verification(verification_record(t_us, insensitive)));
             out.push(event(
                 t_us,
                 2,
@@ -121,21 +143,22 @@ pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map
                     t0 - poses[0].0,
                     poses[end - 1].0 - poses[0].0,
                     insensitive.score,
-                    verdict(&insensitive),
+                    verdict(insensitive),
                     sensitive.score,
-                    verdict(&sensitive)
+                    verdict(sensitive)
                 ),
             ));
             windows.push(WindowVerdicts {
                 start_s: t0 - poses[0].0,
                 end_s: poses[end - 1].0 - poses[0].0,
-                channel_insensitive: Verdict::of(&insensitive),
-                channel_sensitive: Verdict::of(&sensitive),
+                channel_insensitive: Verdict::of(&stretch.0),
+                channel_sensitive: Verdict::of(&stretch.1),
             });
         }
         start = end;
     }
-    let (insensitive, sensitive) = both(view, &poses, &agents)?;
+    let drive = both(view, &poses, &sigmas, &agents)?;
+    let (insensitive, sensitive) = (&drive.0.scores, &drive.1.scores);
     if let Some((t, _)) = poses.last() {
         out.push(event(
             (t * 1e6).round() as i64,
@@ -143,9 +166,9 @@ pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map
             &format!(
                 "finished drive: score {:.2} channel-insensitive ({}), {:.2} channel-sensitive ({})",
                 insensitive.score,
-                verdict(&insensitive),
+                verdict(insensitive),
                 sensitive.score,
-                verdict(&sensitive)
+                verdict(sensitive)
             ),
         ));
     }
@@ -155,8 +178,8 @@ pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map
             window_s: WINDOW_S,
             windows,
             drive: BothVerdicts {
-                channel_insensitive: Verdict::of(&insensitive),
-                channel_sensitive: Verdict::of(&sensitive),
+                channel_insensitive: Verdict::of(&drive.0),
+                channel_sensitive: Verdict::of(&drive.1),
             },
         },
     })

@@ -108,15 +108,22 @@ def verify(
     start: Optional[float] = None,
     end: Optional[float] = None,
     footprint: Optional[Tuple[float, float, float]] = None,
+    decide_at: float = 2.0,
+    object_sigma: float = 0.0,
 ) -> Dict[str, Any]:
     """Replay a log's ego against a map tile and score it as nuPlan would (``dash2sim verify --json``).
 
     ``start``/``end`` (UTC seconds) select the poses; ``footprint`` is ``(width, front,
     rear)`` in metres from the rear axle (default: nuPlan's Pacifica). The report has each
-    metric, the aggregate ``score`` and ``verified`` (score above 90).
+    metric, the aggregate ``score`` and ``verified`` (score above 90), and ``decided``: the
+    verdict with ``decide_at`` of the log's stated σ of doubt (and ``object_sigma`` metres for
+    each object) — ``decision`` (verified, rejected or undecided), ``score_interval`` and
+    each metric ``in_doubt`` in words (docs/verify.md).
     """
     return json.loads(
-        _native.verify(os.fspath(log), os.fspath(map), channel_sensitive, start, end, footprint)
+        _native.verify(
+            os.fspath(log), os.fspath(map), channel_sensitive, start, end, footprint, decide_at, object_sigma
+        )
     )
 
 

@@ -216,6 +216,11 @@ def _finish_and_export(task: Task, out: Path) -> Dict[str, Any]:
         "duration_s": info["t_end"] - info["t_start"],
         "verified": verified,
         "score": insensitive["score"],
+        # With the finished poses' σ: verified, rejected or undecided (docs/verify.md). A
+        # fleet sends its undecided logs for anchoring.
+        "decision": insensitive["decision"],
+        "score_low": insensitive["score_interval"][0],
+        "score_high": insensitive["score_interval"][1],
         "verified_channel_sensitive": bool(sensitive["verified"]),
         "score_channel_sensitive": sensitive["score"],
         "windows": len(report["verification"]["windows"]),
