@@ -76,6 +76,8 @@ typedef struct d2s_detection2d_item d2s_detection2d;
 
 
 
+
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
