@@ -2,7 +2,7 @@
 (issue #15).
 
     VENV/bin/python scripts/nuplan_crosscheck.py --dash2sim target/release/dash2sim \
-        --log LOG --map MAP --out DIR [--every S] [--planner log|pdm] [--json]
+        --log LOG --map MAP --out DIR [--every S] [--planner log|pdm] [--expect-fail METRIC] [--json]
 
 1. `dash2sim export LOG --nuplan DIR --map MAP` writes the log database and the map;
 2. the devkit's `NuPlanScenarioBuilder` loads every scenario (the map's name added to its
@@ -15,7 +15,9 @@
 
 With the log-replay planner the two must give the same verdict, the same value for every
 multiplier metric and every weighted metric within 0.05; the script prints the table and
-exits 1 otherwise. With PDM-Closed it reports nuPlan's scores only. `../shared/nuplan/setup.sh
+exits 1 otherwise, and when every scenario was skipped (nothing compared). A bad drive's log
+(`demo --driver KIND`) names the metric it must fail with `--expect-fail`: some scenario must
+then fail it in both. With PDM-Closed it reports nuPlan's scores only. `../shared/nuplan/setup.sh
 VENV` installs the devkit and PDM-Closed; they are test tools, never product dependencies.
 """
 import json
@@ -80,6 +82,8 @@ def main() -> int:
     parser.add_argument("--every", type=float, default=5.0)
     parser.add_argument("--scenario-seconds", default="5")
     parser.add_argument("--planner", choices=["log", "pdm"], default="log")
+    parser.add_argument("--expect-fail", metavar="METRIC",
+                        help="a bad drive: some scenario must fail this metric (nuPlan's name) in nuPlan and in dash2sim")
     args = parser.parse_args()
     out = Path(args.out)
     subprocess.run([args.dash2sim, "export", args.log, "--nuplan", str(out), "--map", args.map,
@@ -162,9 +166,24 @@ def main() -> int:
             print(f"{scenario.token} {start:.2f}-{end:.2f} s: nuPlan {score:.2f}" +
                   ("" if d is None else f", dash2sim {d['score']:.2f}" +
                    (f"  DISAGREE: {', '.join(row['disagreements'])}" if row["disagreements"] else "  agree")), flush=True)
+    compared = [r for r in rows if "nuplan" in r]
+    both_fail = [r for r in compared if args.expect_fail and "dash2sim" in r
+                 and value_of(r["nuplan"]["metrics"], NAMES.get(args.expect_fail, args.expect_fail)) < 1.0
+                 and r["dash2sim"]["metrics"][NAMES.get(args.expect_fail, args.expect_fail)] < 1.0]
     if args.json:
-        print(json.dumps({"scenarios": rows, "disagreeing": failures}))
+        print(json.dumps({"scenarios": rows, "disagreeing": failures, "both_fail": len(both_fail)}))
+    if not compared:
+        print("compared nothing: every scenario was skipped", file=sys.stderr)
+        return 1
+    if args.expect_fail and not both_fail:
+        print(f"no scenario fails {args.expect_fail} in both nuPlan and dash2sim", file=sys.stderr)
+        return 1
     return 1 if failures else 0
+
+
+def value_of(metrics: dict, name: str) -> float:
+    """nuPlan's metric value, a metric without a score counting as 1 (its weighted average's rule)."""
+    return 1.0 if metrics.get(name) is None else float(metrics[name])
 
 
 if __name__ == "__main__":
