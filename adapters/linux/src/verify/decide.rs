@@ -89,7 +89,7 @@ pub struct Decided {
 
 /// Where the doubt held against the ego first took it off the drivable area.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct WorstPose {
+pub struct OffRoadInDoubt {
     /// The pose's time, s.
     pub t: f64,
     /// Its worst corner, m outside (≤ 0: inside).
@@ -99,14 +99,15 @@ pub struct WorstPose {
 }
 
 /// The decision over a replay scored at its point (`point`), with the doubt for the ego
-/// (`lenient`) and against it (`strict`).
+/// (`lenient`) and against it (`strict`); `off_road` is where the doubt held against it
+/// first took it off the drivable area (for the words).
 pub fn decided(
     point: &Scores,
     lenient: &Scores,
     strict: &Scores,
     settings: DoubtSettings,
     sigmas: &[f64],
-    worst: WorstPose,
+    off_road: OffRoadInDoubt,
 ) -> Decided {
     let low = point.score.min(strict.score).min(lenient.score);
     let high = point.score.max(strict.score).max(lenient.score);
@@ -115,18 +116,20 @@ pub fn decided(
     let median = stated.get(stated.len() / 2).copied().unwrap_or(0.0);
     let k = settings.decide_at;
     let object = k * settings.object_sigma_m;
+    // The ego's doubt along one axis at its median σ (the log's σ is DRMS, both axes).
+    let ego_median_doubt = k * median / core::f64::consts::SQRT_2;
     let mut in_doubt = Vec::new();
     let flips = |m: fn(&Scores) -> f64| m(strict) != m(lenient);
     if flips(|s| s.drivable_area) {
-        let corner = if worst.worst_corner_m > 0.0 {
-            format!("{:.2} m outside", worst.worst_corner_m)
+        let corner = if off_road.worst_corner_m > 0.0 {
+            format!("{:.2} m outside", off_road.worst_corner_m)
         } else {
-            format!("{:.2} m inside", -worst.worst_corner_m)
+            format!("{:.2} m inside", -off_road.worst_corner_m)
         };
         in_doubt.push(format!(
             "drivable area: at t = {:.2} s a corner is {corner} the drivable area (nuPlan allows 0.30 m outside) and the ego's position is ± {:.2} m ({k}σ)",
-            worst.t,
-            worst.ego_doubt_m
+            off_road.t,
+            off_road.ego_doubt_m
         ));
     }
     if flips(|s| s.no_at_fault_collisions) {
@@ -151,7 +154,7 @@ pub fn decided(
             "driving direction: {:.1} m against the lane's direction within a second (nuPlan: 2 m halves the metric, 6 m fails it), {:.1} m taking the nearest lane headed the ego's way within {:.2} m",
             -point.min_direction_progress,
             -lenient.min_direction_progress,
-            worst.ego_doubt_m.max(k * median)
+            ego_median_doubt
         ));
     }
     if flips(|s| s.speed_limit) {
@@ -159,7 +162,7 @@ pub fn decided(
             "speed limit: {:.1} m over the limit (integrated) in the lanes the ego is in, {:.1} m in the nearest lanes headed its way within {:.2} m",
             strict.overspeed_integral,
             lenient.overspeed_integral,
-            k * median
+            ego_median_doubt
         ));
     }
     Decided {

@@ -22,7 +22,7 @@ use dash2sim_core::drivable::{Channel, LaneSet};
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Footprint, OrientedBox, Pose2};
 use dash2sim_core::score::{Agent, AgentKind, Doubt, ScoreConfig, Scorer, Scores, StepReport};
-use decide::{Decided, DoubtSettings, WorstPose};
+use decide::{Decided, DoubtSettings, OffRoadInDoubt};
 
 /// Objects farther in time than this from a pose are not its agents, s.
 pub const OBJECT_TIME_TOLERANCE: f64 = 0.05;
@@ -257,7 +257,7 @@ pub fn replay_in_doubt(
         (Scorer::new(checker, channel, ScoreConfig::default()), Scorer::new(checker, channel, ScoreConfig::default()))
     });
     let mut steps = Vec::with_capacity(poses.len());
-    let mut worst: Option<WorstPose> = None;
+    let mut off_road: Option<OffRoadInDoubt> = None;
     for (k, (t, pose)) in poses.iter().enumerate() {
         let agents = agents_at(objects, *t);
         let refused = |e| Error::refused(format!("pose {}", k + 1), e);
@@ -270,8 +270,8 @@ pub fn replay_in_doubt(
             lenient.step_with(*t, pose, agents, Doubt::For { ego, agents: objects }).map_err(refused)?;
             let against =
                 strict.step_with(*t, pose, agents, Doubt::Against { ego, agents: objects }).map_err(refused)?;
-            if !against.compliant && worst.is_none() {
-                worst = Some(WorstPose { t: *t, worst_corner_m: report.check.worst(), ego_doubt_m: ego });
+            if !against.compliant && off_road.is_none() {
+                off_road = Some(OffRoadInDoubt { t: *t, worst_corner_m: report.check.worst(), ego_doubt_m: ego });
             }
         }
         steps.push((*t, *pose, report));
@@ -284,7 +284,7 @@ pub fn replay_in_doubt(
             &strict.finish(None),
             settings,
             sigmas,
-            worst.unwrap_or_default(),
+            off_road.unwrap_or_default(),
         )
     });
     Ok(Verification { scores, steps, channel_lanes: channel_sensitive.then(|| channel_set.len()), decided })
