@@ -500,8 +500,9 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
     /// agent's box is smaller by its doubt on every side, for collisions and time to
     /// collision. [`Doubt::Against`] holds it against the ego: the footprint must also be
     /// compliant moved its doubt to either side, and each agent's box is larger by its doubt
-    /// on every side. Run once each way over a drive, the two scores bound what the drive
-    /// scores anywhere within the doubt ([`Scorer::finish`]). The report's check is the
+    /// on every side. Run once each way over a drive, the two scores ([`Scorer::finish`])
+    /// bound the drive's score for an ego moved sideways within its doubt and objects anywhere
+    /// within theirs; the ego's speed, path shape and progress are taken as logged. The report's check is the
     /// pose's own; a doubt ≤ 0 or not finite is none.
     pub fn step_with(
         &mut self,

@@ -11,7 +11,7 @@ use dash2sim_core::score::Scores;
 use serde::Serialize;
 
 use crate::log::{event, LogContents};
-use crate::verify::decide::{Decision, DoubtSettings};
+use crate::verify::decide::{decision_or_point, Decision, DoubtSettings};
 use crate::verify::{replay_in_doubt, AgentsByTime, Metrics, Verification};
 use crate::{Error, Result};
 
@@ -80,10 +80,7 @@ pub struct Verdict {
 impl Verdict {
     fn of(v: &Verification) -> Self {
         let s = &v.scores;
-        let (decision, score_interval) = v
-            .decided
-            .as_ref()
-            .map_or((Decision::of_interval(s.score, s.score), [s.score; 2]), |d| (d.decision, d.score_interval));
+        let (decision, score_interval) = decision_or_point(v.decided.as_ref(), s.score);
         Verdict { score: s.score, verified: s.verified, metrics: Metrics::of(s), decision, score_interval }
     }
 }

@@ -1,7 +1,8 @@
 //! Verdicts that carry the log's uncertainty: nuPlan's score as `verify` computes it, and
 //! beside it the same drive scored twice more — once giving the ego the benefit of `k` of its
 //! stated σ, once holding that doubt against it (`dash2sim_core::score::Doubt`). The two
-//! bound the score anywhere within the doubt; the log is **verified** when even the worst
+//! bound the score for an ego moved sideways within its doubt (its speed and path shape as
+//! logged) and objects anywhere within theirs; the log is **verified** when even the worst
 //! of them verifies, **rejected** when even the best does not, and **undecided** otherwise:
 //! the evidence cannot tell, and a fleet sends such a log for anchoring rather than throw a
 //! good drive away. How it is computed, and what it leaves out: `docs/verify.md`.
@@ -67,6 +68,12 @@ impl Decision {
             Decision::Rejected
         }
     }
+}
+
+/// The decision and the score's interval of `decided`; without one (no doubt was asked
+/// for), nuPlan's verdict of `score` and the point itself.
+pub fn decision_or_point(decided: Option<&Decided>, score: f64) -> (Decision, [f64; 2]) {
+    decided.map_or((Decision::of_interval(score, score), [score; 2]), |d| (d.decision, d.score_interval))
 }
 
 /// A verdict with its doubt.

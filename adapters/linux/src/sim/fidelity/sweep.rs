@@ -21,7 +21,7 @@ use crate::sim::scenario::command::{config, MAX_DURATION_S};
 use crate::sim::scenario::profile::{Profile, Receiver};
 use crate::sim::scenario::write::{road_tile, write_scenario};
 use crate::sim::scenario::{generate, Driver, Drivers};
-use crate::verify::decide::{Decision, DoubtSettings};
+use crate::verify::decide::{decision_or_point, Decision, DoubtSettings};
 use crate::verify::VerifyReport;
 use crate::{Error, Result};
 use dash2sim_core::binlog::Record;
@@ -99,10 +99,8 @@ impl Verdict {
     fn of(report: &VerifyReport) -> Self {
         let failed =
             report.metrics.named().into_iter().filter(|(_, x)| *x < 1.0).map(|(name, _)| name.to_owned()).collect();
-        let (decision, score_interval, in_doubt) = match &report.decided {
-            Some(d) => (d.decision, d.score_interval, d.in_doubt.clone()),
-            None => (Decision::of_interval(report.score, report.score), [report.score; 2], Vec::new()),
-        };
+        let (decision, score_interval) = decision_or_point(report.decided.as_ref(), report.score);
+        let in_doubt = report.decided.as_ref().map_or_else(Vec::new, |d| d.in_doubt.clone());
         Verdict { score: report.score, verified: report.verified, failed, decision, score_interval, in_doubt }
     }
 }

@@ -330,10 +330,11 @@ impl EgoPlan {
         swerve + if s < b0 { lane_change(s, a0, a1, closed, open) } else { lane_change(s, b0, b1, open, closed) }
     }
 
-    /// What the tailgating ego at `s` doing `v` m/s at `t` makes of the nearest vehicle ahead
-    /// in its lane, once it is close: whether it must brake now (braking at `brake` just stops
-    /// it `gap` behind), and the vehicle's speed (its speed from then on).
-    fn tailgate(&self, road: &Road, t: f64, s: f64, v: f64) -> Option<(bool, f64)> {
+    /// The acceleration of the tailgating ego at `s` doing `v` m/s at `t` (its plan's speed
+    /// `target`), once the nearest vehicle ahead in its lane is close: `brake` when braking
+    /// that hard just stops it `gap` behind, else the vehicle's speed (or `target`, if lower)
+    /// as its own; none while the vehicle is far.
+    fn tailgate_accel(&self, road: &Road, t: f64, s: f64, v: f64, target: f64) -> Option<f64> {
         let tailgate = self.tailgate.as_ref()?;
         let d = self.lateral(s);
         tailgate
@@ -348,8 +349,12 @@ impl EgoPlan {
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .and_then(|(gap, speed)| {
                 let closing = v - speed;
-                let late = closing > 0.0 && closing * closing / (2.0 * tailgate.brake) >= gap - tailgate.gap;
-                (late || gap < tailgate.gap + 5.0).then_some((late, speed))
+                if closing > 0.0 && closing * closing / (2.0 * tailgate.brake) >= gap - tailgate.gap {
+                    Some(-tailgate.brake)
+                } else {
+                    (gap < tailgate.gap + 5.0)
+                        .then(|| ((target.min(speed) - v) / 0.5).clamp(-self.max_brake, self.max_accel))
+                }
             })
     }
 
@@ -367,14 +372,9 @@ impl EgoPlan {
             let slow = self.zones.iter().any(|z| s + braking >= z.slow.0 && s < z.slow.1);
             let target = if slow { self.zone_speed } else { self.cruise_speed };
             let t = k as f64 * dt;
-            let mut wanted = ((target - v) / 1.0).clamp(-self.max_brake, self.max_accel);
-            if let (Some((late, lead_speed)), Some(tailgate)) = (self.tailgate(road, t, s, v), &self.tailgate) {
-                wanted = if late {
-                    -tailgate.brake
-                } else {
-                    ((target.min(lead_speed) - v) / 0.5).clamp(-self.max_brake, self.max_accel)
-                };
-            }
+            let wanted = self
+                .tailgate_accel(road, t, s, v, target)
+                .unwrap_or_else(|| ((target - v) / 1.0).clamp(-self.max_brake, self.max_accel));
             a = match self.max_jerk {
                 Some(jerk) => a + (wanted - a).clamp(-jerk * dt, jerk * dt),
                 None => wanted,

@@ -469,13 +469,16 @@ fn slow_lead(
 
 /// The traffic of a section whose zone is `zone`, the ego reaching the section's start at
 /// time `arrival` (0 for the first): the same traffic in the same places around the ego as
-/// the first section's at the start. Every vehicle stays within `s_range`.
+/// the first section's at the start; for the tailgating `driver`, last, the slower car it
+/// closes on ([`slow_lead`]). Every vehicle stays within `s_range`.
+#[allow(clippy::too_many_arguments)] // a section's place, time, range and driver, and the draws
 fn traffic(
     road: &Road,
     zone: &WorkZone,
     offset: f64,
     arrival: f64,
     s_range: (f64, f64),
+    driver: Driver,
     layout: &mut ChaCha8Rng,
     next_id: &mut u32,
 ) -> Vec<Vehicle> {
@@ -506,6 +509,9 @@ fn traffic(
         let d = road.backward_lane(if k % 2 == 0 { 0 } else { 1 });
         vehicle(class, s0, speed, d, None, layout);
     }
+    if driver == Driver::Tailgating {
+        vehicles.push(slow_lead(road, zone, offset, arrival, s_range, next_id));
+    }
     vehicles
 }
 
@@ -526,10 +532,7 @@ pub fn generate(config: &ScenarioConfig) -> Scenario {
     let mut objects_by_section: Vec<(Vec<ObjectState>, Vec<Vehicle>)> = Vec::new();
     let statics = lay_out_work_zone(&road, &zones[0], &mut layout, &mut next_id);
     let first_range = (f64::NEG_INFINITY, SECTION_M + 200.0);
-    let mut vehicles = traffic(&road, &zones[0], 0.0, 0.0, first_range, &mut layout, &mut next_id);
-    if driver == Driver::Tailgating {
-        vehicles.push(slow_lead(&road, &zones[0], 0.0, 0.0, first_range, &mut next_id));
-    }
+    let vehicles = traffic(&road, &zones[0], 0.0, 0.0, first_range, driver, &mut layout, &mut next_id);
     objects_by_section.push((statics, vehicles));
     for k in 1..sections {
         zones.push(zone_of(k, &mut layout));
@@ -545,11 +548,7 @@ pub fn generate(config: &ScenarioConfig) -> Scenario {
             let vehicles = match arrival {
                 Some(t) => {
                     let range = (start - 200.0, start + SECTION_M + 200.0);
-                    let mut vehicles = traffic(&road, zone, start, t, range, &mut layout, &mut next_id);
-                    if driver == Driver::Tailgating {
-                        vehicles.push(slow_lead(&road, zone, start, t, range, &mut next_id));
-                    }
-                    vehicles
+                    traffic(&road, zone, start, t, range, driver, &mut layout, &mut next_id)
                 }
                 None => Vec::new(),
             };
