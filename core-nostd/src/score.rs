@@ -84,8 +84,10 @@ impl Agent {
     }
 }
 
-/// How far a pose's position and its agents' are in doubt (m, each `k` of a stated σ), and
-/// which way the doubt is taken ([`Scorer::step_with`]).
+/// How far a pose's position is in doubt (m, `k` of its stated σ along one axis), and
+/// which way the doubt is taken ([`Scorer::step_with`]). The agents' own doubt is their
+/// boxes': a caller grows each by its doubt (or shrinks it) with [`Agent::grown`] — each
+/// agent has its own, and only the caller knows it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Doubt {
@@ -93,28 +95,25 @@ pub enum Doubt {
     For {
         /// The ego's position, m.
         ego: f64,
-        /// Each agent's position relative to the ego, m.
-        agents: f64,
     },
     /// The doubt held against the ego: the worst the drive can be within it.
     Against {
         /// The ego's position, m.
         ego: f64,
-        /// Each agent's position relative to the ego, m.
-        agents: f64,
     },
 }
 
 impl Doubt {
     /// No doubt: nuPlan's own scoring.
-    pub const NONE: Doubt = Doubt::For { ego: 0.0, agents: 0.0 };
+    pub const NONE: Doubt = Doubt::For { ego: 0.0 };
 
-    /// The ego's doubt (≥ 0) and how much larger each agent's box is on every side.
-    fn amounts(self) -> (f64, f64) {
-        let clean = |x: f64| if x.is_finite() { x.max(0.0) } else { 0.0 };
-        match self {
-            Doubt::For { ego, agents } => (clean(ego), -clean(agents)),
-            Doubt::Against { ego, agents } => (clean(ego), clean(agents)),
+    /// The ego's doubt, m (≥ 0; none when not finite).
+    fn ego(self) -> f64 {
+        let (Doubt::For { ego } | Doubt::Against { ego }) = self;
+        if ego.is_finite() {
+            ego.max(0.0)
+        } else {
+            0.0
         }
     }
 }
@@ -480,7 +479,7 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
 
     /// [`Scorer::step`] for a pose whose position is in doubt by `doubt` m (a device's ego,
     /// `k` of its stated σ), given the benefit of the doubt on the map's metrics:
-    /// [`Scorer::step_with`] with [`Doubt::For`]`(doubt, 0)`. The device's windows score so.
+    /// [`Scorer::step_with`] with [`Doubt::For`]`(doubt)`. The device's windows score so.
     pub fn step_in_doubt(
         &mut self,
         t: f64,
@@ -488,22 +487,22 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         agents: &[Agent],
         doubt: f64,
     ) -> Result<StepReport, ScoreError> {
-        self.step_with(t, pose, agents, Doubt::For { ego: doubt, agents: 0.0 })
+        self.step_with(t, pose, agents, Doubt::For { ego: doubt })
     }
 
-    /// [`Scorer::step`] with the pose's position and the agents' in doubt, taken the way
-    /// `doubt` says. [`Doubt::For`] gives the ego the benefit of it: a corner breaks
+    /// [`Scorer::step`] with the pose's position in doubt, taken the way `doubt` says. [`Doubt::For`] gives the ego the benefit of it: a corner breaks
     /// drivable-area compliance only when it is outside by nuPlan's 0.3 m and the ego's doubt
     /// more ([`PoseCheck::compliant_within`]); a centre in no lane heading the ego's way is
     /// taken to be in the nearest one that does within the doubt
-    /// ([`Checker::lane_headed_within`]), for the driving direction and the speed limit; each
-    /// agent's box is smaller by its doubt on every side, for collisions and time to
-    /// collision. [`Doubt::Against`] holds it against the ego: the footprint must also be
-    /// compliant moved its doubt to either side, and each agent's box is larger by its doubt
-    /// on every side. Run once each way over a drive, the two scores ([`Scorer::finish`])
-    /// bound the drive's score for an ego moved sideways within its doubt and objects anywhere
-    /// within theirs; the ego's speed, path shape and progress are taken as logged. The report's check is the
-    /// pose's own; a doubt ≤ 0 or not finite is none.
+    /// ([`Checker::lane_headed_within`]), for the driving direction and the speed limit.
+    /// [`Doubt::Against`] holds it against the ego: the footprint must also be compliant
+    /// moved its doubt to either side. The agents come as the caller placed them: each
+    /// smaller by its own doubt on every side for the ego, larger against it
+    /// ([`Agent::grown`]). Run once each way over a drive, the two scores
+    /// ([`Scorer::finish`]) bound the drive's score for an ego moved sideways within its
+    /// doubt and objects anywhere within theirs; the ego's speed, path shape and progress are
+    /// taken as logged. The report's check is the pose's own; a doubt ≤ 0 or not finite is
+    /// none.
     pub fn step_with(
         &mut self,
         t: f64,
@@ -528,7 +527,7 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         self.poses += 1;
 
         let check = self.checker.check(pose, self.channel, self.lane.map(|(l, _)| l));
-        let (ego_doubt, agent_grow) = doubt.amounts();
+        let ego_doubt = doubt.ego();
         self.worst_corner = self.worst_corner.max(check.worst());
         let compliant = match doubt {
             Doubt::For { .. } => check.compliant_within(ego_doubt),
@@ -567,13 +566,11 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         }
 
         self.comfort.push(t, pose);
-        let collision = self.collide(pose, speed, agents, &check, agent_grow);
+        let collision = self.collide(pose, speed, agents, &check);
         let ttc = match collision {
             // nuPlan: an at-fault collision is a TTC of 0.
             Some(c) if c.at_fault => Some((0.0, c.id)),
-            _ if self.poses > 1 && speed > self.config.ttc_stopped_speed => {
-                self.ttc(pose, speed, agents, &check, agent_grow)
-            }
+            _ if self.poses > 1 && speed > self.config.ttc_stopped_speed => self.ttc(pose, speed, agents, &check),
             _ => None,
         };
         if let Some((ttc, _)) = ttc {
@@ -598,19 +595,11 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         })
     }
 
-    /// nuPlan's collision classification for each agent's first contact, each agent's box
-    /// larger by `grow` m on every side (smaller when negative).
-    fn collide(
-        &mut self,
-        pose: &Pose2,
-        speed: f64,
-        agents: &[Agent],
-        check: &PoseCheck,
-        grow: f64,
-    ) -> Option<Collision> {
+    /// nuPlan's collision classification for each agent's first contact.
+    fn collide(&mut self, pose: &Pose2, speed: f64, agents: &[Agent], check: &PoseCheck) -> Option<Collision> {
         let ego = self.checker.footprint().at(pose);
         let mut first = None;
-        for agent in agents.iter().map(|a| a.grown(grow)) {
+        for agent in agents {
             if self.collided.contains(&agent.id) || !ego.overlaps(&agent.bbox) {
                 continue;
             }
@@ -644,14 +633,14 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
     /// agents beside count too while the ego is between lanes or off the drivable area;
     /// agents behind (beyond 150°) and agents already collided with never do. Each agent
     /// moves along its heading at its speed. The time and the agent it is to.
-    fn ttc(&self, pose: &Pose2, speed: f64, agents: &[Agent], check: &PoseCheck, grow: f64) -> Option<(f64, u32)> {
+    fn ttc(&self, pose: &Pose2, speed: f64, agents: &[Agent], check: &PoseCheck) -> Option<(f64, u32)> {
         let ego = self.checker.footprint().at(pose);
         let (s, c) = libm::sincos(pose.heading);
         let between_lanes = check.occupied.len() != 1 || !check.compliant();
         // The horizon itself is excluded, as numpy's arange(step, horizon, step).
         let steps = libm::ceil(self.config.ttc_horizon / self.config.ttc_step - 1e-9).clamp(1.0, 1000.0) as u32 - 1;
         let mut best: Option<(f64, u32)> = None;
-        for agent in agents.iter().map(|a| a.grown(grow)) {
+        for agent in agents {
             let (dx, dy) = (agent.bbox.centre.x - pose.x, agent.bbox.centre.y - pose.y);
             let distance = libm::hypot(dx, dy);
             let cos_angle = if distance > 1e-9 { (dx * c + dy * s) / distance } else { 1.0 };

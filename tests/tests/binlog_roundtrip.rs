@@ -5,8 +5,8 @@
 
 use dash2sim_core::binlog::{
     AnchorEstimate, Decoder, Detection2d, EgoPose, Event, EventRecord, FlushPolicy, FrameMeta, GnssFix, Header,
-    MountEstimate, Record, Track2d, Track3d, Tracks3d, VehicleSpeed, Verification, VoPose, Writer, WriterConfig,
-    MAX_TRACKS,
+    MountEstimate, Record, Track2d, Track3d, TrackCovariance, Tracks3d, VehicleSpeed, Verification, VoPose, Writer,
+    WriterConfig, MAX_TRACKS,
 };
 use dash2sim_linux::log::quantise;
 use proptest::prelude::*;
@@ -76,6 +76,13 @@ fn record() -> impl Strategy<Value = Record> {
             sigma_pitch_e6: v[4],
             samples: v[5],
             calibrated: v[6]
+        })),
+        (t.clone(), prop::array::uniform4(value())).prop_map(|(t_us, v)| Record::TrackCovariance(TrackCovariance {
+            t_us,
+            id: v[0],
+            cov_xx_mm2: v[1],
+            cov_xy_mm2: v[2],
+            cov_yy_mm2: v[3]
         })),
         (t.clone(), prop::array::uniform5(value())).prop_map(|(t_us, v)| Record::EgoPose(EgoPose {
             t_us,

@@ -11,7 +11,7 @@ use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
 use dash2sim_linux::sim::scenario::write::{road_tile, write_scenario};
 use dash2sim_linux::sim::scenario::{generate, Driver, Expectation, ScenarioConfig};
 use dash2sim_linux::verify::decide::{Decided, Decision, DoubtSettings};
-use dash2sim_linux::verify::{read_objects, replay_in_doubt};
+use dash2sim_linux::verify::{read_objects, replay_in_doubt, StatedUncertainty};
 
 /// Seeds per kind: drives are 40 s long, as the sweep's.
 const SEEDS: std::ops::RangeInclusive<u64> = 1..=6;
@@ -43,9 +43,11 @@ fn each_drivers_truth_scores_as_its_kind_says() {
     assert!(report.is_empty(), "{}", report.join("\n"));
 }
 
-/// The verdict with its doubt on the truth of a drive, its poses stated `sigma` m (DRMS) and
-/// its objects `object_sigma` m.
-fn decided_with(driver: Driver, seed: u64, sigma: f64, object_sigma: f64) -> (f64, Decided) {
+/// The verdict with its doubt on the truth of a drive, its poses stated `sigma` m (DRMS), each
+/// object's place stated `track_sigma` m along each axis (a covariance, as `finish`'s
+/// `TrackCovariance`; 0: none stated), and `object_sigma` m (`--object-sigma`) for those
+/// that state none.
+fn decided_with(driver: Driver, seed: u64, sigma: f64, track_sigma: f64, object_sigma: f64) -> (f64, Decided) {
     use dash2sim_core::geo::Geodetic;
     use dash2sim_linux::sim::fidelity::drive::truth_ego;
     let config = ScenarioConfig { driver, ..ScenarioConfig::drive(seed, Profile::Typical, Receiver::Good) };
@@ -57,7 +59,13 @@ fn decided_with(driver: Driver, seed: u64, sigma: f64, object_sigma: f64) -> (f6
     let map = MapView::parse(&tile).expect("map");
     let agents = read_objects(&dir.join("objects.csv")).expect("objects");
     let ego = truth_ego(&scenario);
-    let sigmas = vec![sigma; ego.len()];
+    let variance = track_sigma * track_sigma;
+    let tracks = if track_sigma > 0.0 {
+        agents.values().flatten().map(|a| (a.id, [variance, 0.0, variance])).collect()
+    } else {
+        Default::default()
+    };
+    let sigmas = StatedUncertainty { ego: vec![sigma; ego.len()], tracks };
     let doubt = DoubtSettings { decide_at: 2.0, object_sigma_m: object_sigma };
     let v = replay_in_doubt(map, &ego, &sigmas, &agents, false, PACIFICA, Some(doubt)).expect("replay");
     let _ = std::fs::remove_dir_all(&dir);
@@ -68,7 +76,7 @@ fn decided_with(driver: Driver, seed: u64, sigma: f64, object_sigma: f64) -> (f6
 fn a_stated_sigma_makes_a_verdict_undecided_where_the_evidence_cannot_tell() {
     for driver in [Driver::Careful, Driver::Shoulder, Driver::Careless] {
         // No doubt: the decision is nuPlan's verdict, the interval the point.
-        let (score, sure) = decided_with(driver, 3, 0.0, 0.0);
+        let (score, sure) = decided_with(driver, 3, 0.0, 0.0, 0.0);
         let expected = if driver == Driver::Careful { Decision::Verified } else { Decision::Rejected };
         assert_eq!((sure.decision, sure.score_interval), (expected, [score; 2]), "{}", driver.name());
         assert!(sure.in_doubt.is_empty(), "{}: {:?}", driver.name(), sure.in_doubt);
@@ -76,7 +84,7 @@ fn a_stated_sigma_makes_a_verdict_undecided_where_the_evidence_cannot_tell() {
     // A σ of 2 m (a drive without anchors): the careful drive could be over the road's edge
     // and the shoulder drive back on it; neither is decided, and each says why.
     for driver in [Driver::Careful, Driver::Shoulder] {
-        let (score, doubtful) = decided_with(driver, 3, 2.0, 0.0);
+        let (score, doubtful) = decided_with(driver, 3, 2.0, 0.0, 0.0);
         assert_eq!(doubtful.decision, Decision::Undecided, "{}: {doubtful:?}", driver.name());
         let [low, high] = doubtful.score_interval;
         assert!(low <= score && score <= high, "{}: {score} outside {low}–{high}", driver.name());
@@ -86,12 +94,37 @@ fn a_stated_sigma_makes_a_verdict_undecided_where_the_evidence_cannot_tell() {
     // The ego's σ does not move the drums it clipped (they were placed through it); a stated
     // σ for the objects puts the collisions in doubt — but not the verdict: even with every
     // drum shrunk to nothing the careless ego drives at them (time to collision fails).
-    let (_, ego_only) = decided_with(Driver::Careless, 3, 2.0, 0.0);
+    let (_, ego_only) = decided_with(Driver::Careless, 3, 2.0, 0.0, 0.0);
     assert_ne!(ego_only.decision, Decision::Verified);
     assert!(!ego_only.in_doubt.iter().any(|w| w.starts_with("collisions")), "{:?}", ego_only.in_doubt);
-    let (score, objects) = decided_with(Driver::Careless, 3, 0.0, 1.0);
+    let (score, objects) = decided_with(Driver::Careless, 3, 0.0, 0.0, 1.0);
     assert_eq!(objects.decision, Decision::Rejected, "{objects:?}");
     assert!(objects.score_interval[0] <= score && score <= objects.score_interval[1]);
     assert!(objects.score_interval[1] > score, "shrunk drums are not hit: {objects:?}");
     assert!(objects.in_doubt.iter().any(|w| w.starts_with("collisions")), "{:?}", objects.in_doubt);
+}
+
+/// A knife-edge drive passes a drum 0.1–0.3 m clear: with no σ stated for the objects its
+/// truth is verified; each track stating its place to 0.2 m along each axis
+/// (`TrackCovariance`, as `finish` writes it) makes it undecided — a drum 0.4 m (2σ) further
+/// in could be in the ego's path — and what the log states for its tracks is what counts,
+/// not `--object-sigma` (for the objects that state none).
+#[test]
+fn a_tracks_stated_sigma_puts_a_near_pass_in_doubt() {
+    let (score, sure) = decided_with(Driver::KnifeEdge, 2, 0.0, 0.0, 0.0);
+    assert_eq!((sure.decision, sure.tracks_with_sigma), (Decision::Verified, 0), "{sure:?}");
+    let (_, stated) = decided_with(Driver::KnifeEdge, 2, 0.0, 0.2, 0.0);
+    assert_eq!(stated.decision, Decision::Undecided, "{stated:?}");
+    let drms = 0.2 * std::f64::consts::SQRT_2;
+    assert!(stated.tracks_with_sigma > 10 && (stated.track_sigma_median_m - drms).abs() < 1e-9, "{stated:?}");
+    let [low, high] = stated.score_interval;
+    assert!(low < 90.0 && low <= score && high >= score, "{stated:?}");
+    assert!(
+        stated.in_doubt.iter().any(|w| w.contains("across the ego's path (the tracks' σ median 0.28 m)")),
+        "{:?}",
+        stated.in_doubt
+    );
+    // `--object-sigma` is for objects that state none: a tight stated σ wins over it.
+    let (_, tight) = decided_with(Driver::KnifeEdge, 2, 0.0, 0.002, 1.0);
+    assert_eq!(tight.decision, Decision::Verified, "{tight:?}");
 }

@@ -63,15 +63,16 @@ fn a_centre_just_over_the_divider_is_forgiven_and_a_wrong_way_drive_is_not() {
     assert_eq!(drive_east(map, 1.75, 2.0).driving_direction, 1.0, "a doubt of 2 m cannot tell the lanes apart");
 }
 
-/// Three seconds eastward at 10 m/s with the rear axle at `y`, past a drum at (115, `drum_y`),
-/// scored with `doubt` (`Scorer::step_with`).
-fn drive_past_a_drum(map: MapView<'_>, y: f64, drum_y: f64, doubt: Doubt) -> (Scores, Vec<bool>) {
+/// Three seconds eastward at 10 m/s with the rear axle at `y`, past a drum at (115, `drum_y`)
+/// `grown` m larger on every side (`Agent::grown`), scored with `doubt` (`Scorer::step_with`).
+fn drive_past_a_drum(map: MapView<'_>, y: f64, drum_y: f64, grown: f64, doubt: Doubt) -> (Scores, Vec<bool>) {
     let drum = Agent {
         id: 1,
         kind: AgentKind::Object,
         bbox: OrientedBox { centre: Pose2::new(115.0, drum_y, 0.0), length: 0.6, width: 0.6 },
         velocity: (0.0, 0.0),
-    };
+    }
+    .grown(grown);
     let mut scorer: Scorer<'_, '_, 1> =
         Scorer::new(Checker::new(map, PACIFICA), Channel::Insensitive, ScoreConfig::default());
     let mut compliant = Vec::new();
@@ -90,22 +91,22 @@ fn a_doubt_held_against_the_ego_grows_the_objects_and_moves_it_aside() {
     // The ego's right side 0.2 m clear of a drum's edge: nuPlan's verdict is clean.
     let y = -1.75;
     let drum_y = y - PACIFICA.width / 2.0 - 0.2 - 0.3;
-    let (point, _) = drive_past_a_drum(map, y, drum_y, Doubt::NONE);
+    let (point, _) = drive_past_a_drum(map, y, drum_y, 0.0, Doubt::NONE);
     assert_eq!((point.no_at_fault_collisions, point.verified), (1.0, true), "{point:?}");
     // Each object 0.3 m larger on every side: the ego hits it.
-    let (against, _) = drive_past_a_drum(map, y, drum_y, Doubt::Against { ego: 0.0, agents: 0.3 });
+    let (against, _) = drive_past_a_drum(map, y, drum_y, 0.3, Doubt::Against { ego: 0.0 });
     assert_eq!(against.no_at_fault_collisions, 0.5, "a static object at fault: {against:?}");
     // 0.1 m larger: still clear.
-    let (near, _) = drive_past_a_drum(map, y, drum_y, Doubt::Against { ego: 0.0, agents: 0.1 });
+    let (near, _) = drive_past_a_drum(map, y, drum_y, 0.1, Doubt::Against { ego: 0.0 });
     assert_eq!(near.no_at_fault_collisions, 1.0, "{near:?}");
     // Held against it, the ego's own doubt moves its footprint aside: in the middle of the
     // forward lane its right-hand corners are 0.6 m inside the road's edge, so 0.8 m aside
     // leaves them 0.2 m out (within nuPlan's 0.3 m) and 1.0 m aside 0.4 m out.
-    let (_, inside) = drive_past_a_drum(map, y, 50.0, Doubt::Against { ego: 0.8, agents: 0.0 });
+    let (_, inside) = drive_past_a_drum(map, y, 50.0, 0.0, Doubt::Against { ego: 0.8 });
     assert!(inside.iter().all(|c| *c), "0.8 m aside is still within 0.3 m of the road");
-    let (aside, outside) = drive_past_a_drum(map, y, 50.0, Doubt::Against { ego: 1.0, agents: 0.0 });
+    let (aside, outside) = drive_past_a_drum(map, y, 50.0, 0.0, Doubt::Against { ego: 1.0 });
     assert!(outside.iter().all(|c| !*c) && aside.drivable_area == 0.0, "{aside:?}");
     // Given to it, the same doubt changes nothing on the road.
-    let (given, _) = drive_past_a_drum(map, y, 50.0, Doubt::For { ego: 1.0, agents: 0.3 });
+    let (given, _) = drive_past_a_drum(map, y, 50.0, -0.3, Doubt::For { ego: 1.0 });
     assert_eq!(given.score, point.score);
 }

@@ -70,7 +70,7 @@ pub struct SweepArgs {
     /// Decide each log with this many σ of doubt (`verify --decide-at`).
     #[arg(long, value_name = "K", default_value_t = dash2sim_linux::verify::decide::DEFAULT_DECIDE_AT)]
     pub decide_at: f64,
-    /// σ of each object's place relative to the ego, m (`verify --object-sigma`).
+    /// σ of the place relative to the ego of each object whose log states none, m along one axis (`verify --object-sigma`)
     #[arg(long, value_name = "M", default_value_t = dash2sim_linux::verify::decide::DEFAULT_OBJECT_SIGMA_M)]
     pub object_sigma: f64,
     /// Length of each drive, s.

@@ -53,7 +53,7 @@ pub struct VerifyArgs {
     /// nowhere within it, undecided otherwise (docs/verify.md).
     #[arg(long, value_name = "K", default_value_t = verify::decide::DEFAULT_DECIDE_AT)]
     decide_at: f64,
-    /// σ of each object's place relative to the ego, m: the log's tracks state none.
+    /// σ of the place relative to the ego of each object whose log states none, m along one axis (a finished log states one for every track: `TrackCovariance`; a device's log and `--objects` state none)
     #[arg(long, value_name = "M", default_value_t = verify::decide::DEFAULT_OBJECT_SIGMA_M)]
     object_sigma: f64,
 }
@@ -128,14 +128,18 @@ fn render(v: &Verification, name: &Path, channel_sensitive: bool) {
     println!("score {:.2} → {}", s.score, if s.verified { "verified" } else { "NOT verified (needs > 90)" });
     if let Some(d) = &v.decided {
         let k = d.settings.decide_at;
-        if d.poses_with_sigma == 0 && d.settings.object_sigma_m == 0.0 {
+        if d.poses_with_sigma == 0 && d.tracks_with_sigma == 0 && d.settings.object_sigma_m == 0.0 {
             println!("no σ stated for the ego or the objects: decided as nuPlan's verdict → {}", d.decision.name());
         } else {
+            let objects = if d.tracks_with_sigma > 0 {
+                format!("the tracks' median {:.2} m over {}", d.track_sigma_median_m, d.tracks_with_sigma)
+            } else {
+                format!("objects' {:.2} m", d.settings.object_sigma_m)
+            };
             println!(
-                "with {k}σ of doubt (the ego's σ median {:.2} m over {} poses, objects' {:.2} m): score {:.2}–{:.2} → {}",
+                "with {k}σ of doubt (the ego's σ median {:.2} m over {} poses, {objects}): score {:.2}–{:.2} → {}",
                 d.ego_sigma_median_m,
                 d.poses_with_sigma,
-                d.settings.object_sigma_m,
                 d.score_interval[0],
                 d.score_interval[1],
                 d.decision.name()

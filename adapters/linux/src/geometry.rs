@@ -160,6 +160,22 @@ pub fn segment_distance(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> (f64, f6
     ((p.0 - a.0 - dx * f).hypot(p.1 - a.1 - dy * f), f)
 }
 
+/// The gap between two closed convex rings that do not overlap (`a`, `b`: their corners in
+/// order): the least distance from a corner of either to an edge of the other.
+pub fn convex_gap(a: &[(f64, f64)], b: &[(f64, f64)]) -> f64 {
+    let to_edges = |points: &[(f64, f64)], ring: &[(f64, f64)]| {
+        let edges = ring.iter().zip(ring.iter().cycle().skip(1));
+        let mut least = f64::INFINITY;
+        for (p, q) in edges {
+            for c in points {
+                least = least.min(segment_distance(*c, *p, *q).0);
+            }
+        }
+        least
+    };
+    to_edges(a, b).min(to_edges(b, a))
+}
+
 /// Arc length along `line` of the point nearest `p`.
 pub fn nearest_arc(line: &[(f64, f64)], p: (f64, f64)) -> f64 {
     let (mut best, mut best_s, mut at) = (f64::INFINITY, 0.0, 0.0);
@@ -249,6 +265,17 @@ mod tests {
             (d - 1.0).abs() < 1e-12
         }));
         assert_eq!(hull(vec![(0.0, 0.0), (1.0, 0.0), (0.5, 0.2), (1.0, 1.0), (0.0, 1.0)]).len(), 4);
+    }
+
+    #[test]
+    fn the_gap_between_two_boxes_is_corner_to_edge_either_way() {
+        let square = |x: f64, y: f64| vec![(x, y), (x + 1.0, y), (x + 1.0, y + 1.0), (x, y + 1.0)];
+        // Side by side, 0.3 m apart: a corner of either meets the other's edge.
+        assert!((convex_gap(&square(0.0, 0.0), &square(1.3, 0.2)) - 0.3).abs() < 1e-12);
+        // A diamond's tip 0.25 m from the square's edge: only the diamond's corner sees it.
+        let diamond = vec![(1.25, 0.5), (1.75, 0.0), (2.25, 0.5), (1.75, 1.0)];
+        assert!((convex_gap(&square(0.0, 0.0), &diamond) - 0.25).abs() < 1e-12);
+        assert!((convex_gap(&diamond, &square(0.0, 0.0)) - 0.25).abs() < 1e-12);
     }
 
     #[test]

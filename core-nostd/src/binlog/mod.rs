@@ -35,8 +35,8 @@ pub const VERSION_MAJOR: u8 = 1;
 /// Format minor version written (1.1 added `Detection3d` and `ClockOffset`; 1.2 the VO
 /// session of a `VoPose` and `MountEstimate`; 1.3 the σ of an `EgoPose`; 1.4 the GNSS
 /// latency of an `AnchorEstimate`; 1.5 the segments' signature trailers, [`signature`];
-/// 1.6 the IMU's `ImuDelta` and `ImuEstimate`).
-pub const VERSION_MINOR: u8 = 6;
+/// 1.6 the IMU's `ImuDelta` and `ImuEstimate`; 1.7 a track's `TrackCovariance`).
+pub const VERSION_MINOR: u8 = 7;
 /// Header length in bytes (v1.0).
 pub const HEADER_LEN: usize = 48;
 /// Marks the start of every segment; a reader looks for it after damage.
@@ -670,6 +670,22 @@ records! {
         standstills: Delta,
         /// GNSS course intervals it rests on.
         courses: Delta,
+    }
+    /// How far a 3D track's place is in doubt relative to the ego (v1.7), once per track:
+    /// the covariance of its horizontal centre. `finish` states it for the tracks it keeps,
+    /// from how far the states it made one place of spread around it (the device states
+    /// none).
+    TrackCovariance = 0x20 {
+        /// The time of the track's first state, µs.
+        t_us: Delta,
+        /// Track id (as in `Tracks3d`).
+        id: Absolute,
+        /// Covariance east-east, mm².
+        cov_xx_mm2: Absolute,
+        /// Covariance east-north, mm².
+        cov_xy_mm2: Absolute,
+        /// Covariance north-north, mm².
+        cov_yy_mm2: Absolute,
     }
 }
 

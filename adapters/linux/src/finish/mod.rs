@@ -519,14 +519,16 @@ pub fn finish(
     objects_mount.roll_pitch_yaw[2] += turn;
     // The log's mount is the one the objects were placed with.
     let calibrated = MountEstimate { mount: objects_mount, ..calibrated };
-    let (mut tracks, track_stats) = tracks::finish_tracks(&batches, &|t| online_turned(t, turn), &|t| ego_at(&ego, t));
+    let mut tracks = tracks::finish_tracks(&batches, &|t| online_turned(t, turn), &|t| ego_at(&ego, t));
     let raw: Vec<_> =
         log.records.iter().filter_map(|r| if let Record::Detection3d(d) = r { Some(*d) } else { None }).collect();
     let (raw_batches, raw_stats) = raw::track_raw(&raw, &ego, &objects_mount);
     // Already placed through the finished ego: re-expressed onto itself, then smoothed and
     // merged as the device's tracks are.
-    let (raw_tracks, raw_track_stats) = tracks::finish_tracks(&raw_batches, &|t| ego_at(&ego, t), &|t| ego_at(&ego, t));
-    tracks.extend(raw_tracks);
+    let raw_tracks = tracks::finish_tracks(&raw_batches, &|t| ego_at(&ego, t), &|t| ego_at(&ego, t));
+    let raw_ghosts = raw_tracks.stats.ghosts;
+    tracks.batches.extend(raw_tracks.batches);
+    tracks.covariances.extend(raw_tracks.covariances);
 
     let mut records: Vec<Record> = log
         .records
@@ -538,13 +540,15 @@ pub fn finish(
                     | Record::AnchorEstimate(_)
                     | Record::MountEstimate(_)
                     | Record::Tracks3d(_)
+                    | Record::TrackCovariance(_)
                     | Record::Verification(_)
             )
         })
         .cloned()
         .collect();
     records.extend(ego.values().map(|p| Record::EgoPose(*p)));
-    records.extend(tracks.into_iter().map(Record::Tracks3d));
+    records.extend(tracks.batches.into_iter().map(Record::Tracks3d));
+    records.extend(tracks.covariances.into_iter().map(Record::TrackCovariance));
     if let Some(first) = drive.vo.first() {
         records.push(Record::MountEstimate(mount_record(quantise(first.t, 1e-6), &calibrated)));
     }
@@ -684,11 +688,11 @@ pub fn finish(
             refused: refused.iter().map(|(line, why)| RefusedAnchor { line: *line, reason: why.clone() }).collect(),
         },
         tracks: TracksReport {
-            states: track_stats.states,
-            unplaced: track_stats.unplaced,
-            smoothed: track_stats.smoothed,
-            static_merged: track_stats.merged_static,
-            ghosts_dropped: track_stats.ghosts + raw_track_stats.ghosts,
+            states: tracks.stats.states,
+            unplaced: tracks.stats.unplaced,
+            smoothed: tracks.stats.smoothed,
+            static_merged: tracks.stats.merged_static,
+            ghosts_dropped: tracks.stats.ghosts + raw_ghosts,
             raw_detections: raw_stats.detections,
             raw_placed: raw_stats.placed,
             raw_track_states: raw_stats.track_states,

@@ -6,10 +6,15 @@
 //! car is right, where the car was is what finishing corrects. So a state is taken back
 //! into the ego's frame with the online pose and out again with the finished one (planar:
 //! x, y, heading; the height above the ego's ground is kept).
+//!
+//! Each kept track states how far its place is in doubt (`TrackCovariance`): how far the
+//! states it was made of spread around the places it kept. They were each placed through the ego
+//! of their own frame, so the spread is that of the object's place relative to the ego —
+//! what a verdict holds against a clearance ([`crate::verify::replay_in_doubt`]).
 
 use std::collections::BTreeMap;
 
-use dash2sim_core::binlog::{quantise, Track3d, Tracks3d, MAX_TRACKS};
+use dash2sim_core::binlog::{quantise, Track3d, TrackCovariance, Tracks3d, MAX_TRACKS};
 use dash2sim_core::ekf::{rts_smooth, Kalman, SmoothStep};
 use dash2sim_core::nalgebra::{Matrix1, Matrix1x2, Matrix1x4, Matrix2, Matrix2x4, Matrix4, Vector1, Vector2, Vector4};
 use dash2sim_core::track3d::wrap_angle;
@@ -44,12 +49,23 @@ pub struct TrackStats {
 /// one-state track — and a drum in the lane for the score.
 pub const MIN_SUPPORT: usize = 3;
 
+/// The tracks `finish` keeps.
+#[derive(Clone, Debug, Default)]
+pub struct FinishedTracks {
+    /// Their states, by time.
+    pub batches: Vec<Tracks3d>,
+    /// The covariance of each one's place ([`spread_around`]).
+    pub covariances: Vec<TrackCovariance>,
+    /// What happened to them.
+    pub stats: TrackStats,
+}
+
 /// Re-express, smooth and merge. `online` and `finished` give the ego at a time (µs).
 pub fn finish_tracks(
     batches: &[Tracks3d],
     online: &impl Fn(i64) -> Option<EgoAt>,
     finished: &impl Fn(i64) -> Option<EgoAt>,
-) -> (Vec<Tracks3d>, TrackStats) {
+) -> FinishedTracks {
     let mut stats = TrackStats::default();
     let mut by_id: BTreeMap<i64, Vec<(i64, Track3d)>> = BTreeMap::new();
     for batch in batches {
@@ -67,8 +83,10 @@ pub fn finish_tracks(
         stats.ghosts += usize::from(!kept);
         kept
     });
-    for states in by_id.values_mut() {
+    let mut covariances = Vec::with_capacity(by_id.len());
+    for (id, states) in by_id.iter_mut() {
         states.sort_by_key(|s| s.0);
+        let placed: Vec<(i64, i64)> = states.iter().map(|(_, s)| (s.x_mm, s.y_mm)).collect();
         let statics = states.iter().filter(|(_, s)| s.is_static == 1).count();
         if 2 * statics > states.len() {
             merge_static(states);
@@ -77,6 +95,15 @@ pub fn finish_tracks(
             smooth(states);
             stats.smoothed += 1;
         }
+        let t_us = states.first().map_or(0, |s| s.0);
+        let [xx, xy, yy] = spread_around(&placed, states);
+        covariances.push(TrackCovariance {
+            t_us,
+            id: *id,
+            cov_xx_mm2: quantise(xx, 1e-6),
+            cov_xy_mm2: quantise(xy, 1e-6),
+            cov_yy_mm2: quantise(yy, 1e-6),
+        });
         for (t, s) in states.iter() {
             by_time.entry(*t).or_default().push(*s);
         }
@@ -91,7 +118,33 @@ pub fn finish_tracks(
             out.push(batch);
         }
     }
-    (out, stats)
+    FinishedTracks { batches: out, covariances, stats }
+}
+
+/// How far a track's states (`placed`, mm, as they came) spread around the places it kept
+/// (`kept`, in the same order): the second moments of their differences east and north
+/// (m²: xx, xy, yy), leaving out the few beyond three times their median distance — a state
+/// the tracker placed wildly would otherwise make the whole track uncertain.
+///
+/// The states are the device tracker's filtered ones, so they are not independent: the
+/// spread is not divided by their number — it is the doubt of one state, which the place
+/// kept shares (their errors are alike from one frame to the next).
+fn spread_around(placed: &[(i64, i64)], kept: &[(i64, Track3d)]) -> [f64; 3] {
+    let d: Vec<(f64, f64)> = placed
+        .iter()
+        .zip(kept)
+        .map(|(p, (_, k))| ((p.0 - k.x_mm) as f64 * 1e-3, (p.1 - k.y_mm) as f64 * 1e-3))
+        .collect();
+    let within = 3.0 * median_f64(d.iter().map(|(x, y)| x.hypot(*y)).collect());
+    let kept: Vec<&(f64, f64)> = d.iter().filter(|(x, y)| x.hypot(*y) <= within).collect();
+    let n = kept.len().max(1) as f64;
+    let moment = |f: fn(&(f64, f64)) -> f64| kept.iter().map(|d| f(d)).sum::<f64>() / n;
+    [moment(|d| d.0 * d.0), moment(|d| d.0 * d.1), moment(|d| d.1 * d.1)]
+}
+
+fn median_f64(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
 }
 
 /// The ego pose that, with a mount turned by `delta` more about the vertical (rad; about
@@ -470,7 +523,7 @@ mod tests {
         let found = static_yaw(&drums_seen_turned(&drums, turned), &online, &ego).expect("four drums");
         assert!((found - turned).abs() < 0.05f64.to_radians(), "found {}°", found.to_degrees());
         // Placed through the found turn the drums stand where they are.
-        let (finished, _) = finish_tracks(&drums_seen_turned(&drums, turned), &|t| online(t, found), &ego);
+        let finished = finish_tracks(&drums_seen_turned(&drums, turned), &|t| online(t, found), &ego).batches;
         for state in finished.iter().flat_map(|b| &b.tracks) {
             let (x, y) = drums[state.id as usize];
             let off = (state.x_mm as f64 * 1e-3 - x).hypot(state.y_mm as f64 * 1e-3 - y);
@@ -545,13 +598,23 @@ mod tests {
         }
         let same = |_t: i64| Some([0.0; 4]);
         let none_late = |t: i64| if t < 4_900_000 { Some([0.0; 4]) } else { None };
-        let (out, stats) = finish_tracks(&batches, &same, &none_late);
+        let FinishedTracks { batches: out, covariances, stats } = finish_tracks(&batches, &same, &none_late);
         assert_eq!(stats, TrackStats { states: 102, unplaced: 2, smoothed: 1, merged_static: 1, ghosts: 1 });
         assert!(out.iter().all(|b| b.tracks.iter().all(|t| t.id != 3)), "the ghost is gone");
         let cones: Vec<&Track3d> = out.iter().flat_map(|b| b.tracks.iter()).filter(|t| t.id == 1).collect();
         assert_eq!(cones.len(), 49);
         assert!(cones.iter().all(|c| c == &cones[0]), "one pose");
         assert_eq!(cones[0].x_mm, 20_000, "the median, not moved by the outlier");
+        // 33 of its 48 placed states (the outlier, 5 m off, left out) 0.2 m east or west of
+        // it: east 0.04 m² × 33/48, nothing north.
+        let covariance =
+            |id: i64| covariances.iter().find(|c| c.id == id).map(|c| [c.cov_xx_mm2, c.cov_xy_mm2, c.cov_yy_mm2]);
+        assert_eq!(covariance(1), Some([27_500, 0, 0]), "{covariances:?}");
+        assert_eq!(covariance(3), None, "a ghost states nothing");
+        // The moving track's states ±0.2 m east about its smoothed path: about 0.04 m².
+        let moving = covariance(2).unwrap_or_default();
+        assert!((30_000..=50_000).contains(&moving[0]) && moving[2] == 0, "{covariances:?}");
+        assert_eq!(covariances.iter().find(|c| c.id == 2).map(|c| c.t_us), Some(0), "at its first state");
         let moving: Vec<f64> =
             out.iter().flat_map(|b| b.tracks.iter()).filter(|t| t.id == 2).map(|t| t.x_mm as f64 * 1e-3).collect();
         let error = |xs: &[f64]| {
@@ -574,7 +637,7 @@ mod tests {
             batches.push(b);
         }
         let same = |_t: i64| Some([0.0; 4]);
-        let (out, _) = finish_tracks(&batches, &same, &same);
+        let out = finish_tracks(&batches, &same, &same).batches;
         let yaw = |id: i64| -> Vec<f64> {
             out.iter().flat_map(|b| b.tracks.iter()).filter(|t| t.id == id).map(|t| t.yaw_e4 as f64 * 1e-4).collect()
         };
@@ -604,7 +667,7 @@ mod tests {
             })
             .collect();
         let same = |_t: i64| Some([0.0; 4]);
-        let (out, _) = finish_tracks(&batches, &same, &same);
+        let out = finish_tracks(&batches, &same, &same).batches;
         let yaws: Vec<f64> = out.iter().flat_map(|b| b.tracks.iter()).map(|t| t.yaw_e4 as f64 * 1e-4).collect();
         assert_eq!(yaws.len(), 30);
         // The raw boxes: 0.041 rad RMS, 0.06 at worst.

@@ -12,7 +12,7 @@ use serde::Serialize;
 
 use crate::log::{event, LogContents};
 use crate::verify::decide::{decision_or_point, Decision, DoubtSettings};
-use crate::verify::{replay_in_doubt, AgentsByTime, Metrics, Verification};
+use crate::verify::{replay_in_doubt, AgentsByTime, Metrics, StatedUncertainty, Verification};
 use crate::{Error, Result};
 
 /// nuPlan's scenario length, s.
@@ -85,12 +85,12 @@ impl Verdict {
     }
 }
 
-/// The stretch `poses` (with their stated `sigmas`, m) verified without and with the
+/// The stretch `poses` (with the log's stated `sigmas`) verified without and with the
 /// channel, each decided with the default doubt.
 fn both(
     map: MapView<'_>,
     poses: &[(f64, Pose2)],
-    sigmas: &[f64],
+    sigmas: &StatedUncertainty,
     agents: &AgentsByTime,
 ) -> Result<(Verification, Verification)> {
     let doubt = Some(DoubtSettings::default());
@@ -119,7 +119,7 @@ pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map
         signing: Vec::new(),
     };
     let (poses, agents) = crate::verify::from_contents(&contents, name, &view)?;
-    let sigmas = crate::verify::ego_sigmas(&contents);
+    let sigmas = StatedUncertainty::of(&contents);
     let mut out = Vec::new();
     let mut windows = Vec::new();
     let mut start = 0;
@@ -128,7 +128,7 @@ pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map
         let end = start + poses[start..].partition_point(|(t, _)| *t < t0 + WINDOW_S);
         // A last window shorter than half a scenario is not one.
         if poses[end - 1].0 - t0 >= 0.5 * WINDOW_S || windows.is_empty() {
-            let stretch = both(view, &poses[start..end], sigmas.get(start..end).unwrap_or(&[]), &agents)?;
+            let stretch = both(view, &poses[start..end], &sigmas.of_poses(start..end), &agents)?;
             let (insensitive, sensitive) = (&stretch.0.scores, &stretch.1.scores);
             let t_us = (poses[end - 1].0 * 1e6).round() as i64;
             out.push(Record::Verification(verification_record(t_us, insensitive)));

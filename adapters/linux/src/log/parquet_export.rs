@@ -187,6 +187,7 @@ pub fn tables(log: &LogContents, log_id: &str) -> Result<LogTables> {
         .f64("y_m", column(&ego, |p| p.y_mm as f64 * 1e-3))
         .f64("z_m", column(&ego, |p| p.z_mm as f64 * 1e-3))
         .f64("heading_rad", column(&ego, |p| p.yaw_e4 as f64 * 1e-4))
+        .f64_or_null("sigma_m", column(&ego, |p| (p.sigma_mm > 0).then_some(p.sigma_mm as f64 * 1e-3)))
         .f64_or_null("lat_deg", geodetic.iter().map(|g| g.map(|g| g.lat_deg)).collect())
         .f64_or_null("lon_deg", geodetic.iter().map(|g| g.map(|g| g.lon_deg)).collect());
     batches.push(("ego", table.batch()?));
@@ -225,6 +226,19 @@ pub fn tables(log: &LogContents, log_id: &str) -> Result<LogTables> {
     batches.push(("anchors", table.batch()?));
 
     let states: Vec<(i64, &dash2sim_core::binlog::Track3d)> = tracks(log).collect();
+    // Each track's covariance, where the log states one (`TrackCovariance`, finished logs).
+    let covariance: std::collections::BTreeMap<i64, [f64; 3]> = log
+        .records
+        .iter()
+        .filter_map(|r| match r {
+            Record::TrackCovariance(c) => {
+                Some((c.id, [c.cov_xx_mm2, c.cov_xy_mm2, c.cov_yy_mm2].map(|v| v as f64 * 1e-6)))
+            }
+            _ => None,
+        })
+        .collect();
+    let stated =
+        |k: usize| -> Vec<Option<f64>> { states.iter().map(|(_, s)| covariance.get(&s.id).map(|c| c[k])).collect() };
     let track =
         |f: fn(&dash2sim_core::binlog::Track3d) -> f64| -> Vec<f64> { states.iter().map(|(_, s)| f(s)).collect() };
     let table = Table::new(log_id, states.iter().map(|(t, _)| *t).collect())
@@ -240,7 +254,10 @@ pub fn tables(log: &LogContents, log_id: &str) -> Result<LogTables> {
         .f64("height_m", track(|s| s.h_mm as f64 * 1e-3))
         .f64("vx_mps", track(|s| s.vx_mm_s as f64 * 1e-3))
         .f64("vy_mps", track(|s| s.vy_mm_s as f64 * 1e-3))
-        .bool("is_static", states.iter().map(|(_, s)| s.is_static != 0).collect());
+        .bool("is_static", states.iter().map(|(_, s)| s.is_static != 0).collect())
+        .f64_or_null("cov_xx_m2", stated(0))
+        .f64_or_null("cov_xy_m2", stated(1))
+        .f64_or_null("cov_yy_m2", stated(2));
     batches.push(("tracks3d", table.batch()?));
 
     let windows = rows(log, |r| if let Record::Verification(v) = r { Some(v) } else { None });

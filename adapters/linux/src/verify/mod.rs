@@ -22,7 +22,7 @@ use dash2sim_core::drivable::{Channel, LaneSet};
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Footprint, OrientedBox, Pose2};
 use dash2sim_core::score::{Agent, AgentKind, Doubt, ScoreConfig, Scorer, Scores, StepReport};
-use decide::{Decided, DoubtSettings, OffRoadInDoubt};
+use decide::{Decided, DoubtSettings, NearestPass, OffRoadInDoubt};
 
 /// Objects farther in time than this from a pose are not its agents, s.
 pub const OBJECT_TIME_TOLERANCE: f64 = 0.05;
@@ -53,8 +53,43 @@ pub struct VerifyRequest<'a> {
 /// Agents by time (ms).
 pub type AgentsByTime = BTreeMap<i64, Vec<Agent>>;
 
-/// A log's ego poses (time, rear-axle pose), its agents, and the σ it states for each pose (m).
-pub type LoggedDrive = (Vec<(f64, Pose2)>, AgentsByTime, Vec<f64>);
+/// A log's ego poses (time, rear-axle pose), its agents, and the σ it states.
+pub type LoggedDrive = (Vec<(f64, Pose2)>, AgentsByTime, StatedUncertainty);
+
+/// The uncertainty a log states: each ego pose's horizontal σ (DRMS, m; in
+/// [`from_contents`]'s order, 0 where it states none) and the covariance of each track's
+/// place relative to the ego that states one (`TrackCovariance`: xx, xy, yy, m²), by id.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StatedUncertainty {
+    /// Each ego pose's σ.
+    pub ego: Vec<f64>,
+    /// Each track's covariance, by id.
+    pub tracks: BTreeMap<u32, [f64; 3]>,
+}
+
+impl StatedUncertainty {
+    /// What `log` states.
+    pub fn of(log: &crate::log::LogContents) -> Self {
+        let ego = crate::log::export::ego_poses(log).map(|p| p.sigma_mm.max(0) as f64 * 1e-3).collect();
+        let tracks = log
+            .records
+            .iter()
+            .filter_map(|r| match r {
+                dash2sim_core::binlog::Record::TrackCovariance(c) => Some((
+                    u32::try_from(c.id).ok()?,
+                    [c.cov_xx_mm2, c.cov_xy_mm2, c.cov_yy_mm2].map(|v| v as f64 * 1e-6),
+                )),
+                _ => None,
+            })
+            .collect();
+        StatedUncertainty { ego, tracks }
+    }
+
+    /// The same tracks', the ego's of the poses in `poses` only.
+    pub fn of_poses(&self, poses: std::ops::Range<usize>) -> Self {
+        StatedUncertainty { ego: self.ego.get(poses).unwrap_or(&[]).to_vec(), tracks: self.tracks.clone() }
+    }
+}
 
 /// The recorded drive to replay.
 #[derive(Clone, Copy, Debug)]
@@ -69,20 +104,14 @@ pub enum EgoSource<'a> {
 /// (through geodetic coordinates when the origins differ; headings are kept — the frames
 /// of nearby origins differ by well under a milliradian per kilometre).
 /// A damaged log's stretches are skipped, and `warn` told so.
-/// With the poses, the σ the log states for each (m; 0 where it states none: [`ego_sigmas`]).
+/// With them, the σ the log states ([`StatedUncertainty`]).
 pub fn from_log(path: &Path, map: &MapView<'_>, warn: &mut dyn FnMut(&str)) -> Result<LoggedDrive> {
     let log = crate::log::read(path).map_err(Error::other)?;
     if log.stats.damaged > 0 {
         warn(&format!("{}: {} damaged stretches skipped", path.display(), log.stats.damaged));
     }
     let (poses, agents) = from_contents(&log, &path.display().to_string(), map)?;
-    Ok((poses, agents, ego_sigmas(&log)))
-}
-
-/// The horizontal σ a log states for each of its ego poses, in [`from_contents`]'s order,
-/// m (0 where it states none).
-pub fn ego_sigmas(log: &crate::log::LogContents) -> Vec<f64> {
-    crate::log::export::ego_poses(log).map(|p| p.sigma_mm.max(0) as f64 * 1e-3).collect()
+    Ok((poses, agents, StatedUncertainty::of(&log)))
 }
 
 /// [`from_log`] on a log already read (`name` for messages).
@@ -220,16 +249,17 @@ pub fn replay(
     channel_sensitive: bool,
     footprint: Footprint,
 ) -> Result<Verification> {
-    replay_in_doubt(map, poses, &[], objects, channel_sensitive, footprint, None)
+    replay_in_doubt(map, poses, &StatedUncertainty::default(), objects, channel_sensitive, footprint, None)
 }
 
 /// [`replay`], and with `doubt` the verdict with its doubt ([`decide`]): the drive scored
-/// again with `k` of each pose's σ (`sigmas`, m, by pose; missing or 0: none) and of the
-/// objects' for the ego, and once more against it.
+/// again with `k` of each pose's σ and of each object's across the ego's path (`sigmas`:
+/// what the log states; an object that states none has `--object-sigma`'s) for the ego,
+/// and once more against it.
 pub fn replay_in_doubt(
     map: MapView<'_>,
     poses: &[(f64, Pose2)],
-    sigmas: &[f64],
+    sigmas: &StatedUncertainty,
     objects: &BTreeMap<i64, Vec<Agent>>,
     channel_sensitive: bool,
     footprint: Footprint,
@@ -258,6 +288,8 @@ pub fn replay_in_doubt(
     });
     let mut steps = Vec::with_capacity(poses.len());
     let mut off_road: Option<OffRoadInDoubt> = None;
+    let mut nearest: Option<NearestPass> = None;
+    let (mut smaller, mut larger) = (Vec::new(), Vec::new());
     for (k, (t, pose)) in poses.iter().enumerate() {
         let agents = agents_at(objects, *t);
         let refused = |e| Error::refused(format!("pose {}", k + 1), e);
@@ -265,11 +297,22 @@ pub fn replay_in_doubt(
         if let (Some((lenient, strict)), Some(settings)) = (bounds.as_mut(), doubt) {
             // A log states the horizontal σ as DRMS (both axes together); a corner leaves the
             // road along one of them, whose σ is DRMS / √2.
-            let ego = settings.decide_at * sigmas.get(k).copied().unwrap_or(0.0) / std::f64::consts::SQRT_2;
-            let objects = settings.decide_at * settings.object_sigma_m;
-            lenient.step_with(*t, pose, agents, Doubt::For { ego, agents: objects }).map_err(refused)?;
-            let against =
-                strict.step_with(*t, pose, agents, Doubt::Against { ego, agents: objects }).map_err(refused)?;
+            let ego = settings.decide_at * sigmas.ego.get(k).copied().unwrap_or(0.0) / std::f64::consts::SQRT_2;
+            smaller.clear();
+            larger.clear();
+            let ego_box = footprint.at(pose);
+            for agent in agents {
+                let by = decide::object_doubt(settings, sigmas.tracks.get(&agent.id), pose.heading);
+                smaller.push(agent.grown(-by));
+                larger.push(agent.grown(by));
+                if let Some(pass) = NearestPass::of(*t, &ego_box, agent, by) {
+                    if nearest.is_none_or(|n| pass.nearer_than(&n)) {
+                        nearest = Some(pass);
+                    }
+                }
+            }
+            lenient.step_with(*t, pose, &smaller, Doubt::For { ego }).map_err(refused)?;
+            let against = strict.step_with(*t, pose, &larger, Doubt::Against { ego }).map_err(refused)?;
             if !against.compliant && off_road.is_none() {
                 off_road = Some(OffRoadInDoubt { t: *t, worst_corner_m: report.check.worst(), ego_doubt_m: ego });
             }
@@ -285,6 +328,7 @@ pub fn replay_in_doubt(
             settings,
             sigmas,
             off_road.unwrap_or_default(),
+            nearest,
         )
     });
     Ok(Verification { scores, steps, channel_lanes: channel_sensitive.then(|| channel_set.len()), decided })
@@ -507,7 +551,9 @@ pub fn evaluate<'a>(request: &VerifyRequest<'a>, warn: &mut dyn FnMut(&str)) -> 
     let bytes = std::fs::read(request.map).map_err(|e| Error::file(request.map, e))?;
     let map = MapView::parse(&bytes).map_err(|e| Error::file(request.map, e))?;
     let (poses, mut objects, sigmas, name) = match request.ego {
-        EgoSource::Tum(path) => (crate::ingest::ego::read_ego(path)?, BTreeMap::new(), Vec::new(), path),
+        EgoSource::Tum(path) => {
+            (crate::ingest::ego::read_ego(path)?, BTreeMap::new(), StatedUncertainty::default(), path)
+        }
         EgoSource::Log(path) => {
             let (poses, agents, sigmas) = from_log(path, &map, warn)?;
             (poses, agents, sigmas, path)
@@ -517,13 +563,14 @@ pub fn evaluate<'a>(request: &VerifyRequest<'a>, warn: &mut dyn FnMut(&str)) -> 
         objects = read_objects(path)?;
     }
     let (from, to) = request.window;
-    let sigma_of = |k: usize| sigmas.get(k).copied().unwrap_or(0.0);
-    let (poses, sigmas): (Vec<(f64, Pose2)>, Vec<f64>) = poses
+    let sigma_of = |k: usize| sigmas.ego.get(k).copied().unwrap_or(0.0);
+    let (poses, ego_sigmas): (Vec<(f64, Pose2)>, Vec<f64>) = poses
         .into_iter()
         .enumerate()
         .filter(|(_, (t, _))| *t >= from && *t <= to)
         .map(|(k, pose)| (pose, sigma_of(k)))
         .unzip();
+    let sigmas = StatedUncertainty { ego: ego_sigmas, tracks: sigmas.tracks };
     if poses.is_empty() {
         return Err(Error::file(name, format!("no ego poses between {from} and {to} s")));
     }

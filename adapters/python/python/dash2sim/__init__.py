@@ -116,8 +116,8 @@ def verify(
     ``start``/``end`` (UTC seconds) select the poses; ``footprint`` is ``(width, front,
     rear)`` in metres from the rear axle (default: nuPlan's Pacifica). The report has each
     metric, the aggregate ``score`` and ``verified`` (score above 90), and ``decided``: the
-    verdict with ``decide_at`` of the log's stated σ of doubt (and ``object_sigma`` metres for
-    each object) — ``decision`` (verified, rejected or undecided), ``score_interval`` and
+    verdict with ``decide_at`` of the log's stated σ of doubt, the ego's and its tracks' (and
+    ``object_sigma`` metres for each object whose log states none) — ``decision`` (verified, rejected or undecided), ``score_interval`` and
     each metric ``in_doubt`` in words (docs/verify.md).
     """
     return json.loads(

@@ -19,7 +19,7 @@ use crate::sim::scenario::street::street_anchors;
 use crate::sim::scenario::write::START_UNIX_S;
 use crate::sim::scenario::Scenario;
 use crate::verify::decide::DoubtSettings;
-use crate::verify::{AgentsByTime, Metrics, VerifyReport};
+use crate::verify::{AgentsByTime, Metrics, StatedUncertainty, VerifyReport};
 use crate::{Error, Result};
 
 /// Which street-imagery anchors finishing is given.
@@ -61,15 +61,15 @@ pub struct BothModes {
 impl BothModes {
     /// nuPlan's verdicts of `ego` among `agents`.
     fn of(map: MapView<'_>, ego: &[(f64, Pose2)], agents: &AgentsByTime) -> Result<Self> {
-        Self::in_doubt(map, ego, &[], agents, None)
+        Self::in_doubt(map, ego, &StatedUncertainty::default(), agents, None)
     }
 
-    /// The same, and with `doubt` the verdicts with the doubt of the ego's stated `sigmas`
-    /// (m, by pose) and of the objects ([`crate::verify::decide`]).
+    /// The same, and with `doubt` the verdicts with the doubt of the ego's and the objects'
+    /// stated `sigmas` ([`crate::verify::decide`]).
     fn in_doubt(
         map: MapView<'_>,
         ego: &[(f64, Pose2)],
-        sigmas: &[f64],
+        sigmas: &StatedUncertainty,
         agents: &AgentsByTime,
         doubt: Option<DoubtSettings>,
     ) -> Result<Self> {
@@ -266,7 +266,7 @@ fn judge(
         return Ok(Judged { judgement, verification: None, ego_with_true_agents: None });
     }
     let (ego, agents) = crate::verify::from_contents(log, name, &map)?;
-    let sigmas = crate::verify::ego_sigmas(log);
+    let sigmas = StatedUncertainty::of(log);
     // The true objects are on the drive's clock (0 at the first frame), the log's ego on
     // the log's: move the objects onto the log's clock.
     let first_frame_ms = drive_time(log, 0).map_or(0, |t| (-t * 1000.0).round() as i64);
