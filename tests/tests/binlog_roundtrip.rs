@@ -138,7 +138,7 @@ fn record() -> impl Strategy<Value = Record> {
             }
             Record::Tracks3d(b)
         }),
-        (t.clone(), prop::array::uniform10(value())).prop_map(|(t_us, v)| Record::Verification(Verification {
+        (t.clone(), prop::array::uniform13(value())).prop_map(|(t_us, v)| Record::Verification(Verification {
             t_us,
             collisions_e4: v[0],
             drivable_e4: v[1],
@@ -149,7 +149,10 @@ fn record() -> impl Strategy<Value = Record> {
             speed_limit_e4: v[6],
             comfort_e4: v[7],
             score_e2: v[8],
-            worst_corner_mm: v[9]
+            worst_corner_mm: v[9],
+            decision: v[10],
+            score_low_e2: v[11],
+            score_high_e2: v[12]
         })),
         (t, 0u8..6, prop::collection::vec(any::<u8>(), 0..255)).prop_map(|(t_us, level, text)| {
             let mut e = EventRecord { t_us, level, ..EventRecord::default() };

@@ -620,6 +620,7 @@ fn plot_draws_the_map_the_three_trajectories_and_the_objects_and_refuses_a_log_w
 fn export_parquet_writes_a_table_per_record_kind_in_si_units_and_utc() {
     use arrow_array::cast::AsArray;
     use arrow_array::types::{Float64Type, TimestampMicrosecondType};
+    use arrow_array::Array;
     let dir = scratch("parquet");
     let demo = dir.join("demo");
     let out = dash2sim(&[
@@ -673,6 +674,32 @@ fn export_parquet_writes_a_table_per_record_kind_in_si_units_and_utc() {
     let x = b.column_by_name("x_m").expect("x").as_primitive::<Float64Type>().value(0);
     assert!((t as f64 * 1e-6 - first[0]).abs() < 1e-6 && (x - first[1]).abs() < 1e-9, "{t} {x} vs {first:?}");
     assert_eq!(b.column_by_name("log_id").expect("id").as_string::<i32>().value(0), "seed-1");
+    // What the finished log states of its doubt: each pose's σ, each track's covariance,
+    // each window's decision and the score's interval around its score.
+    let sigma = b.column_by_name("sigma_m").expect("sigma_m").as_primitive::<Float64Type>();
+    assert!(sigma.null_count() == 0 && sigma.values().iter().all(|s| *s > 0.0), "{sigma:?}");
+    let (_, tracks) = parquet_table(&out_dir.join("tracks3d.parquet"));
+    let xx = tracks[0].column_by_name("cov_xx_m2").expect("cov_xx_m2").as_primitive::<Float64Type>();
+    assert!(xx.null_count() == 0 && xx.values().iter().all(|v| *v >= 0.0), "{xx:?}");
+    let windows = |dir: &Path| {
+        let (rows, batches) = parquet_table(&dir.join("verification.parquet"));
+        let b = &batches[0];
+        let decision = b.column_by_name("decision").expect("decision").as_string::<i32>().clone();
+        let number = |name| b.column_by_name(name).expect(name).as_primitive::<Float64Type>().clone();
+        (rows, decision, number("score"), number("score_low"), number("score_high"))
+    };
+    let (rows, decision, score, low, high) = windows(&out_dir);
+    assert!(rows > 0 && decision.null_count() == 0, "every finished window decided: {decision:?}");
+    for k in 0..rows {
+        assert!(["verified", "rejected", "undecided"].contains(&decision.value(k)));
+        assert!(low.value(k) <= score.value(k) + 0.005 && score.value(k) <= high.value(k) + 0.005, "window {k}");
+    }
+    // The device's windows are not decided: the columns are null.
+    let device_dir = dir.join("device-pq");
+    let device_log = demo.join("drive.d2slog").display().to_string();
+    assert!(dash2sim(&["export", &device_log, "--parquet", &device_dir.display().to_string()]).status.success());
+    let (rows, decision, _, low, _) = windows(&device_dir);
+    assert!(rows > 0 && decision.null_count() == rows && low.null_count() == rows, "{decision:?}");
     // A folder that cannot be made is named.
     let blocker = write(&dir, "file", "");
     let out = dash2sim(&["export", &log, "--parquet", &format!("{blocker}/pq")]);

@@ -35,7 +35,8 @@ pub const VERSION_MAJOR: u8 = 1;
 /// Format minor version written (1.1 added `Detection3d` and `ClockOffset`; 1.2 the VO
 /// session of a `VoPose` and `MountEstimate`; 1.3 the σ of an `EgoPose`; 1.4 the GNSS
 /// latency of an `AnchorEstimate`; 1.5 the segments' signature trailers, [`signature`];
-/// 1.6 the IMU's `ImuDelta` and `ImuEstimate`; 1.7 a track's `TrackCovariance`).
+/// 1.6 the IMU's `ImuDelta` and `ImuEstimate`; 1.7 a track's `TrackCovariance` and a
+/// `Verification`'s decision).
 pub const VERSION_MINOR: u8 = 7;
 /// Header length in bytes (v1.0).
 pub const HEADER_LEN: usize = 48;
@@ -44,6 +45,12 @@ pub const SYNC: [u8; 4] = [0xD2, 0x5C, 0x0F, 0xE1];
 /// [`FrameMeta`]'s flag of a pose the device dead-reckoned (gyro + wheels, v1.6), not a
 /// camera frame: its frame numbers are the dead reckoning's own, at its own rate.
 pub const FRAME_DEAD_RECKONED: i64 = 2;
+/// [`Verification::decision`] of a window verified within the log's doubt (v1.7).
+pub const DECISION_VERIFIED: i64 = 1;
+/// [`Verification::decision`] of a window rejected within it.
+pub const DECISION_REJECTED: i64 = 2;
+/// [`Verification::decision`] of a window the doubt leaves undecided.
+pub const DECISION_UNDECIDED: i64 = 3;
 /// Largest payload a record may have.
 pub const MAX_PAYLOAD: usize = 1024;
 /// Longest frame: length varint, kind, payload, CRC.
@@ -262,6 +269,7 @@ macro_rules! records {
                     Kind::VoPose => 7,
                     Kind::EgoPose => 5,
                     Kind::AnchorEstimate => 11,
+                    Kind::Verification => 11,
                     _ => usize::MAX,
                 }
             }
@@ -561,6 +569,13 @@ records! {
         score_e2: Absolute,
         /// Worst corner outside the drivable area, mm.
         worst_corner_mm: Absolute,
+        /// The verdict with the log's doubt (v1.7): 0 not decided (the device's windows,
+        /// older logs), 1 verified, 2 rejected, 3 undecided ([`DECISION_VERIFIED`], …).
+        decision: Absolute,
+        /// The least score within the doubt × 100 (v1.7; with `decision` only).
+        score_low_e2: Absolute,
+        /// The greatest score within the doubt × 100 (v1.7; with `decision` only).
+        score_high_e2: Absolute,
     }
     /// A 3D detection in the camera frame (x forward, y left, z up, metres from the
     /// camera), written for frames the device could not yet place in the world (no
@@ -686,6 +701,19 @@ records! {
         cov_xy_mm2: Absolute,
         /// Covariance north-north, mm².
         cov_yy_mm2: Absolute,
+    }
+}
+
+impl Verification {
+    /// The window's decision by name (`verified`, `rejected`, `undecided`); none where it
+    /// was not decided (a device's window, a log before v1.7).
+    pub fn decision_name(&self) -> Option<&'static str> {
+        match self.decision {
+            DECISION_VERIFIED => Some("verified"),
+            DECISION_REJECTED => Some("rejected"),
+            DECISION_UNDECIDED => Some("undecided"),
+            _ => None,
+        }
     }
 }
 

@@ -628,7 +628,8 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
     }
 }
 
-/// A window's scores as a record (the device's and `dash2sim finish`'s).
+/// A window's scores as a record, not decided (the device's; `dash2sim finish` adds the
+/// decision with the log's doubt).
 pub fn verification_record(t_us: i64, s: &Scores) -> Verification {
     Verification {
         t_us,
@@ -642,6 +643,9 @@ pub fn verification_record(t_us: i64, s: &Scores) -> Verification {
         comfort_e4: quantise(s.comfort, 1e-4),
         score_e2: quantise(s.score, 1e-2),
         worst_corner_mm: quantise(s.worst_corner.clamp(-1e6, 1e6), 1e-3),
+        decision: 0,
+        score_low_e2: 0,
+        score_high_e2: 0,
     }
 }
 

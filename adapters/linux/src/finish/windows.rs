@@ -3,7 +3,7 @@
 //! channel-sensitive (only lanes along the driven route, which needs the whole route and
 //! so is offline work; `docs/verify.md`).
 
-use dash2sim_core::binlog::Record;
+use dash2sim_core::binlog::{quantise, Record, DECISION_REJECTED, DECISION_UNDECIDED, DECISION_VERIFIED};
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Pose2, PACIFICA};
 use dash2sim_core::pipeline::verification_record;
@@ -98,6 +98,21 @@ fn both(
     Ok((mode(false)?, mode(true)?))
 }
 
+/// A window's verification as a record, with its decision and score interval.
+fn decided_record(t_us: i64, v: &Verification) -> dash2sim_core::binlog::Verification {
+    let (decision, [low, high]) = decision_or_point(v.decided.as_ref(), v.scores.score);
+    dash2sim_core::binlog::Verification {
+        decision: match decision {
+            Decision::Verified => DECISION_VERIFIED,
+            Decision::Rejected => DECISION_REJECTED,
+            Decision::Undecided => DECISION_UNDECIDED,
+        },
+        score_low_e2: quantise(low, 1e-2),
+        score_high_e2: quantise(high, 1e-2),
+        ..verification_record(t_us, &v.scores)
+    }
+}
+
 fn verdict(s: &Scores) -> &'static str {
     if s.verified {
         "verified"
@@ -131,7 +146,7 @@ pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map
             let stretch = both(view, &poses[start..end], &sigmas.of_poses(start..end), &agents)?;
             let (insensitive, sensitive) = (&stretch.0.scores, &stretch.1.scores);
             let t_us = (poses[end - 1].0 * 1e6).round() as i64;
-            out.push(Record::Verification(verification_record(t_us, insensitive)));
+            out.push(Record::Verification(decided_record(t_us, &stretch.0)));
             out.push(event(
                 t_us,
                 2,

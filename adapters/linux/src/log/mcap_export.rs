@@ -133,7 +133,7 @@ fn schemas() -> Vec<(&'static str, String)> {
             schema(
                 "dash2sim.Verification",
                 &format!(
-                    r#""timestamp":{TIME},"metrics":{{"type":"object","additionalProperties":{{"type":"number","minimum":0,"maximum":1}}}},"score":{{"type":"number","minimum":0,"maximum":100}},"verified":{{"type":"boolean"}},"worst_corner_outside_m":{{"type":"number"}}"#
+                    r#""timestamp":{TIME},"metrics":{{"type":"object","additionalProperties":{{"type":"number","minimum":0,"maximum":1}}}},"score":{{"type":"number","minimum":0,"maximum":100}},"verified":{{"type":"boolean"}},"worst_corner_outside_m":{{"type":"number"}},"decision":{{"type":"string","enum":["verified","rejected","undecided"]}},"score_interval":{{"type":"array","items":{{"type":"number","minimum":0,"maximum":100}},"minItems":2,"maxItems":2}}"#
                 ),
             ),
         ),
@@ -263,11 +263,7 @@ pub fn messages(log: &LogContents, map: Option<&MapView<'_>>) -> Vec<(&'static s
             Record::Verification(v) => {
                 let m = |x: i64| (x as f64 * 1e-4).clamp(0.0, 1.0);
                 let score = (v.score_e2 as f64 * 1e-2).clamp(0.0, 100.0);
-                out.push((
-                    "/verification",
-                    "dash2sim.Verification",
-                    v.t_us,
-                    json!({
+                let mut message = json!({
                         "timestamp": time(v.t_us),
                         "metrics": {
                             "no_at_fault_collisions": m(v.collisions_e4),
@@ -282,8 +278,14 @@ pub fn messages(log: &LogContents, map: Option<&MapView<'_>>) -> Vec<(&'static s
                         "score": score,
                         "verified": score > dash2sim_core::score::VERIFIED_ABOVE,
                         "worst_corner_outside_m": v.worst_corner_mm as f64 * 1e-3,
-                    }),
-                ));
+                    });
+                // A finished window's decision with the log's doubt (a device's has none).
+                if let (Some(decision), Some(object)) = (v.decision_name(), message.as_object_mut()) {
+                    let interval = [v.score_low_e2, v.score_high_e2].map(|x| (x as f64 * 1e-2).clamp(0.0, 100.0));
+                    object.insert("decision".to_owned(), json!(decision));
+                    object.insert("score_interval".to_owned(), json!(interval));
+                }
+                out.push(("/verification", "dash2sim.Verification", v.t_us, message));
             }
             Record::VehicleSpeed(s) => out.push((
                 "/speed",

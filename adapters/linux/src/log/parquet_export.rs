@@ -80,6 +80,11 @@ impl Table {
         self
     }
 
+    fn text_or_null(mut self, name: &str, values: Vec<Option<String>>) -> Self {
+        self.push(name, DataType::Utf8, true, Arc::new(StringArray::from(values)));
+        self
+    }
+
     fn batch(self) -> Result<RecordBatch> {
         RecordBatch::try_new(Arc::new(Schema::new(self.fields)), self.arrays).map_err(Error::other)
     }
@@ -275,7 +280,10 @@ pub fn tables(log: &LogContents, log_id: &str) -> Result<LogTables> {
         .f64("time_to_collision_within_bound", metric(|v| v.ttc_e4))
         .f64("speed_limit_compliance", metric(|v| v.speed_limit_e4))
         .f64("ego_is_comfortable", metric(|v| v.comfort_e4))
-        .f64("worst_corner_outside_m", column(&windows, |v| v.worst_corner_mm as f64 * 1e-3));
+        .f64("worst_corner_outside_m", column(&windows, |v| v.worst_corner_mm as f64 * 1e-3))
+        .text_or_null("decision", column(&windows, |v| v.decision_name().map(str::to_owned)))
+        .f64_or_null("score_low", column(&windows, |v| v.decision_name().map(|_| v.score_low_e2 as f64 * 1e-2)))
+        .f64_or_null("score_high", column(&windows, |v| v.decision_name().map(|_| v.score_high_e2 as f64 * 1e-2)));
     batches.push(("verification", table.batch()?));
 
     let deltas = rows(log, |r| if let Record::ImuDelta(d) = r { Some(d) } else { None });
