@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use dash2sim_core::track3d::Config3d;
 use dash2sim_linux::sim::fidelity::drive::Anchors;
-use dash2sim_linux::sim::fidelity::sweep::{self, SweepRequest};
+use dash2sim_linux::sim::fidelity::rows::{parse_seeds, SweepRequest};
+use dash2sim_linux::sim::fidelity::sweep;
 use dash2sim_linux::sim::scenario::command::config;
 use dash2sim_linux::sim::scenario::corpus::{self, CorpusRequest};
 use dash2sim_linux::sim::scenario::evaluate::evaluate_tracking;
@@ -44,7 +45,7 @@ pub struct CorpusArgs {
 #[derive(Debug, Clone, Args)]
 pub struct SweepArgs {
     /// Seeds, `A-B` (both included) or one seed.
-    #[arg(long, value_parser = sweep::parse_seeds)]
+    #[arg(long, value_parser = parse_seeds)]
     pub seeds: std::ops::RangeInclusive<u64>,
     /// Drive each seed `careful`, `careless`, `both`, `all` or one other kind: `shoulder`,
     /// `oncoming`, `speeding`, `tailgating`, `harsh`, `knife-edge` (docs/scenario.md).

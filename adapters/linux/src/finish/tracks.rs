@@ -54,7 +54,7 @@ pub const MIN_SUPPORT: usize = 3;
 pub struct FinishedTracks {
     /// Their states, by time.
     pub batches: Vec<Tracks3d>,
-    /// The covariance of each one's place ([`spread_around`]).
+    /// The covariance of each one's place (how far its states spread around it).
     pub covariances: Vec<TrackCovariance>,
     /// What happened to them.
     pub stats: TrackStats,

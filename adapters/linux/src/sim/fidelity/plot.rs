@@ -6,8 +6,8 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
+use super::rows::Row;
 use super::summary::{Confusion, Summary};
-use super::sweep::Row;
 use crate::plot::{err, register_font, FINISHED, GNSS, ONLINE};
 use crate::Result;
 

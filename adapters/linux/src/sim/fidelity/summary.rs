@@ -7,7 +7,7 @@ use std::fmt::Write as _;
 use dash2sim_core::pipeline::RelativeMotion;
 use serde::Serialize;
 
-use super::sweep::{Row, SweepRequest, Verdict, Verdicts};
+use super::rows::{Row, SweepRequest, Verdict, Verdicts};
 use crate::verify::decide::Decision;
 
 /// A log's verdicts against the truth's: rows truth, columns the log.
