@@ -216,8 +216,9 @@ def _finish_and_export(task: Task, out: Path) -> Dict[str, Any]:
         "duration_s": info["t_end"] - info["t_start"],
         "verified": verified,
         "score": insensitive["score"],
-        # With the finished poses' σ: verified, rejected or undecided (docs/verify.md). A
-        # fleet sends its undecided logs for anchoring.
+        # With the σ the finished log states for its poses and tracks: verified, rejected
+        # or undecided (docs/verify.md); `in_doubt` in `verify` says which evidence would
+        # decide it (street anchors for the ego, nearer looks for the objects).
         "decision": insensitive["decision"],
         "score_low": insensitive["score_interval"][0],
         "score_high": insensitive["score_interval"][1],
