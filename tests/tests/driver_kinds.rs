@@ -124,6 +124,13 @@ fn a_tracks_stated_sigma_puts_a_near_pass_in_doubt() {
         "{:?}",
         stated.in_doubt
     );
+    // The words name the pass that came nearest: a drum clear as placed, not with its doubt
+    // (2 × 0.2 m across the path).
+    let nearest = stated.in_doubt.iter().find_map(|w| w.split_once("the nearest pass: track ")).map(|(_, p)| p);
+    let clear = |label: &str| -> Option<f64> { nearest?.split(label).next()?.rsplit(' ').next()?.parse().ok() };
+    let (placed, in_doubt) = (clear(" m clear of the ego"), clear(" m with its place"));
+    assert!(nearest.is_some_and(|p| p.contains("(an object)") && p.contains("± 0.40 m (2σ)")), "{:?}", stated.in_doubt);
+    assert!(placed.is_some_and(|m| m > 0.0) && in_doubt == Some(0.0), "{nearest:?}");
     // `--object-sigma` is for objects that state none: a tight stated σ wins over it.
     let (_, tight) = decided_with(Driver::KnifeEdge, 2, 0.0, 0.002, 1.0);
     assert_eq!(tight.decision, Decision::Verified, "{tight:?}");
