@@ -885,6 +885,11 @@ fn bridge_gaps(poses: &[PlanarPose], interval: f64, speeds: &[(f64, f64)]) -> Ve
     out
 }
 
+/// A VO session of a drive with several whose heading's 1-σ is above this is not anchored
+/// on its own (rad): a session of a few frames, its fixes a few metres apart, points
+/// anywhere within 10–20°, where one of seconds is known to a degree.
+pub const MAX_SESSION_HEADING_SIGMA_RAD: f64 = 5.0 * std::f64::consts::PI / 180.0;
+
 /// Every VO session solved: the solutions, the sessions that could not be, and per anchor
 /// why no session used it (`None`: used).
 struct Solved {
@@ -902,6 +907,26 @@ fn solve_sessions(drive: &Drive, anchors: &[Anchor], lever: Vector3<f64>, settin
         let session = vo[0].session;
         let inputs = Inputs { vo, fixes: &drive.fixes, speeds: &drive.speeds, anchors, lever };
         match solve_session(inputs, settings, &drive.fixes, single_session) {
+            // A session too short to fix which way it points is not anchored on its own: its
+            // heading would be a guess, and the bridge from it into the next session a turn the
+            // car never made. Its poses stay without a finished pose (another session's
+            // bridge may cover them).
+            Ok((solution, session_verdicts))
+                if !single_session && solution.heading_sigma_rad > MAX_SESSION_HEADING_SIGMA_RAD =>
+            {
+                let why = format!(
+                    "its heading is not determined ({:.1}° 1-σ over {:.1} s of VO; at most {:.0}°)",
+                    solution.heading_sigma_rad.to_degrees(),
+                    vo[vo.len() - 1].t - vo[0].t,
+                    MAX_SESSION_HEADING_SIGMA_RAD.to_degrees()
+                );
+                for (verdict, mine) in verdicts.iter_mut().zip(session_verdicts) {
+                    if matches!(mine, AnchorVerdict::Used) && verdict.is_some() {
+                        *verdict = Some(format!("in VO session {session}, not anchored: {why}"));
+                    }
+                }
+                unsolved.push((session, vo.len(), why));
+            }
             Ok((solution, session_verdicts)) => {
                 for (verdict, mine) in verdicts.iter_mut().zip(session_verdicts) {
                     match mine {

@@ -244,6 +244,9 @@ pub struct Solution {
     /// Horizontal 1-σ (DRMS, m) of the camera position at up to 32 keyframes along the
     /// drive, by time: [`Solution::horizontal_sigma_at`] interpolates it.
     pub horizontal_sigma: Vec<(f64, f64)>,
+    /// The least 1-σ of the camera's heading at those keyframes, rad: how well the
+    /// session's fixes and anchors fix which way its VO path points where they fix it best.
+    pub heading_sigma_rad: f64,
     /// RMS horizontal residual of the used fixes, m.
     pub gnss_rms_m: f64,
 }
@@ -1052,15 +1055,25 @@ fn solve_from(
     // Position σ at up to 32 keyframes along the drive.
     let count = blocks.min(32);
     let samples: Vec<usize> = (0..count).map(|i| if count > 1 { i * (blocks - 1) / (count - 1) } else { 0 }).collect();
-    let rhs = Mat::from_fn(n, samples.len() * 3, |i, c| if i == samples[c / 3] * BLOCK + c % 3 { 1.0 } else { 0.0 });
+    // Per sample four columns: the position's three and the heading's (the rotation's
+    // increment about the vertical, the block's seventh unknown).
+    let column = |c: usize| samples[c / 4] * BLOCK + if c % 4 == 3 { 6 } else { c % 4 };
+    let rhs = Mat::from_fn(n, samples.len() * 4, |i, c| if i == column(c) { 1.0 } else { 0.0 });
     let cov = llt.solve(&rhs);
-    let trace: f64 = (0..samples.len() * 3).map(|c| cov[(samples[c / 3] * BLOCK + c % 3, c)]).sum();
+    let trace: f64 = (0..samples.len() * 4).filter(|c| c % 4 != 3).map(|c| cov[(column(c), c)]).sum();
+    // The heading where the session fixes it best: the VO carries it along the rest (a
+    // standstill's keyframes, the last one that only marks the session's end, are held by
+    // little else).
+    let heading_sigma_rad = (0..samples.len())
+        .filter(|&j| blocks == 1 || samples[j] + 1 < blocks)
+        .map(|j| cov[(column(4 * j + 3), 4 * j + 3)].max(0.0).sqrt() * inflation_factor)
+        .fold(f64::INFINITY, f64::min);
     let position_var = trace / samples.len().max(1) as f64;
     let horizontal_sigma: Vec<(f64, f64)> = samples
         .iter()
         .enumerate()
         .map(|(j, &k)| {
-            let var = cov[(k * BLOCK, 3 * j)] + cov[(k * BLOCK + 1, 3 * j + 1)];
+            let var = cov[(k * BLOCK, 4 * j)] + cov[(k * BLOCK + 1, 4 * j + 1)];
             (state.keyframe_t[k], var.max(0.0).sqrt() * inflation_factor)
         })
         .collect();
@@ -1091,6 +1104,7 @@ fn solve_from(
         scale_sigma: scale_var.max(0.0).sqrt() * inflation_factor,
         position_sigma_m: position_var.max(0.0).sqrt() * inflation_factor,
         horizontal_sigma,
+        heading_sigma_rad,
         gnss_rms_m: if used > 0 { (sse / used as f64).sqrt() } else { f64::NAN },
         keyframe_t: state.keyframe_t,
         keyframe_vo: state.keyframe_vo,
@@ -1166,6 +1180,7 @@ impl Solution {
 mod tests {
     use super::*;
     use dash2sim_core::sim3::rotation_z;
+    use std::f64::consts::FRAC_PI_2;
 
     /// A minute north at 25 m/s, dead-reckoned with a gyro whose bias the device got wrong
     /// by 1.5 mrad/s (the path's heading turns 5° over the minute), anchored to fixes every
@@ -1202,6 +1217,46 @@ mod tests {
             .sum();
         let rms = (squares / solution.positions.len() as f64).sqrt();
         (solution, rms)
+    }
+
+    /// `seconds` of VO north at 20 m/s, anchored to 10 Hz fixes off by up to 1.5 m: the
+    /// solution's heading σ.
+    fn heading_sigma_of_a_session(seconds: f64) -> f64 {
+        let n = (seconds * 10.0).round() as usize;
+        let vo: Vec<VoSample> = (0..=n)
+            .map(|k| {
+                let t = 0.1 * k as f64;
+                let position = Vector3::new(0.0, 20.0 * t, 0.0);
+                VoSample {
+                    t,
+                    session: 0,
+                    position,
+                    rotation: rotation_z(FRAC_PI_2),
+                    grade_sigma: 0.03,
+                    reckoned: false,
+                }
+            })
+            .collect();
+        let fixes: Vec<Fix> = (0..=n)
+            .map(|k| {
+                let t = 0.1 * k as f64;
+                let error = Vector3::new(1.5 * (k as f64 * 1.7).sin(), 1.5 * (k as f64 * 0.9).cos(), 0.0);
+                Fix { t, enu: Vector3::new(0.0, 20.0 * t, 0.0) + error, sigma_h: 1.5, sigma_v: 3.0 }
+            })
+            .collect();
+        let speeds: Vec<(f64, f64)> = (0..=n).map(|k| (0.1 * k as f64, 20.0)).collect();
+        let inputs = Inputs { vo: &vo, fixes: &fixes, speeds: &speeds, anchors: &[], lever: Vector3::zeros() };
+        let settings = Settings { gravity_aligned: true, ..Settings::default() }.with_latency_held(0.0);
+        solve(inputs, settings, &[]).expect("solved").heading_sigma_rad
+    }
+
+    /// A VO session of three frames (6 m of travel, its fixes metres off) points anywhere
+    /// within many degrees; one of twenty seconds is known to well under one.
+    #[test]
+    fn a_short_sessions_heading_is_stated_as_undetermined() {
+        let (short, long) = (heading_sigma_of_a_session(0.3), heading_sigma_of_a_session(20.0));
+        assert!(short.to_degrees() > 5.0, "0.3 s: {:.2}°", short.to_degrees());
+        assert!(long.to_degrees() < 1.0, "20 s: {:.2}°", long.to_degrees());
     }
 
     #[test]
