@@ -135,16 +135,11 @@ fn spread_around(placed: &[(i64, i64)], kept: &[(i64, Track3d)]) -> [f64; 3] {
         .zip(kept)
         .map(|(p, (_, k))| ((p.0 - k.x_mm) as f64 * 1e-3, (p.1 - k.y_mm) as f64 * 1e-3))
         .collect();
-    let within = 3.0 * median_f64(d.iter().map(|(x, y)| x.hypot(*y)).collect());
+    let within = 3e-3 * median(d.iter().map(|(x, y)| (x.hypot(*y) * 1e3).round() as i64).collect()) as f64;
     let kept: Vec<&(f64, f64)> = d.iter().filter(|(x, y)| x.hypot(*y) <= within).collect();
     let n = kept.len().max(1) as f64;
     let moment = |f: fn(&(f64, f64)) -> f64| kept.iter().map(|d| f(d)).sum::<f64>() / n;
     [moment(|d| d.0 * d.0), moment(|d| d.0 * d.1), moment(|d| d.1 * d.1)]
-}
-
-fn median_f64(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(0.0)
 }
 
 /// The ego pose that, with a mount turned by `delta` more about the vertical (rad; about

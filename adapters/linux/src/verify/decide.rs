@@ -20,7 +20,7 @@ pub const DEFAULT_DECIDE_AT: f64 = 2.0;
 /// Default σ of the place relative to the ego of an object whose log states none, m (along
 /// one axis): none. `verify` does not invent one — an object's place relative to the ego is
 /// the camera's measurement (the ego's own error moves it with the ego), and `finish` states
-/// it for every track it keeps (`TrackSigma`); a device's log or an objects file states
+/// it for every track it keeps (`TrackCovariance`); a device's log or an objects file states
 /// none, and `--object-sigma` gives them one.
 pub const DEFAULT_OBJECT_SIGMA_M: f64 = 0.0;
 
