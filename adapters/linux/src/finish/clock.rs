@@ -3,12 +3,14 @@
 //! A device reads UTC off each GNSS fix as it arrives, so its log's UTC is early by the
 //! receiver's latency (`pipeline::clock`). The latency is measured two ways. The solve finds
 //! it from where the fixes put the car (`solve`), where an along-track error of the fixes
-//! looks like a latency at constant speed. The fixes' speed over ground says it more
-//! directly: the finished ego's speed (from the camera's frames, on the device's clock)
-//! speeds up and slows down with the car, and the fixes' speeds follow it one latency late
-//! ([`latency_from_speed`]).
+//! looks like a latency at constant speed. The fixes' motion says it more directly: the
+//! finished ego (from the camera's frames, on the device's clock) speeds up, slows down and
+//! turns with the car, and the fixes' speed and course over ground follow it one latency
+//! late ([`latency_from_motion`]). Each of the two says it to its own precision — the speed
+//! where the car changes speed, the course where it turns — and the two are weighed by it.
 
 use std::collections::BTreeMap;
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 use dash2sim_core::binlog::{quantise, EgoPose, Record};
 
@@ -16,73 +18,164 @@ use dash2sim_core::binlog::{quantise, EgoPose, Record};
 const LATENCY_RANGE_S: (f64, f64) = (-0.2, 0.6);
 /// Their step, s.
 const LATENCY_STEP_S: f64 = 0.001;
-/// The ego's speed is the chord over ±this, s (its positions are 50 ms apart).
-const SPEED_HALF_SPAN_S: f64 = 0.1;
-/// Fixes with a speed needed.
+/// The ego's speed and direction are the chord over ±this, s (its positions are 50 ms apart).
+const CHORD_HALF_SPAN_S: f64 = 0.1;
+/// Fixes with a speed (or a course) needed.
 const MIN_FIXES: usize = 20;
+/// The rate a fix's observation changes at (the information it carries on the latency) is
+/// taken over ±this, s: over the chord's own span, its noise would be counted as
+/// information.
+const RATE_HALF_SPAN_S: f64 = 0.5;
 /// A speed residual counts at most this much, m/s (a multipath jump, a skid).
-const RESIDUAL_CLIP_MPS: f64 = 1.0;
-/// The speed's latency is used only when it is this well determined (1-σ, s): at steady
-/// speed it says nothing, and the solve's stands.
+const SPEED_CLIP_MPS: f64 = 1.0;
+/// A course residual counts at most this much, rad (a multipath jump).
+const COURSE_CLIP_RAD: f64 = 0.1;
+/// A fix's course is used from this speed on, m/s: slower, a receiver's course is noise.
+const MIN_COURSE_SPEED_MPS: f64 = 3.0;
+/// The latency is used only when it is this well determined (1-σ, s): at steady speed on
+/// a straight road the motion says nothing, and the solve's stands.
 pub const MAX_SIGMA_S: f64 = 0.02;
 
-/// The receiver's latency (s) from its fixes' speed over ground against the finished ego's
-/// speed (`ego`, log time), or `None` with too few fixes or too little change of speed to
-/// tell it to [`MAX_SIGMA_S`]. `records` are the device's (fix times are arrivals).
-pub fn latency_from_speed(records: &[Record], ego: &BTreeMap<i64, EgoPose>) -> Option<f64> {
-    let track: Vec<(f64, f64, f64)> =
-        ego.values().map(|p| (p.t_us as f64 * 1e-6, p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3)).collect();
-    let at = |t: f64| -> Option<(f64, f64)> {
-        let k = track.partition_point(|p| p.0 <= t);
-        let (a, b) = (track.get(k.checked_sub(1)?)?, track.get(k)?);
+/// The finished ego as a track on the log's clock (s, m), with its chord's speed and
+/// direction.
+struct Track(Vec<(f64, f64, f64)>);
+
+impl Track {
+    fn at(&self, t: f64) -> Option<(f64, f64)> {
+        let k = self.0.partition_point(|p| p.0 <= t);
+        let (a, b) = (self.0.get(k.checked_sub(1)?)?, self.0.get(k)?);
         if b.0 - a.0 > 1.0 {
             return None;
         }
         let w = (t - a.0) / (b.0 - a.0);
         Some((a.1 + w * (b.1 - a.1), a.2 + w * (b.2 - a.2)))
-    };
-    let speed = |t: f64| -> Option<f64> {
-        let (a, b) = (at(t - SPEED_HALF_SPAN_S)?, at(t + SPEED_HALF_SPAN_S)?);
-        Some((b.0 - a.0).hypot(b.1 - a.1) / (2.0 * SPEED_HALF_SPAN_S))
-    };
-    let fixes: Vec<(f64, f64)> = records
-        .iter()
-        .filter_map(|r| match r {
-            Record::GnssFix(f) if f.mode >= 2 => Some((f.t_us as f64 * 1e-6, f.speed_mm_s as f64 * 1e-3)),
+    }
+
+    /// The chord over ±[`CHORD_HALF_SPAN_S`] around `t`.
+    fn chord(&self, t: f64) -> Option<(f64, f64)> {
+        let (a, b) = (self.at(t - CHORD_HALF_SPAN_S)?, self.at(t + CHORD_HALF_SPAN_S)?);
+        Some((b.0 - a.0, b.1 - a.1))
+    }
+
+    fn speed(&self, t: f64) -> Option<f64> {
+        self.chord(t).map(|(dx, dy)| dx.hypot(dy) / (2.0 * CHORD_HALF_SPAN_S))
+    }
+
+    /// The direction of travel, rad counter-clockwise from east.
+    fn heading(&self, t: f64) -> Option<f64> {
+        self.chord(t).map(|(dx, dy)| dy.atan2(dx))
+    }
+}
+
+/// One kind of observation the fixes make of the car's motion.
+struct Channel<'a> {
+    /// (arrival, observed) per fix.
+    fixes: Vec<(f64, f64)>,
+    /// What the ego says was observed at a time on the log's clock.
+    predict: Box<dyn Fn(f64) -> Option<f64> + 'a>,
+    /// Observed − predicted.
+    residual: fn(f64, f64) -> f64,
+    /// A residual counts at most this much (a multipath jump, a skid), and a fix whose
+    /// residual is past it carries no information on the latency.
+    clip: f64,
+    /// How fast the prediction changes, per s (the information a fix carries on the latency).
+    rate: Box<dyn Fn(f64) -> Option<f64> + 'a>,
+    /// The channel's residuals less their mean (a constant offset — a finished ego turned by
+    /// a fraction of a degree — says nothing of the latency).
+    centred: bool,
+}
+
+impl Channel<'_> {
+    /// Each fix's time and residual at latency `tau`.
+    fn residuals(&self, tau: f64) -> Vec<(f64, f64)> {
+        self.fixes.iter().filter_map(|(t, seen)| Some((*t, (self.residual)(*seen, (self.predict)(t - tau)?)))).collect()
+    }
+
+    fn cost(&self, tau: f64) -> Option<f64> {
+        let r: Vec<f64> = self.residuals(tau).iter().map(|(_, r)| r.clamp(-self.clip, self.clip)).collect();
+        if r.len() < MIN_FIXES {
+            return None;
+        }
+        let mean = if self.centred { r.iter().sum::<f64>() / r.len() as f64 } else { 0.0 };
+        Some(r.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / r.len() as f64)
+    }
+
+    /// The latency this channel finds and its 1-σ, s: the residuals' variance over the
+    /// information the changes of the motion carry (Σ rate² at the fixes).
+    fn latency(&self) -> Option<(f64, f64)> {
+        let steps = ((LATENCY_RANGE_S.1 - LATENCY_RANGE_S.0) / LATENCY_STEP_S).round() as usize;
+        let (best, variance) = (0..=steps)
+            .map(|k| LATENCY_RANGE_S.0 + k as f64 * LATENCY_STEP_S)
+            .filter_map(|tau| Some((tau, self.cost(tau)?)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))?;
+        let rates: Vec<f64> = self
+            .residuals(best)
+            .iter()
+            .filter(|(_, r)| r.abs() < self.clip)
+            .filter_map(|(t, _)| (self.rate)(t - best))
+            .collect();
+        if rates.len() < MIN_FIXES {
+            return None;
+        }
+        let mean = if self.centred { rates.iter().sum::<f64>() / rates.len().max(1) as f64 } else { 0.0 };
+        let information: f64 = rates.iter().map(|r| (r - mean).powi(2)).sum();
+        let n = rates.len() as f64;
+        let sigma = (variance * n / (n - 1.0).max(1.0) / information).sqrt();
+        sigma.is_finite().then_some((best, sigma))
+    }
+}
+
+/// The receiver's latency (s) from its fixes' speed and course over ground against the
+/// finished ego's (`ego`, log time), or `None` with too few fixes or too little change of
+/// speed or direction to tell it to [`MAX_SIGMA_S`]. `records` are the device's (fix times
+/// are arrivals).
+pub fn latency_from_motion(records: &[Record], ego: &BTreeMap<i64, EgoPose>) -> Option<f64> {
+    let track =
+        Track(ego.values().map(|p| (p.t_us as f64 * 1e-6, p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3)).collect());
+    let fixes = || {
+        records.iter().filter_map(|r| match r {
+            Record::GnssFix(f) if f.mode >= 2 => Some(f),
             _ => None,
         })
-        .collect();
-    let cost = |tau: f64| -> (f64, usize) {
-        fixes
-            .iter()
-            .filter_map(|(t, sog)| Some((sog - speed(t - tau)?).clamp(-RESIDUAL_CLIP_MPS, RESIDUAL_CLIP_MPS)))
-            .fold((0.0, 0), |(sum, n), r| (sum + r * r, n + 1))
     };
-    let steps = ((LATENCY_RANGE_S.1 - LATENCY_RANGE_S.0) / LATENCY_STEP_S).round() as usize;
-    let (best, (sum, n)) = (0..=steps)
-        .map(|k| LATENCY_RANGE_S.0 + k as f64 * LATENCY_STEP_S)
-        .map(|tau| (tau, cost(tau)))
-        .filter(|(_, (_, n))| *n >= MIN_FIXES)
-        .min_by(|a, b| (a.1 .0 / a.1 .1 as f64).total_cmp(&(b.1 .0 / b.1 .1 as f64)))?;
-    // σ of the latency: the residuals' variance over the information the speed's changes
-    // carry (Σ acceleration² at the fixes).
-    let information: f64 = fixes
-        .iter()
-        .filter_map(|(t, _)| {
-            let t = t - best;
-            let a = (speed(t + SPEED_HALF_SPAN_S)? - speed(t - SPEED_HALF_SPAN_S)?) / (2.0 * SPEED_HALF_SPAN_S);
-            Some(a * a)
-        })
-        .sum();
-    let variance = sum / (n.saturating_sub(1).max(1)) as f64;
-    let sigma = (variance / information).sqrt();
-    (sigma.is_finite() && sigma <= MAX_SIGMA_S).then_some(best)
+    let speed = Channel {
+        fixes: fixes().map(|f| (f.t_us as f64 * 1e-6, f.speed_mm_s as f64 * 1e-3)).collect(),
+        predict: Box::new(|t| track.speed(t)),
+        residual: |seen, predicted| seen - predicted,
+        clip: SPEED_CLIP_MPS,
+        rate: Box::new(|t| {
+            Some((track.speed(t + RATE_HALF_SPAN_S)? - track.speed(t - RATE_HALF_SPAN_S)?) / (2.0 * RATE_HALF_SPAN_S))
+        }),
+        centred: false,
+    };
+    // A fix's course is clockwise from north; the ego's heading counter-clockwise from east.
+    let course = Channel {
+        fixes: fixes()
+            .filter(|f| f.speed_mm_s as f64 * 1e-3 >= MIN_COURSE_SPEED_MPS)
+            .map(|f| (f.t_us as f64 * 1e-6, FRAC_PI_2 - f.track_e4 as f64 * 1e-4))
+            .collect(),
+        predict: Box::new(|t| track.heading(t)),
+        residual: |seen, predicted| (seen - predicted + PI).rem_euclid(TAU) - PI,
+        clip: COURSE_CLIP_RAD,
+        rate: Box::new(|t| {
+            let turn = track.heading(t + RATE_HALF_SPAN_S)? - track.heading(t - RATE_HALF_SPAN_S)?;
+            Some(((turn + PI).rem_euclid(TAU) - PI) / (2.0 * RATE_HALF_SPAN_S))
+        }),
+        centred: true,
+    };
+    // Each channel weighed by its precision.
+    let (weighted, weight) = [speed.latency(), course.latency()]
+        .into_iter()
+        .flatten()
+        .fold((0.0, 0.0), |(sum, w), (tau, sigma)| (sum + tau / (sigma * sigma), w + 1.0 / (sigma * sigma)));
+    let sigma = weight.recip().sqrt();
+    (weight > 0.0 && sigma <= MAX_SIGMA_S).then(|| weighted / weight)
 }
 
 /// A device reads UTC off each fix as it arrives (`pipeline::clock`): its log's UTC is
 /// early by the receiver's latency, and everything in it — the ego, the tracks, the fixes'
 /// arrivals — is stamped that much before the instant it describes. Every record and clock
-/// offset is moved later by the latency (`latency_s`, [`latency_from_speed`] or the solve's), so that the
+/// offset is moved later by the latency (`latency_s`, [`latency_from_motion`] or the solve's), so that the
 /// finished log's UTC is the world's. A log that never learnt UTC (no clock offset) is on
 /// the device's clock and is left there. Returns the shift, µs.
 pub fn utc_onto_the_fixes(records: &mut [Record], latency_s: f64) -> i64 {
@@ -107,9 +200,8 @@ mod tests {
     /// A car whose speed swings between 10 and 20 m/s every 8 s, its ego every 50 ms, and a
     /// receiver 137 ms late whose speeds are off by up to 0.1 m/s.
     fn swinging(latency: f64, swing: f64) -> (Vec<Record>, BTreeMap<i64, EgoPose>) {
-        let distance =
-            |t: f64| 15.0 * t - swing * 8.0 / std::f64::consts::TAU * (std::f64::consts::TAU * t / 8.0).cos();
-        let speed = |t: f64| 15.0 + swing * (std::f64::consts::TAU * t / 8.0).sin();
+        let distance = |t: f64| 15.0 * t - swing * 8.0 / TAU * (TAU * t / 8.0).cos();
+        let speed = |t: f64| 15.0 + swing * (TAU * t / 8.0).sin();
         let ego = (0..=800)
             .map(|k| {
                 let t = 0.05 * k as f64;
@@ -132,11 +224,52 @@ mod tests {
     #[test]
     fn the_fixes_speeds_follow_the_car_one_latency_late() {
         let (records, ego) = swinging(0.137, 5.0);
-        let found = latency_from_speed(&records, &ego).expect("the speed swings");
+        let found = latency_from_motion(&records, &ego).expect("the speed swings");
         assert!((found - 0.137).abs() < 0.005, "{found}");
         // At steady speed the speeds say nothing.
         let (records, ego) = swinging(0.137, 0.0);
-        assert_eq!(latency_from_speed(&records, &ego), None);
+        assert_eq!(latency_from_motion(&records, &ego), None);
+    }
+
+    /// A car at a steady 15 m/s weaving left and right every 6 s (±0.3 rad), its ego every
+    /// 50 ms, and a receiver `latency` late whose courses are off by up to half a degree.
+    fn weaving(latency: f64) -> (Vec<Record>, BTreeMap<i64, EgoPose>) {
+        let heading = |t: f64| 0.3 * (TAU * t / 6.0).sin();
+        let mut ego = BTreeMap::new();
+        let (mut x, mut y) = (0.0, 0.0);
+        for k in 0..=800 {
+            let t = 0.05 * k as f64;
+            let t_us = quantise(t, 1e-6);
+            ego.insert(t_us, EgoPose { t_us, x_mm: quantise(x, 1e-3), y_mm: quantise(y, 1e-3), ..EgoPose::default() });
+            let h = heading(t + 0.025);
+            (x, y) = (x + 15.0 * 0.05 * h.cos(), y + 15.0 * 0.05 * h.sin());
+        }
+        let records = (1..390)
+            .map(|k| {
+                let valid = 0.1 * k as f64;
+                let noise = 0.5f64.to_radians() * (k as f64 * 78.233).sin();
+                let t_us = quantise(valid + latency, 1e-6);
+                let track_e4 = quantise(FRAC_PI_2 - heading(valid) + noise, 1e-4);
+                Record::GnssFix(GnssFix { t_us, speed_mm_s: 15_000, track_e4, mode: 3, ..GnssFix::default() })
+            })
+            .collect();
+        (records, ego)
+    }
+
+    #[test]
+    fn at_steady_speed_the_fixes_course_follows_the_car_one_latency_late() {
+        let (records, ego) = weaving(0.137);
+        let found = latency_from_motion(&records, &ego).expect("the car turns");
+        assert!((found - 0.137).abs() < 0.005, "{found}");
+        // A receiver with no course (or a car on a straight road at steady speed) says nothing.
+        let no_course: Vec<Record> = records
+            .iter()
+            .map(|r| match r {
+                Record::GnssFix(f) => Record::GnssFix(GnssFix { track_e4: 0, ..*f }),
+                other => other.clone(),
+            })
+            .collect();
+        assert_eq!(latency_from_motion(&no_course, &ego), None);
     }
 
     #[test]

@@ -579,7 +579,7 @@ pub fn finish(
         (0..drive.fixes.len()).filter(|&k| sessions.iter().any(|s| s.solution.fix_used.get(k) == Some(&true))).count();
     // The longest session speaks for the drive's scale, latency and wheel factor.
     let main = sessions.iter().max_by_key(|s| s.range.len()).map(|s| &s.solution).unwrap_or_else(|| unreachable!());
-    let utc_latency_s = clock::latency_from_speed(&log.records, &ego).unwrap_or(main.latency_s);
+    let utc_latency_s = clock::latency_from_motion(&log.records, &ego).unwrap_or(main.latency_s);
     let utc_shift_us = clock::utc_onto_the_fixes(&mut records, utc_latency_s);
     let [_, pitch, yaw] = calibrated.mount.roll_pitch_yaw;
     let mount_text = format!(
