@@ -286,6 +286,11 @@ fn savitzky_golay(values: impl Iterator<Item = f64>, dt: f64) -> (f64, f64) {
     (first / norm1 / dt, 2.0 * second / norm2 / (dt * dt))
 }
 
+/// Consecutive poses farther apart than this, s, leave a hole: the comfort metrics are not
+/// differentiated across it (a device's window ends at such a gap; a finished log with a
+/// hole is scored on either side of it, and never verified: `verify`).
+pub const HOLE_S: f64 = 1.0;
+
 /// Sliding-window comfort derivatives.
 #[derive(Clone, Debug)]
 struct ComfortWindow {
@@ -302,6 +307,12 @@ impl ComfortWindow {
     }
 
     fn push(&mut self, t: f64, pose: &Pose2) {
+        // A hole in the poses (a log missing a stretch of its ego) restarts the window: a
+        // derivative across it would be of poses that are not there.
+        if self.poses.back().is_some_and(|&(previous, ..)| t - previous > HOLE_S) {
+            self.poses.clear();
+            self.accels.clear();
+        }
         let heading = match self.poses.back() {
             Some(&(_, _, _, previous)) => previous + wrap(pose.heading - previous),
             None => pose.heading,

@@ -48,6 +48,19 @@ fn each_drivers_truth_scores_as_its_kind_says() {
 /// `TrackCovariance`; 0: none stated), and `object_sigma` m (`--object-sigma`) for those
 /// that state none.
 fn decided_with(driver: Driver, seed: u64, sigma: f64, track_sigma: f64, object_sigma: f64) -> (f64, Decided) {
+    decided_with_hole(driver, seed, sigma, track_sigma, object_sigma, None)
+}
+
+/// [`decided_with`], the ego's poses from `hole.0` to `hole.1` s into the drive left out (a
+/// VO session `finish` could not anchor).
+fn decided_with_hole(
+    driver: Driver,
+    seed: u64,
+    sigma: f64,
+    track_sigma: f64,
+    object_sigma: f64,
+    hole: Option<(f64, f64)>,
+) -> (f64, Decided) {
     use dash2sim_core::geo::Geodetic;
     use dash2sim_linux::sim::fidelity::drive::truth_ego;
     let config = ScenarioConfig { driver, ..ScenarioConfig::drive(seed, Profile::Typical, Receiver::Good) };
@@ -58,7 +71,10 @@ fn decided_with(driver: Driver, seed: u64, sigma: f64, track_sigma: f64, object_
     let tile = road_tile(&dir, Geodetic::new(lat, lon, h).expect("origin")).expect("tile");
     let map = MapView::parse(&tile).expect("map");
     let agents = read_objects(&dir.join("objects.csv")).expect("objects");
-    let ego = truth_ego(&scenario);
+    let mut ego = truth_ego(&scenario);
+    if let (Some((from, to)), Some(&(t0, _))) = (hole, ego.first()) {
+        ego.retain(|(t, _)| !(t0 + from..t0 + to).contains(t));
+    }
     let variance = track_sigma * track_sigma;
     let tracks = if track_sigma > 0.0 {
         agents.values().flatten().map(|a| (a.id, [variance, 0.0, variance])).collect()
@@ -134,4 +150,26 @@ fn a_tracks_stated_sigma_puts_a_near_pass_in_doubt() {
     // `--object-sigma` is for objects that state none: a tight stated σ wins over it.
     let (_, tight) = decided_with(Driver::KnifeEdge, 2, 0.0, 0.002, 1.0);
     assert_eq!(tight.decision, Decision::Verified, "{tight:?}");
+}
+
+/// A log with a hole (poses missing for 2.5 s: a session `finish` could not anchor) is never
+/// verified — whatever happened there is not in it — and says where the hole is; a drive
+/// rejected for what the log does show stays rejected.
+#[test]
+fn a_hole_in_the_log_is_never_verified() {
+    let (_, whole) = decided_with_hole(Driver::Careful, 3, 0.0, 0.0, 0.0, None);
+    assert_eq!((whole.decision, whole.holes.len()), (Decision::Verified, 0), "{whole:?}");
+    let (score, holed) = decided_with_hole(Driver::Careful, 3, 0.0, 0.0, 0.0, Some((15.0, 17.5)));
+    assert!(score > 90.0, "nuPlan's score sees only what is there: {score}");
+    assert_eq!(holed.decision, Decision::Undecided, "{holed:?}");
+    assert_eq!(holed.score_interval[0], 0.0);
+    let [[from, to]] = holed.holes[..] else { panic!("one hole: {:?}", holed.holes) };
+    assert!((to - from - 2.5).abs() <= 0.11, "{from}–{to}");
+    assert!(
+        holed.in_doubt.iter().any(|w| w.starts_with("a hole in the log: no ego pose from")),
+        "{:?}",
+        holed.in_doubt
+    );
+    let (_, careless) = decided_with_hole(Driver::Careless, 3, 0.0, 0.0, 0.0, Some((15.0, 17.5)));
+    assert_eq!(careless.decision, Decision::Rejected, "{careless:?}");
 }

@@ -10,7 +10,7 @@
 use serde::Serialize;
 
 use dash2sim_core::obb::OrientedBox;
-use dash2sim_core::score::{Agent, AgentKind, Scores, VERIFIED_ABOVE};
+use dash2sim_core::score::{Agent, AgentKind, Scores, HOLE_S, VERIFIED_ABOVE};
 
 use super::StatedUncertainty;
 
@@ -122,6 +122,22 @@ pub struct Decided {
     pub tracks_with_sigma: u32,
     /// Each metric whose outcome could flip within the doubt, explained in words.
     pub in_doubt: Vec<String>,
+    /// Stretches with no ego pose longer than [`HOLE_S`] (a VO session `finish` could not anchor) (from, to; s): what the ego did
+    /// there is not in the log, so the verdict cannot vouch for it ([`decided`]).
+    pub holes: Vec<[f64; 2]>,
+}
+
+/// The holes of `times` (increasing, s): each gap longer than [`HOLE_S`], the core's.
+pub fn holes(times: impl Iterator<Item = f64>) -> Vec<[f64; 2]> {
+    let mut previous: Option<f64> = None;
+    let mut out = Vec::new();
+    for t in times {
+        if let Some(p) = previous.filter(|p| t - p > HOLE_S) {
+            out.push([p, t]);
+        }
+        previous = Some(t);
+    }
+    out
 }
 
 /// Where the doubt held against the ego first took it off the drivable area.
@@ -204,7 +220,9 @@ impl NearestPass {
 /// The decision over a replay scored at its point (`point`), with the doubt for the ego
 /// (`lenient`) and against it (`strict`); `off_road` is where the doubt held against it
 /// first took it off the drivable area, `nearest` its nearest pass of an object (for the
-/// words).
+/// words). A log with `holes` is never verified: anything may have happened in them, so
+/// the score's interval reaches down to 0 and the verdict is at best undecided.
+#[allow(clippy::too_many_arguments)] // each is one piece of evidence; a struct would only rename them
 pub fn decided(
     point: &Scores,
     lenient: &Scores,
@@ -213,8 +231,9 @@ pub fn decided(
     sigmas: &StatedUncertainty,
     off_road: OffRoadInDoubt,
     nearest: Option<NearestPass>,
+    holes: Vec<[f64; 2]>,
 ) -> Decided {
-    let low = point.score.min(strict.score).min(lenient.score);
+    let low = if holes.is_empty() { point.score.min(strict.score).min(lenient.score) } else { 0.0 };
     let high = point.score.max(strict.score).max(lenient.score);
     let (median, poses_with_sigma) = median_stated(sigmas.ego.iter().copied());
     let (track_median, tracks_with_sigma) = median_stated(sigmas.tracks.values().map(|c| (c[0] + c[2]).sqrt()));
@@ -274,6 +293,20 @@ pub fn decided(
             ego_median_doubt
         ));
     }
+    if let (Some(first), Some(last)) = (holes.first(), holes.last()) {
+        let seconds: f64 = holes.iter().map(|[a, b]| b - a).sum();
+        let more = if holes.len() > 1 {
+            format!(" and {} more, {seconds:.1} s in all, the last to t = {:.2} s", holes.len() - 1, last[1])
+        } else {
+            String::new()
+        };
+        in_doubt.push(format!(
+            "a hole in the log: no ego pose from t = {:.2} s to {:.2} s ({:.1} s{more}); what the ego did there is not in the log, so it cannot be verified",
+            first[0],
+            first[1],
+            first[1] - first[0]
+        ));
+    }
     Decided {
         decision: Decision::of_interval(low, high),
         score_interval: [low, high],
@@ -283,6 +316,7 @@ pub fn decided(
         track_sigma_median_m: track_median,
         tracks_with_sigma,
         in_doubt,
+        holes,
     }
 }
 

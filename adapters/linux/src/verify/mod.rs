@@ -329,6 +329,7 @@ pub fn replay_in_doubt(
             sigmas,
             off_road.unwrap_or_default(),
             nearest,
+            decide::holes(poses.iter().map(|(t, _)| *t)),
         )
     });
     Ok(Verification { scores, steps, channel_lanes: channel_sensitive.then(|| channel_set.len()), decided })
