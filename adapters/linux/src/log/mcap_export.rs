@@ -448,4 +448,46 @@ mod tests {
         assert!((estimate["gyro_bias"]["z"].as_f64().unwrap_or(0.0) + 0.06836).abs() < 1e-12, "{estimate}");
         assert!(schemas().iter().any(|(name, _)| *name == "dash2sim.ImuRates"));
     }
+
+    /// A finished window's decision and score interval reach the file (read back through
+    /// the `mcap` crate's reader, CRCs checked); a device's window, which decides nothing,
+    /// has neither.
+    #[test]
+    fn a_windows_decision_is_in_the_file_and_a_devices_window_has_none() {
+        use dash2sim_core::binlog::{Verification, DECISION_UNDECIDED};
+        let window = |t_us, decision, low, high| {
+            Record::Verification(Verification {
+                t_us,
+                score_e2: 9_300,
+                decision,
+                score_low_e2: low,
+                score_high_e2: high,
+                ..Verification::default()
+            })
+        };
+        let log = LogContents {
+            records: vec![window(1_000_000, 0, 0, 0), window(2_000_000, DECISION_UNDECIDED, 4_550, 9_700)],
+            header: None,
+            damage: Vec::new(),
+            stats: Default::default(),
+            bytes: 0,
+            signing: Vec::new(),
+        };
+        let path = std::env::temp_dir().join(format!("dash2sim-mcap-decision-{}.mcap", std::process::id()));
+        let counts = write(&log, None, &path, None).expect("write");
+        assert_eq!(counts.get("/verification"), Some(&2));
+        let bytes = std::fs::read(&path).expect("read");
+        let _ = std::fs::remove_file(&path);
+        let messages: Vec<Value> = mcap::MessageStream::new(&bytes)
+            .expect("an MCAP file")
+            .map(|m| m.expect("a message"))
+            .filter(|m| m.channel.topic == "/verification")
+            .map(|m| serde_json::from_slice(&m.data).expect("JSON"))
+            .collect();
+        let [device, finished] = &messages[..] else { panic!("two windows: {messages:?}") };
+        assert!(device.get("decision").is_none() && device.get("score_interval").is_none(), "{device}");
+        assert_eq!(device["verified"], json!(true));
+        assert_eq!(finished["decision"], json!("undecided"), "{finished}");
+        assert_eq!(finished["score_interval"], json!([45.5, 97.0]), "{finished}");
+    }
 }
