@@ -19,7 +19,7 @@ import sys
 import numpy as np
 import pandas as pd
 
-# The generated drives start at this UTC second (`sim::scenario::write::START_UNIX_S`).
+# The generated drives start at this UTC second (`dash2sim_sim::scenario::write::START_UNIX_S`).
 START_UNIX_S = 1780300800.0
 # A track further than this from every true static object is not one of them, m.
 MATCH_M = 1.5

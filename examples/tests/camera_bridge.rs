@@ -6,8 +6,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use dash2sim_linux::record::bridge::{CameraInput, CameraSubscriber};
-use dash2sim_linux::sim::scenario::sensors::GnssModel;
-use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
+use dash2sim_sim::scenario::sensors::GnssModel;
+use dash2sim_sim::scenario::{generate, ScenarioConfig};
 
 fn prefix(name: &str) -> String {
     format!("dash2sim-test/{name}/{}", std::process::id())

@@ -12,10 +12,10 @@ use dash2sim_core::binlog::Record;
 use dash2sim_linux::log;
 use dash2sim_linux::record::live::{self, LiveRequest};
 use dash2sim_linux::record::{self, Setup, Sources};
-use dash2sim_linux::sim::scenario::judge::judge_log;
-use dash2sim_linux::sim::scenario::sensors::GnssModel;
-use dash2sim_linux::sim::scenario::write::write_scenario;
-use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
+use dash2sim_sim::scenario::judge::judge_log;
+use dash2sim_sim::scenario::sensors::GnssModel;
+use dash2sim_sim::scenario::write::write_scenario;
+use dash2sim_sim::scenario::{generate, ScenarioConfig};
 
 const SECONDS: f64 = 8.0;
 
@@ -143,8 +143,7 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
     // be as many and of the same kind of quality.
     assert!(live.ego_errors.len().abs_diff(from_files.ego_errors.len()) <= 8);
     assert!((live.ego_rmse - from_files.ego_rmse).abs() < 0.25 * from_files.ego_rmse + 0.1);
-    let states =
-        |j: &dash2sim_linux::sim::scenario::judge::LogJudgement| j.tracks_by_class.values().sum::<u64>() as f64;
+    let states = |j: &dash2sim_sim::scenario::judge::LogJudgement| j.tracks_by_class.values().sum::<u64>() as f64;
     assert!((states(&live) - states(&from_files)).abs() <= 0.3 * states(&from_files));
     assert!(live.tracks_relative.1 > 0.5, "IDF1 seen from the ego {}", live.tracks_relative.1);
     let _ = std::fs::remove_dir_all(&dir);

@@ -11,12 +11,12 @@ use dash2sim_core::geo::Geodetic;
 use dash2sim_core::pipeline::mount::camera_in_world;
 use dash2sim_linux::log::{self, LogContents};
 use dash2sim_linux::record::{self, Recording, Setup};
-use dash2sim_linux::sim::scenario::evaluate::evaluate_tracking;
-use dash2sim_linux::sim::scenario::judge::{judge_log, truth_at, LogJudgement};
-use dash2sim_linux::sim::scenario::sensors::GnssModel;
-use dash2sim_linux::sim::scenario::write::write_scenario;
-use dash2sim_linux::sim::scenario::{generate, tracker_classes, tracker_config, Scenario, ScenarioConfig};
 use dash2sim_linux::trajectory::Trajectory;
+use dash2sim_sim::scenario::evaluate::evaluate_tracking;
+use dash2sim_sim::scenario::judge::{judge_log, truth_at, LogJudgement};
+use dash2sim_sim::scenario::sensors::GnssModel;
+use dash2sim_sim::scenario::write::write_scenario;
+use dash2sim_sim::scenario::{generate, tracker_classes, tracker_config, Scenario, ScenarioConfig};
 
 /// A fresh scratch folder.
 pub fn scratch(name: &str) -> PathBuf {

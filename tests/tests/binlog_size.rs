@@ -11,10 +11,10 @@
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::binlog::Kind;
-use dash2sim_linux::datasets::comma::{ublox_nmea, ORIGIN};
 use dash2sim_linux::log::{self, import::ImportRequest, mcap_export};
-use dash2sim_linux::sim::scenario::write::{import_request, write_scenario};
-use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
+use dash2sim_sim::datasets::comma::{ublox_nmea, ORIGIN};
+use dash2sim_sim::scenario::write::{import_request, write_scenario};
+use dash2sim_sim::scenario::{generate, ScenarioConfig};
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("dash2sim-binlog-size-{}-{name}", std::process::id()));

@@ -2,7 +2,7 @@
 //! relative motion (no VO), anchored to the real u-blox, against comma's fused poses and the
 //! phone's own gyro calibration. The figures are docs/imu.md's.
 
-use dash2sim_linux::datasets::comma_imu::{self, Receiver};
+use dash2sim_sim::datasets::comma_imu::{self, Receiver};
 use dash2sim_tests::recorded::scratch;
 
 #[test]

@@ -8,9 +8,9 @@
 //! one, and most lie within 2σ of the truth.
 
 use dash2sim_core::binlog::Record;
-use dash2sim_linux::sim::fidelity::drive::{assess, Anchors, Recorded};
-use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
-use dash2sim_linux::sim::scenario::{Driver, ScenarioConfig};
+use dash2sim_sim::fidelity::drive::{assess, Anchors, Recorded};
+use dash2sim_sim::scenario::profile::{Profile, Receiver};
+use dash2sim_sim::scenario::{Driver, ScenarioConfig};
 use dash2sim_tests::recorded::record_config;
 
 #[test]

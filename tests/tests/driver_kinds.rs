@@ -6,12 +6,12 @@
 
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::PACIFICA;
-use dash2sim_linux::sim::fidelity::drive::verify_truth;
-use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
-use dash2sim_linux::sim::scenario::write::{road_tile, write_scenario};
-use dash2sim_linux::sim::scenario::{generate, Driver, Expectation, ScenarioConfig};
 use dash2sim_linux::verify::decide::{Decided, Decision, DoubtSettings};
 use dash2sim_linux::verify::{read_objects, replay_in_doubt, StatedUncertainty};
+use dash2sim_sim::fidelity::drive::verify_truth;
+use dash2sim_sim::scenario::profile::{Profile, Receiver};
+use dash2sim_sim::scenario::write::{road_tile, write_scenario};
+use dash2sim_sim::scenario::{generate, Driver, Expectation, ScenarioConfig};
 
 /// Seeds per kind: drives are 40 s long, as the sweep's.
 const SEEDS: std::ops::RangeInclusive<u64> = 1..=6;
@@ -62,7 +62,7 @@ fn decided_with_hole(
     hole: Option<(f64, f64)>,
 ) -> (f64, Decided) {
     use dash2sim_core::geo::Geodetic;
-    use dash2sim_linux::sim::fidelity::drive::truth_ego;
+    use dash2sim_sim::fidelity::drive::truth_ego;
     let config = ScenarioConfig { driver, ..ScenarioConfig::drive(seed, Profile::Typical, Receiver::Good) };
     let scenario = generate(&config);
     let dir = std::env::temp_dir().join(format!("dash2sim-doubt-{}-{seed}-{}", std::process::id(), driver.name()));

@@ -11,15 +11,15 @@ use dash2sim_core::binlog::{quantise, GnssFix, Record};
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::nalgebra::Vector3;
 use dash2sim_core::pipeline::CameraMount;
-use dash2sim_linux::datasets::comma::{compare, mount, record_minute, truth_at, ORIGIN, UERE};
-use dash2sim_linux::datasets::device_times;
 use dash2sim_linux::finish::anchors;
 use dash2sim_linux::finish::solve::Settings;
 use dash2sim_linux::finish::{finish, Finished};
 use dash2sim_linux::log::LogContents;
 use dash2sim_linux::record::parse_mount;
-use dash2sim_linux::sim::scenario::vo::VoModel;
 use dash2sim_linux::trajectory::Trajectory;
+use dash2sim_sim::datasets::comma::{compare, mount, record_minute, truth_at, ORIGIN, UERE};
+use dash2sim_sim::datasets::device_times;
+use dash2sim_sim::scenario::vo::VoModel;
 use dash2sim_tests::recorded::scratch;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
@@ -239,9 +239,9 @@ fn typical_minute(dir: &std::path::Path, model: &VoModel, seed: u64, label: &str
 /// --nocapture`).
 #[test]
 fn the_comma2k19_minute_with_a_typical_vo_over_five_noise_seeds() {
-    use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
-    use dash2sim_linux::sim::scenario::vo::Reinit;
-    use dash2sim_linux::sim::scenario::ScenarioConfig;
+    use dash2sim_sim::scenario::profile::{Profile, Receiver};
+    use dash2sim_sim::scenario::vo::Reinit;
+    use dash2sim_sim::scenario::ScenarioConfig;
     let Some(dir) = dash2sim_tests::data_dir("comma2k19") else { return };
     println!("| noise seed | online ATE (m) | finished ATE, GNSS + wheel speed (m) | after Sim(3) | abs. scale error | with anchors every 50 m, σ 0.3 m per axis (m) | after Sim(3) |");
     println!("|---|---|---|---|---|---|---|");

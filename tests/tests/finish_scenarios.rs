@@ -8,9 +8,9 @@ use dash2sim_core::pipeline::CameraMount;
 use dash2sim_linux::finish::solve::Settings;
 use dash2sim_linux::finish::{anchors, finish, Finished};
 use dash2sim_linux::log::{self, LogContents};
-use dash2sim_linux::sim::scenario::judge::judge_log;
-use dash2sim_linux::sim::scenario::street::street_anchors;
 use dash2sim_linux::verify::{from_contents, read_objects, replay};
+use dash2sim_sim::scenario::judge::judge_log;
+use dash2sim_sim::scenario::street::street_anchors;
 use dash2sim_tests::recorded::{record_scenario, Recorded};
 
 fn gravity() -> Settings {

@@ -6,8 +6,8 @@
 //! reported speed and the gyro's rate as the device has them (its bias unknown).
 
 use dash2sim_core::imu::forward::ForwardAxis;
-use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
-use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
+use dash2sim_sim::scenario::profile::{Profile, Receiver};
+use dash2sim_sim::scenario::{generate, ScenarioConfig};
 
 #[test]
 fn braking_and_speeding_up_show_how_far_the_sensor_is_turned_on_the_car() {
@@ -57,7 +57,7 @@ fn without_vo_the_camera_s_yaw_on_the_car_comes_from_the_imu() {
         let config =
             ScenarioConfig { duration_s: 60.0, ..ScenarioConfig::drive(seed, Profile::Typical, Receiver::Good) };
         let dir = std::env::temp_dir().join(format!("dash2sim-forward-{}-{seed}", std::process::id()));
-        dash2sim_linux::sim::scenario::write::write_scenario(&generate(&config), &dir).expect("drive");
+        dash2sim_sim::scenario::write::write_scenario(&generate(&config), &dir).expect("drive");
         let sources = Sources { vo: None, ..Sources::scenario(&dir) };
         let (stream, _) = record::read_sources(&sources).expect("sources");
         let [lat, lon, height] = config.origin;

@@ -11,9 +11,9 @@ use dash2sim_core::geo::Geodetic;
 use dash2sim_core::imu::lsm6dso;
 use dash2sim_core::time::Timestamp;
 use dash2sim_linux::record::{self, Setup, Sources};
-use dash2sim_linux::sim::scenario::sensors::GnssModel;
-use dash2sim_linux::sim::scenario::write::write_scenario;
-use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
+use dash2sim_sim::scenario::sensors::GnssModel;
+use dash2sim_sim::scenario::write::write_scenario;
+use dash2sim_sim::scenario::{generate, ScenarioConfig};
 use dash2sim_tests::recorded::scratch;
 
 const REBUILD: &str = "rebuild the stream with DASH2SIM_BLESS=1 cargo test --release -p dash2sim-tests --test mcu_drive \

@@ -5,8 +5,8 @@
 
 use dash2sim_core::binlog::Record;
 use dash2sim_core::nalgebra::Vector3;
-use dash2sim_linux::datasets::comma::record_minute;
-use dash2sim_linux::sim::scenario::vo::VoModel;
+use dash2sim_sim::datasets::comma::record_minute;
+use dash2sim_sim::scenario::vo::VoModel;
 use dash2sim_tests::recorded::scratch;
 
 #[test]

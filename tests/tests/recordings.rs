@@ -3,8 +3,8 @@
 //! (GNSS over CAN through `canmod-gps.dbc`), evo's GNSS error and comma's fused poses for
 //! the comma2k19 minute.
 
-use dash2sim_linux::datasets::OutputFile;
-use dash2sim_linux::datasets::{comma, css};
+use dash2sim_sim::datasets::OutputFile;
+use dash2sim_sim::datasets::{comma, css};
 use dash2sim_tests::recorded::scratch;
 
 fn files_exist(files: &[OutputFile]) {

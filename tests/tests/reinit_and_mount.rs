@@ -8,11 +8,11 @@ use std::collections::BTreeMap;
 
 use dash2sim_core::binlog::Record;
 use dash2sim_linux::log::LogContents;
-use dash2sim_linux::sim::fidelity::drive::{assess, Anchors, Recorded};
-use dash2sim_linux::sim::scenario::judge::{judge_log, truth_at};
-use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
-use dash2sim_linux::sim::scenario::vo::Reinit;
-use dash2sim_linux::sim::scenario::ScenarioConfig;
+use dash2sim_sim::fidelity::drive::{assess, Anchors, Recorded};
+use dash2sim_sim::scenario::judge::{judge_log, truth_at};
+use dash2sim_sim::scenario::profile::{Profile, Receiver};
+use dash2sim_sim::scenario::vo::Reinit;
+use dash2sim_sim::scenario::ScenarioConfig;
 use dash2sim_tests::recorded::record_config;
 
 /// Drive time (s from frame 1) of every log time of a frame.

@@ -4,10 +4,10 @@
 //! back from the models (where a test needs the drawn value to compare with, it says so).
 
 use dash2sim_core::track3d::Detection3d;
-use dash2sim_linux::sim::scenario::actors::ObjectState;
-use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
-use dash2sim_linux::sim::scenario::sensors::{to_ego, MountError};
-use dash2sim_linux::sim::scenario::{generate, Scenario, ScenarioConfig};
+use dash2sim_sim::scenario::actors::ObjectState;
+use dash2sim_sim::scenario::profile::{Profile, Receiver};
+use dash2sim_sim::scenario::sensors::{to_ego, MountError};
+use dash2sim_sim::scenario::{generate, Scenario, ScenarioConfig};
 
 fn drive(seed: u64, profile: Profile) -> Scenario {
     generate(&ScenarioConfig::drive(seed, profile, Receiver::Good))

@@ -7,8 +7,8 @@
 //! the figures quoted in docs/tracking.md.
 
 use dash2sim_core::track3d::Config3d;
-use dash2sim_linux::sim::scenario::evaluate::{evaluate_tracking, TrackingReport};
-use dash2sim_linux::sim::scenario::{generate, tracker_classes, tracker_config, ScenarioConfig};
+use dash2sim_sim::scenario::evaluate::{evaluate_tracking, TrackingReport};
+use dash2sim_sim::scenario::{generate, tracker_classes, tracker_config, ScenarioConfig};
 
 fn run(seed: u64, max_age: u32) -> TrackingReport {
     let scenario = generate(&ScenarioConfig { seed, ..ScenarioConfig::default() });

@@ -214,21 +214,21 @@ enum ScenarioCommand {
         duration: f64,
         /// The GNSS receiver: `phone` (σ 3–10 m, multipath) or `good` (σ 1–2 m, the demo's).
         #[arg(long, value_enum, default_value = "phone")]
-        receiver: dash2sim_linux::sim::scenario::profile::Receiver,
+        receiver: dash2sim_sim::scenario::profile::Receiver,
         /// How far the sensors are from ideal (docs/scenario.md): `ideal` (the old, kind
         /// simulator), `typical` (a consumer dashcam) or `hard`.
         #[arg(long, value_enum, default_value = "typical")]
-        profile: dash2sim_linux::sim::scenario::profile::Profile,
+        profile: dash2sim_sim::scenario::profile::Profile,
         /// How the ego is driven: `careful`, `careless` (clips the taper's drums),
         /// `shoulder`, `oncoming`, `speeding`, `tailgating`, `harsh`, `knife-edge`; `both` or
         /// `all` write one folder per driver under OUTPUT (docs/scenario.md).
-        #[arg(long, value_parser = dash2sim_linux::sim::scenario::Drivers::parse, default_value = "careful")]
-        driver: dash2sim_linux::sim::scenario::Drivers,
+        #[arg(long, value_parser = dash2sim_sim::scenario::Drivers::parse, default_value = "careful")]
+        driver: dash2sim_sim::scenario::Drivers,
     },
     /// Be the camera process: publish a generated drive over shared memory (iceoryx2) at its
     /// frame rate, and optionally the GNSS receiver's NMEA and the wheel-speed CAN frames
     /// to a serial device, FIFO or file (docs/bridge.md). Prints `N frames published`.
-    Publish(dash2sim_linux::sim::scenario::publish::PublishRequest),
+    Publish(dash2sim_sim::scenario::publish::PublishRequest),
     /// Generate a corpus of device logs as a fleet uploads them: drives of several seeds,
     /// lengths, regions and drivers recorded through the pipeline, each with its map tile,
     /// some damaged on purpose (docs/fleet.md).
@@ -249,7 +249,7 @@ enum ScenarioCommand {
         duration: f64,
         /// How far the sensors are from ideal: `ideal`, `typical` or `hard`.
         #[arg(long, value_enum, default_value = "typical")]
-        profile: dash2sim_linux::sim::scenario::profile::Profile,
+        profile: dash2sim_sim::scenario::profile::Profile,
         /// Missed frames before a track is dropped (AB3DMOT: 2).
         #[arg(long, default_value_t = 4)]
         max_age: u32,
@@ -389,7 +389,7 @@ pub fn run() -> ExitCode {
             crate::scenario::generate_to(seed, duration, profile, receiver, driver, &output)
         }
         Command::Scenario(ScenarioCommand::Publish(args)) => {
-            dash2sim_linux::sim::scenario::publish::run(&args).map(|n| println!("{n} frames published"))
+            dash2sim_sim::scenario::publish::run(&args).map(|n| println!("{n} frames published"))
         }
         Command::Scenario(ScenarioCommand::Corpus(args)) => crate::scenario::corpus(&args),
         Command::Scenario(ScenarioCommand::Sweep(args)) => crate::scenario::sweep(&args),

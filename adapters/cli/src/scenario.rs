@@ -5,16 +5,16 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 use dash2sim_core::track3d::Config3d;
-use dash2sim_linux::sim::fidelity::drive::Anchors;
-use dash2sim_linux::sim::fidelity::rows::{parse_seeds, SweepRequest};
-use dash2sim_linux::sim::fidelity::sweep;
-use dash2sim_linux::sim::scenario::command::config;
-use dash2sim_linux::sim::scenario::corpus::{self, CorpusRequest};
-use dash2sim_linux::sim::scenario::evaluate::evaluate_tracking;
-use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
-use dash2sim_linux::sim::scenario::write::{origin_option, write_scenario, START_UNIX_S};
-use dash2sim_linux::sim::scenario::{generate, tracker_classes, tracker_config, Drivers, Frame, ScenarioConfig};
 use dash2sim_linux::{Error, Result};
+use dash2sim_sim::fidelity::drive::Anchors;
+use dash2sim_sim::fidelity::rows::{parse_seeds, SweepRequest};
+use dash2sim_sim::fidelity::sweep;
+use dash2sim_sim::scenario::command::config;
+use dash2sim_sim::scenario::corpus::{self, CorpusRequest};
+use dash2sim_sim::scenario::evaluate::evaluate_tracking;
+use dash2sim_sim::scenario::profile::{Profile, Receiver};
+use dash2sim_sim::scenario::write::{origin_option, write_scenario, START_UNIX_S};
+use dash2sim_sim::scenario::{generate, tracker_classes, tracker_config, Drivers, Frame, ScenarioConfig};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
@@ -118,8 +118,8 @@ fn generate_one(config: &ScenarioConfig, dir: &Path) -> Result<()> {
     let files = write_scenario(&scenario, dir).map_err(|e| Error::refused(format!("writing {}", dir.display()), e))?;
     let count = |f: fn(&Frame) -> usize| scenario.frames.iter().map(f).sum::<usize>();
     let expectation = match config.driver.expectation() {
-        dash2sim_linux::sim::scenario::Expectation::Verifies => "its truth verifies".to_owned(),
-        dash2sim_linux::sim::scenario::Expectation::Fails(metric) => format!("its truth fails {metric}"),
+        dash2sim_sim::scenario::Expectation::Verifies => "its truth verifies".to_owned(),
+        dash2sim_sim::scenario::Expectation::Fails(metric) => format!("its truth fails {metric}"),
     };
     println!(
         "scenario {seed} ({} profile, {} receiver, {} driver: {expectation}): {} frames, {} objects, {} 3D and {} 2D detections, {} GNSS fixes ({} in multipath), {} speed samples, {} VO session(s)",

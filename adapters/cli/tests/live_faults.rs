@@ -10,7 +10,7 @@ use dash2sim_linux::log;
 use dash2sim_linux::record::bridge::{device_now, CameraPublisher};
 use dash2sim_linux::record::live::{self, LiveRequest};
 use dash2sim_linux::record::Setup;
-use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
+use dash2sim_sim::scenario::{generate, ScenarioConfig};
 
 /// Longest a killed logger can lose (`docs/cli.md`): the open log segment, 5 s.
 const FLUSH_INTERVAL_S: f64 = 5.0;

@@ -3,15 +3,14 @@
 //! The dash2sim library on std, around `dash2sim-core`: ingest (NMEA and CAN captures,
 //! trajectory and detection files, OpenStreetMap into map tiles), the host pipeline
 //! (`record`, from files or live over shared memory), finishing, verification and
-//! evaluation, the exports, and the seeded work-zone simulator with the sweep that measures
-//! the product on it. It takes requests and returns results; it never prints (the `dash2sim`
+//! evaluation, and the exports. The simulator that measures it is `dash2sim-sim`, above
+//! it. It takes requests and returns results; it never prints (the `dash2sim`
 //! command line renders them) and knows no command line (clap only under the `clap`
 //! feature, for the option enums). ARCHITECTURE.md maps the modules.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 #![deny(clippy::print_stdout, clippy::print_stderr)]
 
-pub mod datasets;
 pub mod error;
 pub mod export;
 pub mod finish;
@@ -21,7 +20,6 @@ pub mod log;
 #[cfg(feature = "plot")]
 pub mod plot;
 pub mod record;
-pub mod sim;
 pub mod sync;
 pub mod utc;
 /// Trajectory files (TUM, KITTI, EuRoC): the `dash2sim-trajectory` crate.

@@ -1,6 +1,6 @@
 //! A camera process for tests, demos and load runs: publishes a generated work-zone drive
 //! over the shared-memory bridge at its real frame rate (or `--speedup` times faster) and
-//! prints `N frames published` (`dash2sim_linux::sim::scenario::publish` is the code; `dash2sim
+//! prints `N frames published` (`dash2sim_sim::scenario::publish` is the code; `dash2sim
 //! scenario publish` runs the same).
 //!
 //! `cargo run --release -p dash2sim-examples --bin camera_sim -- --seconds 10`
@@ -11,7 +11,7 @@
 use std::process::ExitCode;
 
 use clap::Parser;
-use dash2sim_linux::sim::scenario::publish::{self, PublishRequest};
+use dash2sim_sim::scenario::publish::{self, PublishRequest};
 
 /// Publish a generated work-zone drive as a camera process would.
 #[derive(Debug, Parser)]

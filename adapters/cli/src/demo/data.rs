@@ -1,5 +1,5 @@
 //! `dash2sim demo --data DIR`: the real recordings of a data folder through the product
-//! ([`dash2sim_linux::datasets`]). A recording whose files are missing is named with what is
+//! ([`dash2sim_sim::datasets`]). A recording whose files are missing is named with what is
 //! missing, and the others run.
 
 use std::path::{Path, PathBuf};
@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use serde_json::{json, Value};
 
 use super::progress::Progress;
-use dash2sim_linux::datasets::{self, comma, css};
 use dash2sim_linux::{Error, Result};
+use dash2sim_sim::datasets::{self, comma, css};
 
 /// One recording the demo knows: its folder, the files it needs, how it runs.
 struct Known {

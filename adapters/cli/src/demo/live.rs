@@ -14,9 +14,9 @@ use indicatif::ProgressBar;
 
 use dash2sim_linux::record::live::{self, FileSink, LiveReport, LiveRequest};
 use dash2sim_linux::record::Setup;
-use dash2sim_linux::sim::scenario::profile::Profile;
-use dash2sim_linux::sim::scenario::Driver;
 use dash2sim_linux::{Error, Result};
+use dash2sim_sim::scenario::profile::Profile;
+use dash2sim_sim::scenario::Driver;
 
 /// What to publish: the generated drive's seed, length, driver and sensor profile.
 #[derive(Clone, Copy, Debug)]

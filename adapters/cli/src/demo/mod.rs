@@ -17,7 +17,7 @@
 //! 7. `export`: MCAP (Foxglove), TUM (evo), GeoJSON (QGIS) and the nuPlan database and map;
 //! 8. `plot` the drive.
 //!
-//! `--data DIR` runs the real recordings of a data folder instead ([`dash2sim_linux::datasets`]).
+//! `--data DIR` runs the real recordings of a data folder instead ([`dash2sim_sim::datasets`]).
 //!
 //! The receiver is a good one (σ 1–2 m, errors correlated over 2 s, no multipath): with the
 //! generator's default phone-grade GNSS the anchorer rightly declines to commit within 40 s.
@@ -36,13 +36,13 @@ use serde_json::{json, Value};
 use dash2sim_linux::finish::FinishReport;
 use dash2sim_linux::log::{self, LogContents};
 use dash2sim_linux::record::{self, Setup};
-use dash2sim_linux::sim::fidelity::drive::{assess, Anchors, Recorded};
-use dash2sim_linux::sim::scenario::evaluate::evaluate_tracking;
-use dash2sim_linux::sim::scenario::judge::LogJudgement;
-use dash2sim_linux::sim::scenario::profile::{Profile, Receiver};
-use dash2sim_linux::sim::scenario::write::{road_tile, write_scenario};
-use dash2sim_linux::sim::scenario::{generate, tracker_classes, tracker_config, Driver, ScenarioConfig};
 use dash2sim_linux::{Error, Result};
+use dash2sim_sim::fidelity::drive::{assess, Anchors, Recorded};
+use dash2sim_sim::scenario::evaluate::evaluate_tracking;
+use dash2sim_sim::scenario::judge::LogJudgement;
+use dash2sim_sim::scenario::profile::{Profile, Receiver};
+use dash2sim_sim::scenario::write::{road_tile, write_scenario};
+use dash2sim_sim::scenario::{generate, tracker_classes, tracker_config, Driver, ScenarioConfig};
 use progress::Progress;
 
 /// `dash2sim demo` arguments.
@@ -92,12 +92,12 @@ pub struct DemoArgs {
 /// `dash2sim demo`.
 pub fn run(args: &DemoArgs) -> Result<()> {
     let progress = Progress::new(args.quiet);
-    let longest = dash2sim_linux::sim::scenario::command::MAX_DURATION_S;
+    let longest = dash2sim_sim::scenario::command::MAX_DURATION_S;
     if !(args.duration.is_finite() && (10.0..=longest).contains(&args.duration)) {
         return Err(Error::invalid(format!("--duration {} must be between 10 and {longest} seconds", args.duration)));
     }
     if let Some(dir) = &args.data {
-        let dir = dir.clone().unwrap_or_else(dash2sim_linux::datasets::default_dir);
+        let dir = dir.clone().unwrap_or_else(dash2sim_sim::datasets::default_dir);
         std::fs::create_dir_all(&args.output).map_err(|e| Error::file(&args.output, e))?;
         let summary = data::run(&dir, &args.output, &progress)?;
         write_file(&args.output.join("summary.json"), summary.to_string())?;
@@ -302,7 +302,7 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value> {
     let (online, finished) = (&assessed.online, &assessed.finished);
     let (finished_scale, true_mean_scale, finished_scale_error) = assessed.finished_scale;
     // A log without ego poses (never anchored) has nothing verified: null.
-    let both = |b: Option<&dash2sim_linux::sim::fidelity::drive::BothModes>| {
+    let both = |b: Option<&dash2sim_sim::fidelity::drive::BothModes>| {
         b.map(|b| json!({"channel_insensitive": b.insensitive, "channel_sensitive": b.sensitive}))
             .unwrap_or_else(|| json!({"channel_insensitive": null, "channel_sensitive": null}))
     };

@@ -22,9 +22,12 @@ const SIZE: (u32, u32) = (1200, 1400);
 const MAP_HEIGHT: u32 = 900;
 /// Colours: the paper's (GNSS red, online orange, finished blue), lanes grey.
 const LANE: RGBColor = RGBColor(205, 205, 205);
-pub(crate) const GNSS: RGBColor = RGBColor(214, 39, 40);
-pub(crate) const ONLINE: RGBColor = RGBColor(255, 127, 14);
-pub(crate) const FINISHED: RGBColor = RGBColor(31, 119, 180);
+/// The GNSS fixes' colour (the sweep's picture draws with the same).
+pub const GNSS: RGBColor = RGBColor(214, 39, 40);
+/// The device's (online) ego's colour.
+pub const ONLINE: RGBColor = RGBColor(255, 127, 14);
+/// The finished ego's colour.
+pub const FINISHED: RGBColor = RGBColor(31, 119, 180);
 const VERIFIED: RGBColor = RGBColor(200, 235, 200);
 /// The font the PNG's text is drawn with.
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
@@ -75,12 +78,13 @@ pub fn plot(args: &PlotRequest) -> Result<Drawn> {
 /// Make the shipped font the `sans-serif` of every picture. Both backends measure text with
 /// it (SVG to lay out the legend). Registering twice is harmless; a font that does not
 /// parse is a build fault.
-pub(crate) fn register_font() -> Result<()> {
+pub fn register_font() -> Result<()> {
     plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
         .map_err(|_| Error::invalid("the shipped font does not parse"))
 }
 
-pub(crate) fn err<E: std::fmt::Debug>(e: E) -> Error {
+/// A drawing backend's error as the library's.
+pub fn err<E: std::fmt::Debug>(e: E) -> Error {
     Error::other(format!("drawing: {e:?}"))
 }
 

@@ -481,8 +481,8 @@ fn dbc_signal(table: &SignalTable, name: &str, option: &str) -> Result<(FrameId,
     Ok((frame, m.signals[i]))
 }
 
-/// `--gnss-signals`: `KEY=MESSAGE.SIGNAL` pairs, found in the DBC files.
-pub(crate) fn gnss_signals(args: &RecordRequest, table: &SignalTable) -> Result<Option<GnssSignals>> {
+/// The GNSS signals of a request (`KEY=MESSAGE.SIGNAL` pairs), found in the DBC files.
+pub fn gnss_signals(args: &RecordRequest, table: &SignalTable) -> Result<Option<GnssSignals>> {
     const OPTION: &str = "--gnss-signals";
     let Some(text) = &args.gnss_signals else { return Ok(None) };
     let mut found: BTreeMap<&str, (FrameId, Signal)> = BTreeMap::new();

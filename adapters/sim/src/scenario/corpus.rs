@@ -14,8 +14,8 @@ use serde::Serialize;
 use super::profile::{Profile, Receiver};
 use super::write::{road_tile, write_scenario};
 use super::{generate, Driver, ScenarioConfig};
-use crate::record::{self, Setup, Sources};
 use crate::{Error, Result};
+use dash2sim_linux::record::{self, Setup, Sources};
 
 /// A corpus to generate (`dash2sim scenario corpus`).
 #[derive(Debug, Clone)]

@@ -17,7 +17,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::profile::StreetAnchorModel;
 use super::{gauss, Scenario};
-use crate::log::LogContents;
+use dash2sim_linux::log::LogContents;
 
 /// What the anchors file says of itself in its first line.
 pub const SIMULATED_NOTE: &str = "# street-imagery anchors simulated from the true path (not matched from images)";
@@ -34,7 +34,7 @@ pub fn street_anchors(scenario: &Scenario, log: &LogContents, spacing: f64, seed
         .iter()
         .filter_map(|r| if let Record::FrameMeta(f) = r { Some((f.frame, f.t_us)) } else { None })
         .collect();
-    let frame = log.header.as_ref().and_then(crate::log::frame);
+    let frame = log.header.as_ref().and_then(dash2sim_linux::log::frame);
     let mut text = format!("{SIMULATED_NOTE}\nt,lat,lon,alt,sigma_m\n");
     let Some(frame) = frame else { return text };
     let (mut travelled, mut next, mut last) = (0.0, 0.0, None::<(f64, f64)>);

@@ -12,7 +12,7 @@ use super::actors::Class;
 use super::evaluate::score_tracks;
 use super::write::START_UNIX_S;
 use super::Scenario;
-use crate::log::{self, LogContents};
+use dash2sim_linux::log::{self, LogContents};
 
 /// What the log's ego and tracks measure against the truth.
 #[derive(Clone, Debug, Default)]
@@ -75,7 +75,7 @@ pub fn truth_at(scenario: &Scenario, t: f64) -> Option<Pose2> {
     scenario.frames.get(k).filter(|f| (f.ego.t - t).abs() < 1e-3).map(|f| Pose2::new(f.ego.x, f.ego.y, f.ego.heading))
 }
 
-fn figures(s: &crate::verify::mot::Summary) -> (f64, f64) {
+fn figures(s: &dash2sim_linux::verify::mot::Summary) -> (f64, f64) {
     (s.get("mota").unwrap_or(f64::NAN), s.get("idf1").unwrap_or(f64::NAN))
 }
 

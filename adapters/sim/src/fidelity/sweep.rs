@@ -14,13 +14,13 @@ use rayon::prelude::*;
 use super::drive::{assess, Assessment, Recorded, WindowPair};
 use super::rows::{finite, DriveFacts, Row, SweepRequest, Verdict};
 use super::summary::Summary;
-use crate::log;
-use crate::record::{self, Setup};
-use crate::sim::scenario::command::{config, MAX_DURATION_S};
-use crate::sim::scenario::write::{road_tile, write_scenario};
-use crate::sim::scenario::{generate, Driver};
+use crate::scenario::command::{config, MAX_DURATION_S};
+use crate::scenario::write::{road_tile, write_scenario};
+use crate::scenario::{generate, Driver};
 use crate::{Error, Result};
 use dash2sim_core::binlog::Record;
+use dash2sim_linux::log;
+use dash2sim_linux::record::{self, Setup};
 
 /// Generate drive `seed` with `driver`, record it from its files, judge it; its row.
 fn run_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Row {
@@ -35,7 +35,7 @@ fn run_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Row
 /// fix's time: the fixes describe the camera, as the scenario makes them), weighted by the
 /// receiver's stated σ as a solve weighs them, the multipath fixes left out as a solve's
 /// gate would, m; `None` without such fixes.
-fn gnss_mean_error(scenario: &crate::sim::scenario::Scenario) -> Option<f64> {
+fn gnss_mean_error(scenario: &crate::scenario::Scenario) -> Option<f64> {
     let frames = &scenario.frames;
     let [forward, left, _] = scenario.config.camera.true_mount().position;
     let mut sum = [0.0; 3];
@@ -53,7 +53,7 @@ fn gnss_mean_error(scenario: &crate::sim::scenario::Scenario) -> Option<f64> {
 
 /// A log's last mount estimate against the scenario's true mount: its yaw and pitch
 /// errors, degrees, and whether it was called calibrated.
-fn mount_error(scenario: &crate::sim::scenario::Scenario, records: &[Record]) -> Option<(f64, f64, bool)> {
+fn mount_error(scenario: &crate::scenario::Scenario, records: &[Record]) -> Option<(f64, f64, bool)> {
     let m = records.iter().rev().find_map(|r| match r {
         Record::MountEstimate(m) => Some(*m),
         _ => None,
@@ -66,7 +66,7 @@ fn mount_error(scenario: &crate::sim::scenario::Scenario, records: &[Record]) ->
 
 fn try_drive(seed: u64, driver: Driver, args: &SweepRequest, work: &Path) -> Result<(Assessment, DriveFacts)> {
     let config =
-        crate::sim::scenario::ScenarioConfig { driver, ..config(seed, args.duration, args.profile, args.receiver)? };
+        crate::scenario::ScenarioConfig { driver, ..config(seed, args.duration, args.profile, args.receiver)? };
     let scenario = generate(&config);
     let drive_dir = work.join("drive");
     write_scenario(&scenario, &drive_dir).map_err(|e| Error::file(&drive_dir, e))?;

@@ -36,8 +36,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::trajectory::Trajectory;
 use actors::{lay_out_work_zone, Class, EgoPlan, EgoState, ObjectState, Swerve, Tailgate, Vehicle, WorkZone, ZonePlan};
+use dash2sim_linux::trajectory::Trajectory;
 use profile::{Profile, Receiver, StreetAnchorModel};
 use road::{Road, RoadPose, Segment};
 use sensors::{observable, Camera, Detection2d, DetectorModel, GnssModel, GnssSample, Object2d, WheelModel};

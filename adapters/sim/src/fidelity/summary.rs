@@ -8,7 +8,7 @@ use dash2sim_core::pipeline::RelativeMotion;
 use serde::Serialize;
 
 use super::rows::{Row, SweepRequest, Verdict, Verdicts};
-use crate::verify::decide::Decision;
+use dash2sim_linux::verify::decide::Decision;
 
 /// A log's verdicts against the truth's: rows truth, columns the log.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -674,17 +674,17 @@ mod tests {
     /// disagreement of its own kind.
     #[test]
     fn a_failed_drive_is_a_disagreement_not_a_drive_left_out() {
-        use crate::sim::scenario::profile::{Profile, Receiver};
-        use crate::sim::scenario::Driver;
+        use crate::scenario::profile::{Profile, Receiver};
+        use crate::scenario::Driver;
         let args = SweepRequest {
             seeds: 1..=3,
-            driver: crate::sim::scenario::Drivers::One(Driver::Careful),
+            driver: crate::scenario::Drivers::One(Driver::Careful),
             profile: Profile::Typical,
             receiver: Receiver::Good,
             anchors: super::super::drive::Anchors::Street,
             oracle_latency: true,
             relative_motion: RelativeMotion::Vo,
-            doubt: crate::verify::decide::DoubtSettings::default(),
+            doubt: dash2sim_linux::verify::decide::DoubtSettings::default(),
             duration: 40.0,
             jobs: None,
             output: std::path::PathBuf::new(),

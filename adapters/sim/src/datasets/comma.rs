@@ -14,11 +14,11 @@ use serde::Serialize;
 use serde_json::Value;
 
 use super::{device_times, write, OutputFile};
-use crate::log::{self, LogContents};
-use crate::record::{self, Device, RecordRequest, VoFrame};
-use crate::sim::scenario::vo::VoModel;
-use crate::trajectory::{Format, Trajectory};
+use crate::scenario::vo::VoModel;
 use crate::{Error, Result};
+use dash2sim_linux::log::{self, LogContents};
+use dash2sim_linux::record::{self, Device, RecordRequest, VoFrame};
+use dash2sim_linux::trajectory::{Format, Trajectory};
 use rand::SeedableRng;
 
 /// The files the minute needs, relative to its folder.
@@ -134,7 +134,7 @@ pub fn record_minute(dir: &Path, work: &Path, model: &VoModel, noise_seed: u64) 
     let vo = model.generate(&truth, &mut rand_chacha::ChaCha8Rng::seed_from_u64(noise_seed));
     let vo_path = work.join("vo.csv");
     let mut text = Vec::new();
-    crate::sim::scenario::write::write_vo_csv(&mut text, &vo).map_err(Error::other)?;
+    crate::scenario::write::write_vo_csv(&mut text, &vo).map_err(Error::other)?;
     write(&vo_path, &text)?;
     let nmea = ublox_nmea(&dir.join("expected/live_gnss_ublox.csv"))?;
     let nmea_path = work.join("ublox.serial.log");
@@ -336,7 +336,7 @@ pub fn run(dir: &Path, out: &Path) -> Result<Report> {
 
     let mount = record::parse_mount(&mount())?;
     let name = minute.path.display().to_string();
-    let finished = crate::finish::finish(log, &name, None, None, mount, Default::default(), UERE)?;
+    let finished = dash2sim_linux::finish::finish(log, &name, None, None, mount, Default::default(), UERE)?;
     let finished_device = device_times(&finished.records)?;
     let finished_compared = compare(&finished.records, &finished_device, truth)?;
     let online_from =

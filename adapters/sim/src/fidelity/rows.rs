@@ -10,11 +10,11 @@ use dash2sim_core::pipeline::RelativeMotion;
 use serde::Serialize;
 
 use super::drive::{Anchors, Assessment, WindowPair};
-use crate::sim::scenario::profile::{Profile, Receiver};
-use crate::sim::scenario::{Driver, Drivers};
-use crate::verify::decide::{decision_or_point, Decision, DoubtSettings};
-use crate::verify::VerifyReport;
+use crate::scenario::profile::{Profile, Receiver};
+use crate::scenario::{Driver, Drivers};
 use crate::{Error, Result};
+use dash2sim_linux::verify::decide::{decision_or_point, Decision, DoubtSettings};
+use dash2sim_linux::verify::VerifyReport;
 
 /// A sweep (`dash2sim scenario sweep`).
 #[derive(Debug, Clone)]
@@ -254,7 +254,7 @@ impl Row {
     }
 
     pub(super) fn with_assessment(mut self, a: &Assessment, facts: &DriveFacts) -> Self {
-        let ape = |j: &crate::sim::scenario::judge::LogJudgement| (!j.ego_errors.is_empty()).then_some(j.ego_rmse);
+        let ape = |j: &crate::scenario::judge::LogJudgement| (!j.ego_errors.is_empty()).then_some(j.ego_rmse);
         self.truth = Some(Verdicts::of(&a.truth));
         self.online = a.online.verification.as_ref().map(Verdicts::of);
         self.finished = a.finished.verification.as_ref().map(Verdicts::of);

@@ -24,9 +24,9 @@ use super::profile::{Profile, Receiver};
 use super::road::Road;
 use super::write::{receiver_output, wheel_speed_frames};
 use super::{generate, Driver, Scenario, ScenarioConfig};
-use crate::record::bridge::messages::MAX_DETECTIONS;
-use crate::record::bridge::{device_now, CameraPublisher, MAX_IMAGE_BYTES};
 use crate::{Error, Result};
+use dash2sim_linux::record::bridge::messages::MAX_DETECTIONS;
+use dash2sim_linux::record::bridge::{device_now, CameraPublisher, MAX_IMAGE_BYTES};
 
 /// What to publish and how fast. Two binaries take it as their arguments (`dash2sim scenario
 /// publish` and the `camera_sim` example), so it derives `clap::Args` under the `clap` feature.
@@ -62,7 +62,7 @@ pub struct PublishRequest {
     #[cfg_attr(feature = "clap", arg(long, default_value_t = 1.0))]
     pub speedup: f64,
     /// Service prefix.
-    #[cfg_attr(feature = "clap", arg(long, default_value = crate::record::bridge::DEFAULT_PREFIX))]
+    #[cfg_attr(feature = "clap", arg(long, default_value = dash2sim_linux::record::bridge::DEFAULT_PREFIX))]
     pub prefix: String,
     /// Also publish a 1920×1080×3 image per frame on the image service.
     #[cfg_attr(feature = "clap", arg(long))]

@@ -16,7 +16,7 @@ use dash2sim_core::sim3::{rotation_z, Pose};
 use rand::Rng;
 
 use super::gauss;
-use crate::trajectory::Trajectory;
+use dash2sim_linux::trajectory::Trajectory;
 
 /// Tracking loss and re-initialisation: after a gap the VO starts again with a new origin,
 /// heading and scale, under a new session number.

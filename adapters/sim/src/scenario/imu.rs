@@ -177,10 +177,10 @@ impl ImuModel {
     }
 }
 
-/// The IMU CSV `record --imu` reads ([`crate::record::sources::IMU_CSV_HEADER`]), to a
+/// The IMU CSV `record --imu` reads ([`dash2sim_linux::record::sources::IMU_CSV_HEADER`]), to a
 /// tenth of a microradian per second and ten µm/s²: far below the noise.
 pub fn write_csv(out: &mut impl std::io::Write, samples: &[(f64, ImuSample)]) -> std::io::Result<()> {
-    writeln!(out, "{}", crate::record::sources::IMU_CSV_HEADER)?;
+    writeln!(out, "{}", dash2sim_linux::record::sources::IMU_CSV_HEADER)?;
     for (t, s) in samples {
         let [gx, gy, gz] = s.gyro;
         let [ax, ay, az] = s.accel;

@@ -16,9 +16,9 @@ use dash2sim_core::pipeline::Issue;
 use serde::Serialize;
 
 use super::{write, OutputFile};
-use crate::log;
-use crate::record::{self, RecordRequest};
 use crate::{Error, Result};
+use dash2sim_linux::log;
+use dash2sim_linux::record::{self, RecordRequest};
 
 /// The session's candump files start with this.
 pub const SPLITS: &str = "candump/3BA199E2_00000164_";
@@ -312,7 +312,7 @@ mod tests {
     use dash2sim_core::pipeline::GnssSignals;
 
     use super::GNSS_SIGNALS;
-    use crate::record::{gnss_signals, RecordRequest, Sources};
+    use dash2sim_linux::record::{gnss_signals, RecordRequest, Sources};
 
     #[test]
     fn gnss_signals_from_canmods_dbc_are_the_cores_canmod_preset() {
@@ -332,7 +332,8 @@ mod tests {
             gnss_signals: Some(GNSS_SIGNALS.to_owned()),
             ..RecordRequest::from_files(Path::new("out.d2slog"), Sources::default())
         };
-        let from_dbc = crate::ingest::can::load_tables(&args.dbc).and_then(|(table, _)| gnss_signals(&args, &table));
+        let from_dbc =
+            dash2sim_linux::ingest::can::load_tables(&args.dbc).and_then(|(table, _)| gnss_signals(&args, &table));
         let _ = std::fs::remove_file(&path);
         assert_eq!(from_dbc.expect("signals"), GnssSignals::canmod_gps());
     }

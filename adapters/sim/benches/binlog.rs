@@ -6,8 +6,8 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use dash2sim_core::binlog::{Decoder, Event};
 use dash2sim_linux::log;
-use dash2sim_linux::sim::scenario::write::{import_request, write_scenario};
-use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
+use dash2sim_sim::scenario::write::{import_request, write_scenario};
+use dash2sim_sim::scenario::{generate, ScenarioConfig};
 
 fn throughput(c: &mut Criterion) {
     let dir = std::env::temp_dir().join(format!("d2s-bench-binlog-{}", std::process::id()));

@@ -2,7 +2,7 @@
 //! TUM trajectories, NMEA 0183, CSV, MOTChallenge text files and an OpenStreetMap file of
 //! the road. `docs/scenario.md` lists every file and column.
 
-use crate::ingest::objects::ObjectRow;
+use dash2sim_linux::ingest::objects::ObjectRow;
 use std::fmt::Write as _;
 use std::fs;
 use std::io::{self, BufWriter, Write};
@@ -16,8 +16,8 @@ use serde_json::json;
 use super::actors::Class;
 use super::road::Segment;
 use super::Scenario;
-use crate::trajectory::{write_file, Format, Trajectory};
 use crate::{Error, Result};
+use dash2sim_linux::trajectory::{write_file, Format, Trajectory};
 
 /// UTC time of day of the first frame, seconds (08:00:00); the date is 2026-06-01.
 const START_SECONDS_OF_DAY: f64 = 8.0 * 3600.0;
@@ -27,8 +27,8 @@ pub const START_UNIX_S: f64 = 1_780_300_800.0;
 
 /// How `dash2sim import` reads a scenario written to `dir` into a 4D log at `output`:
 /// GNSS from the NMEA capture (moved onto the scenario clock), ego truth, objects.
-pub fn import_request(scenario: &Scenario, dir: &Path, output: PathBuf) -> crate::log::import::ImportRequest {
-    crate::log::import::ImportRequest {
+pub fn import_request(scenario: &Scenario, dir: &Path, output: PathBuf) -> dash2sim_linux::log::import::ImportRequest {
+    dash2sim_linux::log::import::ImportRequest {
         output,
         nmea: Some(dir.join("gnss.nmea")),
         nmea_offset_s: -START_UNIX_S,
@@ -103,20 +103,20 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
     out.flush()?;
 
     let mut out = create(dir, "objects.csv", &mut written)?;
-    writeln!(out, "{}", crate::ingest::objects::HEADER)?;
+    writeln!(out, "{}", dash2sim_linux::ingest::objects::HEADER)?;
     for f in &scenario.frames {
         for o in &f.objects {
             let visible = f.visible.contains(&o.id);
             let v = [o.velocity[0], o.velocity[1]];
             let row = ObjectRow::from_box(f.ego.t, o.id, o.class.name(), &o.bbox, v, o.is_static());
-            let text = crate::ingest::objects::line(u64::from(f.index), &row, visible);
+            let text = dash2sim_linux::ingest::objects::line(u64::from(f.index), &row, visible);
             out.write_all(text.as_bytes())?;
         }
     }
     out.flush()?;
 
     let mut out = create(dir, "detections3d.csv", &mut written)?;
-    writeln!(out, "{}", crate::ingest::detections::HEADER)?;
+    writeln!(out, "{}", dash2sim_linux::ingest::detections::HEADER)?;
     let camera = &scenario.config.camera;
     for f in &scenario.frames {
         for d in &f.detections_3d {
@@ -128,8 +128,15 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
             };
             let class = Class::from_id(d.class).map_or("unknown", Class::name);
             out.write_all(
-                crate::ingest::detections::line(u64::from(f.index), f.ego.t, class, &b, d.score, d.position_covariance)
-                    .as_bytes(),
+                dash2sim_linux::ingest::detections::line(
+                    u64::from(f.index),
+                    f.ego.t,
+                    class,
+                    &b,
+                    d.score,
+                    d.position_covariance,
+                )
+                .as_bytes(),
             )?;
         }
     }
@@ -171,7 +178,7 @@ pub fn write_scenario(scenario: &Scenario, dir: &Path) -> io::Result<Vec<PathBuf
 /// A VO track as `record --vo F.csv` reads it (`frame,t_s,x,y,z,qx,qy,qz,qw,session`,
 /// frames from 1).
 pub fn write_vo_csv(out: &mut impl Write, vo: &super::vo::VoTrack) -> io::Result<()> {
-    writeln!(out, "{}", crate::record::sources::VO_CSV_HEADER)?;
+    writeln!(out, "{}", dash2sim_linux::record::sources::VO_CSV_HEADER)?;
     for ((t, pose), sample) in vo.poses.stamps.iter().zip(&vo.poses.poses).zip(&vo.samples) {
         let q = dash2sim_core::nalgebra::UnitQuaternion::from_matrix(&pose.rotation);
         let p = pose.translation;
@@ -195,9 +202,9 @@ pub fn write_vo_csv(out: &mut impl Write, vo: &super::vo::VoTrack) -> io::Result
 /// The map tile of a drive written to `dir`: its `road.osm` in the ENU frame at `origin`,
 /// with the default grid cell (what `map build` makes of it).
 pub fn road_tile(dir: &Path, origin: Geodetic) -> Result<Vec<u8>> {
-    let osm = crate::ingest::osm::read(&dir.join("road.osm")).map_err(Error::other)?;
-    let content = crate::ingest::map_tile::from_osm(&osm, Some(origin), &mut Vec::new());
-    Ok(crate::ingest::map_tile::encode(&content, crate::ingest::map_tile::DEFAULT_CELL_M))
+    let osm = dash2sim_linux::ingest::osm::read(&dir.join("road.osm")).map_err(Error::other)?;
+    let content = dash2sim_linux::ingest::map_tile::from_osm(&osm, Some(origin), &mut Vec::new());
+    Ok(dash2sim_linux::ingest::map_tile::encode(&content, dash2sim_linux::ingest::map_tile::DEFAULT_CELL_M))
 }
 
 /// What the GNSS receiver sends: per fix its receive time (s) and its GGA and RMC sentences,

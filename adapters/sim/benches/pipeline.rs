@@ -14,9 +14,9 @@ use dash2sim_core::pipeline::profile::{work_zone_meta, work_zone_pipeline, work_
 use dash2sim_core::pipeline::replay::{feed, Input, Reader};
 use dash2sim_core::pipeline::{Pipeline, PipelineConfig, Trackers};
 use dash2sim_linux::record::{self, Setup, Sources};
-use dash2sim_linux::sim::scenario::sensors::GnssModel;
-use dash2sim_linux::sim::scenario::write::write_scenario;
-use dash2sim_linux::sim::scenario::{generate, ScenarioConfig};
+use dash2sim_sim::scenario::sensors::GnssModel;
+use dash2sim_sim::scenario::write::write_scenario;
+use dash2sim_sim::scenario::{generate, ScenarioConfig};
 
 const KINDS: [&str; 6] = ["serial chunk", "CAN frame", "VO pose", "3D detections", "2D detections", "IMU sample"];
 

@@ -1,0 +1,18 @@
+//! **The test rig**, above the product: the seeded work-zone drives with their truth
+//! ([`scenario`]: road, actors, sensors under a profile, the files a dashcam would give, a
+//! camera process publishing them), the sweep that runs many of them through the product
+//! and judges each log's verdict against the truth's ([`fidelity`]), and the real
+//! recordings of the shared data folder run through the product and measured against
+//! their own references ([`datasets`]). Takes seeds and profiles; gives drives, corpora and
+//! the fidelity tables. Only the judging side reads a generator's parameters, and no
+//! product crate depends on this one.
+
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+#![deny(clippy::print_stdout, clippy::print_stderr)]
+
+pub mod datasets;
+pub mod fidelity;
+pub mod scenario;
+
+pub use dash2sim_linux::{Error, Result};
