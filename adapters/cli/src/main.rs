@@ -13,6 +13,7 @@ mod plot;
 mod record;
 mod render;
 mod scenario;
+mod signals;
 mod verify;
 
 fn main() -> std::process::ExitCode {

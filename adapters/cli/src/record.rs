@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use clap::Args;
 use dash2sim_core::imu::ImuMount;
 use dash2sim_core::pipeline::{Issue, RelativeMotion};
-use dash2sim_linux::record::live::LiveStatus;
+use dash2sim_linux::record::live::{LiveRequest, LiveStatus};
 use dash2sim_linux::record::{self, Device, RecordRequest, Sources, SpeedMessage, VoFrame};
 use dash2sim_linux::{Error, Result};
 
@@ -238,7 +238,9 @@ impl From<DeviceArgs> for Device {
 pub fn run(args: &RecordArgs) -> Result<()> {
     let request = args.request();
     if let Some(live) = record::live_request(&request)? {
-        let report = record::record_live(&request, &live, &mut |warning| eprintln!("{warning}"));
+        let stop = crate::signals::stop_on_signals()?;
+        let live = LiveRequest { keep: Some(crate::signals::keep_on_signal()?), ..live };
+        let report = record::record_live(&request, &live, &stop, &mut |warning| eprintln!("{warning}"));
         if request.status.is_some() {
             // The status line ends.
             eprintln!();

@@ -118,7 +118,7 @@ pub struct LiveRequest {
     pub status: Option<fn(&LiveStatus)>,
     /// How much of the disk the folder may use (loop recording).
     pub storage: StoragePolicy,
-    /// Set (by SIGUSR1, [`keep_on_signal`]) to keep the file being recorded.
+    /// Set (the command line's SIGUSR1 handler sets it) to keep the file being recorded.
     pub keep: Option<Arc<AtomicBool>>,
 }
 
@@ -681,21 +681,4 @@ impl Kept<'_> {
             self.dropped.fetch_add(1, Ordering::Relaxed);
         }
     }
-}
-
-/// A flag SIGUSR1 sets: "keep the file being recorded" (the loop clears it once it has).
-pub fn keep_on_signal() -> Result<Arc<AtomicBool>> {
-    let keep = Arc::new(AtomicBool::new(false));
-    signal_hook::flag::register(signal_hook::consts::SIGUSR1, keep.clone())
-        .map_err(|e| Error::refused("signal handler", e))?;
-    Ok(keep)
-}
-
-/// A flag SIGINT and SIGTERM set: the live logger's stop.
-pub fn stop_on_signals() -> Result<Arc<AtomicBool>> {
-    let stop = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(signal, stop.clone()).map_err(|e| Error::refused("signal handler", e))?;
-    }
-    Ok(stop)
 }

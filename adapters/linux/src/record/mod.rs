@@ -670,8 +670,9 @@ fn device_id(text: &str) -> Result<[u8; 16]> {
     Ok(id)
 }
 
-/// The live logger: records until the request's duration is over or SIGINT / SIGTERM.
-/// `warn` hears the DBC files' warnings before the recording starts. Without `--origin` or
+/// The live logger: records until the request's duration is over or `stop` is set (the
+/// command line sets it on SIGINT / SIGTERM; the library installs no signal handler, and
+/// the request's `keep` flag is the caller's too). `warn` hears the DBC files' warnings before the recording starts. Without `--origin` or
 /// a `--map` the recording starts anyway and takes its ENU origin from the first GNSS fix,
 /// as a recording from files does (the inputs before it are kept and logged once it is
 /// known).
@@ -679,6 +680,7 @@ fn device_id(text: &str) -> Result<[u8; 16]> {
 pub fn record_live(
     args: &RecordRequest,
     request: &live::LiveRequest,
+    stop: &std::sync::atomic::AtomicBool,
     warn: &mut dyn FnMut(&str),
 ) -> Result<live::LiveReport> {
     let mut warnings = Vec::new();
@@ -696,9 +698,7 @@ pub fn record_live(
     });
     warnings.iter().for_each(|w| warn(w));
     let setup = setup?;
-    let stop = live::stop_on_signals()?;
-    let request = live::LiveRequest { keep: Some(live::keep_on_signal()?), ..request.clone() };
-    live::run(&request, &setup, &origin, &stop)
+    live::run(request, &setup, &origin, stop)
 }
 
 fn display(p: &Option<PathBuf>) -> String {
