@@ -2,7 +2,8 @@
 //! (`crate::module`, anywhere outside comments) only to modules before it in the order the
 //! file writes down, except for the arrows back up it lists as known — and each of those
 //! must still exist, so the list shrinks as they are removed. A new module must be placed in
-//! the order before it can be used.
+//! the order before it can be used. And the crates depend on one another only as the crates
+//! table of ARCHITECTURE.md allows (issue #56), as `cargo metadata` reads the manifests.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -164,4 +165,78 @@ fn references_inside_braces_are_found() {
     let got: Vec<String> = crate_references(source).into_iter().collect();
     assert_eq!(got, ["a", "d", "e", "g"]);
     assert!(crate_references(&without_comments("// crate::x\nlet y = 1; // crate::z")).is_empty());
+}
+
+/// The short name ARCHITECTURE.md's crates table uses for the crate in `dir` (relative to
+/// the workspace): `core` for `core-nostd/`, `camera` for `adapters/camera-c/`, else the
+/// folder's name.
+fn short_name(dir: &str) -> String {
+    let last = dir.trim_end_matches('/').rsplit('/').next().unwrap_or(dir);
+    match last {
+        "core-nostd" => "core".to_owned(),
+        "camera-c" => "camera".to_owned(),
+        other => other.to_owned(),
+    }
+}
+
+/// The crates table: for each crate's folder, the crates it may depend on (normal) and,
+/// after `tests:` in brackets, those its tests may add.
+fn allowed_edges(text: &str) -> BTreeMap<String, (BTreeSet<String>, BTreeSet<String>)> {
+    let table = text.lines().skip_while(|l| l.trim() != "## Crates").take_while(|l| !l.starts_with("## Code map"));
+    let mut out = BTreeMap::new();
+    for line in table.filter(|l| l.starts_with("| `")) {
+        let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+        let (Some(path), Some(deps)) = (cells.get(2), cells.get(4)) else { continue };
+        let names = |s: &str| -> BTreeSet<String> {
+            s.split(',').filter_map(|w| w.split_whitespace().next()).map(|w| w.trim_matches('`').to_owned()).collect()
+        };
+        let (normal, tests) = match deps.split_once("(tests:") {
+            Some((normal, tests)) => (names(normal), names(tests.trim_end_matches(')'))),
+            None => (names(deps.split('(').next().unwrap_or(deps)), BTreeSet::new()),
+        };
+        for dir in path.split(',').map(|p| p.trim().trim_matches('`')) {
+            out.insert(dir.trim_end_matches('/').to_owned(), (normal.clone(), tests.clone()));
+        }
+    }
+    out
+}
+
+/// Every workspace crate depends only on the crates ARCHITECTURE.md's table allows it (the
+/// Cargo manifests as `cargo metadata` reads them), and every crate is in the table.
+#[test]
+fn crates_depend_only_on_what_the_crates_table_allows() {
+    let text = std::fs::read_to_string(repo().join("ARCHITECTURE.md")).expect("ARCHITECTURE.md");
+    let allowed = allowed_edges(&text);
+    assert!(allowed.len() >= 8, "the crates table lost its rows: {allowed:?}");
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+    let out = std::process::Command::new(cargo)
+        .args(["metadata", "--format-version", "1", "--no-deps", "--offline"])
+        .current_dir(repo())
+        .output()
+        .expect("cargo metadata");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let metadata: serde_json::Value = serde_json::from_slice(&out.stdout).expect("metadata JSON");
+    let root = std::fs::canonicalize(repo()).expect("repo");
+    let relative = |manifest: &str| -> String {
+        let dir = Path::new(manifest).parent().expect("a manifest's folder");
+        dir.strip_prefix(&root).unwrap_or(dir).to_string_lossy().into_owned()
+    };
+    let mut problems = Vec::new();
+    let packages = metadata["packages"].as_array().expect("packages");
+    for package in packages {
+        let dir = relative(package["manifest_path"].as_str().expect("manifest_path"));
+        let Some((normal, tests)) = allowed.get(&dir) else {
+            problems.push(format!("{dir}: not in the crates table"));
+            continue;
+        };
+        for dependency in package["dependencies"].as_array().expect("dependencies") {
+            let Some(path) = dependency["path"].as_str() else { continue };
+            let target = short_name(&Path::new(path).strip_prefix(&root).unwrap_or(Path::new(path)).to_string_lossy());
+            let dev = dependency["kind"].as_str() == Some("dev");
+            if !(normal.contains(&target) || dev && tests.contains(&target)) {
+                problems.push(format!("{dir} depends on {target}{}", if dev { " (tests)" } else { "" }));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "ARCHITECTURE.md's crates table:\n{}", problems.join("\n"));
 }

@@ -72,12 +72,6 @@ typedef struct d2s_detection2d_item {
 // A 2D detection, as the message carries it.
 typedef struct d2s_detection2d_item d2s_detection2d;
 
-
-
-
-
-
-
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
