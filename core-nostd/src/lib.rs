@@ -43,6 +43,7 @@ pub mod box2d;
 pub mod box3d;
 pub mod can;
 pub mod claim;
+pub mod class;
 pub mod decimal;
 pub mod drivable;
 pub mod ekf;

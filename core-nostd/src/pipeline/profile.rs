@@ -5,6 +5,7 @@
 
 use super::{ClassMeta, PipelineConfig, SpeedSource, Trackers};
 use crate::anchor::{AnchorConfig, AnchorMode};
+use crate::class::{Class, ARROW_BOARD, BARRICADE, CAR, CONE, DRUM, SIGN, TRUCK};
 use crate::geo::Geodetic;
 use crate::score::AgentKind;
 use crate::track2d::TrackerConfig;
@@ -27,20 +28,21 @@ pub struct ClassProfile {
     pub has_heading: bool,
 }
 
-const fn class(name: &'static str, code: i64, size: [f64; 3], is_static: bool, has_heading: bool) -> ClassProfile {
-    let kind = if is_static { AgentKind::Object } else { AgentKind::Vehicle };
-    ClassProfile { name, code, kind, size, is_static, has_heading }
+/// The profile of a class of the class table ([`crate::class`]: its name, code and kind of
+/// road user).
+const fn class(c: Class, size: [f64; 3], is_static: bool, has_heading: bool) -> ClassProfile {
+    ClassProfile { name: c.name, code: c.code, kind: c.kind, size, is_static, has_heading }
 }
 
 /// The classes, by tracker class id.
 pub const WORK_ZONE: [ClassProfile; 7] = [
-    class("car", 0, [4.6, 1.9, 1.5], false, true),
-    class("truck", 1, [9.0, 2.5, 3.4], false, true),
-    class("cone", 6, [0.36, 0.36, 0.71], true, false),
-    class("drum", 7, [0.58, 0.58, 1.0], true, false),
-    class("barricade", 8, [1.8, 0.4, 1.5], true, true),
-    class("arrow_board", 10, [3.6, 2.2, 3.2], true, true),
-    class("sign", 11, [0.15, 1.2, 2.2], true, true),
+    class(CAR, [4.6, 1.9, 1.5], false, true),
+    class(TRUCK, [9.0, 2.5, 3.4], false, true),
+    class(CONE, [0.36, 0.36, 0.71], true, false),
+    class(DRUM, [0.58, 0.58, 1.0], true, false),
+    class(BARRICADE, [1.8, 0.4, 1.5], true, true),
+    class(ARROW_BOARD, [3.6, 2.2, 3.2], true, true),
+    class(SIGN, [0.15, 1.2, 2.2], true, true),
 ];
 
 /// The tracker class id of a class name.

@@ -132,7 +132,7 @@ fn write_file(path: &Path, contents: impl AsRef<[u8]>) -> Result<()> {
 fn tracks_by_class(log: &LogContents) -> std::collections::BTreeMap<&'static str, usize> {
     let mut ids: std::collections::BTreeMap<&'static str, std::collections::BTreeSet<i64>> = Default::default();
     for (_, track) in log::export::tracks(log) {
-        ids.entry(log::export::class_name(track.class)).or_default().insert(track.id);
+        ids.entry(dash2sim_core::class::name_of(track.class)).or_default().insert(track.id);
     }
     ids.into_iter().map(|(class, set)| (class, set.len())).collect()
 }

@@ -27,8 +27,8 @@ use super::request::ScenarioRequest;
 use super::road::{road, Connector, Road};
 use super::ticks::{agents_at_ticks, on_map, windows, AgentTick, EgoTick, OnMap};
 use crate::geometry::{band, is_simple, Line};
-use crate::log::export::class_name;
 use crate::{Error, Result};
+use dash2sim_core::class::name_of as class_name;
 
 /// CommonRoad's time step here: the log's ego poses are at 10 Hz, s.
 pub const TIME_STEP_S: f64 = 0.1;

@@ -30,8 +30,8 @@ use super::request::ScenarioRequest;
 use super::road::{road, Road};
 use super::ticks::{agents_at_ticks, on_map, windows, AgentTick, EgoTick, OnMap};
 use crate::geometry::Line;
-use crate::log::export::class_name;
 use crate::{Error, Result};
+use dash2sim_core::class::name_of as class_name;
 
 /// ScenarioNet's time step (Waymo's and its nuPlan converter's), s.
 pub const TIME_STEP_S: f64 = 0.1;

@@ -9,7 +9,6 @@ use dash2sim_core::binlog::{EgoPose, Record, Track3d};
 use dash2sim_core::nalgebra::Vector3;
 use serde_json::{json, Value};
 
-use super::import::CLASSES;
 use super::{frame, seconds, LogContents};
 use crate::{Error, Result};
 
@@ -47,11 +46,6 @@ pub fn track_velocity(t: &Track3d) -> (f64, f64) {
     } else {
         (t.vx_mm_s as f64 * 1e-3, t.vy_mm_s as f64 * 1e-3)
     }
-}
-
-/// Class name of a `Track3d` class code.
-pub fn class_name(code: i64) -> &'static str {
-    usize::try_from(code).ok().and_then(|i| CLASSES.get(i)).copied().unwrap_or("other")
 }
 
 /// Every 3D track with its time, in log order.
@@ -146,7 +140,7 @@ pub fn geojson(log: &LogContents) -> Result<Value> {
             "geometry": {"type": "Point", "coordinates": c},
             "properties": {
                 "id": id,
-                "class": class_name(t.class),
+                "class": dash2sim_core::class::name_of(t.class),
                 "static": t.is_static != 0,
                 "t": seconds(t_us),
                 "length_m": t.l_mm as f64 * 1e-3,

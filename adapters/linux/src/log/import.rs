@@ -23,27 +23,6 @@ use crate::ingest::origin::parse_origin;
 use crate::trajectory::{Format, Trajectory};
 use crate::{Error, Result};
 
-/// Object class codes in `Track3d` records (docs/binlog.md).
-pub const CLASSES: [&str; 12] = [
-    "car",
-    "truck",
-    "bus",
-    "motorcycle",
-    "bicycle",
-    "pedestrian",
-    "cone",
-    "drum",
-    "barricade",
-    "barrier",
-    "arrow_board",
-    "sign",
-];
-
-/// The code of a class name (255: other).
-pub fn class_code(name: &str) -> i64 {
-    CLASSES.iter().position(|c| *c == name).map_or(255, |i| i as i64)
-}
-
 /// What to import.
 #[derive(Clone, Debug, Default)]
 pub struct ImportRequest {
@@ -199,7 +178,7 @@ pub fn object_records(path: &Path, out: &mut Vec<Record>) -> Result<()> {
     for row in crate::ingest::objects::read(path)? {
         by_time.entry(quantise(row.t, 1e-6)).or_default().push(Track3d {
             id: i64::from(row.id),
-            class: class_code(&row.class),
+            class: dash2sim_core::class::code_of(&row.class),
             x_mm: quantise(row.centre[0], 1e-3),
             y_mm: quantise(row.centre[1], 1e-3),
             z_mm: quantise(row.centre[2], 1e-3),

@@ -19,9 +19,10 @@ use parquet::basic::{Compression, ZstdLevel};
 use parquet::file::metadata::KeyValue;
 use parquet::file::properties::WriterProperties;
 
-use super::export::{class_name, tracks};
+use super::export::tracks;
 use super::LogContents;
 use crate::{Error, Result};
+use dash2sim_core::class::name_of as class_name;
 
 /// The version of the schema in `docs/parquet.md`, in every file's metadata.
 pub const SCHEMA_VERSION: &str = "1";

@@ -8,9 +8,10 @@ use dash2sim_core::map::MapView;
 use dash2sim_core::nalgebra::Vector3;
 
 use crate::geometry::capsule;
-use crate::log::export::{class_name, last_tracks};
+use crate::log::export::last_tracks;
 use crate::log::{frame, LogContents};
 use crate::{Error, Result};
+use dash2sim_core::class::name_of as class_name;
 
 /// The eight nuPlan metrics of a `Verification` record, in its field order.
 pub const METRICS: [&str; 8] = [

@@ -18,6 +18,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use crate::{Error, Result};
+use dash2sim_core::class;
 use dash2sim_core::drivable::{Channel, LaneSet};
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Footprint, OrientedBox, Pose2};
@@ -178,7 +179,7 @@ pub fn from_contents(
 fn agent_of(t: &dash2sim_core::binlog::Track3d, at: (f64, f64)) -> Agent {
     Agent {
         id: u32::try_from(t.id).unwrap_or(u32::MAX),
-        kind: agent_kind(crate::log::export::class_name(t.class)),
+        kind: class::by_code(t.class).map_or(AgentKind::Object, |c| c.kind),
         bbox: OrientedBox {
             centre: Pose2::new(at.0, at.1, t.yaw_e4 as f64 * 1e-4),
             length: t.l_mm as f64 * 1e-3,
@@ -188,24 +189,13 @@ fn agent_of(t: &dash2sim_core::binlog::Track3d, at: (f64, f64)) -> Agent {
     }
 }
 
-/// Agent kind of a class name: vehicles, vulnerable road users, or static objects.
-pub fn agent_kind(class: &str) -> AgentKind {
-    match class {
-        "car" | "truck" | "bus" | "van" | "trailer" | "vehicle" | "motorcycle" | "construction_vehicle" => {
-            AgentKind::Vehicle
-        }
-        "pedestrian" | "cyclist" | "bicycle" | "person" | "flagger" | "worker" => AgentKind::Vru,
-        _ => AgentKind::Object,
-    }
-}
-
 /// Objects by time (ms), from an objects CSV (`crate::ingest::objects`).
 pub fn read_objects(path: &Path) -> Result<BTreeMap<i64, Vec<Agent>>> {
     let mut by_time: BTreeMap<i64, Vec<Agent>> = BTreeMap::new();
     for row in crate::ingest::objects::read(path)? {
         let agent = Agent {
             id: row.id,
-            kind: agent_kind(&row.class),
+            kind: class::kind_of(&row.class),
             bbox: OrientedBox {
                 centre: Pose2::new(row.centre[0], row.centre[1], row.yaw),
                 length: row.size[0],

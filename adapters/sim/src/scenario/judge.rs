@@ -12,7 +12,7 @@ use super::actors::Class;
 use super::evaluate::score_tracks;
 use super::write::START_UNIX_S;
 use super::Scenario;
-use dash2sim_linux::log::{self, LogContents};
+use dash2sim_linux::log::LogContents;
 
 /// What the log's ego and tracks measure against the truth.
 #[derive(Clone, Debug, Default)]
@@ -118,7 +118,7 @@ pub fn judge_log(scenario: &Scenario, log: &LogContents) -> LogJudgement {
             }
             Record::Tracks3d(batch) => {
                 for track in &batch.tracks {
-                    let name = log::export::class_name(track.class);
+                    let name = dash2sim_core::class::name_of(track.class);
                     *j.tracks_by_class.entry(name.to_owned()).or_default() += 1;
                     let class = Class::ALL.iter().find(|c| c.name() == name).map_or(u16::MAX, |c| *c as u16);
                     let bbox = Box3d {

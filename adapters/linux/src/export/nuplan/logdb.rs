@@ -11,9 +11,9 @@ use rusqlite::{params, Connection};
 use super::map::MapIds;
 use crate::export::projection::Projection;
 use crate::export::ticks::{agents_at_ticks, EgoTick};
-use crate::log::export::class_name;
 use crate::log::LogContents;
 use crate::{Error, Result};
+use dash2sim_core::class::name_of as class_name;
 
 /// nuPlan's clock, Hz (the devkit hard-codes 0.05 s).
 pub const RATE_HZ: f64 = 20.0;
