@@ -4,7 +4,7 @@
 # 1001-1100, careful and careless), the issue's 24 careful drives on the ideal profile,
 # 200 one-minute typical drives (the mount calibration's target is after 60 s of driving) and
 # 40 ten-minute drives on the ideal and typical profiles; and issue #55's verdicts with their
-# doubt: seeds 14126-14250 with every kind of driver (1 000 drives each) with street anchors,
+# doubt: seeds 14301-14425 with every kind of driver (1 000 drives each) with street anchors,
 # without, and with a phone receiver.
 # Usage: scripts/fidelity_sweeps.sh [DASH2SIM] [OUT]   (about 35 minutes on 2 cores)
 set -euo pipefail
@@ -31,6 +31,6 @@ done
 for setting in "--anchors street" "--anchors none" "--receiver phone"; do
   name="kinds-$(echo "$setting" | tr -d ' -')"
   # shellcheck disable=SC2086 # the setting is two words on purpose
-  "$D2S" scenario sweep --seeds 14126-14250 --driver all $setting -o "$OUT/$name" -q > "$OUT/$name.txt"
+  "$D2S" scenario sweep --seeds 14301-14425 --driver all $setting -o "$OUT/$name" -q > "$OUT/$name.txt"
 done
 echo "summaries in $OUT/*.txt and $OUT/*/summary.json"
