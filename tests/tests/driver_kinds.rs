@@ -65,7 +65,11 @@ fn decided_with_hole(
     use dash2sim_sim::fidelity::drive::truth_ego;
     let config = ScenarioConfig { driver, ..ScenarioConfig::drive(seed, Profile::Typical, Receiver::Good) };
     let scenario = generate(&config);
-    let dir = std::env::temp_dir().join(format!("dash2sim-doubt-{}-{seed}-{}", std::process::id(), driver.name()));
+    // A folder of its own per call: the tests run in parallel and may generate the same drive.
+    static CALLS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir =
+        std::env::temp_dir().join(format!("dash2sim-doubt-{}-{call}-{seed}-{}", std::process::id(), driver.name()));
     write_scenario(&scenario, &dir).expect("write");
     let [lat, lon, h] = config.origin;
     let tile = road_tile(&dir, Geodetic::new(lat, lon, h).expect("origin")).expect("tile");

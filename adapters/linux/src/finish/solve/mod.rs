@@ -21,10 +21,15 @@
 //! factored by faer's sparse Cholesky — linear in the drive's length.
 
 use dash2sim_core::nalgebra::{Matrix3, Rotation3, Vector3};
-use dash2sim_core::sim3::{AlignMode, Moments, Sim3};
+use dash2sim_core::sim3::Sim3;
 use faer::linalg::solvers::Solve;
-use faer::sparse::{SparseColMat, Triplet};
 use faer::{Mat, Side};
+
+mod normal;
+mod start;
+use normal::{solve_normal, Normal, Row};
+pub(crate) use start::wheel_distance;
+use start::{initial_alignment, initial_positions, keyframes, odometer};
 
 /// Unknowns per keyframe: position (3), log-scale (1), rotation increment (3).
 const BLOCK: usize = 7;
@@ -263,151 +268,6 @@ struct Place {
 
 fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
-}
-
-/// One scalar residual, whitened: value and its Jacobian's non-zeros.
-#[derive(Clone, Copy)]
-struct Row {
-    value: f64,
-    index: [usize; 16],
-    coeff: [f64; 16],
-    len: usize,
-}
-
-impl Row {
-    fn new(value: f64) -> Self {
-        Row { value, index: [0; 16], coeff: [0.0; 16], len: 0 }
-    }
-    fn with(mut self, index: usize, coeff: f64) -> Self {
-        if coeff != 0.0 && self.len < 16 {
-            self.index[self.len] = index;
-            self.coeff[self.len] = coeff;
-            self.len += 1;
-        }
-        self
-    }
-}
-
-/// The normal equations `H δ = −g`, stored by block: diagonal blocks, the blocks coupling
-/// keyframe k and k + 1, each block's coupling with the globals, and the globals'.
-struct Normal {
-    blocks: usize,
-    diagonal: Vec<[[f64; BLOCK]; BLOCK]>,
-    next: Vec<[[f64; BLOCK]; BLOCK]>,
-    global: Vec<[[f64; GLOBALS]; BLOCK]>,
-    globals: [[f64; GLOBALS]; GLOBALS],
-    g: Vec<f64>,
-    chi2: f64,
-    rows: usize,
-}
-
-impl Normal {
-    fn new(blocks: usize) -> Self {
-        Normal {
-            blocks,
-            diagonal: vec![[[0.0; BLOCK]; BLOCK]; blocks],
-            next: vec![[[0.0; BLOCK]; BLOCK]; blocks],
-            global: vec![[[0.0; GLOBALS]; BLOCK]; blocks],
-            globals: [[0.0; GLOBALS]; GLOBALS],
-            g: vec![0.0; blocks * BLOCK + GLOBALS],
-            chi2: 0.0,
-            rows: 0,
-        }
-    }
-
-    fn size(&self) -> usize {
-        self.blocks * BLOCK + GLOBALS
-    }
-
-    /// H[i][j] += v for i ≤ j (the upper triangle).
-    fn add(&mut self, i: usize, j: usize, v: f64) {
-        let (i, j) = if i <= j { (i, j) } else { (j, i) };
-        let first_global = self.blocks * BLOCK;
-        match (i < first_global, j < first_global) {
-            (true, true) => {
-                let (bi, bj) = (i / BLOCK, j / BLOCK);
-                if bi == bj {
-                    self.diagonal[bi][i % BLOCK][j % BLOCK] += v;
-                } else if bj == bi + 1 {
-                    self.next[bi][i % BLOCK][j % BLOCK] += v;
-                }
-                // No residual couples keyframes further apart (see `place`).
-            }
-            (true, false) => self.global[i / BLOCK][i % BLOCK][j - first_global] += v,
-            _ => self.globals[i - first_global][j - first_global] += v,
-        }
-    }
-
-    fn push(&mut self, row: &Row, weight: f64) {
-        if weight <= 0.0 || !row.value.is_finite() {
-            return;
-        }
-        self.chi2 += weight * row.value * row.value;
-        self.rows += 1;
-        for a in 0..row.len {
-            self.g[row.index[a]] += weight * row.coeff[a] * row.value;
-            for b in 0..row.len {
-                if row.index[a] <= row.index[b] {
-                    self.add(row.index[a], row.index[b], weight * row.coeff[a] * row.coeff[b]);
-                }
-            }
-        }
-    }
-
-    /// The three rows of a 3-vector residual `r / σ` with Jacobian blocks `(first
-    /// unknown, 3×m matrix)`.
-    fn push3(&mut self, r: &Vector3<f64>, sigma: &Vector3<f64>, jac: &[(usize, &[Vector3<f64>])], weight: f64) {
-        for axis in 0..3 {
-            let mut row = Row::new(r[axis] / sigma[axis]);
-            for (first, columns) in jac {
-                for (c, column) in columns.iter().enumerate() {
-                    row = row.with(first + c, column[axis] / sigma[axis]);
-                }
-            }
-            self.push(&row, weight);
-        }
-    }
-
-    /// The upper triangle as a sparse matrix, the diagonal scaled by `1 + lambda` (and a
-    /// tiny absolute term, so that an unobserved unknown does not make it singular).
-    fn matrix(&self, lambda: f64) -> Result<SparseColMat<usize, f64>, SolveError> {
-        let mut triplets = Vec::with_capacity(self.blocks * (BLOCK * BLOCK * 2 + BLOCK * GLOBALS) + 4);
-        let first_global = self.blocks * BLOCK;
-        for b in 0..self.blocks {
-            for i in 0..BLOCK {
-                for j in i..BLOCK {
-                    let v = self.diagonal[b][i][j] * if i == j { 1.0 + lambda } else { 1.0 }
-                        + match (i == j, i >= 4) {
-                            (true, true) => ROTATION_STEP_INFORMATION,
-                            (true, false) => 1e-9,
-                            _ => 0.0,
-                        };
-                    triplets.push(Triplet::new(b * BLOCK + i, b * BLOCK + j, v));
-                }
-                if b + 1 < self.blocks {
-                    for j in 0..BLOCK {
-                        let v = self.next[b][i][j];
-                        if v != 0.0 {
-                            triplets.push(Triplet::new(b * BLOCK + i, (b + 1) * BLOCK + j, v));
-                        }
-                    }
-                }
-                for j in 0..GLOBALS {
-                    let v = self.global[b][i][j];
-                    if v != 0.0 {
-                        triplets.push(Triplet::new(b * BLOCK + i, first_global + j, v));
-                    }
-                }
-            }
-        }
-        for i in 0..GLOBALS {
-            for j in i..GLOBALS {
-                let v = self.globals[i][j] * if i == j { 1.0 + lambda } else { 1.0 } + if i == j { 1e-9 } else { 0.0 };
-                triplets.push(Triplet::new(first_global + i, first_global + j, v));
-            }
-        }
-        SparseColMat::try_new_from_triplets(self.size(), self.size(), &triplets).map_err(|_| SolveError::Singular)
-    }
 }
 
 /// What one assembly gives: the normal equations and the residuals' sizes in σ (NaN where
@@ -773,129 +633,6 @@ impl State<'_> {
 
 fn cauchy(u: f64, c: f64) -> f64 {
     1.0 / (1.0 + (u / c) * (u / c))
-}
-
-/// Keyframes: the first VO sample, then each at least `spacing` after the previous, and
-/// the last.
-fn keyframes(vo: &[VoSample], spacing: f64) -> Vec<usize> {
-    let mut out = vec![0];
-    for (j, s) in vo.iter().enumerate().skip(1) {
-        if s.t - vo[out[out.len() - 1]].t >= spacing {
-            out.push(j);
-        }
-    }
-    if out.last() != Some(&(vo.len() - 1)) {
-        if vo.len() >= 2 && out.len() >= 2 && vo[vo.len() - 1].t - vo[out[out.len() - 1]].t < 0.5 * spacing {
-            out.pop();
-        }
-        out.push(vo.len() - 1);
-    }
-    out
-}
-
-/// Distance the wheels covered from `t0` to `t1`, odometer units (the wheel factor not
-/// applied); `None` where the speeds leave it unknown.
-pub(crate) fn wheel_distance(speeds: &[(f64, f64)], t0: f64, t1: f64) -> Option<f64> {
-    odometer(speeds, &[t0, t1]).first().copied().filter(|d| d.is_finite())
-}
-
-/// Distance the wheels covered between keyframes (trapezoids; NaN where a gap of more
-/// than 1 s leaves it unknown).
-fn odometer(speeds: &[(f64, f64)], keyframe_t: &[f64]) -> Vec<f64> {
-    let mut out = vec![f64::NAN; keyframe_t.len()];
-    for (k, w) in keyframe_t.windows(2).enumerate() {
-        let (t0, t1) = (w[0], w[1]);
-        let start = speeds.partition_point(|s| s.0 < t0).saturating_sub(1);
-        let mut distance = 0.0;
-        let mut covered = 0.0;
-        for pair in speeds[start..].windows(2) {
-            let ((ta, va), (tb, vb)) = (pair[0], pair[1]);
-            if ta >= t1 {
-                break;
-            }
-            let (a, b) = (ta.max(t0), tb.min(t1));
-            if b <= a || tb - ta > 1.0 {
-                continue;
-            }
-            let speed = |t: f64| va + (vb - va) * (t - ta) / (tb - ta);
-            distance += 0.5 * (speed(a) + speed(b)) * (b - a);
-            covered += b - a;
-        }
-        if covered >= 0.9 * (t1 - t0) {
-            out[k] = distance * (t1 - t0) / covered;
-        }
-    }
-    out
-}
-
-/// A first alignment of the whole VO path: Umeyama on the fixes (or, without fixes, the
-/// anchors) paired with the VO positions at their times.
-fn initial_alignment(inputs: &Inputs<'_>, gravity: bool) -> Result<Sim3, SolveError> {
-    let mut moments = Moments::default();
-    for fix in inputs.fixes {
-        if let Some((x, _, _)) = vo_at(inputs.vo, fix.t) {
-            let _ = moments.push(&x, &fix.enu, 1.0 / (fix.sigma_h * fix.sigma_h));
-        }
-    }
-    if moments.count() < 3 {
-        for anchor in inputs.anchors {
-            let x = match anchor.at {
-                AnchorAt::Time(t) => vo_at(inputs.vo, t).map(|(x, _, _)| x),
-                AnchorAt::VoPoint(x) => Some(x),
-            };
-            if let Some(x) = x {
-                let _ = moments.push(&x, &anchor.enu, 1.0 / (anchor.sigma * anchor.sigma));
-            }
-        }
-    }
-    if moments.count() == 0 {
-        return Err(SolveError::NothingToAnchorTo);
-    }
-    let mode = if gravity { AlignMode::YawScale } else { AlignMode::Sim3 };
-    moments.align(mode).map_err(|e| SolveError::Degenerate(format!("{e:?} ({} positions)", moments.count())))
-}
-
-/// One damped Gauss–Newton step: `(H + λ·diag H) δ = −g`.
-fn solve_normal(normal: &Normal, lambda: f64) -> Result<Vec<f64>, SolveError> {
-    let llt = normal.matrix(lambda)?.sp_cholesky(Side::Upper).map_err(|_| SolveError::Singular)?;
-    let rhs = Mat::from_fn(normal.size(), 1, |i, _| -normal.g[i]);
-    let delta = llt.solve(&rhs);
-    let delta: Vec<f64> = (0..normal.size()).map(|i| delta[(i, 0)]).collect();
-    if delta.iter().any(|v| !v.is_finite()) {
-        return Err(SolveError::Singular);
-    }
-    Ok(delta)
-}
-
-/// First positions of the keyframes: each from an alignment of the fixes within
-/// ±[`LOCAL_WINDOW_S`] of it (recomputed every [`LOCAL_STEP_S`]), so that on a long drive
-/// the VO's drift does not put the start hundreds of metres off; the whole-drive alignment
-/// where a window has too few fixes or does not determine one.
-fn initial_positions(inputs: &Inputs<'_>, keyframe_vo: &[usize], global: &Sim3, gravity: bool) -> Vec<Vector3<f64>> {
-    let pairs: Vec<(f64, Vector3<f64>, Vector3<f64>, f64)> = inputs
-        .fixes
-        .iter()
-        .filter_map(|f| vo_at(inputs.vo, f.t).map(|(x, _, _)| (f.t, x, f.enu, 1.0 / (f.sigma_h * f.sigma_h))))
-        .collect();
-    let mode = if gravity { AlignMode::YawScale } else { AlignMode::Sim3 };
-    let mut local: Option<(f64, Sim3)> = None;
-    keyframe_vo
-        .iter()
-        .map(|&j| {
-            let sample = &inputs.vo[j];
-            if local.is_none_or(|(t, _)| (sample.t - t).abs() >= LOCAL_STEP_S) {
-                let from = pairs.partition_point(|p| p.0 < sample.t - LOCAL_WINDOW_S);
-                let to = pairs.partition_point(|p| p.0 <= sample.t + LOCAL_WINDOW_S);
-                let mut moments = Moments::default();
-                for (_, x, y, w) in &pairs[from..to] {
-                    let _ = moments.push(x, y, *w);
-                }
-                let fit = if to - from >= 10 { moments.align(mode).ok() } else { None };
-                local = Some((sample.t, fit.filter(Sim3::is_valid).unwrap_or(*global)));
-            }
-            local.map_or(*global, |(_, a)| a).transform_point(&sample.position)
-        })
-        .collect()
 }
 
 /// Converged when an accepted step moves no position by more than 0.1 mm (and no rotation

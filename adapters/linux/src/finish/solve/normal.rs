@@ -1,0 +1,174 @@
+//! The batch problem's normal equations: whitened residual rows accumulated blockwise —
+//! block-tridiagonal in the keyframes (7×7 blocks) plus the dense columns of the globals —
+//! and solved by faer's sparse Cholesky, linear in the drive's length.
+
+use faer::linalg::solvers::Solve;
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Mat, Side};
+
+use dash2sim_core::nalgebra::Vector3;
+
+use super::{SolveError, BLOCK, GLOBALS, ROTATION_STEP_INFORMATION};
+
+/// One scalar residual, whitened: value and its Jacobian's non-zeros.
+#[derive(Clone, Copy)]
+pub(super) struct Row {
+    pub(super) value: f64,
+    pub(super) index: [usize; 16],
+    pub(super) coeff: [f64; 16],
+    pub(super) len: usize,
+}
+
+impl Row {
+    pub(super) fn new(value: f64) -> Self {
+        Row { value, index: [0; 16], coeff: [0.0; 16], len: 0 }
+    }
+    pub(super) fn with(mut self, index: usize, coeff: f64) -> Self {
+        if coeff != 0.0 && self.len < 16 {
+            self.index[self.len] = index;
+            self.coeff[self.len] = coeff;
+            self.len += 1;
+        }
+        self
+    }
+}
+
+/// The normal equations `H δ = −g`, stored by block: diagonal blocks, the blocks coupling
+/// keyframe k and k + 1, each block's coupling with the globals, and the globals'.
+pub(super) struct Normal {
+    pub(super) blocks: usize,
+    pub(super) diagonal: Vec<[[f64; BLOCK]; BLOCK]>,
+    pub(super) next: Vec<[[f64; BLOCK]; BLOCK]>,
+    pub(super) global: Vec<[[f64; GLOBALS]; BLOCK]>,
+    pub(super) globals: [[f64; GLOBALS]; GLOBALS],
+    pub(super) g: Vec<f64>,
+    pub(super) chi2: f64,
+    pub(super) rows: usize,
+}
+
+impl Normal {
+    pub(super) fn new(blocks: usize) -> Self {
+        Normal {
+            blocks,
+            diagonal: vec![[[0.0; BLOCK]; BLOCK]; blocks],
+            next: vec![[[0.0; BLOCK]; BLOCK]; blocks],
+            global: vec![[[0.0; GLOBALS]; BLOCK]; blocks],
+            globals: [[0.0; GLOBALS]; GLOBALS],
+            g: vec![0.0; blocks * BLOCK + GLOBALS],
+            chi2: 0.0,
+            rows: 0,
+        }
+    }
+
+    pub(super) fn size(&self) -> usize {
+        self.blocks * BLOCK + GLOBALS
+    }
+
+    /// H[i][j] += v for i ≤ j (the upper triangle).
+    pub(super) fn add(&mut self, i: usize, j: usize, v: f64) {
+        let (i, j) = if i <= j { (i, j) } else { (j, i) };
+        let first_global = self.blocks * BLOCK;
+        match (i < first_global, j < first_global) {
+            (true, true) => {
+                let (bi, bj) = (i / BLOCK, j / BLOCK);
+                if bi == bj {
+                    self.diagonal[bi][i % BLOCK][j % BLOCK] += v;
+                } else if bj == bi + 1 {
+                    self.next[bi][i % BLOCK][j % BLOCK] += v;
+                }
+                // No residual couples keyframes further apart (see `place`).
+            }
+            (true, false) => self.global[i / BLOCK][i % BLOCK][j - first_global] += v,
+            _ => self.globals[i - first_global][j - first_global] += v,
+        }
+    }
+
+    pub(super) fn push(&mut self, row: &Row, weight: f64) {
+        if weight <= 0.0 || !row.value.is_finite() {
+            return;
+        }
+        self.chi2 += weight * row.value * row.value;
+        self.rows += 1;
+        for a in 0..row.len {
+            self.g[row.index[a]] += weight * row.coeff[a] * row.value;
+            for b in 0..row.len {
+                if row.index[a] <= row.index[b] {
+                    self.add(row.index[a], row.index[b], weight * row.coeff[a] * row.coeff[b]);
+                }
+            }
+        }
+    }
+
+    /// The three rows of a 3-vector residual `r / σ` with Jacobian blocks `(first
+    /// unknown, 3×m matrix)`.
+    pub(super) fn push3(
+        &mut self,
+        r: &Vector3<f64>,
+        sigma: &Vector3<f64>,
+        jac: &[(usize, &[Vector3<f64>])],
+        weight: f64,
+    ) {
+        for axis in 0..3 {
+            let mut row = Row::new(r[axis] / sigma[axis]);
+            for (first, columns) in jac {
+                for (c, column) in columns.iter().enumerate() {
+                    row = row.with(first + c, column[axis] / sigma[axis]);
+                }
+            }
+            self.push(&row, weight);
+        }
+    }
+
+    /// The upper triangle as a sparse matrix, the diagonal scaled by `1 + lambda` (and a
+    /// tiny absolute term, so that an unobserved unknown does not make it singular).
+    pub(super) fn matrix(&self, lambda: f64) -> Result<SparseColMat<usize, f64>, SolveError> {
+        let mut triplets = Vec::with_capacity(self.blocks * (BLOCK * BLOCK * 2 + BLOCK * GLOBALS) + 4);
+        let first_global = self.blocks * BLOCK;
+        for b in 0..self.blocks {
+            for i in 0..BLOCK {
+                for j in i..BLOCK {
+                    let v = self.diagonal[b][i][j] * if i == j { 1.0 + lambda } else { 1.0 }
+                        + match (i == j, i >= 4) {
+                            (true, true) => ROTATION_STEP_INFORMATION,
+                            (true, false) => 1e-9,
+                            _ => 0.0,
+                        };
+                    triplets.push(Triplet::new(b * BLOCK + i, b * BLOCK + j, v));
+                }
+                if b + 1 < self.blocks {
+                    for j in 0..BLOCK {
+                        let v = self.next[b][i][j];
+                        if v != 0.0 {
+                            triplets.push(Triplet::new(b * BLOCK + i, (b + 1) * BLOCK + j, v));
+                        }
+                    }
+                }
+                for j in 0..GLOBALS {
+                    let v = self.global[b][i][j];
+                    if v != 0.0 {
+                        triplets.push(Triplet::new(b * BLOCK + i, first_global + j, v));
+                    }
+                }
+            }
+        }
+        for i in 0..GLOBALS {
+            for j in i..GLOBALS {
+                let v = self.globals[i][j] * if i == j { 1.0 + lambda } else { 1.0 } + if i == j { 1e-9 } else { 0.0 };
+                triplets.push(Triplet::new(first_global + i, first_global + j, v));
+            }
+        }
+        SparseColMat::try_new_from_triplets(self.size(), self.size(), &triplets).map_err(|_| SolveError::Singular)
+    }
+}
+
+/// One damped Gauss–Newton step: `(H + λ·diag H) δ = −g`.
+pub(super) fn solve_normal(normal: &Normal, lambda: f64) -> Result<Vec<f64>, SolveError> {
+    let llt = normal.matrix(lambda)?.sp_cholesky(Side::Upper).map_err(|_| SolveError::Singular)?;
+    let rhs = Mat::from_fn(normal.size(), 1, |i, _| -normal.g[i]);
+    let delta = llt.solve(&rhs);
+    let delta: Vec<f64> = (0..normal.size()).map(|i| delta[(i, 0)]).collect();
+    if delta.iter().any(|v| !v.is_finite()) {
+        return Err(SolveError::Singular);
+    }
+    Ok(delta)
+}
