@@ -361,71 +361,9 @@ pub fn finish(
     let utc_latency_s = clock::latency_from_motion(&log.records, &ego).unwrap_or(main.latency_s);
     let utc_shift_us = clock::utc_onto_the_fixes(&mut records, utc_latency_s);
     let [_, pitch, yaw] = calibrated.mount.roll_pitch_yaw;
-    let mount_text = format!(
-        "camera mount yaw {:+.2}° pitch {:+.2}° ({} from {} straight-driving frames)",
-        yaw.to_degrees(),
-        pitch.to_degrees(),
-        if calibrated.calibrated { "calibrated" } else { "not calibrated: the given mount weighs in" },
-        calibrated.samples
-    );
-    let bridge_text = if bridged.is_empty() {
-        String::new()
-    } else {
-        format!("; the ego bridged across {} VO gaps ({bridged_s:.1} s, interpolated)", bridged.len())
-    };
-    let sessions_text = match (sessions.len(), unsolved.len()) {
-        (1, 0) => String::new(),
-        (n, 0) => format!("; {n} VO sessions, each anchored on its own{bridge_text}"),
-        (n, u) => format!(
-            "; {n} VO sessions anchored on their own, {u} could not be ({} poses without a finished pose)",
-            unsolved.iter().map(|u| u.1).sum::<usize>()
-        ),
-    };
-    let clock_text = if utc_shift_us == 0 {
-        String::new()
-    } else {
-        format!("; the log's UTC moved {:+.0} ms (the receiver's latency)", utc_shift_us as f64 * 1e-3)
-    };
-    let anchor_text = match anchor_file {
-        Some((path, _)) => format!("anchors {path} ({used_anchors} used, {} refused)", refused.len()),
-        None => "no external anchors".to_owned(),
-    };
-    let damage = if log.stats.damaged > 0 {
-        format!(
-            "; {} damaged stretches ({} bytes) of the source were lost",
-            log.damage.len(),
-            log.damage.iter().map(|d| d.1).sum::<u64>()
-        )
-    } else {
-        String::new()
-    };
-    let first_t = records.first().map_or(0, Record::t_us);
-    let summary = format!(
-        "dash2sim finish: from {name} ({} records) with {} VO poses, GNSS {fixes_used} of {} fixes, {} speed samples, {anchor_text}; scale {:.6} ± {:.4} %, latency {:.0} ms, wheel factor {:.4}{damage}",
-        log.records.len(),
-        drive.vo.len(),
-        drive.fixes.len(),
-        drive.speeds.len(),
-        mean_scale(main),
-        100.0 * main.scale_sigma,
-        1000.0 * main.latency_s,
-        main.wheel_factor,
-    );
-    // A log is in UTC from its first clock offset on; a finished log is in UTC throughout,
-    // so that record goes first (nothing before it to move) and the event next.
-    if let Some(k) = records.iter().position(|r| matches!(r, Record::ClockOffset(_))) {
-        let offset = records.remove(k);
-        records.insert(0, offset);
-        records.insert(1, event(first_t, 2, &summary));
-        records.insert(2, event(first_t, 2, &format!("{mount_text}{sessions_text}{clock_text}")));
-    } else {
-        records.insert(0, event(first_t, 2, &summary));
-        records.insert(1, event(first_t, 2, &format!("{mount_text}{sessions_text}{clock_text}")));
-    }
-
-    let report = FinishReport {
+    let mut report = FinishReport {
         log: name.to_owned(),
-        records: records.len(),
+        records: 0, // counted once the events are in, below
         vo_poses: drive.vo.len(),
         ego_poses: ego.len(),
         ego_bridged: Bridged { gaps: bridged.len(), seconds: bridged_s },
@@ -479,6 +417,22 @@ pub fn finish(
         damage: DamageReport { stretches: log.damage.len(), bytes: log.damage.iter().map(|d| d.1).sum::<u64>() },
         verification: verification.as_ref().map(|v| v.report.clone()),
     };
+    // The two events say what the report says (the first also the source's size).
+    let [summary, settings] = events(&report, log.records.len(), utc_shift_us);
+    let first_t = records.first().map_or(0, Record::t_us);
+    // A log is in UTC from its first clock offset on; a finished log is in UTC throughout,
+    // so that record goes first (nothing before it to move) and the events next.
+    let at = match records.iter().position(|r| matches!(r, Record::ClockOffset(_))) {
+        Some(k) => {
+            let offset = records.remove(k);
+            records.insert(0, offset);
+            1
+        }
+        None => 0,
+    };
+    records.insert(at, event(first_t, 2, &summary));
+    records.insert(at + 1, event(first_t, 2, &settings));
+    report.records = records.len();
     Ok(Finished { records, report })
 }
 

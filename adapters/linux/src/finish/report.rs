@@ -245,3 +245,64 @@ pub(super) fn anchoring_report(solution: &Solution) -> AnchoringReport {
         gnss_rms_m: solution.gnss_rms_m,
     }
 }
+
+/// The two events a finished log opens with, in words, from its report: what it was
+/// finished from and how (`source_records`: the source log's), and the mount, the VO
+/// sessions and the clock (`utc_shift_us`: how far the log's UTC moved).
+pub(super) fn events(report: &FinishReport, source_records: usize, utc_shift_us: i64) -> [String; 2] {
+    let anchoring = &report.anchoring;
+    let anchor_text = match &report.anchors.file {
+        Some(path) => {
+            format!("anchors {path} ({} used, {} refused)", report.anchors.used, report.anchors.refused.len())
+        }
+        None => "no external anchors".to_owned(),
+    };
+    let damage = if report.damage.stretches > 0 {
+        format!(
+            "; {} damaged stretches ({} bytes) of the source were lost",
+            report.damage.stretches, report.damage.bytes
+        )
+    } else {
+        String::new()
+    };
+    let summary = format!(
+        "dash2sim finish: from {} ({source_records} records) with {} VO poses, GNSS {} of {} fixes, {} speed samples, {anchor_text}; scale {:.6} ± {:.4} %, latency {:.0} ms, wheel factor {:.4}{damage}",
+        report.log,
+        report.vo_poses,
+        report.gnss.used,
+        report.gnss.fixes,
+        report.speed_samples,
+        anchoring.scale,
+        100.0 * anchoring.scale_sigma_relative,
+        1000.0 * anchoring.gnss_latency_s,
+        anchoring.wheel_factor,
+    );
+    let mount = &report.mount;
+    let mount_text = format!(
+        "camera mount yaw {:+.2}° pitch {:+.2}° ({} from {} straight-driving frames)",
+        mount.yaw_deg,
+        mount.pitch_deg,
+        if mount.calibrated { "calibrated" } else { "not calibrated: the given mount weighs in" },
+        mount.samples
+    );
+    let bridged = &report.ego_bridged;
+    let bridge_text = if bridged.gaps == 0 {
+        String::new()
+    } else {
+        format!("; the ego bridged across {} VO gaps ({:.1} s, interpolated)", bridged.gaps, bridged.seconds)
+    };
+    let sessions_text = match (report.sessions.len(), report.unsolved_sessions.len()) {
+        (1, 0) => String::new(),
+        (n, 0) => format!("; {n} VO sessions, each anchored on its own{bridge_text}"),
+        (n, u) => format!(
+            "; {n} VO sessions anchored on their own, {u} could not be ({} poses without a finished pose)",
+            report.unsolved_sessions.iter().map(|s| s.vo_poses).sum::<usize>()
+        ),
+    };
+    let clock_text = if utc_shift_us == 0 {
+        String::new()
+    } else {
+        format!("; the log's UTC moved {:+.0} ms (the receiver's latency)", utc_shift_us as f64 * 1e-3)
+    };
+    [summary, format!("{mount_text}{sessions_text}{clock_text}")]
+}
