@@ -3,7 +3,8 @@
 //! file writes down, except for the arrows back up it lists as known — and each of those
 //! must still exist, so the list shrinks as they are removed. A new module must be placed in
 //! the order before it can be used. And the crates depend on one another only as the crates
-//! table of ARCHITECTURE.md allows (issue #56), as `cargo metadata` reads the manifests.
+//! table of ARCHITECTURE.md allows (issue #56), as `cargo metadata` reads the manifests,
+//! and no folder's files refer to one another in a circle.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -52,11 +53,22 @@ fn without_comments(source: &str) -> String {
 
 /// The top-level names a source refers to as `crate::name` or inside `crate::{a, b::c}`.
 fn crate_references(source: &str) -> BTreeSet<String> {
+    references_after(source, "crate::")
+}
+
+/// The names a source refers to right after `prefix` (`crate::`, `super::`, a folder's
+/// `crate::a::b::`), alone or inside braces.
+fn references_after(source: &str, prefix: &str) -> BTreeSet<String> {
     let mut names = BTreeSet::new();
     let ident = |s: &str| s.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect::<String>();
     let mut rest = source;
-    while let Some(at) = rest.find("crate::") {
-        rest = &rest[at + "crate::".len()..];
+    while let Some(at) = rest.find(prefix) {
+        rest = &rest[at + prefix.len()..];
+        // `super::super::x` names the grandparent's `x`, not a sibling.
+        if prefix == "super::" && rest.starts_with("super::") {
+            rest = rest.trim_start_matches("super::");
+            continue;
+        }
         if let Some(inner) = rest.strip_prefix('{') {
             // The names right after the brace or a comma at depth one.
             let (mut depth, mut expecting) = (1, true);
@@ -239,4 +251,122 @@ fn crates_depend_only_on_what_the_crates_table_allows() {
         }
     }
     assert!(problems.is_empty(), "ARCHITECTURE.md's crates table:\n{}", problems.join("\n"));
+}
+
+/// The files and subfolders of each folder below a crate's source root, and which of their
+/// siblings each refers to (`super::name` from a file of the folder, or the folder's full
+/// `crate::` path from anywhere in it); the folder's own `mod.rs` is the parent, not a sibling.
+fn sibling_references(src: &Path) -> BTreeMap<String, BTreeMap<String, BTreeSet<String>>> {
+    let mut out = BTreeMap::new();
+    let mut stack: Vec<PathBuf> =
+        std::fs::read_dir(src).expect("read_dir").flatten().map(|e| e.path()).filter(|p| p.is_dir()).collect();
+    while let Some(dir) = stack.pop() {
+        let module_path = dir.strip_prefix(src).expect("inside").to_string_lossy().replace('/', "::");
+        let mut siblings: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+        for entry in std::fs::read_dir(&dir).expect("read_dir").flatten() {
+            let path = entry.path();
+            let (name, files) = if path.is_dir() {
+                stack.push(path.clone());
+                let mut files = Vec::new();
+                let mut inner = vec![path.clone()];
+                while let Some(d) = inner.pop() {
+                    for e in std::fs::read_dir(&d).expect("read_dir").flatten() {
+                        let p = e.path();
+                        if p.is_dir() {
+                            inner.push(p);
+                        } else if p.extension().is_some_and(|e| e == "rs") {
+                            files.push(p);
+                        }
+                    }
+                }
+                (path.file_name().expect("name").to_string_lossy().into_owned(), files)
+            } else if path.extension().is_some_and(|e| e == "rs") && path.file_stem().is_some_and(|s| s != "mod") {
+                (path.file_stem().expect("stem").to_string_lossy().into_owned(), vec![path.clone()])
+            } else {
+                continue;
+            };
+            let refs = siblings.entry(name.clone()).or_default();
+            for file in files {
+                let source = without_comments(&std::fs::read_to_string(&file).expect("source"));
+                refs.extend(references_after(&source, &format!("crate::{module_path}::")));
+                // `super::` from a file directly in the folder (or a subfolder's `mod.rs`).
+                let direct = file.parent() == Some(dir.as_path())
+                    || (file.file_stem().is_some_and(|s| s == "mod")
+                        && file.parent().and_then(Path::parent) == Some(dir.as_path()));
+                if direct {
+                    refs.extend(references_after(&source, "super::"));
+                }
+            }
+            refs.remove(&name);
+        }
+        let names: BTreeSet<String> = siblings.keys().cloned().collect();
+        for refs in siblings.values_mut() {
+            refs.retain(|r| names.contains(r));
+        }
+        out.insert(dir.strip_prefix(src).expect("inside").display().to_string(), siblings);
+    }
+    out
+}
+
+/// A circle of `graph`, if it has one: the names around it.
+fn circle(graph: &BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>> {
+    fn visit(
+        node: &str,
+        graph: &BTreeMap<String, BTreeSet<String>>,
+        path: &mut Vec<String>,
+        done: &mut BTreeSet<String>,
+    ) -> Option<Vec<String>> {
+        if let Some(at) = path.iter().position(|p| p == node) {
+            return Some(path[at..].to_vec());
+        }
+        if done.contains(node) {
+            return None;
+        }
+        path.push(node.to_owned());
+        for next in graph.get(node).into_iter().flatten() {
+            if let Some(c) = visit(next, graph, path, done) {
+                return Some(c);
+            }
+        }
+        path.pop();
+        done.insert(node.to_owned());
+        None
+    }
+    let mut done = BTreeSet::new();
+    graph.keys().find_map(|n| visit(n, graph, &mut Vec::new(), &mut done))
+}
+
+/// No files (or subfolders) of one folder refer to one another in a circle, in any crate
+/// of the module order (issue #56: the one `sim/fidelity` had is gone; this keeps it so).
+#[test]
+fn no_folder_holds_a_circle() {
+    let text = std::fs::read_to_string(repo().join("ARCHITECTURE.md")).expect("ARCHITECTURE.md");
+    let mut problems = Vec::new();
+    for folder in orders(&text).keys() {
+        for (dir, siblings) in sibling_references(&repo().join(folder)) {
+            if let Some(c) = circle(&siblings) {
+                problems.push(format!("{folder}/{dir}: {} -> {}", c.join(" -> "), c[0]));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "circles inside a folder:\n{}", problems.join("\n"));
+}
+
+#[test]
+fn a_circle_is_found_and_a_chain_is_not() {
+    let graph = |edges: &[(&str, &str)]| {
+        let mut g: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+        for (a, b) in edges {
+            g.entry((*a).to_owned()).or_default().insert((*b).to_owned());
+            g.entry((*b).to_owned()).or_default();
+        }
+        g
+    };
+    assert_eq!(
+        circle(&graph(&[("sweep", "summary"), ("summary", "plot"), ("plot", "sweep")])).map(|c| c.len()),
+        Some(3)
+    );
+    assert_eq!(circle(&graph(&[("sweep", "rows"), ("summary", "rows"), ("plot", "rows")])), None);
+    let source = "use super::{rows::Row, summary};\nlet x = super::super::finish::y;";
+    assert_eq!(references_after(source, "super::").into_iter().collect::<Vec<_>>(), ["rows", "summary"]);
 }
