@@ -10,9 +10,10 @@
 //! where the car changes speed, the course where it turns — and the two are weighed by it.
 
 use std::collections::BTreeMap;
-use std::f64::consts::{FRAC_PI_2, PI, TAU};
+use std::f64::consts::FRAC_PI_2;
 
 use dash2sim_core::binlog::{quantise, EgoPose, Record};
+use dash2sim_core::track3d::wrap_angle;
 
 /// Latencies tried, s: from a receiver whose clock runs ahead to one half a second late.
 const LATENCY_RANGE_S: (f64, f64) = (-0.2, 0.6);
@@ -117,7 +118,7 @@ impl Channel<'_> {
         if rates.len() < MIN_FIXES {
             return None;
         }
-        let mean = if self.centred { rates.iter().sum::<f64>() / rates.len().max(1) as f64 } else { 0.0 };
+        let mean = if self.centred { rates.iter().sum::<f64>() / rates.len() as f64 } else { 0.0 };
         let information: f64 = rates.iter().map(|r| (r - mean).powi(2)).sum();
         let n = rates.len() as f64;
         let sigma = (variance * n / (n - 1.0).max(1.0) / information).sqrt();
@@ -155,11 +156,11 @@ pub fn latency_from_motion(records: &[Record], ego: &BTreeMap<i64, EgoPose>) -> 
             .map(|f| (f.t_us as f64 * 1e-6, FRAC_PI_2 - f.track_e4 as f64 * 1e-4))
             .collect(),
         predict: Box::new(|t| track.heading(t)),
-        residual: |seen, predicted| (seen - predicted + PI).rem_euclid(TAU) - PI,
+        residual: |seen, predicted| wrap_angle(seen - predicted),
         clip: COURSE_CLIP_RAD,
         rate: Box::new(|t| {
             let turn = track.heading(t + RATE_HALF_SPAN_S)? - track.heading(t - RATE_HALF_SPAN_S)?;
-            Some(((turn + PI).rem_euclid(TAU) - PI) / (2.0 * RATE_HALF_SPAN_S))
+            Some(wrap_angle(turn) / (2.0 * RATE_HALF_SPAN_S))
         }),
         centred: true,
     };
@@ -196,6 +197,7 @@ pub fn utc_onto_the_fixes(records: &mut [Record], latency_s: f64) -> i64 {
 mod tests {
     use super::*;
     use dash2sim_core::binlog::GnssFix;
+    use std::f64::consts::TAU;
 
     /// A car whose speed swings between 10 and 20 m/s every 8 s, its ego every 50 ms, and a
     /// receiver 137 ms late whose speeds are off by up to 0.1 m/s.
