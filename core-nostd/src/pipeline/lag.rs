@@ -23,8 +23,9 @@ use crate::time::Timestamp;
 pub const LAG: usize = 10;
 /// Poses held: the lag either side of the one given out.
 pub const SPAN: usize = 2 * LAG + 1;
-/// Poses further apart than this (s) are not fitted together.
-pub const MAX_GAP_S: f64 = 1.0;
+/// Poses further apart than this (s) are not fitted together: a hole in the ego, as the
+/// score defines it (and `verify` reports it in a finished log); a window ends there too.
+pub const MAX_GAP_S: f64 = crate::score::HOLE_S;
 
 /// Poses given out by one [`FixedLag::push`] or [`FixedLag::flush`]: at most the lag and
 /// one.
