@@ -196,6 +196,15 @@ enum MapCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Write a tile's roads (or an OpenStreetMap file's, built into a tile around their
+    /// centre) in another format: OpenDRIVE 1.7 (docs/openscenario.md).
+    Export {
+        /// The tile or OpenStreetMap file.
+        map: PathBuf,
+        /// OpenDRIVE output.
+        #[arg(long, value_name = "F.xodr")]
+        opendrive: PathBuf,
+    },
 }
 
 #[derive(Debug, Subcommand)]
@@ -401,6 +410,7 @@ pub fn run() -> ExitCode {
         }
         Command::Map(MapCommand::Info { map, json }) => crate::map::info(&map, json),
         Command::Map(MapCommand::Lanes { map }) => crate::map::lanes(&map),
+        Command::Map(MapCommand::Export { map, opendrive }) => crate::map::export(&map, &opendrive),
         Command::Map(MapCommand::Check { map, poses, passes, json }) => crate::map::check(&map, &poses, passes, json),
         Command::Import(a) => {
             let speed_unit = match a.speed_unit.as_str() {

@@ -38,14 +38,18 @@ pub struct ExportArgs {
     /// docs/scenarionet.md).
     #[arg(long, value_name = "DIR")]
     pub scenarionet: Option<PathBuf>,
+    /// OpenSCENARIO folder: the map's roads as `road.xodr` (OpenDRIVE 1.7) and a scenario per
+    /// window (`scenario.xosc`, OpenSCENARIO 1.0; needs --map; docs/openscenario.md).
+    #[arg(long, value_name = "DIR")]
+    pub openscenario: Option<PathBuf>,
     /// A map tile (`map build`) or an OpenStreetMap file (built into a tile around the
-    /// log's origin): its lanes go into the MCAP as lines and are the nuPlan, CommonRoad and
-    /// ScenarioNet map.
+    /// log's origin): its lanes go into the MCAP as lines and are the nuPlan, CommonRoad,
+    /// ScenarioNet and OpenDRIVE map.
     #[arg(long)]
     pub map: Option<PathBuf>,
     /// Length of a scenario, s: of a nuPlan scene (default 5; nuPlan drops the first two and
-    /// the last of a log); with --commonroad and --scenarionet, one scenario per window of
-    /// this length (`F-001.xml`, …; default: one for the whole log).
+    /// the last of a log); with --commonroad, --scenarionet and --openscenario, one scenario
+    /// per window of this length (`F-001.xml`, …; default: one for the whole log).
     #[arg(long)]
     pub scenario_seconds: Option<f64>,
     /// The map's name in nuPlan (default: `dash2sim-` and the map file's name).
@@ -66,6 +70,7 @@ pub fn run(args: ExportArgs) -> Result<()> {
         nuplan: args.nuplan,
         commonroad: args.commonroad,
         scenarionet: args.scenarionet,
+        openscenario: args.openscenario,
         map: args.map,
         scenario_seconds: args.scenario_seconds,
         map_name: args.map_name,

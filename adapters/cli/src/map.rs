@@ -1,4 +1,4 @@
-//! `dash2sim map build|info|lanes|check`: the tiles' commands rendered.
+//! `dash2sim map build|info|lanes|check|export`: the tiles' commands rendered.
 
 use std::io::Write as _;
 use std::path::Path;
@@ -72,5 +72,12 @@ pub fn check(map: &Path, poses: &Path, passes: u32, as_json: bool) -> Result<()>
             c.poses, c.compliant, c.corners_outside, c.corners_nothing_near, c.us_per_pose, c.passes
         );
     }
+    Ok(())
+}
+
+/// `dash2sim map export --opendrive`.
+pub fn export(map: &Path, opendrive: &Path) -> Result<()> {
+    let written = dash2sim_linux::export::opendrive::write(map, opendrive)?;
+    println!("{}", dash2sim_linux::export::opendrive_line(opendrive, &written));
     Ok(())
 }

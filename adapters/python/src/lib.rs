@@ -153,7 +153,7 @@ fn verify(
 
 /// Export a log (`dash2sim export`): a warning if the log was damaged, and a line per output.
 #[pyfunction]
-#[pyo3(signature = (log, parquet = None, log_id = None, tum = None, geojson = None, mcap = None, nuplan = None, map = None, commonroad = None, scenarionet = None, scenario_seconds = None))]
+#[pyo3(signature = (log, parquet = None, log_id = None, tum = None, geojson = None, mcap = None, nuplan = None, map = None, commonroad = None, scenarionet = None, openscenario = None, scenario_seconds = None))]
 #[allow(clippy::too_many_arguments)]
 fn export(
     py: Python<'_>,
@@ -167,6 +167,7 @@ fn export(
     map: Option<PathBuf>,
     commonroad: Option<PathBuf>,
     scenarionet: Option<PathBuf>,
+    openscenario: Option<PathBuf>,
     scenario_seconds: Option<f64>,
 ) -> PyResult<(Option<String>, Vec<String>)> {
     let request = ExportRequest {
@@ -179,6 +180,7 @@ fn export(
         nuplan,
         commonroad,
         scenarionet,
+        openscenario,
         map,
         scenario_seconds,
         map_name: None,

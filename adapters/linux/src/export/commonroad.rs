@@ -25,7 +25,7 @@ use super::partial::Cleanup;
 use super::projection::Projection;
 use super::request::ScenarioRequest;
 use super::road::{road, Connector, Road};
-use super::ticks::{agents_at_ticks, on_map, windows, AgentTick, EgoTick, OnMap};
+use super::ticks::{agents_at_ticks, by_track, on_map, runs, standing, stands_still, windows, AgentTick, EgoTick, OnMap};
 use crate::geometry::{band, is_simple, Line};
 use crate::{Error, Result};
 use dash2sim_core::class::name_of as class_name;
@@ -250,52 +250,22 @@ fn state_xml(out: &mut String, indent: &str, step: usize, a: &AgentTick, origin:
     }
 }
 
-/// A track unseen for at most this many steps is bridged in its trajectory.
-const MAX_BRIDGED_STEPS: usize = 10;
-
-/// The state at `tick` between `a` and `b` (linear; the heading the shorter way).
-fn between(a: &AgentTick, b: &AgentTick, tick: usize) -> AgentTick {
-    let f = (tick - a.tick) as f64 / (b.tick - a.tick) as f64;
-    let lerp = |p: f64, q: f64| p + (q - p) * f;
-    let turn = (b.heading - a.heading + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-    AgentTick {
-        tick,
-        x: lerp(a.x, b.x),
-        y: lerp(a.y, b.y),
-        z: lerp(a.z, b.z),
-        heading: a.heading + turn * f,
-        velocity: (lerp(a.velocity.0, b.velocity.0), lerp(a.velocity.1, b.velocity.1)),
-        ..*a
-    }
-}
-
 /// The window's tracks (`agents`, ticks from `from` on) as obstacles: (XML, dynamic, static).
 fn obstacles_xml(agents: &[&AgentTick], from: usize, origin: (f64, f64)) -> (String, usize, usize) {
-    let mut by_track: std::collections::BTreeMap<i64, Vec<&AgentTick>> = std::collections::BTreeMap::new();
-    for a in agents {
-        by_track.entry(a.track.id).or_default().push(a);
-    }
     let (mut statics, mut dynamics) = (String::new(), String::new());
     let (mut n_static, mut n_dynamic) = (0, 0);
     let mut id = OBSTACLE_BASE;
-    for states in by_track.values() {
+    for states in by_track(agents).values() {
         let Some(first) = states.first() else { continue };
         let class = class_name(first.track.class);
-        let is_static = 2 * states.iter().filter(|a| a.track.is_static == 1).count() > states.len();
         let (l, w) = (first.track.l_mm as f64 * 1e-3, first.track.w_mm as f64 * 1e-3);
         let shape = format!(
             "    <shape>\n      <rectangle>\n        <length>{:.3}</length>\n        <width>{:.3}</width>\n      </rectangle>\n    </shape>\n",
             l.max(0.01),
             w.max(0.01)
         );
-        if is_static {
-            // Where it stands: the median of its positions in the window.
-            let median = |f: fn(&AgentTick) -> f64| {
-                let mut v: Vec<f64> = states.iter().map(|a| f(a)).collect();
-                v.sort_by(f64::total_cmp);
-                v[v.len() / 2]
-            };
-            let at = AgentTick { x: median(|a| a.x), y: median(|a| a.y), ..**first };
+        if stands_still(states) {
+            let at = standing(states);
             id += 1;
             n_static += 1;
             let _ = write!(
@@ -308,19 +278,8 @@ fn obstacles_xml(agents: &[&AgentTick], from: usize, origin: (f64, f64)) -> (Str
             continue;
         }
         // CommonRoad's trajectories have no gaps: a track missed for up to a second is
-        // bridged (linearly), a longer gap starts a new obstacle.
-        let mut runs: Vec<Vec<AgentTick>> = Vec::new();
-        for &&a in states {
-            match runs.last_mut() {
-                Some(run) if run.last().is_some_and(|p| a.tick <= p.tick + MAX_BRIDGED_STEPS) => {
-                    if let Some(&p) = run.last() {
-                        run.extend((p.tick + 1..a.tick).map(|tick| between(&p, &a, tick)));
-                    }
-                    run.push(a);
-                }
-                _ => runs.push(vec![a]),
-            }
-        }
+        // bridged, a longer gap starts a new obstacle.
+        let runs = runs(states);
         for run in runs.iter().filter(|r| r.len() >= 2) {
             id += 1;
             n_dynamic += 1;

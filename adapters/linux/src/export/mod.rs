@@ -1,15 +1,18 @@
 //! `dash2sim export LOG [--mcap F] [--tum F] [--geojson F] [--parquet DIR] [--nuplan DIR]
-//! [--commonroad F.xml] [--scenarionet DIR] [--map MAP|OSM]`: one log into every format asked
-//! for — Foxglove (MCAP), evo (TUM), QGIS (GeoJSON), DuckDB/pandas/Spark (Parquet), nuPlan,
-//! CommonRoad, ScenarioNet. The exporters are in `log` and here (`nuplan`, `commonroad`,
-//! `scenarionet`, on the shared `road` and `ticks`); this module only reads the request and
-//! calls them.
+//! [--commonroad F.xml] [--scenarionet DIR] [--openscenario DIR] [--map MAP|OSM]`: one log into
+//! every format asked for — Foxglove (MCAP), evo (TUM), QGIS (GeoJSON), DuckDB/pandas/Spark
+//! (Parquet), nuPlan, CommonRoad, ScenarioNet, OpenSCENARIO with OpenDRIVE. The exporters are
+//! in `log` and here (`nuplan`, `commonroad`, `scenarionet`, `openscenario` and `opendrive`, on
+//! the shared `road` and `ticks`); this module only reads the request and calls them.
 
 pub mod commonroad;
 pub mod junctions;
 #[cfg(feature = "nuplan")]
 pub mod nuplan;
+pub mod opendrive;
+pub mod openscenario;
 mod partial;
+pub mod plan_view;
 pub mod pickle;
 pub mod projection;
 mod request;
@@ -47,12 +50,15 @@ pub struct ExportRequest {
     /// ScenarioNet dataset folder (scenario pickles and the dataset's summary and mapping;
     /// needs --map).
     pub scenarionet: Option<PathBuf>,
+    /// OpenSCENARIO output folder: `road.xodr` (OpenDRIVE) and a `.xosc` per window (needs
+    /// --map).
+    pub openscenario: Option<PathBuf>,
     /// A map tile (`map build`) or an OpenStreetMap file (built into a tile around the
     /// log's origin): its lanes go into the MCAP as lines and are the nuPlan map.
     pub map: Option<PathBuf>,
     /// Length of a scenario, s: a nuPlan scene ([`DEFAULT_SCENARIO_SECONDS`] when not
     /// given; nuPlan drops the first two and the last of a log), one CommonRoad file or
-    /// ScenarioNet scenario per window (not given: one for the whole log).
+    /// ScenarioNet or OpenSCENARIO scenario per window (not given: one for the whole log).
     pub scenario_seconds: Option<f64>,
     /// The map's name in nuPlan (default: `dash2sim-` and the map file's name).
     pub map_name: Option<String>,
@@ -62,13 +68,12 @@ pub struct ExportRequest {
 pub const DEFAULT_SCENARIO_SECONDS: f64 = 5.0;
 
 /// A map tile from `path`: a tile as it is, an OpenStreetMap file (XML or PBF) built into
-/// one around the log's origin.
-fn map_tile(path: &Path, log: &LogContents) -> Result<Vec<u8>> {
+/// one around `origin` (its own centre when `None`).
+pub fn map_tile(path: &Path, origin: Option<dash2sim_core::geo::Geodetic>) -> Result<Vec<u8>> {
     let bytes = std::fs::read(path).map_err(|e| Error::file(path, e))?;
     if bytes.starts_with(b"D2SMAP") {
         return Ok(bytes);
     }
-    let origin = log.header.as_ref().and_then(frame).map(|f| f.origin());
     let osm = crate::ingest::osm::read(path).map_err(|e| Error::file(path, e))?;
     Ok(crate::ingest::map_tile::encode(
         &crate::ingest::map_tile::from_osm(&osm, origin, &mut Vec::new()),
@@ -98,9 +103,10 @@ pub fn export(request: &ExportRequest) -> Result<Exported> {
         && request.nuplan.is_none()
         && request.commonroad.is_none()
         && request.scenarionet.is_none()
+        && request.openscenario.is_none()
     {
         return Err(Error::invalid(
-            "nothing to export: give --mcap, --tum, --geojson, --parquet, --nuplan, --commonroad and/or --scenarionet",
+            "nothing to export: give --mcap, --tum, --geojson, --parquet, --nuplan, --commonroad, --scenarionet and/or --openscenario",
         ));
     }
     let log = read(&request.log).map_err(Error::other)?;
@@ -133,7 +139,8 @@ pub fn export(request: &ExportRequest) -> Result<Exported> {
     if let Some(dir) = &request.parquet {
         exported.written.push(parquet(&log, request, dir)?);
     }
-    let map = request.map.as_deref().map(|p| map_tile(p, &log)).transpose()?;
+    let origin = log.header.as_ref().and_then(frame).map(|f| f.origin());
+    let map = request.map.as_deref().map(|p| map_tile(p, origin)).transpose()?;
     if let Some(dir) = &request.nuplan {
         let (Some(tile), Some(map_path)) = (&map, &request.map) else {
             return Err(Error::invalid("--nuplan needs --map (a tile or an OpenStreetMap file)"));
@@ -151,6 +158,12 @@ pub fn export(request: &ExportRequest) -> Result<Exported> {
             return Err(Error::invalid("--scenarionet needs --map (a tile or an OpenStreetMap file)"));
         };
         exported.written.push(scenarionet(&log, request, tile, dir)?);
+    }
+    if let Some(dir) = &request.openscenario {
+        let Some(tile) = &map else {
+            return Err(Error::invalid("--openscenario needs --map (a tile or an OpenStreetMap file)"));
+        };
+        exported.written.extend(openscenario(&log, request, tile, dir)?);
     }
     if let Some(path) = &request.mcap {
         let view = map
@@ -265,6 +278,50 @@ fn scenarionet(log: &LogContents, request: &ExportRequest, tile: &[u8], dir: &Pa
         out.mapping.display(),
         started.elapsed().as_secs_f64()
     ))
+}
+
+/// The OpenSCENARIO folder written: the road, then one line per scenario.
+fn openscenario(log: &LogContents, request: &ExportRequest, tile: &[u8], dir: &Path) -> Result<Vec<String>> {
+    let log_name = request.log.display().to_string();
+    let started = std::time::Instant::now();
+    let out = openscenario::export(&ScenarioRequest {
+        log,
+        log_name: &log_name,
+        tile,
+        out: dir,
+        window_s: request.scenario_seconds,
+    })?;
+    let seconds = started.elapsed().as_secs_f64();
+    let mut lines = vec![opendrive_line(&out.road, &out.opendrive)];
+    lines.extend(out.scenarios.iter().map(|s| {
+        format!(
+            "{}: OpenSCENARIO 1.0 — {} entities ({} following their trajectories, the ego's {} steps of {} s) on {} ({seconds:.2} s)",
+            s.path.display(),
+            s.entities,
+            s.moving,
+            s.steps,
+            openscenario::TIME_STEP_S,
+            openscenario::ROAD_FILE
+        )
+    }));
+    Ok(lines)
+}
+
+/// What an OpenDRIVE file written holds, on one line.
+pub fn opendrive_line(path: &Path, d: &opendrive::OpenDrive) -> String {
+    format!(
+        "{}: OpenDRIVE 1.7 — {} roads ({} lanes), {} junctions ({} connecting roads), EPSG:{} less ({:.3}, {:.3}); lane centres within {:.3} m of the tile's, connecting roads within {:.3} m of their curves",
+        path.display(),
+        d.roads,
+        d.lanes,
+        d.junctions,
+        d.connecting_roads,
+        d.epsg,
+        d.offset.0,
+        d.offset.1,
+        d.worst_centre_m,
+        d.worst_connector_m
+    )
 }
 
 #[cfg(not(feature = "nuplan"))]

@@ -28,6 +28,8 @@ pub struct Piece {
     pub right: Line,
     /// The polygon between the bounds.
     pub ring: Line,
+    /// The lane's width, m (projected).
+    pub width: f64,
     /// Its roadblock (index into [`Road::roadblocks`]): pieces side by side in one direction.
     pub roadblock: usize,
     /// Position in the roadblock counted from the leftmost lane (0).
@@ -216,6 +218,7 @@ pub fn road(view: &MapView<'_>, projection: &Projection, seam: f64) -> Result<Ro
                 left,
                 right,
                 ring,
+                width: lane.width * scale,
                 roadblock,
                 lane_index: lane_index[i],
                 left_neighbour: None,

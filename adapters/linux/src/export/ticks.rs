@@ -303,3 +303,65 @@ pub fn windows(
     }
     Ok((0..ticks / window).map(|k| (k * window, (k + 1) * window)).collect())
 }
+
+/// A window's agents by track id, each track's states in tick order.
+pub fn by_track<'a>(agents: &[&'a AgentTick]) -> BTreeMap<i64, Vec<&'a AgentTick>> {
+    let mut tracks: BTreeMap<i64, Vec<&AgentTick>> = BTreeMap::new();
+    for &a in agents {
+        tracks.entry(a.track.id).or_default().push(a);
+    }
+    tracks
+}
+
+/// Whether a track stands still: static in most of its states.
+pub fn stands_still(states: &[&AgentTick]) -> bool {
+    2 * states.iter().filter(|a| a.track.is_static == 1).count() > states.len()
+}
+
+/// Where a standing track stands: the median of its positions, its first state otherwise.
+/// `states` is not empty.
+pub fn standing(states: &[&AgentTick]) -> AgentTick {
+    let median = |f: fn(&AgentTick) -> f64| {
+        let mut v: Vec<f64> = states.iter().map(|a| f(a)).collect();
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(0.0)
+    };
+    AgentTick { x: median(|a| a.x), y: median(|a| a.y), ..*states[0] }
+}
+
+/// A track unseen for at most this many ticks is bridged in its trajectory.
+pub const MAX_BRIDGED_TICKS: usize = 10;
+
+/// A track's states (in tick order) as gapless runs of one state per tick: a gap of up to
+/// [`MAX_BRIDGED_TICKS`] is bridged linearly, a longer one starts a new run (simulators'
+/// trajectories have no gaps).
+pub fn runs(states: &[&AgentTick]) -> Vec<Vec<AgentTick>> {
+    let mut runs: Vec<Vec<AgentTick>> = Vec::new();
+    for &&a in states {
+        match runs.last_mut() {
+            Some(run) if run.last().is_some_and(|p| a.tick <= p.tick + MAX_BRIDGED_TICKS) => {
+                if let Some(&p) = run.last() {
+                    run.extend((p.tick + 1..a.tick).map(|tick| between(&p, &a, tick)));
+                }
+                run.push(a);
+            }
+            _ => runs.push(vec![a]),
+        }
+    }
+    runs
+}
+
+/// The state at `tick` between `a` and `b` (linear; the heading the shorter way).
+fn between(a: &AgentTick, b: &AgentTick, tick: usize) -> AgentTick {
+    let f = (tick - a.tick) as f64 / (b.tick - a.tick) as f64;
+    let lerp = |p: f64, q: f64| p + (q - p) * f;
+    AgentTick {
+        tick,
+        x: lerp(a.x, b.x),
+        y: lerp(a.y, b.y),
+        z: lerp(a.z, b.z),
+        heading: a.heading + wrap(b.heading - a.heading) * f,
+        velocity: (lerp(a.velocity.0, b.velocity.0), lerp(a.velocity.1, b.velocity.1)),
+        ..*a
+    }
+}

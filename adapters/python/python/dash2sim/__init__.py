@@ -139,11 +139,13 @@ def export(
     map: Optional[PathLike] = None,
     commonroad: Optional[PathLike] = None,
     scenarionet: Optional[PathLike] = None,
+    openscenario: Optional[PathLike] = None,
     scenario_seconds: Optional[float] = None,
 ) -> List[str]:
     """Export a log (``dash2sim export``): Parquet folder, TUM, GeoJSON, MCAP; for simulators
-    (each needs ``map``) nuPlan's folder, a CommonRoad scenario file (``F.xml``) and a
-    ScenarioNet dataset folder, one scenario per ``scenario_seconds`` window when given.
+    (each needs ``map``) nuPlan's folder, a CommonRoad scenario file (``F.xml``), a
+    ScenarioNet dataset folder and an OpenSCENARIO folder (``road.xodr`` and ``.xosc``
+    scenarios), one scenario per ``scenario_seconds`` window when given.
 
     Returns one line per output written. A damaged log is exported from its intact records
     and a :class:`UserWarning` says what was skipped.
@@ -159,6 +161,7 @@ def export(
         _path_or_none(map),
         _path_or_none(commonroad),
         _path_or_none(scenarionet),
+        _path_or_none(openscenario),
         scenario_seconds,
     )
     if warning is not None:

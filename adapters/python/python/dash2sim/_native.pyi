@@ -43,6 +43,7 @@ def export(
     map: Optional[str] = None,
     commonroad: Optional[str] = None,
     scenarionet: Optional[str] = None,
+    openscenario: Optional[str] = None,
     scenario_seconds: Optional[float] = None,
 ) -> Tuple[Optional[str], List[str]]: ...
 def class_id(name: str) -> Optional[int]: ...
