@@ -29,9 +29,13 @@
      window is an entity.
 
 The script prints a table per file and exits 1 on an error-level issue or a disagreement.
+With `--picture F.png` (needs matplotlib) it draws a scenario as read back: the road's
+lanes by the Quality Checker's evaluation (borders every 0.5 m), every entity's box where it
+starts, the moving ones' paths (docs/openscenario.md shows one).
 """
 import bisect
 import json
+import logging
 import math
 import re
 import subprocess
@@ -50,6 +54,9 @@ import qc_openscenario.constants
 import qc_openscenario.main
 from qc_opendrive.base import utils as xodr
 from scenariogeneration import xosc
+
+# The checkers' bundles log every step at INFO: their issues are what this script reports.
+logging.getLogger().setLevel(logging.WARNING)
 
 
 def quality_check(bundle, main, path: Path) -> dict:
@@ -136,10 +143,11 @@ def trajectories(path: Path) -> dict:
     by scenariogeneration; and name → (x, y, h) of the Init's teleports."""
     scenario = xosc.ParseOpenScenario(str(path))
     entities = [e.name for e in scenario.entities.scenario_objects]
-    boxes = {}
+    boxes, widths = {}, {}
     for e in scenario.entities.scenario_objects:
         bb = e.entityobject.boundingbox
         boxes[e.name] = (bb.center.x, bb.boundingbox.length)
+        widths[e.name] = bb.boundingbox.width
     paths = {}
     for story in scenario.storyboard.stories:
         for act in story.acts:
@@ -162,7 +170,8 @@ def trajectories(path: Path) -> dict:
     for p in scenario.parameters.parameters:
         if p.name == "log_start_s":
             start = float(p.value)
-    return {"entities": entities, "boxes": boxes, "paths": paths, "placed": placed, "start": start}
+    return {"entities": entities, "boxes": boxes, "widths": widths, "paths": paths, "placed": placed,
+            "start": start}
 
 
 def interpolate(path, t):
@@ -250,6 +259,63 @@ def check_scenario(path: Path, read: dict, ego_log, tracks, convert, step: float
     return out
 
 
+def lane_borders(root) -> list:
+    """Every lane's two borders, every 0.5 m, as polylines (junctions' included)."""
+    lines = []
+    for road in xodr.get_roads(root):
+        length = xodr.get_road_length(road)
+        steps = max(1, int(length / 0.5))
+        stations = [min(length, k * 0.5) for k in range(steps + 1)]
+        for section in xodr.get_lane_sections(road):
+            lanes = xodr.get_right_lanes_from_lane_section(section)
+            s0 = xodr.get_s_from_lane_section(section)
+            borders = {}
+            for s in stations:
+                offset = xodr.get_lane_offset_value_from_road_by_s(road, s)
+                outer = xodr.get_outer_border_points_from_lane_group_by_s(lanes, offset, s0, s)
+                outer[0] = offset
+                for lane_id, t in outer.items():
+                    p = xodr.get_point_xyz_from_road(road, s, t, 0.0)
+                    borders.setdefault(lane_id, []).append((p.x, p.y))
+            lines.extend(borders.values())
+    return lines
+
+
+def picture(root, read: dict, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Polygon as Patch
+    fig, ax = plt.subplots(figsize=(12, 5), dpi=120)
+    for line in lane_borders(root):
+        ax.plot([p[0] for p in line], [p[1] for p in line], color="0.6", lw=0.6)
+    for name in read["entities"]:
+        path_ = read["paths"].get(name)
+        x, y, h = (path_[0][1:] if path_ else read["placed"][name])
+        ahead, length = read["boxes"][name]
+        width = read["widths"][name]
+        c, s = math.cos(h), math.sin(h)
+        cx, cy = x + ahead * c, y + ahead * s
+        corners = [(cx + c * a - s * b, cy + s * a + c * b)
+                   for a, b in ((length / 2, width / 2), (-length / 2, width / 2), (-length / 2, -width / 2),
+                                (length / 2, -width / 2))]
+        colour = "tab:red" if name == "Ego" else ("tab:blue" if path_ else "tab:orange")
+        ax.add_patch(Patch(corners, closed=True, facecolor=colour, alpha=0.7, lw=0))
+        if path_:
+            ax.plot([p[1] for p in path_], [p[2] for p in path_], color=colour, lw=0.8)
+    ax.set_aspect("equal")
+    xs = [p[1] for p in read["paths"]["Ego"]]
+    ys = [p[2] for p in read["paths"]["Ego"]]
+    ax.set_xlim(min(xs) - 20, max(xs) + 20)
+    ax.set_ylim(min(ys) - 25, max(ys) + 25)
+    ax.set_xlabel("x, m (the .xodr's frame: UTM less the map origin)")
+    ax.set_ylabel("y, m")
+    ax.set_title("road.xodr read by the ASAM Quality Checker's evaluation; the scenario's entities where they "
+                 "start (ego red, moving blue, static orange) and the paths they follow", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path)
+
+
 def read_tracks(dash2sim: str, log: str, out: Path) -> list:
     import pyarrow.parquet as pq
     folder = out / "log.parquet"
@@ -270,6 +336,8 @@ def main() -> int:
     p.add_argument("--scenario-seconds", type=float)
     p.add_argument("--tolerance", type=float, default=0.01, help="trajectories against the log, m")
     p.add_argument("--lane-tolerance", type=float, default=0.1, help="lane centres against the tile's, m")
+    p.add_argument("--picture", help="draw a scenario as read back into this PNG (needs matplotlib)")
+    p.add_argument("--picture-scenario", type=int, default=1, help="which scenario --picture draws (1: the first)")
     args = p.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -312,9 +380,11 @@ def main() -> int:
     ego_log = [tuple(map(float, line.split()[:4])) for line in tum.read_text().splitlines()
                if line and not line.startswith("#")]
     tracks = read_tracks(args.dash2sim, args.log, out)
-    for scenario in sorted(folder.glob("*.xosc")):
+    for k, scenario in enumerate(sorted(folder.glob("*.xosc"))):
         qc = quality_check(qc_openscenario.constants, qc_openscenario.main, scenario)
         read = trajectories(scenario)
+        if args.picture and k + 1 == args.picture_scenario:
+            picture(root, read, Path(args.picture))
         result = check_scenario(scenario, read, ego_log, tracks, to_log, 0.1, args.tolerance)
         result["quality_checker"] = qc
         report["scenarios"].append(result)

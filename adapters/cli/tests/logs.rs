@@ -287,6 +287,11 @@ fn xml_elements(path: &Path) -> Vec<Element> {
                     last.2.push_str(t.as_ref());
                 }
             }
+            Event::CData(t) => {
+                if let Some(last) = out.last_mut() {
+                    last.2.push_str(t.as_ref());
+                }
+            }
             Event::End(_) => {
                 stack.pop();
             }
@@ -297,7 +302,7 @@ fn xml_elements(path: &Path) -> Vec<Element> {
     }
 }
 
-/// A simulator export (`flag`: `--commonroad F.xml` or `--scenarionet DIR`, written to
+/// A simulator export (`flag`: `--commonroad F.xml`, `--scenarionet DIR` or `--openscenario DIR`, written to
 /// `target` under `fresh`) refuses a window under 1 s, a window longer than the log, a map far
 /// from the drive, a log without ego poses and a missing `--map`, each with a clear error, and
 /// leaves nothing behind.
@@ -417,6 +422,112 @@ fn export_commonroad_writes_lanelets_obstacles_and_the_ego_and_refuses_bad_input
     let fresh = dir.join("refused");
     std::fs::create_dir_all(&fresh).expect("dir");
     assert_export_refuses_bad_input(&dir, &log, &map, "--commonroad", &fresh, &fresh.join("s.xml"));
+}
+
+#[test]
+fn export_openscenario_writes_a_road_and_scenarios_of_the_log_and_refuses_bad_input() {
+    let dir = scratch("openscenario");
+    let out = demo_ideal_offline(&dir, "30");
+    assert!(out.status.success(), "{}", stderr(&out));
+    let path = |p: &Path| p.display().to_string();
+    let (log, map) = (dir.join("finished.d2slog"), dir.join("road.map"));
+    let folder = dir.join("osc");
+    let out = dash2sim(&["export", &path(&log), "--openscenario", &path(&folder), "--map", &path(&map)]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let attr = |e: &Element, key: &str| e.1.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone()).unwrap_or_default();
+    let number =
+        |e: &Element, key: &str| -> f64 { attr(e, key).parse().unwrap_or_else(|_| panic!("{key} of {}", e.0)) };
+
+    // The road: geo-referenced in the log's UTM zone; each road's length is its plan view's,
+    // whose elements follow one another in s; lanes drive along the reference line.
+    let road = xml_elements(&folder.join("road.xodr"));
+    assert!(road.iter().any(|e| e.0 == "OpenDRIVE/header/geoReference" && e.2.contains("+zone=35")));
+    let roads: Vec<&Element> = road.iter().filter(|e| e.0 == "OpenDRIVE/road").collect();
+    assert!(roads.len() >= 2, "{}", roads.len());
+    let mut geometries = road.iter().filter(|e| e.0 == "OpenDRIVE/road" || e.0 == "OpenDRIVE/road/planView/geometry");
+    let mut current: Option<(f64, f64)> = None; // (the road's length, s reached)
+    let check = |c: Option<(f64, f64)>| {
+        if let Some((length, reached)) = c {
+            assert!((length - reached).abs() < 1e-4, "a road of {length} m whose plan view reaches {reached} m");
+        }
+    };
+    for e in geometries.by_ref() {
+        if e.0 == "OpenDRIVE/road" {
+            check(current);
+            current = Some((number(e, "length"), 0.0));
+        } else if let Some((_, reached)) = current.as_mut() {
+            // Lengths and s are written to the micrometre: their sums drift by as much per element.
+            assert!((number(e, "s") - *reached).abs() < 1e-4, "a gap in s at {}", number(e, "s"));
+            *reached += number(e, "length");
+        }
+    }
+    check(current);
+    assert!(road.iter().any(|e| e.0.ends_with("right/lane") && attr(e, "id") == "-2" && attr(e, "type") == "driving"));
+
+    // The scenario: the ego and the work zone's objects; every entity an action names exists;
+    // the ego's trajectory has a vertex per 0.1 s of the 30 s drive, 0.1 s apart, from 0.
+    let scenario = xml_elements(&folder.join("scenario.xosc"));
+    assert!(scenario.iter().any(|e| e.0 == "OpenSCENARIO/RoadNetwork/LogicFile" && attr(e, "filepath") == "road.xodr"));
+    let entities: Vec<String> =
+        scenario.iter().filter(|e| e.0 == "OpenSCENARIO/Entities/ScenarioObject").map(|e| attr(e, "name")).collect();
+    assert_eq!(entities.first().map(String::as_str), Some("Ego"));
+    assert!(scenario.iter().any(|e| e.0.ends_with("ScenarioObject/MiscObject")), "no work-zone object");
+    for e in scenario.iter().filter(|e| e.0.ends_with("/EntityRef") || e.0.ends_with("Init/Actions/Private")) {
+        assert!(entities.contains(&attr(e, "entityRef")), "{} names {}", e.0, attr(e, "entityRef"));
+    }
+    let mut times: Vec<f64> = Vec::new();
+    let mut in_ego = false;
+    for e in &scenario {
+        if e.0.ends_with("Story/Act/ManeuverGroup") {
+            in_ego = attr(e, "name") == "Ego";
+        } else if in_ego && e.0.ends_with("Polyline/Vertex") {
+            times.push(number(e, "time"));
+        }
+    }
+    assert!((299..=302).contains(&times.len()), "{}", times.len());
+    assert_eq!(times[0], 0.0);
+    assert!(times.windows(2).all(|w| (w[1] - w[0] - 0.1).abs() < 1e-9));
+    let start = scenario.iter().find(|e| attr(e, "name") == "log_start_s").expect("log_start_s");
+    assert!(number(start, "value") > 1.0e9);
+
+    // Windows: the road and one scenario per 10 s.
+    let windows = dir.join("windows");
+    let out = dash2sim(&[
+        "export",
+        &path(&log),
+        "--openscenario",
+        &path(&windows),
+        "--map",
+        &path(&map),
+        "--scenario-seconds",
+        "10",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let mut names: Vec<String> = std::fs::read_dir(&windows)
+        .expect("windows")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["road.xodr", "scenario-001.xosc", "scenario-002.xosc", "scenario-003.xosc"]);
+
+    // `map export` writes the road the export writes.
+    let alone = dir.join("alone.xodr");
+    let out = dash2sim(&["map", "export", &path(&map), "--opendrive", &path(&alone)]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(said.contains("lane centres within"), "{said}");
+    assert_eq!(std::fs::read(&alone).expect("alone"), std::fs::read(folder.join("road.xodr")).expect("road"));
+
+    // Bad input: a clear error and nothing left behind.
+    let fresh = dir.join("refused");
+    std::fs::create_dir_all(&fresh).expect("dir");
+    assert_export_refuses_bad_input(&dir, &log, &map, "--openscenario", &fresh, &fresh.join("osc"));
+    let out = dash2sim(&["map", "export", &path(&dir.join("far.osm")), "--opendrive", &path(&fresh.join("a.xodr"))]);
+    assert!(out.status.success(), "a road alone needs no drive: {}", stderr(&out));
+    let empty = write(&dir, "empty.osm", r#"<osm version="0.6"><node id="1" lat="0.0" lon="0.0"/></osm>"#);
+    let out = dash2sim(&["map", "export", &empty, "--opendrive", &path(&fresh.join("b.xodr"))]);
+    assert!(!out.status.success() && stderr(&out).contains("no lanes"), "{}", stderr(&out));
+    assert!(!fresh.join("b.xodr").exists() && !fresh.join("b.partial").exists());
 }
 
 /// A pickle's structure as serde-pickle reads it: numpy arrays (an unresolved global) are

@@ -109,14 +109,16 @@ def test_simulator_exports_are_the_command_line_s_bytes(corpus, corpus_plan, das
     for side in ("py", "cli"):
         (tmp_path / side).mkdir()
     written = dash2sim.export(log, map=tile, commonroad=tmp_path / "py" / "s.xml", scenarionet=tmp_path / "py" / "sn",
-                              scenario_seconds=10)
-    assert "CommonRoad" in written[0] and "ScenarioNet" in written[-1], written
+                              openscenario=tmp_path / "py" / "osc", scenario_seconds=10)
+    assert "CommonRoad" in written[0] and "OpenSCENARIO" in written[-1], written
     result = run_cli(dash2sim_bin, "export", log, "--map", tile, "--commonroad", tmp_path / "cli" / "s.xml",
-                     "--scenarionet", tmp_path / "cli" / "sn", "--scenario-seconds", "10")
+                     "--scenarionet", tmp_path / "cli" / "sn", "--openscenario", tmp_path / "cli" / "osc",
+                     "--scenario-seconds", "10")
     assert result.returncode == 0, result.stderr
     py_files = sorted(p.relative_to(tmp_path / "py") for p in (tmp_path / "py").rglob("*") if p.is_file())
     cli_files = sorted(p.relative_to(tmp_path / "cli") for p in (tmp_path / "cli").rglob("*") if p.is_file())
     assert py_files == cli_files and any(p.suffix == ".pkl" for p in py_files)
+    assert any(p.suffix == ".xosc" for p in py_files) and any(p.suffix == ".xodr" for p in py_files)
     for name in py_files:
         assert (tmp_path / "py" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
     with pytest.raises(dash2sim.Dash2SimError, match="--scenarionet needs --map"):

@@ -25,7 +25,9 @@ use super::partial::Cleanup;
 use super::projection::Projection;
 use super::request::ScenarioRequest;
 use super::road::{road, Connector, Road};
-use super::ticks::{agents_at_ticks, by_track, on_map, runs, standing, stands_still, windows, AgentTick, EgoTick, OnMap};
+use super::ticks::{
+    agents_at_ticks, by_track, on_map, runs, standing, stands_still, windows, AgentTick, EgoTick, OnMap,
+};
 use crate::geometry::{band, is_simple, Line};
 use crate::{Error, Result};
 use dash2sim_core::class::name_of as class_name;

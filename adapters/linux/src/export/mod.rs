@@ -12,8 +12,8 @@ pub mod nuplan;
 pub mod opendrive;
 pub mod openscenario;
 mod partial;
-pub mod plan_view;
 pub mod pickle;
+pub mod plan_view;
 pub mod projection;
 mod request;
 pub mod road;
@@ -284,13 +284,12 @@ fn scenarionet(log: &LogContents, request: &ExportRequest, tile: &[u8], dir: &Pa
 fn openscenario(log: &LogContents, request: &ExportRequest, tile: &[u8], dir: &Path) -> Result<Vec<String>> {
     let log_name = request.log.display().to_string();
     let started = std::time::Instant::now();
-    let out = openscenario::export(&ScenarioRequest {
-        log,
-        log_name: &log_name,
-        tile,
-        out: dir,
-        window_s: request.scenario_seconds,
-    })?;
+    let road_name =
+        request.map.as_deref().and_then(Path::file_name).map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let out = openscenario::export(
+        &ScenarioRequest { log, log_name: &log_name, tile, out: dir, window_s: request.scenario_seconds },
+        &road_name,
+    )?;
     let seconds = started.elapsed().as_secs_f64();
     let mut lines = vec![opendrive_line(&out.road, &out.opendrive)];
     lines.extend(out.scenarios.iter().map(|s| {

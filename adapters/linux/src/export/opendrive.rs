@@ -89,7 +89,8 @@ pub fn opendrive(road: &Road, projection: &Projection, name: &str) -> Result<Ope
             lines.push(None);
             continue;
         };
-        let line = RoadLine { plan, widths: pieces.iter().map(|&i| road.pieces[i].width).collect(), pieces: pieces.clone() };
+        let line =
+            RoadLine { plan, widths: pieces.iter().map(|&i| road.pieces[i].width).collect(), pieces: pieces.clone() };
         for (k, &i) in pieces.iter().enumerate() {
             let drawn = sample(&line.plan, line.centre_t(k), line.centre_t(k));
             worst_centre_m = worst_centre_m.max(hausdorff(&drawn, &local(&road.pieces[i].centre)));
@@ -184,14 +185,23 @@ pub fn opendrive(road: &Road, projection: &Projection, name: &str) -> Result<Ope
         let entering = connecting.iter().position(|c| c.to.0 == b);
         let mut link = String::new();
         if let Some(k) = entering {
-            let _ = write!(link, "      <predecessor elementType=\"junction\" elementId=\"{}\"/>\n", junction_id(&mut sets, k));
+            let _ = writeln!(
+                link,
+                "      <predecessor elementType=\"junction\" elementId=\"{}\"/>",
+                junction_id(&mut sets, k)
+            );
         }
         if let Some(k) = leaving {
-            let _ = write!(link, "      <successor elementType=\"junction\" elementId=\"{}\"/>\n", junction_id(&mut sets, k));
+            let _ = writeln!(
+                link,
+                "      <successor elementType=\"junction\" elementId=\"{}\"/>",
+                junction_id(&mut sets, k)
+            );
         }
         let speed = line.pieces.first().and_then(|&i| road.pieces[i].speed_limit);
         road_xml(&mut x, road_id(b), "-1", &line.plan, &link, speed, |x| {
-            let _ = writeln!(x, "        <laneOffset s=\"0\" a=\"{:.4}\" b=\"0\" c=\"0\" d=\"0\"/>", 0.5 * line.widths[0]);
+            let _ =
+                writeln!(x, "        <laneOffset s=\"0\" a=\"{:.4}\" b=\"0\" c=\"0\" d=\"0\"/>", 0.5 * line.widths[0]);
             x.push_str("        <laneSection s=\"0\">\n          <center>\n            <lane id=\"0\" type=\"none\" level=\"false\"/>\n          </center>\n          <right>\n");
             for (k, w) in line.widths.iter().enumerate() {
                 let _ = writeln!(
@@ -276,7 +286,10 @@ fn road_xml(
     }
     match speed {
         Some(v) => {
-            let _ = writeln!(x, "    <type s=\"0\" type=\"town\">\n      <speed max=\"{v:.2}\" unit=\"m/s\"/>\n    </type>");
+            let _ = writeln!(
+                x,
+                "    <type s=\"0\" type=\"town\">\n      <speed max=\"{v:.2}\" unit=\"m/s\"/>\n    </type>"
+            );
         }
         None => x.push_str("    <type s=\"0\" type=\"town\"/>\n"),
     }

@@ -21,8 +21,8 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use dash2sim_core::class;
-use dash2sim_core::score::AgentKind;
 use dash2sim_core::obb::PACIFICA;
+use dash2sim_core::score::AgentKind;
 
 use super::opendrive::{opendrive, OpenDrive};
 use super::partial::Cleanup;
@@ -70,14 +70,15 @@ pub struct OpenScenarioExport {
     pub opendrive: OpenDrive,
 }
 
-/// Export `request` (its `out` a folder, made if missing). Errors name what is wrong;
-/// nothing is left behind on an error.
-pub fn export(request: &ScenarioRequest<'_>) -> Result<OpenScenarioExport> {
+/// Export `request` (its `out` a folder, made if missing), the road named `road_name` (the
+/// map's file name, as `map export` names it). Errors name what is wrong; nothing is left
+/// behind on an error.
+pub fn export(request: &ScenarioRequest<'_>, road_name: &str) -> Result<OpenScenarioExport> {
     let OnMap { view, map_projection, log_projection, ticks, .. } =
         on_map(request.log, request.log_name, request.tile, 1.0 / TIME_STEP_S)?;
     let windows = windows(ticks.len(), request.window_s, TIME_STEP_S, MIN_STEPS, "OpenSCENARIO", request.log_name)?;
     let network = road(&view, &map_projection, 0.0)?;
-    let drive = opendrive(&network, &map_projection, request.log_name)?;
+    let drive = opendrive(&network, &map_projection, road_name)?;
     let origin = drive.offset;
     let agents = agents_at_ticks(request.log, &ticks, &log_projection);
     std::fs::create_dir_all(request.out).map_err(|e| Error::file(request.out, e))?;
@@ -209,8 +210,7 @@ fn track_entities(agents: &[&AgentTick], from: usize, origin: (f64, f64)) -> Vec
         let Some(first) = states.first() else { continue };
         let class_name = class::name_of(first.track.class);
         let kind = kind_of(first.track.class);
-        let size =
-            (first.track.l_mm as f64 * 1e-3, first.track.w_mm as f64 * 1e-3, first.track.h_mm as f64 * 1e-3);
+        let size = (first.track.l_mm as f64 * 1e-3, first.track.w_mm as f64 * 1e-3, first.track.h_mm as f64 * 1e-3);
         let size = (size.0.max(0.01), size.1.max(0.01), size.2.max(0.01));
         // A vehicle's reference point is its rear axle; anything else's, its box's centre.
         let centre_ahead = if matches!(kind, Kind::Vehicle(_)) { REAR_AXLE_BEHIND_CENTRE * size.0 } else { 0.0 };
@@ -342,7 +342,12 @@ fn scenario_xml(entities: &[Entity], header: &Header, steps: usize) -> String {
             e.name
         );
         for v in &e.path {
-            let _ = writeln!(x, "                    <Vertex time=\"{:.3}\"><Position>{}</Position></Vertex>", v.time, v.xml());
+            let _ = writeln!(
+                x,
+                "                    <Vertex time=\"{:.3}\"><Position>{}</Position></Vertex>",
+                v.time,
+                v.xml()
+            );
         }
         let _ = writeln!(
             x,

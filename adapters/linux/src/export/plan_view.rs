@@ -97,7 +97,11 @@ impl PlanView {
             // A line on from a line in the same direction is the same line (OpenDRIVE's
             // checkers call two a redundant declaration).
             match view.elements.last_mut() {
-                Some(last) if curvature == 0.0 && last.curvature == 0.0 && wrap(heading - last.heading).abs() < STRAIGHT_RAD => {
+                Some(last)
+                    if curvature == 0.0
+                        && last.curvature == 0.0
+                        && wrap(heading - last.heading).abs() < STRAIGHT_RAD =>
+                {
                     last.length += length;
                 }
                 _ => view.elements.push(Element { s, x, y, heading, length, curvature }),
