@@ -333,6 +333,21 @@ fn assert_export_refuses_bad_input(dir: &Path, log: &Path, map: &Path, flag: &st
     assert!(left.is_empty(), "left behind: {left:?}");
 }
 
+/// `dash2sim export LOG FLAG TARGET --map MAP --scenario-seconds SECONDS` (asserted to succeed),
+/// then the sorted names of the files in `folder`.
+fn export_windows(log: &Path, map: &Path, flag: &str, target: &Path, seconds: &str, folder: &Path) -> Vec<String> {
+    let path = |p: &Path| p.display().to_string();
+    let out =
+        dash2sim(&["export", &path(log), flag, &path(target), "--map", &path(map), "--scenario-seconds", seconds]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let mut names: Vec<String> = std::fs::read_dir(folder)
+        .expect("the export's folder")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
 #[test]
 fn export_commonroad_writes_lanelets_obstacles_and_the_ego_and_refuses_bad_input() {
     let dir = scratch("commonroad");
@@ -395,24 +410,8 @@ fn export_commonroad_writes_lanelets_obstacles_and_the_ego_and_refuses_bad_input
         .any(|e| e.0.ends_with("location/geoTransformation/geoReference") && e.2.contains("+zone=35")));
 
     // Windows: one scenario per 10 s, each with its own solution.
-    let windows = dir.join("windows/w.xml");
     std::fs::create_dir_all(dir.join("windows")).expect("dir");
-    let out = dash2sim(&[
-        "export",
-        &path(&log),
-        "--commonroad",
-        &path(&windows),
-        "--map",
-        &path(&map),
-        "--scenario-seconds",
-        "10",
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    let mut names: Vec<String> = std::fs::read_dir(dir.join("windows"))
-        .expect("windows")
-        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
+    let names = export_windows(&log, &map, "--commonroad", &dir.join("windows/w.xml"), "10", &dir.join("windows"));
     assert_eq!(
         names,
         ["w-001.solution.xml", "w-001.xml", "w-002.solution.xml", "w-002.xml", "w-003.solution.xml", "w-003.xml"]
@@ -492,22 +491,7 @@ fn export_openscenario_writes_a_road_and_scenarios_of_the_log_and_refuses_bad_in
 
     // Windows: the road and one scenario per 10 s.
     let windows = dir.join("windows");
-    let out = dash2sim(&[
-        "export",
-        &path(&log),
-        "--openscenario",
-        &path(&windows),
-        "--map",
-        &path(&map),
-        "--scenario-seconds",
-        "10",
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    let mut names: Vec<String> = std::fs::read_dir(&windows)
-        .expect("windows")
-        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
+    let names = export_windows(&log, &map, "--openscenario", &windows, "10", &windows);
     assert_eq!(names, ["road.xodr", "scenario-001.xosc", "scenario-002.xosc", "scenario-003.xosc"]);
 
     // `map export` writes the road the export writes.
@@ -560,26 +544,10 @@ fn export_scenarionet_writes_a_dataset_with_the_ego_objects_and_lanes_and_refuse
     let dir = scratch("scenarionet");
     let out = demo_ideal_offline(&dir, "30");
     assert!(out.status.success(), "{}", stderr(&out));
-    let path = |p: &Path| p.display().to_string();
     let (log, map) = (dir.join("finished.d2slog"), dir.join("road.map"));
     let dataset = dir.join("dataset");
-    let out = dash2sim(&[
-        "export",
-        &path(&log),
-        "--scenarionet",
-        &path(&dataset),
-        "--map",
-        &path(&map),
-        "--scenario-seconds",
-        "10",
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
     // Three windows of 10 s and ScenarioNet's two index files, nothing else.
-    let mut names: Vec<String> = std::fs::read_dir(&dataset)
-        .expect("dataset")
-        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
+    let names = export_windows(&log, &map, "--scenarionet", &dataset, "10", &dataset);
     let scenarios: Vec<String> = names.iter().filter(|n| n.starts_with("sd_dash2sim_")).cloned().collect();
     assert_eq!(scenarios.len(), 3, "{names:?}");
     assert_eq!(names.len(), 5, "{names:?}");
