@@ -6,7 +6,7 @@ use std::path::Path;
 use dash2sim_core::anchor::{AnchorConfig, Observability};
 use dash2sim_core::nalgebra::Vector3;
 use dash2sim_linux::trajectory::{Format, Trajectory};
-use dash2sim_linux::verify::anchoring::{self, FrameEstimate};
+use dash2sim_verify::anchoring::{self, FrameEstimate};
 pub use dash2sim_sim::scenario::vo::VoModel;
 
 /// The real inputs of the scenario.

@@ -6,8 +6,8 @@
 
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::PACIFICA;
-use dash2sim_linux::verify::decide::{Decided, Decision, DoubtSettings};
-use dash2sim_linux::verify::{read_objects, replay_in_doubt, StatedUncertainty};
+use dash2sim_verify::decide::{Decided, Decision, DoubtSettings};
+use dash2sim_verify::{read_objects, replay_in_doubt, StatedUncertainty};
 use dash2sim_sim::fidelity::drive::verify_truth;
 use dash2sim_sim::scenario::profile::{Profile, Receiver};
 use dash2sim_sim::scenario::write::{road_tile, write_scenario};

@@ -7,7 +7,7 @@ use std::path::Path;
 use dash2sim_core::sim3::Sim3;
 use dash2sim_core::traj::{Delta, RpePairs, Statistics};
 use dash2sim_linux::trajectory::{Format, Trajectory};
-use dash2sim_linux::verify::evaluate::{self, Align, Relation};
+use dash2sim_verify::evaluate::{self, Align, Relation};
 use dash2sim_tests::{data_dir, read_json, rel_diff};
 use serde_json::Value;
 

@@ -2,7 +2,7 @@
 //! `motmetrics/PROVENANCE.md`): every summary metric, and the event list frame by frame.
 
 use dash2sim_linux::ingest::motchallenge::read_mot;
-use dash2sim_linux::verify::mot::{compare, summarize, EventKind};
+use dash2sim_verify::mot::{compare, summarize, EventKind};
 use dash2sim_tests::data_dir;
 
 #[test]

@@ -9,9 +9,9 @@
 
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
-use dash2sim_linux::export::nuplan::gpkg::Layer;
-use dash2sim_linux::export::nuplan::map::layers;
-use dash2sim_linux::export::projection::Projection;
+use dash2sim_export::nuplan::gpkg::Layer;
+use dash2sim_export::nuplan::map::layers;
+use dash2sim_export::projection::Projection;
 use dash2sim_linux::geometry::contains;
 use dash2sim_tests::{data_dir, workspace_root};
 

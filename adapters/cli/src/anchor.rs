@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use dash2sim_linux::record::VoFrame;
-use dash2sim_linux::verify::anchoring::{self, AnchorRequest};
+use dash2sim_verify::anchoring::{self, AnchorRequest};
 use dash2sim_linux::Result;
 
 /// Arguments of `dash2sim anchor`.

@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use dash2sim_linux::finish::windows::{DriveVerification, Verdict};
-use dash2sim_linux::finish::{self, FinishRequest, FinishedFile};
+use dash2sim_finish::windows::{DriveVerification, Verdict};
+use dash2sim_finish::{self, FinishRequest, FinishedFile};
 use dash2sim_linux::log::signing;
 
 use crate::record::DeviceArgs;

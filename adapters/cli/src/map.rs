@@ -77,7 +77,7 @@ pub fn check(map: &Path, poses: &Path, passes: u32, as_json: bool) -> Result<()>
 
 /// `dash2sim map export --opendrive`.
 pub fn export(map: &Path, opendrive: &Path) -> Result<()> {
-    let written = dash2sim_linux::export::opendrive::write(map, opendrive)?;
-    println!("{}", dash2sim_linux::export::opendrive_line(opendrive, &written));
+    let written = dash2sim_export::opendrive::write(map, opendrive)?;
+    println!("{}", dash2sim_export::opendrive_line(opendrive, &written));
     Ok(())
 }

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use dash2sim_linux::plot::{self, PlotRequest};
+use dash2sim_verify::plot::{self, PlotRequest};
 use dash2sim_linux::Result;
 
 /// `dash2sim plot` arguments.

@@ -69,10 +69,10 @@ pub struct SweepArgs {
     #[arg(long, value_enum, default_value = "vo")]
     pub relative_motion: crate::record::Motion,
     /// Decide each log with this many σ of doubt (`verify --decide-at`).
-    #[arg(long, value_name = "K", default_value_t = dash2sim_linux::verify::decide::DEFAULT_DECIDE_AT)]
+    #[arg(long, value_name = "K", default_value_t = dash2sim_verify::decide::DEFAULT_DECIDE_AT)]
     pub decide_at: f64,
     /// σ of the place relative to the ego of each object whose log states none, m along one axis (`verify --object-sigma`)
-    #[arg(long, value_name = "M", default_value_t = dash2sim_linux::verify::decide::DEFAULT_OBJECT_SIGMA_M)]
+    #[arg(long, value_name = "M", default_value_t = dash2sim_verify::decide::DEFAULT_OBJECT_SIGMA_M)]
     pub object_sigma: f64,
     /// Length of each drive, s.
     #[arg(long, default_value_t = 40.0)]
@@ -235,7 +235,7 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         anchors: args.anchors,
         oracle_latency: args.oracle_latency,
         relative_motion: args.relative_motion.into(),
-        doubt: dash2sim_linux::verify::decide::DoubtSettings {
+        doubt: dash2sim_verify::decide::DoubtSettings {
             decide_at: args.decide_at,
             object_sigma_m: args.object_sigma,
         },

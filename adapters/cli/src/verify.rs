@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::obb::CORNER_NAMES;
-use dash2sim_linux::verify::{self, Verification};
+use dash2sim_verify::{self, Verification};
 use dash2sim_linux::{Error, Result};
 
 #[derive(Debug, clap::Args)]

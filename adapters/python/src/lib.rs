@@ -11,11 +11,11 @@
 use std::path::PathBuf;
 
 use dash2sim_core::obb::{Footprint, PACIFICA};
-use dash2sim_linux::export::ExportRequest;
-use dash2sim_linux::finish::FinishRequest;
+use dash2sim_export::ExportRequest;
+use dash2sim_finish::FinishRequest;
 use dash2sim_linux::log::{self, parquet_export};
 use dash2sim_linux::record::{Device, VoFrame};
-use dash2sim_linux::verify::{EgoSource, VerifyRequest};
+use dash2sim_verify::{EgoSource, VerifyRequest};
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
@@ -92,7 +92,7 @@ fn finish(
     let device = Device { mount, mode, uere, ..Device::default() };
     let args = FinishRequest { log, output, anchors, map, device, keyframe, require_signed };
     py.detach(|| {
-        let finished = dash2sim_linux::finish::finish_file(&args)?;
+        let finished = dash2sim_finish::finish_file(&args)?;
         serde_json::to_value(finished).map(|report| report.to_string()).map_err(dash2sim_linux::Error::other)
     })
     .map_err(error)
@@ -113,8 +113,8 @@ fn verify(
     decide_at: Option<f64>,
     object_sigma: Option<f64>,
 ) -> PyResult<String> {
-    let defaults = dash2sim_linux::verify::decide::DoubtSettings::default();
-    let doubt = dash2sim_linux::verify::decide::DoubtSettings {
+    let defaults = dash2sim_verify::decide::DoubtSettings::default();
+    let doubt = dash2sim_verify::decide::DoubtSettings {
         decide_at: decide_at.unwrap_or(defaults.decide_at),
         object_sigma_m: object_sigma.unwrap_or(defaults.object_sigma_m),
     };
@@ -141,9 +141,9 @@ fn verify(
     };
     py.detach(|| {
         let (verification, _) =
-            dash2sim_linux::verify::evaluate(&request, &mut |warning| eprintln!("warning: {warning}"))?;
+            dash2sim_verify::evaluate(&request, &mut |warning| eprintln!("warning: {warning}"))?;
         Ok::<_, dash2sim_linux::Error>(
-            serde_json::to_value(dash2sim_linux::verify::report(&verification, channel_sensitive))
+            serde_json::to_value(dash2sim_verify::report(&verification, channel_sensitive))
                 .map_err(dash2sim_linux::Error::other)?
                 .to_string(),
         )
@@ -185,7 +185,7 @@ fn export(
         scenario_seconds,
         map_name: None,
     };
-    let exported = py.detach(|| dash2sim_linux::export::export(&request)).map_err(error)?;
+    let exported = py.detach(|| dash2sim_export::export(&request)).map_err(error)?;
     Ok((exported.warning, exported.written))
 }
 

@@ -33,7 +33,7 @@ use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use serde_json::{json, Value};
 
-use dash2sim_linux::finish::FinishReport;
+use dash2sim_finish::FinishReport;
 use dash2sim_linux::log::{self, LogContents};
 use dash2sim_linux::record::{self, Setup};
 use dash2sim_linux::{Error, Result};
@@ -247,18 +247,18 @@ fn generated(args: &DemoArgs, progress: &Progress) -> Result<Value> {
     write_file(&out.join("drive.geojson"), log::export::geojson(&log)?.to_string())?;
     let nuplan_dir = out.join("nuplan");
     let _ = std::fs::remove_dir_all(&nuplan_dir);
-    let nuplan = dash2sim_linux::export::nuplan::export(&dash2sim_linux::export::nuplan::NuplanRequest {
+    let nuplan = dash2sim_export::nuplan::export(&dash2sim_export::nuplan::NuplanRequest {
         log: finished_log,
         log_name: &finished_path.display().to_string(),
         tile: &tile,
-        map_name: &dash2sim_linux::export::nuplan::map_name("road"),
+        map_name: &dash2sim_export::nuplan::map_name("road"),
         out: &nuplan_dir,
         scene_s: 5.0,
     });
 
     progress.step(7, STEPS, "drawing the drive (plot.png, plot.svg)");
     for name in ["plot.png", "plot.svg"] {
-        dash2sim_linux::plot::plot(&dash2sim_linux::plot::PlotRequest {
+        dash2sim_verify::plot::plot(&dash2sim_verify::plot::PlotRequest {
             log: log_path.clone(),
             map: Some(map_path.clone()),
             finished: Some(finished_path.clone()),

@@ -1,6 +1,6 @@
 //! The views of a log every exporter shares (its ego poses, its tracks, class names) and the
 //! two small exports, TUM (evo) and GeoJSON (QGIS). The MCAP and Parquet writers are beside
-//! this module; `dash2sim export` itself is `crate::export`.
+//! this module; `dash2sim export` itself is the `dash2sim-export` crate.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;

@@ -336,7 +336,7 @@ pub fn run(dir: &Path, out: &Path) -> Result<Report> {
 
     let mount = record::parse_mount(&mount())?;
     let name = minute.path.display().to_string();
-    let finished = dash2sim_linux::finish::finish(log, &name, None, None, mount, Default::default(), UERE)?;
+    let finished = dash2sim_finish::finish(log, &name, None, None, mount, Default::default(), UERE)?;
     let finished_device = device_times(&finished.records)?;
     let finished_compared = compare(&finished.records, &finished_device, truth)?;
     let online_from =

@@ -20,7 +20,7 @@ use super::comma::{self, compare, Compared, ORIGIN, UERE};
 use super::{device_times, write};
 use crate::{Error, Result};
 use dash2sim_core::pipeline::RelativeMotion;
-use dash2sim_linux::finish::solve::Settings;
+use dash2sim_finish::solve::Settings;
 use dash2sim_linux::log;
 use dash2sim_linux::record::{self, Device, RecordRequest, VoFrame};
 use dash2sim_linux::trajectory::{Format, Trajectory};
@@ -237,7 +237,7 @@ pub fn run(dir: &Path, work: &Path, receiver: Receiver) -> Result<ImuMinute> {
     let name = args.output.display().to_string();
     // Finished as `dash2sim finish` would, in the frame the device recorded in.
     let settings = Settings { gravity_aligned: device.mode == VoFrame::Gravity, ..Settings::default() };
-    let finished = dash2sim_linux::finish::finish(&log, &name, None, None, mount, settings, uere)?;
+    let finished = dash2sim_finish::finish(&log, &name, None, None, mount, settings, uere)?;
     // The finish's offset is a grade's (nose up positive); the Z-Y-X pitch is nose down.
     let found = finished.report.reckoning.and_then(|r| r.pitch_offset_deg).map_or(f64::NAN, |d| -d);
     let finished_times = device_times(&finished.records)?;

@@ -16,11 +16,11 @@ use crate::scenario::street::street_anchors;
 use crate::scenario::write::START_UNIX_S;
 use crate::scenario::Scenario;
 use crate::{Error, Result};
-use dash2sim_linux::finish::FinishReport;
+use dash2sim_finish::FinishReport;
 use dash2sim_linux::log::{self, LogContents};
 use dash2sim_linux::record::Setup;
-use dash2sim_linux::verify::decide::DoubtSettings;
-use dash2sim_linux::verify::{AgentsByTime, Metrics, StatedUncertainty, VerifyReport};
+use dash2sim_verify::decide::DoubtSettings;
+use dash2sim_verify::{AgentsByTime, Metrics, StatedUncertainty, VerifyReport};
 
 /// Which street-imagery anchors finishing is given.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -65,7 +65,7 @@ impl BothModes {
     }
 
     /// The same, and with `doubt` the verdicts with the doubt of the ego's and the objects'
-    /// stated `sigmas` ([`dash2sim_linux::verify::decide`]).
+    /// stated `sigmas` ([`dash2sim_verify::decide`]).
     fn in_doubt(
         map: MapView<'_>,
         ego: &[(f64, Pose2)],
@@ -74,8 +74,8 @@ impl BothModes {
         doubt: Option<DoubtSettings>,
     ) -> Result<Self> {
         let mode = |sensitive| -> Result<VerifyReport> {
-            let v = dash2sim_linux::verify::replay_in_doubt(map, ego, sigmas, agents, sensitive, PACIFICA, doubt)?;
-            Ok(dash2sim_linux::verify::report(&v, sensitive))
+            let v = dash2sim_verify::replay_in_doubt(map, ego, sigmas, agents, sensitive, PACIFICA, doubt)?;
+            Ok(dash2sim_verify::report(&v, sensitive))
         };
         Ok(BothModes { insensitive: mode(false)?, sensitive: mode(true)? })
     }
@@ -89,7 +89,7 @@ pub fn verify_truth(scenario: &Scenario, drive_dir: &Path) -> Result<BothModes> 
     let origin = dash2sim_core::geo::Geodetic::new(lat, lon, height).map_err(Error::other)?;
     let tile = crate::scenario::write::road_tile(drive_dir, origin)?;
     let map = MapView::parse(&tile).map_err(|e| Error::refused("map", e))?;
-    let agents = dash2sim_linux::verify::read_objects(&drive_dir.join("objects.csv"))?;
+    let agents = dash2sim_verify::read_objects(&drive_dir.join("objects.csv"))?;
     BothModes::of(map, &truth_ego(scenario), &agents)
 }
 
@@ -237,7 +237,7 @@ fn window_pairs(
         if stretch.is_empty() {
             continue;
         }
-        let s = dash2sim_linux::verify::replay(map, &stretch, agents, false, PACIFICA)?.scores;
+        let s = dash2sim_verify::replay(map, &stretch, agents, false, PACIFICA)?.scores;
         pairs.push(WindowPair {
             start_s: start,
             end_s: end,
@@ -265,7 +265,7 @@ fn judge(
     if !log.records.iter().any(|r| matches!(r, Record::EgoPose(_))) {
         return Ok(Judged { judgement, verification: None, ego_with_true_agents: None });
     }
-    let (ego, agents) = dash2sim_linux::verify::from_contents(log, name, &map)?;
+    let (ego, agents) = dash2sim_verify::from_contents(log, name, &map)?;
     let sigmas = StatedUncertainty::of(log);
     // The true objects are on the drive's clock (0 at the first frame), the log's ego on
     // the log's: move the objects onto the log's clock.
@@ -320,16 +320,16 @@ pub fn assess(
     };
     let anchor_file = anchors_text
         .as_deref()
-        .map(dash2sim_linux::finish::anchors::parse)
+        .map(dash2sim_finish::anchors::parse)
         .transpose()
         .map_err(|(line, why)| Error::line(anchors_path, line, why))?;
     let anchors_name = anchors_path.display().to_string();
-    let settings = dash2sim_linux::finish::solve::Settings { gravity_aligned: true, ..Default::default() };
+    let settings = dash2sim_finish::solve::Settings { gravity_aligned: true, ..Default::default() };
     let settings = match told_latency_s {
         Some(latency) => settings.with_latency_held(latency),
         None => settings,
     };
-    let finished = dash2sim_linux::finish::finish(
+    let finished = dash2sim_finish::finish(
         log,
         log_name,
         anchor_file.as_ref().map(|f| (anchors_name.as_str(), f)),
@@ -342,7 +342,7 @@ pub fn assess(
     let finished_bytes = log::import::encode_in_order(&header, &finished.records)?;
     let finished_log = log::decode(&finished_bytes, "finished").map_err(Error::other)?;
 
-    let truth_agents = dash2sim_linux::verify::read_objects(&drive_dir.join("objects.csv"))?;
+    let truth_agents = dash2sim_verify::read_objects(&drive_dir.join("objects.csv"))?;
     let truth = BothModes::of(map, &truth_ego(scenario), &truth_agents)?;
     let online = judge(scenario, log, "the online log", map, &truth_agents, doubt)?;
     let finished_judged = judge(scenario, &finished_log, "the finished log", map, &truth_agents, doubt)?;

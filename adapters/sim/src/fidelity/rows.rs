@@ -13,8 +13,8 @@ use super::drive::{Anchors, Assessment, WindowPair};
 use crate::scenario::profile::{Profile, Receiver};
 use crate::scenario::{Driver, Drivers};
 use crate::{Error, Result};
-use dash2sim_linux::verify::decide::{decision_or_point, Decision, DoubtSettings};
-use dash2sim_linux::verify::VerifyReport;
+use dash2sim_verify::decide::{decision_or_point, Decision, DoubtSettings};
+use dash2sim_verify::VerifyReport;
 
 /// A sweep (`dash2sim scenario sweep`).
 #[derive(Debug, Clone)]

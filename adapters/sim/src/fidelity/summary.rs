@@ -8,7 +8,7 @@ use dash2sim_core::pipeline::RelativeMotion;
 use serde::Serialize;
 
 use super::rows::{Row, SweepRequest, Verdict, Verdicts};
-use dash2sim_linux::verify::decide::Decision;
+use dash2sim_verify::decide::Decision;
 
 /// A log's verdicts against the truth's: rows truth, columns the log.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -684,7 +684,7 @@ mod tests {
             anchors: super::super::drive::Anchors::Street,
             oracle_latency: true,
             relative_motion: RelativeMotion::Vo,
-            doubt: dash2sim_linux::verify::decide::DoubtSettings::default(),
+            doubt: dash2sim_verify::decide::DoubtSettings::default(),
             duration: 40.0,
             jobs: None,
             output: std::path::PathBuf::new(),

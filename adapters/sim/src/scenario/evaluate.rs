@@ -14,7 +14,7 @@ use dash2sim_core::track3d::{smooth_track, Config3d, Detection3d, Stats3d, Track
 
 use super::sensors::detection_to_world;
 use super::Scenario;
-use dash2sim_linux::verify::mot::{self, Accumulator, EventKind};
+use dash2sim_verify::mot::{self, Accumulator, EventKind};
 
 /// Largest horizontal centre distance at which a track or detection matches an object.
 pub const MATCH_DISTANCE_M: f64 = 2.0;

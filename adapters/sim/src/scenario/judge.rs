@@ -75,7 +75,7 @@ pub fn truth_at(scenario: &Scenario, t: f64) -> Option<Pose2> {
     scenario.frames.get(k).filter(|f| (f.ego.t - t).abs() < 1e-3).map(|f| Pose2::new(f.ego.x, f.ego.y, f.ego.heading))
 }
 
-fn figures(s: &dash2sim_linux::verify::mot::Summary) -> (f64, f64) {
+fn figures(s: &dash2sim_verify::mot::Summary) -> (f64, f64) {
     (s.get("mota").unwrap_or(f64::NAN), s.get("idf1").unwrap_or(f64::NAN))
 }
 

@@ -1,0 +1,596 @@
+//! `dash2sim finish`: a device's log finished offline (`docs/finishing.md`).
+//!
+//! The device anchors causally, from what it has seen so far. Finishing re-estimates the
+//! whole drive at once from everything the log holds — VO poses, GNSS fixes, wheel speed —
+//! and optional external anchors ([`anchors`]), as one sparse least-squares problem
+//! ([`solve`], its drift prior learnt from the anchors by [`walk`]); re-expresses and
+//! smooths the 3D tracks ([`tracks`]); verifies the finished drive per window of nuPlan
+//! scenario length and as a whole ([`windows`]); and writes a
+//! finished log in the same format, whose first event says what it was finished from.
+//!
+//! The crate `dash2sim-finish` (issue #56: finishing out of the host library).
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+#![deny(clippy::print_stdout, clippy::print_stderr)]
+
+pub mod anchors;
+pub mod clock;
+pub mod raw;
+pub mod reckon;
+pub mod report;
+mod sessions;
+pub mod solve;
+pub mod tracks;
+pub mod walk;
+pub mod windows;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use dash2sim_core::binlog::{quantise, AnchorEstimate, EgoPose, Header, Record, FRAME_DEAD_RECKONED};
+use dash2sim_core::geo::{Geodetic, LocalFrame};
+use dash2sim_core::nalgebra::{Matrix3, Rotation3, Vector3};
+use dash2sim_core::pipeline::{
+    mount_record, similarity_record, CalibrationConfig, CameraMount, MountCalibration, MountEstimate,
+};
+use dash2sim_core::sim3::Pose;
+
+use dash2sim_linux::log::{self, event, LogContents};
+use dash2sim_linux::record::{Device, VoFrame};
+use dash2sim_linux::{Error, Result};
+use anchors::AnchorForm;
+pub use report::*;
+use sessions::{bridge_gaps, frame_interval, join_sessions, solve_sessions, starting_velocity, PlanarPose, Solved};
+use solve::{Anchor, AnchorAt, Fix, Settings, Solution, VoSample};
+
+/// A log to finish: `dash2sim finish` and the Python package's `finish` fill it.
+#[derive(Clone, Debug)]
+pub struct FinishRequest {
+    /// The device's log.
+    pub log: PathBuf,
+    /// The finished log.
+    pub output: PathBuf,
+    /// Geo-referenced anchors: CSV with the header `t,lat,lon,alt,sigma_m` (rear axle at log
+    /// time t, UTC s) or `x,y,z,lat,lon,alt,sigma_m` (a VO-frame point).
+    pub anchors: Option<PathBuf>,
+    /// A map tile: verify the finished drive per 15 s window and as a whole.
+    pub map: Option<PathBuf>,
+    /// The dashcam as given to `record`.
+    pub device: Device,
+    /// Keyframe spacing of the re-anchoring, s.
+    pub keyframe: f64,
+    /// Refuse the log unless every segment is signed by this public key, unaltered and in
+    /// an unbroken chain.
+    pub require_signed: Option<[u8; 32]>,
+}
+
+/// The keyframe spacing of the re-anchoring when none is named, s.
+pub const DEFAULT_KEYFRAME_S: f64 = 0.5;
+
+/// Smoothing of the finished ego's planar track: position σ of the VO-derived positions
+/// (m) and the car's white acceleration (m/s² per √s).
+const EGO_SMOOTHING: (f64, f64) = (0.05, 0.5);
+/// σ of the wheels' speed as the finished ego's smoother takes it, m/s: a vehicle bus's
+/// speed is some tens of milliseconds old (no latency is solved for the wheels), and at
+/// 1 m/s² of braking 0.1 s of it is 0.1 m/s.
+const WHEEL_SPEED_SIGMA: f64 = 0.1;
+/// Half the span of wheel speeds averaged for one VO pose, s.
+const WHEEL_SPEED_HALF_SPAN_S: f64 = 0.05;
+
+/// The wheels' mean speed over [`WHEEL_SPEED_HALF_SPAN_S`] either side of `t`, odometer
+/// units; `None` when no speed was logged that close. `speeds` in time order.
+fn wheel_speed_at(speeds: &[(f64, f64)], t: f64) -> Option<f64> {
+    let from = speeds.partition_point(|s| s.0 < t - WHEEL_SPEED_HALF_SPAN_S);
+    let near = speeds[from..].iter().take_while(|s| s.0 <= t + WHEEL_SPEED_HALF_SPAN_S).map(|s| s.1);
+    let (sum, n) = near.fold((0.0, 0usize), |(sum, n), v| (sum + v, n + 1));
+    (n > 0).then(|| sum / n as f64).filter(|v| v.is_finite())
+}
+
+/// A log's drive as the solver reads it, in the log's ENU frame.
+struct Drive {
+    vo: Vec<VoSample>,
+    fixes: Vec<Fix>,
+    speeds: Vec<(f64, f64)>,
+    /// What redoing the dead-reckoned poses found, when there were any.
+    reckoning: Option<ReckoningReport>,
+}
+
+/// `camera_to_body`: the mount the device reckoned with (its poses are the attitude
+/// through it).
+fn drive(log: &LogContents, frame: &LocalFrame, uere: f64, camera_to_body: &Matrix3<f64>) -> Drive {
+    let (mut vo, mut fixes, mut speeds) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut dead_reckoned, mut bias) = (Vec::new(), Vec::new());
+    for r in &log.records {
+        match r {
+            Record::FrameMeta(m) if m.flags & FRAME_DEAD_RECKONED != 0 => dead_reckoned.push(log::seconds(m.t_us)),
+            Record::ImuEstimate(e) => bias.push((log::seconds(e.t_us), [e.bias_x_e7, e.bias_y_e7, e.bias_z_e7])),
+            Record::VoPose(p) => vo.push(VoSample {
+                t: log::seconds(p.t_us),
+                session: u32::try_from(p.session).unwrap_or(u32::MAX),
+                position: Vector3::new(p.x as f64, p.y as f64, p.z as f64) * 1e-3,
+                rotation: Rotation3::from_euler_angles(
+                    p.roll_e4 as f64 * 1e-4,
+                    p.pitch_e4 as f64 * 1e-4,
+                    p.yaw_e4 as f64 * 1e-4,
+                )
+                .into_inner(),
+                grade_sigma: 0.0,
+                reckoned: false,
+            }),
+            Record::GnssFix(f) if f.mode >= 2 => {
+                let Ok(g) = Geodetic::new(f.lat_e7 as f64 * 1e-7, f.lon_e7 as f64 * 1e-7, f.alt_mm as f64 * 1e-3)
+                else {
+                    continue;
+                };
+                let hdop = if f.hdop_e2 > 0 { f.hdop_e2 as f64 * 0.01 } else { 1.0 };
+                let sigma_h = hdop * uere;
+                // A 2D fix's height is a guess.
+                let sigma_v = if f.mode >= 3 { 1.5 * sigma_h } else { 1e3 };
+                fixes.push(Fix { t: log::seconds(f.t_us), enu: frame.geodetic_to_enu(&g), sigma_h, sigma_v });
+            }
+            Record::VehicleSpeed(s) => speeds.push((log::seconds(s.t_us), s.speed_mm_s as f64 * 1e-3)),
+            _ => {}
+        }
+    }
+    let by_time = |a: &f64, b: &f64| a.total_cmp(b);
+    vo.sort_by(|a, b| by_time(&a.t, &b.t));
+    vo.dedup_by(|a, b| a.t <= b.t);
+    fixes.sort_by(|a, b| by_time(&a.t, &b.t));
+    speeds.sort_by(|a, b| by_time(&a.0, &b.0));
+    speeds.dedup_by(|a, b| a.0 <= b.0);
+    // Dead-reckoned poses (gyro + wheels) with the bias the drive found in the end.
+    dead_reckoned.sort_by(by_time);
+    bias.sort_by(|a, b| by_time(&a.0, &b.0));
+    for sample in vo.iter_mut() {
+        sample.reckoned = dead_reckoned.binary_search_by(|t| by_time(t, &sample.t)).is_ok();
+    }
+    let axis = |a: usize| -> Vec<(f64, f64)> { bias.iter().map(|(t, b)| (*t, b[a] as f64 * 1e-7)).collect() };
+    let forward_axis = reckon::with_final_forward_axis(&mut vo, camera_to_body);
+    let heading_corrected = reckon::with_final_bias(&mut vo, &axis(2));
+    let tilt_corrected = reckon::with_final_tilt_bias(&mut vo, &axis(0), &axis(1), camera_to_body);
+    let grade = reckon::with_grade(&mut vo, &fixes, camera_to_body);
+    let reckoning = vo.iter().any(|s| s.reckoned).then_some(ReckoningReport {
+        heading_corrected_max_deg: heading_corrected.to_degrees(),
+        tilt_corrected_max_deg: tilt_corrected.to_degrees(),
+        camera_turned_deg: forward_axis.map(f64::to_degrees),
+        pitch_offset_deg: grade.map(|g| g.pitch_offset.to_degrees()),
+        grade_baseline_m: grade.map(|g| g.baseline_m),
+        static_objects_turned_deg: None,
+    });
+    Drive { vo, fixes, speeds, reckoning }
+}
+
+/// The anchors of a file in the log's frame, with those refused while reading.
+fn anchors_in(file: &anchors::AnchorFile, frame: &LocalFrame) -> Vec<Anchor> {
+    file.anchors
+        .iter()
+        .map(|a| Anchor {
+            at: match a.at {
+                AnchorForm::Time(t) => AnchorAt::Time(t),
+                AnchorForm::VoPoint(x) => AnchorAt::VoPoint(x),
+            },
+            enu: frame.geodetic_to_enu(&a.position),
+            sigma: a.sigma,
+        })
+        .collect()
+}
+
+/// Finish a log that has been read. `anchor_file` and `map` are optional inputs.
+pub fn finish(
+    log: &LogContents,
+    name: &str,
+    anchor_file: Option<(&str, &anchors::AnchorFile)>,
+    map: Option<&[u8]>,
+    mount: CameraMount,
+    settings: Settings,
+    uere: f64,
+) -> Result<Finished> {
+    let header = log
+        .header
+        .ok_or_else(|| Error::invalid(format!("{name}: the header is damaged: no ENU origin to finish in")))?;
+    let frame =
+        log::frame(&header).ok_or_else(|| Error::invalid(format!("{name}: the header's origin is not a position")))?;
+    let drive = drive(log, &frame, uere, &mount.rotation());
+    let anchors = anchor_file.map(|(_, f)| anchors_in(f, &frame)).unwrap_or_default();
+    let calibrated = calibrate_mount(&drive.vo, mount);
+    let nominal_yaw = mount.roll_pitch_yaw[2];
+    let mount = calibrated.mount;
+    let lever = mount.rotation().transpose() * Vector3::from(mount.position);
+    let Solved { sessions, unsolved, verdicts } = solve_sessions(&drive, &anchors, lever, settings);
+    if sessions.is_empty() {
+        let why = unsolved.first().map_or_else(|| solve::SolveError::NoVo.to_string(), |u| u.2.clone());
+        return Err(Error::invalid(format!("{name}: {why}")));
+    }
+    let used_anchors = verdicts.iter().filter(|v| v.is_none()).count();
+    let mut refused: Vec<(usize, String)> = anchor_file.map(|(_, f)| f.refused.clone()).unwrap_or_default();
+    refused.extend(
+        verdicts.iter().enumerate().filter_map(|(k, v)| v.as_ref().map(|why| (line_of(anchor_file, k), why.clone()))),
+    );
+    refused.sort();
+
+    // The finished ego: every VO pose's camera through the solution and the mount, its
+    // planar track smoothed (the VO's frame-to-frame noise is not the car's motion).
+    // Each session smoothed on its own (a constant-velocity smoother across a gap would
+    // turn the two sessions' disagreement into a velocity), then the sessions joined.
+    let mut planar_poses: Vec<PlanarPose> = Vec::new();
+    // Where each session begins in `planar_poses`, and its wheel factor.
+    let mut starts: Vec<(usize, f64)> = Vec::new();
+    for solved in &sessions {
+        let vo = &drive.vo[solved.range.clone()];
+        let bodies: Vec<(f64, Pose)> = vo
+            .iter()
+            .filter_map(|s| {
+                let (c, rotation) = solved.solution.camera_at(vo, s.t)?;
+                Some((s.t, mount.body_pose(&Pose { rotation, translation: c })))
+            })
+            .collect();
+        let mut planar: Vec<tracks::Sample> = bodies
+            .iter()
+            .map(|(t, b)| tracks::Sample {
+                t: *t,
+                x: b.translation.x,
+                y: b.translation.y,
+                speed: wheel_speed_at(&drive.speeds, *t).map(|v| (v * solved.solution.wheel_factor, WHEEL_SPEED_SIGMA)),
+                ..tracks::Sample::default()
+            })
+            .collect();
+        let velocity = starting_velocity(&planar);
+        tracks::smooth_planar(&mut planar, velocity, EGO_SMOOTHING.0, EGO_SMOOTHING.1);
+        starts.push((planar_poses.len(), solved.solution.wheel_factor));
+        for ((t, body), p) in bodies.iter().zip(&planar) {
+            let heading = dash2sim_core::pipeline::mount::heading(&body.rotation);
+            let sigma = solved.solution.horizontal_sigma_at(*t);
+            planar_poses.push(PlanarPose {
+                t: *t,
+                x: p.x,
+                y: p.y,
+                z: body.translation.z,
+                heading,
+                vx: p.vx,
+                vy: p.vy,
+                sigma,
+            });
+        }
+    }
+    join_sessions(&mut planar_poses, &starts, &drive.speeds);
+    let mut ego: BTreeMap<i64, EgoPose> = BTreeMap::new();
+    let bridged = bridge_gaps(&planar_poses, frame_interval(&drive.vo), &drive.speeds);
+    let bridged_s: f64 = bridged.iter().map(|g| g.seconds).sum();
+    for pose in planar_poses.iter().chain(bridged.iter().flat_map(|g| &g.poses)) {
+        let t_us = quantise(pose.t, 1e-6);
+        ego.insert(
+            t_us,
+            EgoPose {
+                t_us,
+                x_mm: quantise(pose.x, 1e-3),
+                y_mm: quantise(pose.y, 1e-3),
+                z_mm: quantise(pose.z, 1e-3),
+                yaw_e4: quantise(pose.heading, 1e-4),
+                sigma_mm: if pose.sigma.is_finite() { quantise(pose.sigma, 1e-3) } else { 0 },
+            },
+        );
+    }
+    let online: BTreeMap<i64, EgoPose> =
+        log.records.iter().filter_map(|r| if let Record::EgoPose(p) = r { Some((p.t_us, *p)) } else { None }).collect();
+    let batches: Vec<_> =
+        log.records.iter().filter_map(|r| if let Record::Tracks3d(b) = r { Some(b.clone()) } else { None }).collect();
+    let ego_at = |poses: &BTreeMap<i64, EgoPose>, t: i64| {
+        poses
+            .get(&t)
+            .map(|p| [p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3, p.z_mm as f64 * 1e-3, p.yaw_e4 as f64 * 1e-4])
+    };
+    // The device placed its detections through the mount it had then; the finished ego
+    // goes with the mount calibrated over the whole drive.
+    let device_mounts: Vec<(i64, f64)> = log
+        .records
+        .iter()
+        .filter_map(|r| if let Record::MountEstimate(m) = r { Some((m.t_us, m.yaw_e6 as f64 * 1e-6)) } else { None })
+        .collect();
+    let device_yaw = |t: i64| {
+        let k = device_mounts.partition_point(|(ts, _)| *ts <= t);
+        k.checked_sub(1).and_then(|i| device_mounts.get(i)).map_or(nominal_yaw, |m| m.1)
+    };
+    let camera = [mount.position[0], mount.position[1]];
+    let online_turned = |t: i64, delta: f64| {
+        ego_at(&online, t).map(|a| tracks::as_if_mounted(&a, camera, mount.roll_pitch_yaw[2] + delta - device_yaw(t)))
+    };
+    // A dead-reckoned camera's yaw on the car is the forward axis the gyro found (to a
+    // degree or two); the static objects it saw say the rest. A camera's VO places its
+    // objects and its ego with the same rotation, so a mount's yaw cannot move them.
+    let static_yaw = drive.reckoning.and_then(|_| tracks::static_yaw(&batches, &online_turned, &|t| ego_at(&ego, t)));
+    let turn = static_yaw.unwrap_or(0.0);
+    let mut objects_mount = mount;
+    objects_mount.roll_pitch_yaw[2] += turn;
+    // The log's mount is the one the objects were placed with.
+    let calibrated = MountEstimate { mount: objects_mount, ..calibrated };
+    let mut tracks = tracks::finish_tracks(&batches, &|t| online_turned(t, turn), &|t| ego_at(&ego, t));
+    let raw: Vec<_> =
+        log.records.iter().filter_map(|r| if let Record::Detection3d(d) = r { Some(*d) } else { None }).collect();
+    let (raw_batches, raw_stats) = raw::track_raw(&raw, &ego, &objects_mount);
+    // Already placed through the finished ego: re-expressed onto itself, then smoothed and
+    // merged as the device's tracks are.
+    let raw_tracks = tracks::finish_tracks(&raw_batches, &|t| ego_at(&ego, t), &|t| ego_at(&ego, t));
+    let raw_ghosts = raw_tracks.stats.ghosts;
+    tracks.batches.extend(raw_tracks.batches);
+    tracks.covariances.extend(raw_tracks.covariances);
+
+    let mut records: Vec<Record> = log
+        .records
+        .iter()
+        .filter(|r| {
+            !matches!(
+                r,
+                Record::EgoPose(_)
+                    | Record::AnchorEstimate(_)
+                    | Record::MountEstimate(_)
+                    | Record::Tracks3d(_)
+                    | Record::TrackCovariance(_)
+                    | Record::Verification(_)
+            )
+        })
+        .cloned()
+        .collect();
+    records.extend(ego.values().map(|p| Record::EgoPose(*p)));
+    records.extend(tracks.batches.into_iter().map(Record::Tracks3d));
+    records.extend(tracks.covariances.into_iter().map(Record::TrackCovariance));
+    if let Some(first) = drive.vo.first() {
+        records.push(Record::MountEstimate(mount_record(quantise(first.t, 1e-6), &calibrated)));
+    }
+    for solved in &sessions {
+        let (vo, solution) = (&drive.vo[solved.range.clone()], &solved.solution);
+        let mut last_estimate = f64::NEG_INFINITY;
+        for k in 0..solution.keyframe_t.len().saturating_sub(1) {
+            let t = solution.keyframe_t[k];
+            if t - last_estimate < 1.0 {
+                continue;
+            }
+            last_estimate = t;
+            records.push(Record::AnchorEstimate(anchor_record(t, &solution.sim3(vo, k), solution, used_anchors)));
+        }
+    }
+    records.sort_by_key(Record::t_us);
+
+    let verification = match map {
+        Some(bytes) => Some(windows::verify_finished(log, &records, name, bytes)?),
+        None => None,
+    };
+    if let Some(v) = &verification {
+        records.extend(v.records.iter().cloned());
+        records.sort_by_key(Record::t_us);
+    }
+
+    let fixes_used =
+        (0..drive.fixes.len()).filter(|&k| sessions.iter().any(|s| s.solution.fix_used.get(k) == Some(&true))).count();
+    // The longest session speaks for the drive's scale, latency and wheel factor.
+    let main = sessions.iter().max_by_key(|s| s.range.len()).map(|s| &s.solution).unwrap_or_else(|| unreachable!());
+    let utc_latency_s = clock::latency_from_motion(&log.records, &ego).unwrap_or(main.latency_s);
+    let utc_shift_us = clock::utc_onto_the_fixes(&mut records, utc_latency_s);
+    let [_, pitch, yaw] = calibrated.mount.roll_pitch_yaw;
+    let mut report = FinishReport {
+        log: name.to_owned(),
+        records: 0, // counted once the events are in, below
+        vo_poses: drive.vo.len(),
+        ego_poses: ego.len(),
+        ego_bridged: Bridged { gaps: bridged.len(), seconds: bridged_s },
+        anchoring: anchoring_report(main),
+        utc_shift_s: utc_shift_us as f64 * 1e-6,
+        sessions: sessions
+            .iter()
+            .map(|s| {
+                let vo = &drive.vo[s.range.clone()];
+                SessionReport {
+                    session: s.session,
+                    vo_poses: vo.len(),
+                    start_s: vo[0].t,
+                    end_s: vo[vo.len() - 1].t,
+                    anchoring: anchoring_report(&s.solution),
+                }
+            })
+            .collect(),
+        unsolved_sessions: unsolved
+            .iter()
+            .map(|(session, poses, why)| UnsolvedSession { session: *session, vo_poses: *poses, reason: why.clone() })
+            .collect(),
+        mount: MountReport {
+            yaw_deg: yaw.to_degrees(),
+            pitch_deg: pitch.to_degrees(),
+            sigma_yaw_deg: calibrated.sigma[0].to_degrees(),
+            sigma_pitch_deg: calibrated.sigma[1].to_degrees(),
+            samples: calibrated.samples,
+            calibrated: calibrated.calibrated,
+        },
+        reckoning: drive
+            .reckoning
+            .map(|r| ReckoningReport { static_objects_turned_deg: static_yaw.map(f64::to_degrees), ..r }),
+        gnss: GnssReport { fixes: drive.fixes.len(), used: fixes_used, rejected: drive.fixes.len() - fixes_used },
+        speed_samples: drive.speeds.len(),
+        anchors: AnchorsReport {
+            file: anchor_file.map(|(p, _)| p.to_owned()),
+            used: used_anchors,
+            refused: refused.iter().map(|(line, why)| RefusedAnchor { line: *line, reason: why.clone() }).collect(),
+        },
+        tracks: TracksReport {
+            states: tracks.stats.states,
+            unplaced: tracks.stats.unplaced,
+            smoothed: tracks.stats.smoothed,
+            static_merged: tracks.stats.merged_static,
+            ghosts_dropped: tracks.stats.ghosts + raw_ghosts,
+            raw_detections: raw_stats.detections,
+            raw_placed: raw_stats.placed,
+            raw_track_states: raw_stats.track_states,
+        },
+        damage: DamageReport { stretches: log.damage.len(), bytes: log.damage.iter().map(|d| d.1).sum::<u64>() },
+        verification: verification.as_ref().map(|v| v.report.clone()),
+    };
+    // The two events say what the report says (the first also the source's size).
+    let [summary, settings] = events(&report, log.records.len(), utc_shift_us);
+    let first_t = records.first().map_or(0, Record::t_us);
+    // A log is in UTC from its first clock offset on; a finished log is in UTC throughout,
+    // so that record goes first (nothing before it to move) and the events next.
+    let at = match records.iter().position(|r| matches!(r, Record::ClockOffset(_))) {
+        Some(k) => {
+            let offset = records.remove(k);
+            records.insert(0, offset);
+            1
+        }
+        None => 0,
+    };
+    records.insert(at, event(first_t, 2, &summary));
+    records.insert(at + 1, event(first_t, 2, &settings));
+    report.records = records.len();
+    Ok(Finished { records, report })
+}
+
+/// The camera mount over the whole drive: the device's calibration run on every VO pose,
+/// from the mount given to `finish` (the device's nominal one).
+fn calibrate_mount(vo: &[VoSample], nominal: CameraMount) -> MountEstimate {
+    let mut calibration = MountCalibration::new(nominal, CalibrationConfig::default());
+    for s in vo {
+        let pose = Pose { rotation: s.rotation, translation: s.position };
+        calibration.push(s.t, s.session, &pose);
+    }
+    calibration.estimate()
+}
+
+fn anchor_record(t: f64, sim3: &dash2sim_core::sim3::Sim3, solution: &Solution, used_anchors: usize) -> AnchorEstimate {
+    let anchors = (solution.fix_used.iter().filter(|&&u| u).count() + used_anchors) as i64;
+    similarity_record(quantise(t, 1e-6), sim3, 2, anchors, solution.gnss_rms_m, solution.latency_s)
+}
+
+/// The median of `v` (NaN when empty).
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+fn line_of(file: Option<(&str, &anchors::AnchorFile)>, k: usize) -> usize {
+    file.and_then(|(_, f)| f.anchors.get(k)).map_or(0, |a| a.line)
+}
+
+/// The drive's scale (segments weighted by duration).
+pub fn mean_scale(s: &Solution) -> f64 {
+    let mut sum = 0.0;
+    let mut total = 0.0;
+    for (k, w) in s.keyframe_t.windows(2).enumerate() {
+        sum += (w[1] - w[0]) * s.log_scale[k];
+        total += w[1] - w[0];
+    }
+    if total > 0.0 {
+        (sum / total).exp()
+    } else {
+        f64::NAN
+    }
+}
+
+/// Finish the log at `args.log` into `args.output` (the command line and the Python
+/// package's `finish`): the report (`--json`) with the output's path and size.
+pub fn finish_file(args: &FinishRequest) -> Result<FinishedFile> {
+    if !(args.keyframe.is_finite() && (0.05..=10.0).contains(&args.keyframe)) {
+        return Err(Error::invalid(format!("--keyframe {} must be between 0.05 and 10 s", args.keyframe)));
+    }
+    let (mount, uere) = args.device.parse()?;
+    let log = log::read(&args.log).map_err(Error::other)?;
+    let name = args.log.display().to_string();
+    if let Some(public) = &args.require_signed {
+        log::signing::require_signed(public, &name, &log)?;
+    }
+    let anchor_file = args.anchors.as_deref().map(anchors::read).transpose()?;
+    let anchor_name = args.anchors.as_deref().map(Path::display).map(|d| d.to_string());
+    let map = args.map.as_deref().map(|p| std::fs::read(p).map_err(|e| Error::file(p, e))).transpose()?;
+    let settings = Settings {
+        keyframe_s: args.keyframe,
+        gravity_aligned: args.device.mode == VoFrame::Gravity,
+        ..Settings::default()
+    };
+    let finished =
+        finish(&log, &name, anchor_name.as_deref().zip(anchor_file.as_ref()), map.as_deref(), mount, settings, uere)?;
+    let header = log.header.unwrap_or(Header { device_id: [0; 16], origin: [0; 3] });
+    let bytes = log::import::encode_in_order(&header, &finished.records)?;
+    std::fs::write(&args.output, &bytes).map_err(|e| Error::file(&args.output, e))?;
+    Ok(FinishedFile { report: finished.report, output: args.output.display().to_string(), bytes: bytes.len() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A pose on the x axis, heading east.
+    fn east(t: f64, x: f64, speed: f64) -> PlanarPose {
+        PlanarPose { t, x, y: 0.0, z: 0.0, heading: 0.0, vx: speed, vy: 0.0, sigma: 0.1 }
+    }
+
+    /// The wheels at 50 Hz from `t0` to `t1` at a steady `speed`.
+    fn steady_wheels(t0: f64, t1: f64, speed: f64) -> Vec<(f64, f64)> {
+        let n = ((t1 - t0) * 50.0).round() as usize;
+        (0..=n).map(|k| (t0 + k as f64 * 0.02, speed)).collect()
+    }
+
+    #[test]
+    fn a_bridge_advances_as_the_wheels_say_whatever_the_ends_velocities() {
+        // 20 m/s throughout a 2 s gap; the second session's first smoothed velocity reads
+        // 15 m/s, as a smoother's end can.
+        let poses = [east(0.0, 0.0, 20.0), east(2.0, 40.0, 15.0)];
+        let bridged = bridge_gaps(&poses, 0.1, &steady_wheels(-1.0, 3.0, 20.0));
+        assert_eq!(bridged.len(), 1);
+        let made = &bridged[0].poses;
+        assert_eq!(made.len(), 19);
+        for p in made {
+            assert!((p.x - 20.0 * p.t).abs() < 0.05, "at {:.1} s: {:.3} m, the wheels say {:.3}", p.t, p.x, 20.0 * p.t);
+        }
+        // Without speeds the curve keeps to the ends' velocities: 1.25 m off at mid-gap.
+        let by_time = bridge_gaps(&poses, 0.1, &[]);
+        let middle = by_time[0].poses.iter().find(|p| (p.t - 1.0).abs() < 1e-9).map_or(f64::NAN, |p| p.x);
+        assert!((middle - 21.25).abs() < 1e-9, "{middle}");
+    }
+
+    #[test]
+    fn a_session_s_smoother_starts_at_the_session_s_own_speed_not_at_rest() {
+        // A session that begins at 20 m/s east, its positions 5 cm off alternately.
+        let samples: Vec<tracks::Sample> = (0..50)
+            .map(|k| tracks::Sample {
+                t: 0.1 * k as f64,
+                x: 2.0 * k as f64 + if k % 2 == 0 { 0.05 } else { -0.05 },
+                ..tracks::Sample::default()
+            })
+            .collect();
+        let start = starting_velocity(&samples);
+        assert!((start.0 - 20.0).abs() < 0.5 && start.1.abs() < 1e-9, "{start:?}");
+        let first_speed = |velocity: (f64, f64)| {
+            let mut smoothed = samples.clone();
+            tracks::smooth_planar(&mut smoothed, velocity, EGO_SMOOTHING.0, EGO_SMOOTHING.1);
+            smoothed[0].vx.hypot(smoothed[0].vy)
+        };
+        let (own, at_rest) = (first_speed(start), first_speed((0.0, 0.0)));
+        assert!((own - 20.0).abs() < 0.3, "started at its own speed: {own:.2} m/s");
+        assert!((at_rest - 20.0).abs() > 2.0 * (own - 20.0).abs(), "at rest {at_rest:.2}, own {own:.2}");
+    }
+
+    #[test]
+    fn sessions_are_joined_at_the_wheels_distance_and_the_shift_eases_in() {
+        // Session one ends at 0 m at 10 s; session two starts 1 s later at 21 m (its own
+        // offset error 1 m), its first velocity read as 18 m/s. The wheels: 20 m/s.
+        let mut poses: Vec<PlanarPose> =
+            (0..=50).map(|k| east(5.0 + 0.1 * k as f64, 2.0 * k as f64 - 100.0, 20.0)).collect();
+        let start = poses.len();
+        poses.extend(
+            (0..=50).map(|k| east(11.0 + 0.1 * k as f64, 21.0 + 2.0 * k as f64, if k == 0 { 18.0 } else { 20.0 })),
+        );
+        let before = poses.clone();
+        join_sessions(&mut poses, &[(0, 1.0), (start, 1.0)], &steady_wheels(4.0, 17.0, 20.0));
+        let (end, first) = (poses[start - 1], poses[start]);
+        assert!((first.x - end.x - 20.0).abs() < 1e-6, "joined {:.3} m apart; the wheels went 20 m", first.x - end.x);
+        assert!(
+            (end.x - 0.5).abs() < 1e-6 && (first.x - 20.5).abs() < 1e-6,
+            "each end takes half: {} {}",
+            end.x,
+            first.x
+        );
+        // The shift has no slope at the gap: 0.1 s in, it has barely changed (a linear
+        // ramp would have changed by 1 cm, a 0.1 m/s step in velocity).
+        let shift = |k: usize| poses[k].x - before[k].x;
+        assert!((shift(start) - shift(start + 1)).abs() < 1e-3, "{} {}", shift(start), shift(start + 1));
+        assert!((shift(start - 1) - shift(start - 2)).abs() < 1e-3);
+        // And it is gone 5 s into each session.
+        assert!(shift(start + 50).abs() < 1e-9 && shift(start - 51).abs() < 1e-9);
+    }
+}
