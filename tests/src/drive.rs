@@ -6,8 +6,8 @@ use std::path::Path;
 use dash2sim_core::anchor::{AnchorConfig, Observability};
 use dash2sim_core::nalgebra::Vector3;
 use dash2sim_linux::trajectory::{Format, Trajectory};
-use dash2sim_verify::anchoring::{self, FrameEstimate};
 pub use dash2sim_sim::scenario::vo::VoModel;
+use dash2sim_verify::anchoring::{self, FrameEstimate};
 
 /// The real inputs of the scenario.
 #[derive(Clone, Debug)]

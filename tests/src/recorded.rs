@@ -119,14 +119,9 @@ pub fn record_drive(seed: u64, duration_s: f64) -> Outcome {
     // The receiver's σ as the NMEA capture states it: HDOP (one decimal) × the UERE.
     let sigmas: Vec<f64> = scenario.gnss.iter().map(|f| (f.reported_sigma / 2.5 * 10.0).round() / 10.0 * 2.5).collect();
     let config = AnchorConfig { mode: AnchorMode::GravityAligned, ..AnchorConfig::default() };
-    let frames = dash2sim_verify::anchoring::replay_with_sigmas(
-        &scenario.vo.poses,
-        &gnss,
-        &sigmas,
-        &scenario.speed,
-        config,
-    )
-    .expect("replay");
+    let frames =
+        dash2sim_verify::anchoring::replay_with_sigmas(&scenario.vo.poses, &gnss, &sigmas, &scenario.speed, config)
+            .expect("replay");
     let mut offline = HashMap::new();
     for (k, ((t, pose), f)) in scenario.vo.poses.stamps.iter().zip(&scenario.vo.poses.poses).zip(&frames).enumerate() {
         let Some(anchor) = f.estimate else { continue };

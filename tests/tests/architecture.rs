@@ -119,9 +119,17 @@ fn references(folder: &Path) -> BTreeMap<String, BTreeSet<String>> {
             if module == "lib" || module == "main" {
                 continue;
             }
-            let source = std::fs::read_to_string(&path).expect("source");
+            let source = without_comments(&std::fs::read_to_string(&path).expect("source"));
             let refs = out.entry(module.clone()).or_default();
-            refs.extend(crate_references(&without_comments(&source)).into_iter().filter(|r| *r != module));
+            refs.extend(crate_references(&source).into_iter().filter(|r| *r != module));
+            // A top-level module's file (`x.rs`, `x/mod.rs`) names its siblings as `super::y`
+            // too: its parent is the crate's root.
+            let top_level = path.parent() == Some(folder)
+                || (path.file_name().is_some_and(|n| n == "mod.rs")
+                    && path.parent().and_then(Path::parent) == Some(folder));
+            if top_level {
+                refs.extend(references_after(&source, "super::").into_iter().filter(|r| *r != module));
+            }
         }
     }
     out

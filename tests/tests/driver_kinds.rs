@@ -6,12 +6,12 @@
 
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::PACIFICA;
-use dash2sim_verify::decide::{Decided, Decision, DoubtSettings};
-use dash2sim_verify::{read_objects, replay_in_doubt, StatedUncertainty};
 use dash2sim_sim::fidelity::drive::verify_truth;
 use dash2sim_sim::scenario::profile::{Profile, Receiver};
 use dash2sim_sim::scenario::write::{road_tile, write_scenario};
 use dash2sim_sim::scenario::{generate, Driver, Expectation, ScenarioConfig};
+use dash2sim_verify::decide::{Decided, Decision, DoubtSettings};
+use dash2sim_verify::{read_objects, replay_in_doubt, StatedUncertainty};
 
 /// Seeds per kind: drives are 40 s long, as the sweep's.
 const SEEDS: std::ops::RangeInclusive<u64> = 1..=6;

@@ -7,8 +7,8 @@ use std::path::Path;
 use dash2sim_core::sim3::Sim3;
 use dash2sim_core::traj::{Delta, RpePairs, Statistics};
 use dash2sim_linux::trajectory::{Format, Trajectory};
-use dash2sim_verify::evaluate::{self, Align, Relation};
 use dash2sim_tests::{data_dir, read_json, rel_diff};
+use dash2sim_verify::evaluate::{self, Align, Relation};
 use serde_json::Value;
 
 const REL_TOL: f64 = 1e-9;

@@ -8,10 +8,10 @@ use dash2sim_core::pipeline::CameraMount;
 use dash2sim_finish::solve::Settings;
 use dash2sim_finish::{anchors, finish, Finished};
 use dash2sim_linux::log::{self, LogContents};
-use dash2sim_verify::{from_contents, read_objects, replay};
 use dash2sim_sim::scenario::judge::judge_log;
 use dash2sim_sim::scenario::street::street_anchors;
 use dash2sim_tests::recorded::{record_scenario, Recorded};
+use dash2sim_verify::{from_contents, read_objects, replay};
 
 fn gravity() -> Settings {
     Settings { gravity_aligned: true, ..Settings::default() }

@@ -2,8 +2,8 @@
 //! `motmetrics/PROVENANCE.md`): every summary metric, and the event list frame by frame.
 
 use dash2sim_linux::ingest::motchallenge::read_mot;
-use dash2sim_verify::mot::{compare, summarize, EventKind};
 use dash2sim_tests::data_dir;
+use dash2sim_verify::mot::{compare, summarize, EventKind};
 
 #[test]
 fn tud_campus_summary_equals_motmetrics() {

@@ -7,8 +7,8 @@ use std::collections::BTreeMap;
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{OrientedBox, Pose2, PACIFICA};
 use dash2sim_core::score::{Agent, AgentKind};
-use dash2sim_verify::{replay, Verification};
 use dash2sim_tests::road::{straight_road, tile, tile_of_ways};
+use dash2sim_verify::{replay, Verification};
 
 const DT: f64 = 0.1;
 

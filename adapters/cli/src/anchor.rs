@@ -4,8 +4,8 @@ use std::path::PathBuf;
 
 use clap::Args;
 use dash2sim_linux::record::VoFrame;
-use dash2sim_verify::anchoring::{self, AnchorRequest};
 use dash2sim_linux::Result;
+use dash2sim_verify::anchoring::{self, AnchorRequest};
 
 /// Arguments of `dash2sim anchor`.
 #[derive(Debug, Args)]

@@ -12,8 +12,8 @@ use serde_json::json;
 
 use dash2sim_linux::sync::DEFAULT_MAX_DIFF_S;
 use dash2sim_linux::trajectory::Format;
-use dash2sim_verify::evaluate::{self, Align, Evaluation, Relation};
 use dash2sim_linux::{Error, Result};
+use dash2sim_verify::evaluate::{self, Align, Evaluation, Relation};
 
 /// dash2sim: metric, geo-referenced 4D driving logs from a dashcam.
 #[derive(Debug, Parser)]
@@ -499,8 +499,7 @@ fn mot_eval(gt: &std::path::Path, test: &std::path::Path, max_distance: f64, as_
     }
     let (gt, test) =
         (dash2sim_linux::ingest::motchallenge::read_mot(gt)?, dash2sim_linux::ingest::motchallenge::read_mot(test)?);
-    let summary =
-        dash2sim_verify::mot::summarize(&dash2sim_verify::mot::compare(&gt, &test, max_distance));
+    let summary = dash2sim_verify::mot::summarize(&dash2sim_verify::mot::compare(&gt, &test, max_distance));
     if as_json {
         println!("{}", crate::render::json_of(&summary)?);
     } else {

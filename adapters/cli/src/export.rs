@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use dash2sim_export::{self, ExportRequest};
+use dash2sim_export::{self as export, ExportRequest};
 use dash2sim_linux::Result;
 
 /// What to export (`dash2sim export`).

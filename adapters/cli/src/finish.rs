@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use dash2sim_finish::windows::{DriveVerification, Verdict};
-use dash2sim_finish::{self, FinishRequest, FinishedFile};
+use dash2sim_finish::{self as finish, FinishRequest, FinishedFile};
 use dash2sim_linux::log::signing;
 
 use crate::record::DeviceArgs;

@@ -2,8 +2,8 @@
 
 use std::path::PathBuf;
 
-use dash2sim_verify::plot::{self, PlotRequest};
 use dash2sim_linux::Result;
+use dash2sim_verify::plot::{self, PlotRequest};
 
 /// `dash2sim plot` arguments.
 #[derive(Debug, Clone, clap::Args)]

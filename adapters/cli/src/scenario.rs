@@ -235,10 +235,7 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         anchors: args.anchors,
         oracle_latency: args.oracle_latency,
         relative_motion: args.relative_motion.into(),
-        doubt: dash2sim_verify::decide::DoubtSettings {
-            decide_at: args.decide_at,
-            object_sigma_m: args.object_sigma,
-        },
+        doubt: dash2sim_verify::decide::DoubtSettings { decide_at: args.decide_at, object_sigma_m: args.object_sigma },
         duration: args.duration,
         jobs: args.jobs,
         output: args.output.clone(),

@@ -3,8 +3,8 @@
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::obb::CORNER_NAMES;
-use dash2sim_verify::{self, Verification};
 use dash2sim_linux::{Error, Result};
+use dash2sim_verify::{self as verify, Verification};
 
 #[derive(Debug, clap::Args)]
 pub struct VerifyArgs {

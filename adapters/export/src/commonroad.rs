@@ -28,9 +28,9 @@ use super::road::{road, Connector, Road};
 use super::ticks::{
     agents_at_ticks, by_track, on_map, runs, standing, stands_still, windows, AgentTick, EgoTick, OnMap,
 };
+use dash2sim_core::class::name_of as class_name;
 use dash2sim_linux::geometry::{band, is_simple, Line};
 use dash2sim_linux::{Error, Result};
-use dash2sim_core::class::name_of as class_name;
 
 /// CommonRoad's time step here: the log's ego poses are at 10 Hz, s.
 pub const TIME_STEP_S: f64 = 0.1;

@@ -2,9 +2,9 @@
 //! use: the UTM zone of the map's origin (WGS 84, EPSG 326zz north / 327zz south), through
 //! geodetic coordinates. UTM's Transverse Mercator is Rust Geodesy's (Krüger's series).
 
-use dash2sim_linux::{Error, Result};
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::nalgebra::Vector3;
+use dash2sim_linux::{Error, Result};
 use geodesy::prelude::*;
 
 /// ENU of one origin → UTM of one zone.

@@ -29,9 +29,9 @@ use super::pickle::{dict, dumps, Array, Py};
 use super::request::ScenarioRequest;
 use super::road::{road, Road};
 use super::ticks::{agents_at_ticks, on_map, windows, AgentTick, EgoTick, OnMap};
+use dash2sim_core::class::name_of as class_name;
 use dash2sim_linux::geometry::Line;
 use dash2sim_linux::{Error, Result};
-use dash2sim_core::class::name_of as class_name;
 
 /// ScenarioNet's time step (Waymo's and its nuPlan converter's), s.
 pub const TIME_STEP_S: f64 = 0.1;

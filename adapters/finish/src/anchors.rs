@@ -14,9 +14,9 @@
 
 use std::path::Path;
 
-use dash2sim_linux::{Error, Result};
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::nalgebra::Vector3;
+use dash2sim_linux::{Error, Result};
 
 /// Where an anchor is, before it is put in a log's frame.
 #[derive(Clone, Copy, Debug, PartialEq)]

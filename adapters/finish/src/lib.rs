@@ -35,10 +35,10 @@ use dash2sim_core::pipeline::{
 };
 use dash2sim_core::sim3::Pose;
 
+use anchors::AnchorForm;
 use dash2sim_linux::log::{self, event, LogContents};
 use dash2sim_linux::record::{Device, VoFrame};
 use dash2sim_linux::{Error, Result};
-use anchors::AnchorForm;
 pub use report::*;
 use sessions::{bridge_gaps, frame_interval, join_sessions, solve_sessions, starting_velocity, PlanarPose, Solved};
 use solve::{Anchor, AnchorAt, Fix, Settings, Solution, VoSample};

@@ -11,9 +11,9 @@ use dash2sim_core::score::Scores;
 use serde::Serialize;
 
 use dash2sim_linux::log::{event, LogContents};
+use dash2sim_linux::{Error, Result};
 use dash2sim_verify::decide::{decision_or_point, Decision, DoubtSettings};
 use dash2sim_verify::{replay_in_doubt, AgentsByTime, Metrics, StatedUncertainty, Verification};
-use dash2sim_linux::{Error, Result};
 
 /// nuPlan's scenario length, s.
 pub const WINDOW_S: f64 = 15.0;

@@ -140,8 +140,7 @@ fn verify(
         doubt,
     };
     py.detach(|| {
-        let (verification, _) =
-            dash2sim_verify::evaluate(&request, &mut |warning| eprintln!("warning: {warning}"))?;
+        let (verification, _) = dash2sim_verify::evaluate(&request, &mut |warning| eprintln!("warning: {warning}"))?;
         Ok::<_, dash2sim_linux::Error>(
             serde_json::to_value(dash2sim_verify::report(&verification, channel_sensitive))
                 .map_err(dash2sim_linux::Error::other)?

@@ -18,8 +18,8 @@ use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Pose2, PACIFICA};
 use dash2sim_linux::ingest::map_tile::{encode, from_osm};
-use dash2sim_verify::{read_objects, replay};
 use dash2sim_sim::scenario::{generate, write::write_scenario, ScenarioConfig};
+use dash2sim_verify::{read_objects, replay};
 use rand::{Rng, SeedableRng};
 
 fn tile(osm: &std::path::Path, origin: Option<Geodetic>) -> Vec<u8> {

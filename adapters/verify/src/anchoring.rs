@@ -8,9 +8,9 @@ use dash2sim_core::sim3::Sim3;
 use dash2sim_core::time::Timestamp;
 use serde::Serialize;
 
+use crate::evaluate::Alignment;
 use dash2sim_linux::record::VoFrame;
 use dash2sim_linux::trajectory::{self, Format, Trajectory};
-use crate::evaluate::Alignment;
 use dash2sim_linux::{Error, Result};
 
 /// Anchoring of trajectory files (`dash2sim anchor`).

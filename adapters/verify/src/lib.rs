@@ -25,12 +25,12 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use dash2sim_linux::{Error, Result};
 use dash2sim_core::class;
 use dash2sim_core::drivable::{Channel, LaneSet};
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Footprint, OrientedBox, Pose2};
 use dash2sim_core::score::{Agent, AgentKind, Doubt, ScoreConfig, Scorer, Scores, StepReport};
+use dash2sim_linux::{Error, Result};
 use decide::{Decided, DoubtSettings, NearestPass, OffRoadInDoubt};
 
 /// Objects farther in time than this from a pose are not its agents, s.
@@ -129,11 +129,12 @@ pub fn from_contents(
     name: &str,
     map: &MapView<'_>,
 ) -> Result<(Vec<(f64, Pose2)>, AgentsByTime)> {
-    use dash2sim_linux::log::export::{ego_enu, ego_poses, standing_objects, tracks};
     use dash2sim_core::geo::{Geodetic, LocalFrame};
     use dash2sim_core::nalgebra::Vector3;
+    use dash2sim_linux::log::export::{ego_enu, ego_poses, standing_objects, tracks};
     let header = log.header.ok_or_else(|| Error::invalid(format!("{name}: the header is damaged (no origin)")))?;
-    let log_frame = dash2sim_linux::log::frame(&header).ok_or_else(|| Error::invalid(format!("{name}: invalid origin")))?;
+    let log_frame =
+        dash2sim_linux::log::frame(&header).ok_or_else(|| Error::invalid(format!("{name}: invalid origin")))?;
     let [lat, lon, h] = map.header().origin;
     let map_frame = LocalFrame::new(Geodetic::new(lat, lon, h).map_err(|e| Error::refused("map origin", e))?);
     let same = (f64::from(header.origin[0]) * 1e-7 - lat).abs() < 1e-7

@@ -11,9 +11,9 @@ use rusqlite::{params, Connection};
 use super::map::MapIds;
 use crate::projection::Projection;
 use crate::ticks::{agents_at_ticks, EgoTick};
+use dash2sim_core::class::name_of as class_name;
 use dash2sim_linux::log::LogContents;
 use dash2sim_linux::{Error, Result};
-use dash2sim_core::class::name_of as class_name;
 
 /// nuPlan's clock, Hz (the devkit hard-codes 0.05 s).
 pub const RATE_HZ: f64 = 20.0;

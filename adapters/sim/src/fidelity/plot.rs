@@ -8,8 +8,8 @@ use plotters::prelude::*;
 
 use super::rows::Row;
 use super::summary::{Confusion, Summary};
-use dash2sim_verify::plot::{err, register_font, FINISHED, GNSS, ONLINE};
 use dash2sim_linux::Result;
+use dash2sim_verify::plot::{err, register_font, FINISHED, GNSS, ONLINE};
 
 const SIZE: (u32, u32) = (1400, 900);
 

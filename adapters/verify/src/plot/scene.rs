@@ -7,11 +7,11 @@ use dash2sim_core::geo::LocalFrame;
 use dash2sim_core::map::MapView;
 use dash2sim_core::nalgebra::Vector3;
 
+use dash2sim_core::class::name_of as class_name;
 use dash2sim_linux::geometry::capsule;
 use dash2sim_linux::log::export::last_tracks;
 use dash2sim_linux::log::{frame, LogContents};
 use dash2sim_linux::{Error, Result};
-use dash2sim_core::class::name_of as class_name;
 
 /// The eight nuPlan metrics of a `Verification` record, in its field order.
 pub const METRICS: [&str; 8] = [
