@@ -222,11 +222,11 @@ enum ScenarioCommand {
         #[arg(long, default_value_t = 40.0)]
         duration: f64,
         /// The GNSS receiver: `phone` (σ 3–10 m, multipath) or `good` (σ 1–2 m, the demo's).
-        #[arg(long, value_enum, default_value = "phone")]
+        #[arg(long, value_parser = dash2sim_args::Receiver::parser(), default_value = "phone")]
         receiver: dash2sim_sim::scenario::profile::Receiver,
         /// How far the sensors are from ideal (docs/scenario.md): `ideal` (the old, kind
         /// simulator), `typical` (a consumer dashcam) or `hard`.
-        #[arg(long, value_enum, default_value = "typical")]
+        #[arg(long, value_parser = dash2sim_args::Profile::parser(), default_value = "typical")]
         profile: dash2sim_sim::scenario::profile::Profile,
         /// How the ego is driven: `careful`, `careless` (clips the taper's drums),
         /// `shoulder`, `oncoming`, `speeding`, `tailgating`, `harsh`, `knife-edge`; `both` or
@@ -237,7 +237,7 @@ enum ScenarioCommand {
     /// Be the camera process: publish a generated drive over shared memory (iceoryx2) at its
     /// frame rate, and optionally the GNSS receiver's NMEA and the wheel-speed CAN frames
     /// to a serial device, FIFO or file (docs/bridge.md). Prints `N frames published`.
-    Publish(dash2sim_sim::scenario::publish::PublishRequest),
+    Publish(dash2sim_args::PublishArgs),
     /// Generate a corpus of device logs as a fleet uploads them: drives of several seeds,
     /// lengths, regions and drivers recorded through the pipeline, each with its map tile,
     /// some damaged on purpose (docs/fleet.md).
@@ -257,7 +257,7 @@ enum ScenarioCommand {
         #[arg(long, default_value_t = 40.0)]
         duration: f64,
         /// How far the sensors are from ideal: `ideal`, `typical` or `hard`.
-        #[arg(long, value_enum, default_value = "typical")]
+        #[arg(long, value_parser = dash2sim_args::Profile::parser(), default_value = "typical")]
         profile: dash2sim_sim::scenario::profile::Profile,
         /// Missed frames before a track is dropped (AB3DMOT: 2).
         #[arg(long, default_value_t = 4)]
@@ -330,13 +330,13 @@ struct CommonArgs {
     /// Estimated trajectory.
     estimate: PathBuf,
     /// File format (`euroc`: reference is an EuRoC ground-truth CSV, estimate TUM).
-    #[arg(long, value_enum, default_value = "tum")]
+    #[arg(long, value_parser = dash2sim_args::Format::parser(), default_value = "tum")]
     format: Format,
     /// Alignment of the estimate to the reference before measuring.
-    #[arg(long, value_enum, default_value = "none")]
+    #[arg(long, value_parser = dash2sim_args::Align::parser(), default_value = "none")]
     align: Align,
     /// Which pose error to measure.
-    #[arg(long, short = 'r', value_enum, default_value = "trans")]
+    #[arg(long, short = 'r', value_parser = dash2sim_args::Relation::parser(), default_value = "trans")]
     pose_relation: Relation,
     /// Largest timestamp difference for association, s.
     #[arg(long, default_value_t = DEFAULT_MAX_DIFF_S)]
@@ -398,7 +398,7 @@ pub fn run() -> ExitCode {
             crate::scenario::generate_to(seed, duration, profile, receiver, driver, &output)
         }
         Command::Scenario(ScenarioCommand::Publish(args)) => {
-            dash2sim_sim::scenario::publish::run(&args).map(|n| println!("{n} frames published"))
+            dash2sim_sim::scenario::publish::run(&args.into()).map(|n| println!("{n} frames published"))
         }
         Command::Scenario(ScenarioCommand::Corpus(args)) => crate::scenario::corpus(&args),
         Command::Scenario(ScenarioCommand::Sweep(args)) => crate::scenario::sweep(&args),
@@ -563,8 +563,9 @@ pub fn stats_json(s: &Statistics) -> serde_json::Value {
 }
 
 fn report(metric: &str, c: &CommonArgs, eval: &Evaluation, rpe: Option<&RpeArgs>) {
-    let relation = c.pose_relation.to_possible_value().map(|v| v.get_name().to_owned()).unwrap_or_default();
-    let align = c.align.to_possible_value().map(|v| v.get_name().to_owned()).unwrap_or_default();
+    let name = |v: Option<clap::builder::PossibleValue>| v.map(|v| v.get_name().to_owned()).unwrap_or_default();
+    let relation = name(dash2sim_args::Relation::from(c.pose_relation).to_possible_value());
+    let align = name(dash2sim_args::Align::from(c.align).to_possible_value());
     if c.json {
         let mut out = json!({
             "metric": metric.to_lowercase(),

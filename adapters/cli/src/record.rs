@@ -68,7 +68,7 @@ pub struct RecordArgs {
     #[arg(long, default_value = record::DEFAULT_SPEED_UNIT)]
     pub speed_unit: String,
     /// Built-in speed message when no `--speed-signal` is given.
-    #[arg(long, value_enum, default_value = "ccvs1")]
+    #[arg(long, value_parser = dash2sim_args::SpeedMessage::parser(), default_value = "ccvs1")]
     pub speed_source: SpeedMessage,
     /// GNSS from DBC signals (a CAN GNSS module):
     /// `lat=MSG.SIG,lon=MSG.SIG[,valid=MSG.SIG][,accuracy=MSG.SIG][,time=MSG.SIG]` —
@@ -177,7 +177,7 @@ pub struct DeviceArgs {
     #[arg(long, default_value = record::DEFAULT_MOUNT)]
     pub mount: String,
     /// `gravity`: the VO frame's z is vertical (VIO, levelled VO); `full`: any orientation.
-    #[arg(long, value_enum, default_value = "gravity")]
+    #[arg(long, value_parser = dash2sim_args::VoFrame::parser(), default_value = "gravity")]
     pub mode: VoFrame,
     /// 1-σ GNSS error model: UERE, m (σ = HDOP × UERE unless the receiver sends GST).
     #[arg(long, default_value_t = record::DEFAULT_UERE_M)]
@@ -187,26 +187,8 @@ pub struct DeviceArgs {
     pub imu_mount: ImuMount,
     /// Where the relative motion comes from: the camera's VO, or gyro + wheels dead
     /// reckoning (`imu-wheels`: a dashcam without VO; needs --imu and a vehicle speed).
-    #[arg(long, value_enum, default_value = "vo")]
-    pub relative_motion: Motion,
-}
-
-/// `--relative-motion`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Motion {
-    /// The camera's VO poses.
-    Vo,
-    /// Gyro + wheels dead reckoning.
-    ImuWheels,
-}
-
-impl From<Motion> for RelativeMotion {
-    fn from(motion: Motion) -> Self {
-        match motion {
-            Motion::Vo => RelativeMotion::Vo,
-            Motion::ImuWheels => RelativeMotion::ImuWheels,
-        }
-    }
+    #[arg(long, value_parser = dash2sim_args::RelativeMotion::parser(), default_value = "vo")]
+    pub relative_motion: RelativeMotion,
 }
 
 /// `--imu-mount ROLL,PITCH,YAW`.
@@ -229,7 +211,7 @@ impl From<DeviceArgs> for Device {
             mode: a.mode,
             uere: a.uere,
             imu_mount: a.imu_mount,
-            relative_motion: a.relative_motion.into(),
+            relative_motion: a.relative_motion,
         }
     }
 }

@@ -34,7 +34,7 @@ pub struct CorpusArgs {
     #[arg(long, default_value_t = 1)]
     pub first_seed: u64,
     /// How far the sensors are from ideal: `ideal`, `typical` or `hard` (docs/scenario.md).
-    #[arg(long, value_enum, default_value = "typical")]
+    #[arg(long, value_parser = dash2sim_args::Profile::parser(), default_value = "typical")]
     pub profile: Profile,
     /// No progress on stderr.
     #[arg(short, long)]
@@ -52,13 +52,13 @@ pub struct SweepArgs {
     #[arg(long, value_parser = Drivers::parse, default_value = "both")]
     pub driver: Drivers,
     /// How far the sensors are from ideal: `ideal`, `typical` or `hard` (docs/scenario.md).
-    #[arg(long, value_enum, default_value = "typical")]
+    #[arg(long, value_parser = dash2sim_args::Profile::parser(), default_value = "typical")]
     pub profile: Profile,
     /// The GNSS receiver: `good` (σ 1–2 m) or `phone` (σ 3–10 m).
-    #[arg(long, value_enum, default_value = "good")]
+    #[arg(long, value_parser = dash2sim_args::Receiver::parser(), default_value = "good")]
     pub receiver: Receiver,
     /// Finishing's anchors: `street` (simulated from the true path every 50 m) or `none`.
-    #[arg(long, value_enum, default_value = "street")]
+    #[arg(long, value_parser = dash2sim_args::Anchors::parser(), default_value = "street")]
     pub anchors: Anchors,
     /// Tell finishing the receiver's true latency instead of estimating it: an oracle that
     /// bounds what a better latency estimate could gain (the summary is marked as one).
@@ -66,8 +66,8 @@ pub struct SweepArgs {
     pub oracle_latency: bool,
     /// Where the device's relative motion comes from: the camera's `vo`, or `imu-wheels`
     /// (the camera publishes no VO: gyro + wheels dead reckoning from the drive's IMU).
-    #[arg(long, value_enum, default_value = "vo")]
-    pub relative_motion: crate::record::Motion,
+    #[arg(long, value_parser = dash2sim_args::RelativeMotion::parser(), default_value = "vo")]
+    pub relative_motion: dash2sim_core::pipeline::RelativeMotion,
     /// Decide each log with this many σ of doubt (`verify --decide-at`).
     #[arg(long, value_name = "K", default_value_t = dash2sim_verify::decide::DEFAULT_DECIDE_AT)]
     pub decide_at: f64,
@@ -234,7 +234,7 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         receiver: args.receiver,
         anchors: args.anchors,
         oracle_latency: args.oracle_latency,
-        relative_motion: args.relative_motion.into(),
+        relative_motion: args.relative_motion,
         doubt: dash2sim_verify::decide::DoubtSettings { decide_at: args.decide_at, object_sigma_m: args.object_sigma },
         duration: args.duration,
         jobs: args.jobs,

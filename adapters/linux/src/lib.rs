@@ -7,8 +7,8 @@
 //! `dash2sim-verify`, finishing `dash2sim-finish` and the simulator exports
 //! `dash2sim-export`, above it; the simulator that measures them all is `dash2sim-sim`. It
 //! takes requests and returns results; it never prints (the `dash2sim` command line renders
-//! them) and knows no command line (clap only under the `clap` feature, for the option
-//! enums). ARCHITECTURE.md maps the modules.
+//! them) and knows no command line (no clap: the binaries' words for its option values are
+//! `dash2sim-args`'s). ARCHITECTURE.md maps the modules.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 #![deny(clippy::print_stdout, clippy::print_stderr)]

@@ -23,7 +23,6 @@ use dash2sim_core::sim3::Pose;
 
 /// The trajectory file formats understood.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Format {
     /// `t x y z qx qy qz qw`
     Tum,

@@ -13,7 +13,6 @@ pub const MIN_MATCHED_POSES: usize = 3;
 
 /// How the estimate is aligned to the reference before measuring.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Align {
     /// No alignment.
     None,
@@ -27,7 +26,6 @@ pub enum Align {
 
 /// Which pose error is measured (evo `-r`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Relation {
     /// Translation part, m.
     Trans,

@@ -11,18 +11,19 @@
 use std::process::ExitCode;
 
 use clap::Parser;
-use dash2sim_sim::scenario::publish::{self, PublishRequest};
+use dash2sim_args::PublishArgs;
+use dash2sim_sim::scenario::publish;
 
 /// Publish a generated work-zone drive as a camera process would.
 #[derive(Debug, Parser)]
 #[command(name = "camera_sim", version, about)]
 struct Args {
     #[command(flatten)]
-    publish: PublishRequest,
+    publish: PublishArgs,
 }
 
 fn main() -> ExitCode {
-    match publish::run(&Args::parse().publish) {
+    match publish::run(&Args::parse().publish.into()) {
         Ok(n) => {
             println!("{n} frames published");
             ExitCode::SUCCESS

@@ -61,15 +61,15 @@ pub struct DemoArgs {
     /// the taper and hits its drums), or another kind of bad driving the verifier must
     /// reject: `shoulder`, `oncoming`, `speeding`, `tailgating`, `harsh`; `knife-edge` is
     /// careful on the edge (docs/scenario.md).
-    #[arg(long, value_enum, default_value = "careful")]
+    #[arg(long, value_parser = dash2sim_args::Driver::parser(), default_value = "careful")]
     pub driver: Driver,
     /// How far the sensors are from ideal (docs/scenario.md): `ideal` (the old, kind
     /// simulator), `typical` (a consumer dashcam) or `hard`.
-    #[arg(long, value_enum, default_value = "typical")]
+    #[arg(long, value_parser = dash2sim_args::Profile::parser(), default_value = "typical")]
     pub profile: Profile,
     /// Finishing's street-imagery anchors: `street` (simulated from the true path every
     /// 50 m) or `none` (GNSS and wheel speed only).
-    #[arg(long, value_enum, default_value = "street")]
+    #[arg(long, value_parser = dash2sim_args::Anchors::parser(), default_value = "street")]
     pub anchors: Anchors,
     /// Record from the drive's files in this process (repeatable, no shared memory) instead
     /// of from a live camera process, serial FIFO and CAN FIFO.

@@ -176,7 +176,6 @@ impl RecordRequest {
 
 /// The built-in vehicle-speed message (`--speed-source`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum SpeedMessage {
     /// J1939 CCVS1 wheel-based speed.
     Ccvs1,
@@ -225,7 +224,6 @@ impl Device {
 
 /// What the VO frame is (`--mode`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum VoFrame {
     /// 7-DoF Sim(3).
     Full,

@@ -24,7 +24,6 @@ use dash2sim_verify::{AgentsByTime, Metrics, StatedUncertainty, VerifyReport};
 
 /// Which street-imagery anchors finishing is given.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Anchors {
     /// Every 50 m of the drive, simulated from the true path under the profile's anchor

@@ -89,7 +89,6 @@ pub struct ScenarioConfig {
 
 /// How the ego is driven: carefully, or badly in one of the ways a verifier must catch.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Driver {
     /// Changes into the open lane well before the taper (the drives of the Dash2Sim
     /// corpus: "the driver completed each route without any incidents").

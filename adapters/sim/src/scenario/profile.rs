@@ -22,7 +22,6 @@ use dash2sim_core::sim3::rotation_z;
 
 /// How far the sensors are from ideal.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Profile {
     /// The kind simulator of old: exact VO orientation, linear drifts, exact mount, every
@@ -52,7 +51,6 @@ impl Profile {
 
 /// Which GNSS receiver the generated drive has.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Receiver {
     /// A phone-grade receiver: σ 3–10 m wandering, multipath jumps ([`GnssModel::default`]).

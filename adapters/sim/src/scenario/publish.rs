@@ -29,49 +29,35 @@ use dash2sim_linux::record::bridge::messages::MAX_DETECTIONS;
 use dash2sim_linux::record::bridge::{device_now, CameraPublisher, MAX_IMAGE_BYTES};
 
 /// What to publish and how fast. Two binaries take it as their arguments (`dash2sim scenario
-/// publish` and the `camera_sim` example), so it derives `clap::Args` under the `clap` feature.
+/// publish` and the `camera_sim` example), through `dash2sim-args`'s `PublishArgs`.
 #[derive(Clone, Debug)]
-#[cfg_attr(feature = "clap", derive(clap::Args))]
 pub struct PublishRequest {
     /// Seed of the generated drive.
-    #[cfg_attr(feature = "clap", arg(long, default_value_t = 1))]
     pub seed: u64,
     /// How the ego drives through the work zone.
-    #[cfg_attr(feature = "clap", arg(long, value_enum, default_value = "careful"))]
     pub driver: Driver,
     /// Length of the drive, s (1–600).
-    #[cfg_attr(feature = "clap", arg(long, default_value_t = 20.0))]
     pub seconds: f64,
     /// How far the sensors are from ideal: `ideal`, `typical` or `hard` (docs/scenario.md).
-    #[cfg_attr(feature = "clap", arg(long, value_enum, default_value = "typical"))]
     pub profile: Profile,
     /// The GNSS receiver: `good` (σ 1–2 m) or `phone` (σ 3–10 m).
-    #[cfg_attr(feature = "clap", arg(long, value_enum, default_value = "good"))]
     pub receiver: Receiver,
     /// Frames per second (a multiple of the receiver's 5 Hz).
-    #[cfg_attr(feature = "clap", arg(long, default_value_t = 10))]
     pub fps: u32,
     /// Drive the road this many times (frame numbers and clocks go on; the road starts again).
-    #[cfg_attr(feature = "clap", arg(long, default_value_t = 1))]
     pub laps: u32,
     /// Report at least this many 3D detections a frame (up to 64), adding static cones beside
     /// the road where the drive has fewer: a load test's worst case.
-    #[cfg_attr(feature = "clap", arg(long, default_value_t = 0))]
     pub objects: usize,
     /// Publish this many times faster than real time.
-    #[cfg_attr(feature = "clap", arg(long, default_value_t = 1.0))]
     pub speedup: f64,
     /// Service prefix.
-    #[cfg_attr(feature = "clap", arg(long, default_value = dash2sim_linux::record::bridge::DEFAULT_PREFIX))]
     pub prefix: String,
     /// Also publish a 1920×1080×3 image per frame on the image service.
-    #[cfg_attr(feature = "clap", arg(long))]
     pub images: bool,
     /// Write the GNSS receiver's NMEA here at its rate (a pty, FIFO or file).
-    #[cfg_attr(feature = "clap", arg(long, value_name = "PATH"))]
     pub nmea_out: Option<PathBuf>,
     /// Write the wheel-speed CAN frames here as candump lines at their rate (a FIFO or file).
-    #[cfg_attr(feature = "clap", arg(long, value_name = "PATH"))]
     pub can_out: Option<PathBuf>,
 }
 

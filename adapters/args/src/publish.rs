@@ -1,0 +1,73 @@
+//! `PublishRequest` as arguments: `dash2sim scenario publish` and the `camera_sim` example
+//! take the same.
+
+use std::path::PathBuf;
+
+use dash2sim_sim::scenario::publish::PublishRequest;
+
+use crate::{Driver, Profile, Receiver};
+
+/// What to publish and how fast ([`PublishRequest`]), as the two binaries take it.
+#[derive(Clone, Debug, clap::Args)]
+pub struct PublishArgs {
+    /// Seed of the generated drive.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// How the ego drives through the work zone.
+    #[arg(long, value_enum, default_value = "careful")]
+    pub driver: Driver,
+    /// Length of the drive, s (1–600).
+    #[arg(long, default_value_t = 20.0)]
+    pub seconds: f64,
+    /// How far the sensors are from ideal: `ideal`, `typical` or `hard` (docs/scenario.md).
+    #[arg(long, value_enum, default_value = "typical")]
+    pub profile: Profile,
+    /// The GNSS receiver: `good` (σ 1–2 m) or `phone` (σ 3–10 m).
+    #[arg(long, value_enum, default_value = "good")]
+    pub receiver: Receiver,
+    /// Frames per second (a multiple of the receiver's 5 Hz).
+    #[arg(long, default_value_t = 10)]
+    pub fps: u32,
+    /// Drive the road this many times (frame numbers and clocks go on; the road starts again).
+    #[arg(long, default_value_t = 1)]
+    pub laps: u32,
+    /// Report at least this many 3D detections a frame (up to 64), adding static cones beside
+    /// the road where the drive has fewer: a load test's worst case.
+    #[arg(long, default_value_t = 0)]
+    pub objects: usize,
+    /// Publish this many times faster than real time.
+    #[arg(long, default_value_t = 1.0)]
+    pub speedup: f64,
+    /// Service prefix.
+    #[arg(long, default_value = dash2sim_linux::record::bridge::DEFAULT_PREFIX)]
+    pub prefix: String,
+    /// Also publish a 1920×1080×3 image per frame on the image service.
+    #[arg(long)]
+    pub images: bool,
+    /// Write the GNSS receiver's NMEA here at its rate (a pty, FIFO or file).
+    #[arg(long, value_name = "PATH")]
+    pub nmea_out: Option<PathBuf>,
+    /// Write the wheel-speed CAN frames here as candump lines at their rate (a FIFO or file).
+    #[arg(long, value_name = "PATH")]
+    pub can_out: Option<PathBuf>,
+}
+
+impl From<PublishArgs> for PublishRequest {
+    fn from(a: PublishArgs) -> Self {
+        PublishRequest {
+            seed: a.seed,
+            driver: a.driver.into(),
+            seconds: a.seconds,
+            profile: a.profile.into(),
+            receiver: a.receiver.into(),
+            fps: a.fps,
+            laps: a.laps,
+            objects: a.objects,
+            speedup: a.speedup,
+            prefix: a.prefix,
+            images: a.images,
+            nmea_out: a.nmea_out,
+            can_out: a.can_out,
+        }
+    }
+}
