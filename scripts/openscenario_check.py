@@ -22,8 +22,10 @@
      shift at 10 m/s would already be 1 cm;
    * the tracks (`dash2sim export --parquet`, `tracks3d.parquet`): every moving entity's box
      centre at each vertex (its reference point plus the bounding box's centre along its
-     heading) within 0.01 m of the track's state nearest in time (within 0.05 s) moved on by
-     its velocity over the difference; every static entity inside the box of its track's
+     heading) within 0.01 m of the track's state in the log's frame of tracks nearest the
+     vertex (within 0.1 s) moved on by its velocity over the difference (a state flagged
+     static not moved) — the export's own rule; a vertex whose nearest frame lacks the track is bridged between states, not a
+     logged one, and is not checked; every static entity inside the box of its track's
      positions in the window (or before it: a static object stands where it was seen after
      the camera has lost it), grown by 0.01 m; and every track the log holds inside the
      window is an entity.
@@ -219,6 +221,9 @@ def check_scenario(path: Path, read: dict, ego_log, tracks, convert, step: float
     out["tracks"], out["missing"] = len(by_id), missing
     if missing:
         out["problems"].append(f"{len(missing)} tracks of the log are no entity: {missing[:10]}")
+    # The times of the log's frames of 3D tracks (each a batch of every track it saw), µs.
+    frames = sorted({row["t_us"] for row in tracks})
+    start_us, step_us = round(start * 1e6), round(step * 1e6)
     worst_moving, worst_static, vertices = 0.0, 0.0, 0
     for track_id, entity_names in names.items():
         # A static object seen before the window stands where it was seen (`verify` and the
@@ -238,16 +243,23 @@ def check_scenario(path: Path, read: dict, ego_log, tracks, convert, step: float
                 d = max(min(xs) - cx, cx - max(xs), min(ys) - cy, cy - max(ys), 0.0)
                 worst_static = max(worst_static, d)
                 continue
-            times = [r["t"] for r in rows]
+            by_time = {r["t_us"]: r for r in rows}
             for t, x, y, h in read["paths"][name]:
-                vertices += 1
-                at = start + t
-                i = min(range(len(times)), key=lambda k: abs(times[k] - at))
-                if abs(times[i] - at) > step / 2 + 1e-6:
-                    # Bridged across a gap: linear between the states around it (not checked).
+                at, at_us = start + t, start_us + round(t * 1e6)
+                # The log's frame nearest the vertex's time, as the export takes it (in whole
+                # microseconds, the earlier of two as near): the track's state there, or — the
+                # track missing from that frame — a vertex bridged linearly between the states
+                # around it (not a logged state: not checked).
+                k = bisect.bisect_left(frames, at_us)
+                near = [f for f in frames[max(0, k - 1):k + 1] if abs(f - at_us) <= step_us]
+                if not near:
                     continue
-                r = rows[i]
-                dt = at - r["t"]
+                r = by_time.get(min(near, key=lambda f: (abs(f - at_us), f)))
+                if r is None:
+                    continue
+                vertices += 1
+                # A state flagged static does not move (the log's views give it no velocity).
+                dt = 0.0 if r["is_static"] else at - r["t"]
                 moved = convert([(r["x_m"] + r["vx_mps"] * dt, r["y_m"] + r["vy_mps"] * dt, r["z_m"])])[0]
                 cx, cy = x + ahead * math.cos(h), y + ahead * math.sin(h)
                 worst_moving = max(worst_moving, math.hypot(cx - moved[0], cy - moved[1]))
@@ -324,10 +336,12 @@ def read_tracks(dash2sim: str, log: str, out: Path) -> list:
     table = pq.read_table(folder / "tracks3d.parquet")
     # `t` is a UTC timestamp; as seconds since the epoch, as TUM's and `log_start_s` are.
     unit = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}[table.schema.field("t").type.unit]
-    seconds = [v * unit for v in table.column("t").cast(pa.int64()).to_pylist()]
+    raw = table.column("t").cast(pa.int64()).to_pylist()
     rows = table.drop(["t"]).to_pylist()
-    for row, t in zip(rows, seconds):
-        row["t"] = t
+    for row, v in zip(rows, raw):
+        row["t"] = v * unit
+        # The log counts in whole microseconds; frames are matched to ticks in them.
+        row["t_us"] = round(v * unit * 1e6)
     return rows
 
 

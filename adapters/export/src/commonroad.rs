@@ -105,7 +105,7 @@ pub fn export(request: &ScenarioRequest<'_>) -> Result<CommonRoadExport> {
         let ego = &ticks[from..to];
         let mut xml = format!(
             "<?xml version='1.0' encoding='UTF-8'?>\n<commonRoad timeStepSize=\"{TIME_STEP_S}\" commonRoadVersion=\"2020a\" author=\"dash2sim\" affiliation=\"dash2sim\" source=\"dash2sim export --commonroad: {}\" benchmarkID=\"{id}\" date=\"{}\">\n",
-            escape(request.log_name),
+            super::xml_escape(request.log_name),
             &date[..10]
         );
         xml.push_str(&location);
@@ -127,10 +127,6 @@ pub fn export(request: &ScenarioRequest<'_>) -> Result<CommonRoadExport> {
     }
     cleanup.0.clear();
     Ok(CommonRoadExport { scenarios, lanelets: road.pieces.len() + road.connectors.len(), epsg: map_projection.epsg() })
-}
-
-fn escape(text: &str) -> String {
-    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
 fn point(out: &mut String, indent: &str, (x, y): (f64, f64), origin: (f64, f64)) {

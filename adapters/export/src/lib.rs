@@ -86,6 +86,11 @@ pub fn map_tile(path: &Path, origin: Option<dash2sim_core::geo::Geodetic>) -> Re
     ))
 }
 
+/// `text` as an XML attribute's value or element's text (the XML exports' escaping).
+fn xml_escape(text: &str) -> String {
+    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
 fn write(path: &Path, text: &str) -> Result<()> {
     std::fs::write(path, text).map_err(|e| Error::file(path, e))
 }

@@ -306,7 +306,7 @@ fn scenario_xml(entities: &[Entity], header: &Header, steps: usize) -> String {
     let mut x = format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<OpenSCENARIO>\n  <FileHeader revMajor=\"1\" revMinor=\"0\" date=\"{}\" description=\"{}\" author=\"dash2sim\"/>\n  <ParameterDeclarations>\n    <ParameterDeclaration name=\"log_start_s\" parameterType=\"double\" value=\"{}{}.{:06}\"/>\n  </ParameterDeclarations>\n  <CatalogLocations/>\n  <RoadNetwork>\n    <LogicFile filepath=\"{ROAD_FILE}\"/>\n  </RoadNetwork>\n  <Entities>\n",
         header.date,
-        escape(&header.description),
+        super::xml_escape(&header.description),
         if header.start_us < 0 { "-" } else { "" },
         header.start_us.unsigned_abs() / 1_000_000,
         header.start_us.unsigned_abs() % 1_000_000
@@ -379,8 +379,4 @@ fn scenario_xml(entities: &[Entity], header: &Header, steps: usize) -> String {
         time_trigger("StopTrigger", "the log ends", end)
     );
     x
-}
-
-fn escape(text: &str) -> String {
-    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }

@@ -208,14 +208,102 @@ pub fn finish(
     );
     refused.sort();
 
-    // The finished ego: every VO pose's camera through the solution and the mount, its
-    // planar track smoothed (the VO's frame-to-frame noise is not the car's motion).
-    // Each session smoothed on its own (a constant-velocity smoother across a gap would
-    // turn the two sessions' disagreement into a velocity), then the sessions joined.
+    let (ego, bridged) = finished_ego(&drive, &sessions, &mount);
+    let mut placed = place_objects(log, &drive, &ego, calibrated, nominal_yaw);
+    let mut records = finished_records(log, &drive, &sessions, &ego, &mut placed, used_anchors);
+    let verification = match map {
+        Some(bytes) => Some(windows::verify_finished(log, &records, name, bytes)?),
+        None => None,
+    };
+    if let Some(v) = &verification {
+        records.extend(v.records.iter().cloned());
+        records.sort_by_key(Record::t_us);
+    }
+
+    let fixes_used =
+        (0..drive.fixes.len()).filter(|&k| sessions.iter().any(|s| s.solution.fix_used.get(k) == Some(&true))).count();
+    // The longest session speaks for the drive's scale, latency and wheel factor.
+    let main = sessions.iter().max_by_key(|s| s.range.len()).map(|s| &s.solution).unwrap_or_else(|| unreachable!());
+    let utc_latency_s = clock::latency_from_motion(&log.records, &ego).unwrap_or(main.latency_s);
+    let utc_shift_us = clock::utc_onto_the_fixes(&mut records, utc_latency_s);
+    let calibrated = placed.calibrated;
+    let [_, pitch, yaw] = calibrated.mount.roll_pitch_yaw;
+    let tracks = placed.tracks.stats;
+    let mut report = FinishReport {
+        log: name.to_owned(),
+        records: 0, // counted once the events are in, below
+        vo_poses: drive.vo.len(),
+        ego_poses: ego.len(),
+        ego_bridged: Bridged { gaps: bridged.len(), seconds: bridged.iter().map(|g| g.seconds).sum() },
+        anchoring: anchoring_report(main),
+        utc_shift_s: utc_shift_us as f64 * 1e-6,
+        sessions: sessions
+            .iter()
+            .map(|s| {
+                let vo = &drive.vo[s.range.clone()];
+                SessionReport {
+                    session: s.session,
+                    vo_poses: vo.len(),
+                    start_s: vo[0].t,
+                    end_s: vo[vo.len() - 1].t,
+                    anchoring: anchoring_report(&s.solution),
+                }
+            })
+            .collect(),
+        unsolved_sessions: unsolved
+            .iter()
+            .map(|(session, poses, why)| UnsolvedSession { session: *session, vo_poses: *poses, reason: why.clone() })
+            .collect(),
+        mount: MountReport {
+            yaw_deg: yaw.to_degrees(),
+            pitch_deg: pitch.to_degrees(),
+            sigma_yaw_deg: calibrated.sigma[0].to_degrees(),
+            sigma_pitch_deg: calibrated.sigma[1].to_degrees(),
+            samples: calibrated.samples,
+            calibrated: calibrated.calibrated,
+        },
+        reckoning: drive
+            .reckoning
+            .map(|r| ReckoningReport { static_objects_turned_deg: placed.static_yaw.map(f64::to_degrees), ..r }),
+        gnss: GnssReport { fixes: drive.fixes.len(), used: fixes_used, rejected: drive.fixes.len() - fixes_used },
+        speed_samples: drive.speeds.len(),
+        anchors: AnchorsReport {
+            file: anchor_file.map(|(p, _)| p.to_owned()),
+            used: used_anchors,
+            refused: refused.iter().map(|(line, why)| RefusedAnchor { line: *line, reason: why.clone() }).collect(),
+        },
+        tracks: TracksReport {
+            states: tracks.states,
+            unplaced: tracks.unplaced,
+            smoothed: tracks.smoothed,
+            static_merged: tracks.merged_static,
+            ghosts_dropped: tracks.ghosts + placed.raw_ghosts,
+            raw_detections: placed.raw_stats.detections,
+            raw_placed: placed.raw_stats.placed,
+            raw_track_states: placed.raw_stats.track_states,
+        },
+        damage: DamageReport { stretches: log.damage.len(), bytes: log.damage.iter().map(|d| d.1).sum::<u64>() },
+        verification: verification.as_ref().map(|v| v.report.clone()),
+    };
+    put_events_first(&mut records, &report, log.records.len(), utc_shift_us);
+    report.records = records.len();
+    Ok(Finished { records, report })
+}
+
+/// The finished ego: every VO pose's camera through the solution and the mount, its planar
+/// track smoothed (the VO's frame-to-frame noise is not the car's motion). Each session
+/// smoothed on its own (a constant-velocity smoother across a gap would turn the two
+/// sessions' disagreement into a velocity), then the sessions joined and the gaps between
+/// them bridged. The poses by time, and the bridges.
+fn finished_ego(
+    drive: &Drive,
+    sessions: &[sessions::SessionSolution],
+    mount: &CameraMount,
+) -> (BTreeMap<i64, EgoPose>, Vec<sessions::Bridge>) {
     let mut planar_poses: Vec<PlanarPose> = Vec::new();
     // Where each session begins in `planar_poses`, and its wheel factor.
     let mut starts: Vec<(usize, f64)> = Vec::new();
-    for solved in &sessions {
+    for solved in sessions {
         let vo = &drive.vo[solved.range.clone()];
         let bodies: Vec<(f64, Pose)> = vo
             .iter()
@@ -255,7 +343,6 @@ pub fn finish(
     join_sessions(&mut planar_poses, &starts, &drive.speeds);
     let mut ego: BTreeMap<i64, EgoPose> = BTreeMap::new();
     let bridged = bridge_gaps(&planar_poses, frame_interval(&drive.vo), &drive.speeds);
-    let bridged_s: f64 = bridged.iter().map(|g| g.seconds).sum();
     for pose in planar_poses.iter().chain(bridged.iter().flat_map(|g| &g.poses)) {
         let t_us = quantise(pose.t, 1e-6);
         ego.insert(
@@ -270,6 +357,34 @@ pub fn finish(
             },
         );
     }
+    (ego, bridged)
+}
+
+/// The objects placed through the finished ego: the device's tracks and the raw detections.
+struct PlacedObjects {
+    /// Both kinds of track, finished.
+    tracks: tracks::FinishedTracks,
+    /// The ghosts dropped among the raw detections' tracks.
+    raw_ghosts: usize,
+    /// What became of the raw detections.
+    raw_stats: raw::RawStats,
+    /// A dead-reckoned camera's yaw found from the static objects, rad.
+    static_yaw: Option<f64>,
+    /// The mount the objects were placed with (the log's).
+    calibrated: MountEstimate,
+}
+
+/// The device's tracks re-expressed through the finished ego and the mount calibrated over
+/// the whole drive (the device placed its detections through the mount it had then), and the
+/// raw detections tracked through the finished ego; both smoothed and merged.
+fn place_objects(
+    log: &LogContents,
+    drive: &Drive,
+    ego: &BTreeMap<i64, EgoPose>,
+    calibrated: MountEstimate,
+    nominal_yaw: f64,
+) -> PlacedObjects {
+    let mount = calibrated.mount;
     let online: BTreeMap<i64, EgoPose> =
         log.records.iter().filter_map(|r| if let Record::EgoPose(p) = r { Some((p.t_us, *p)) } else { None }).collect();
     let batches: Vec<_> =
@@ -279,8 +394,6 @@ pub fn finish(
             .get(&t)
             .map(|p| [p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3, p.z_mm as f64 * 1e-3, p.yaw_e4 as f64 * 1e-4])
     };
-    // The device placed its detections through the mount it had then; the finished ego
-    // goes with the mount calibrated over the whole drive.
     let device_mounts: Vec<(i64, f64)> = log
         .records
         .iter()
@@ -297,23 +410,41 @@ pub fn finish(
     // A dead-reckoned camera's yaw on the car is the forward axis the gyro found (to a
     // degree or two); the static objects it saw say the rest. A camera's VO places its
     // objects and its ego with the same rotation, so a mount's yaw cannot move them.
-    let static_yaw = drive.reckoning.and_then(|_| tracks::static_yaw(&batches, &online_turned, &|t| ego_at(&ego, t)));
+    let static_yaw = drive.reckoning.and_then(|_| tracks::static_yaw(&batches, &online_turned, &|t| ego_at(ego, t)));
     let turn = static_yaw.unwrap_or(0.0);
     let mut objects_mount = mount;
     objects_mount.roll_pitch_yaw[2] += turn;
-    // The log's mount is the one the objects were placed with.
-    let calibrated = MountEstimate { mount: objects_mount, ..calibrated };
-    let mut tracks = tracks::finish_tracks(&batches, &|t| online_turned(t, turn), &|t| ego_at(&ego, t));
+    let mut tracks = tracks::finish_tracks(&batches, &|t| online_turned(t, turn), &|t| ego_at(ego, t));
     let raw: Vec<_> =
         log.records.iter().filter_map(|r| if let Record::Detection3d(d) = r { Some(*d) } else { None }).collect();
-    let (raw_batches, raw_stats) = raw::track_raw(&raw, &ego, &objects_mount);
+    let (raw_batches, raw_stats) = raw::track_raw(&raw, ego, &objects_mount);
     // Already placed through the finished ego: re-expressed onto itself, then smoothed and
     // merged as the device's tracks are.
-    let raw_tracks = tracks::finish_tracks(&raw_batches, &|t| ego_at(&ego, t), &|t| ego_at(&ego, t));
+    let raw_tracks = tracks::finish_tracks(&raw_batches, &|t| ego_at(ego, t), &|t| ego_at(ego, t));
     let raw_ghosts = raw_tracks.stats.ghosts;
     tracks.batches.extend(raw_tracks.batches);
     tracks.covariances.extend(raw_tracks.covariances);
+    PlacedObjects {
+        tracks,
+        raw_ghosts,
+        raw_stats,
+        static_yaw,
+        calibrated: MountEstimate { mount: objects_mount, ..calibrated },
+    }
+}
 
+/// The finished log's records before verification: the source's, less what finishing
+/// redoes (ego, anchor and mount estimates, tracks, verification), and the finished ones
+/// (ego, tracks and their covariances — taken out of `placed`, which keeps their stats —
+/// the mount, an anchor estimate a second per session); in time order.
+fn finished_records(
+    log: &LogContents,
+    drive: &Drive,
+    sessions: &[sessions::SessionSolution],
+    ego: &BTreeMap<i64, EgoPose>,
+    placed: &mut PlacedObjects,
+    used_anchors: usize,
+) -> Vec<Record> {
     let mut records: Vec<Record> = log
         .records
         .iter()
@@ -331,12 +462,12 @@ pub fn finish(
         .cloned()
         .collect();
     records.extend(ego.values().map(|p| Record::EgoPose(*p)));
-    records.extend(tracks.batches.into_iter().map(Record::Tracks3d));
-    records.extend(tracks.covariances.into_iter().map(Record::TrackCovariance));
+    records.extend(std::mem::take(&mut placed.tracks.batches).into_iter().map(Record::Tracks3d));
+    records.extend(std::mem::take(&mut placed.tracks.covariances).into_iter().map(Record::TrackCovariance));
     if let Some(first) = drive.vo.first() {
-        records.push(Record::MountEstimate(mount_record(quantise(first.t, 1e-6), &calibrated)));
+        records.push(Record::MountEstimate(mount_record(quantise(first.t, 1e-6), &placed.calibrated)));
     }
-    for solved in &sessions {
+    for solved in sessions {
         let (vo, solution) = (&drive.vo[solved.range.clone()], &solved.solution);
         let mut last_estimate = f64::NEG_INFINITY;
         for k in 0..solution.keyframe_t.len().saturating_sub(1) {
@@ -349,84 +480,16 @@ pub fn finish(
         }
     }
     records.sort_by_key(Record::t_us);
+    records
+}
 
-    let verification = match map {
-        Some(bytes) => Some(windows::verify_finished(log, &records, name, bytes)?),
-        None => None,
-    };
-    if let Some(v) = &verification {
-        records.extend(v.records.iter().cloned());
-        records.sort_by_key(Record::t_us);
-    }
-
-    let fixes_used =
-        (0..drive.fixes.len()).filter(|&k| sessions.iter().any(|s| s.solution.fix_used.get(k) == Some(&true))).count();
-    // The longest session speaks for the drive's scale, latency and wheel factor.
-    let main = sessions.iter().max_by_key(|s| s.range.len()).map(|s| &s.solution).unwrap_or_else(|| unreachable!());
-    let utc_latency_s = clock::latency_from_motion(&log.records, &ego).unwrap_or(main.latency_s);
-    let utc_shift_us = clock::utc_onto_the_fixes(&mut records, utc_latency_s);
-    let [_, pitch, yaw] = calibrated.mount.roll_pitch_yaw;
-    let mut report = FinishReport {
-        log: name.to_owned(),
-        records: 0, // counted once the events are in, below
-        vo_poses: drive.vo.len(),
-        ego_poses: ego.len(),
-        ego_bridged: Bridged { gaps: bridged.len(), seconds: bridged_s },
-        anchoring: anchoring_report(main),
-        utc_shift_s: utc_shift_us as f64 * 1e-6,
-        sessions: sessions
-            .iter()
-            .map(|s| {
-                let vo = &drive.vo[s.range.clone()];
-                SessionReport {
-                    session: s.session,
-                    vo_poses: vo.len(),
-                    start_s: vo[0].t,
-                    end_s: vo[vo.len() - 1].t,
-                    anchoring: anchoring_report(&s.solution),
-                }
-            })
-            .collect(),
-        unsolved_sessions: unsolved
-            .iter()
-            .map(|(session, poses, why)| UnsolvedSession { session: *session, vo_poses: *poses, reason: why.clone() })
-            .collect(),
-        mount: MountReport {
-            yaw_deg: yaw.to_degrees(),
-            pitch_deg: pitch.to_degrees(),
-            sigma_yaw_deg: calibrated.sigma[0].to_degrees(),
-            sigma_pitch_deg: calibrated.sigma[1].to_degrees(),
-            samples: calibrated.samples,
-            calibrated: calibrated.calibrated,
-        },
-        reckoning: drive
-            .reckoning
-            .map(|r| ReckoningReport { static_objects_turned_deg: static_yaw.map(f64::to_degrees), ..r }),
-        gnss: GnssReport { fixes: drive.fixes.len(), used: fixes_used, rejected: drive.fixes.len() - fixes_used },
-        speed_samples: drive.speeds.len(),
-        anchors: AnchorsReport {
-            file: anchor_file.map(|(p, _)| p.to_owned()),
-            used: used_anchors,
-            refused: refused.iter().map(|(line, why)| RefusedAnchor { line: *line, reason: why.clone() }).collect(),
-        },
-        tracks: TracksReport {
-            states: tracks.stats.states,
-            unplaced: tracks.stats.unplaced,
-            smoothed: tracks.stats.smoothed,
-            static_merged: tracks.stats.merged_static,
-            ghosts_dropped: tracks.stats.ghosts + raw_ghosts,
-            raw_detections: raw_stats.detections,
-            raw_placed: raw_stats.placed,
-            raw_track_states: raw_stats.track_states,
-        },
-        damage: DamageReport { stretches: log.damage.len(), bytes: log.damage.iter().map(|d| d.1).sum::<u64>() },
-        verification: verification.as_ref().map(|v| v.report.clone()),
-    };
-    // The two events say what the report says (the first also the source's size).
-    let [summary, settings] = events(&report, log.records.len(), utc_shift_us);
+/// The two events that say what `report` says (the first also the source's size, `source`
+/// records) put first in `records`: a log is in UTC from its first clock offset on, a
+/// finished log in UTC throughout, so that record goes first (nothing before it to move)
+/// and the events next.
+fn put_events_first(records: &mut Vec<Record>, report: &FinishReport, source: usize, utc_shift_us: i64) {
+    let [summary, settings] = events(report, source, utc_shift_us);
     let first_t = records.first().map_or(0, Record::t_us);
-    // A log is in UTC from its first clock offset on; a finished log is in UTC throughout,
-    // so that record goes first (nothing before it to move) and the events next.
     let at = match records.iter().position(|r| matches!(r, Record::ClockOffset(_))) {
         Some(k) => {
             let offset = records.remove(k);
@@ -437,8 +500,6 @@ pub fn finish(
     };
     records.insert(at, event(first_t, 2, &summary));
     records.insert(at + 1, event(first_t, 2, &settings));
-    report.records = records.len();
-    Ok(Finished { records, report })
 }
 
 /// The camera mount over the whole drive: the device's calibration run on every VO pose,

@@ -471,6 +471,14 @@ fn solve_from(
     if inputs.vo.len() < 2 {
         return Err(SolveError::NoVo);
     }
+    something_to_anchor_to(&inputs, anchor_enabled)?;
+    let mut state = initial_state(inputs, settings, anchor_enabled, tau0)?;
+    let (current, iterations) = minimise(&mut state, anchor_enabled)?;
+    solution(state, current, iterations, anchor_enabled)
+}
+
+/// An error unless a fix or an enabled anchor falls within the VO poses' time span.
+fn something_to_anchor_to(inputs: &Inputs<'_>, anchor_enabled: &[bool]) -> Result<(), SolveError> {
     let (t_first, t_last) = (inputs.vo[0].t, inputs.vo[inputs.vo.len() - 1].t);
     let within = |t: f64| t >= t_first && t <= t_last;
     let has_fix = inputs.fixes.iter().any(|f| within(f.t));
@@ -483,6 +491,17 @@ fn solve_from(
     if !has_fix && !has_anchor {
         return Err(SolveError::NothingToAnchorTo);
     }
+    Ok(())
+}
+
+/// The unknowns where the solve starts: the first alignment at every keyframe, the
+/// latency `tau0`, every measurement weighted 1 (a disabled anchor 0).
+fn initial_state<'a>(
+    inputs: Inputs<'a>,
+    settings: Settings,
+    anchor_enabled: &[bool],
+    tau0: f64,
+) -> Result<State<'a>, SolveError> {
     let initial = initial_alignment(&inputs, settings.gravity_aligned)?;
     let keyframe_vo = keyframes(inputs.vo, settings.keyframe_s);
     let keyframe_t: Vec<f64> = keyframe_vo.iter().map(|&j| inputs.vo[j].t).collect();
@@ -495,7 +514,7 @@ fn solve_from(
         })
         .collect();
     let blocks = keyframe_vo.len();
-    let mut state = State {
+    Ok(State {
         inputs,
         settings,
         p: initial_positions(&inputs, &keyframe_vo, &initial, settings.gravity_aligned),
@@ -511,16 +530,20 @@ fn solve_from(
         odometer: odometer(inputs.speeds, &keyframe_t),
         keyframe_vo,
         keyframe_t,
-    };
-    // Levenberg–Marquardt on the reweighted problem: Cauchy weights from the second
-    // iteration on, the 6σ gate from the fourth (a first alignment still far from the
-    // solution must not reject what is right). A state's cost is Σ w(u)·u² with its own
-    // weights — bounded per measurement, so a step that moves an outlier is not refused for
-    // it; a step that does not lower the cost is retried with more damping.
+    })
+}
+
+/// Levenberg–Marquardt on the reweighted problem: Cauchy weights from the second
+/// iteration on, the 6σ gate from the fourth (a first alignment still far from the
+/// solution must not reject what is right). A state's cost is Σ w(u)·u² with its own
+/// weights — bounded per measurement, so a step that moves an outlier is not refused for
+/// it; a step that does not lower the cost is retried with more damping. The last system
+/// assembled and the iterations taken.
+fn minimise(state: &mut State<'_>, anchor_enabled: &[bool]) -> Result<(Assembled, usize), SolveError> {
     let mut iterations = 0;
     let mut lambda = 1e-4;
     let mut current = state.assemble();
-    while iterations < settings.max_iterations {
+    while iterations < state.settings.max_iterations {
         iterations += 1;
         if iterations >= 2 {
             state.reweight(&current, true, iterations >= 4, anchor_enabled);
@@ -537,7 +560,7 @@ fn solve_from(
         }
         let (before, after) = (current.normal.chi2, assembled.normal.chi2);
         if after <= before {
-            state = trial;
+            *state = trial;
             current = assembled;
             lambda = (lambda * 0.1).max(1e-9);
             if iterations >= 5 && (step < CONVERGED_STEP || before - after <= 1e-9 * before) {
@@ -551,12 +574,25 @@ fn solve_from(
             }
         }
     }
+    Ok((current, iterations))
+}
+
+/// The solution at `state`, with what the measurements say of it: which fixes and anchors
+/// it used, the a-posteriori variance factor, the σ of its scale, positions and heading (from
+/// the inverse of `current`'s normal matrix), and the fit of the measurements it used.
+fn solution(
+    state: State<'_>,
+    current: Assembled,
+    iterations: usize,
+    anchor_enabled: &[bool],
+) -> Result<(Solution, f64), SolveError> {
+    let blocks = state.keyframe_vo.len();
     let Assembled { normal, fix_u, anchor_u, .. } = current;
     let (chi2, rows) = (normal.chi2, normal.rows);
     let llt = normal.matrix(0.0)?.sp_cholesky(Side::Upper).map_err(|_| SolveError::Singular)?;
     let unknowns = blocks * BLOCK + GLOBALS;
     let sigma0_sq = chi2 / (rows.saturating_sub(unknowns).max(1)) as f64;
-    let gate = settings.gate;
+    let gate = state.settings.gate;
     let fix_used: Vec<bool> = fix_u.iter().map(|u| u.is_finite() && *u <= gate).collect();
     let anchor_used: Vec<bool> =
         anchor_u.iter().zip(anchor_enabled).map(|(u, &on)| on && u.is_finite() && *u <= gate).collect();
@@ -567,13 +603,71 @@ fn solve_from(
         .filter(|u| u.is_finite())
         .map(|u| (u * u).min(gate * gate))
         .sum();
+    let doubt = doubt(&llt, &state.keyframe_t, blocks, inflation_factor);
+    let mut sse = 0.0;
+    let mut used = 0;
+    for (fix, &ok) in state.inputs.fixes.iter().zip(&fix_used) {
+        if let (true, Some(at)) = (ok, state.geometry().place(fix.t - state.tau)) {
+            let r = state.geometry().camera(&at) - fix.enu;
+            sse += r.x * r.x + r.y * r.y;
+            used += 1;
+        }
+    }
+    let mut state = state;
+    let last_rho = state.rho[blocks.saturating_sub(2)];
+    if let Some(r) = state.rho.last_mut() {
+        *r = last_rho;
+    }
+    let solution = Solution {
+        positions: state.p,
+        log_scale: state.rho,
+        rotation: state.rotation,
+        latency_s: state.tau,
+        wheel_factor: state.omega.exp(),
+        heading_drift: state.heading_drift,
+        fix_used,
+        anchor_used,
+        iterations,
+        sigma0_sq,
+        scale_sigma: doubt.scale,
+        position_sigma_m: doubt.position,
+        horizontal_sigma: doubt.horizontal,
+        heading_sigma_rad: doubt.heading,
+        gnss_rms_m: if used > 0 { (sse / used as f64).sqrt() } else { f64::NAN },
+        keyframe_t: state.keyframe_t,
+        keyframe_vo: state.keyframe_vo,
+    };
+    Ok((solution, fit))
+}
+
+/// The solution's σ, inflated by the variance factor when the fit is worse than the
+/// measurements' σ say.
+struct Doubt {
+    /// Of the drive's mean log-scale.
+    scale: f64,
+    /// Of a position, m (the mean over the sampled keyframes).
+    position: f64,
+    /// Of the horizontal position at up to 32 keyframes along the drive: (time, σ m).
+    horizontal: Vec<(f64, f64)>,
+    /// Of the heading where the session fixes it best, rad.
+    heading: f64,
+}
+
+/// The σ of the solution from the Cholesky factor `llt` of its normal matrix (`blocks`
+/// keyframes at `keyframe_t`), each times `inflation_factor`.
+fn doubt(
+    llt: &faer::sparse::linalg::solvers::Llt<usize, f64>,
+    keyframe_t: &[f64],
+    blocks: usize,
+    inflation_factor: f64,
+) -> Doubt {
     // The drive's mean log-scale (segments weighted by duration): aᵀ H⁻¹ a.
-    let n = unknowns;
-    let total: f64 = state.keyframe_t.windows(2).map(|w| w[1] - w[0]).sum();
+    let n = blocks * BLOCK + GLOBALS;
+    let total: f64 = keyframe_t.windows(2).map(|w| w[1] - w[0]).sum();
     let mean_scale = Mat::from_fn(n, 1, |i, _| {
         let k = i / BLOCK;
         if i < blocks * BLOCK && i % BLOCK == 3 && k + 1 < blocks {
-            (state.keyframe_t[k + 1] - state.keyframe_t[k]) / total
+            (keyframe_t[k + 1] - keyframe_t[k]) / total
         } else {
             0.0
         }
@@ -592,52 +686,25 @@ fn solve_from(
     // The heading where the session fixes it best: the VO carries it along the rest (a
     // standstill's keyframes, the last one that only marks the session's end, are held by
     // little else).
-    let heading_sigma_rad = (0..samples.len())
+    let heading = (0..samples.len())
         .filter(|&j| blocks == 1 || samples[j] + 1 < blocks)
         .map(|j| cov[(column(4 * j + 3), 4 * j + 3)].max(0.0).sqrt() * inflation_factor)
         .fold(f64::INFINITY, f64::min);
     let position_var = trace / samples.len().max(1) as f64;
-    let horizontal_sigma: Vec<(f64, f64)> = samples
+    let horizontal = samples
         .iter()
         .enumerate()
         .map(|(j, &k)| {
             let var = cov[(k * BLOCK, 4 * j)] + cov[(k * BLOCK + 1, 4 * j + 1)];
-            (state.keyframe_t[k], var.max(0.0).sqrt() * inflation_factor)
+            (keyframe_t[k], var.max(0.0).sqrt() * inflation_factor)
         })
         .collect();
-    let mut sse = 0.0;
-    let mut used = 0;
-    for (fix, &ok) in inputs.fixes.iter().zip(&fix_used) {
-        if let (true, Some(at)) = (ok, state.geometry().place(fix.t - state.tau)) {
-            let r = state.geometry().camera(&at) - fix.enu;
-            sse += r.x * r.x + r.y * r.y;
-            used += 1;
-        }
+    Doubt {
+        scale: scale_var.max(0.0).sqrt() * inflation_factor,
+        position: position_var.max(0.0).sqrt() * inflation_factor,
+        horizontal,
+        heading,
     }
-    let last_rho = state.rho[blocks.saturating_sub(2)];
-    if let Some(r) = state.rho.last_mut() {
-        *r = last_rho;
-    }
-    let solution = Solution {
-        positions: state.p,
-        log_scale: state.rho,
-        rotation: state.rotation,
-        latency_s: state.tau,
-        wheel_factor: state.omega.exp(),
-        heading_drift: state.heading_drift,
-        fix_used,
-        anchor_used,
-        iterations,
-        sigma0_sq,
-        scale_sigma: scale_var.max(0.0).sqrt() * inflation_factor,
-        position_sigma_m: position_var.max(0.0).sqrt() * inflation_factor,
-        horizontal_sigma,
-        heading_sigma_rad,
-        gnss_rms_m: if used > 0 { (sse / used as f64).sqrt() } else { f64::NAN },
-        keyframe_t: state.keyframe_t,
-        keyframe_vo: state.keyframe_vo,
-    };
-    Ok((solution, fit))
 }
 
 fn nearest_keyframe(vo: &[VoSample], keyframe_vo: &[usize], x: &Vector3<f64>) -> usize {
