@@ -28,7 +28,7 @@ use faer::{Mat, Side};
 mod normal;
 mod problem;
 mod start;
-use normal::{solve_normal, Normal, Row};
+use normal::{solve_normal, Factoriser, Normal, Row};
 pub use problem::{Anchor, AnchorAt, Fix, Inputs, Settings, Solution, SolveError, VoSample};
 pub(crate) use start::wheel_distance;
 use start::{initial_alignment, initial_positions, keyframes, odometer};
@@ -542,6 +542,7 @@ fn initial_state<'a>(
 fn minimise(state: &mut State<'_>, anchor_enabled: &[bool]) -> Result<(Assembled, usize), SolveError> {
     let mut iterations = 0;
     let mut lambda = 1e-4;
+    let mut factoriser = Factoriser::default();
     let mut current = state.assemble();
     while iterations < state.settings.max_iterations {
         iterations += 1;
@@ -549,7 +550,7 @@ fn minimise(state: &mut State<'_>, anchor_enabled: &[bool]) -> Result<(Assembled
             state.reweight(&current, true, iterations >= 4, anchor_enabled);
             current = state.assemble();
         }
-        let delta = solve_normal(&current.normal, lambda)?;
+        let delta = solve_normal(&current.normal, lambda, &mut factoriser)?;
         let mut trial = state.clone();
         let step = trial.apply(&delta);
         let mut assembled = trial.assemble();
