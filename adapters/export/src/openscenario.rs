@@ -39,6 +39,9 @@ const MIN_STEPS: usize = 10;
 pub const ROAD_FILE: &str = "road.xodr";
 /// The ego's wheelbase (nuPlan's Pacifica), m.
 const WHEELBASE_M: f64 = 3.089;
+/// The ego's height (nuPlan's Pacifica, whose footprint `verify` uses; the footprint has
+/// no height), m.
+const PACIFICA_HEIGHT_M: f64 = 1.777;
 /// A tracked vehicle's rear axle behind its box's centre, as a fraction of its length (the
 /// Pacifica's: 1.461 m of 5.176 m). A track's box is what the camera measures; OpenSCENARIO
 /// places a vehicle by its rear axle.
@@ -176,7 +179,7 @@ impl Entity {
         Entity {
             name: "Ego".to_string(),
             kind: Kind::Ego,
-            size: (length, PACIFICA.width, 1.777),
+            size: (length, PACIFICA.width, PACIFICA_HEIGHT_M),
             centre_ahead: 0.5 * (PACIFICA.front - PACIFICA.rear),
             path,
             always: true,

@@ -8,6 +8,8 @@
 //! the tile has them. A corner too sharp for the segments beside it gets a tight arc, which
 //! is still the polyline's shape.
 
+use dash2sim_core::track3d::wrap_angle;
+
 /// The largest distance of an arc from the corner it rounds, m.
 pub const TOLERANCE_M: f64 = 0.05;
 
@@ -77,7 +79,7 @@ impl PlanView {
         // arc itself (turn, radius).
         let mut corners = vec![(0.0, 0.0, 0.0); p.len()];
         for k in 1..p.len() - 1 {
-            let turn = wrap(headings[k] - headings[k - 1]);
+            let turn = wrap_angle(headings[k] - headings[k - 1]);
             let half = 0.5 * turn.abs().min(std::f64::consts::PI - 1e-6);
             if half < 0.5 * STRAIGHT_RAD {
                 continue;
@@ -100,7 +102,7 @@ impl PlanView {
                 Some(last)
                     if curvature == 0.0
                         && last.curvature == 0.0
-                        && wrap(heading - last.heading).abs() < STRAIGHT_RAD =>
+                        && wrap_angle(heading - last.heading).abs() < STRAIGHT_RAD =>
                 {
                     last.length += length;
                 }
@@ -167,10 +169,6 @@ impl PlanView {
     }
 }
 
-fn wrap(a: f64) -> f64 {
-    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -203,7 +201,7 @@ mod tests {
         for w in v.elements.windows(2) {
             let (x, y, h) = w[0].at(w[0].length);
             assert!((x - w[1].x).hypot(y - w[1].y) < 1e-9, "gap at s = {}", w[1].s);
-            assert!(wrap(h - w[1].heading).abs() < 1e-9, "kink at s = {}", w[1].s);
+            assert!(wrap_angle(h - w[1].heading).abs() < 1e-9, "kink at s = {}", w[1].s);
         }
         // Two corners, two arcs, and every point within the tolerance of the polyline.
         assert_eq!(v.elements.iter().filter(|e| e.curvature != 0.0).count(), 2);

@@ -204,3 +204,43 @@ pub(super) fn solve_normal(normal: &Normal, lambda: f64, factoriser: &mut Factor
     }
     Ok(delta)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small problem: two keyframes, a prior on every unknown, and optionally a row coupling
+    /// the two keyframes (which changes the matrix's pattern).
+    fn normal(coupled: bool) -> Normal {
+        let mut n = Normal::new(2);
+        for i in 0..n.size() {
+            n.push(&Row::new(0.1 * i as f64 + 0.3).with(i, 1.0 + 0.01 * i as f64), 1.0);
+        }
+        if coupled {
+            n.push(&Row::new(0.7).with(2, 1.5).with(BLOCK + 2, -1.5), 1.0);
+        }
+        n
+    }
+
+    fn solve_with(llt: &Llt<usize, f64>, n: &Normal) -> Vec<f64> {
+        let rhs = Mat::from_fn(n.size(), 1, |i, _| -n.g[i]);
+        let x = llt.solve(&rhs);
+        (0..n.size()).map(|i| x[(i, 0)]).collect()
+    }
+
+    #[test]
+    fn the_kept_symbolic_factor_gives_sp_choleskys_solution_and_follows_a_new_pattern() {
+        let mut factoriser = Factoriser::default();
+        for (coupled, lambda) in [(false, 1e-4), (false, 1e-2), (true, 1e-2), (true, 1.0), (false, 0.0)] {
+            let n = normal(coupled);
+            let matrix = n.matrix(lambda).expect("matrix");
+            let fresh = matrix.sp_cholesky(Side::Upper).expect("factor");
+            let kept = factoriser.factor(&matrix).expect("factor");
+            // Bit for bit: the symbolic part is the one this pattern gives, kept or not.
+            assert_eq!(solve_with(&kept, &n), solve_with(&fresh, &n), "coupled {coupled}, λ {lambda}");
+            let (columns, rows, _) = factoriser.symbolic.as_ref().expect("kept");
+            assert_eq!(columns.as_slice(), matrix.symbolic().col_ptr());
+            assert_eq!(rows.as_slice(), matrix.symbolic().row_idx());
+        }
+    }
+}
