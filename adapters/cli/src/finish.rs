@@ -35,6 +35,12 @@ pub struct FinishArgs {
     /// the `.pub` file of `dash2sim keygen`), unaltered and in an unbroken chain.
     #[arg(long, value_name = "PUB")]
     pub require_signed: Option<String>,
+    /// Also write the problem the re-anchoring solved (each VO session's variables, factors,
+    /// noise models and robust kernels, the values it started from and ended at) as JSON,
+    /// for an outside solver such as GTSAM (`scripts/gtsam_check.py`, docs/finishing.md).
+    /// It solves the drive a second time.
+    #[arg(long, value_name = "JSON")]
+    pub factor_graph: Option<PathBuf>,
     /// Print the report as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -51,6 +57,7 @@ pub fn run(args: &FinishArgs) -> Result<()> {
         device: args.device.clone().into(),
         keyframe: args.keyframe,
         require_signed: args.require_signed.as_deref().map(signing::read_public).transpose()?,
+        factor_graph: args.factor_graph.clone(),
     };
     let finished = finish::finish_file(&request)?;
     let anchors = &finished.report.anchors;

@@ -62,6 +62,9 @@ pub struct FinishRequest {
     /// Refuse the log unless every segment is signed by this public key, unaltered and in
     /// an unbroken chain.
     pub require_signed: Option<[u8; 32]>,
+    /// Also write the problem each VO session's re-anchoring solved here, as JSON
+    /// ([`factor_graphs`], `docs/finishing.md`).
+    pub factor_graph: Option<PathBuf>,
 }
 
 /// The keyframe spacing of the re-anchoring when none is named, s.
@@ -175,6 +178,65 @@ fn anchors_in(file: &anchors::AnchorFile, frame: &LocalFrame) -> Vec<Anchor> {
         .collect()
 }
 
+/// What the solve of a log starts from: its drive in the log's ENU frame, the anchors, the
+/// camera mount as calibrated from the VO, and the rear axle in the camera frame.
+struct Prepared {
+    drive: Drive,
+    anchors: Vec<Anchor>,
+    calibrated: MountEstimate,
+    lever: Vector3<f64>,
+}
+
+fn prepare(
+    log: &LogContents,
+    name: &str,
+    anchor_file: Option<(&str, &anchors::AnchorFile)>,
+    mount: CameraMount,
+    uere: f64,
+) -> Result<Prepared> {
+    let header = log
+        .header
+        .ok_or_else(|| Error::invalid(format!("{name}: the header is damaged: no ENU origin to finish in")))?;
+    let frame =
+        log::frame(&header).ok_or_else(|| Error::invalid(format!("{name}: the header's origin is not a position")))?;
+    let drive = drive(log, &frame, uere, &mount.rotation());
+    let anchors = anchor_file.map(|(_, f)| anchors_in(f, &frame)).unwrap_or_default();
+    let calibrated = calibrate_mount(&drive.vo, mount);
+    let lever = calibrated.mount.rotation().transpose() * Vector3::from(calibrated.mount.position);
+    Ok(Prepared { drive, anchors, calibrated, lever })
+}
+
+/// The problem each VO session's re-anchoring solved, as [`finish`] solves it (the same
+/// arguments), written out for an outside solver ([`solve::factor_graph`]). Sessions that
+/// could not be solved have none.
+pub fn factor_graphs(
+    log: &LogContents,
+    name: &str,
+    anchor_file: Option<(&str, &anchors::AnchorFile)>,
+    mount: CameraMount,
+    settings: Settings,
+    uere: f64,
+) -> Result<Vec<SessionGraph>> {
+    let Prepared { drive, anchors, lever, .. } = prepare(log, name, anchor_file, mount, uere)?;
+    let Solved { sessions, .. } = solve_sessions(&drive, &anchors, lever, settings);
+    sessions
+        .iter()
+        .map(|s| {
+            let inputs = solve::Inputs {
+                vo: &drive.vo[s.range.clone()],
+                fixes: &drive.fixes,
+                speeds: &drive.speeds,
+                anchors: &anchors,
+                lever,
+            };
+            let (settings, enabled) = &s.solved_with;
+            let graph = solve::factor_graph(inputs, *settings, enabled, &s.solution)
+                .map_err(|e| Error::invalid(format!("{name}: VO session {}: {e}", s.session)))?;
+            Ok(SessionGraph { session: s.session, graph })
+        })
+        .collect()
+}
+
 /// Finish a log that has been read. `anchor_file` and `map` are optional inputs.
 pub fn finish(
     log: &LogContents,
@@ -185,17 +247,9 @@ pub fn finish(
     settings: Settings,
     uere: f64,
 ) -> Result<Finished> {
-    let header = log
-        .header
-        .ok_or_else(|| Error::invalid(format!("{name}: the header is damaged: no ENU origin to finish in")))?;
-    let frame =
-        log::frame(&header).ok_or_else(|| Error::invalid(format!("{name}: the header's origin is not a position")))?;
-    let drive = drive(log, &frame, uere, &mount.rotation());
-    let anchors = anchor_file.map(|(_, f)| anchors_in(f, &frame)).unwrap_or_default();
-    let calibrated = calibrate_mount(&drive.vo, mount);
+    let Prepared { drive, anchors, calibrated, lever } = prepare(log, name, anchor_file, mount, uere)?;
     let nominal_yaw = mount.roll_pitch_yaw[2];
     let mount = calibrated.mount;
-    let lever = mount.rotation().transpose() * Vector3::from(mount.position);
     let Solved { sessions, unsolved, verdicts } = solve_sessions(&drive, &anchors, lever, settings);
     if sessions.is_empty() {
         let why = unsolved.first().map_or_else(|| solve::SolveError::NoVo.to_string(), |u| u.2.clone());
@@ -543,6 +597,17 @@ pub fn mean_scale(s: &Solution) -> f64 {
     }
 }
 
+/// The format `dash2sim finish --factor-graph` writes (`docs/finishing.md`).
+pub const FACTOR_GRAPH_FORMAT: &str = "dash2sim-factor-graph 1";
+
+/// What `dash2sim finish --factor-graph` writes.
+#[derive(serde::Serialize)]
+struct FactorGraphFile<'a> {
+    format: &'static str,
+    log: &'a str,
+    sessions: Vec<SessionGraph>,
+}
+
 /// Finish the log at `args.log` into `args.output` (the command line and the Python
 /// package's `finish`): the report (`--json`) with the output's path and size.
 pub fn finish_file(args: &FinishRequest) -> Result<FinishedFile> {
@@ -563,8 +628,14 @@ pub fn finish_file(args: &FinishRequest) -> Result<FinishedFile> {
         gravity_aligned: args.device.mode == VoFrame::Gravity,
         ..Settings::default()
     };
-    let finished =
-        finish(&log, &name, anchor_name.as_deref().zip(anchor_file.as_ref()), map.as_deref(), mount, settings, uere)?;
+    let anchor_file = anchor_name.as_deref().zip(anchor_file.as_ref());
+    let finished = finish(&log, &name, anchor_file, map.as_deref(), mount, settings, uere)?;
+    if let Some(path) = &args.factor_graph {
+        let sessions = factor_graphs(&log, &name, anchor_file, mount, settings, uere)?;
+        let text = serde_json::to_vec(&FactorGraphFile { format: FACTOR_GRAPH_FORMAT, log: &name, sessions })
+            .map_err(Error::other)?;
+        std::fs::write(path, text).map_err(|e| Error::file(path, e))?;
+    }
     let header = log.header.unwrap_or(Header { device_id: [0; 16], origin: [0; 3] });
     let bytes = log::import::encode_in_order(&header, &finished.records)?;
     std::fs::write(&args.output, &bytes).map_err(|e| Error::file(&args.output, e))?;

@@ -16,6 +16,16 @@ pub struct Finished {
     pub report: FinishReport,
 }
 
+/// One VO session's problem ([`crate::factor_graphs`], `dash2sim finish --factor-graph`).
+#[derive(Clone, Debug, Serialize)]
+pub struct SessionGraph {
+    /// The VO session.
+    pub session: u32,
+    /// Its problem.
+    #[serde(flatten)]
+    pub graph: crate::solve::FactorGraph,
+}
+
 /// What `finish` did (`dash2sim finish --json`).
 #[derive(Clone, Debug, Serialize)]
 pub struct FinishReport {

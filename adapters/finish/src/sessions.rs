@@ -200,7 +200,7 @@ pub(super) fn solve_sessions(drive: &Drive, anchors: &[Anchor], lever: Vector3<f
             // heading would be a guess, and the bridge from it into the next session a turn the
             // car never made. Its poses stay without a finished pose (another session's
             // bridge may cover them).
-            Ok((solution, session_verdicts))
+            Ok((solution, session_verdicts, _))
                 if !single_session && solution.heading_sigma_rad > MAX_SESSION_HEADING_SIGMA_RAD =>
             {
                 let why = format!(
@@ -216,7 +216,7 @@ pub(super) fn solve_sessions(drive: &Drive, anchors: &[Anchor], lever: Vector3<f
                 }
                 unsolved.push((session, vo.len(), why));
             }
-            Ok((solution, session_verdicts)) => {
+            Ok((solution, session_verdicts, solved_with)) => {
                 for (verdict, mine) in verdicts.iter_mut().zip(session_verdicts) {
                     match mine {
                         AnchorVerdict::Used => *verdict = None,
@@ -224,7 +224,7 @@ pub(super) fn solve_sessions(drive: &Drive, anchors: &[Anchor], lever: Vector3<f
                         AnchorVerdict::Refused(_) | AnchorVerdict::Elsewhere => {}
                     }
                 }
-                sessions.push(SessionSolution { session, range, solution });
+                sessions.push(SessionSolution { session, range, solution, solved_with });
             }
             Err(e) => unsolved.push((session, vo.len(), e.to_string())),
         }
@@ -237,6 +237,9 @@ pub(super) struct SessionSolution {
     pub(super) session: u32,
     pub(super) range: std::ops::Range<usize>,
     pub(super) solution: Solution,
+    /// What the solution was solved from: the settings (with the walks chosen) and which
+    /// anchors took part.
+    pub(super) solved_with: (Settings, Vec<bool>),
 }
 
 /// The runs of consecutive poses of one VO session.
@@ -271,7 +274,7 @@ pub(super) fn solve_session(
     settings: Settings,
     fixes: &[Fix],
     vo_points_valid: bool,
-) -> Result<(Solution, Vec<AnchorVerdict>), solve::SolveError> {
+) -> Result<(Solution, Vec<AnchorVerdict>, (Settings, Vec<bool>)), solve::SolveError> {
     let anchors = inputs.anchors;
     let (first, last) = (inputs.vo[0].t, inputs.vo[inputs.vo.len() - 1].t);
     let mut verdicts: Vec<AnchorVerdict> = anchors
@@ -317,5 +320,5 @@ pub(super) fn solve_session(
             *verdict = AnchorVerdict::Refused(format!("residual beyond {}σ in the solution", settings.gate));
         }
     }
-    Ok((solution, verdicts))
+    Ok((solution, verdicts, (settings, enabled)))
 }

@@ -69,7 +69,7 @@ fn inspect(py: Python<'_>, path: PathBuf) -> PyResult<String> {
 
 /// Finish a log (`dash2sim finish --json`): the report as JSON text.
 #[pyfunction]
-#[pyo3(signature = (log, output, map = None, anchors = None, mount = "1.8,0,1.3".to_owned(), mode = "gravity", uere = 2.5, keyframe = 0.5, require_signed = None))]
+#[pyo3(signature = (log, output, map = None, anchors = None, mount = "1.8,0,1.3".to_owned(), mode = "gravity", uere = 2.5, keyframe = 0.5, require_signed = None, factor_graph = None))]
 #[allow(clippy::too_many_arguments)]
 fn finish(
     py: Python<'_>,
@@ -82,6 +82,7 @@ fn finish(
     uere: f64,
     keyframe: f64,
     require_signed: Option<&str>,
+    factor_graph: Option<PathBuf>,
 ) -> PyResult<String> {
     let require_signed = require_signed.map(log::signing::read_public).transpose().map_err(error)?;
     let mode = match mode {
@@ -90,7 +91,7 @@ fn finish(
         other => return Err(error(format!("mode {other:?}: give \"gravity\" or \"full\""))),
     };
     let device = Device { mount, mode, uere, ..Device::default() };
-    let args = FinishRequest { log, output, anchors, map, device, keyframe, require_signed };
+    let args = FinishRequest { log, output, anchors, map, device, keyframe, require_signed, factor_graph };
     py.detach(|| {
         let finished = dash2sim_finish::finish_file(&args)?;
         serde_json::to_value(finished).map(|report| report.to_string()).map_err(dash2sim_linux::Error::other)

@@ -49,7 +49,12 @@ pub(super) struct Normal {
     pub(super) global: Vec<[[f64; GLOBALS]; BLOCK]>,
     pub(super) globals: [[f64; GLOBALS]; GLOBALS],
     pub(super) g: Vec<f64>,
+    /// Σ w·e² over the rows (the a-posteriori variance factor's numerator).
     pub(super) chi2: f64,
+    /// The cost the solve minimises: ½e² of every plain row, and what the assembly adds for
+    /// each robust measurement (its kernel's cost, not ½w·e²: the steps are judged by the
+    /// cost whose minimum the weights lead to, or the solve stops short of it).
+    pub(super) cost: f64,
     pub(super) rows: usize,
 }
 
@@ -63,6 +68,7 @@ impl Normal {
             globals: [[0.0; GLOBALS]; GLOBALS],
             g: vec![0.0; blocks * BLOCK + GLOBALS],
             chi2: 0.0,
+            cost: 0.0,
             rows: 0,
         }
     }
@@ -104,6 +110,23 @@ impl Normal {
                 }
             }
         }
+    }
+
+    /// A row without a robust kernel: its ½e² is part of the cost.
+    pub(super) fn plain(&mut self, row: &Row) {
+        if row.value.is_finite() {
+            self.cost += 0.5 * row.value * row.value;
+        }
+        self.push(row, 1.0);
+    }
+
+    /// The three rows of a 3-vector residual without a robust kernel ([`Normal::push3`]).
+    pub(super) fn plain3(&mut self, r: &Vector3<f64>, sigma: &Vector3<f64>, jac: &[(usize, &[Vector3<f64>])]) {
+        let e = r.component_div(sigma);
+        if e.iter().all(|x| x.is_finite()) {
+            self.cost += 0.5 * e.norm_squared();
+        }
+        self.push3(r, sigma, jac, 1.0);
     }
 
     /// The three rows of a 3-vector residual `r / σ` with Jacobian blocks `(first
@@ -214,10 +237,10 @@ mod tests {
     fn normal(coupled: bool) -> Normal {
         let mut n = Normal::new(2);
         for i in 0..n.size() {
-            n.push(&Row::new(0.1 * i as f64 + 0.3).with(i, 1.0 + 0.01 * i as f64), 1.0);
+            n.plain(&Row::new(0.1 * i as f64 + 0.3).with(i, 1.0 + 0.01 * i as f64));
         }
         if coupled {
-            n.push(&Row::new(0.7).with(2, 1.5).with(BLOCK + 2, -1.5), 1.0);
+            n.plain(&Row::new(0.7).with(2, 1.5).with(BLOCK + 2, -1.5));
         }
         n
     }

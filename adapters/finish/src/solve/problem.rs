@@ -189,6 +189,8 @@ pub struct Solution {
     pub rotation: Vec<Matrix3<f64>>,
     /// GNSS latency, s.
     pub latency_s: f64,
+    /// The latency the solve started from (the latency search's pick), s.
+    pub start_latency_s: f64,
     /// Wheel factor (true distance / odometer distance).
     pub wheel_factor: f64,
     /// A dead-reckoned path's heading drift rate, rad/s (0 for a camera's VO).

@@ -76,6 +76,7 @@ def finish(
     uere: float = 2.5,
     keyframe: float = 0.5,
     require_signed: Optional[str] = None,
+    factor_graph: Optional[PathLike] = None,
 ) -> Dict[str, Any]:
     """Finish a device's log offline into ``output`` (``dash2sim finish --json``).
 
@@ -85,6 +86,8 @@ def finish(
     Raises :class:`Dash2SimError` when the log cannot be read or has nothing to anchor to,
     or — with ``require_signed`` (a public key: 64 hex digits or a ``.pub`` file) — when a
     segment is not signed by that key, was altered, or the chain of segments is broken.
+    With ``factor_graph`` (a path) the problem the re-anchoring solved is also written there
+    as JSON for an outside solver (``dash2sim finish --factor-graph``, docs/finishing.md).
     """
     report = _native.finish(
         os.fspath(log),
@@ -96,6 +99,7 @@ def finish(
         float(uere),
         float(keyframe),
         require_signed,
+        _path_or_none(factor_graph),
     )
     return json.loads(report)
 

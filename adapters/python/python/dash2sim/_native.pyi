@@ -23,6 +23,7 @@ def finish(
     uere: float = 2.5,
     keyframe: float = 0.5,
     require_signed: Optional[str] = None,
+    factor_graph: Optional[str] = None,
 ) -> str: ...
 def verify(
     log: str,
