@@ -13,7 +13,8 @@
 //! Rotations are row-major 3×3 matrices; a camera's world position in segment `k` at a
 //! time is `(1−α)·p_k + α·p_{k+1} + e^{ρ_k}·R_k·w` as in [`super`].
 
-use dash2sim_core::nalgebra::{Matrix3, Rotation3, Vector3};
+use dash2sim_core::imu::so3;
+use dash2sim_core::nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
 use super::start::{initial_alignment, initial_positions, keyframes, odometer};
@@ -273,7 +274,7 @@ pub fn factor_graph(
         let sigma = if last { 1e-3 } else { s.rotation_walk * dt.sqrt() };
         let drift_dt = if inputs.vo[keyframe_vo[k + 1]].reckoned { dt } else { 0.0 };
         factors.rotation_walk.push(RotationWalk { k, sigma, drift_dt });
-        let mut relative = Rotation3::from_matrix_unchecked(rotation[k + 1] * rotation[k].transpose()).scaled_axis();
+        let mut relative = so3::log(&(rotation[k + 1] * rotation[k].transpose()));
         relative.z -= drift_dt * solution.heading_drift;
         cost.plain((relative / sigma).as_slice());
         let chord = vo_position(k + 1) - vo_position(k);
@@ -299,7 +300,7 @@ pub fn factor_graph(
         factors.roll_pitch_held = Some(sigma);
         for (now, start) in rotation.iter().zip(&initial.rotation) {
             let start = Matrix3::from_row_slice(start);
-            let held = Rotation3::from_matrix_unchecked(now * start.transpose()).scaled_axis();
+            let held = so3::log(&(now * start.transpose()));
             cost.plain(&[held.x / sigma, held.y / sigma]);
         }
     }

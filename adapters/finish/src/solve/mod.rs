@@ -20,6 +20,7 @@
 //! block-tridiagonal (7×7 blocks) plus two dense columns (τ, ω), assembled blockwise and
 //! factored by faer's sparse Cholesky — linear in the drive's length.
 
+use dash2sim_core::imu::so3;
 use dash2sim_core::nalgebra::{Matrix3, Rotation3, Vector3};
 use dash2sim_core::sim3::Sim3;
 use faer::linalg::solvers::Solve;
@@ -37,11 +38,17 @@ use start::{initial_alignment, initial_positions, keyframes, odometer};
 
 /// Unknowns per keyframe: position (3), log-scale (1), rotation increment (3).
 const BLOCK: usize = 7;
-/// Information added to every rotation increment of a step (a step of 0.3 rad costs
-/// one σ): rotation about the direction of travel is unobservable on a straight road, and
-/// an undamped step along it leaves the region where the linearisation holds. It damps
-/// steps, not the solution (at convergence the increments are zero).
+/// Information added to every rotation increment of the first step (a step of 0.3 rad
+/// costs one σ): rotation about the direction of travel is unobservable on a straight road,
+/// and an undamped step along it leaves the region where the linearisation holds. Later
+/// steps get it in proportion to Levenberg–Marquardt's λ ([`FIRST_LAMBDA`]): held fixed, it
+/// shrank every step along a weakly observed rotation so much that a drive in `full` mode
+/// used up its 50 iterations short of the optimum (GTSAM's cost 3e-4 lower on the
+/// comma2k19 minute, positions 2.7 cm apart, issue #58). The solution's σ are taken with it
+/// whole, as a weak prior: without it an unobservable rotation makes the matrix singular.
 const ROTATION_STEP_INFORMATION: f64 = 10.0;
+/// Levenberg–Marquardt's damping at the first step.
+const FIRST_LAMBDA: f64 = 1e-4;
 /// The global unknowns after the blocks: GNSS latency τ, log wheel factor ω, and the
 /// heading's drift rate of a dead-reckoned path.
 const GLOBALS: usize = 3;
@@ -256,8 +263,7 @@ impl State<'_> {
                         .with(b0 + 3, -1.0 / sigma),
                 );
             }
-            let relative =
-                Rotation3::from_matrix_unchecked(self.rotation[k + 1] * self.rotation[k].transpose()).scaled_axis();
+            let relative = so3::log(&(self.rotation[k + 1] * self.rotation[k].transpose()));
             let sigma = if k + 2 < blocks { s.rotation_walk * dt.sqrt() } else { 1e-3 };
             // A dead-reckoned segment turns by the drive's heading drift besides its walk.
             let drift = if self.inputs.vo[self.keyframe_vo[k + 1]].reckoned { dt } else { 0.0 };
@@ -589,7 +595,7 @@ fn initial_state<'a>(
 /// found costs 3e-6 lower, issue #58.) The last system assembled and the iterations taken.
 fn minimise(state: &mut State<'_>) -> Result<(Assembled, usize), SolveError> {
     let mut iterations = 0;
-    let mut lambda = 1e-4;
+    let mut lambda = FIRST_LAMBDA;
     let mut factoriser = Factoriser::default();
     let mut current = state.assemble();
     while iterations < state.settings.max_iterations {
@@ -640,7 +646,8 @@ fn solution(
     let blocks = state.keyframe_vo.len();
     let Assembled { normal, fix_u, anchor_u, .. } = current;
     let (chi2, rows) = (normal.chi2, normal.rows);
-    let llt = normal.matrix(0.0)?.sp_cholesky(Side::Upper).map_err(|_| SolveError::Singular)?;
+    let llt =
+        normal.matrix(0.0, ROTATION_STEP_INFORMATION)?.sp_cholesky(Side::Upper).map_err(|_| SolveError::Singular)?;
     let unknowns = blocks * BLOCK + GLOBALS;
     let sigma0_sq = chi2 / (rows.saturating_sub(unknowns).max(1)) as f64;
     let gate = state.settings.gate;

@@ -9,7 +9,7 @@ use faer::{Mat, Side};
 
 use dash2sim_core::nalgebra::Vector3;
 
-use super::{SolveError, BLOCK, GLOBALS, ROTATION_STEP_INFORMATION};
+use super::{SolveError, BLOCK, FIRST_LAMBDA, GLOBALS, ROTATION_STEP_INFORMATION};
 
 /// One scalar residual, whitened: value and its Jacobian's non-zeros.
 #[derive(Clone, Copy)]
@@ -149,9 +149,14 @@ impl Normal {
         }
     }
 
-    /// The upper triangle as a sparse matrix, the diagonal scaled by `1 + lambda` (and a
-    /// tiny absolute term, so that an unobserved unknown does not make it singular).
-    pub(super) fn matrix(&self, lambda: f64) -> Result<SparseColMat<usize, f64>, SolveError> {
+    /// The upper triangle as a sparse matrix, the diagonal scaled by `1 + lambda`, plus
+    /// `rotation_information` on every rotation increment's (and a tiny absolute term on
+    /// the others', so that an unobserved unknown does not make it singular).
+    pub(super) fn matrix(
+        &self,
+        lambda: f64,
+        rotation_information: f64,
+    ) -> Result<SparseColMat<usize, f64>, SolveError> {
         let mut triplets = Vec::with_capacity(self.blocks * (BLOCK * BLOCK * 2 + BLOCK * GLOBALS) + 4);
         let first_global = self.blocks * BLOCK;
         for b in 0..self.blocks {
@@ -159,7 +164,7 @@ impl Normal {
                 for j in i..BLOCK {
                     let v = self.diagonal[b][i][j] * if i == j { 1.0 + lambda } else { 1.0 }
                         + match (i == j, i >= 4) {
-                            (true, true) => ROTATION_STEP_INFORMATION,
+                            (true, true) => rotation_information,
                             (true, false) => 1e-9,
                             _ => 0.0,
                         };
@@ -216,9 +221,11 @@ impl Factoriser {
     }
 }
 
-/// One damped Gauss–Newton step: `(H + λ·diag H) δ = −g`.
+/// One damped Gauss–Newton step: `(H + λ·diag H + D_rot) δ = −g`, `D_rot` the rotation
+/// increments' damping in proportion to λ ([`ROTATION_STEP_INFORMATION`]).
 pub(super) fn solve_normal(normal: &Normal, lambda: f64, factoriser: &mut Factoriser) -> Result<Vec<f64>, SolveError> {
-    let llt = factoriser.factor(&normal.matrix(lambda)?)?;
+    let rotation_information = ROTATION_STEP_INFORMATION * lambda / FIRST_LAMBDA;
+    let llt = factoriser.factor(&normal.matrix(lambda, rotation_information)?)?;
     let rhs = Mat::from_fn(normal.size(), 1, |i, _| -normal.g[i]);
     let delta = llt.solve(&rhs);
     let delta: Vec<f64> = (0..normal.size()).map(|i| delta[(i, 0)]).collect();
@@ -256,7 +263,7 @@ mod tests {
         let mut factoriser = Factoriser::default();
         for (coupled, lambda) in [(false, 1e-4), (false, 1e-2), (true, 1e-2), (true, 1.0), (false, 0.0)] {
             let n = normal(coupled);
-            let matrix = n.matrix(lambda).expect("matrix");
+            let matrix = n.matrix(lambda, 1.0).expect("matrix");
             let fresh = matrix.sp_cholesky(Side::Upper).expect("factor");
             let kept = factoriser.factor(&matrix).expect("factor");
             // Bit for bit: the symbolic part is the one this pattern gives, kept or not.
