@@ -19,8 +19,9 @@ Levenberg–Marquardt from dash2sim's starting values, and compares:
 
 `--require` exits 1 when a target of the issue is missed (positions ≤ 1 cm RMS, scale
 ≤ 1e-5, latency ≤ 1 ms, cost ≤ 1e-6 relative). `--isam2` also solves the graph
-incrementally with iSAM2, keyframe by keyframe as a device would, and times it. Prints a
-JSON summary (`--out` writes it too).
+incrementally with iSAM2, keyframe by keyframe as a device would, and times it. `--bench`
+only builds and solves (timed: docs/benchmarks.md). Prints a JSON summary (`--out` writes
+it too).
 
 Run: scripts/gtsam_check.py --graph G.json [--require] [--isam2]
 (venv: `pip install gtsam==4.3.0 numpy`; `.ci/run` uses target/gtsam-venv).
@@ -463,6 +464,62 @@ def check_session(session, want_isam2):
     return out
 
 
+def gauss_newton(graph, start, max_iterations=50):
+    """Gauss–Newton written over GTSAM's own primitives (`linearize`, the multifrontal
+    `optimize`, `retract`, `error`), a step halved while it does not lower the cost. Called
+    from Python, the factors' callbacks get the Values without the copy that GTSAM 4.3's
+    Python optimizers make for every `CustomFactor` call (borglab/gtsam#1665): what GTSAM's
+    algebra costs on this graph. The estimate and the iterations."""
+    values, cost = start, graph.error(start)
+    for iteration in range(1, max_iterations + 1):
+        delta = graph.linearize(values).optimize()
+        step = 1.0
+        while True:
+            trial = values.retract(delta.scale(step)) if step != 1.0 else values.retract(delta)
+            trial_cost = graph.error(trial)
+            if trial_cost <= cost or step < 1e-3:
+                break
+            step *= 0.5
+        converged = cost - trial_cost <= 1e-12 * cost
+        if trial_cost <= cost:
+            values, cost = trial, trial_cost
+        if converged:
+            return values, iteration
+    return values, max_iterations
+
+
+def bench_session(session, want_isam2, want_optimizer):
+    """What a user of GTSAM would run, each timed: the graph built; Gauss–Newton over
+    GTSAM's primitives from the start; with `want_optimizer` its LevenbergMarquardtOptimizer
+    (quadratic in the graph's size through the Python binding's copies, see
+    `gauss_newton`); with `want_isam2` iSAM2."""
+    started = time.perf_counter()
+    graph, path, _ = factor_graph(session)
+    initial = values_of(session["initial"])
+    built = time.perf_counter()
+    estimate, iterations = gauss_newton(graph, initial)
+    solved = time.perf_counter()
+    out = {
+        "keyframes": len(session["keyframe_vo"]),
+        "factors": graph.size(),
+        "build_s": built - started,
+        "gauss_newton_s": solved - built,
+        "gauss_newton_iterations": iterations,
+        "gauss_newton_cost_relative_to_dash2sim": (graph.error(estimate) - session["finish_cost"])
+        / session["finish_cost"],
+    }
+    if want_optimizer:
+        started = time.perf_counter()
+        optimum, iterations = lm(graph, initial)
+        out["lm_optimizer_s"] = time.perf_counter() - started
+        out["lm_optimizer_iterations"] = iterations
+        out["lm_cost_relative_to_dash2sim"] = (graph.error(optimum) - session["finish_cost"]) / session["finish_cost"]
+    if want_isam2:
+        _, seconds, _ = isam2(session, path)
+        out["isam2_s"] = seconds
+    return out
+
+
 def failures(result):
     """The targets of issue #58 this session misses."""
     d, c = result["difference"], result["cost"]
@@ -486,6 +543,12 @@ def main():
     parser.add_argument("--require", action="store_true", help="exit 1 when a target is missed")
     parser.add_argument("--isam2", action="store_true", help="also solve incrementally with iSAM2")
     parser.add_argument("--out", help="also write the summary here")
+    parser.add_argument(
+        "--bench", action="store_true", help="only build the graph and solve it (Gauss–Newton over GTSAM's primitives), timed"
+    )
+    parser.add_argument(
+        "--lm-optimizer", action="store_true", help="with --bench: also GTSAM's LevenbergMarquardtOptimizer, timed"
+    )
     args = parser.parse_args()
     with open(args.graph) as f:
         problem = json.load(f)
@@ -493,6 +556,9 @@ def main():
         raise SystemExit(f"{args.graph}: format {problem.get('format')!r}, this script reads {FORMAT!r}")
     results = []
     for session in problem["sessions"]:
+        if args.bench:
+            results.append({"session": session["session"], **bench_session(session, args.isam2, args.lm_optimizer)})
+            continue
         result = {"session": session["session"], **check_session(session, args.isam2)}
         result["missed"] = failures(result)
         results.append(result)
@@ -507,7 +573,7 @@ def main():
     if args.out:
         with open(args.out, "w") as f:
             f.write(text + "\n")
-    missed = [f"session {r['session']}: {m}" for r in results for m in r["missed"]]
+    missed = [f"session {r['session']}: {m}" for r in results for m in r.get("missed", [])]
     for m in missed:
         print(f"gtsam_check: {m}", file=sys.stderr)
     if args.require and missed:

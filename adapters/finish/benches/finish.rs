@@ -1,8 +1,9 @@
-//! Cost of `dash2sim finish` as the drive grows (issue #14): synthetic drives of 1, 10 and
-//! 60 minutes with 20 Hz VO (a drifting similarity of the truth), 5 Hz GNSS (σ 1.5 m) and
-//! 50 Hz wheel speed, finished without a map (re-anchoring, ego smoothing, the finished
-//! records). The 60-minute log is also written to `target/finish-60min.d2slog` so that
-//! the CLI's time and peak memory can be measured on it (`docs/benchmarks.md`).
+//! Cost of `dash2sim finish` as the drive grows (issues #14, #58): synthetic drives of 1,
+//! 10, 60 and 180 minutes with 20 Hz VO (a drifting similarity of the truth), 5 Hz GNSS
+//! (σ 1.5 m) and 50 Hz wheel speed, finished without a map (re-anchoring, ego smoothing, the
+//! finished records). Each log is also written to `target/finish-<N>min.d2slog` so that the
+//! CLI's time and peak memory, and GTSAM's on the same problem, can be measured on it
+//! (`docs/benchmarks.md`).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use dash2sim_core::binlog::{quantise, GnssFix, Header, Record, VehicleSpeed, VoPose};
@@ -97,17 +98,16 @@ fn drive(minutes: f64) -> (Header, Vec<Record>) {
 fn contents(minutes: f64) -> LogContents {
     let (header, mut records) = drive(minutes);
     let bytes = log::import::encode(&header, &mut records).expect("encode");
-    if minutes >= 60.0 {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/finish-60min.d2slog");
-        std::fs::write(&path, &bytes).expect("write the 60-minute log");
-    }
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../target/finish-{minutes:.0}min.d2slog"));
+    std::fs::write(&path, &bytes).expect("write the log");
     log::decode(&bytes, "bench").expect("decode")
 }
 
 fn finishing(c: &mut Criterion) {
     let mut group = c.benchmark_group("finish");
     group.sample_size(10);
-    for minutes in [1.0, 10.0, 60.0] {
+    for minutes in [1.0, 10.0, 60.0, 180.0] {
         let log = contents(minutes);
         let settings = Settings { gravity_aligned: true, ..Settings::default() };
         group.bench_function(format!("{minutes:.0}_min"), |b| {

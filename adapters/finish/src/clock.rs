@@ -15,6 +15,8 @@ use std::f64::consts::FRAC_PI_2;
 use dash2sim_core::binlog::{quantise, EgoPose, Record};
 use dash2sim_core::track3d::wrap_angle;
 
+use crate::timeline::index_after;
+
 /// Latencies tried, s: from a receiver whose clock runs ahead to one half a second late.
 const LATENCY_RANGE_S: (f64, f64) = (-0.2, 0.6);
 /// Their step, s.
@@ -43,7 +45,7 @@ struct Track(Vec<(f64, f64, f64)>);
 
 impl Track {
     fn at(&self, t: f64) -> Option<(f64, f64)> {
-        let k = self.0.partition_point(|p| p.0 <= t);
+        let k = index_after(&self.0, t, |p| p.0);
         let (a, b) = (self.0.get(k.checked_sub(1)?)?, self.0.get(k)?);
         if b.0 - a.0 > 1.0 {
             return None;
@@ -59,7 +61,9 @@ impl Track {
     }
 
     fn speed(&self, t: f64) -> Option<f64> {
-        self.chord(t).map(|(dx, dy)| dx.hypot(dy) / (2.0 * CHORD_HALF_SPAN_S))
+        // √ rather than `hypot`: no chord of a car's 0.2 s overflows, and glibc's `hypot`
+        // was a tenth of finishing an hour's drive.
+        self.chord(t).map(|(dx, dy)| (dx * dx + dy * dy).sqrt() / (2.0 * CHORD_HALF_SPAN_S))
     }
 
     /// The direction of travel, rad counter-clockwise from east.

@@ -20,6 +20,7 @@ pub mod reckon;
 pub mod report;
 mod sessions;
 pub mod solve;
+mod timeline;
 pub mod tracks;
 pub mod walk;
 pub mod windows;

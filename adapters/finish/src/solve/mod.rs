@@ -26,6 +26,8 @@ use dash2sim_core::sim3::Sim3;
 use faer::linalg::solvers::Solve;
 use faer::{Mat, Side};
 
+use crate::timeline::index_after;
+
 mod graph;
 mod normal;
 mod problem;
@@ -115,7 +117,7 @@ struct State<'a> {
 
 /// Interpolated VO position and velocity at `t` (the samples are in time order).
 fn vo_at(vo: &[VoSample], t: f64) -> Option<(Vector3<f64>, Vector3<f64>, Matrix3<f64>)> {
-    let j = vo.partition_point(|s| s.t <= t);
+    let j = index_after(vo, t, |s| s.t);
     let (a, b) = (vo.get(j.checked_sub(1)?)?, vo.get(j).or_else(|| vo.get(j - 1).filter(|s| s.t == t))?);
     if b.t == a.t {
         let before = vo.get(j.checked_sub(2)?)?;
@@ -158,7 +160,7 @@ impl Geometry<'_> {
         if !(t >= self.keyframe_t[0] && t <= last) || self.keyframe_t.len() < 2 {
             return None;
         }
-        let k = self.keyframe_t.partition_point(|&kt| kt <= t).saturating_sub(1).min(self.keyframe_t.len() - 2);
+        let k = index_after(self.keyframe_t, t, |&kt| kt).saturating_sub(1).min(self.keyframe_t.len() - 2);
         let (t0, t1) = (self.keyframe_t[k], self.keyframe_t[k + 1]);
         let alpha = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
         let x0 = self.vo[self.keyframe_vo[k]].position;
