@@ -500,22 +500,32 @@ fn finished_records(
     placed: &mut PlacedObjects,
     used_anchors: usize,
 ) -> Vec<Record> {
-    let mut records: Vec<Record> = log
-        .records
-        .iter()
-        .filter(|r| {
-            !matches!(
-                r,
-                Record::EgoPose(_)
-                    | Record::AnchorEstimate(_)
-                    | Record::MountEstimate(_)
-                    | Record::Tracks3d(_)
-                    | Record::TrackCovariance(_)
-                    | Record::Verification(_)
-            )
-        })
-        .cloned()
-        .collect();
+    // Sized once: an hour's records are 200 MB, and growing by doubling copied them and
+    // held twice as much (the two events come at the front later).
+    let anchor_estimates: usize = sessions.iter().map(|s| s.solution.keyframe_t.len()).sum();
+    let capacity = log.records.len()
+        + ego.len()
+        + placed.tracks.batches.len()
+        + placed.tracks.covariances.len()
+        + anchor_estimates
+        + 3;
+    let mut records: Vec<Record> = Vec::with_capacity(capacity);
+    records.extend(
+        log.records
+            .iter()
+            .filter(|r| {
+                !matches!(
+                    r,
+                    Record::EgoPose(_)
+                        | Record::AnchorEstimate(_)
+                        | Record::MountEstimate(_)
+                        | Record::Tracks3d(_)
+                        | Record::TrackCovariance(_)
+                        | Record::Verification(_)
+                )
+            })
+            .cloned(),
+    );
     records.extend(ego.values().map(|p| Record::EgoPose(*p)));
     records.extend(std::mem::take(&mut placed.tracks.batches).into_iter().map(Record::Tracks3d));
     records.extend(std::mem::take(&mut placed.tracks.covariances).into_iter().map(Record::TrackCovariance));
@@ -545,16 +555,15 @@ fn finished_records(
 fn put_events_first(records: &mut Vec<Record>, report: &FinishReport, source: usize, utc_shift_us: i64) {
     let [summary, settings] = events(report, source, utc_shift_us);
     let first_t = records.first().map_or(0, Record::t_us);
+    // Moved in place: an hour's records are 200 MB, and each `insert` at the front moved them all.
     let at = match records.iter().position(|r| matches!(r, Record::ClockOffset(_))) {
         Some(k) => {
-            let offset = records.remove(k);
-            records.insert(0, offset);
+            records[..=k].rotate_right(1);
             1
         }
         None => 0,
     };
-    records.insert(at, event(first_t, 2, &summary));
-    records.insert(at + 1, event(first_t, 2, &settings));
+    records.splice(at..at, [event(first_t, 2, &summary), event(first_t, 2, &settings)]);
 }
 
 /// The camera mount over the whole drive: the device's calibration run on every VO pose,
