@@ -272,7 +272,7 @@ pub fn finish(
     };
     if let Some(v) = &verification {
         records.extend(v.records.iter().cloned());
-        records.sort_by_key(Record::t_us);
+        timeline::sort_by_time(&mut records, Record::t_us);
     }
 
     let fixes_used =
@@ -544,7 +544,7 @@ fn finished_records(
             records.push(Record::AnchorEstimate(anchor_record(t, &solution.sim3(vo, k), solution, used_anchors)));
         }
     }
-    records.sort_by_key(Record::t_us);
+    timeline::sort_by_time(&mut records, Record::t_us);
     records
 }
 
