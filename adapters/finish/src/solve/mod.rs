@@ -492,7 +492,7 @@ const LOCAL_STEP_S: f64 = 5.0;
 pub fn solve(inputs: Inputs<'_>, settings: Settings, anchor_enabled: &[bool]) -> Result<Solution, SolveError> {
     let (first, last, step) = settings.latency_search;
     if inputs.fixes.is_empty() || !(step > 0.0 && last >= first) {
-        return solve_from(inputs, settings, anchor_enabled, settings.latency_prior.0).map(|(s, _)| s);
+        return solve_from(inputs, settings, anchor_enabled, settings.latency_prior.0);
     }
     // The latency is found by a search before it is refined: how well the fixes fit as a
     // function of it has several minima on real GNSS (its errors wander), and a descent
@@ -503,30 +503,55 @@ pub fn solve(inputs: Inputs<'_>, settings: Settings, anchor_enabled: &[bool]) ->
     let mut tau = first;
     while tau <= last + 1e-9 {
         let held = coarse.with_latency_held(tau);
-        if let Ok((_, fit)) = solve_from(inputs, held, anchor_enabled, tau) {
+        // Only the fit: the σ of a candidate (a factorisation and 128 solves) are not needed.
+        if let Ok((_, current, _)) = minimised(inputs, held, anchor_enabled, tau) {
+            let fit = fit(&current, anchor_enabled, held.gate);
             if fit < best.0 {
                 best = (fit, tau);
             }
         }
         tau += step;
     }
-    solve_from(inputs, settings, anchor_enabled, best.1).map(|(s, _)| s)
+    solve_from(inputs, settings, anchor_enabled, best.1)
 }
 
-/// [`solve`] from the latency `tau0`; also returns the fit of the fixes and anchors.
+/// [`solve`] from the latency `tau0`.
 fn solve_from(
     inputs: Inputs<'_>,
     settings: Settings,
     anchor_enabled: &[bool],
     tau0: f64,
-) -> Result<(Solution, f64), SolveError> {
+) -> Result<Solution, SolveError> {
+    let (state, current, iterations) = minimised(inputs, settings, anchor_enabled, tau0)?;
+    solution(state, current, iterations, anchor_enabled, tau0)
+}
+
+/// The problem minimised from the latency `tau0`: the state, its last system and the
+/// iterations taken.
+fn minimised<'a>(
+    inputs: Inputs<'a>,
+    settings: Settings,
+    anchor_enabled: &[bool],
+    tau0: f64,
+) -> Result<(State<'a>, Assembled, usize), SolveError> {
     if inputs.vo.len() < 2 {
         return Err(SolveError::NoVo);
     }
     something_to_anchor_to(&inputs, anchor_enabled)?;
     let mut state = initial_state(inputs, settings, anchor_enabled, tau0)?;
     let (current, iterations) = minimise(&mut state)?;
-    solution(state, current, iterations, anchor_enabled, tau0)
+    Ok((state, current, iterations))
+}
+
+/// How well the fixes and the enabled anchors fit: Σ min(u², gate²).
+fn fit(current: &Assembled, anchor_enabled: &[bool], gate: f64) -> f64 {
+    current
+        .fix_u
+        .iter()
+        .chain(current.anchor_u.iter().zip(anchor_enabled).filter(|(_, &on)| on).map(|(u, _)| u))
+        .filter(|u| u.is_finite())
+        .map(|u| (u * u).min(gate * gate))
+        .sum()
 }
 
 /// An error unless a fix or an enabled anchor falls within the VO poses' time span.
@@ -594,7 +619,7 @@ fn initial_state<'a>(
 /// measurement beyond the gate, so a step that moves an outlier is not refused for it; a
 /// step that does not lower it is retried with more damping. (Judged by Σ w·e² instead,
 /// steps towards the robust optimum were refused and the solve stopped short of it: GTSAM
-/// found costs 3e-6 lower, issue #58.) The last system assembled and the iterations taken.
+/// found costs 3e-6 lower, issue #58.) The last system assembled (with the weights of the state before) and the iterations taken.
 fn minimise(state: &mut State<'_>) -> Result<(Assembled, usize), SolveError> {
     let mut iterations = 0;
     let mut lambda = FIRST_LAMBDA;
@@ -627,11 +652,6 @@ fn minimise(state: &mut State<'_>) -> Result<(Assembled, usize), SolveError> {
             }
         }
     }
-    if iterations >= 2 {
-        // The system the solution's σ come from, with the solution's own weights.
-        state.reweight(&current, true, iterations >= 4);
-        current = state.assemble();
-    }
     Ok((current, iterations))
 }
 
@@ -644,8 +664,14 @@ fn solution(
     iterations: usize,
     anchor_enabled: &[bool],
     start_latency_s: f64,
-) -> Result<(Solution, f64), SolveError> {
+) -> Result<Solution, SolveError> {
     let blocks = state.keyframe_vo.len();
+    let (mut state, mut current) = (state, current);
+    if iterations >= 2 {
+        // The system the solution's σ come from, with the solution's own weights.
+        state.reweight(&current, true, iterations >= 4);
+        current = state.assemble();
+    }
     let Assembled { normal, fix_u, anchor_u, .. } = current;
     let (chi2, rows) = (normal.chi2, normal.rows);
     let llt =
@@ -657,12 +683,6 @@ fn solution(
     let anchor_used: Vec<bool> =
         anchor_u.iter().zip(anchor_enabled).map(|(u, &on)| on && u.is_finite() && *u <= gate).collect();
     let inflation_factor = sigma0_sq.max(1.0).sqrt();
-    let fit: f64 = fix_u
-        .iter()
-        .chain(anchor_u.iter().zip(anchor_enabled).filter(|(_, &on)| on).map(|(u, _)| u))
-        .filter(|u| u.is_finite())
-        .map(|u| (u * u).min(gate * gate))
-        .sum();
     let doubt = doubt(&llt, &state.keyframe_t, blocks, inflation_factor);
     let mut sse = 0.0;
     let mut used = 0;
@@ -673,7 +693,6 @@ fn solution(
             used += 1;
         }
     }
-    let mut state = state;
     let last_rho = state.rho[blocks.saturating_sub(2)];
     if let Some(r) = state.rho.last_mut() {
         *r = last_rho;
@@ -698,7 +717,7 @@ fn solution(
         keyframe_t: state.keyframe_t,
         keyframe_vo: state.keyframe_vo,
     };
-    Ok((solution, fit))
+    Ok(solution)
 }
 
 /// The solution's σ, inflated by the variance factor when the fit is worse than the
