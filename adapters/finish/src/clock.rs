@@ -45,7 +45,26 @@ struct Track(Vec<(f64, f64, f64)>);
 
 impl Track {
     fn at(&self, t: f64) -> Option<(f64, f64)> {
-        let k = index_after(&self.0, t, |p| p.0);
+        self.between(index_after(&self.0, t, |p| p.0), t)
+    }
+
+    /// [`Track::at`] from where the last lookup of `cursor` ended: the latency search asks
+    /// for every fix at 801 times a millisecond apart, each a few samples from the last.
+    fn at_from(&self, t: f64, cursor: &mut usize) -> Option<(f64, f64)> {
+        let s = &self.0;
+        let mut k = (*cursor).min(s.len());
+        while k > 0 && s[k - 1].0 > t {
+            k -= 1;
+        }
+        while k < s.len() && s[k].0 <= t {
+            k += 1;
+        }
+        *cursor = k;
+        self.between(k, t)
+    }
+
+    /// The position at `t` between the samples before and at `k`.
+    fn between(&self, k: usize, t: f64) -> Option<(f64, f64)> {
         let (a, b) = (self.0.get(k.checked_sub(1)?)?, self.0.get(k)?);
         if b.0 - a.0 > 1.0 {
             return None;
@@ -59,65 +78,115 @@ impl Track {
         let (a, b) = (self.at(t - CHORD_HALF_SPAN_S)?, self.at(t + CHORD_HALF_SPAN_S)?);
         Some((b.0 - a.0, b.1 - a.1))
     }
+}
 
-    fn speed(&self, t: f64) -> Option<f64> {
-        // √ rather than `hypot`: no chord of a car's 0.2 s overflows, and glibc's `hypot`
-        // was a tenth of finishing an hour's drive.
-        self.chord(t).map(|(dx, dy)| (dx * dx + dy * dy).sqrt() / (2.0 * CHORD_HALF_SPAN_S))
-    }
+/// The speed a chord says, m/s. √ rather than `hypot`: no chord of a car's 0.2 s overflows,
+/// and glibc's `hypot` was a tenth of finishing an hour's drive.
+fn speed_of((dx, dy): (f64, f64)) -> f64 {
+    (dx * dx + dy * dy).sqrt() / (2.0 * CHORD_HALF_SPAN_S)
+}
 
-    /// The direction of travel, rad counter-clockwise from east.
-    fn heading(&self, t: f64) -> Option<f64> {
-        self.chord(t).map(|(dx, dy)| dy.atan2(dx))
-    }
+/// The direction of travel a chord says, rad counter-clockwise from east.
+fn heading_of((dx, dy): (f64, f64)) -> f64 {
+    dy.atan2(dx)
 }
 
 /// One kind of observation the fixes make of the car's motion.
 struct Channel<'a> {
     /// (arrival, observed) per fix.
     fixes: Vec<(f64, f64)>,
-    /// What the ego says was observed at a time on the log's clock.
-    predict: Box<dyn Fn(f64) -> Option<f64> + 'a>,
+    /// The finished ego.
+    track: &'a Track,
+    /// What the ego's chord says was observed.
+    observe: fn((f64, f64)) -> f64,
     /// Observed − predicted.
     residual: fn(f64, f64) -> f64,
     /// A residual counts at most this much (a multipath jump, a skid), and a fix whose
     /// residual is past it carries no information on the latency.
     clip: f64,
-    /// How fast the prediction changes, per s (the information a fix carries on the latency).
-    rate: Box<dyn Fn(f64) -> Option<f64> + 'a>,
     /// The channel's residuals less their mean (a constant offset — a finished ego turned by
     /// a fraction of a degree — says nothing of the latency).
     centred: bool,
 }
 
 impl Channel<'_> {
-    /// Each fix's time and residual at latency `tau`.
-    fn residuals(&self, tau: f64) -> Vec<(f64, f64)> {
-        self.fixes.iter().filter_map(|(t, seen)| Some((*t, (self.residual)(*seen, (self.predict)(t - tau)?)))).collect()
+    /// What the ego says was observed at a time on the log's clock.
+    fn predict(&self, t: f64) -> Option<f64> {
+        self.track.chord(t).map(self.observe)
     }
 
-    fn cost(&self, tau: f64) -> Option<f64> {
-        let r: Vec<f64> = self.residuals(tau).iter().map(|(_, r)| r.clamp(-self.clip, self.clip)).collect();
-        if r.len() < MIN_FIXES {
-            return None;
+    /// Each fix's time and residual at latency `tau`.
+    fn residuals(&self, tau: f64) -> Vec<(f64, f64)> {
+        self.fixes.iter().filter_map(|(t, seen)| Some((*t, (self.residual)(*seen, self.predict(t - tau)?)))).collect()
+    }
+
+    /// Calls `visit(k, r)` with every fix's clipped residual at latency `taus[k]`, the fixes
+    /// in order for each latency (so that sums over them are what a pass per latency gives).
+    fn each_clipped(&self, taus: &[f64], mut visit: impl FnMut(usize, f64)) {
+        let Some(&first) = taus.first() else { return };
+        let points = &self.track.0;
+        for (t, seen) in &self.fixes {
+            let mut before = index_after(points, t - first - CHORD_HALF_SPAN_S, |p| p.0);
+            let mut after = index_after(points, t - first + CHORD_HALF_SPAN_S, |p| p.0);
+            for (k, tau) in taus.iter().enumerate() {
+                let at = t - tau;
+                let (Some(a), Some(b)) = (
+                    self.track.at_from(at - CHORD_HALF_SPAN_S, &mut before),
+                    self.track.at_from(at + CHORD_HALF_SPAN_S, &mut after),
+                ) else {
+                    continue;
+                };
+                let predicted = (self.observe)((b.0 - a.0, b.1 - a.1));
+                visit(k, (self.residual)(*seen, predicted).clamp(-self.clip, self.clip));
+            }
         }
-        let mean = if self.centred { r.iter().sum::<f64>() / r.len() as f64 } else { 0.0 };
-        Some(r.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / r.len() as f64)
+    }
+
+    /// The mean squared clipped residual at every latency of `taus` (less their mean when
+    /// centred); `None` where fewer than [`MIN_FIXES`] fixes have a prediction.
+    fn costs(&self, taus: &[f64]) -> Vec<Option<f64>> {
+        let mut count = vec![0usize; taus.len()];
+        let mut mean = vec![0.0; taus.len()];
+        if self.centred {
+            self.each_clipped(taus, |k, r| {
+                mean[k] += r;
+                count[k] += 1;
+            });
+            for (m, n) in mean.iter_mut().zip(&count) {
+                *m /= *n as f64;
+            }
+        }
+        let mut squares = vec![0.0; taus.len()];
+        count.iter_mut().for_each(|n| *n = 0);
+        self.each_clipped(taus, |k, r| {
+            squares[k] += (r - mean[k]).powi(2);
+            count[k] += 1;
+        });
+        squares.iter().zip(&count).map(|(sum, &n)| (n >= MIN_FIXES).then(|| sum / n as f64)).collect()
+    }
+
+    /// How fast the prediction changes at `t`, per s (the information a fix carries on the
+    /// latency).
+    fn rate(&self, t: f64) -> Option<f64> {
+        let change = self.predict(t + RATE_HALF_SPAN_S)? - self.predict(t - RATE_HALF_SPAN_S)?;
+        Some((self.residual)(change, 0.0) / (2.0 * RATE_HALF_SPAN_S))
     }
 
     /// The latency this channel finds and its 1-σ, s: the residuals' variance over the
     /// information the changes of the motion carry (Σ rate² at the fixes).
     fn latency(&self) -> Option<(f64, f64)> {
         let steps = ((LATENCY_RANGE_S.1 - LATENCY_RANGE_S.0) / LATENCY_STEP_S).round() as usize;
-        let (best, variance) = (0..=steps)
-            .map(|k| LATENCY_RANGE_S.0 + k as f64 * LATENCY_STEP_S)
-            .filter_map(|tau| Some((tau, self.cost(tau)?)))
+        let taus: Vec<f64> = (0..=steps).map(|k| LATENCY_RANGE_S.0 + k as f64 * LATENCY_STEP_S).collect();
+        let (best, variance) = taus
+            .iter()
+            .zip(self.costs(&taus))
+            .filter_map(|(&tau, cost)| Some((tau, cost?)))
             .min_by(|a, b| a.1.total_cmp(&b.1))?;
         let rates: Vec<f64> = self
             .residuals(best)
             .iter()
             .filter(|(_, r)| r.abs() < self.clip)
-            .filter_map(|(t, _)| (self.rate)(t - best))
+            .filter_map(|(t, _)| self.rate(t - best))
             .collect();
         if rates.len() < MIN_FIXES {
             return None;
@@ -145,12 +214,10 @@ pub fn latency_from_motion(records: &[Record], ego: &BTreeMap<i64, EgoPose>) -> 
     };
     let speed = Channel {
         fixes: fixes().map(|f| (f.t_us as f64 * 1e-6, f.speed_mm_s as f64 * 1e-3)).collect(),
-        predict: Box::new(|t| track.speed(t)),
+        track: &track,
+        observe: speed_of,
         residual: |seen, predicted| seen - predicted,
         clip: SPEED_CLIP_MPS,
-        rate: Box::new(|t| {
-            Some((track.speed(t + RATE_HALF_SPAN_S)? - track.speed(t - RATE_HALF_SPAN_S)?) / (2.0 * RATE_HALF_SPAN_S))
-        }),
         centred: false,
     };
     // A fix's course is clockwise from north; the ego's heading counter-clockwise from east.
@@ -159,13 +226,10 @@ pub fn latency_from_motion(records: &[Record], ego: &BTreeMap<i64, EgoPose>) -> 
             .filter(|f| f.speed_mm_s as f64 * 1e-3 >= MIN_COURSE_SPEED_MPS)
             .map(|f| (f.t_us as f64 * 1e-6, FRAC_PI_2 - f.track_e4 as f64 * 1e-4))
             .collect(),
-        predict: Box::new(|t| track.heading(t)),
+        track: &track,
+        observe: heading_of,
         residual: |seen, predicted| wrap_angle(seen - predicted),
         clip: COURSE_CLIP_RAD,
-        rate: Box::new(|t| {
-            let turn = track.heading(t + RATE_HALF_SPAN_S)? - track.heading(t - RATE_HALF_SPAN_S)?;
-            Some(wrap_angle(turn) / (2.0 * RATE_HALF_SPAN_S))
-        }),
         centred: true,
     };
     // Each channel weighed by its precision.
