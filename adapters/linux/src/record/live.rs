@@ -470,25 +470,11 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
         if let Some(camera) = &camera {
             let mut result = Ok(());
             camera
-                .receive(|input| {
+                .receive_in_order(|input| {
                     busy = true;
-                    if result.is_err() {
-                        return;
+                    if result.is_ok() {
+                        result = feed_camera(&mut pipeline, input, &mut frames, &camera_keep);
                     }
-                    result = match input {
-                        CameraInput::Frame { .. } => {
-                            frames += 1;
-                            Ok(())
-                        }
-                        CameraInput::Vo(t, frame, session, pose) => pipeline.push_vo(t, frame, session, &pose),
-                        CameraInput::Detections3d(t, frame, d) => pipeline.push_detections(t, frame, &d),
-                        CameraInput::Detections2d(t, frame, d) => pipeline.push_detections2d(t, frame, &d),
-                        CameraInput::Keep(_) => {
-                            camera_keep.store(true, Ordering::Relaxed);
-                            Ok(())
-                        }
-                        CameraInput::Imu(t, sample) => pipeline.push_imu(t, &sample),
-                    };
                 })
                 .map_err(Error::other)?;
             failed(result, &mut failure)?;
@@ -557,6 +543,17 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
             std::thread::sleep(Duration::from_millis(1));
         }
     }
+    // What the camera's inputs still held back for their order (the last frame's pose and
+    // detections): the recording ends.
+    if let Some(camera) = &camera {
+        let mut result = Ok(());
+        camera.flush(|input| {
+            if result.is_ok() {
+                result = feed_camera(&mut pipeline, input, &mut frames, &camera_keep);
+            }
+        });
+        failed(result, &mut failure)?;
+    }
     // What the last file earned since the last look keeps it (the pipeline's closing, below,
     // may still close a window: that protection is in the index only, as the log is closed).
     if let Some(f) = folder.as_mut() {
@@ -592,6 +589,30 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
     Ok(LiveReport { stats, frames, dropped, files: index + 1, issues, write_failures, deleted_files })
 }
 
+/// One camera input into the pipeline (`frames` counts the frames; a keep mark sets
+/// `camera_keep`).
+fn feed_camera<S: embedded_io::Write>(
+    pipeline: &mut Pipeline<'_, S>,
+    input: CameraInput,
+    frames: &mut u64,
+    camera_keep: &AtomicBool,
+) -> std::result::Result<(), WriteError<S::Error>> {
+    match input {
+        CameraInput::Frame { .. } => {
+            *frames += 1;
+            Ok(())
+        }
+        CameraInput::Vo(t, frame, session, pose) => pipeline.push_vo(t, frame, session, &pose),
+        CameraInput::Detections3d(t, frame, d) => pipeline.push_detections(t, frame, &d),
+        CameraInput::Detections2d(t, frame, d) => pipeline.push_detections2d(t, frame, &d),
+        CameraInput::Keep(_) => {
+            camera_keep.store(true, Ordering::Relaxed);
+            Ok(())
+        }
+        CameraInput::Imu(t, sample) => pipeline.push_imu(t, &sample),
+    }
+}
+
 /// The inputs of a live recording while it waits for its first fix.
 struct Waiting<'a> {
     request: &'a LiveRequest,
@@ -616,7 +637,7 @@ impl Waiting<'_> {
             let mut busy = false;
             if let Some(camera) = self.camera {
                 camera
-                    .receive(|input| {
+                    .receive_in_order(|input| {
                         busy = true;
                         match input {
                             CameraInput::Frame { .. } => frames += 1,

@@ -26,6 +26,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod merge;
 pub mod messages;
 
 use dash2sim_core::box2d::Box2d;
@@ -414,10 +415,12 @@ pub enum CameraInput {
     Imu(Timestamp, ImuSample),
 }
 
-/// The logger's side: a subscriber per service.
+/// The logger's side: a subscriber per service, and the inputs held back to be released in
+/// the order they were published ([`CameraSubscriber::receive_in_order`]).
 #[derive(Debug)]
 pub struct CameraSubscriber {
     _node: Node<ipc::Service>,
+    merge: std::cell::RefCell<merge::Merge>,
     frame: Subscriber<ipc::Service, FrameMetaMsg, ()>,
     vo: Subscriber<ipc::Service, VoPoseMsg, ()>,
     detections3d: Subscriber<ipc::Service, Detections3dMsg, ()>,
@@ -447,6 +450,7 @@ impl CameraSubscriber {
         let imu = service!(node, prefix, "imu", ImuMsg, IMU_SUBSCRIBER_BUFFER).subscriber_builder().create();
         Ok(CameraSubscriber {
             _node: node,
+            merge: std::cell::RefCell::default(),
             frame: frame.map_err(|e| iox("frame subscriber")(&e))?,
             vo: vo.map_err(|e| iox("vo subscriber")(&e))?,
             detections3d: detections3d.map_err(|e| iox("detections3d subscriber")(&e))?,
@@ -456,19 +460,14 @@ impl CameraSubscriber {
         })
     }
 
-    /// Everything waiting, service by service: IMU samples, frames, VO poses, 3D and 2D
-    /// detections, keep marks. Within one frame the pose comes before its detections; the IMU
-    /// comes first because a camera process publishes the samples up to a frame before the
-    /// frame (so that, read in any number of passes, they reach the pipeline in the order of
-    /// their stamps). Returns how many.
+    /// Everything waiting, service by service as it comes: frames first, then IMU samples, VO
+    /// poses, 3D and 2D detections, keep marks. A camera process publishing meanwhile can
+    /// split a frame across two calls (its pose in one, its detections in the next, or a
+    /// later pose before earlier IMU samples): [`CameraSubscriber::receive_in_order`] puts
+    /// them back. Frames come first so that it can: everything published before the newest
+    /// frame seen is in hand once the other services are drained after it. Returns how many.
     pub fn receive(&self, mut on: impl FnMut(CameraInput)) -> Result<usize, BridgeError> {
         let mut n = 0;
-        while let Some(s) = self.imu.receive().map_err(|e| iox("imu receive")(&e))? {
-            check("imu", s.version)?;
-            let sample = ImuSample { gyro: s.gyro.map(f64::from), accel: s.accel.map(f64::from) };
-            on(CameraInput::Imu(Timestamp::from_micros(s.device_time_us), sample));
-            n += 1;
-        }
         while let Some(s) = self.frame.receive().map_err(|e| iox("frame receive")(&e))? {
             check("frame", s.version)?;
             on(CameraInput::Frame {
@@ -477,6 +476,12 @@ impl CameraSubscriber {
                 exposure_us: s.exposure_us,
                 image_bytes: s.image_bytes,
             });
+            n += 1;
+        }
+        while let Some(s) = self.imu.receive().map_err(|e| iox("imu receive")(&e))? {
+            check("imu", s.version)?;
+            let sample = ImuSample { gyro: s.gyro.map(f64::from), accel: s.accel.map(f64::from) };
+            on(CameraInput::Imu(Timestamp::from_micros(s.device_time_us), sample));
             n += 1;
         }
         while let Some(s) = self.vo.receive().map_err(|e| iox("vo receive")(&e))? {
@@ -530,5 +535,153 @@ impl CameraSubscriber {
             n += 1;
         }
         Ok(n)
+    }
+
+    /// What [`CameraSubscriber::receive`] drains, handed on in the order the camera process
+    /// published it ([`merge`]): up to the newest frame at once, what follows it with the
+    /// next frame (or after [`merge::HOLD_US`] of stamps without one). Two runs of the same
+    /// publication give the same sequence however the drains fall. Returns how many.
+    pub fn receive_in_order(&self, on: impl FnMut(CameraInput)) -> Result<usize, BridgeError> {
+        let mut merge = self.merge.borrow_mut();
+        self.receive(|input| merge.push(input))?;
+        Ok(merge.release(on))
+    }
+
+    /// Everything [`CameraSubscriber::receive_in_order`] still holds, in order: the
+    /// recording ends.
+    pub fn flush(&self, on: impl FnMut(CameraInput)) -> usize {
+        self.merge.borrow_mut().flush(on)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::record::{run_stream, Setup};
+    use dash2sim_core::geo::Geodetic;
+    use dash2sim_core::pipeline::replay::Recorder;
+
+    /// Frame `k` of a car driving straight on at 20 m/s, in the order a camera process
+    /// publishes it: two IMU samples up to it, the frame, its VO pose, a cone ahead, a 2D box.
+    fn frame_inputs(k: u64) -> Vec<CameraInput> {
+        let t = 1_000_000 + 50_000 * k as i64;
+        // Values the wire's f32 carries exactly.
+        let sample = ImuSample { gyro: [0.0; 3], accel: [0.0, 0.0, 9.8125] };
+        let at = Timestamp::from_micros(t);
+        let pose = Pose { rotation: Matrix3::identity(), translation: Vector3::new(0.0, 0.0, k as f64) };
+        let bbox = Box3d { x: 2.0, y: 1.0, z: 15.0 - k as f64, yaw: 0.0, l: 0.5, w: 0.5, h: 0.75 };
+        let detection = Detection { bbox: Box2d { x: 600.0, y: 300.0, w: 40.0, h: 60.0 }, score: 0.875 };
+        vec![
+            CameraInput::Imu(Timestamp::from_micros(t - 25_000), sample),
+            CameraInput::Imu(at, sample),
+            CameraInput::Frame { sequence: k, t: at, exposure_us: 8_000, image_bytes: 0 },
+            CameraInput::Vo(at, k, 0, pose),
+            CameraInput::Detections3d(
+                at,
+                k,
+                vec![Detection3d { class: 1, bbox, score: 0.875, position_covariance: None }],
+            ),
+            CameraInput::Detections2d(at, k, vec![ImageDetection { class: 1, detection }]),
+        ]
+    }
+
+    fn publish(camera: &CameraPublisher, k: u64) {
+        for input in frame_inputs(k) {
+            match input {
+                CameraInput::Imu(t, sample) => camera.imu(t, &sample),
+                CameraInput::Frame { sequence, t, exposure_us, .. } => camera.frame(sequence, t, exposure_us, None),
+                CameraInput::Vo(t, frame, session, pose) => camera.vo(frame, t, &pose, session),
+                CameraInput::Detections3d(t, frame, d) => camera.detections3d(frame, t, &d),
+                CameraInput::Detections2d(t, frame, d) => camera.detections2d(frame, t, &d),
+                CameraInput::Keep(t) => camera.keep(t),
+            }
+            .expect("publish");
+        }
+    }
+
+    /// The inputs through the pipeline in the order given: the log and how many inputs it
+    /// refused.
+    fn logged(inputs: &[CameraInput]) -> (Vec<u8>, u64) {
+        let mut recorder = Recorder::new(Vec::new()).unwrap_or_else(|e| match e {});
+        for input in inputs {
+            let Ok(()) = match input {
+                CameraInput::Vo(t, frame, session, pose) => recorder.vo(*t, *frame, *session, pose),
+                CameraInput::Detections3d(t, frame, d) => recorder.detections3d(*t, *frame, d),
+                CameraInput::Detections2d(t, frame, d) => recorder.detections2d(*t, *frame, d),
+                CameraInput::Imu(t, sample) => recorder.imu(*t, sample),
+                CameraInput::Frame { .. } | CameraInput::Keep(_) => Ok(()),
+            };
+        }
+        let Ok(stream) = recorder.finish();
+        let origin = Geodetic::new(60.2711, 24.8572, 20.0).expect("origin");
+        let recording = run_stream(&stream, &Setup::work_zone(origin, None, *b"dash2sim-test\0\0\0")).expect("run");
+        (recording.log, recording.issues.total())
+    }
+
+    /// Frames through real iceoryx2 services: 0 and 1, then `burst` more published the
+    /// moment the logger's drain has just taken `trigger` of frame 1 — the interleaving a
+    /// logger starved of CPU meets, made deterministic — and one last after. What the drain
+    /// handed on as it came (what the logger fed the pipeline before issue #57), the same
+    /// drain put in order, and what was published, in order.
+    fn drained(
+        name: &str,
+        trigger: fn(&CameraInput) -> bool,
+        burst: u64,
+    ) -> (Vec<CameraInput>, Vec<CameraInput>, Vec<CameraInput>) {
+        let prefix = format!("dash2sim-test/bridge-order/{name}/{}", std::process::id());
+        let camera = CameraPublisher::new(&prefix, false).expect("publisher");
+        let logger = CameraSubscriber::new(&prefix).expect("subscriber");
+        let (mut raw, mut merge, mut published) = (Vec::new(), merge::Merge::default(), false);
+        publish(&camera, 0);
+        publish(&camera, 1);
+        let mut take = |input: CameraInput| {
+            raw.push(input.clone());
+            merge.push(input);
+        };
+        logger
+            .receive(|input| {
+                let now = !published && trigger(&input);
+                take(input);
+                if now {
+                    (2..2 + burst).for_each(|k| publish(&camera, k));
+                    published = true;
+                }
+            })
+            .expect("receive");
+        assert!(published, "the trigger came");
+        publish(&camera, 2 + burst);
+        logger.receive(&mut take).expect("receive");
+        let mut ordered = Vec::new();
+        merge.release(|input| ordered.push(input));
+        merge.flush(|input| ordered.push(input));
+        (raw, ordered, (0..3 + burst).flat_map(frame_inputs).collect())
+    }
+
+    /// Issue #57's first failure, reproduced: the Rust and the C publisher's logs of the same
+    /// files once differed (the same size, other bytes). A frame published while the logger
+    /// drains the VO service reaches it pose first and its IMU samples a drain later: the
+    /// pipeline writes another log than from the inputs in the order published.
+    #[test]
+    fn a_frame_published_during_the_drain_is_logged_as_if_it_had_not_been() {
+        let (raw, ordered, published) = drained("vo", |i| matches!(i, CameraInput::Vo(_, 1, ..)), 1);
+        assert_ne!(raw, published, "the reproduction: the drain saw frame 2 out of order");
+        let in_publication_order = logged(&published).0;
+        assert_ne!(logged(&raw).0, in_publication_order, "the failure: another log");
+        assert_eq!(ordered, published, "put back in the order published");
+        assert_eq!(logged(&ordered).0, in_publication_order);
+    }
+
+    /// Issue #57's second failure, reproduced: the demo's live recording, starved of CPU
+    /// beside a CI run, refused one input. Two frames published while the logger drains the
+    /// 3D detections reach it detections first and poses a drain later: the second frame's
+    /// detections are 100 ms from the newest pose the pipeline has (more than its 50 ms),
+    /// and refused as detections without a pose.
+    #[test]
+    fn detections_published_during_the_drain_are_not_refused_for_want_of_their_pose() {
+        let (raw, ordered, published) = drained("detections", |i| matches!(i, CameraInput::Detections3d(_, 1, _)), 2);
+        assert_eq!(logged(&raw).1, 1, "the reproduction: one input refused");
+        assert_eq!(ordered, published);
+        assert_eq!(logged(&ordered).1, 0);
+        assert_eq!(logged(&ordered).0, logged(&published).0);
     }
 }

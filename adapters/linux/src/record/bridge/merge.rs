@@ -1,0 +1,240 @@
+//! The camera's inputs put back into the order they were published (issue #57).
+//!
+//! Each service is its own FIFO, and a subscriber drains them one after another. A camera
+//! process publishing while the logger drains (or while the logger is starved of CPU and
+//! drains a backlog in one go) splits a frame across two passes: the logger saw frame
+//! k + 1's VO pose before the IMU samples published ahead of it, or its 3D detections
+//! before its pose — the pipeline then refused them (detections without a pose) or wrote
+//! them in another order, so two live runs of the same inputs gave different logs.
+//!
+//! A camera process publishes in the order of its stamps: the IMU samples up to a frame,
+//! then the frame, its VO pose, its 3D and its 2D detections (and keep marks). So the
+//! inputs are ordered by (epoch, stamp, service rank, arrival), the epoch counting a
+//! service's stamps going back by more than a second (a restarted camera process replaying
+//! its files: what it publishes comes after what the old one did). A drain takes the frame
+//! service first: every input published before the newest frame seen is then in hand when
+//! the other services are drained, and everything up to that frame is released in order.
+//! What is published after it waits for the next frame — one frame period — or, when no
+//! frame comes (a camera that stalls, an IMU-only process), until it is [`HOLD_US`] older
+//! than the newest stamp held. The recording's end releases the rest.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+use super::CameraInput;
+
+/// How long an input waits for a frame at most, µs of stamps: past it, inputs are released
+/// without the frame's guarantee (the order is then by stamp as far as it is known).
+pub const HOLD_US: i64 = 500_000;
+/// A service's stamp going back by more than this starts a new epoch, µs (the pipeline's own
+/// clock-reset threshold).
+const RESET_US: i64 = 1_000_000;
+/// The services in publication order within one stamp.
+const SERVICES: usize = 6;
+
+/// Where an input goes in the order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+struct Key {
+    epoch: u32,
+    t_us: i64,
+    rank: u8,
+    arrival: u64,
+}
+
+/// An input waiting for its turn.
+#[derive(Debug)]
+struct Held {
+    key: Key,
+    input: CameraInput,
+}
+
+impl PartialEq for Held {
+    fn eq(&self, other: &Self) -> bool {
+        self.key == other.key
+    }
+}
+
+impl Eq for Held {}
+
+impl PartialOrd for Held {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Held {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.key.cmp(&other.key)
+    }
+}
+
+/// The reorder buffer.
+#[derive(Debug, Default)]
+pub struct Merge {
+    held: BinaryHeap<Reverse<Held>>,
+    /// Per service: its epoch and its last stamp.
+    clocks: [(u32, Option<i64>); SERVICES],
+    /// The newest frame drained.
+    barrier: Option<Key>,
+    /// The newest key held.
+    newest: Option<Key>,
+    arrivals: u64,
+}
+
+/// An input's service rank and stamp.
+fn rank_and_stamp(input: &CameraInput) -> (u8, i64) {
+    match input {
+        CameraInput::Imu(t, _) => (0, t.micros()),
+        CameraInput::Frame { t, .. } => (1, t.micros()),
+        CameraInput::Vo(t, ..) => (2, t.micros()),
+        CameraInput::Detections3d(t, ..) => (3, t.micros()),
+        CameraInput::Detections2d(t, ..) => (4, t.micros()),
+        CameraInput::Keep(t) => (5, t.micros()),
+    }
+}
+
+impl Merge {
+    /// Take one drained input (services in [`super::CameraSubscriber::receive`]'s order).
+    pub fn push(&mut self, input: CameraInput) {
+        let (rank, t_us) = rank_and_stamp(&input);
+        let (epoch, last) = &mut self.clocks[usize::from(rank)];
+        if last.is_some_and(|last| t_us < last.saturating_sub(RESET_US)) {
+            *epoch = epoch.saturating_add(1);
+        }
+        *last = Some(t_us);
+        let key = Key { epoch: *epoch, t_us, rank, arrival: self.arrivals };
+        self.arrivals += 1;
+        if rank == 1 {
+            self.barrier = self.barrier.max(Some(key));
+        }
+        self.newest = self.newest.max(Some(key));
+        self.held.push(Reverse(Held { key, input }));
+    }
+
+    /// Everything that can go now, in order: up to the newest frame, and what has waited
+    /// [`HOLD_US`].
+    pub fn release(&mut self, mut on: impl FnMut(CameraInput)) -> usize {
+        let waited = self.newest.map(|n| (n.epoch, n.t_us.saturating_sub(HOLD_US)));
+        let mut n = 0;
+        while let Some(Reverse(next)) = self.held.peek() {
+            let framed = self.barrier.is_some_and(|b| next.key <= b);
+            let stale = waited.is_some_and(|(epoch, t)| (next.key.epoch, next.key.t_us) < (epoch, t));
+            if !(framed || stale) {
+                break;
+            }
+            let Some(Reverse(next)) = self.held.pop() else { break };
+            on(next.input);
+            n += 1;
+        }
+        n
+    }
+
+    /// Everything held, in order (the recording ends).
+    pub fn flush(&mut self, mut on: impl FnMut(CameraInput)) -> usize {
+        let mut n = 0;
+        while let Some(Reverse(next)) = self.held.pop() {
+            on(next.input);
+            n += 1;
+        }
+        n
+    }
+
+    /// Inputs held.
+    pub fn held(&self) -> usize {
+        self.held.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dash2sim_core::imu::ImuSample;
+    use dash2sim_core::sim3::Pose;
+    use dash2sim_core::time::Timestamp;
+
+    fn at(ms: i64) -> Timestamp {
+        Timestamp::from_micros(ms * 1000)
+    }
+
+    /// A frame's messages as a camera publishes them: two IMU samples up to it, then the
+    /// frame, its pose, its detections.
+    fn frame(k: u64, ms: i64) -> Vec<CameraInput> {
+        vec![
+            CameraInput::Imu(at(ms - 25), ImuSample::default()),
+            CameraInput::Imu(at(ms), ImuSample::default()),
+            CameraInput::Frame { sequence: k, t: at(ms), exposure_us: 0, image_bytes: 0 },
+            CameraInput::Vo(at(ms), k, 0, Pose::identity()),
+            CameraInput::Detections3d(at(ms), k, Vec::new()),
+            CameraInput::Detections2d(at(ms), k, Vec::new()),
+        ]
+    }
+
+    fn label(input: &CameraInput) -> String {
+        let (rank, t) = rank_and_stamp(input);
+        format!("{}@{}", ["imu", "frame", "vo", "det3d", "det2d", "keep"][usize::from(rank)], t / 1000)
+    }
+
+    /// Drained service by service as `receive` does (frames first), the passes cutting the
+    /// publication at `cuts` (how many messages each service had when it was drained).
+    fn drained(published: &[CameraInput], cuts: &[[usize; SERVICES]]) -> Vec<String> {
+        let mut merge = Merge::default();
+        let mut out = Vec::new();
+        let mut taken = [0usize; SERVICES];
+        for cut in cuts {
+            for rank in [1u8, 0, 2, 3, 4, 5] {
+                let of_service: Vec<&CameraInput> = published.iter().filter(|i| rank_and_stamp(i).0 == rank).collect();
+                let r = usize::from(rank);
+                for input in &of_service[taken[r]..cut[r].min(of_service.len())] {
+                    merge.push((*input).clone());
+                }
+                taken[r] = cut[r].min(of_service.len()).max(taken[r]);
+            }
+            merge.release(|i| out.push(label(&i)));
+        }
+        merge.flush(|i| out.push(label(&i)));
+        out
+    }
+
+    #[test]
+    fn any_cut_of_the_publication_is_released_in_publication_order() {
+        let published: Vec<CameraInput> = (0..4).flat_map(|k| frame(k, 100 + 50 * k as i64)).collect();
+        let in_order: Vec<String> = published.iter().map(label).collect();
+        // Counts per service (imu, frame, vo, det3d, det2d, keep) at each pass. The second
+        // pass saw frame 2's pose but not its detections, and frame 3's IMU but not its frame:
+        // a starved logger's view.
+        let cuts = [[2, 1, 1, 1, 0, 0], [6, 2, 3, 2, 2, 0], [8, 4, 4, 3, 3, 0], [8, 4, 4, 4, 4, 0]];
+        assert_eq!(drained(&published, &cuts), in_order);
+        // And a logger that drains once at the end, or after every message.
+        assert_eq!(drained(&published, &[[8, 4, 4, 4, 4, 0]]), in_order);
+        let mut one_by_one = Vec::new();
+        let mut counts = [0usize; SERVICES];
+        for input in &published {
+            counts[usize::from(rank_and_stamp(input).0)] += 1;
+            one_by_one.push(counts);
+        }
+        assert_eq!(drained(&published, &one_by_one), in_order);
+    }
+
+    #[test]
+    fn a_restarted_camera_s_earlier_stamps_come_after_the_old_process_s() {
+        let mut published: Vec<CameraInput> = (0..3).flat_map(|k| frame(k, 5000 + 50 * k as i64)).collect();
+        // The new process replays its files from the start: stamps 5 s earlier.
+        published.extend((0..2).flat_map(|k| frame(k, 100 + 50 * k as i64)));
+        let in_order: Vec<String> = published.iter().map(label).collect();
+        assert_eq!(drained(&published, &[[10, 5, 5, 5, 5, 0]]), in_order);
+        assert_eq!(drained(&published, &[[6, 3, 3, 2, 2, 0], [10, 5, 5, 5, 5, 0]]), in_order);
+    }
+
+    #[test]
+    fn without_frames_an_input_waits_half_a_second_of_stamps() {
+        let mut merge = Merge::default();
+        for ms in (0..=1000).step_by(10) {
+            merge.push(CameraInput::Imu(at(ms), ImuSample::default()));
+        }
+        let mut released = Vec::new();
+        merge.release(|i| released.push(rank_and_stamp(&i).1 / 1000));
+        assert_eq!(released.first(), Some(&0));
+        assert_eq!(released.last(), Some(&490), "older than the newest (1000 ms) by more than 500 ms");
+        assert_eq!(merge.held(), 51);
+    }
+}
