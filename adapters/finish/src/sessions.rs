@@ -237,10 +237,12 @@ pub(super) struct SessionSolution {
     pub(super) session: u32,
     pub(super) range: std::ops::Range<usize>,
     pub(super) solution: Solution,
-    /// What the solution was solved from: the settings (with the walks chosen) and which
-    /// anchors took part.
-    pub(super) solved_with: (Settings, Vec<bool>),
+    pub(super) solved_with: SolvedWith,
 }
+
+/// What a session's solution was solved from: the settings (with the walks chosen) and which
+/// anchors took part.
+pub(super) type SolvedWith = (Settings, Vec<bool>);
 
 /// The runs of consecutive poses of one VO session.
 pub(super) fn session_ranges(vo: &[VoSample]) -> Vec<std::ops::Range<usize>> {
@@ -274,7 +276,7 @@ pub(super) fn solve_session(
     settings: Settings,
     fixes: &[Fix],
     vo_points_valid: bool,
-) -> Result<(Solution, Vec<AnchorVerdict>, (Settings, Vec<bool>)), solve::SolveError> {
+) -> Result<(Solution, Vec<AnchorVerdict>, SolvedWith), solve::SolveError> {
     let anchors = inputs.anchors;
     let (first, last) = (inputs.vo[0].t, inputs.vo[inputs.vo.len() - 1].t);
     let mut verdicts: Vec<AnchorVerdict> = anchors

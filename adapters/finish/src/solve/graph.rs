@@ -375,7 +375,16 @@ mod tests {
     /// A minute of VO along a gentle curve at 20 m/s through a similarity (scale 3, turned
     /// 30°), fixes at 2 Hz 0.12 s late with a few metres of error and three 40 m outliers,
     /// wheel speed 1 % fast, two anchors of the rear axle.
-    fn minute(gravity_aligned: bool) -> (Vec<VoSample>, Vec<Fix>, Vec<(f64, f64)>, Vec<Anchor>, Settings) {
+    /// The inputs of [`minute`].
+    struct Minute {
+        vo: Vec<VoSample>,
+        fixes: Vec<Fix>,
+        speeds: Vec<(f64, f64)>,
+        anchors: Vec<Anchor>,
+        settings: Settings,
+    }
+
+    fn minute(gravity_aligned: bool) -> Minute {
         let world = |t: f64| Vector3::new(20.0 * t, 0.2 * t * t - 3.0 * (t / 9.0).sin(), 0.05 * t);
         let turn = rotation_z(0.5);
         let vo: Vec<VoSample> = (0..=600)
@@ -405,8 +414,11 @@ mod tests {
             Anchor { at: AnchorAt::Time(20.0), enu: world(20.0) + Vector3::new(0.1, -0.2, 0.0), sigma: 0.3 },
             Anchor { at: AnchorAt::Time(45.0), enu: world(45.0) + Vector3::new(-0.2, 0.1, 0.1), sigma: 0.3 },
         ];
-        (vo, fixes, speeds, anchors, Settings { gravity_aligned, ..Settings::default() })
+        Minute { vo, fixes, speeds, anchors, settings: Settings { gravity_aligned, ..Settings::default() } }
     }
+
+    /// A direction to look along from the solution: its name, the step, the change.
+    type Probe = (&'static str, f64, Box<dyn Fn(&mut Solution, f64)>);
 
     /// The written cost at `solution` with `change` applied to a copy of it.
     fn cost_with(inputs: Inputs<'_>, settings: Settings, solution: &Solution, change: impl Fn(&mut Solution)) -> f64 {
@@ -423,7 +435,7 @@ mod tests {
     #[test]
     fn the_solution_is_where_the_written_cost_is_stationary() {
         for gravity_aligned in [true, false] {
-            let (vo, fixes, speeds, anchors, settings) = minute(gravity_aligned);
+            let Minute { vo, fixes, speeds, anchors, settings } = minute(gravity_aligned);
             let inputs = Inputs { vo: &vo, fixes: &fixes, speeds: &speeds, anchors: &anchors, lever: Vector3::zeros() };
             let solution = solve(inputs, settings, &[true, true]).expect("solved");
             let graph = factor_graph(inputs, settings, &[true, true], &solution).expect("graph");
@@ -433,7 +445,7 @@ mod tests {
             assert_eq!(graph.factors.anchor_time.len(), 2);
             assert_eq!(graph.initial.tau, solution.start_latency_s);
             let k = solution.positions.len() / 2;
-            let probes: [(&str, f64, Box<dyn Fn(&mut Solution, f64)>); 6] = [
+            let probes: [Probe; 6] = [
                 (
                     "roll",
                     1e-4,
