@@ -8,7 +8,8 @@
 //! them in another order, so two live runs of the same inputs gave different logs.
 //!
 //! A camera process publishes in the order of its stamps: the IMU samples up to a frame,
-//! then the frame, its VO pose, its 3D and its 2D detections (and keep marks). So the
+//! then the frame, its VO pose, its 3D and its 2D detections (keep marks are about the file
+//! being recorded now and are handed on at once, by the subscriber). So the
 //! inputs are ordered by (epoch, stamp, service rank, arrival), the epoch counting a
 //! service's stamps going back by more than a second (a restarted camera process replaying
 //! its files: what it publishes comes after what the old one did). A drain takes the frame

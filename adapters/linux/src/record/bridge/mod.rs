@@ -541,10 +541,18 @@ impl CameraSubscriber {
     /// published it ([`merge`]): up to the newest frame at once, what follows it with the
     /// next frame (or after [`merge::HOLD_US`] of stamps without one). Two runs of the same
     /// publication give the same sequence however the drains fall. Returns how many.
-    pub fn receive_in_order(&self, on: impl FnMut(CameraInput)) -> Result<usize, BridgeError> {
+    /// Keep marks are handed on at once: they are about the file being recorded now, not a
+    /// stamp's place among the inputs.
+    pub fn receive_in_order(&self, mut on: impl FnMut(CameraInput)) -> Result<usize, BridgeError> {
         let mut merge = self.merge.borrow_mut();
-        self.receive(|input| merge.push(input))?;
-        Ok(merge.release(on))
+        let mut marks = Vec::new();
+        self.receive(|input| match input {
+            CameraInput::Keep(_) => marks.push(input),
+            input => merge.push(input),
+        })?;
+        let n = marks.len();
+        marks.into_iter().for_each(&mut on);
+        Ok(n + merge.release(on))
     }
 
     /// Everything [`CameraSubscriber::receive_in_order`] still holds, in order: the
