@@ -115,9 +115,10 @@ fn what_c_publishes_arrives_at_the_logger_with_its_image() {
         gyro: [0.01f32, -0.02, 0.3].map(f64::from),
         accel: [0.5f32, -0.25, 9.81].map(f64::from),
     };
-    assert_eq!(inputs[0], CameraInput::Imu(dash2sim_core::time::Timestamp::from_micros(1_010_000), imu));
+    // `receive` drains the frame service first (`CameraSubscriber::receive`).
+    assert_eq!(inputs[0], CameraInput::Frame { sequence: 5, t, exposure_us: 8000, image_bytes: 1000 });
+    assert_eq!(inputs[1], CameraInput::Imu(dash2sim_core::time::Timestamp::from_micros(1_010_000), imu));
     assert_eq!(inputs[4], CameraInput::Keep(dash2sim_core::time::Timestamp::from_micros(1_050_000)));
-    assert_eq!(inputs[1], CameraInput::Frame { sequence: 5, t, exposure_us: 8000, image_bytes: 1000 });
     assert_eq!(inputs[2], CameraInput::Vo(t, 5, 2, expected), "the rotation bit for bit as record reads it");
     let CameraInput::Detections3d(_, 5, ref d) = inputs[3] else { panic!("{:?}", inputs[3]) };
     assert_eq!((d.len(), d[0].class, d[0].bbox.x), (1, 2, 10.0));
