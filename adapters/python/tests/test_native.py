@@ -69,6 +69,22 @@ def test_finish_and_verify_give_the_command_line_s_reports_and_bytes(corpus, cor
     assert False in verdicts, "the careless driver's log is rejected"
 
 
+def test_finish_writes_the_factor_graph_the_command_line_writes(corpus, corpus_plan, dash2sim_bin, tmp_path):
+    log, _ = paths(corpus, intact(corpus_plan)[0])
+    cli_graph, py_graph = tmp_path / "cli.json", tmp_path / "py.json"
+    result = run_cli(dash2sim_bin, "finish", log, "-o", tmp_path / "cli.d2slog", "--factor-graph", cli_graph)
+    assert result.returncode == 0, result.stderr
+    dash2sim.finish(log, tmp_path / "py.d2slog", factor_graph=py_graph)
+    graph = json.loads(py_graph.read_text())
+    assert graph == json.loads(cli_graph.read_text())
+    assert graph["format"] == "dash2sim-factor-graph 1" and graph["sessions"]
+    session = graph["sessions"][0]
+    keyframes = len(session["keyframe_vo"])
+    assert len(session["finish"]["p"]) == len(session["initial"]["rho"]) == keyframes > 1
+    assert len(session["factors"]["vo_chord"]) == keyframes - 1
+    assert session["finish_cost"] > 0
+
+
 def test_errors_are_dash2sim_errors_carrying_the_rust_message(corpus, corpus_plan, dash2sim_bin, tmp_path):
     by_damage = {e["damage"]: i for i, e in corpus_plan.items() if e["damage"]}
     garbage, _ = paths(corpus, by_damage["garbage"])
