@@ -121,7 +121,7 @@ fn without_speed(log: &LogContents) -> LogContents {
 fn run(log: &LogContents, anchor_text: Option<&str>) -> Finished {
     let file = anchor_text.map(|text| anchors::parse(text).expect("anchors"));
     let mount: CameraMount = parse_mount(&mount()).expect("mount");
-    finish(log, "comma", file.as_ref().map(|f| ("anchors.csv", f)), None, mount, Settings::default(), UERE)
+    finish(&log.compact(), "comma", file.as_ref().map(|f| ("anchors.csv", f)), None, mount, Settings::default(), UERE)
         .expect("finish")
 }
 
@@ -152,7 +152,7 @@ fn finishing_the_comma2k19_minute_beats_the_online_anchorer_and_meets_the_papers
     let mut judged = Vec::new();
     for (name, log, anchor_text) in &variants {
         let finished = run(log, *anchor_text);
-        let j = judge(&finished.records, truth, &model);
+        let j = judge(&finished.records.to_vec(), truth, &model);
         let a = &finished.report.anchoring;
         println!(
             "| {name} | {:+.3} % | {:.3} | {:.3} | {:.3} % | {} | {:.3} % | {:.2} |",
@@ -215,10 +215,10 @@ fn typical_minute(dir: &std::path::Path, model: &VoModel, seed: u64, label: &str
         .max();
     assert_eq!(last_session, Some(sessions - 1), "{label}: {sessions} VO session(s) in the minute");
     let on = compare(&log.records, &recorded.device, truth).expect("online comparison");
-    let gnss = run(log, None);
-    let fin = compare(&gnss.records, &device_times(&gnss.records).expect("UTC"), truth).expect("finished");
-    let with = run(log, Some(&anchors_from_truth(log, truth, 50.0, 0.3, seed)));
-    let anc = compare(&with.records, &device_times(&with.records).expect("UTC"), truth).expect("anchored");
+    let gnss = run(log, None).records.to_vec();
+    let fin = compare(&gnss, &device_times(&gnss).expect("UTC"), truth).expect("finished");
+    let with = run(log, Some(&anchors_from_truth(log, truth, 50.0, 0.3, seed))).records.to_vec();
+    let anc = compare(&with, &device_times(&with).expect("UTC"), truth).expect("anchored");
     assert!(fin.matched > 1000 && anc.matched > 1000, "{label}: {} / {} poses", fin.matched, anc.matched);
     let row = [on.ape_rmse, fin.ape_rmse, fin.ape_aligned, fin.scale_error.abs(), anc.ape_rmse, anc.ape_aligned];
     println!(

@@ -19,7 +19,15 @@ fn gravity() -> Settings {
 
 fn run(log: &LogContents, anchor_text: Option<&str>, map: Option<&[u8]>) -> dash2sim_linux::Result<Finished> {
     let file = anchor_text.map(|text| anchors::parse(text).expect("anchors header"));
-    finish(log, "drive", file.as_ref().map(|f| ("anchors.csv", f)), map, CameraMount::default(), gravity(), 2.5)
+    finish(
+        &log.compact(),
+        "drive",
+        file.as_ref().map(|f| ("anchors.csv", f)),
+        map,
+        CameraMount::default(),
+        gravity(),
+        2.5,
+    )
 }
 
 /// Horizontal RMSE of two logs' ego poses against the scenario's truth, over the frames
@@ -63,8 +71,8 @@ fn finished_work_zones_verify_like_their_ground_truth() {
         let verification = finished.report.verification.as_ref().expect("verified against the map");
         let drive = &verification.drive.channel_insensitive;
         let score = drive.score;
-        let (online, offline) = ego_rmse(&recorded.log, &finished.records, &recorded);
-        let (_, gnss_only_rmse) = ego_rmse(&recorded.log, &gnss_only.records, &recorded);
+        let (online, offline) = ego_rmse(&recorded.log, &finished.records.to_vec(), &recorded);
+        let (_, gnss_only_rmse) = ego_rmse(&recorded.log, &gnss_only.records.to_vec(), &recorded);
         println!(
             "seed {seed}: finished with anchors {score:.2} ({}), GNSS only {:.2}, truth {:.2} ({}); ego RMSE online {online:.2} m, finished {offline:.2} m (GNSS only {gnss_only_rmse:.2} m)",
             drive.verified,
@@ -75,7 +83,7 @@ fn finished_work_zones_verify_like_their_ground_truth() {
         assert!(offline < online, "seed {seed}: finishing did not improve the ego ({offline} vs {online})");
         // The finished ego drives like a car, not at the edge of nuPlan's comfort bound
         // (4.13 m/s³): smoothed too little, the VO's frame noise read as 4.02 on the demo.
-        let finished_log = LogContents { records: finished.records.clone(), damage: Vec::new(), ..recorded.log };
+        let finished_log = LogContents { records: finished.records.to_vec(), damage: Vec::new(), ..recorded.log };
         let (finished_ego, finished_agents) = from_contents(&finished_log, "finished", &map).expect("finished ego");
         let jerk = replay(map, &finished_ego, &finished_agents, false, PACIFICA)
             .expect("replay")
@@ -89,8 +97,8 @@ fn finished_work_zones_verify_like_their_ground_truth() {
             assert!(drive.verified, "seed {seed}");
         }
         // The finished log reads back: its first records say what it was finished from.
-        let bytes =
-            log::import::encode_in_order(&recorded.log.header.expect("header"), &finished.records).expect("encode");
+        let bytes = log::import::encode_in_order(&recorded.log.header.expect("header"), finished.records.iter())
+            .expect("encode");
         let back = log::decode(&bytes, "finished").expect("decode");
         assert!(matches!(back.records[0], Record::ClockOffset(_)));
         let Record::Event(e) = &back.records[1] else { panic!("{:?}", back.records[1]) };
@@ -153,7 +161,7 @@ fn bad_input_is_refused_with_its_reason() {
     assert!(damaged.stats.damaged > 0);
     let finished = run(&damaged, None, None).expect("finish what was recovered");
     assert!(finished.report.damage.stretches > 0);
-    let Record::Event(e) = &finished.records[1] else { panic!("{:?}", finished.records[1]) };
+    let Some(Record::Event(e)) = finished.records.get(1) else { panic!("{:?}", finished.records.get(1)) };
     let text = String::from_utf8_lossy(&e.text);
     assert!(text.contains("damaged stretches") && text.contains("were lost"), "{text}");
     assert!(finished.records.iter().filter(|r| matches!(r, Record::EgoPose(_))).count() > 150);

@@ -148,7 +148,7 @@ pub fn verify_key(path: &Path, key: &str, as_json: bool) -> Result<()> {
     let names: Vec<String> = files.iter().map(|(f, _)| f.display().to_string()).collect();
     let checked = names.iter().zip(&logs).zip(&files).map(|((name, log), (_, after_deleted))| signing::Checked {
         name,
-        log,
+        signing: &log.signing,
         after_deleted: *after_deleted,
     });
     let seals = signing::check(&public, checked)?;

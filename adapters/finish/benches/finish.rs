@@ -12,7 +12,7 @@ use dash2sim_core::nalgebra::{Rotation3, Vector3};
 use dash2sim_core::pipeline::CameraMount;
 use dash2sim_finish::finish;
 use dash2sim_finish::solve::Settings;
-use dash2sim_linux::log::{self, LogContents};
+use dash2sim_linux::log::{self, LogContents, RecordStore};
 
 const ORIGIN: [f64; 3] = [60.17, 24.94, 20.0];
 
@@ -95,13 +95,13 @@ fn drive(minutes: f64) -> (Header, Vec<Record>) {
     (header, records)
 }
 
-fn contents(minutes: f64) -> LogContents {
+fn contents(minutes: f64) -> LogContents<RecordStore> {
     let (header, mut records) = drive(minutes);
     let bytes = log::import::encode(&header, &mut records).expect("encode");
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../target/finish-{minutes:.0}min.d2slog"));
     std::fs::write(&path, &bytes).expect("write the log");
-    log::decode(&bytes, "bench").expect("decode")
+    log::decode_compact(&bytes, "bench").expect("decode")
 }
 
 fn finishing(c: &mut Criterion) {

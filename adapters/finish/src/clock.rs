@@ -12,8 +12,9 @@
 use std::collections::BTreeMap;
 use std::f64::consts::FRAC_PI_2;
 
-use dash2sim_core::binlog::{quantise, EgoPose, Record};
+use dash2sim_core::binlog::{quantise, EgoPose, GnssFix, Record};
 use dash2sim_core::track3d::wrap_angle;
+use dash2sim_linux::log::RecordStore;
 
 use crate::timeline::index_after;
 
@@ -201,17 +202,12 @@ impl Channel<'_> {
 
 /// The receiver's latency (s) from its fixes' speed and course over ground against the
 /// finished ego's (`ego`, log time), or `None` with too few fixes or too little change of
-/// speed or direction to tell it to [`MAX_SIGMA_S`]. `records` are the device's (fix times
-/// are arrivals).
-pub fn latency_from_motion(records: &[Record], ego: &BTreeMap<i64, EgoPose>) -> Option<f64> {
+/// speed or direction to tell it to [`MAX_SIGMA_S`]. `fixes` are the device's (their times
+/// are arrivals); those without a position are passed over.
+pub fn latency_from_motion(fixes: &[GnssFix], ego: &BTreeMap<i64, EgoPose>) -> Option<f64> {
     let track =
         Track(ego.values().map(|p| (p.t_us as f64 * 1e-6, p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3)).collect());
-    let fixes = || {
-        records.iter().filter_map(|r| match r {
-            Record::GnssFix(f) if f.mode >= 2 => Some(f),
-            _ => None,
-        })
-    };
+    let fixes = || fixes.iter().filter(|f| f.mode >= 2);
     let speed = Channel {
         fixes: fixes().map(|f| (f.t_us as f64 * 1e-6, f.speed_mm_s as f64 * 1e-3)).collect(),
         track: &track,
@@ -247,29 +243,28 @@ pub fn latency_from_motion(records: &[Record], ego: &BTreeMap<i64, EgoPose>) -> 
 /// offset is moved later by the latency (`latency_s`, [`latency_from_motion`] or the solve's), so that the
 /// finished log's UTC is the world's. A log that never learnt UTC (no clock offset) is on
 /// the device's clock and is left there. Returns the shift, µs.
-pub fn utc_onto_the_fixes(records: &mut [Record], latency_s: f64) -> i64 {
+pub fn utc_onto_the_fixes(records: &mut RecordStore, latency_s: f64) -> i64 {
     if !records.iter().any(|r| matches!(r, Record::ClockOffset(_))) || !latency_s.is_finite() {
         return 0;
     }
     let shift = quantise(latency_s, 1e-6);
-    for r in records.iter_mut() {
+    *records = records.map(|r| {
         r.set_t_us(r.t_us().saturating_add(shift));
         if let Record::ClockOffset(c) = r {
             c.offset_us = c.offset_us.saturating_add(shift);
         }
-    }
+    });
     shift
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dash2sim_core::binlog::GnssFix;
     use std::f64::consts::TAU;
 
     /// A car whose speed swings between 10 and 20 m/s every 8 s, its ego every 50 ms, and a
     /// receiver 137 ms late whose speeds are off by up to 0.1 m/s.
-    fn swinging(latency: f64, swing: f64) -> (Vec<Record>, BTreeMap<i64, EgoPose>) {
+    fn swinging(latency: f64, swing: f64) -> (Vec<GnssFix>, BTreeMap<i64, EgoPose>) {
         let distance = |t: f64| 15.0 * t - swing * 8.0 / TAU * (TAU * t / 8.0).cos();
         let speed = |t: f64| 15.0 + swing * (TAU * t / 8.0).sin();
         let ego = (0..=800)
@@ -285,7 +280,7 @@ mod tests {
                 let noise = 0.1 * (k as f64 * 12.9898).sin();
                 let t_us = quantise(valid + latency, 1e-6);
                 let speed_mm_s = quantise(speed(valid) + noise, 1e-3);
-                Record::GnssFix(GnssFix { t_us, speed_mm_s, mode: 3, ..GnssFix::default() })
+                GnssFix { t_us, speed_mm_s, mode: 3, ..GnssFix::default() }
             })
             .collect();
         (records, ego)
@@ -303,7 +298,7 @@ mod tests {
 
     /// A car at a steady 15 m/s weaving left and right every 6 s (±0.3 rad), its ego every
     /// 50 ms, and a receiver `latency` late whose courses are off by up to half a degree.
-    fn weaving(latency: f64) -> (Vec<Record>, BTreeMap<i64, EgoPose>) {
+    fn weaving(latency: f64) -> (Vec<GnssFix>, BTreeMap<i64, EgoPose>) {
         let heading = |t: f64| 0.3 * (TAU * t / 6.0).sin();
         let mut ego = BTreeMap::new();
         let (mut x, mut y) = (0.0, 0.0);
@@ -320,7 +315,7 @@ mod tests {
                 let noise = 0.5f64.to_radians() * (k as f64 * 78.233).sin();
                 let t_us = quantise(valid + latency, 1e-6);
                 let track_e4 = quantise(FRAC_PI_2 - heading(valid) + noise, 1e-4);
-                Record::GnssFix(GnssFix { t_us, speed_mm_s: 15_000, track_e4, mode: 3, ..GnssFix::default() })
+                GnssFix { t_us, speed_mm_s: 15_000, track_e4, mode: 3, ..GnssFix::default() }
             })
             .collect();
         (records, ego)
@@ -332,13 +327,7 @@ mod tests {
         let found = latency_from_motion(&records, &ego).expect("the car turns");
         assert!((found - 0.137).abs() < 0.005, "{found}");
         // A receiver with no course (or a car on a straight road at steady speed) says nothing.
-        let no_course: Vec<Record> = records
-            .iter()
-            .map(|r| match r {
-                Record::GnssFix(f) => Record::GnssFix(GnssFix { track_e4: 0, ..*f }),
-                other => other.clone(),
-            })
-            .collect();
+        let no_course: Vec<GnssFix> = records.iter().map(|f| GnssFix { track_e4: 0, ..*f }).collect();
         assert_eq!(latency_from_motion(&no_course, &ego), None);
     }
 
@@ -346,24 +335,26 @@ mod tests {
     fn the_log_s_utc_moves_later_by_the_receiver_s_latency() {
         use dash2sim_core::binlog::{ClockOffset, VehicleSpeed};
         let speed = |t_us| Record::VehicleSpeed(VehicleSpeed { t_us, ..VehicleSpeed::default() });
-        let mut records = vec![
+        let mut records: RecordStore = [
             Record::ClockOffset(ClockOffset { t_us: 1_000_000, offset_us: 900_000, reason: 0 }),
             speed(1_000_000),
             Record::ClockOffset(ClockOffset { t_us: 2_000_000, offset_us: 900_400, reason: 1 }),
             speed(2_500_000),
-        ];
+        ]
+        .into_iter()
+        .collect();
         assert_eq!(utc_onto_the_fixes(&mut records, 0.1234567), 123_457);
-        let times: Vec<i64> = records.iter().map(Record::t_us).collect();
+        let times: Vec<i64> = records.iter().map(|r| r.t_us()).collect();
         assert_eq!(times, [1_123_457, 1_123_457, 2_123_457, 2_623_457]);
         // The device's clock is where it was: UTC − offset is unchanged.
-        for r in &records {
+        for r in records.iter() {
             if let Record::ClockOffset(c) = r {
                 assert!(c.t_us - c.offset_us == 100_000 || c.t_us - c.offset_us == 1_099_600, "{c:?}");
             }
         }
         // A log on the device's clock has no UTC to correct.
-        let mut device_clock = vec![speed(5)];
+        let mut device_clock: RecordStore = [speed(5)].into_iter().collect();
         assert_eq!(utc_onto_the_fixes(&mut device_clock, 0.1), 0);
-        assert_eq!(device_clock[0].t_us(), 5);
+        assert_eq!(device_clock.get(0).map(|r| r.t_us()), Some(5));
     }
 }

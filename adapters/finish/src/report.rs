@@ -1,7 +1,7 @@
 //! What `finish` reports (`dash2sim finish --json`, the Python package's `finish`): the
 //! finished records and, beside them, what was solved, used, refused and kept.
 
-use dash2sim_core::binlog::Record;
+use dash2sim_linux::log::RecordStore;
 use serde::Serialize;
 
 use super::solve::Solution;
@@ -11,7 +11,7 @@ use super::{mean_scale, windows};
 #[derive(Debug)]
 pub struct Finished {
     /// The finished log's records, in file order.
-    pub records: Vec<Record>,
+    pub records: RecordStore,
     /// The report (`--json`).
     pub report: FinishReport,
 }

@@ -1,4 +1,4 @@
-//! A series in time order: finding a time in it, and putting it in order.
+//! A series in time order: finding a time in it.
 
 /// The index of the first element of `series` (sorted by `time`) later than `t`: what
 /// `series.partition_point(|x| time(x) <= t)` returns, found from where an evenly spaced
@@ -25,47 +25,9 @@ pub(crate) fn index_after<T>(series: &[T], t: f64, time: impl Fn(&T) -> f64) -> 
     lo + series[lo..hi].partition_point(|x| time(x) <= t)
 }
 
-/// `series` by `time`, equal times in the order they had — what a stable sort gives —
-/// without a stable sort's buffer of half the series: an hour's finished records are
-/// 200 MB and the buffer was 100 MB more at the peak (issue #58). The order is found on
-/// (time, index) pairs and applied by following its cycles.
-pub(crate) fn sort_by_time<T>(series: &mut [T], time: impl Fn(&T) -> i64) {
-    let mut order: Vec<(i64, usize)> = series.iter().enumerate().map(|(i, x)| (time(x), i)).collect();
-    order.sort_unstable();
-    // Position k takes what is at order[k].1.
-    let mut placed = vec![false; series.len()];
-    for start in 0..series.len() {
-        let mut k = start;
-        while !placed[k] {
-            placed[k] = true;
-            let from = order[k].1;
-            if from == start {
-                break;
-            }
-            series.swap(k, from);
-            k = from;
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn sorting_by_time_is_a_stable_sort() {
-        // Times with many ties, each element tagged with where it was.
-        let series: Vec<(i64, usize)> = (0..2000).map(|i| (((i * 7919) % 97) as i64 - 40, i)).collect();
-        let mut stable = series.clone();
-        stable.sort_by_key(|x| x.0);
-        let mut ours = series.clone();
-        sort_by_time(&mut ours, |x| x.0);
-        assert_eq!(ours, stable);
-        let mut sorted_already = stable.clone();
-        sort_by_time(&mut sorted_already, |x| x.0);
-        assert_eq!(sorted_already, stable);
-        sort_by_time(&mut Vec::<(i64, usize)>::new(), |x| x.0);
-    }
 
     #[test]
     fn it_is_the_binary_search_s_answer_on_an_uneven_series() {

@@ -10,7 +10,7 @@ use dash2sim_core::pipeline::verification_record;
 use dash2sim_core::score::Scores;
 use serde::Serialize;
 
-use dash2sim_linux::log::{event, LogContents};
+use dash2sim_linux::log::{event, LogContents, RecordStore};
 use dash2sim_linux::{Error, Result};
 use dash2sim_verify::decide::{decision_or_point, Decision, DoubtSettings};
 use dash2sim_verify::{replay_in_doubt, AgentsByTime, Metrics, StatedUncertainty, Verification};
@@ -121,13 +121,15 @@ fn verdict(s: &Scores) -> &'static str {
     }
 }
 
-/// Verify the finished `records` (ego poses and tracks; `source` gives the header) on the
-/// map tile `map`.
-pub fn verify_finished(source: &LogContents, records: &[Record], name: &str, map: &[u8]) -> Result<Verified> {
+/// Verify the finished `records` (ego poses, tracks and their covariances; `source` gives
+/// the header) on the map tile `map`.
+pub fn verify_finished<R>(source: &LogContents<R>, records: &RecordStore, name: &str, map: &[u8]) -> Result<Verified> {
     let view = MapView::parse(map).map_err(|e| Error::refused("map", e))?;
+    // Only what verification reads, decoded: the sensors' records are most of a drive.
+    let verified = |r: &Record| matches!(r, Record::EgoPose(_) | Record::Tracks3d(_) | Record::TrackCovariance(_));
     let contents = LogContents {
         header: source.header,
-        records: records.to_vec(),
+        records: records.iter().filter(verified).collect(),
         damage: Vec::new(),
         stats: source.stats,
         bytes: 0,

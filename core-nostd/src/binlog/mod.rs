@@ -333,7 +333,10 @@ macro_rules! records {
                 }
             }
 
-            fn from_fields(kind: Kind, v: &[i64], text: &[u8]) -> Option<Record> {
+            /// The record of `kind` with these fields (as [`Record::fields`] gives them; an
+            /// event's text apart). `None` for a [`Tracks3d`] batch, which is not made of
+            /// fields, or an event whose level or text does not fit.
+            pub fn from_fields(kind: Kind, v: &[i64], text: &[u8]) -> Option<Record> {
                 Some(match kind {
                     $( Kind::$name => Record::$name($name::from_fields(v)), )+
                     // Built by the codec, which reads the tracks.

@@ -757,27 +757,32 @@ fn doubt(
     // Position σ at up to 32 keyframes along the drive.
     let count = blocks.min(32);
     let samples: Vec<usize> = (0..count).map(|i| if count > 1 { i * (blocks - 1) / (count - 1) } else { 0 }).collect();
-    // Per sample four columns: the position's three and the heading's (the rotation's
-    // increment about the vertical, the block's seventh unknown).
-    let column = |c: usize| samples[c / 4] * BLOCK + if c % 4 == 3 { 6 } else { c % 4 };
-    let rhs = Mat::from_fn(n, samples.len() * 4, |i, c| if i == column(c) { 1.0 } else { 0.0 });
-    let cov = llt.solve(&rhs);
-    let trace: f64 = (0..samples.len() * 4).filter(|c| c % 4 != 3).map(|c| cov[(column(c), c)]).sum();
+    // Per sample the variances of the position's three unknowns and the heading's (the
+    // rotation's increment about the vertical, the block's seventh): four columns of the
+    // inverse, solved a sample at a time (all at once, an hour's were two dense 50 MB
+    // matrices, issue #58).
+    let variances: Vec<[f64; 4]> = samples
+        .iter()
+        .map(|&k| {
+            let unknowns = [0, 1, 2, 6].map(|u| k * BLOCK + u);
+            let rhs = Mat::from_fn(n, 4, |i, c| if i == unknowns[c] { 1.0 } else { 0.0 });
+            let cov = llt.solve(&rhs);
+            [0, 1, 2, 3].map(|c| cov[(unknowns[c], c)])
+        })
+        .collect();
+    let trace: f64 = variances.iter().flat_map(|v| [v[0], v[1], v[2]]).sum();
     // The heading where the session fixes it best: the VO carries it along the rest (a
     // standstill's keyframes, the last one that only marks the session's end, are held by
     // little else).
     let heading = (0..samples.len())
         .filter(|&j| blocks == 1 || samples[j] + 1 < blocks)
-        .map(|j| cov[(column(4 * j + 3), 4 * j + 3)].max(0.0).sqrt() * inflation_factor)
+        .map(|j| variances[j][3].max(0.0).sqrt() * inflation_factor)
         .fold(f64::INFINITY, f64::min);
     let position_var = trace / samples.len().max(1) as f64;
     let horizontal = samples
         .iter()
-        .enumerate()
-        .map(|(j, &k)| {
-            let var = cov[(k * BLOCK, 4 * j)] + cov[(k * BLOCK + 1, 4 * j + 1)];
-            (keyframe_t[k], var.max(0.0).sqrt() * inflation_factor)
-        })
+        .zip(&variances)
+        .map(|(&k, v)| (keyframe_t[k], (v[0] + v[1]).max(0.0).sqrt() * inflation_factor))
         .collect();
     Doubt {
         scale: scale_var.max(0.0).sqrt() * inflation_factor,

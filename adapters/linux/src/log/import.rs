@@ -211,10 +211,14 @@ pub fn encode(header: &Header, records: &mut [Record]) -> Result<Vec<u8>> {
 }
 
 /// Encode `records` as a log with `header`, in the order given.
-pub fn encode_in_order(header: &Header, records: &[Record]) -> Result<Vec<u8>> {
+pub fn encode_in_order<R: std::borrow::Borrow<Record>>(
+    header: &Header,
+    records: impl IntoIterator<Item = R>,
+) -> Result<Vec<u8>> {
     let mut writer: Box<Writer<Vec<u8>, 65_536>> =
         Box::new(Writer::new(Vec::new(), header, WriterConfig::default()).map_err(Error::other)?);
-    for r in records.iter() {
+    for r in records {
+        let r = r.borrow();
         writer.write(r).map_err(|e| Error::refused(format!("{} record at {} µs", r.kind().name(), r.t_us()), e))?;
     }
     writer.finish().map_err(Error::other)

@@ -7,6 +7,7 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::binlog::signature::{key_id, Seal, SealCheck, Sealer};
+use dash2sim_core::binlog::Event;
 use serde::Serialize;
 
 use super::LogContents;
@@ -157,8 +158,8 @@ impl FileSeals {
 pub struct Checked<'a> {
     /// Its name in the verdicts.
     pub name: &'a str,
-    /// What it holds.
-    pub log: &'a LogContents,
+    /// Its segment starts and signature trailers ([`LogContents::signing`]).
+    pub signing: &'a [Event],
     /// The file before it was deleted by loop recording (the folder's index says so): its
     /// first segment is judged as the first of a chain ("continues a segment not given").
     pub after_deleted: bool,
@@ -171,12 +172,11 @@ pub fn check<'a>(public: &[u8; 32], logs: impl IntoIterator<Item = Checked<'a>>)
     let mut check = SealCheck::new(public).map_err(Error::other)?;
     Ok(logs
         .into_iter()
-        .map(|Checked { name, log, after_deleted }| {
+        .map(|Checked { name, signing, after_deleted }| {
             if after_deleted {
                 check.forget_chain();
             }
-            let mut segments: Vec<SegmentSeal> = log
-                .signing
+            let mut segments: Vec<SegmentSeal> = signing
                 .iter()
                 .filter_map(|e| check.on_event(e))
                 .map(|(seq, seal)| SegmentSeal::new(seq, seal))
@@ -190,8 +190,8 @@ pub fn check<'a>(public: &[u8; 32], logs: impl IntoIterator<Item = Checked<'a>>)
 /// Refuse a log unless every segment is signed by `public` and unaltered, in an unbroken
 /// chain (`finish --require-signed`, the corpus job); the error names the first segment
 /// that is not, and why.
-pub fn require_signed(public: &[u8; 32], name: &str, log: &LogContents) -> Result<()> {
-    let seals = check(public, [Checked { name, log, after_deleted: false }])?;
+pub fn require_signed<R>(public: &[u8; 32], name: &str, log: &LogContents<R>) -> Result<()> {
+    let seals = check(public, [Checked { name, signing: &log.signing, after_deleted: false }])?;
     let file = &seals[0];
     if file.segments.is_empty() {
         return Err(Error::invalid(format!("{name}: not signed: the log holds no segment")));

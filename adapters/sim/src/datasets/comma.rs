@@ -336,15 +336,16 @@ pub fn run(dir: &Path, out: &Path) -> Result<Report> {
 
     let mount = record::parse_mount(&mount())?;
     let name = minute.path.display().to_string();
-    let finished = dash2sim_finish::finish(log, &name, None, None, mount, Default::default(), UERE)?;
-    let finished_device = device_times(&finished.records)?;
-    let finished_compared = compare(&finished.records, &finished_device, truth)?;
+    let finished = dash2sim_finish::finish(&log.compact(), &name, None, None, mount, Default::default(), UERE)?;
+    let finished_records = finished.records.to_vec();
+    let finished_device = device_times(&finished_records)?;
+    let finished_compared = compare(&finished_records, &finished_device, truth)?;
     let online_from =
         log.records.iter().zip(&minute.device).find_map(|(r, t)| matches!(r, Record::EgoPose(_)).then_some(*t));
     let compared_where_online =
-        compare_from(&finished.records, &finished_device, truth, online_from.unwrap_or(f64::INFINITY))?;
+        compare_from(&finished_records, &finished_device, truth, online_from.unwrap_or(f64::INFINITY))?;
     let header = log.header.ok_or_else(|| Error::invalid("the recorded log has no header"))?;
-    let finished_bytes = log::import::encode_in_order(&header, &finished.records)?;
+    let finished_bytes = log::import::encode_in_order(&header, &finished_records)?;
     let finished_path = out.join("finished.d2slog");
     write(&finished_path, &finished_bytes)?;
     let finished_log = log::decode(&finished_bytes, "finished").map_err(Error::other)?;

@@ -237,11 +237,12 @@ pub fn run(dir: &Path, work: &Path, receiver: Receiver) -> Result<ImuMinute> {
     let name = args.output.display().to_string();
     // Finished as `dash2sim finish` would, in the frame the device recorded in.
     let settings = Settings { gravity_aligned: device.mode == VoFrame::Gravity, ..Settings::default() };
-    let finished = dash2sim_finish::finish(&log, &name, None, None, mount, settings, uere)?;
+    let finished = dash2sim_finish::finish(&log.compact(), &name, None, None, mount, settings, uere)?;
     // The finish's offset is a grade's (nose up positive); the Z-Y-X pitch is nose down.
     let found = finished.report.reckoning.and_then(|r| r.pitch_offset_deg).map_or(f64::NAN, |d| -d);
-    let finished_times = device_times(&finished.records)?;
-    let finished_compared = compare(&finished.records, &finished_times, &truth)?;
+    let finished_records = finished.records.to_vec();
+    let finished_times = device_times(&finished_records)?;
+    let finished_compared = compare(&finished_records, &finished_times, &truth)?;
     let span = truth.stamps.last().copied().unwrap_or_default() - truth.stamps.first().copied().unwrap_or_default();
     let imu_bytes: u64 = Kind::ALL
         .iter()

@@ -329,7 +329,7 @@ pub fn assess(
         None => settings,
     };
     let finished = dash2sim_finish::finish(
-        log,
+        &log.compact(),
         log_name,
         anchor_file.as_ref().map(|f| (anchors_name.as_str(), f)),
         Some(tile),
@@ -338,7 +338,7 @@ pub fn assess(
         setup.gnss.uere_m,
     )?;
     let header = log.header.ok_or_else(|| Error::invalid("the recorded log has no header"))?;
-    let finished_bytes = log::import::encode_in_order(&header, &finished.records)?;
+    let finished_bytes = log::import::encode_in_order(&header, finished.records.iter())?;
     let finished_log = log::decode(&finished_bytes, "finished").map_err(Error::other)?;
 
     let truth_agents = dash2sim_verify::read_objects(&drive_dir.join("objects.csv"))?;
