@@ -14,7 +14,8 @@ box), runs `dash2sim verify --poses` on them and compares every corner with shap
   drivable within its 10 m search radius, shapely's distance must exceed 10 m.
 
 It also times the check per pose for docs/benchmarks.md, on the same poses and the same lane
-geometry: dash2sim (`dash2sim map check`, in process), shapely vectorised as its
+geometry: dash2sim (`dash2sim map check`, in process, through the tile's fine index; the
+channel-sensitive mode too, on the channel the poses drive), shapely vectorised as its
 documentation recommends (contains_xy on the prepared union for all corners at once, then
 STRtree.query_nearest with return_distance for the corners outside), and shapely one call
 per pose two ways (the prepared union: covers + distance; an STRtree of the lane areas:
@@ -138,6 +139,9 @@ def main():
     ours_timed = json.loads(subprocess.run([args.dash2sim, "map", "check", tile, "--poses", tum, "--json"],
                                            check=True, capture_output=True, text=True).stdout)
     dash2sim_us = ours_timed["us_per_pose"]
+    # The channel-sensitive mode on the channel the poses drive (dash2sim only: shapely has
+    # no such mode).
+    sensitive_us = (ours_timed.get("channel_sensitive") or {}).get("us_per_pose")
     # shapely as its documentation recommends: vectorised over all corners at once —
     # containment on the prepared union (contains_xy), then the nearest lane area of the
     # corners outside from an STRtree (query_nearest with return_distance, within 10 m).
@@ -202,6 +206,7 @@ def main():
         "far_mismatches": len(far_mismatch),
         "worst_distance_error_m": worst,
         "dash2sim_us_per_pose": dash2sim_us,
+        "dash2sim_channel_sensitive_us_per_pose": sensitive_us,
         "shapely_vectorised_us_per_pose": vectorised_us,
         "shapely_vectorised_disagreements": vectorised_disagreements,
         "shapely_vectorised_default_caps_us_per_pose": vectorised_coarse_us,

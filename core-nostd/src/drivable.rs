@@ -15,9 +15,11 @@
 //!   lane to pass a closure is penalised here and not in the insensitive mode. The channel
 //!   is collected in a first pass over the drive ([`LaneSet::add_route_pose`]).
 
+#[cfg(feature = "fine-index")]
+use crate::lane_index::LaneIndex;
 use crate::map::{Item, LaneArea, MapView, Nearest, Projection};
 use crate::obb::{Footprint, Pose2};
-#[cfg(feature = "polygon-index")]
+#[cfg(feature = "fine-index")]
 use crate::polygon_index::PolygonIndex;
 
 /// A corner outside the drivable area by this much or more breaks compliance, m.
@@ -174,8 +176,16 @@ impl PoseCheck {
 pub struct Checker<'a> {
     map: MapView<'a>,
     footprint: Footprint,
-    #[cfg(feature = "polygon-index")]
-    index: Option<PolygonIndex<'a>>,
+    #[cfg(feature = "fine-index")]
+    index: Option<FineIndex<'a>>,
+}
+
+/// The fine index a checker reads beside its tile, whichever its lanes need.
+#[cfg(feature = "fine-index")]
+#[derive(Clone, Copy, Debug)]
+enum FineIndex<'a> {
+    Polygons(PolygonIndex<'a>),
+    Lanes(LaneIndex<'a>),
 }
 
 impl<'a> Checker<'a> {
@@ -184,18 +194,27 @@ impl<'a> Checker<'a> {
         Checker {
             map,
             footprint,
-            #[cfg(feature = "polygon-index")]
+            #[cfg(feature = "fine-index")]
             index: None,
         }
     }
 
-    #[cfg(feature = "polygon-index")]
+    #[cfg(feature = "fine-index")]
     /// The same checker reading `index` (built for this map's polygons) in the
     /// channel-insensitive mode, with the same answers: each point's cell says which
     /// polygons may hold it and which edges may be nearest, instead of every polygon the
     /// grid lists around the footprint.
     pub fn with_index(self, index: PolygonIndex<'a>) -> Self {
-        Checker { index: Some(index), ..self }
+        Checker { index: Some(FineIndex::Polygons(index)), ..self }
+    }
+
+    #[cfg(feature = "fine-index")]
+    /// The same checker reading `index` (built for this map's buffered lanes), in both
+    /// channel modes, with the same answers: each point's cell says which lanes may hold it
+    /// or be nearest to it, and which of their segments may be nearest, instead of every
+    /// lane the grid lists around the footprint.
+    pub fn with_lane_index(self, index: LaneIndex<'a>) -> Self {
+        Checker { index: Some(FineIndex::Lanes(index)), ..self }
     }
 
     /// The map.
@@ -248,10 +267,28 @@ impl<'a> Checker<'a> {
         channel: Channel<'_, WORDS>,
         previous: Option<u32>,
     ) -> PoseCheck {
-        #[cfg(feature = "polygon-index")]
-        if let (Some(index), Channel::Insensitive) = (&self.index, &channel) {
-            return self.check_indexed(index, pose, previous);
+        #[cfg(feature = "fine-index")]
+        match (&self.index, &channel) {
+            (Some(FineIndex::Polygons(index)), Channel::Insensitive) => {
+                return self.check_indexed(index, pose, previous)
+            }
+            (Some(FineIndex::Lanes(index)), _) => {
+                if let Some(check) = self.check_lanes_indexed(index, pose, channel, previous) {
+                    return check;
+                }
+            }
+            _ => {}
         }
+        self.check_by_grid(pose, channel, previous)
+    }
+
+    /// [`Checker::check`] through the tile's grid.
+    fn check_by_grid<const WORDS: usize>(
+        &self,
+        pose: &Pose2,
+        channel: Channel<'_, WORDS>,
+        previous: Option<u32>,
+    ) -> PoseCheck {
         let footprint = self.footprint.at(pose);
         let corners = footprint.corners();
         let centre = (footprint.centre.x, footprint.centre.y);
@@ -393,7 +430,60 @@ impl<'a> Checker<'a> {
         check
     }
 
-    #[cfg(feature = "polygon-index")]
+    #[cfg(feature = "fine-index")]
+    /// [`Checker::check`] on a map of buffered lanes through its index: per point, the runs
+    /// of its cell (a lane and its segments that may be nearest), each lane's distance from
+    /// the first of its nearest segments as the centreline's own search finds it — the
+    /// lanes holding the point (occupancy, the centre's lane), a corner's distance the least
+    /// of the lanes allowed. `None` when a corner's distance in the channel-sensitive mode
+    /// is beyond what its cell knows exactly ([`LaneIndex::exact_below`]): the grid answers.
+    fn check_lanes_indexed<const WORDS: usize>(
+        &self,
+        index: &LaneIndex<'_>,
+        pose: &Pose2,
+        channel: Channel<'_, WORDS>,
+        previous: Option<u32>,
+    ) -> Option<PoseCheck> {
+        let footprint = self.footprint.at(pose);
+        let corners = footprint.corners();
+        let centre = (footprint.centre.x, footprint.centre.y);
+        let points = [centre, corners[0], corners[1], corners[2], corners[3]];
+        let mut check = PoseCheck { corners: [None; 4], occupied: heapless::Vec::new(), centre_lane: None };
+        let mut best: Option<(bool, f64, CentreLane)> = None;
+        for (k, &point) in points.iter().enumerate() {
+            let Some(c) = index.cell_of(point.0, point.1) else { continue };
+            let mut nearest = f64::INFINITY;
+            for run in index.runs(c) {
+                let d = crate::map::segments_distance(index.segments(run), point) - run.half_width;
+                if d <= 0.0 {
+                    if !check.occupied.contains(&run.lane) {
+                        let _ = check.occupied.push(run.lane);
+                    }
+                    if k == 0 {
+                        if let Some(lane) = self.map.lane(run.lane) {
+                            let p = lane.project(centre.0, centre.1);
+                            prefer_centre_lane(&mut best, previous, run.lane, &lane, &p);
+                        }
+                    }
+                }
+                if k > 0 && channel.allows(Item::Lane(run.lane)) {
+                    nearest = nearest.min(d);
+                }
+            }
+            let Some(corner) = k.checked_sub(1).and_then(|k| check.corners.get_mut(k)) else { continue };
+            let exact_below = index.exact_below(c);
+            if nearest > exact_below && exact_below < SEARCH_RADIUS {
+                return None;
+            }
+            if nearest <= SEARCH_RADIUS {
+                *corner = Some(nearest);
+            }
+        }
+        check.centre_lane = best.map(|(_, _, lane)| lane);
+        Some(check)
+    }
+
+    #[cfg(feature = "fine-index")]
     /// [`Checker::check`] on a map of polygons, channel-insensitive, through its index: per
     /// point, the polygons of its cell that hold it (occupancy, the centre's lane, a corner's
     /// depth: the deepest), else its distance to the nearest of the cell's edges.

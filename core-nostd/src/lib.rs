@@ -21,7 +21,7 @@
 //! | [`map`] | the compact map tile: zero-copy view, grid index, distance to the drivable area |
 //! | [`obb`] | oriented boxes in the plane: the ego footprint at its rear axle, overlap tests |
 //! | [`drivable`] | drivable-area compliance of a footprint, lane occupancy, channel modes |
-//! | `polygon_index` | (feature `polygon-index`) a fine index of a map's polygons for the drivable check |
+//! | `fine_grid`, `polygon_index`, `lane_index` | (feature `fine-index`) fine indexes of a map's polygons and of its buffered lanes for the drivable check, on a grid of small cells |
 //! | [`score`] | the nuPlan-style closed-loop score, streaming |
 //! | [`binlog`] | the compact, crash-safe 4D log: writer over `embedded-io`, push decoder |
 //! | [`can`] | CAN: J1939/NMEA 2000 ids, fast packets, GNSS/speed decoders, DBC signals |
@@ -47,14 +47,18 @@ pub mod class;
 pub mod decimal;
 pub mod drivable;
 pub mod ekf;
+#[cfg(feature = "fine-index")]
+pub mod fine_grid;
 pub mod frame_order;
 pub mod geo;
 pub mod imu;
+#[cfg(feature = "fine-index")]
+pub mod lane_index;
 pub mod map;
 pub mod nmea;
 pub mod obb;
 pub mod pipeline;
-#[cfg(feature = "polygon-index")]
+#[cfg(feature = "fine-index")]
 pub mod polygon_index;
 pub mod score;
 pub mod sim3;

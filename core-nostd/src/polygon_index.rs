@@ -14,6 +14,8 @@
 //! [`Checker::with_index`](crate::drivable::Checker::with_index) as plain arrays: nothing
 //! here allocates, and a short or inconsistent array reads as empty cells, never a panic.
 
+use crate::fine_grid::FineGrid;
+
 /// A polygon that may hold points of a cell.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Area {
@@ -33,25 +35,13 @@ pub struct Area {
     pub nearest: (u32, u32),
 }
 
-/// Cells per side of a block: [`PolygonIndex`] keeps one bit per block of
-/// `BLOCK` × `BLOCK` cells, set when one of them lists anything.
-pub const BLOCK: u32 = 8;
-
-/// The index: a grid of cells of `cell` metres from `min`; per cell a range of `areas` and
-/// a range of `edges`.
+/// The index: a grid of small cells; per cell a range of `areas` and a range of `edges`.
 #[derive(Clone, Copy, Debug)]
 pub struct PolygonIndex<'a> {
-    min: (f64, f64),
-    cell: f64,
-    cols: u32,
-    rows: u32,
+    grid: FineGrid<'a>,
     /// Per cell `c`, where its areas and its edges start; they end where those of `c + 1`
     /// start (one array: a cell's lookup touches one cache line, not two).
     starts: &'a [[u32; 2]],
-    /// One bit per block of cells (row by row, `cols.div_ceil(BLOCK)` blocks to a row), set
-    /// when a cell of it lists anything: a few KB that stay in cache, so that a point far
-    /// from every polygon costs no read of the larger arrays.
-    blocks: &'a [u64],
     /// By key.
     areas: &'a [Area],
     /// Edges as stored in the tile (x, y of the start, x, y of the end), by key and then in
@@ -62,35 +52,21 @@ pub struct PolygonIndex<'a> {
 }
 
 impl<'a> PolygonIndex<'a> {
-    /// An index over these arrays: `[cols, rows]` cells of `cell` metres from `min`,
-    /// `starts` (where each cell's areas and edges start) one longer than the number of
-    /// cells, `blocks` the bits of the blocks that list anything; `[edges, area_edges]`.
+    /// An index over these arrays: the cells of `grid`, `starts` (where each cell's areas
+    /// and edges start) one longer than the number of cells; `[edges, area_edges]`.
     pub fn new(
-        min: (f64, f64),
-        cell: f64,
-        [cols, rows]: [u32; 2],
+        grid: FineGrid<'a>,
         starts: &'a [[u32; 2]],
-        blocks: &'a [u64],
         areas: &'a [Area],
         [edges, area_edges]: [&'a [[f32; 4]]; 2],
     ) -> Self {
-        PolygonIndex { min, cell, cols, rows, starts, blocks, areas, edges, area_edges }
+        PolygonIndex { grid, starts, areas, edges, area_edges }
     }
 
-    /// The cell holding (x, y); `None` outside the grid or in a block whose cells list
-    /// nothing, where nothing is within the search radius.
+    /// The cell holding (x, y); `None` outside the grid or where nothing is within the
+    /// search radius.
     pub fn cell_of(&self, x: f64, y: f64) -> Option<usize> {
-        let (col, row) = ((x - self.min.0) / self.cell, (y - self.min.1) / self.cell);
-        // Written so that NaN fails too.
-        if !(col >= 0.0 && row >= 0.0 && col < f64::from(self.cols) && row < f64::from(self.rows)) {
-            return None;
-        }
-        let (col, row) = (col as u32, row as u32);
-        let block = (row / BLOCK) as usize * self.cols.div_ceil(BLOCK) as usize + (col / BLOCK) as usize;
-        if self.blocks.get(block / 64).is_none_or(|bits| bits & 1 << (block % 64) == 0) {
-            return None;
-        }
-        (row as usize).checked_mul(self.cols as usize)?.checked_add(col as usize)
+        self.grid.cell_of(x, y)
     }
 
     /// The polygons that may hold a point of cell `c`, by key.

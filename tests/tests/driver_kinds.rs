@@ -87,7 +87,8 @@ fn decided_with_hole(
     };
     let sigmas = StatedUncertainty { ego: vec![sigma; ego.len()], tracks };
     let doubt = DoubtSettings { decide_at: 2.0, object_sigma_m: object_sigma };
-    let v = replay_in_doubt(map, &ego, &sigmas, &agents, false, PACIFICA, Some(doubt)).expect("replay");
+    let checker = dash2sim_core::drivable::Checker::new(map, PACIFICA);
+    let v = replay_in_doubt(checker, &ego, &sigmas, &agents, false, Some(doubt)).expect("replay");
     let _ = std::fs::remove_dir_all(&dir);
     (v.scores.score, v.decided.expect("asked for a decision"))
 }

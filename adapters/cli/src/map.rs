@@ -71,6 +71,12 @@ pub fn check(map: &Path, poses: &Path, passes: u32, as_json: bool) -> Result<()>
             "{} poses: {} compliant, {} corners outside, {} with nothing drivable within 10 m; {:.2} µs per pose (fastest of {} passes)",
             c.poses, c.compliant, c.corners_outside, c.corners_nothing_near, c.us_per_pose, c.passes
         );
+        if let Some(s) = c.channel_sensitive {
+            println!(
+                "channel-sensitive ({} lanes on the poses' channel): {} compliant, {} corners outside, {} with nothing of the channel within 10 m; {:.2} µs per pose",
+                s.channel_lanes, s.compliant, s.corners_outside, s.corners_nothing_near, s.us_per_pose
+            );
+        }
     }
     Ok(())
 }

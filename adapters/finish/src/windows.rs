@@ -4,12 +4,14 @@
 //! so is offline work; `docs/verify.md`).
 
 use dash2sim_core::binlog::{quantise, Record, DECISION_REJECTED, DECISION_UNDECIDED, DECISION_VERIFIED};
+use dash2sim_core::drivable::Checker;
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Pose2, PACIFICA};
 use dash2sim_core::pipeline::verification_record;
 use dash2sim_core::score::Scores;
 use serde::Serialize;
 
+use dash2sim_linux::ingest::map_tile::fine_index;
 use dash2sim_linux::log::{event, LogContents, RecordStore};
 use dash2sim_linux::{Error, Result};
 use dash2sim_verify::decide::{decision_or_point, Decision, DoubtSettings};
@@ -88,13 +90,13 @@ impl Verdict {
 /// The stretch `poses` (with the log's stated `sigmas`) verified without and with the
 /// channel, each decided with the default doubt.
 fn both(
-    map: MapView<'_>,
+    checker: Checker<'_>,
     poses: &[(f64, Pose2)],
     sigmas: &StatedUncertainty,
     agents: &AgentsByTime,
 ) -> Result<(Verification, Verification)> {
     let doubt = Some(DoubtSettings::default());
-    let mode = |sensitive| replay_in_doubt(map, poses, sigmas, agents, sensitive, PACIFICA, doubt);
+    let mode = |sensitive| replay_in_doubt(checker, poses, sigmas, agents, sensitive, doubt);
     Ok((mode(false)?, mode(true)?))
 }
 
@@ -137,6 +139,9 @@ pub fn verify_finished<R>(source: &LogContents<R>, records: &RecordStore, name: 
     };
     let (poses, agents) = dash2sim_verify::from_contents(&contents, name, &view)?;
     let sigmas = StatedUncertainty::of(&contents);
+    // Every pose is checked in its window and in the whole drive, in both modes.
+    let index = fine_index::for_checks(&view, 4 * dash2sim_verify::checks_in_doubt(poses.len()));
+    let checker = fine_index::checker(view, PACIFICA, index.as_ref());
     let mut out = Vec::new();
     let mut windows = Vec::new();
     let mut start = 0;
@@ -145,7 +150,7 @@ pub fn verify_finished<R>(source: &LogContents<R>, records: &RecordStore, name: 
         let end = start + poses[start..].partition_point(|(t, _)| *t < t0 + WINDOW_S);
         // A last window shorter than half a scenario is not one.
         if poses[end - 1].0 - t0 >= 0.5 * WINDOW_S || windows.is_empty() {
-            let stretch = both(view, &poses[start..end], &sigmas.of_poses(start..end), &agents)?;
+            let stretch = both(checker, &poses[start..end], &sigmas.of_poses(start..end), &agents)?;
             let (insensitive, sensitive) = (&stretch.0.scores, &stretch.1.scores);
             let t_us = (poses[end - 1].0 * 1e6).round() as i64;
             out.push(Record::Verification(decided_record(t_us, &stretch.0)));
@@ -171,7 +176,7 @@ pub fn verify_finished<R>(source: &LogContents<R>, records: &RecordStore, name: 
         }
         start = end;
     }
-    let drive = both(view, &poses, &sigmas, &agents)?;
+    let drive = both(checker, &poses, &sigmas, &agents)?;
     let (insensitive, sensitive) = (&drive.0.scores, &drive.1.scores);
     if let Some((t, _)) = poses.last() {
         out.push(event(

@@ -13,10 +13,11 @@ mod common;
 use common::data;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use dash2sim_core::drivable::{Channel, Checker};
+use dash2sim_core::drivable::{Channel, Checker, LaneSet};
 use dash2sim_core::geo::Geodetic;
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Pose2, PACIFICA};
+use dash2sim_linux::ingest::map_tile::fine_index;
 use dash2sim_linux::ingest::map_tile::{encode, from_osm};
 use dash2sim_sim::scenario::{generate, write::write_scenario, ScenarioConfig};
 use dash2sim_verify::{read_objects, replay};
@@ -58,12 +59,17 @@ fn drivable(c: &mut Criterion) {
         let Some(path) = data(sub) else { continue };
         let bytes = tile(&path, None);
         let map = MapView::parse(&bytes).expect("tile");
-        let index = dash2sim_linux::ingest::map_tile::polygon_index::build(&map);
+        let index = fine_index::build(&map);
         let poses = poses(&map);
         eprintln!("{name}: {} lanes, {} bytes", map.header().lanes, bytes.len());
         let mut checkers = vec![(name.to_owned(), Checker::new(map, PACIFICA))];
-        if let Some(index) = &index {
-            checkers.push((format!("{name} indexed"), Checker::new(map, PACIFICA).with_index(index.view())));
+        if index.is_some() {
+            checkers.push((format!("{name} indexed"), fine_index::checker(map, PACIFICA, index.as_ref())));
+        }
+        // The channel-sensitive mode on the channel the poses drive.
+        let mut channel: Box<LaneSet<64>> = Box::default();
+        for p in &poses {
+            channel.add_route_pose(&map, &PACIFICA, p);
         }
         for (label, checker) in checkers {
             c.bench_function(&format!("drivable/check 1000 poses/{label}"), |b| {
@@ -71,6 +77,15 @@ fn drivable(c: &mut Criterion) {
                     let mut compliant = 0;
                     for p in &poses {
                         compliant += usize::from(checker.check::<1>(p, Channel::Insensitive, None).compliant());
+                    }
+                    compliant
+                })
+            });
+            c.bench_function(&format!("drivable/check 1000 poses channel-sensitive/{label}"), |b| {
+                b.iter(|| {
+                    let mut compliant = 0;
+                    for p in &poses {
+                        compliant += usize::from(checker.check(p, Channel::Sensitive(&channel), None).compliant());
                     }
                     compliant
                 })

@@ -26,10 +26,11 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use dash2sim_core::class;
-use dash2sim_core::drivable::{Channel, LaneSet};
+use dash2sim_core::drivable::{Channel, Checker, LaneSet};
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Footprint, OrientedBox, Pose2};
 use dash2sim_core::score::{Agent, AgentKind, Doubt, ScoreConfig, Scorer, Scores, StepReport};
+use dash2sim_linux::ingest::map_tile::fine_index;
 use dash2sim_linux::{Error, Result};
 use decide::{Decided, DoubtSettings, NearestPass, OffRoadInDoubt};
 
@@ -248,25 +249,31 @@ pub fn replay(
     channel_sensitive: bool,
     footprint: Footprint,
 ) -> Result<Verification> {
-    replay_in_doubt(map, poses, &StatedUncertainty::default(), objects, channel_sensitive, footprint, None)
+    let index = fine_index::for_checks(&map, poses.len());
+    let checker = fine_index::checker(map, footprint, index.as_ref());
+    replay_in_doubt(checker, poses, &StatedUncertainty::default(), objects, channel_sensitive, None)
+}
+
+/// How many footprint checks replaying `poses` in doubt costs in one channel mode: nuPlan's
+/// score and, with a doubt, the two bounds ([`fine_index::for_checks`]).
+pub fn checks_in_doubt(poses: usize) -> usize {
+    3 * poses
 }
 
 /// [`replay`], and with `doubt` the verdict with its doubt ([`decide`]): the drive scored
 /// again with `k` of each pose's σ and of each object's across the ego's path (`sigmas`:
 /// what the log states; an object that states none has `--object-sigma`'s) for the ego,
-/// and once more against it.
+/// and once more against it. `checker` holds the map and the ego's footprint (and the map's
+/// fine index where one pays, [`fine_index::for_checks`]).
 pub fn replay_in_doubt(
-    map: MapView<'_>,
+    checker: Checker<'_>,
     poses: &[(f64, Pose2)],
     sigmas: &StatedUncertainty,
     objects: &BTreeMap<i64, Vec<Agent>>,
     channel_sensitive: bool,
-    footprint: Footprint,
     doubt: Option<DoubtSettings>,
 ) -> Result<Verification> {
-    // A map of polygons (Lanelet2) is checked through its fine index (channel-insensitive).
-    let index = if channel_sensitive { None } else { dash2sim_linux::ingest::map_tile::polygon_index::build(&map) };
-    let checker = dash2sim_linux::ingest::map_tile::polygon_index::checker(map, footprint, index.as_ref());
+    let (map, footprint) = (*checker.map(), *checker.footprint());
     let mut channel_set: Box<LaneSet<CHANNEL_WORDS>> = Box::default();
     if channel_sensitive {
         if map.header().lanes as usize > LaneSet::<CHANNEL_WORDS>::capacity() {
@@ -574,15 +581,9 @@ pub fn evaluate<'a>(request: &VerifyRequest<'a>, warn: &mut dyn FnMut(&str)) -> 
     if poses.is_empty() {
         return Err(Error::file(name, format!("no ego poses between {from} and {to} s")));
     }
-    let v = replay_in_doubt(
-        map,
-        &poses,
-        &sigmas,
-        &objects,
-        request.channel_sensitive,
-        request.footprint,
-        Some(request.doubt),
-    )?;
+    let index = fine_index::for_checks(&map, checks_in_doubt(poses.len()));
+    let checker = fine_index::checker(map, request.footprint, index.as_ref());
+    let v = replay_in_doubt(checker, &poses, &sigmas, &objects, request.channel_sensitive, Some(request.doubt))?;
     if let Some(path) = request.poses {
         std::fs::write(path, poses_csv(&v.steps)).map_err(|e| Error::file(path, e))?;
     }

@@ -23,7 +23,9 @@ pub mod geometry;
 pub mod view;
 pub mod wire;
 
-pub use geometry::{edges_distance, edges_parity, segment_distance, Centreline, Nearest, Projection, CHUNK};
+pub use geometry::{
+    edges_distance, edges_parity, segment_distance, segments_distance, Centreline, Nearest, Projection, CHUNK,
+};
 pub use view::{Item, Lane, LaneArea, MapView};
 pub use wire::{
     body_checksum, Header, MapError, BOX_LEN, CRC32C, CRC_AT, HEADER_LEN, LANE_LEN, MAGIC, NONE, POINT_LEN,

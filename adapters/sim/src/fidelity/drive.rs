@@ -17,6 +17,7 @@ use crate::scenario::write::START_UNIX_S;
 use crate::scenario::Scenario;
 use crate::{Error, Result};
 use dash2sim_finish::FinishReport;
+use dash2sim_linux::ingest::map_tile::fine_index;
 use dash2sim_linux::log::{self, LogContents};
 use dash2sim_linux::record::Setup;
 use dash2sim_verify::decide::DoubtSettings;
@@ -72,8 +73,10 @@ impl BothModes {
         agents: &AgentsByTime,
         doubt: Option<DoubtSettings>,
     ) -> Result<Self> {
+        let index = fine_index::for_checks(&map, 2 * dash2sim_verify::checks_in_doubt(ego.len()));
+        let checker = fine_index::checker(map, PACIFICA, index.as_ref());
         let mode = |sensitive| -> Result<VerifyReport> {
-            let v = dash2sim_verify::replay_in_doubt(map, ego, sigmas, agents, sensitive, PACIFICA, doubt)?;
+            let v = dash2sim_verify::replay_in_doubt(checker, ego, sigmas, agents, sensitive, doubt)?;
             Ok(dash2sim_verify::report(&v, sensitive))
         };
         Ok(BothModes { insensitive: mode(false)?, sensitive: mode(true)? })

@@ -9,6 +9,9 @@
 //! ([`lanelet2`]).
 
 pub mod check;
+mod fine_grid;
+pub mod fine_index;
+pub mod lane_index;
 pub mod lanelet2;
 pub mod polygon_index;
 
@@ -743,6 +746,70 @@ mod tests {
             }
         }
         assert!(inside > 1000 && outside > 1000 && far > 1000 && whole > 100, "{inside} {outside} {far} {whole}");
+        // Outside the grid, and at a point that is not a number: nothing.
+        assert_eq!(index.cell_of(-1e6, 0.0), None);
+        assert_eq!(index.cell_of(f64::NAN, 0.0), None);
+    }
+
+    #[test]
+    fn the_lane_index_gives_the_checks_answers_bit_for_bit_in_both_modes() {
+        use dash2sim_core::drivable::{Channel, Checker, LaneSet, PoseCheck};
+        // Tiles with polygons get no lane index.
+        assert!(lane_index::build(&MapView::parse(&encode(&square_road(), 25.0)).expect("tile")).is_none());
+        // 12 kinked lanes 3 m wide, 2.6 m apart (they overlap), of every width from 2 to
+        // 7.5 m; a lane across them all; a ring of 72 short segments (ties between
+        // neighbours, a centre far from it) and a lane doubling back on itself.
+        let mut content = parallel_lanes(12, 2.6, false);
+        content.polygons.clear();
+        for (k, lane) in content.lanes.iter_mut().enumerate() {
+            lane.width = 2.0 + 0.5 * k as f64;
+        }
+        let template = content.lanes[0].clone();
+        let lane = |points: Vec<(f64, f64)>, width: f64| TileLane { points, width, ..template.clone() };
+        content.lanes.push(lane(vec![(40.0, -20.0), (45.0, 60.0)], 3.5));
+        let ring = (0..=72).map(|k| {
+            let a = f64::from(k) * std::f64::consts::TAU / 72.0;
+            (150.0 + 20.0 * a.cos(), 15.0 + 20.0 * a.sin())
+        });
+        content.lanes.push(lane(ring.collect(), 4.0));
+        content.lanes.push(lane(vec![(120.0, 60.0), (180.0, 62.0), (121.0, 64.0)], 3.0));
+        let bytes = encode(&content, 25.0);
+        let view = MapView::parse(&bytes).expect("tile");
+        let arrays = lane_index::build(&view).expect("a tile of buffered lanes");
+        let index = arrays.view();
+        let (plain, indexed) = (Checker::new(view, PACIFICA), Checker::new(view, PACIFICA).with_lane_index(index));
+        let mut channel = LaneSet::<1>::new();
+        for lane in [3, 4, 12, 13] {
+            channel.insert(lane);
+        }
+        let bits = |c: &PoseCheck| c.corners.map(|d| d.map(f64::to_bits));
+        let (mut inside, mut outside, mut far, mut sensitive_differs) = (0, 0, 0, 0);
+        for i in 0..120 {
+            for j in 0..50 {
+                let pose = Pose2::new(-30.0 + 1.9 * f64::from(i), -25.0 + 2.3 * f64::from(j), 0.37 * f64::from(i * j));
+                for previous in [None, Some(4), Some(13)] {
+                    for mode in [Channel::Insensitive, Channel::Sensitive(&channel)] {
+                        let (a, b) =
+                            (plain.check::<1>(&pose, mode, previous), indexed.check::<1>(&pose, mode, previous));
+                        assert_eq!((bits(&a), &a), (bits(&b), &b), "pose {pose:?}, {mode:?}");
+                    }
+                }
+                let insensitive = plain.check::<1>(&pose, Channel::Insensitive, None);
+                sensitive_differs +=
+                    usize::from(insensitive.corners != plain.check(&pose, Channel::Sensitive(&channel), None).corners);
+                for d in insensitive.corners {
+                    match d {
+                        Some(d) if d <= 0.0 => inside += 1,
+                        Some(_) => outside += 1,
+                        None => far += 1,
+                    }
+                }
+            }
+        }
+        assert!(
+            inside > 3000 && outside > 3000 && far > 3000 && sensitive_differs > 1000,
+            "{inside} {outside} {far} {sensitive_differs}"
+        );
         // Outside the grid, and at a point that is not a number: nothing.
         assert_eq!(index.cell_of(-1e6, 0.0), None);
         assert_eq!(index.cell_of(f64::NAN, 0.0), None);
