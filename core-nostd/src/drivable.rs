@@ -454,7 +454,7 @@ impl<'a> Checker<'a> {
             let Some(c) = index.cell_of(point.0, point.1) else { continue };
             let mut nearest = f64::INFINITY;
             for run in index.runs(c) {
-                let d = crate::map::segments_distance(index.segments(run), point) - run.half_width;
+                let d = crate::map::segments_distance(run.segments(), point) - run.half_width;
                 if d <= 0.0 {
                     if !check.occupied.contains(&run.lane) {
                         let _ = check.occupied.push(run.lane);

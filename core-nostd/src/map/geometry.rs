@@ -177,9 +177,9 @@ pub fn edges_distance(edges: &[[f32; 4]], point: (f64, f64)) -> f64 {
 /// Distance from `point` to a centreline through the nearest of `segments` (x, y of both
 /// ends, as stored, in driving order), found as [`Centreline::nearest_segments`] finds it:
 /// the first of the nearest by squared distance, then its length. Infinite for none.
-pub fn segments_distance(segments: &[[f32; 4]], point: (f64, f64)) -> f64 {
+pub fn segments_distance(segments: impl IntoIterator<Item = [f32; 4]>, point: (f64, f64)) -> f64 {
     let mut best = Nearest::NONE;
-    for &[ax, ay, bx, by] in segments {
+    for [ax, ay, bx, by] in segments {
         let (a, b) = (wide([ax, ay]), wide([bx, by]));
         let (_, residual) = closest_on_segment(point, a, (b.0 - a.0, b.1 - a.1));
         let squared = residual.0 * residual.0 + residual.1 * residual.1;

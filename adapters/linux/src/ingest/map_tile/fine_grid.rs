@@ -35,10 +35,10 @@ pub(super) struct Layout {
 
 impl Layout {
     /// [`CELL`] metres a cell, coarser where the map is large; over `lo`–`hi` grown by `reach`.
-    pub(super) fn around(lo: Point, hi: Point, reach: f64) -> Layout {
+    pub(super) fn around(lo: Point, hi: Point, reach: f64, cell: f64) -> Layout {
         let min = (lo.0 - reach, lo.1 - reach);
         let size = (hi.0 + reach - min.0, hi.1 + reach - min.1);
-        let cell = CELL.max((size.0 * size.1 / MAX_CELLS).sqrt());
+        let cell = cell.max((size.0 * size.1 / MAX_CELLS).sqrt());
         let (cols, rows) = ((size.0 / cell).ceil() as u32 + 1, (size.1 / cell).ceil() as u32 + 1);
         let blocks = vec![0; (cols.div_ceil(BLOCK) * rows.div_ceil(BLOCK)).div_ceil(64) as usize];
         Layout { min, cell, cols, rows, blocks }

@@ -2,7 +2,7 @@
 //! (OpenStreetMap's), in memory, for the drivable check on the desktop (`verify`,
 //! `map check`).
 //!
-//! Per cell of 2 m (`fine_grid::CELL`) it lists, by lane, the lanes that may
+//! Per cell of 8 m (`LANE_CELL`) it lists, by lane, the lanes that may
 //! matter to a point of the cell, each with its segments that may be nearest there. For a
 //! point p of the cell and a lane whose nearest segment to p is s, the cell's least distance
 //! to s is at most |p s|, which is at most U, the least over the lane's segments of their
@@ -20,27 +20,28 @@ use dash2sim_core::map::{LaneArea, MapView};
 
 use super::fine_grid::{stored, Buckets, Layout, Point, SLACK};
 
+/// Cell size, m. Finer cells list fewer segments per point but make a larger index, whose
+/// reads then miss the cache: on central Helsinki 2 m cells (13 MB) took 0.52–1.16 µs a
+/// pose from run to run, 6 m 0.68–0.87 µs, 8 m (2.1 MB) 0.77–0.78 µs (docs/benchmarks.md).
+const LANE_CELL: f64 = 8.0;
+
 /// The arrays of an index, owned; [`LaneArrays::view`] lends them to the check.
 #[derive(Clone, Debug)]
 pub struct LaneArrays {
     layout: Layout,
     starts: Vec<CellStart>,
-    runs: Vec<Run>,
-    segments: Vec<[f32; 4]>,
+    slots: Vec<[u32; 4]>,
 }
 
 impl LaneArrays {
     /// The index over these arrays.
     pub fn view(&self) -> LaneIndex<'_> {
-        LaneIndex::new(self.layout.view(), &self.starts, &self.runs, &self.segments)
+        LaneIndex::new(self.layout.view(), &self.starts, &self.slots)
     }
 
     /// Bytes held.
     pub fn bytes(&self) -> usize {
-        size_of::<CellStart>() * self.starts.len()
-            + 8 * self.layout.blocks.len()
-            + size_of::<Run>() * self.runs.len()
-            + 16 * self.segments.len()
+        size_of::<CellStart>() * self.starts.len() + 8 * self.layout.blocks.len() + 16 * self.slots.len()
     }
 }
 
@@ -64,7 +65,7 @@ struct Near {
 /// How many cells [`build`] would lay over `map` (0 for a map without lanes).
 pub fn cells(map: &MapView<'_>) -> usize {
     let Some((lo, hi, widest)) = extent(map) else { return 0 };
-    let layout = Layout::around(lo, hi, SEARCH_RADIUS + widest + SLACK);
+    let layout = Layout::around(lo, hi, SEARCH_RADIUS + widest + SLACK, LANE_CELL);
     layout.cols as usize * layout.rows as usize
 }
 
@@ -100,12 +101,8 @@ pub fn build(map: &MapView<'_>) -> Option<LaneArrays> {
     // Beyond this from a cell a segment can neither hold nor be within the search radius of
     // a point of it.
     let reach = SEARCH_RADIUS + widest + SLACK;
-    let mut out = LaneArrays {
-        layout: Layout::around(lo, hi, reach),
-        starts: Vec::new(),
-        runs: Vec::new(),
-        segments: Vec::new(),
-    };
+    let mut out =
+        LaneArrays { layout: Layout::around(lo, hi, reach, LANE_CELL), starts: Vec::new(), slots: Vec::new() };
     let mut buckets = Buckets::new(out.layout.min, out.layout.extent());
     for (l, lane) in lanes.iter().enumerate() {
         for (j, w) in lane.points.windows(2).enumerate() {
@@ -139,31 +136,34 @@ pub fn build(map: &MapView<'_>) -> Option<LaneArrays> {
         let bound = |group: &[Near]| group.iter().map(|n| n.greatest).fold(f64::INFINITY, f64::min);
         let outside = groups.iter().map(|g| bound(g) - lanes[g[0].lane].half_width).fold(f64::INFINITY, f64::min);
         let exact_below = outside.min(SEARCH_RADIUS) + SLACK;
-        out.starts.push(CellStart { runs: out.runs.len() as u32, exact_below: rounded_down(exact_below) });
+        let first = out.slots.len();
+        out.starts.push(CellStart { slots: first as u32, exact_below: rounded_down(exact_below) });
         for group in groups {
             let lane = &lanes[group[0].lane];
             let own = bound(group) + SLACK;
-            let start = out.segments.len() as u32;
-            out.segments.extend(
+            let head = out.slots.len();
+            out.slots.push([0; 4]);
+            out.slots.extend(
                 group
                     .iter()
                     .filter(|n| {
                         n.least <= own
                             && (n.least <= lane.half_width + SLACK || n.least - lane.half_width <= exact_below)
                     })
-                    .map(|n| lane.stored[n.segment]),
+                    .map(|n| lane.stored[n.segment].map(f32::to_bits)),
             );
-            let end = out.segments.len() as u32;
-            if end > start {
-                let half_width = lane.half_width;
-                out.runs.push(Run { lane: group[0].lane as u32, half_width, segments: (start, end) });
+            let count = out.slots.len() - head - 1;
+            if count == 0 {
+                out.slots.pop();
+            } else {
+                out.slots[head] = Run::head(group[0].lane as u32, lane.half_width, count as u32);
             }
         }
-        if out.starts.last().is_some_and(|s| (s.runs as usize) < out.runs.len()) {
+        if out.slots.len() > first {
             out.layout.mark(row, col);
         }
     }
-    out.starts.push(CellStart { runs: out.runs.len() as u32, exact_below: f32::NEG_INFINITY });
+    out.starts.push(CellStart { slots: out.slots.len() as u32, exact_below: f32::NEG_INFINITY });
     Some(out)
 }
 

@@ -12,7 +12,7 @@ use dash2sim_core::drivable::SEARCH_RADIUS;
 use dash2sim_core::map::{edges_parity, LaneArea, MapView, POLYGON_BIT};
 use dash2sim_core::polygon_index::{Area, PolygonIndex};
 
-use super::fine_grid::{stored, Buckets, Layout, Point, SLACK};
+use super::fine_grid::{stored, Buckets, Layout, Point, CELL, SLACK};
 
 /// The arrays of an index, owned; [`IndexArrays::view`] lends them to the check.
 #[derive(Clone, Debug)]
@@ -86,7 +86,7 @@ pub fn build(map: &MapView<'_>) -> Option<IndexArrays> {
     let hi = rings.iter().map(|r| r.hi).fold(lo, |h, p| (h.0.max(p.0), h.1.max(p.1)));
     let reach = SEARCH_RADIUS + SLACK;
     let mut out = IndexArrays {
-        layout: Layout::around(lo, hi, reach),
+        layout: Layout::around(lo, hi, reach, CELL),
         starts: vec![[0, 0]],
         areas: Vec::new(),
         edges: Vec::new(),
