@@ -153,6 +153,11 @@ pub struct PoseCheck {
 }
 
 impl PoseCheck {
+    /// Nothing found yet: no corner near anything, no lane occupied.
+    fn nothing() -> Self {
+        PoseCheck { corners: [None; 4], occupied: heapless::Vec::new(), centre_lane: None }
+    }
+
     /// How far the worst corner is outside the drivable area, m (≤ 0: all inside;
     /// infinite when a corner has nothing drivable near).
     pub fn worst(&self) -> f64 {
@@ -215,6 +220,14 @@ impl<'a> Checker<'a> {
     /// lane the grid lists around the footprint.
     pub fn with_lane_index(self, index: LaneIndex<'a>) -> Self {
         Checker { index: Some(FineIndex::Lanes(index)), ..self }
+    }
+
+    /// The five points a check measures: the footprint's centre and its corners (front
+    /// left, front right, rear right, rear left) with its rear axle at `pose`.
+    fn points(&self, pose: &Pose2) -> [(f64, f64); 5] {
+        let footprint = self.footprint.at(pose);
+        let corners = footprint.corners();
+        [(footprint.centre.x, footprint.centre.y), corners[0], corners[1], corners[2], corners[3]]
     }
 
     /// The map.
@@ -289,11 +302,9 @@ impl<'a> Checker<'a> {
         channel: Channel<'_, WORDS>,
         previous: Option<u32>,
     ) -> PoseCheck {
-        let footprint = self.footprint.at(pose);
-        let corners = footprint.corners();
-        let centre = (footprint.centre.x, footprint.centre.y);
-        let points = [centre, corners[0], corners[1], corners[2], corners[3]];
-        let mut check = PoseCheck { corners: [None; 4], occupied: heapless::Vec::new(), centre_lane: None };
+        let points = self.points(pose);
+        let centre = points[0];
+        let mut check = PoseCheck::nothing();
 
         // The footprint's box, as a square around its middle.
         let (lo, hi) = points
@@ -444,11 +455,9 @@ impl<'a> Checker<'a> {
         channel: Channel<'_, WORDS>,
         previous: Option<u32>,
     ) -> Option<PoseCheck> {
-        let footprint = self.footprint.at(pose);
-        let corners = footprint.corners();
-        let centre = (footprint.centre.x, footprint.centre.y);
-        let points = [centre, corners[0], corners[1], corners[2], corners[3]];
-        let mut check = PoseCheck { corners: [None; 4], occupied: heapless::Vec::new(), centre_lane: None };
+        let points = self.points(pose);
+        let centre = points[0];
+        let mut check = PoseCheck::nothing();
         let mut best: Option<(bool, f64, CentreLane)> = None;
         for (k, &point) in points.iter().enumerate() {
             let Some(c) = index.cell_of(point.0, point.1) else { continue };
@@ -488,11 +497,9 @@ impl<'a> Checker<'a> {
     /// point, the polygons of its cell that hold it (occupancy, the centre's lane, a corner's
     /// depth: the deepest), else its distance to the nearest of the cell's edges.
     fn check_indexed(&self, index: &PolygonIndex<'_>, pose: &Pose2, previous: Option<u32>) -> PoseCheck {
-        let footprint = self.footprint.at(pose);
-        let corners = footprint.corners();
-        let centre = (footprint.centre.x, footprint.centre.y);
-        let points = [centre, corners[0], corners[1], corners[2], corners[3]];
-        let mut check = PoseCheck { corners: [None; 4], occupied: heapless::Vec::new(), centre_lane: None };
+        let points = self.points(pose);
+        let centre = points[0];
+        let mut check = PoseCheck::nothing();
         let mut best: Option<(bool, f64, CentreLane)> = None;
         for (k, &point) in points.iter().enumerate() {
             let Some(c) = index.cell_of(point.0, point.1) else { continue };

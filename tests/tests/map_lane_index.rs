@@ -5,10 +5,9 @@
 
 use dash2sim_core::drivable::{Channel, Checker, LaneSet};
 use dash2sim_core::map::MapView;
-use dash2sim_core::obb::{Pose2, PACIFICA};
+use dash2sim_core::obb::PACIFICA;
 use dash2sim_linux::ingest::map_tile::{encode, from_osm, lane_index, DEFAULT_CELL_M};
 use dash2sim_linux::ingest::osm;
-use rand::{Rng, SeedableRng};
 
 #[test]
 fn the_lane_index_gives_the_checks_answers_on_central_helsinki() {
@@ -18,38 +17,14 @@ fn the_lane_index_gives_the_checks_answers_on_central_helsinki() {
     let map = MapView::parse(&bytes).expect("valid tile");
     let arrays = lane_index::build(&map).expect("OpenStreetMap lanes are buffered centrelines");
     let (plain, indexed) = (Checker::new(map, PACIFICA), Checker::new(map, PACIFICA).with_lane_index(arrays.view()));
-    let lanes: Vec<Vec<(f64, f64)>> =
-        (0..map.header().lanes).filter_map(|i| map.lane(i)).map(|lane| lane.points().collect()).collect();
-    let (lo, hi) = lanes.iter().flatten().fold(((f64::MAX, f64::MAX), (f64::MIN, f64::MIN)), |(lo, hi), p| {
-        ((lo.0.min(p.0), lo.1.min(p.1)), (hi.0.max(p.0), hi.1.max(p.1)))
-    });
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(58);
-    let poses: Vec<Pose2> = (0..20_000)
-        .map(|k| {
-            if k % 2 == 0 {
-                let centreline = &lanes[rng.random_range(0..lanes.len())];
-                let s = rng.random_range(0..centreline.len().max(2) - 1);
-                let (a, b) = (centreline[s], centreline[(s + 1).min(centreline.len() - 1)]);
-                let t = rng.random_range(-0.2..1.2);
-                let heading = (b.1 - a.1).atan2(b.0 - a.0) + rng.random_range(-0.5..0.5);
-                let across = rng.random_range(-6.0..6.0);
-                Pose2::new(
-                    a.0 + t * (b.0 - a.0) - across * heading.sin(),
-                    a.1 + t * (b.1 - a.1) + across * heading.cos(),
-                    heading,
-                )
-            } else {
-                Pose2::new(rng.random_range(lo.0..hi.0), rng.random_range(lo.1..hi.1), rng.random_range(-3.2..3.2))
-            }
-        })
-        .collect();
+    let poses = dash2sim_tests::footprints(&map, 20_000, 6.0, 58);
     // The channel of a drive along the near poses (the lanes their way within 2 m).
     let mut channel: Box<LaneSet<64>> = Box::default();
     for pose in poses.iter().step_by(2).take(2_000) {
         channel.add_route_pose(&map, &PACIFICA, pose);
     }
     assert!(channel.len() > 100 && !channel.overflowed(), "{} lanes on the channel", channel.len());
-    let (mut inside, mut outside, mut far, mut occupied, mut sensitive_differs) = (0, 0, 0, 0, 0);
+    let (mut corners, mut occupied, mut sensitive_differs) = (dash2sim_tests::CornerTally::default(), 0, 0);
     let mut previous = None;
     for (k, pose) in poses.iter().enumerate() {
         for mode in [Channel::Insensitive, Channel::Sensitive(&channel)] {
@@ -67,18 +42,15 @@ fn the_lane_index_gives_the_checks_answers_on_central_helsinki() {
         // The centre's lane of the pose before is preferred where lanes overlap.
         previous = a.centre_lane.map(|c| c.lane);
         occupied += usize::from(!a.occupied.is_empty());
-        for d in a.corners {
-            match d {
-                Some(d) if d <= 0.0 => inside += 1,
-                Some(_) => outside += 1,
-                None => far += 1,
-            }
-        }
+        corners.add(&a.corners);
     }
     println!(
-        "{inside} corners inside, {outside} outside, {far} with nothing within 10 m; {occupied} poses on a lane; \
+        "{} corners inside, {} outside, {} with nothing within 10 m; {occupied} poses on a lane; \
          {sensitive_differs} poses whose corners differ in the channel-sensitive mode; index {} bytes",
+        corners.inside,
+        corners.outside,
+        corners.far,
         arrays.bytes()
     );
-    assert!(inside > 10_000 && outside > 10_000 && far > 10_000 && occupied > 8_000 && sensitive_differs > 1_000);
+    assert!(corners.each_over(10_000) && occupied > 8_000 && sensitive_differs > 1_000);
 }
