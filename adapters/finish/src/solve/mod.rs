@@ -23,15 +23,16 @@
 use dash2sim_core::imu::so3;
 use dash2sim_core::nalgebra::{Matrix3, Rotation3, Vector3};
 use dash2sim_core::sim3::Sim3;
-use faer::linalg::solvers::Solve;
-use faer::{Mat, Side};
+use faer::Side;
 
-use crate::timeline::index_after;
-
+mod doubt;
+mod geometry;
 mod graph;
 mod normal;
 mod problem;
 mod start;
+use doubt::doubt;
+use geometry::{skew, Geometry, Measured};
 pub use graph::{factor_graph, FactorGraph};
 use normal::{solve_normal, Factoriser, Normal, Row};
 pub use problem::{Anchor, AnchorAt, Fix, Inputs, Settings, Solution, SolveError, VoSample};
@@ -57,20 +58,6 @@ const GLOBALS: usize = 3;
 const TAU: usize = 0;
 const OMEGA: usize = 1;
 const HEADING_DRIFT: usize = 2;
-
-/// Where a time falls: its segment, the fraction through it, the VO path's deviation
-/// from the segment's chord, and the VO velocity's deviation from the chord's.
-struct Place {
-    k: usize,
-    alpha: f64,
-    w: Vector3<f64>,
-    w_dot: Vector3<f64>,
-    vo_rotation: Matrix3<f64>,
-}
-
-fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
-}
 
 /// What one assembly gives: the normal equations and the residuals' sizes in σ (NaN where
 /// a measurement falls outside the drive).
@@ -113,120 +100,6 @@ struct State<'a> {
     anchor_keyframe: Vec<usize>,
     /// Odometer distance over each segment, m (NaN: no speed there).
     odometer: Vec<f64>,
-}
-
-/// Interpolated VO position and velocity at `t` (the samples are in time order).
-fn vo_at(vo: &[VoSample], t: f64) -> Option<(Vector3<f64>, Vector3<f64>, Matrix3<f64>)> {
-    let j = index_after(vo, t, |s| s.t);
-    let (a, b) = (vo.get(j.checked_sub(1)?)?, vo.get(j).or_else(|| vo.get(j - 1).filter(|s| s.t == t))?);
-    if b.t == a.t {
-        let before = vo.get(j.checked_sub(2)?)?;
-        let v = (a.position - before.position) / (a.t - before.t);
-        return Some((a.position, v, a.rotation));
-    }
-    let f = (t - a.t) / (b.t - a.t);
-    let v = (b.position - a.position) / (b.t - a.t);
-    let rotation = if f < 0.5 { a.rotation } else { b.rotation };
-    Some((a.position + (b.position - a.position) * f, v, rotation))
-}
-
-/// A position residual, its σ per axis and its weight.
-#[derive(Clone, Copy)]
-struct Measured {
-    residual: Vector3<f64>,
-    sigma: Vector3<f64>,
-    weight: f64,
-}
-
-/// The trajectory an estimate describes: keyframes, their positions and the segments'
-/// similarities over the VO path.
-#[derive(Clone, Copy)]
-struct Geometry<'a> {
-    vo: &'a [VoSample],
-    keyframe_vo: &'a [usize],
-    keyframe_t: &'a [f64],
-    p: &'a [Vector3<f64>],
-    rho: &'a [f64],
-    rotation: &'a [Matrix3<f64>],
-}
-
-impl Geometry<'_> {
-    fn scale_rotation(&self, k: usize) -> Matrix3<f64> {
-        self.rotation[k] * self.rho[k].exp()
-    }
-
-    fn place(&self, t: f64) -> Option<Place> {
-        let last = *self.keyframe_t.last()?;
-        if !(t >= self.keyframe_t[0] && t <= last) || self.keyframe_t.len() < 2 {
-            return None;
-        }
-        let k = index_after(self.keyframe_t, t, |&kt| kt).saturating_sub(1).min(self.keyframe_t.len() - 2);
-        let (t0, t1) = (self.keyframe_t[k], self.keyframe_t[k + 1]);
-        let alpha = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
-        let x0 = self.vo[self.keyframe_vo[k]].position;
-        let x1 = self.vo[self.keyframe_vo[k + 1]].position;
-        let (x, x_dot, vo_rotation) = vo_at(self.vo, t)?;
-        let chord = x1 - x0;
-        Some(Place { k, alpha, w: x - x0 - chord * alpha, w_dot: x_dot - chord / (t1 - t0), vo_rotation })
-    }
-
-    fn camera(&self, at: &Place) -> Vector3<f64> {
-        self.p[at.k] * (1.0 - at.alpha) + self.p[at.k + 1] * at.alpha + self.scale_rotation(at.k) * at.w
-    }
-
-    fn velocity(&self, at: &Place) -> Vector3<f64> {
-        let dt = self.keyframe_t[at.k + 1] - self.keyframe_t[at.k];
-        (self.p[at.k + 1] - self.p[at.k]) / dt + self.scale_rotation(at.k) * at.w_dot
-    }
-
-    /// The rear axle's offset from the camera in the world, for the camera-frame `lever`.
-    fn lever(&self, at: &Place, lever: &Vector3<f64>) -> Vector3<f64> {
-        self.rotation[at.k] * at.vo_rotation * lever
-    }
-
-    /// Jacobian columns of the camera position at `at`: p_k (3), p_{k+1} (3), ρ_k, φ_k (3).
-    fn camera_jacobian(&self, at: &Place) -> [Vector3<f64>; 10] {
-        let sw = self.scale_rotation(at.k) * at.w;
-        let minus_skew = -skew(&sw);
-        let (a, b) = (1.0 - at.alpha, at.alpha);
-        [
-            Vector3::new(a, 0.0, 0.0),
-            Vector3::new(0.0, a, 0.0),
-            Vector3::new(0.0, 0.0, a),
-            Vector3::new(b, 0.0, 0.0),
-            Vector3::new(0.0, b, 0.0),
-            Vector3::new(0.0, 0.0, b),
-            sw,
-            minus_skew.column(0).into(),
-            minus_skew.column(1).into(),
-            minus_skew.column(2).into(),
-        ]
-    }
-
-    /// The three rows of a position residual at `at` (with the rear axle's lever when the
-    /// rear axle is what is measured) and any further Jacobian blocks.
-    fn add_position_rows(
-        &self,
-        normal: &mut Normal,
-        at: &Place,
-        measured: Measured,
-        extra: &[(usize, &[Vector3<f64>])],
-        lever: Option<Vector3<f64>>,
-    ) {
-        let mut j = self.camera_jacobian(at);
-        if let Some(l) = lever {
-            // b = c − R·l: ∂/∂φ of −Exp(φ)·R̂·l is +[R̂·l]×.
-            let s = skew(&l);
-            for c in 0..3 {
-                j[7 + c] += Vector3::from(s.column(c));
-            }
-        }
-        let k = at.k * BLOCK;
-        let mut blocks: Vec<(usize, &[Vector3<f64>])> =
-            vec![(k, &j[0..3]), (k + BLOCK, &j[3..6]), (k + 3, &j[6..7]), (k + 4, &j[7..10])];
-        blocks.extend_from_slice(extra);
-        normal.push3(&measured.residual, &measured.sigma, &blocks, measured.weight);
-    }
 }
 
 impl State<'_> {
@@ -718,78 +591,6 @@ fn solution(
         keyframe_vo: state.keyframe_vo,
     };
     Ok(solution)
-}
-
-/// The solution's σ, inflated by the variance factor when the fit is worse than the
-/// measurements' σ say.
-struct Doubt {
-    /// Of the drive's mean log-scale.
-    scale: f64,
-    /// Of a position, m (the mean over the sampled keyframes).
-    position: f64,
-    /// Of the horizontal position at up to 32 keyframes along the drive: (time, σ m).
-    horizontal: Vec<(f64, f64)>,
-    /// Of the heading where the session fixes it best, rad.
-    heading: f64,
-}
-
-/// The σ of the solution from the Cholesky factor `llt` of its normal matrix (`blocks`
-/// keyframes at `keyframe_t`), each times `inflation_factor`.
-fn doubt(
-    llt: &faer::sparse::linalg::solvers::Llt<usize, f64>,
-    keyframe_t: &[f64],
-    blocks: usize,
-    inflation_factor: f64,
-) -> Doubt {
-    // The drive's mean log-scale (segments weighted by duration): aᵀ H⁻¹ a.
-    let n = blocks * BLOCK + GLOBALS;
-    let total: f64 = keyframe_t.windows(2).map(|w| w[1] - w[0]).sum();
-    let mean_scale = Mat::from_fn(n, 1, |i, _| {
-        let k = i / BLOCK;
-        if i < blocks * BLOCK && i % BLOCK == 3 && k + 1 < blocks {
-            (keyframe_t[k + 1] - keyframe_t[k]) / total
-        } else {
-            0.0
-        }
-    });
-    let solved = llt.solve(&mean_scale);
-    let scale_var: f64 = (0..n).map(|i| mean_scale[(i, 0)] * solved[(i, 0)]).sum();
-    // Position σ at up to 32 keyframes along the drive.
-    let count = blocks.min(32);
-    let samples: Vec<usize> = (0..count).map(|i| if count > 1 { i * (blocks - 1) / (count - 1) } else { 0 }).collect();
-    // Per sample the variances of the position's three unknowns and the heading's (the
-    // rotation's increment about the vertical, the block's seventh): four columns of the
-    // inverse, solved a sample at a time (all at once, an hour's were two dense 50 MB
-    // matrices, issue #58).
-    let variances: Vec<[f64; 4]> = samples
-        .iter()
-        .map(|&k| {
-            let unknowns = [0, 1, 2, 6].map(|u| k * BLOCK + u);
-            let rhs = Mat::from_fn(n, 4, |i, c| if i == unknowns[c] { 1.0 } else { 0.0 });
-            let cov = llt.solve(&rhs);
-            [0, 1, 2, 3].map(|c| cov[(unknowns[c], c)])
-        })
-        .collect();
-    let trace: f64 = variances.iter().flat_map(|v| [v[0], v[1], v[2]]).sum();
-    // The heading where the session fixes it best: the VO carries it along the rest (a
-    // standstill's keyframes, the last one that only marks the session's end, are held by
-    // little else).
-    let heading = (0..samples.len())
-        .filter(|&j| blocks == 1 || samples[j] + 1 < blocks)
-        .map(|j| variances[j][3].max(0.0).sqrt() * inflation_factor)
-        .fold(f64::INFINITY, f64::min);
-    let position_var = trace / samples.len().max(1) as f64;
-    let horizontal = samples
-        .iter()
-        .zip(&variances)
-        .map(|(&k, v)| (keyframe_t[k], (v[0] + v[1]).max(0.0).sqrt() * inflation_factor))
-        .collect();
-    Doubt {
-        scale: scale_var.max(0.0).sqrt() * inflation_factor,
-        position: position_var.max(0.0).sqrt() * inflation_factor,
-        horizontal,
-        heading,
-    }
 }
 
 fn nearest_keyframe(vo: &[VoSample], keyframe_vo: &[usize], x: &Vector3<f64>) -> usize {

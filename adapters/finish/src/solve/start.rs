@@ -4,7 +4,8 @@
 use dash2sim_core::nalgebra::Vector3;
 use dash2sim_core::sim3::{AlignMode, Moments, Sim3};
 
-use super::{vo_at, AnchorAt, Inputs, SolveError, VoSample, LOCAL_STEP_S, LOCAL_WINDOW_S};
+use super::geometry::vo_at;
+use super::{AnchorAt, Inputs, SolveError, VoSample, LOCAL_STEP_S, LOCAL_WINDOW_S};
 
 /// Keyframes: the first VO sample, then each at least `spacing` after the previous, and
 /// the last.
