@@ -39,17 +39,20 @@ pub fn build(map: &MapView<'_>) -> Option<FineIndex> {
 
 /// The index of `map` where it pays for `checks` footprint checks: a map of polygons always
 /// (the grid alone is several times slower there); a map of buffered lanes when the checks
-/// outnumber the index's cells — its build costs about as much as the checks it serves save,
-/// a few tenths of a microsecond a cell or a check (docs/benchmarks.md) — so a 40 s drive on
-/// its own road is checked through the grid, and ten thousand footprints on a city through
-/// the index.
+/// number four (`CHECKS_PER_CELL`) for each of the index's cells, so that a 40 s drive on its own
+/// road is checked through the grid, and ten thousand footprints on a city through the index.
 pub fn for_checks(map: &MapView<'_>, checks: usize) -> Option<FineIndex> {
     match polygon_index::build(map) {
         Some(p) => Some(FineIndex::Polygons(p)),
-        None if checks >= lane_index::cells(map) => lane_index::build(map).map(FineIndex::Lanes),
+        None if checks >= CHECKS_PER_CELL * lane_index::cells(map) => lane_index::build(map).map(FineIndex::Lanes),
         None => None,
     }
 }
+
+/// Checks a cell of the lane index must serve to pay for its build: on central Helsinki the
+/// build takes ~1.5 µs a cell (29 000 cells in ~45 ms) and a check through the index saves
+/// ~0.35 µs (1.1 → 0.77 µs).
+const CHECKS_PER_CELL: usize = 4;
 
 /// A checker for `map` that reads `index` (built for `map`) where there is one.
 pub fn checker<'a>(map: MapView<'a>, footprint: Footprint, index: Option<&'a FineIndex>) -> Checker<'a> {
