@@ -465,15 +465,7 @@ impl<'a> Checker<'a> {
             for run in index.runs(c) {
                 let d = crate::map::segments_distance(run.segments(), point) - run.half_width;
                 if d <= 0.0 {
-                    if !check.occupied.contains(&run.lane) {
-                        let _ = check.occupied.push(run.lane);
-                    }
-                    if k == 0 {
-                        if let Some(lane) = self.map.lane(run.lane) {
-                            let p = lane.project(centre.0, centre.1);
-                            prefer_centre_lane(&mut best, previous, run.lane, &lane, &p);
-                        }
-                    }
+                    self.occupy(&mut check, &mut best, previous, k == 0, run.lane, centre);
                 }
                 if k > 0 && channel.allows(Item::Lane(run.lane)) {
                     nearest = nearest.min(d);
@@ -490,6 +482,29 @@ impl<'a> Checker<'a> {
         }
         check.centre_lane = best.map(|(_, _, lane)| lane);
         Some(check)
+    }
+
+    #[cfg(feature = "fine-index")]
+    /// Lane `i` holds a point of the footprint: it is occupied and, when the point is the
+    /// `centre`, a candidate for the centre's lane (`best`, the lane of the pose before first).
+    fn occupy(
+        &self,
+        check: &mut PoseCheck,
+        best: &mut Option<(bool, f64, CentreLane)>,
+        previous: Option<u32>,
+        is_centre: bool,
+        i: u32,
+        centre: (f64, f64),
+    ) {
+        if !check.occupied.contains(&i) {
+            // Full: the first MAX_OCCUPIED lanes are kept.
+            let _ = check.occupied.push(i);
+        }
+        if is_centre {
+            if let Some(lane) = self.map.lane(i) {
+                prefer_centre_lane(best, previous, i, &lane, &lane.project(centre.0, centre.1));
+            }
+        }
     }
 
     #[cfg(feature = "fine-index")]
@@ -528,13 +543,8 @@ impl<'a> Checker<'a> {
                 if k > 0 {
                     depth = Some(depth.map_or(d, |m: f64| m.min(d)));
                 }
-                let Item::Lane(i) = item(area.key) else { continue };
-                if !check.occupied.contains(&i) {
-                    let _ = check.occupied.push(i);
-                }
-                if k == 0 {
-                    let Some(lane) = self.map.lane(i) else { continue };
-                    prefer_centre_lane(&mut best, previous, i, &lane, &lane.project(centre.0, centre.1));
+                if let Item::Lane(i) = item(area.key) {
+                    self.occupy(&mut check, &mut best, previous, k == 0, i, centre);
                 }
             }
             let Some(corner) = k.checked_sub(1).and_then(|k| check.corners.get_mut(k)) else { continue };

@@ -813,6 +813,15 @@ mod tests {
         // Outside the grid, and at a point that is not a number: nothing.
         assert_eq!(index.cell_of(-1e6, 0.0), None);
         assert_eq!(index.cell_of(f64::NAN, 0.0), None);
+        // Built where the checks pay for it: a handful of checks keep the grid, many get the
+        // index; a tile of polygons gets its index whatever the number.
+        let cells = lane_index::cells(&view);
+        assert!(cells > 100, "{cells} cells");
+        assert!(fine_index::for_checks(&view, cells).is_none());
+        assert!(matches!(fine_index::for_checks(&view, 4 * cells), Some(fine_index::FineIndex::Lanes(_))));
+        let polygons = encode(&parallel_lanes(3, 5.0, true), 50.0);
+        let polygons = MapView::parse(&polygons).expect("tile");
+        assert!(matches!(fine_index::for_checks(&polygons, 0), Some(fine_index::FineIndex::Polygons(_))));
     }
 
     #[test]
