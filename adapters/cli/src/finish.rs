@@ -88,10 +88,11 @@ fn print_report(f: &FinishedFile) {
         a.wheel_factor,
     );
     println!(
-        "  inputs        GNSS {} of {} fixes used, {} speed samples, anchors {} used, {} refused",
+        "  inputs        GNSS {} of {} fixes used, {} speed samples{}, anchors {} used, {} refused",
         r.gnss.used,
         r.gnss.fixes,
         r.speed_samples,
+        r.wheel_latency_s.map_or(String::new(), |l| format!(" ({:.0} ms late)", 1000.0 * l)),
         r.anchors.used,
         r.anchors.refused.len()
     );

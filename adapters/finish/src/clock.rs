@@ -22,8 +22,11 @@ use crate::timeline::index_after;
 const LATENCY_RANGE_S: (f64, f64) = (-0.2, 0.6);
 /// Their step, s.
 const LATENCY_STEP_S: f64 = 0.001;
-/// The ego's speed and direction are the chord over ±this, s (its positions are 50 ms apart).
-const CHORD_HALF_SPAN_S: f64 = 0.1;
+/// The ego's speed and direction are the chord over ±this, s: a few VO frames, so that
+/// their frame-to-frame noise averages out (±0.1 s: the clock 11.7 ms off in the median
+/// drive of seeds 14528–14627, against 10.9 ms), and symmetric, so that it moves nothing in
+/// time.
+const CHORD_HALF_SPAN_S: f64 = 0.25;
 /// Fixes with a speed (or a course) needed.
 const MIN_FIXES: usize = 20;
 /// The rate a fix's observation changes at (the information it carries on the latency) is
@@ -92,6 +95,50 @@ fn heading_of((dx, dy): (f64, f64)) -> f64 {
     dy.atan2(dx)
 }
 
+/// What a channel's observations may differ from the ego's by, besides the latency: a
+/// nuisance fitted at every latency tried, so that it is not read as one.
+#[derive(Clone, Copy)]
+enum Nuisance {
+    /// A constant offset: a finished ego turned by a fraction of a degree.
+    Offset,
+    /// A gain: a finished ego whose scale is off by a fraction of a percent, or wheels that
+    /// read fast. Where the car ends the drive faster or slower than it began, a speed off
+    /// by 0.1 % looks like a latency of up to 10 ms. (A gain drifting linearly over the drive
+    /// took more of the latency's information than it gave: the clock 13.2 ms off in the
+    /// median drive of seeds 14528–14627 against 10.9 ms.)
+    Gain,
+}
+
+/// The sums of a least-squares fit of `y` on one regressor `a`.
+#[derive(Clone, Copy, Default)]
+struct Fit {
+    count: usize,
+    aa: f64,
+    ay: f64,
+}
+
+impl Fit {
+    fn add(&mut self, a: f64, y: f64) {
+        self.count += 1;
+        self.aa += a * a;
+        self.ay += a * y;
+    }
+
+    /// The coefficient of `a` (0 with no fix).
+    fn coefficient(&self) -> f64 {
+        if self.aa > 0.0 {
+            self.ay / self.aa
+        } else {
+            0.0
+        }
+    }
+
+    /// How much of Σy² the regressor explains.
+    fn explained(&self) -> f64 {
+        self.coefficient() * self.ay
+    }
+}
+
 /// One kind of observation the fixes make of the car's motion.
 struct Channel<'a> {
     /// (arrival, observed) per fix.
@@ -105,9 +152,8 @@ struct Channel<'a> {
     /// A residual counts at most this much (a multipath jump, a skid), and a fix whose
     /// residual is past it carries no information on the latency.
     clip: f64,
-    /// The channel's residuals less their mean (a constant offset — a finished ego turned by
-    /// a fraction of a degree — says nothing of the latency).
-    centred: bool,
+    /// Fitted along with the latency.
+    nuisance: Nuisance,
 }
 
 impl Channel<'_> {
@@ -116,14 +162,36 @@ impl Channel<'_> {
         self.track.chord(t).map(self.observe)
     }
 
-    /// Each fix's time and residual at latency `tau`.
-    fn residuals(&self, tau: f64) -> Vec<(f64, f64)> {
-        self.fixes.iter().filter_map(|(t, seen)| Some((*t, (self.residual)(*seen, self.predict(t - tau)?)))).collect()
+    /// The nuisance's regressor for a fix whose prediction is `predicted`.
+    fn regressor(&self, predicted: f64) -> f64 {
+        match self.nuisance {
+            Nuisance::Offset => 1.0,
+            Nuisance::Gain => predicted,
+        }
     }
 
-    /// Calls `visit(k, r)` with every fix's clipped residual at latency `taus[k]`, the fixes
-    /// in order for each latency (so that sums over them are what a pass per latency gives).
-    fn each_clipped(&self, taus: &[f64], mut visit: impl FnMut(usize, f64)) {
+    /// Adds a fix to the nuisance's fit: the residual on a constant, or what was seen on
+    /// the prediction.
+    fn add(&self, fit: &mut Fit, seen: f64, predicted: f64) {
+        match self.nuisance {
+            Nuisance::Offset => fit.add(1.0, (self.residual)(seen, predicted)),
+            Nuisance::Gain => fit.add(predicted, seen),
+        }
+    }
+
+    /// The residual once the nuisance is taken out: less the mean, or against the
+    /// prediction times the gain (as it is where nothing was fitted).
+    fn adjusted(&self, fit: &Fit, seen: f64, predicted: f64) -> f64 {
+        match self.nuisance {
+            Nuisance::Offset => (self.residual)(seen, predicted) - fit.coefficient(),
+            Nuisance::Gain if fit.aa > 0.0 => (self.residual)(seen, predicted * fit.coefficient()),
+            Nuisance::Gain => (self.residual)(seen, predicted),
+        }
+    }
+
+    /// Calls `visit(k, seen, predicted)` for every fix at latency `taus[k]`, the fixes in
+    /// order for each latency (so that sums over them are what a pass per latency gives).
+    fn each_predicted(&self, taus: &[f64], mut visit: impl FnMut(usize, f64, f64)) {
         let Some(&first) = taus.first() else { return };
         let points = &self.track.0;
         for (t, seen) in &self.fixes {
@@ -137,30 +205,30 @@ impl Channel<'_> {
                 ) else {
                     continue;
                 };
-                let predicted = (self.observe)((b.0 - a.0, b.1 - a.1));
-                visit(k, (self.residual)(*seen, predicted).clamp(-self.clip, self.clip));
+                visit(k, *seen, (self.observe)((b.0 - a.0, b.1 - a.1)));
             }
         }
     }
 
-    /// The mean squared clipped residual at every latency of `taus` (less their mean when
-    /// centred); `None` where fewer than [`MIN_FIXES`] fixes have a prediction.
-    fn costs(&self, taus: &[f64]) -> Vec<Option<f64>> {
-        let mut count = vec![0usize; taus.len()];
-        let mut mean = vec![0.0; taus.len()];
-        if self.centred {
-            self.each_clipped(taus, |k, r| {
-                mean[k] += r;
-                count[k] += 1;
-            });
-            for (m, n) in mean.iter_mut().zip(&count) {
-                *m /= *n as f64;
+    /// The nuisance's fit at every latency of `taus`, over the fixes within the clip.
+    fn fits(&self, taus: &[f64]) -> Vec<Fit> {
+        let mut fits = vec![Fit::default(); taus.len()];
+        self.each_predicted(taus, |k, seen, predicted| {
+            if (self.residual)(seen, predicted).abs() < self.clip {
+                self.add(&mut fits[k], seen, predicted);
             }
-        }
+        });
+        fits
+    }
+
+    /// The mean squared clipped residual, the nuisance taken out, at every latency of
+    /// `taus`; `None` where fewer than [`MIN_FIXES`] fixes have a prediction.
+    fn costs(&self, taus: &[f64]) -> Vec<Option<f64>> {
+        let fits = self.fits(taus);
         let mut squares = vec![0.0; taus.len()];
-        count.iter_mut().for_each(|n| *n = 0);
-        self.each_clipped(taus, |k, r| {
-            squares[k] += (r - mean[k]).powi(2);
+        let mut count = vec![0usize; taus.len()];
+        self.each_predicted(taus, |k, seen, predicted| {
+            squares[k] += self.adjusted(&fits[k], seen, predicted).clamp(-self.clip, self.clip).powi(2);
             count[k] += 1;
         });
         squares.iter().zip(&count).map(|(sum, &n)| (n >= MIN_FIXES).then(|| sum / n as f64)).collect()
@@ -174,7 +242,8 @@ impl Channel<'_> {
     }
 
     /// The latency this channel finds and its 1-σ, s: the residuals' variance over the
-    /// information the changes of the motion carry (Σ rate² at the fixes).
+    /// information the changes of the motion carry (Σ rate² at the fixes, less what the
+    /// nuisance's regressor explains of it).
     fn latency(&self) -> Option<(f64, f64)> {
         let steps = ((LATENCY_RANGE_S.1 - LATENCY_RANGE_S.0) / LATENCY_STEP_S).round() as usize;
         let taus: Vec<f64> = (0..=steps).map(|k| LATENCY_RANGE_S.0 + k as f64 * LATENCY_STEP_S).collect();
@@ -183,18 +252,23 @@ impl Channel<'_> {
             .zip(self.costs(&taus))
             .filter_map(|(&tau, cost)| Some((tau, cost?)))
             .min_by(|a, b| a.1.total_cmp(&b.1))?;
-        let rates: Vec<f64> = self
-            .residuals(best)
-            .iter()
-            .filter(|(_, r)| r.abs() < self.clip)
-            .filter_map(|(t, _)| self.rate(t - best))
-            .collect();
-        if rates.len() < MIN_FIXES {
+        let fit = self.fits(&[best])[0];
+        // The rates at the fixes within the clip, fitted on the nuisance's regressor.
+        let (mut rates, mut total) = (Fit::default(), 0.0);
+        for (t, seen) in &self.fixes {
+            let Some(predicted) = self.predict(t - best) else { continue };
+            if self.adjusted(&fit, *seen, predicted).abs() >= self.clip {
+                continue;
+            }
+            let Some(rate) = self.rate(t - best) else { continue };
+            rates.add(self.regressor(predicted), rate);
+            total += rate * rate;
+        }
+        if rates.count < MIN_FIXES {
             return None;
         }
-        let mean = if self.centred { rates.iter().sum::<f64>() / rates.len() as f64 } else { 0.0 };
-        let information: f64 = rates.iter().map(|r| (r - mean).powi(2)).sum();
-        let n = rates.len() as f64;
+        let n = rates.count as f64;
+        let information = total - rates.explained();
         let sigma = (variance * n / (n - 1.0).max(1.0) / information).sqrt();
         sigma.is_finite().then_some((best, sigma))
     }
@@ -214,7 +288,7 @@ pub fn latency_from_motion(fixes: &[GnssFix], ego: &BTreeMap<i64, EgoPose>) -> O
         observe: speed_of,
         residual: |seen, predicted| seen - predicted,
         clip: SPEED_CLIP_MPS,
-        centred: false,
+        nuisance: Nuisance::Gain,
     };
     // A fix's course is clockwise from north; the ego's heading counter-clockwise from east.
     let course = Channel {
@@ -226,7 +300,7 @@ pub fn latency_from_motion(fixes: &[GnssFix], ego: &BTreeMap<i64, EgoPose>) -> O
         observe: heading_of,
         residual: |seen, predicted| wrap_angle(seen - predicted),
         clip: COURSE_CLIP_RAD,
-        centred: true,
+        nuisance: Nuisance::Offset,
     };
     // Each channel weighed by its precision.
     let (weighted, weight) = [speed.latency(), course.latency()]
@@ -235,6 +309,30 @@ pub fn latency_from_motion(fixes: &[GnssFix], ego: &BTreeMap<i64, EgoPose>) -> O
         .fold((0.0, 0.0), |(sum, w), (tau, sigma)| (sum + tau / (sigma * sigma), w + 1.0 / (sigma * sigma)));
     let sigma = weight.recip().sqrt();
     (weight > 0.0 && sigma <= MAX_SIGMA_S).then(|| weighted / weight)
+}
+
+/// At most this many wheel speeds are compared (every n-th of a long drive's): an hour's
+/// 50 Hz bus says the wheels' latency to a fraction of a millisecond long before that.
+const MAX_WHEEL_SAMPLES: usize = 20_000;
+
+/// The wheels' latency (s): how much later than the car's motion the vehicle bus reports
+/// its speed, from the wheel speeds (`speeds`, (arrival on the log's clock, m/s)) against
+/// an ego track (`track`, (s, east m, north m), the VO's positions smoothed without the
+/// wheels), and its 1-σ; `None` with too little change of speed to tell it to
+/// [`MAX_SIGMA_S`]. The wheels read the speed times a factor of their own (tyre wear,
+/// pressure), fitted at every latency tried.
+pub fn wheel_latency(speeds: &[(f64, f64)], track: &[(f64, f64, f64)]) -> Option<(f64, f64)> {
+    let track = Track(track.to_vec());
+    let every = speeds.len().div_ceil(MAX_WHEEL_SAMPLES).max(1);
+    let wheels = Channel {
+        fixes: speeds.iter().step_by(every).copied().filter(|(t, v)| t.is_finite() && v.is_finite()).collect(),
+        track: &track,
+        observe: speed_of,
+        residual: |seen, predicted| seen - predicted,
+        clip: SPEED_CLIP_MPS,
+        nuisance: Nuisance::Gain,
+    };
+    wheels.latency().filter(|(_, sigma)| *sigma <= MAX_SIGMA_S)
 }
 
 /// A device reads UTC off each fix as it arrives (`pipeline::clock`): its log's UTC is
@@ -284,6 +382,30 @@ mod tests {
             })
             .collect();
         (records, ego)
+    }
+
+    #[test]
+    fn the_wheels_latency_is_found_whatever_their_factor() {
+        // The bus every 20 ms, 60 ms late, reading 2 % fast with ±0.03 m/s of noise.
+        let (_, ego) = swinging(0.137, 5.0);
+        let track: Vec<(f64, f64, f64)> =
+            ego.values().map(|p| (p.t_us as f64 * 1e-6, p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3)).collect();
+        let speed = |t: f64| 15.0 + 5.0 * (TAU * t / 8.0).sin();
+        let wheels: Vec<(f64, f64)> = (0..1950)
+            .map(|k| {
+                let t = 0.02 * k as f64;
+                (t + 0.06, 1.02 * speed(t) + 0.03 * (k as f64 * 12.9898).sin())
+            })
+            .collect();
+        let (found, sigma) = wheel_latency(&wheels, &track).expect("the speed swings");
+        assert!((found - 0.06).abs() < 0.003 && sigma < 0.003, "{found} ± {sigma}");
+        // At a steady speed they say nothing.
+        let steady: Vec<(f64, f64)> =
+            wheels.iter().enumerate().map(|(k, &(t, _))| (t, 15.3 + 0.03 * (k as f64 * 12.9898).sin())).collect();
+        let (_, ego) = swinging(0.137, 0.0);
+        let track: Vec<(f64, f64, f64)> =
+            ego.values().map(|p| (p.t_us as f64 * 1e-6, p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3)).collect();
+        assert_eq!(wheel_latency(&steady, &track), None);
     }
 
     #[test]

@@ -268,7 +268,7 @@ pub fn finish(
     );
     refused.sort();
 
-    let (ego, bridged) = finished_ego(&drive, &sessions, &mount);
+    let (ego, bridged, wheel_latency_s) = finished_ego(&drive, &sessions, &mount);
     let mut placed = place_objects(log, &drive, &ego, calibrated, nominal_yaw);
     let mut records = finished_records(log, &drive, &sessions, &ego, &mut placed, used_anchors);
     let verification = match map {
@@ -329,6 +329,7 @@ pub fn finish(
             .map(|r| ReckoningReport { static_objects_turned_deg: placed.static_yaw.map(f64::to_degrees), ..r }),
         gnss: GnssReport { fixes: drive.fixes.len(), used: fixes_used, rejected: drive.fixes.len() - fixes_used },
         speed_samples: drive.speeds.len(),
+        wheel_latency_s,
         anchors: AnchorsReport {
             file: anchor_file.map(|(p, _)| p.to_owned()),
             used: used_anchors,
@@ -353,40 +354,62 @@ pub fn finish(
 }
 
 /// The finished ego: every VO pose's camera through the solution and the mount, its planar
-/// track smoothed (the VO's frame-to-frame noise is not the car's motion). Each session
-/// smoothed on its own (a constant-velocity smoother across a gap would turn the two
-/// sessions' disagreement into a velocity), then the sessions joined and the gaps between
-/// them bridged. The poses by time, and the bridges.
+/// track smoothed (the VO's frame-to-frame noise is not the car's motion) with the wheels'
+/// speeds. Each session smoothed on its own (a constant-velocity smoother across a gap would
+/// turn the two sessions' disagreement into a velocity), then the sessions joined and the
+/// gaps between them bridged. The wheels report the speed some tens of milliseconds late,
+/// and a smoother fed them as they arrive lags the car by as much: their latency is found
+/// first against the positions smoothed alone ([`clock::wheel_latency`]), and each speed
+/// is taken at the instant it describes. The poses by time, the bridges, and the wheels'
+/// latency where the drive told it.
 fn finished_ego(
     drive: &Drive,
     sessions: &[sessions::SessionSolution],
     mount: &CameraMount,
-) -> (BTreeMap<i64, EgoPose>, Vec<sessions::Bridge>) {
-    let mut planar_poses: Vec<PlanarPose> = Vec::new();
-    // Where each session begins in `planar_poses`, and its wheel factor.
-    let mut starts: Vec<(usize, f64)> = Vec::new();
-    for solved in sessions {
-        let vo = &drive.vo[solved.range.clone()];
-        let bodies: Vec<(f64, Pose)> = vo
-            .iter()
-            .filter_map(|s| {
-                let (c, rotation) = solved.solution.camera_at(vo, s.t)?;
-                Some((s.t, mount.body_pose(&Pose { rotation, translation: c })))
-            })
-            .collect();
+) -> (BTreeMap<i64, EgoPose>, Vec<sessions::Bridge>, Option<f64>) {
+    let solved: Vec<(&sessions::SessionSolution, Vec<(f64, Pose)>)> = sessions
+        .iter()
+        .map(|solved| {
+            let vo = &drive.vo[solved.range.clone()];
+            let bodies = vo
+                .iter()
+                .filter_map(|s| {
+                    let (c, rotation) = solved.solution.camera_at(vo, s.t)?;
+                    Some((s.t, mount.body_pose(&Pose { rotation, translation: c })))
+                })
+                .collect();
+            (solved, bodies)
+        })
+        .collect();
+    let planar_of = |bodies: &[(f64, Pose)], speed: &dyn Fn(f64) -> Option<(f64, f64)>| {
         let mut planar: Vec<tracks::Sample> = bodies
             .iter()
             .map(|(t, b)| tracks::Sample {
                 t: *t,
                 x: b.translation.x,
                 y: b.translation.y,
-                speed: wheel_speed_at(&drive.speeds, *t).map(|v| (v * solved.solution.wheel_factor, WHEEL_SPEED_SIGMA)),
+                speed: speed(*t),
                 ..tracks::Sample::default()
             })
             .collect();
         let velocity = starting_velocity(&planar);
         tracks::smooth_planar(&mut planar, velocity, EGO_SMOOTHING.0, EGO_SMOOTHING.1);
-        starts.push((planar_poses.len(), solved.solution.wheel_factor));
+        planar
+    };
+    let positions_alone: Vec<(f64, f64, f64)> = solved
+        .iter()
+        .flat_map(|(_, bodies)| planar_of(bodies, &|_| None).into_iter().map(|p| (p.t, p.x, p.y)))
+        .collect();
+    let wheel_latency = clock::wheel_latency(&drive.speeds, &positions_alone).map(|(latency, _)| latency);
+    let speeds: Vec<(f64, f64)> = drive.speeds.iter().map(|&(t, v)| (t - wheel_latency.unwrap_or(0.0), v)).collect();
+
+    let mut planar_poses: Vec<PlanarPose> = Vec::new();
+    // Where each session begins in `planar_poses`, and its wheel factor.
+    let mut starts: Vec<(usize, f64)> = Vec::new();
+    for (solved, bodies) in &solved {
+        let factor = solved.solution.wheel_factor;
+        let planar = planar_of(bodies, &|t| wheel_speed_at(&speeds, t).map(|v| (v * factor, WHEEL_SPEED_SIGMA)));
+        starts.push((planar_poses.len(), factor));
         for ((t, body), p) in bodies.iter().zip(&planar) {
             let heading = dash2sim_core::pipeline::mount::heading(&body.rotation);
             let sigma = solved.solution.horizontal_sigma_at(*t);
@@ -402,9 +425,9 @@ fn finished_ego(
             });
         }
     }
-    join_sessions(&mut planar_poses, &starts, &drive.speeds);
+    join_sessions(&mut planar_poses, &starts, &speeds);
     let mut ego: BTreeMap<i64, EgoPose> = BTreeMap::new();
-    let bridged = bridge_gaps(&planar_poses, frame_interval(&drive.vo), &drive.speeds);
+    let bridged = bridge_gaps(&planar_poses, frame_interval(&drive.vo), &speeds);
     for pose in planar_poses.iter().chain(bridged.iter().flat_map(|g| &g.poses)) {
         let t_us = quantise(pose.t, 1e-6);
         ego.insert(
@@ -419,7 +442,7 @@ fn finished_ego(
             },
         );
     }
-    (ego, bridged)
+    (ego, bridged, wheel_latency)
 }
 
 /// The objects placed through the finished ego: the device's tracks and the raw detections.

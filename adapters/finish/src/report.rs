@@ -56,6 +56,10 @@ pub struct FinishReport {
     pub gnss: GnssReport,
     /// Wheel-speed samples read.
     pub speed_samples: usize,
+    /// How late the vehicle bus reported the wheels' speed, s, as the finished ego's
+    /// smoother takes it ([`crate::clock::wheel_latency`]); none where the drive did not
+    /// change speed enough to tell.
+    pub wheel_latency_s: Option<f64>,
     /// The street-imagery anchors.
     pub anchors: AnchorsReport,
     /// 3D tracks smoothed and raw detections tracked.

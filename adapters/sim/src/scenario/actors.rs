@@ -218,11 +218,14 @@ impl Vehicle {
         if !(0.0..=road.length()).contains(&s) || !(self.s_range.0..=self.s_range.1).contains(&s) {
             return None;
         }
+        // The velocity at `t`: the chord from a step before to a step after.
         let dt = 0.05;
         let (s_next, d_next) = self.road_position(t + dt);
+        let (s_prev, d_prev) = self.road_position(t - dt);
         let (x, y) = road.point(s, d);
         let (xn, yn) = road.point(s_next, d_next);
-        let velocity = [(xn - x) / dt, (yn - y) / dt];
+        let (xp, yp) = road.point(s_prev, d_prev);
+        let velocity = [(xn - xp) / (2.0 * dt), (yn - yp) / (2.0 * dt)];
         let [l, w, h] = self.class.size();
         let yaw = velocity[1].atan2(velocity[0]);
         Some(ObjectState { id: self.id, class: self.class, bbox: Box3d { x, y, z: h / 2.0, yaw, l, w, h }, velocity })
@@ -382,10 +385,16 @@ impl EgoPlan {
             if k % per_frame == 0 {
                 let d = self.lateral(s);
                 let (x, y) = road.point(s, d);
+                // The heading and speed at `t` itself: the chord from a step before to a
+                // step after. A chord from `t` forward points where the car heads half a
+                // step later, and the receiver's course made from it was 5 ms ahead of its
+                // fix.
                 let s_next = s + self.along_reference(road, s, v * dt);
+                let s_prev = s - self.along_reference(road, s - v * dt, v * dt);
                 let (xn, yn) = road.point(s_next, self.lateral(s_next));
-                let heading = (yn - y).atan2(xn - x);
-                let speed = (xn - x).hypot(yn - y) / dt;
+                let (xp, yp) = road.point(s_prev, self.lateral(s_prev));
+                let heading = (yn - yp).atan2(xn - xp);
+                let speed = (xn - xp).hypot(yn - yp) / (2.0 * dt);
                 states.push(EgoState { t, s, d, x, y, heading, speed });
             }
             s += self.along_reference(road, s, (v * dt + 0.5 * a * dt * dt).max(0.0));
