@@ -20,8 +20,9 @@ use crate::timeline::index_after;
 
 /// Latencies tried, s: from a receiver whose clock runs ahead to one half a second late.
 const LATENCY_RANGE_S: (f64, f64) = (-0.2, 0.6);
-/// Their step, s.
-const LATENCY_STEP_S: f64 = 0.001;
+/// Their step, s: first coarse over the whole range, then fine around the coarse best
+/// (the cost is smooth over the coarse step: the chords span half a second).
+const LATENCY_STEPS_S: (f64, f64) = (0.01, 0.001);
 /// The ego's speed and direction are the chord over ±this, s: a few VO frames, so that
 /// their frame-to-frame noise averages out (±0.1 s: the clock 11.7 ms off in the median
 /// drive of seeds 14528–14627, against 10.9 ms), and symmetric, so that it moves nothing in
@@ -53,7 +54,7 @@ impl Track {
     }
 
     /// [`Track::at`] from where the last lookup of `cursor` ended: the latency search asks
-    /// for every fix at 801 times a millisecond apart, each a few samples from the last.
+    /// for every fix at times a few milliseconds apart, each a few samples from the last.
     fn at_from(&self, t: f64, cursor: &mut usize) -> Option<(f64, f64)> {
         let s = &self.0;
         let mut k = (*cursor).min(s.len());
@@ -241,17 +242,20 @@ impl Channel<'_> {
         Some((self.residual)(change, 0.0) / (2.0 * RATE_HALF_SPAN_S))
     }
 
+    /// The latency of least cost within `range` tried every `step` (s), and its cost.
+    fn best_of(&self, range: (f64, f64), step: f64) -> Option<(f64, f64)> {
+        let steps = ((range.1 - range.0) / step).round() as usize;
+        let taus: Vec<f64> = (0..=steps).map(|k| range.0 + k as f64 * step).collect();
+        taus.iter().zip(self.costs(&taus)).filter_map(|(&tau, cost)| Some((tau, cost?))).min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
     /// The latency this channel finds and its 1-σ, s: the residuals' variance over the
     /// information the changes of the motion carry (Σ rate² at the fixes, less what the
     /// nuisance's regressor explains of it).
     fn latency(&self) -> Option<(f64, f64)> {
-        let steps = ((LATENCY_RANGE_S.1 - LATENCY_RANGE_S.0) / LATENCY_STEP_S).round() as usize;
-        let taus: Vec<f64> = (0..=steps).map(|k| LATENCY_RANGE_S.0 + k as f64 * LATENCY_STEP_S).collect();
-        let (best, variance) = taus
-            .iter()
-            .zip(self.costs(&taus))
-            .filter_map(|(&tau, cost)| Some((tau, cost?)))
-            .min_by(|a, b| a.1.total_cmp(&b.1))?;
+        let (coarse, fine) = LATENCY_STEPS_S;
+        let (coarse_best, _) = self.best_of(LATENCY_RANGE_S, coarse)?;
+        let (best, variance) = self.best_of((coarse_best - coarse, coarse_best + coarse), fine)?;
         let fit = self.fits(&[best])[0];
         // The rates at the fixes within the clip, fitted on the nuisance's regressor.
         let (mut rates, mut total) = (Fit::default(), 0.0);
@@ -321,8 +325,8 @@ const MAX_WHEEL_SAMPLES: usize = 20_000;
 /// wheels), and its 1-σ; `None` with too little change of speed to tell it to
 /// [`MAX_SIGMA_S`]. The wheels read the speed times a factor of their own (tyre wear,
 /// pressure), fitted at every latency tried.
-pub fn wheel_latency(speeds: &[(f64, f64)], track: &[(f64, f64, f64)]) -> Option<(f64, f64)> {
-    let track = Track(track.to_vec());
+pub fn wheel_latency(speeds: &[(f64, f64)], track: Vec<(f64, f64, f64)>) -> Option<(f64, f64)> {
+    let track = Track(track);
     let every = speeds.len().div_ceil(MAX_WHEEL_SAMPLES).max(1);
     let wheels = Channel {
         fixes: speeds.iter().step_by(every).copied().filter(|(t, v)| t.is_finite() && v.is_finite()).collect(),
@@ -397,7 +401,7 @@ mod tests {
                 (t + 0.06, 1.02 * speed(t) + 0.03 * (k as f64 * 12.9898).sin())
             })
             .collect();
-        let (found, sigma) = wheel_latency(&wheels, &track).expect("the speed swings");
+        let (found, sigma) = wheel_latency(&wheels, track).expect("the speed swings");
         assert!((found - 0.06).abs() < 0.003 && sigma < 0.003, "{found} ± {sigma}");
         // At a steady speed they say nothing.
         let steady: Vec<(f64, f64)> =
@@ -405,7 +409,7 @@ mod tests {
         let (_, ego) = swinging(0.137, 0.0);
         let track: Vec<(f64, f64, f64)> =
             ego.values().map(|p| (p.t_us as f64 * 1e-6, p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3)).collect();
-        assert_eq!(wheel_latency(&steady, &track), None);
+        assert_eq!(wheel_latency(&steady, track), None);
     }
 
     #[test]

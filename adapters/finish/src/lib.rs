@@ -367,20 +367,17 @@ fn finished_ego(
     sessions: &[sessions::SessionSolution],
     mount: &CameraMount,
 ) -> (BTreeMap<i64, EgoPose>, Vec<sessions::Bridge>, Option<f64>) {
-    let solved: Vec<(&sessions::SessionSolution, Vec<(f64, Pose)>)> = sessions
-        .iter()
-        .map(|solved| {
-            let vo = &drive.vo[solved.range.clone()];
-            let bodies = vo
-                .iter()
-                .filter_map(|s| {
-                    let (c, rotation) = solved.solution.camera_at(vo, s.t)?;
-                    Some((s.t, mount.body_pose(&Pose { rotation, translation: c })))
-                })
-                .collect();
-            (solved, bodies)
-        })
-        .collect();
+    // Each session's bodies, made twice (first for the positions alone, then with the
+    // wheels) rather than held for the whole drive: an hour's are 7 MB.
+    let bodies_of = |solved: &sessions::SessionSolution| -> Vec<(f64, Pose)> {
+        let vo = &drive.vo[solved.range.clone()];
+        vo.iter()
+            .filter_map(|s| {
+                let (c, rotation) = solved.solution.camera_at(vo, s.t)?;
+                Some((s.t, mount.body_pose(&Pose { rotation, translation: c })))
+            })
+            .collect()
+    };
     let planar_of = |bodies: &[(f64, Pose)], speed: &dyn Fn(f64) -> Option<(f64, f64)>| {
         let mut planar: Vec<tracks::Sample> = bodies
             .iter()
@@ -396,19 +393,20 @@ fn finished_ego(
         tracks::smooth_planar(&mut planar, velocity, EGO_SMOOTHING.0, EGO_SMOOTHING.1);
         planar
     };
-    let positions_alone: Vec<(f64, f64, f64)> = solved
+    let positions_alone: Vec<(f64, f64, f64)> = sessions
         .iter()
-        .flat_map(|(_, bodies)| planar_of(bodies, &|_| None).into_iter().map(|p| (p.t, p.x, p.y)))
+        .flat_map(|solved| planar_of(&bodies_of(solved), &|_| None).into_iter().map(|p| (p.t, p.x, p.y)))
         .collect();
-    let wheel_latency = clock::wheel_latency(&drive.speeds, &positions_alone).map(|(latency, _)| latency);
+    let wheel_latency = clock::wheel_latency(&drive.speeds, positions_alone).map(|(latency, _)| latency);
     let speeds: Vec<(f64, f64)> = drive.speeds.iter().map(|&(t, v)| (t - wheel_latency.unwrap_or(0.0), v)).collect();
 
     let mut planar_poses: Vec<PlanarPose> = Vec::new();
     // Where each session begins in `planar_poses`, and its wheel factor.
     let mut starts: Vec<(usize, f64)> = Vec::new();
-    for (solved, bodies) in &solved {
+    for solved in sessions {
+        let bodies = bodies_of(solved);
         let factor = solved.solution.wheel_factor;
-        let planar = planar_of(bodies, &|t| wheel_speed_at(&speeds, t).map(|v| (v * factor, WHEEL_SPEED_SIGMA)));
+        let planar = planar_of(&bodies, &|t| wheel_speed_at(&speeds, t).map(|v| (v * factor, WHEEL_SPEED_SIGMA)));
         starts.push((planar_poses.len(), factor));
         for ((t, body), p) in bodies.iter().zip(&planar) {
             let heading = dash2sim_core::pipeline::mount::heading(&body.rotation);
