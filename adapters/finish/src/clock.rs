@@ -246,7 +246,10 @@ impl Channel<'_> {
     fn best_of(&self, range: (f64, f64), step: f64) -> Option<(f64, f64)> {
         let steps = ((range.1 - range.0) / step).round() as usize;
         let taus: Vec<f64> = (0..=steps).map(|k| range.0 + k as f64 * step).collect();
-        taus.iter().zip(self.costs(&taus)).filter_map(|(&tau, cost)| Some((tau, cost?))).min_by(|a, b| a.1.total_cmp(&b.1))
+        taus.iter()
+            .zip(self.costs(&taus))
+            .filter_map(|(&tau, cost)| Some((tau, cost?)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
     }
 
     /// The latency this channel finds and its 1-σ, s: the residuals' variance over the
