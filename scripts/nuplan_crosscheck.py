@@ -2,13 +2,15 @@
 (issue #15).
 
     VENV/bin/python scripts/nuplan_crosscheck.py --dash2sim target/release/dash2sim \
-        --log LOG --map MAP --out DIR [--every S] [--planner log|pdm] [--expect-fail METRIC] [--json]
+        --log LOG --map MAP --out DIR [--every S] [--planner log|pdm] [--controller lqr|perfect]
+        [--expect-fail METRIC] [--score-within POINTS] [--json]
 
 1. `dash2sim export LOG --nuplan DIR --map MAP` writes the log database and the map;
 2. the devkit's `NuPlanScenarioBuilder` loads every scenario (the map's name added to its
    hard-coded `MAP_LOCATIONS`), one starting every S seconds (default 5);
 3. each is simulated as nuPlan's `closed_loop_nonreactive_agents` does — non-reactive agents
-   (`TracksObservation`), the LQR two-stage controller on a kinematic bicycle — with the
+   (`TracksObservation`), the LQR two-stage controller on a kinematic bicycle (or, with
+   `--controller perfect`, nuPlan's `PerfectTrackingController`: the ego is the plan) — with the
    log-replay planner (`LogFuturePlanner`, the expert) or PDM-Closed, and scored with nuPlan's
    metrics composed from its own Hydra configs; the aggregate as its weighted average computes it;
 4. `dash2sim verify LOG --map MAP --from START --to END` scores the same window.
@@ -34,6 +36,7 @@ from nuplan.planning.scenario_builder.nuplan_db.nuplan_scenario_builder import N
 from nuplan.planning.scenario_builder.scenario_filter import ScenarioFilter
 from nuplan.planning.script.builders.metric_builder import build_metrics_engines
 from nuplan.planning.simulation.controller.motion_model.kinematic_bicycle import KinematicBicycleModel
+from nuplan.planning.simulation.controller.perfect_tracking import PerfectTrackingController
 from nuplan.planning.simulation.controller.tracker.lqr import LQRTracker
 from nuplan.planning.simulation.controller.two_stage_controller import TwoStageController
 from nuplan.planning.simulation.observation.tracks_observation import TracksObservation
@@ -82,6 +85,14 @@ def main() -> int:
     parser.add_argument("--every", type=float, default=5.0)
     parser.add_argument("--scenario-seconds", default="5")
     parser.add_argument("--planner", choices=["log", "pdm"], default="log")
+    parser.add_argument("--score-within", type=float, metavar="POINTS",
+                        help="also require the aggregate scores to agree within POINTS (issue #55: 0.01 with "
+                             "`--controller perfect`)")
+    parser.add_argument("--controller", choices=["lqr", "perfect"], default="lqr",
+                        help="how nuPlan's ego follows the plan: `lqr`, the two-stage LQR tracker on a kinematic "
+                             "bicycle (closed_loop_nonreactive_agents), or `perfect` (PerfectTrackingController: "
+                             "the ego is the planned trajectory, so that with the log-replay planner nuPlan scores "
+                             "the log itself, as `dash2sim verify` does)")
     parser.add_argument("--expect-fail", metavar="METRIC",
                         help="a bad drive: some scenario must fail this metric (nuPlan's name) in nuPlan and in dash2sim")
     args = parser.parse_args()
@@ -106,9 +117,11 @@ def main() -> int:
         tracker = LQRTracker(q_longitudinal=[10.0], r_longitudinal=[1.0], q_lateral=[1.0, 10.0, 0.0], r_lateral=[1.0],
                              discretization_time=0.1, tracking_horizon=10, jerk_penalty=1e-4, curvature_rate_penalty=1e-2,
                              stopping_proportional_gain=0.5, stopping_velocity=0.2, vehicle=vehicle)
+        controller = (PerfectTrackingController(scenario) if args.controller == "perfect"
+                      else TwoStageController(scenario, tracker, KinematicBicycleModel(vehicle)))
         setup = SimulationSetup(time_controller=StepSimulationTimeController(scenario),
                                 observations=TracksObservation(scenario),
-                                ego_controller=TwoStageController(scenario, tracker, KinematicBicycleModel(vehicle)),
+                                ego_controller=controller,
                                 scenario=scenario)
         simulation = Simulation(setup, callback=None, simulation_history_buffer_duration=2.0)
         planner = planner_for(args.planner, scenario)
@@ -158,6 +171,8 @@ def main() -> int:
             for m in WEIGHTS:
                 if abs(value(m) - verify["metrics"][m]) > TOLERANCE:
                     problems.append(m)
+            if args.score_within is not None and abs(score - verify["score"]) > args.score_within:
+                problems.append(f"score by {abs(score - verify['score']):.3f}")
             row["disagreements"] = problems
             failures += bool(problems)
         rows.append(row)

@@ -391,6 +391,64 @@ fn wrap(angle: f64) -> f64 {
     }
 }
 
+/// What the evidence decides of a drive whose score is known only within an interval (the
+/// ego's and the objects' doubt): `verify --decide-at`, `finish`'s windows and the
+/// device's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize), serde(rename_all = "lowercase"))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Decision {
+    /// Verified anywhere within the doubt.
+    Verified,
+    /// Rejected anywhere within the doubt.
+    Rejected,
+    /// Verified somewhere within it and rejected elsewhere.
+    Undecided,
+}
+
+impl Decision {
+    /// Its name, as the JSON and the text say it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Decision::Verified => "verified",
+            Decision::Rejected => "rejected",
+            Decision::Undecided => "undecided",
+        }
+    }
+
+    /// The decision of a score interval: verified when all of it is above nuPlan's 90,
+    /// rejected when none of it is.
+    pub fn of_interval(low: f64, high: f64) -> Self {
+        if low > VERIFIED_ABOVE {
+            Decision::Verified
+        } else if high > VERIFIED_ABOVE {
+            Decision::Undecided
+        } else {
+            Decision::Rejected
+        }
+    }
+
+    /// The decision a `Verification` record's code says; none for 0 (a window not
+    /// decided: a log before v1.7) or a code it does not know.
+    pub fn of_code(code: i64) -> Option<Self> {
+        match code {
+            crate::binlog::DECISION_VERIFIED => Some(Decision::Verified),
+            crate::binlog::DECISION_REJECTED => Some(Decision::Rejected),
+            crate::binlog::DECISION_UNDECIDED => Some(Decision::Undecided),
+            _ => None,
+        }
+    }
+
+    /// Its code in a `Verification` record ([`crate::binlog::DECISION_VERIFIED`], …).
+    pub fn code(self) -> i64 {
+        match self {
+            Decision::Verified => crate::binlog::DECISION_VERIFIED,
+            Decision::Rejected => crate::binlog::DECISION_REJECTED,
+            Decision::Undecided => crate::binlog::DECISION_UNDECIDED,
+        }
+    }
+}
+
 /// The final scores.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Scores {
@@ -445,18 +503,39 @@ pub struct Scorer<'a, 's, const WORDS: usize> {
     config: ScoreConfig,
     first_t: Option<f64>,
     last: Option<(f64, Pose2)>,
-    lane: Option<(u32, f64)>,
-    direction: Deque<(f64, f64), DIRECTION_CAPACITY>,
+    /// The map's metrics, with the ego's doubt taken the way each step says.
+    map: MapTally,
+    /// The same held against the ego, kept beside them by [`Scorer::step_both_ways`].
+    against: Option<MapTally>,
+    /// Each step's time and its progress along the lane, for `map` and for `against`.
+    direction: Deque<(f64, [f64; 2]), DIRECTION_CAPACITY>,
     collided: heapless::Vec<u32, COLLISION_CAPACITY>,
     comfort: ComfortWindow,
     poses: u32,
-    noncompliant: u32,
     worst_corner: f64,
-    min_direction: f64,
     min_ttc: f64,
     collisions: (u32, u32, u32),
-    overspeed: f64,
     distance: f64,
+}
+
+/// The metrics a drive's footprint on the map decides — drivable area, driving direction,
+/// speed limit — with the ego's doubt taken one way. Every other metric (collisions, time
+/// to collision, comfort, progress) is the same either way: the objects' doubt is the
+/// caller's to place, and the speed and path shape are taken as logged.
+#[derive(Clone, Copy, Debug)]
+struct MapTally {
+    /// Poses whose footprint was not compliant.
+    noncompliant: u32,
+    /// The lane the centre was last in, and how far along it (m).
+    lane: Option<(u32, f64)>,
+    /// Most negative progress along the lane over one direction window, m.
+    min_direction: f64,
+    /// ∫ overspeed dt, m.
+    overspeed: f64,
+}
+
+impl MapTally {
+    const NONE: MapTally = MapTally { noncompliant: 0, lane: None, min_direction: 0.0, overspeed: 0.0 };
 }
 
 impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
@@ -468,17 +547,15 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
             config,
             first_t: None,
             last: None,
-            lane: None,
+            map: MapTally::NONE,
+            against: None,
             direction: Deque::new(),
             collided: heapless::Vec::new(),
             comfort: ComfortWindow::new(),
             poses: 0,
-            noncompliant: 0,
             worst_corner: f64::NEG_INFINITY,
-            min_direction: 0.0,
             min_ttc: f64::INFINITY,
             collisions: (0, 0, 0),
-            overspeed: 0.0,
             distance: 0.0,
         }
     }
@@ -521,6 +598,32 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         agents: &[Agent],
         doubt: Doubt,
     ) -> Result<StepReport, ScoreError> {
+        self.step_sides(t, pose, agents, doubt, None)
+    }
+
+    /// [`Scorer::step_in_doubt`], and beside it the map's metrics with the same doubt held
+    /// against the ego ([`Doubt::Against`]): one pass gives the drive's score both ways
+    /// ([`Scorer::finish`], [`Scorer::finish_against`]) where two scorers would run the
+    /// collisions and the time to collision twice and hold two of everything (a device's
+    /// windows decide so, in 1 KB more than one scorer).
+    pub fn step_both_ways(
+        &mut self,
+        t: f64,
+        pose: &Pose2,
+        agents: &[Agent],
+        doubt: f64,
+    ) -> Result<StepReport, ScoreError> {
+        self.step_sides(t, pose, agents, Doubt::For { ego: doubt }, Some(Doubt::Against { ego: doubt }))
+    }
+
+    fn step_sides(
+        &mut self,
+        t: f64,
+        pose: &Pose2,
+        agents: &[Agent],
+        doubt: Doubt,
+        against: Option<Doubt>,
+    ) -> Result<StepReport, ScoreError> {
         if !(t.is_finite() && pose.is_finite()) {
             return Err(ScoreError::NotFinite);
         }
@@ -537,43 +640,32 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         self.last = Some((t, *pose));
         self.poses += 1;
 
-        let check = self.checker.check(pose, self.channel, self.lane.map(|(l, _)| l));
-        let ego_doubt = doubt.ego();
+        let check = self.checker.check(pose, self.channel, self.map.lane.map(|(l, _)| l));
         self.worst_corner = self.worst_corner.max(check.worst());
-        let compliant = match doubt {
-            Doubt::For { .. } => check.compliant_within(ego_doubt),
-            Doubt::Against { .. } => check.compliant() && (ego_doubt == 0.0 || self.compliant_aside(pose, ego_doubt)),
+        let (map, compliant, progress) = self.map_step(self.map, pose, &check, doubt, speed, dt);
+        let against = match (against, self.against) {
+            (Some(doubt), tally) => {
+                Some(self.map_step(tally.unwrap_or(MapTally::NONE), pose, &check, doubt, speed, dt))
+            }
+            _ => None,
         };
-        if !compliant {
-            self.noncompliant += 1;
-        }
-        let lenient = matches!(doubt, Doubt::For { .. }) && ego_doubt > 0.0;
-        let centre_lane = match check.centre_lane {
-            Some(c) if !lenient || libm::cos(c.heading - pose.heading) > 0.0 => Some(c),
-            own if lenient => self.checker.lane_headed_within(pose, ego_doubt).or(own),
-            own => own,
-        };
+        self.map = map;
 
-        // Driving direction: progress along the lane the centre stays in.
-        let progress = match (centre_lane, self.lane) {
-            (Some(now), Some((lane, along))) if now.lane == lane => now.along - along,
-            _ => 0.0,
-        };
-        self.lane = centre_lane.map(|c| (c.lane, c.along));
+        // Driving direction: progress along the lane the centre stays in, over the window.
         if self.direction.is_full() {
             self.direction.pop_front();
         }
-        let _ = self.direction.push_back((t, progress));
+        let _ = self.direction.push_back((t, [progress, against.map_or(0.0, |(_, _, p)| p)]));
         let horizon = t - self.config.direction_window - 1e-6;
         while self.direction.front().is_some_and(|&(t0, _)| t0 < horizon) {
             self.direction.pop_front();
         }
-        let direction_progress: f64 = self.direction.iter().map(|&(_, p)| p).sum();
-        self.min_direction = self.min_direction.min(direction_progress);
-
-        // Speed limit of the lane the centre is in.
-        if let Some(limit) = centre_lane.and_then(|c| c.speed_limit) {
-            self.overspeed += (speed - limit).max(0.0) * dt;
+        let sum = |side: usize| -> f64 { self.direction.iter().map(|(_, p)| p[side]).sum() };
+        let direction_progress = sum(0);
+        self.map.min_direction = self.map.min_direction.min(direction_progress);
+        if let Some((mut tally, _, _)) = against {
+            tally.min_direction = tally.min_direction.min(sum(1));
+            self.against = Some(tally);
         }
 
         self.comfort.push(t, pose);
@@ -598,11 +690,55 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         })
     }
 
+    /// One pose's map metrics added to `tally` with the ego's doubt taken `doubt`'s way:
+    /// the tally, whether the footprint counts as compliant, and the progress along the
+    /// lane the centre is in (m). [`Doubt::For`] gives the ego the benefit of it: a corner
+    /// breaks drivable-area compliance only when it is outside by nuPlan's 0.3 m and the
+    /// ego's doubt more ([`PoseCheck::compliant_within`]); a centre in no lane heading the
+    /// ego's way is taken to be in the nearest one that does within the doubt
+    /// ([`Checker::lane_headed_within`]), for the driving direction and the speed limit.
+    /// [`Doubt::Against`] holds it against the ego: the footprint must also be compliant
+    /// moved its doubt to either side.
+    fn map_step(
+        &self,
+        mut tally: MapTally,
+        pose: &Pose2,
+        check: &PoseCheck,
+        doubt: Doubt,
+        speed: f64,
+        dt: f64,
+    ) -> (MapTally, bool, f64) {
+        let ego_doubt = doubt.ego();
+        let compliant = match doubt {
+            Doubt::For { .. } => check.compliant_within(ego_doubt),
+            Doubt::Against { .. } => check.compliant() && (ego_doubt == 0.0 || self.compliant_aside(pose, ego_doubt)),
+        };
+        if !compliant {
+            tally.noncompliant += 1;
+        }
+        let lenient = matches!(doubt, Doubt::For { .. }) && ego_doubt > 0.0;
+        let centre_lane = match check.centre_lane {
+            Some(c) if !lenient || libm::cos(c.heading - pose.heading) > 0.0 => Some(c),
+            own if lenient => self.checker.lane_headed_within(pose, ego_doubt).or(own),
+            own => own,
+        };
+        let progress = match (centre_lane, tally.lane) {
+            (Some(now), Some((lane, along))) if now.lane == lane => now.along - along,
+            _ => 0.0,
+        };
+        tally.lane = centre_lane.map(|c| (c.lane, c.along));
+        // Speed limit of the lane the centre is in.
+        if let Some(limit) = centre_lane.and_then(|c| c.speed_limit) {
+            tally.overspeed += (speed - limit).max(0.0) * dt;
+        }
+        (tally, compliant, progress)
+    }
+
     /// Whether the footprint stays compliant moved `by` m to its left and to its right.
     fn compliant_aside(&self, pose: &Pose2, by: f64) -> bool {
         [by, -by].iter().all(|&left| {
             let (x, y) = pose.offset(0.0, left);
-            self.checker.check(&Pose2::new(x, y, pose.heading), self.channel, self.lane.map(|(l, _)| l)).compliant()
+            self.checker.check(&Pose2::new(x, y, pose.heading), self.channel, self.map.lane.map(|(l, _)| l)).compliant()
         })
     }
 
@@ -690,6 +826,16 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
     /// The scores of the drive so far. `expert_progress` is the expert's path length
     /// (m); `None` when the replayed ego is the expert.
     pub fn finish(&self, expert_progress: Option<f64>) -> Scores {
+        self.scores(&self.map, expert_progress)
+    }
+
+    /// The scores of the drive so far with the ego's doubt held against it, where it was
+    /// scored [`Scorer::step_both_ways`]; `None` otherwise.
+    pub fn finish_against(&self, expert_progress: Option<f64>) -> Option<Scores> {
+        self.against.as_ref().map(|tally| self.scores(tally, expert_progress))
+    }
+
+    fn scores(&self, map: &MapTally, expert_progress: Option<f64>) -> Scores {
         let cfg = &self.config;
         let duration = match (self.first_t, self.last) {
             (Some(t0), Some((t1, _))) => t1 - t0,
@@ -697,8 +843,8 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         };
         let no_at_fault_collisions =
             if self.collisions.0 > 0 { 0.0 } else { (1.0 - 0.5 * f64::from(self.collisions.1)).max(0.0) };
-        let drivable_area = if self.noncompliant == 0 { 1.0 } else { 0.0 };
-        let backwards = -self.min_direction;
+        let drivable_area = if map.noncompliant == 0 { 1.0 } else { 0.0 };
+        let backwards = -map.min_direction;
         let driving_direction = if backwards < cfg.direction_compliant {
             1.0
         } else if backwards < cfg.direction_violation {
@@ -711,7 +857,7 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         let making_progress = if progress >= cfg.min_progress_ratio { 1.0 } else { 0.0 };
         let ttc = if self.min_ttc > cfg.ttc_threshold { 1.0 } else { 0.0 };
         let speed_limit =
-            if duration > 0.0 { (1.0 - self.overspeed / (cfg.overspeed_scale * duration)).max(0.0) } else { 1.0 };
+            if duration > 0.0 { (1.0 - map.overspeed / (cfg.overspeed_scale * duration)).max(0.0) } else { 1.0 };
         let comfort = if self.comfort.extremes.within(&cfg.comfort) { 1.0 } else { 0.0 };
         let weighted = (WEIGHTS[0] * progress + WEIGHTS[1] * ttc + WEIGHTS[2] * speed_limit + WEIGHTS[3] * comfort)
             / WEIGHTS.iter().sum::<f64>();
@@ -728,12 +874,12 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
             score,
             verified: score > VERIFIED_ABOVE,
             poses: self.poses,
-            noncompliant_poses: self.noncompliant,
+            noncompliant_poses: map.noncompliant,
             worst_corner: self.worst_corner,
-            min_direction_progress: self.min_direction,
+            min_direction_progress: map.min_direction,
             min_ttc: self.min_ttc,
             collisions: self.collisions,
-            overspeed_integral: self.overspeed,
+            overspeed_integral: map.overspeed,
             ego_progress: self.distance,
             duration,
             comfort_extremes: self.comfort.extremes,

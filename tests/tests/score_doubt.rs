@@ -110,3 +110,55 @@ fn a_doubt_held_against_the_ego_grows_the_objects_and_moves_it_aside() {
     let (given, _) = drive_past_a_drum(map, y, 50.0, -0.3, Doubt::For { ego: 1.0 });
     assert_eq!(given.score, point.score);
 }
+
+/// A drive weaving towards the divider and over the road's edge by 0.4 m, past a drum, scored
+/// with `doubt` m one way by a scorer of its own.
+fn weave(map: MapView<'_>, doubt: Doubt) -> Scores {
+    let mut scorer: Scorer<'_, '_, 1> =
+        Scorer::new(Checker::new(map, PACIFICA), Channel::Insensitive, ScoreConfig::default());
+    for k in 0..60 {
+        let t = 0.1 * f64::from(k);
+        scorer.step_with(t, &weaving_pose(t), &[drum()], doubt).expect("a finite pose");
+    }
+    scorer.finish(None)
+}
+
+fn weaving_pose(t: f64) -> Pose2 {
+    Pose2::new(100.0 + 12.0 * t, -1.75 + 1.2 * (0.9 * t).sin(), 0.1 * (0.9 * t).cos())
+}
+
+fn drum() -> Agent {
+    Agent {
+        id: 1,
+        kind: AgentKind::Object,
+        bbox: OrientedBox { centre: Pose2::new(150.0, -5.5, 0.0), length: 0.6, width: 0.6 },
+        velocity: (0.0, 0.0),
+    }
+}
+
+#[test]
+fn one_pass_both_ways_scores_as_two_scorers_do() {
+    let bytes = two_way();
+    let map = MapView::parse(&bytes).expect("valid tile");
+    for doubt in [0.0, 0.3, 0.8, 1.5] {
+        let mut both: Scorer<'_, '_, 1> =
+            Scorer::new(Checker::new(map, PACIFICA), Channel::Insensitive, ScoreConfig::default());
+        for k in 0..60 {
+            let t = 0.1 * f64::from(k);
+            both.step_both_ways(t, &weaving_pose(t), &[drum()], doubt).expect("a finite pose");
+        }
+        let (lenient, strict) = (weave(map, Doubt::For { ego: doubt }), weave(map, Doubt::Against { ego: doubt }));
+        assert_eq!(both.finish(None), lenient, "doubt {doubt}");
+        assert_eq!(both.finish_against(None), Some(strict), "doubt {doubt}");
+        if doubt == 0.8 {
+            // The weave's excursions are forgiven within 0.8 m of doubt and not held against
+            // the ego with it.
+            assert_eq!((lenient.drivable_area, strict.drivable_area), (1.0, 0.0), "{lenient:?} {strict:?}");
+        }
+    }
+    // A scorer stepped one way has nothing held against the ego.
+    let mut one: Scorer<'_, '_, 1> =
+        Scorer::new(Checker::new(map, PACIFICA), Channel::Insensitive, ScoreConfig::default());
+    one.step_in_doubt(0.0, &weaving_pose(0.0), &[], 1.0).expect("a finite pose");
+    assert_eq!(one.finish_against(None), None);
+}

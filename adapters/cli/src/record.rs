@@ -274,7 +274,10 @@ pub fn run(args: &RecordArgs) -> Result<()> {
         s.vo_poses, s.anchored_frames, s.carried_frames, s.fixes, s.speeds, s.detections_placed, s.detections_raw, s.track_states, s.track2d_states
     );
     if s.windows > 0 {
-        println!("  verification: {} of {} windows verified", s.windows_verified, s.windows);
+        println!(
+            "  verification: {} of {} windows verified, {} undecided (within the ego's doubt)",
+            s.windows_verified, s.windows, s.windows_undecided
+        );
     }
     if s.imu_samples > 0 {
         println!("  IMU: {} samples, {} impacts", s.imu_samples, s.impacts);

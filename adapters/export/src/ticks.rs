@@ -63,9 +63,77 @@ fn wrap(a: f64) -> f64 {
     (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
 }
 
+/// Poses in a derivative's local fit: `verify`'s comfort window (7 poses, 0.6 s of a 10 Hz
+/// log).
+const FIT_POSES: usize = dash2sim_core::score::COMFORT_WINDOW;
+
+/// The first and second derivative at `t0` of the quadratic in time fitted (least squares)
+/// through `samples` (time s, value); `None` where their times do not fix one.
+fn quadratic_derivatives(samples: &[(f64, f64)], t0: f64) -> Option<(f64, f64)> {
+    if samples.len() < 3 {
+        return None;
+    }
+    // Normal equations of v = a + b·τ + c·τ², τ = t − t0.
+    let mut m = [[0.0; 3]; 3];
+    let mut r = [0.0; 3];
+    for &(t, v) in samples {
+        let tau = t - t0;
+        let basis = [1.0, tau, tau * tau];
+        for i in 0..3 {
+            for j in 0..3 {
+                m[i][j] += basis[i] * basis[j];
+            }
+            r[i] += basis[i] * v;
+        }
+    }
+    let m = dash2sim_core::nalgebra::Matrix3::from_fn(|i, j| m[i][j]);
+    let coefficients = m.lu().solve(&Vector3::from(r))?;
+    coefficients.iter().all(|c| c.is_finite()).then(|| (coefficients[1], 2.0 * coefficients[2]))
+}
+
+/// Each pose's velocity and acceleration (east, north) and yaw rate, from a quadratic fitted
+/// in time through the [`FIT_POSES`] poses around it — within its stretch of poses less than
+/// [`dash2sim_core::score::HOLE_S`] apart, and shifted inwards at a stretch's ends — as
+/// `verify`'s comfort metric differentiates them (Savitzky–Golay's quadratic, on the log's
+/// own times). Differenced between resampled ticks instead, the velocity is a staircase
+/// between the log's poses and the acceleration a row of spikes at them: nuPlan, whose
+/// comfort metric reads a log's accelerations, failed drives that `verify` passes.
+fn pose_derivatives(poses: &[(i64, [f64; 4])]) -> Vec<[f64; 5]> {
+    let seconds = |k: usize| poses[k].0 as f64 * 1e-6;
+    // Unwrapped headings, so that a fit never straddles ±π.
+    let mut heading = Vec::with_capacity(poses.len());
+    for (k, p) in poses.iter().enumerate() {
+        let previous = if k > 0 { heading[k - 1] } else { p.1[3] };
+        heading.push(if k > 0 { previous + wrap(p.1[3] - previous) } else { previous });
+    }
+    let mut out = vec![[0.0; 5]; poses.len()];
+    let mut start = 0;
+    while start < poses.len() {
+        let mut end = start + 1;
+        while end < poses.len() && seconds(end) - seconds(end - 1) <= dash2sim_core::score::HOLE_S {
+            end += 1;
+        }
+        for (k, derivatives) in out.iter_mut().enumerate().take(end).skip(start) {
+            let from = k.saturating_sub(FIT_POSES / 2).max(start).min(end.saturating_sub(FIT_POSES).max(start));
+            let to = (from + FIT_POSES).min(end);
+            let t0 = seconds(k);
+            let fit = |value: &dyn Fn(usize) -> f64| {
+                let samples: Vec<(f64, f64)> = (from..to).map(|i| (seconds(i), value(i))).collect();
+                quadratic_derivatives(&samples, t0)
+            };
+            let (vx, ax) = fit(&|i| poses[i].1[0]).unwrap_or((0.0, 0.0));
+            let (vy, ay) = fit(&|i| poses[i].1[1]).unwrap_or((0.0, 0.0));
+            let (yaw_rate, _) = fit(&|i| heading[i]).unwrap_or((0.0, 0.0));
+            *derivatives = [vx, vy, ax, ay, yaw_rate];
+        }
+        start = end;
+    }
+    out
+}
+
 /// The log's ego poses resampled at exactly `rate_hz` (linear in position, shortest-way in
-/// heading), projected, with body-frame velocities and accelerations by central
-/// differences.
+/// heading), projected, with body-frame velocities and accelerations and the yaw rate
+/// from the log's own poses ([`pose_derivatives`]), linear between them.
 pub fn ego_ticks(log: &LogContents, projection: &Projection, rate_hz: f64) -> Result<Vec<EgoTick>> {
     let mut poses: Vec<(i64, [f64; 4])> = log
         .records
@@ -83,6 +151,7 @@ pub fn ego_ticks(log: &LogContents, projection: &Projection, rate_hz: f64) -> Re
     let (Some(first), Some(last)) = (poses.first(), poses.last()) else {
         return Err(Error::invalid("the log has no ego poses"));
     };
+    let derivatives = pose_derivatives(&poses);
     let step = (1e6 / rate_hz) as i64;
     let ticks = ((last.0 - first.0) / step + 1) as usize;
     let mut enu = Vec::with_capacity(ticks);
@@ -92,41 +161,31 @@ pub fn ego_ticks(log: &LogContents, projection: &Projection, rate_hz: f64) -> Re
         while k + 1 < poses.len() && poses[k + 1].0 < t {
             k += 1;
         }
-        let (a, b) = (poses[k], poses[(k + 1).min(poses.len() - 1)]);
+        let next = (k + 1).min(poses.len() - 1);
+        let (a, b) = (poses[k], poses[next]);
         let f = if b.0 > a.0 { ((t - a.0) as f64 / (b.0 - a.0) as f64).clamp(0.0, 1.0) } else { 0.0 };
         let lerp = |i: usize| a.1[i] + (b.1[i] - a.1[i]) * f;
         let heading = a.1[3] + wrap(b.1[3] - a.1[3]) * f;
-        enu.push((t, [lerp(0), lerp(1), lerp(2), heading]));
+        let derivative = |i: usize| derivatives[k][i] + (derivatives[next][i] - derivatives[k][i]) * f;
+        enu.push((t, [lerp(0), lerp(1), lerp(2), heading], [0, 1, 2, 3, 4].map(derivative)));
     }
-    let points: Vec<(f64, f64, f64)> = enu.iter().map(|(_, p)| (p[0], p[1], p[2])).collect();
+    let points: Vec<(f64, f64, f64)> = enu.iter().map(|(_, p, _)| (p[0], p[1], p[2])).collect();
     let projected = projection.project(&points);
-    let headings: Vec<f64> = enu.iter().map(|(_, p)| projection.heading((p[0], p[1], p[2]), p[3])).collect();
-    let dt = 1.0 / rate_hz;
-    let n = enu.len();
-    let velocity_at = |i: usize| {
-        let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
-        let span = (b - a).max(1) as f64 * dt;
-        ((projected[b].0 - projected[a].0) / span, (projected[b].1 - projected[a].1) / span)
-    };
-    let world_velocity: Vec<(f64, f64)> = (0..n).map(velocity_at).collect();
-    let mut out = Vec::with_capacity(n);
-    for i in 0..n {
-        let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
-        let span = (b - a).max(1) as f64 * dt;
-        let accel =
-            ((world_velocity[b].0 - world_velocity[a].0) / span, (world_velocity[b].1 - world_velocity[a].1) / span);
-        let (s, c) = headings[i].sin_cos();
+    let mut out = Vec::with_capacity(enu.len());
+    for (i, (t, p, d)) in enu.into_iter().enumerate() {
+        // Body frame from the ENU heading: the projection turns the world frame and the
+        // heading alike (and scales lengths by its factor, 1 ± 0.0004).
+        let (s, c) = p[3].sin_cos();
         let body = |v: (f64, f64)| (c * v.0 + s * v.1, -s * v.0 + c * v.1);
-        let (t, p) = enu[i];
         out.push(EgoTick {
             t_us: t,
             x: projected[i].0,
             y: projected[i].1,
             z: p[2],
-            heading: headings[i],
-            velocity: body(world_velocity[i]),
-            acceleration: body(accel),
-            yaw_rate: wrap(headings[b] - headings[a]) / span,
+            heading: projection.heading((p[0], p[1], p[2]), p[3]),
+            velocity: body((d[0], d[1])),
+            acceleration: body((d[2], d[3])),
+            yaw_rate: d[4],
             enu: Pose2::new(p[0], p[1], p[3]),
         });
     }
@@ -363,5 +422,59 @@ fn between(a: &AgentTick, b: &AgentTick, tick: usize) -> AgentTick {
         heading: a.heading + wrap(b.heading - a.heading) * f,
         velocity: (lerp(a.velocity.0, b.velocity.0), lerp(a.velocity.1, b.velocity.1)),
         ..*a
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dash2sim_core::binlog::{quantise, EgoPose};
+
+    /// A log braking east at 3 m/s² from 20 m/s, its poses at 10 Hz each off by ±2 cm
+    /// alternately (a VO's frame-to-frame noise).
+    fn braking() -> LogContents {
+        let records = (0..50)
+            .map(|k| {
+                let t = 0.1 * f64::from(k);
+                let noise = if k % 2 == 0 { 0.02 } else { -0.02 };
+                let t_us = quantise(t, 1e-6);
+                Record::EgoPose(EgoPose {
+                    t_us,
+                    x_mm: quantise(20.0 * t - 1.5 * t * t + noise, 1e-3),
+                    ..EgoPose::default()
+                })
+            })
+            .collect();
+        LogContents {
+            header: None,
+            records,
+            damage: Vec::new(),
+            stats: Default::default(),
+            bytes: 0,
+            signing: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn the_ticks_brake_as_the_log_does_without_its_frame_noise() {
+        let projection = Projection::new(Geodetic::new(60.17, 24.94, 0.0).expect("origin")).expect("projection");
+        let ticks = ego_ticks(&braking(), &projection, 20.0).expect("ticks");
+        assert_eq!(ticks.len(), 99);
+        for tick in &ticks[6..93] {
+            let t = tick.t_us as f64 * 1e-6;
+            let (forward, left) = tick.velocity;
+            assert!((forward - (20.0 - 3.0 * t)).abs() < 0.15 && left.abs() < 1e-6, "t {t}: {forward} m/s");
+            // Differenced between ticks, the ±2 cm read as ±8 m/s² spikes.
+            assert!((tick.acceleration.0 + 3.0).abs() < 0.5, "t {t}: {:?}", tick.acceleration);
+            assert!(tick.yaw_rate.abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn a_fit_needs_three_times() {
+        assert_eq!(quadratic_derivatives(&[(0.0, 1.0), (0.1, 2.0)], 0.0), None);
+        let (v, a) = quadratic_derivatives(&[(0.0, 0.0), (0.1, 0.1), (0.3, 0.9)], 0.1).expect("three");
+        // y = 10t²: 2 m/s and 20 m/s² at 0.1 s.
+        assert!((v - 2.0).abs() < 1e-9 && (a - 20.0).abs() < 1e-9, "{v} {a}");
     }
 }

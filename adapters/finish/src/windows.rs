@@ -3,7 +3,7 @@
 //! channel-sensitive (only lanes along the driven route, which needs the whole route and
 //! so is offline work; `docs/verify.md`).
 
-use dash2sim_core::binlog::{quantise, Record, DECISION_REJECTED, DECISION_UNDECIDED, DECISION_VERIFIED};
+use dash2sim_core::binlog::{quantise, Record};
 use dash2sim_core::drivable::Checker;
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Pose2, PACIFICA};
@@ -104,11 +104,7 @@ fn both(
 fn decided_record(t_us: i64, v: &Verification) -> dash2sim_core::binlog::Verification {
     let (decision, [low, high]) = decision_or_point(v.decided.as_ref(), v.scores.score);
     dash2sim_core::binlog::Verification {
-        decision: match decision {
-            Decision::Verified => DECISION_VERIFIED,
-            Decision::Rejected => DECISION_REJECTED,
-            Decision::Undecided => DECISION_UNDECIDED,
-        },
+        decision: decision.code(),
         score_low_e2: quantise(low, 1e-2),
         score_high_e2: quantise(high, 1e-2),
         ..verification_record(t_us, &v.scores)

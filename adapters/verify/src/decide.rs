@@ -10,7 +10,7 @@
 use serde::Serialize;
 
 use dash2sim_core::obb::OrientedBox;
-use dash2sim_core::score::{Agent, AgentKind, Scores, HOLE_S, VERIFIED_ABOVE};
+use dash2sim_core::score::{Agent, AgentKind, Scores, HOLE_S};
 
 use super::StatedUncertainty;
 
@@ -60,40 +60,7 @@ impl Default for DoubtSettings {
     }
 }
 
-/// What the evidence decides.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Decision {
-    /// Verified anywhere within the doubt.
-    Verified,
-    /// Rejected anywhere within the doubt.
-    Rejected,
-    /// Verified somewhere within it and rejected elsewhere.
-    Undecided,
-}
-
-impl Decision {
-    /// Its name, as the JSON and the text say it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Decision::Verified => "verified",
-            Decision::Rejected => "rejected",
-            Decision::Undecided => "undecided",
-        }
-    }
-
-    /// The decision of a score interval: verified when all of it is above nuPlan's 90,
-    /// rejected when none of it is.
-    pub fn of_interval(low: f64, high: f64) -> Self {
-        if low > VERIFIED_ABOVE {
-            Decision::Verified
-        } else if high > VERIFIED_ABOVE {
-            Decision::Undecided
-        } else {
-            Decision::Rejected
-        }
-    }
-}
+pub use dash2sim_core::score::Decision;
 
 /// The decision and the score's interval of `decided`; without one (no doubt was asked
 /// for), nuPlan's verdict of `score` and the point itself.

@@ -293,8 +293,11 @@ pub struct PipelineStats {
     pub track2d_states: u64,
     /// Verification windows written.
     pub windows: u64,
-    /// Verified windows.
+    /// Windows decided verified: verified with the ego's doubt held against it.
     pub windows_verified: u64,
+    /// Windows undecided: verified with the ego's doubt given to it, not with it held
+    /// against it.
+    pub windows_undecided: u64,
     /// Windows with an at-fault collision (their `no_at_fault_collisions` below 1).
     pub collision_windows: u64,
     /// Harsh brakings ([`braking`]).
@@ -311,7 +314,7 @@ impl core::fmt::Display for PipelineStats {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         write!(
             f,
-            "{} VO poses ({} anchored, {} carried), {} fixes, {} speeds, {} 3D track states, {} windows ({} verified), {} records",
+            "{} VO poses ({} anchored, {} carried), {} fixes, {} speeds, {} 3D track states, {} windows ({} verified, {} undecided), {} records",
             self.vo_poses,
             self.anchored_frames,
             self.carried_frames,
@@ -320,6 +323,7 @@ impl core::fmt::Display for PipelineStats {
             self.track_states,
             self.windows,
             self.windows_verified,
+            self.windows_undecided,
             self.records
         )
     }

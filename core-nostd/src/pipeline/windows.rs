@@ -5,11 +5,11 @@
 use embedded_io::Write;
 
 use super::{edge, lag, verification_record, PipelineError, State};
-use crate::binlog::Record;
+use crate::binlog::{quantise, Record, Verification};
 use crate::decimal::Decimal;
 use crate::drivable::{Channel, Checker};
 use crate::obb::Pose2;
-use crate::score::{Agent, Scorer, Scores};
+use crate::score::{Agent, Decision, Scorer, Scores};
 use crate::time::Timestamp;
 
 /// Agents the tracker stopped reporting are scored for this long after (s): the smoothed
@@ -100,8 +100,9 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         }
         self.windows.agents_t = ts;
         let Some(window) = self.windows.window.as_mut() else { return Ok(()) };
-        // A refused pose (not finite, time not increasing) leaves the window as it was.
-        if let Ok(report) = window.scorer.step_in_doubt(ts, ego, &self.windows.agents, self.windows.doubt_m) {
+        // A refused pose (not finite, time not increasing) leaves the window as it was. The
+        // ego's doubt is given to it and, beside, held against it: the window is decided.
+        if let Ok(report) = window.scorer.step_both_ways(ts, ego, &self.windows.agents, self.windows.doubt_m) {
             window.last = t;
             if let Some(collision) = &report.collision {
                 self.windows.edge_collisions.push(ts, collision);
@@ -113,29 +114,45 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         Ok(())
     }
 
+    /// Closes the open window: its scores with the ego's doubt given to it (the record's
+    /// score, as before windows were decided) and held against it bound the window's score,
+    /// and decide it (verified, rejected or undecided, as `verify --decide-at` does).
     pub(super) fn close_window(&mut self, t: Timestamp) -> Result<(), PipelineError<W::Error>> {
         let Some(window) = self.windows.window.take() else { return Ok(()) };
-        let own: Scores = window.scorer.finish(None);
-        let s = window.inherited_collision.map_or(own, |m| edge::inherit(&own, m));
+        let inherit = |own: Scores| window.inherited_collision.map_or(own, |m| edge::inherit(&own, m));
+        let s = inherit(window.scorer.finish(None));
+        let against = window.scorer.finish_against(None).map_or(s, inherit);
         if s.poses == 0 {
             return Ok(());
         }
-        self.log.stats.windows = self.log.stats.windows.saturating_add(1);
-        if s.verified {
-            self.log.stats.windows_verified = self.log.stats.windows_verified.saturating_add(1);
+        let (low, high) = (s.score.min(against.score), s.score.max(against.score));
+        let decision = Decision::of_interval(low, high);
+        let stats = &mut self.log.stats;
+        stats.windows = stats.windows.saturating_add(1);
+        match decision {
+            Decision::Verified => stats.windows_verified = stats.windows_verified.saturating_add(1),
+            Decision::Undecided => stats.windows_undecided = stats.windows_undecided.saturating_add(1),
+            Decision::Rejected => {}
         }
         if s.no_at_fault_collisions < 1.0 {
-            self.log.stats.collision_windows = self.log.stats.collision_windows.saturating_add(1);
+            stats.collision_windows = stats.collision_windows.saturating_add(1);
         }
-        self.log.write(&Record::Verification(verification_record(self.log.time(t), &s)))?;
-        let verdict = if s.verified { "verified" } else { "not verified" };
+        let record = Verification {
+            decision: decision.code(),
+            score_low_e2: quantise(low, 1e-2),
+            score_high_e2: quantise(high, 1e-2),
+            ..verification_record(self.log.time(t), &s)
+        };
+        self.log.write(&Record::Verification(record))?;
         self.log.event(
             t,
             2,
             format_args!(
-                "verification window of {} s: score {}, {verdict}",
+                "verification window of {} s: score {} to {}, {}",
                 Decimal::new(s.duration, 1),
-                Decimal::new(s.score, 2)
+                Decimal::new(low, 2),
+                Decimal::new(high, 2),
+                decision.name()
             ),
         )
     }

@@ -82,7 +82,7 @@ pub fn print(s: &Value) {
         println!("  recording     from the drive's files: {} inputs in receive-time order", r["inputs"]);
     }
     println!(
-        "  pipeline      {} records: {} VO poses ({} anchored), {} fixes, {} speeds, {} 3D detections placed, {} 3D and {} 2D track states, {} of {} windows verified",
+        "  pipeline      {} records: {} VO poses ({} anchored), {} fixes, {} speeds, {} 3D detections placed, {} 3D and {} 2D track states, {} of {} windows verified ({} undecided)",
         p["records"],
         p["vo_poses"],
         p["anchored_frames"],
@@ -92,7 +92,8 @@ pub fn print(s: &Value) {
         p["track_states"],
         p["track2d_states"],
         p["windows_verified"],
-        p["windows"]
+        p["windows"],
+        p["windows_undecided"]
     );
     let (on, fin) = (&s["anchoring"]["online"], &s["anchoring"]["finished"]);
     let observable =

@@ -319,8 +319,10 @@ impl<'s> Folder<'s> {
             Some("harsh braking")
         } else if now.impacts > then.impacts {
             Some("an impact (the G-sensor's trigger)")
-        } else if now.windows_verified > then.windows_verified {
-            Some("it holds a verified window")
+        } else if now.windows_verified + now.windows_undecided > then.windows_verified + then.windows_undecided {
+            // Undecided too: the evidence could not tell within the ego's doubt, and
+            // finishing with anchors may verify it.
+            Some("it holds a window verified or undecided")
         } else {
             None
         }

@@ -20,7 +20,7 @@ use dash2sim_finish::FinishReport;
 use dash2sim_linux::ingest::map_tile::fine_index;
 use dash2sim_linux::log::{self, LogContents};
 use dash2sim_linux::record::Setup;
-use dash2sim_verify::decide::DoubtSettings;
+use dash2sim_verify::decide::{Decision, DoubtSettings};
 use dash2sim_verify::{AgentsByTime, Metrics, StatedUncertainty, VerifyReport};
 
 /// Which street-imagery anchors finishing is given.
@@ -119,6 +119,9 @@ pub struct WindowPair {
     pub device_score: f64,
     /// See `device_score`.
     pub device_verified: bool,
+    /// The device's decision with the ego's doubt (none from a device that did not decide
+    /// its windows).
+    pub device_decision: Option<Decision>,
     /// The device's metrics below 1 (what its verdict rests on).
     pub device_failed: Vec<&'static str>,
     /// The true drive's score and verdict over the frames of the same stretch.
@@ -245,6 +248,7 @@ fn window_pairs(
             end_s: end,
             device_score: v.score_e2 as f64 / 100.0,
             device_verified: v.score_e2 > 9000,
+            device_decision: Decision::of_code(v.decision),
             device_failed: Metrics::of_record(v).failed(),
             truth_score: s.score,
             truth_verified: s.verified,

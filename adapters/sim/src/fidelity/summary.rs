@@ -346,6 +346,16 @@ pub struct Summary {
     pub device_window_coverage: Option<f64>,
     /// Device windows verified where the truth has an at-fault collision.
     pub device_verified_collision_windows: usize,
+    /// The device's window decisions with the ego's doubt against the truth's verdicts over
+    /// the same stretches (windows the device did not decide are left out).
+    pub device_window_decisions: DecisionTable,
+    /// Of the device's decided windows, the fraction equal to the truth's.
+    pub device_window_agreement_among_decided: Option<f64>,
+    /// The device's windows undecided, of its decided and undecided ones.
+    pub device_window_undecided_rate: Option<f64>,
+    /// Device windows decided verified where the truth collides or leaves the drivable
+    /// area.
+    pub device_decided_verified_off_road_or_collision: usize,
     /// Median finished APE, m.
     pub ape_finished_median_m: Option<f64>,
     /// Drives the device never anchored.
@@ -403,6 +413,12 @@ impl Summary {
         }));
         let device_windows =
             Confusion::of(ok.iter().flat_map(|r| r.windows.iter().map(|w| (w.truth_verified, w.device_verified))));
+        let mut device_window_decisions = DecisionTable::default();
+        for w in ok.iter().flat_map(|r| &r.windows) {
+            if let Some(decision) = w.device_decision {
+                device_window_decisions.add(w.truth_verified, decision);
+            }
+        }
         let abs = |x: Option<f64>| x.map(f64::abs);
         let spread = Spreads {
             ape_online_m: Spread::of(ok.iter().map(|r| r.online_ape_m)),
@@ -491,6 +507,17 @@ impl Summary {
                 .flat_map(|r| &r.windows)
                 .filter(|w| w.truth_collision && w.device_verified)
                 .count(),
+            device_window_agreement_among_decided: device_window_decisions.agreement_among_decided(),
+            device_window_undecided_rate: device_window_decisions.undecided_rate(),
+            device_decided_verified_off_road_or_collision: ok
+                .iter()
+                .flat_map(|r| &r.windows)
+                .filter(|w| {
+                    w.device_decision == Some(Decision::Verified)
+                        && (w.truth_collision || w.truth_failed.contains(&"drivable_area_compliance"))
+                })
+                .count(),
+            device_window_decisions,
             ape_finished_median_m: spread.ape_finished_m.p50,
             never_anchored: ok.iter().filter(|r| r.first_anchor_s.is_none()).count(),
             drives_with_vo_reinit: ok.iter().filter(|r| r.vo_sessions > 1).count(),
@@ -559,6 +586,17 @@ impl Summary {
             pct(self.device_window_coverage),
             self.device_verified_collision_windows
         );
+        let d = &self.device_window_decisions;
+        let _ = writeln!(
+            t,
+            "  device window decisions with its doubt   verified  rejected  undecided   (agreement among decided {}, undecided {}, verified where the truth collides or leaves the road {})",
+            pct(self.device_window_agreement_among_decided),
+            pct(self.device_window_undecided_rate),
+            self.device_decided_verified_off_road_or_collision
+        );
+        for (truth, row) in [("truth verifies", &d.truth_verified), ("truth rejects", &d.truth_rejected)] {
+            let _ = writeln!(t, "    {truth:<36} {:>8}  {:>8}  {:>9}", row.verified, row.rejected, row.undecided);
+        }
         let _ = writeln!(
             t,
             "  finished decisions with 2σ of doubt   verified  rejected  undecided  failed   (wrong decided {}, undecided {}, agreement among decided {})",
@@ -717,6 +755,7 @@ mod tests {
             end_s,
             device_score: 100.0,
             device_verified: true,
+            device_decision: Some(Decision::Undecided),
             device_failed: Vec::new(),
             truth_score: 100.0,
             truth_verified: true,
@@ -733,6 +772,13 @@ mod tests {
         assert!(summary.disagreements[0].metrics[0].contains("unreadable"));
         // 30 s of windows over three 40 s drives, the failed one's included.
         assert_eq!(summary.device_window_coverage, Some(0.25));
+        // Both windows undecided where the truth verifies: none decided.
+        let w = summary.device_window_decisions;
+        assert_eq!((w.truth_verified.undecided, w.decided()), (2, 0));
+        assert_eq!(
+            (summary.device_window_undecided_rate, summary.device_window_agreement_among_decided),
+            (Some(1.0), None)
+        );
         // Every row says the oracle was in.
         assert!(rows.iter().all(|r| r.oracle_latency));
         assert!(summary.text().contains("1 failed"), "{}", summary.text());

@@ -123,7 +123,7 @@ truth_score,truth_verified,truth_failed,online_score,online_verified,online_fail
 truth_score_cs,truth_verified_cs,online_score_cs,online_verified_cs,finished_score_cs,finished_verified_cs,finished_failed_cs,\
 online_ape_m,finished_ape_m,online_ape_utc_m,finished_ape_utc_m,online_clock_error_s,finished_clock_error_s,online_scale_error,finished_scale_error,online_mota,online_idf1,finished_mota,finished_idf1,\
 first_anchor_s,vo_sessions,mount_error_deg,mount_calibrated,finished_mount_yaw_error_deg,online_within_2sigma,online_nees,finished_within_2sigma,finished_nees,latency_error_s,online_latency_error_s,gnss_mean_error_m,wheel_factor_error,windows,device_windows_verified,truth_windows_verified,\
-finished_decision,finished_score_low,finished_score_high,online_decision";
+finished_decision,finished_score_low,finished_score_high,online_decision,device_window_decisions";
 
 fn csv_row(r: &Row) -> String {
     let opt = |x: Option<f64>| x.map_or_else(String::new, |v| format!("{v:.6}"));
@@ -142,7 +142,7 @@ fn csv_row(r: &Row) -> String {
     };
     let error = r.error.as_deref().map_or_else(String::new, |e| format!("\"{}\"", e.replace('"', "'")));
     format!(
-        "{},{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        "{},{},{},{},{},{},{error},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
         r.seed,
         r.driver,
         r.profile,
@@ -185,6 +185,11 @@ fn csv_row(r: &Row) -> String {
         marks(|w| w.truth_verified),
         decided(r.finished.as_ref().map(|v| &v.insensitive)),
         r.online.as_ref().map_or("", |v| v.insensitive.decision.name()),
+        // Per window: v verified, r rejected, u undecided, - not decided.
+        r.windows
+            .iter()
+            .map(|w| w.device_decision.map_or('-', |d| d.name().chars().next().unwrap_or('-')))
+            .collect::<String>(),
     )
 }
 
