@@ -133,7 +133,7 @@ fn pose_derivatives(poses: &[(i64, [f64; 4])]) -> Vec<[f64; 5]> {
 
 /// The log's ego poses resampled at exactly `rate_hz` (linear in position, shortest-way in
 /// heading), projected, with body-frame velocities and accelerations and the yaw rate
-/// from the log's own poses ([`pose_derivatives`]), linear between them.
+/// from the log's own poses (a quadratic fitted through the 7 around each), linear between them.
 pub fn ego_ticks(log: &LogContents, projection: &Projection, rate_hz: f64) -> Result<Vec<EgoTick>> {
     let mut poses: Vec<(i64, [f64; 4])> = log
         .records
