@@ -567,7 +567,8 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
 
     /// [`Scorer::step`] for a pose whose position is in doubt by `doubt` m (a device's ego,
     /// `k` of its stated σ), given the benefit of the doubt on the map's metrics:
-    /// [`Scorer::step_with`] with [`Doubt::For`]`(doubt)`. The device's windows score so.
+    /// [`Scorer::step_with`] with [`Doubt::For`]`(doubt)`. (The device's windows score both
+    /// ways at once: [`Scorer::step_both_ways`].)
     pub fn step_in_doubt(
         &mut self,
         t: f64,

@@ -38,7 +38,8 @@ fn windows_text(windows: &Value) -> String {
     format!("{verified_count} of {} verified ({})", list.len(), each.join(", "))
 }
 
-/// The device's windows, each with the truth's verdict over the same stretch.
+/// The device's windows, each with its decision within the ego's doubt and the truth's
+/// verdict over the same stretch.
 fn device_windows_text(windows: &Value) -> String {
     let Some(list) = windows.as_array().filter(|l| !l.is_empty()) else { return "none".to_owned() };
     let mark = |v: &Value| if v.as_bool().unwrap_or(false) { "✓" } else { "✗" };
@@ -47,9 +48,10 @@ fn device_windows_text(windows: &Value) -> String {
         .iter()
         .map(|w| {
             format!(
-                "{} {:.1} (truth {})",
+                "{} {:.1}{} (truth {})",
                 mark(&w["device_verified"]),
                 num(&w["device_score"]),
+                w["device_decision"].as_str().map_or(String::new(), |d| format!(", {d}")),
                 mark(&w["truth_verified"])
             )
         })
