@@ -13,6 +13,7 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
+use dash2sim_core::score::Decision;
 use dash2sim_linux::log;
 use dash2sim_linux::{Error, Result};
 use scene::Scene;
@@ -29,6 +30,7 @@ pub const ONLINE: RGBColor = RGBColor(255, 127, 14);
 /// The finished ego's colour.
 pub const FINISHED: RGBColor = RGBColor(31, 119, 180);
 const VERIFIED: RGBColor = RGBColor(200, 235, 200);
+const UNDECIDED: RGBColor = RGBColor(250, 230, 180);
 /// The font the PNG's text is drawn with.
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 
@@ -262,21 +264,28 @@ fn draw_speed<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, scene: &Scene) 
     legend(&mut chart, SeriesLabelPosition::LowerRight, 14)
 }
 
+/// Shades the windows verified (green) and undecided within the log's doubt (amber); a
+/// window its log did not decide counts as nuPlan's verdict of its score.
 fn shade_verified<DB: DrawingBackend>(
     chart: &mut ChartContext<'_, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
     scene: &Scene,
     top: f64,
 ) -> Result<()> {
-    let verified: Vec<(f64, f64)> =
-        scene.windows.iter().filter(|w| w.score > 90.0).map(|w| (w.from_s, w.to_s)).collect();
-    if verified.is_empty() {
-        return Ok(());
+    for (decision, colour, label) in [
+        (Decision::Verified, VERIFIED, "verified window (score > 90)"),
+        (Decision::Undecided, UNDECIDED, "undecided window (within the log's doubt)"),
+    ] {
+        let spans: Vec<(f64, f64)> =
+            scene.windows.iter().filter(|w| w.verdict() == decision).map(|w| (w.from_s, w.to_s)).collect();
+        if spans.is_empty() {
+            continue;
+        }
+        chart
+            .draw_series(spans.iter().map(|&(a, b)| Rectangle::new([(a, 0.0), (b, top)], colour.filled())))
+            .map_err(err)?
+            .label(label)
+            .legend(move |(x, y)| Rectangle::new([(x - 8, y - 5), (x + 8, y + 5)], colour.filled()));
     }
-    chart
-        .draw_series(verified.iter().map(|&(a, b)| Rectangle::new([(a, 0.0), (b, top)], VERIFIED.filled())))
-        .map_err(err)?
-        .label("verified window (score > 90)")
-        .legend(|(x, y)| Rectangle::new([(x - 8, y - 5), (x + 8, y + 5)], VERIFIED.filled()));
     Ok(())
 }
 

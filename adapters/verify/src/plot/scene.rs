@@ -6,6 +6,7 @@ use dash2sim_core::binlog::{Record, Verification};
 use dash2sim_core::geo::LocalFrame;
 use dash2sim_core::map::MapView;
 use dash2sim_core::nalgebra::Vector3;
+use dash2sim_core::score::Decision;
 
 use dash2sim_core::class::name_of as class_name;
 use dash2sim_linux::geometry::capsule;
@@ -51,6 +52,15 @@ pub struct Window {
     pub score: f64,
     /// The metrics, in [`METRICS`] order.
     pub metrics: [f64; 8],
+    /// The window's decision within the log's doubt (none in a log that did not decide it).
+    pub decision: Option<Decision>,
+}
+
+impl Window {
+    /// What the window was decided, or, undecided by its log, nuPlan's verdict of its score.
+    pub fn verdict(&self) -> Decision {
+        self.decision.unwrap_or_else(|| Decision::of_interval(self.score, self.score))
+    }
 }
 
 /// Everything the plot shows.
@@ -155,6 +165,7 @@ fn window(v: &Verification, from_s: f64, to_s: f64) -> Window {
             m(v.speed_limit_e4),
             m(v.comfort_e4),
         ],
+        decision: Decision::of_code(v.decision),
     }
 }
 
@@ -252,7 +263,7 @@ impl Scene {
             lanes: self.lanes_drawn,
             poses: (self.online.points.len(), self.finished.points.len(), self.fixes.len()),
             tracks: self.tracks.iter().map(|(c, p)| (*c, p.len())).collect(),
-            windows: (self.windows.len(), self.windows.iter().filter(|w| w.score > 90.0).count()),
+            windows: (self.windows.len(), self.windows.iter().filter(|w| w.verdict() == Decision::Verified).count()),
         }
     }
 }
@@ -286,4 +297,23 @@ fn map_lanes(bytes: &[u8], here: LocalFrame, bounds: [f64; 4]) -> Result<(Vec<Ri
         }
     }
     Ok((rings, lanes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_window_is_shaded_as_its_log_decided_it_else_by_its_score() {
+        let v = |score_e2, decision| Verification { score_e2, decision, ..Verification::default() };
+        // A device's window verified with the benefit of its doubt, undecided with it held against it.
+        assert_eq!(
+            window(&v(9970, dash2sim_core::binlog::DECISION_UNDECIDED), 0.0, 15.0).verdict(),
+            Decision::Undecided
+        );
+        assert_eq!(window(&v(9970, dash2sim_core::binlog::DECISION_VERIFIED), 0.0, 15.0).verdict(), Decision::Verified);
+        // An older log's window, not decided: nuPlan's verdict of its score.
+        assert_eq!(window(&v(9500, 0), 0.0, 15.0).verdict(), Decision::Verified);
+        assert_eq!(window(&v(6875, 0), 0.0, 15.0).verdict(), Decision::Rejected);
+    }
 }
