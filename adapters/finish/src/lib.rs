@@ -358,7 +358,7 @@ pub fn finish(
 /// speeds. Each session smoothed on its own (a constant-velocity smoother across a gap would
 /// turn the two sessions' disagreement into a velocity), then the sessions joined and the
 /// gaps between them bridged. The wheels report the speed some tens of milliseconds late,
-/// and a smoother fed them as they arrive lags the car by as much: their latency is found
+/// and a smoother fed them as they arrive lags the car by part of it: their latency is found
 /// first against the positions smoothed alone ([`clock::wheel_latency`]), and each speed
 /// is taken at the instant it describes. The poses by time, the bridges, and the wheels'
 /// latency where the drive told it.
@@ -675,6 +675,64 @@ mod tests {
     fn steady_wheels(t0: f64, t1: f64, speed: f64) -> Vec<(f64, f64)> {
         let n = ((t1 - t0) * 50.0).round() as usize;
         (0..=n).map(|k| (t0 + k as f64 * 0.02, speed)).collect()
+    }
+
+    #[test]
+    fn the_finished_ego_follows_the_wheels_at_their_instant_not_their_arrival() {
+        use std::f64::consts::TAU;
+        // East at 15 ± 5 m/s (an 8 s swing); the VO's positions 5 cm off alternately, so
+        // that the wheels carry the speed; the bus reports each speed 80 ms late.
+        let distance = |t: f64| 15.0 * t - 5.0 * 8.0 / TAU * (TAU * t / 8.0).cos();
+        let speed = |t: f64| 15.0 + 5.0 * (TAU * t / 8.0).sin();
+        let vo: Vec<VoSample> = (0..=400)
+            .map(|k| {
+                let t = 0.1 * k as f64;
+                let noise = if k % 2 == 0 { 0.05 } else { -0.05 };
+                VoSample {
+                    t,
+                    session: 0,
+                    position: Vector3::new(distance(t) + noise, 0.0, 0.0),
+                    rotation: Matrix3::identity(),
+                    grade_sigma: 0.0,
+                    reckoned: false,
+                }
+            })
+            .collect();
+        let fixes: Vec<Fix> = (0..=200)
+            .map(|k| {
+                let t = 0.2 * k as f64;
+                Fix { t, enu: Vector3::new(distance(t), 0.0, 0.0), sigma_h: 1.0, sigma_v: 1.5 }
+            })
+            .collect();
+        let speeds: Vec<(f64, f64)> = (0..=2000).map(|k| (0.02 * k as f64 + 0.08, speed(0.02 * k as f64))).collect();
+        let settings = solve::Settings { gravity_aligned: true, ..solve::Settings::default() }.with_latency_held(0.0);
+        let inputs = solve::Inputs { vo: &vo, fixes: &fixes, speeds: &speeds, anchors: &[], lever: Vector3::zeros() };
+        let solution = solve::solve(inputs, settings, &[]).expect("solved");
+        let session =
+            sessions::SessionSolution { session: 0, range: 0..vo.len(), solution, solved_with: (settings, Vec::new()) };
+        let drive = Drive { vo, fixes, speeds, reckoning: None };
+        let (ego, _, latency) = finished_ego(&drive, &[session], &CameraMount::default());
+        let latency = latency.expect("the speed swings");
+        assert!((latency - 0.08).abs() < 0.01, "the wheels found {latency} s late");
+        // The ego's speed (chords over ±0.1 s of its poses) against the car's: the shift that
+        // matches them best is none (10 ms with the speeds taken as they arrive: the positions
+        // hold the smoother back from the whole 80 ms).
+        let track: Vec<(f64, f64)> = ego.values().map(|p| (p.t_us as f64 * 1e-6, p.x_mm as f64 * 1e-3)).collect();
+        let x_at = |t: f64| {
+            let k = track.partition_point(|p| p.0 <= t).clamp(1, track.len() - 1);
+            let (a, b) = (track[k - 1], track[k]);
+            a.1 + (b.1 - a.1) * (t - a.0) / (b.0 - a.0)
+        };
+        let cost = |shift: f64| -> f64 {
+            (50..350)
+                .map(|k| {
+                    let t = 0.1 * k as f64;
+                    ((x_at(t + shift + 0.1) - x_at(t + shift - 0.1)) / 0.2 - speed(t)).powi(2)
+                })
+                .sum()
+        };
+        let best = (-50..=50).map(|i| i as f64 * 0.002).min_by(|a, b| cost(*a).total_cmp(&cost(*b))).unwrap_or(1.0);
+        assert!(best.abs() < 0.005, "the finished ego's speed lags the car's by {best} s");
     }
 
     #[test]
