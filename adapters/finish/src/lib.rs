@@ -705,7 +705,7 @@ mod tests {
             })
             .collect();
         let speeds: Vec<(f64, f64)> = (0..=2000).map(|k| (0.02 * k as f64 + 0.08, speed(0.02 * k as f64))).collect();
-        let settings = solve::Settings { gravity_aligned: true, ..solve::Settings::default() }.with_latency_held(0.0);
+        let settings = Settings { gravity_aligned: true, ..Settings::default() }.with_latency_held(0.0);
         let inputs = solve::Inputs { vo: &vo, fixes: &fixes, speeds: &speeds, anchors: &[], lever: Vector3::zeros() };
         let solution = solve::solve(inputs, settings, &[]).expect("solved");
         let session =
