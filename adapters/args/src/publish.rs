@@ -50,10 +50,28 @@ pub struct PublishArgs {
     /// Write the wheel-speed CAN frames here as candump lines at their rate (a FIFO or file).
     #[arg(long, value_name = "PATH")]
     pub can_out: Option<PathBuf>,
+    /// Also write this many CAN frames a second to --can-out, of a message the logger does
+    /// not use (J1939 engine speed), in bursts every 10 ms: a busy vehicle bus.
+    #[arg(long, value_name = "HZ", default_value_t = 0)]
+    pub bus_load: u32,
+    /// Print what was published, per kind, as JSON (else `N frames published`).
+    #[arg(long)]
+    pub json: bool,
 }
 
-impl From<PublishArgs> for PublishRequest {
-    fn from(a: PublishArgs) -> Self {
+impl PublishArgs {
+    /// What a run published, as the binaries print it.
+    pub fn render(&self, published: &dash2sim_sim::scenario::publish::Published) -> String {
+        if self.json {
+            serde_json::to_string(published).unwrap_or_default()
+        } else {
+            format!("{} frames published", published.frames)
+        }
+    }
+}
+
+impl From<&PublishArgs> for PublishRequest {
+    fn from(a: &PublishArgs) -> Self {
         PublishRequest {
             seed: a.seed,
             driver: a.driver.into(),
@@ -64,10 +82,11 @@ impl From<PublishArgs> for PublishRequest {
             laps: a.laps,
             objects: a.objects,
             speedup: a.speedup,
-            prefix: a.prefix,
+            prefix: a.prefix.clone(),
             images: a.images,
-            nmea_out: a.nmea_out,
-            can_out: a.can_out,
+            nmea_out: a.nmea_out.clone(),
+            can_out: a.can_out.clone(),
+            bus_load: a.bus_load,
         }
     }
 }

@@ -236,7 +236,8 @@ enum ScenarioCommand {
     },
     /// Be the camera process: publish a generated drive over shared memory (iceoryx2) at its
     /// frame rate, and optionally the GNSS receiver's NMEA and the wheel-speed CAN frames
-    /// to a serial device, FIFO or file (docs/bridge.md). Prints `N frames published`.
+    /// to a serial device, FIFO or file (docs/bridge.md). Prints `N frames published` (with
+    /// `--json`, what was published per kind).
     Publish(dash2sim_args::PublishArgs),
     /// Generate a corpus of device logs as a fleet uploads them: drives of several seeds,
     /// lengths, regions and drivers recorded through the pipeline, each with its map tile,
@@ -397,9 +398,8 @@ pub fn run() -> ExitCode {
         Command::Scenario(ScenarioCommand::Generate { output, seed, duration, receiver, profile, driver }) => {
             crate::scenario::generate_to(seed, duration, profile, receiver, driver, &output)
         }
-        Command::Scenario(ScenarioCommand::Publish(args)) => {
-            dash2sim_sim::scenario::publish::run(&args.into()).map(|n| println!("{n} frames published"))
-        }
+        Command::Scenario(ScenarioCommand::Publish(args)) => dash2sim_sim::scenario::publish::run(&(&args).into())
+            .map(|published| println!("{}", args.render(&published))),
         Command::Scenario(ScenarioCommand::Corpus(args)) => crate::scenario::corpus(&args),
         Command::Scenario(ScenarioCommand::Sweep(args)) => crate::scenario::sweep(&args),
         Command::Scenario(ScenarioCommand::Eval { seed, duration, profile, max_age, json }) => {

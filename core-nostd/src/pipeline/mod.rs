@@ -601,10 +601,12 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
     }
 
     /// `n` inputs were dropped before they reached the pipeline (the host's queue was
-    /// full); counted and written as an event like every refused input.
-    pub fn note_dropped(&mut self, t: Timestamp, n: u64) -> Result<(), PipelineError<W::Error>> {
-        let t = self.state.log.monotonic(t)?;
-        self.state.log.issue(t, Issue::InputsDropped, n)
+    /// full); counted and written as an event like every refused input, at the pipeline's
+    /// time (its latest input's): a host behind its inputs notes the drop among them — at
+    /// its own clock, seconds ahead, the inputs after it would read as the clock going back.
+    pub fn note_dropped(&mut self, n: u64) -> Result<(), PipelineError<W::Error>> {
+        let now = self.state.log.now;
+        self.state.log.issue(now, Issue::InputsDropped, n)
     }
 
     /// [`Pipeline::finish`] in place: everything but giving the sink back. A pipeline is

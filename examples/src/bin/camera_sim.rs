@@ -1,6 +1,7 @@
 //! A camera process for tests, demos and load runs: publishes a generated work-zone drive
 //! over the shared-memory bridge at its real frame rate (or `--speedup` times faster) and
-//! prints `N frames published` (`dash2sim_sim::scenario::publish` is the code; `dash2sim
+//! prints `N frames published` (with `--json`, what it published per kind: the load runs'
+//! accounting) (`dash2sim_sim::scenario::publish` is the code; `dash2sim
 //! scenario publish` runs the same).
 //!
 //! `cargo run --release -p dash2sim-examples --bin camera_sim -- --seconds 10`
@@ -23,9 +24,10 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    match publish::run(&Args::parse().publish.into()) {
-        Ok(n) => {
-            println!("{n} frames published");
+    let args = Args::parse().publish;
+    match publish::run(&(&args).into()) {
+        Ok(published) => {
+            println!("{}", args.render(&published));
             ExitCode::SUCCESS
         }
         Err(e) => {

@@ -32,7 +32,7 @@ pub struct Drive {
 }
 
 /// What the live recording did.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct LiveRecording {
     /// The logger's counters.
     pub report: LiveReport,

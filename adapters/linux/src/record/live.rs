@@ -25,8 +25,10 @@ use dash2sim_core::pipeline::replay::{feed, Input, Reader, Recorder};
 use dash2sim_core::pipeline::{GnssSignals, Pipeline, PipelineStats, Trackers};
 use dash2sim_core::time::Timestamp;
 
+use super::interleave::{Interleave, Next};
 use super::storage::{self, Storage, StoragePolicy};
 use super::{FixFinder, Setup};
+use crate::record::bridge::sequence::ServiceCounts;
 use crate::record::bridge::{device_now, CameraInput, CameraSubscriber};
 use crate::{Error, Result};
 
@@ -129,6 +131,10 @@ pub struct LiveStatus {
     pub frames: u64,
     /// Inputs dropped for want of queue space.
     pub dropped: u64,
+    /// What was lost before the pipeline, by kind and reason.
+    pub lost: Lost,
+    /// The camera's messages received per service.
+    pub camera: ServiceCounts,
     /// Whether the pipeline has an anchored estimate.
     pub anchored: bool,
     /// The pipeline's totals.
@@ -154,20 +160,66 @@ enum BusInput {
     Can(CanFrame),
 }
 
+/// What a live recording lost before its inputs reached the pipeline, by kind and reason
+/// (issue #57): with what reached it, what was sent. What the pipeline then refused is in
+/// its issues; what the camera's publishers sent after the recording stopped, or the serial
+/// port and the bus before the recording's last drain, is not in either.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Lost {
+    /// Serial bytes dropped because the readers' queue was full (the logger fell behind).
+    pub queue_full_serial_bytes: u64,
+    /// CAN frames dropped because the readers' queue was full.
+    pub queue_full_can_frames: u64,
+    /// Inputs dropped while waiting for the first fix, because [`WAITING_BYTES`] were held.
+    pub waiting_full: u64,
+    /// The camera's messages skipped in their numbers: lost to the subscriber's overflow (the
+    /// logger more than its buffers behind), or never published (a frame whose VO had lost
+    /// track has no pose).
+    pub camera_skipped: ServiceCounts,
+}
+
+/// The reader threads' and the waiting buffer's drops, counted as they happen.
+#[derive(Debug, Default)]
+struct Drops {
+    /// Inputs (serial reads, CAN frames, waiting inputs): the pipeline's "inputs dropped".
+    inputs: AtomicU64,
+    serial_bytes: AtomicU64,
+    can_frames: AtomicU64,
+    waiting: AtomicU64,
+}
+
+impl Drops {
+    fn lost(&self, camera_skipped: ServiceCounts) -> Lost {
+        Lost {
+            queue_full_serial_bytes: self.serial_bytes.load(Ordering::Relaxed),
+            queue_full_can_frames: self.can_frames.load(Ordering::Relaxed),
+            waiting_full: self.waiting.load(Ordering::Relaxed),
+            camera_skipped,
+        }
+    }
+}
+
 /// Counters of a live run: the summary `record --live --json` prints.
-#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct LiveReport {
     /// What the pipeline did.
     #[serde(flatten)]
     pub stats: PipelineStats,
     /// Camera frames received (frame metadata messages).
     pub frames: u64,
-    /// Inputs dropped because the queue was full.
+    /// Inputs dropped because the queue was full (serial reads and CAN frames) or the
+    /// waiting buffer was ([`Lost`] has them by kind).
     pub dropped: u64,
+    /// What was lost before the pipeline, by kind and reason.
+    pub lost: Lost,
+    /// The camera's messages received per service.
+    pub camera: ServiceCounts,
     /// Log files written.
     pub files: u32,
     /// Refused inputs (all reasons).
     pub issues: u64,
+    /// Refused inputs by reason (the reasons that occurred).
+    pub refused: std::collections::BTreeMap<String, u64>,
     /// Files deleted to keep the folder within its policy.
     pub deleted_files: u32,
     /// Times the log's sink failed (a full disk, an I/O error): each ended its file at the
@@ -179,11 +231,15 @@ pub struct LiveReport {
 /// returns; the pipeline runs on meanwhile and what it would have logged is lost).
 pub const RETRY_FAILED_SINK: Duration = Duration::from_secs(1);
 
-fn send(queue: &SyncSender<(Timestamp, BusInput)>, dropped: &AtomicU64, input: BusInput) -> bool {
+fn send(queue: &SyncSender<(Timestamp, BusInput)>, drops: &Drops, input: BusInput) -> bool {
     match queue.try_send((device_now(), input)) {
         Ok(()) => true,
-        Err(TrySendError::Full(_)) => {
-            dropped.fetch_add(1, Ordering::Relaxed);
+        Err(TrySendError::Full((_, input))) => {
+            drops.inputs.fetch_add(1, Ordering::Relaxed);
+            match input {
+                BusInput::Serial(bytes) => drops.serial_bytes.fetch_add(bytes.len() as u64, Ordering::Relaxed),
+                BusInput::Can(_) => drops.can_frames.fetch_add(1, Ordering::Relaxed),
+            };
             true
         }
         Err(TrySendError::Disconnected(_)) => false,
@@ -206,7 +262,7 @@ fn serial_reader(
     path: &Path,
     baud: u32,
     queue: SyncSender<(Timestamp, BusInput)>,
-    dropped: Arc<AtomicU64>,
+    drops: Arc<Drops>,
 ) -> Result<std::thread::JoinHandle<()>> {
     let mut file = File::open(path).map_err(|e| Error::file(path, e))?;
     raw_mode(&file, baud).map_err(|e| Error::file(path, e))?;
@@ -214,7 +270,7 @@ fn serial_reader(
         let mut buffer = [0u8; 1024];
         // A pty whose writer closed reads as an error (EIO), a file as its end: both end input.
         while let Ok(n) = file.read(&mut buffer) {
-            if n == 0 || !send(&queue, &dropped, BusInput::Serial(buffer[..n].to_vec())) {
+            if n == 0 || !send(&queue, &drops, BusInput::Serial(buffer[..n].to_vec())) {
                 break;
             }
         }
@@ -224,7 +280,7 @@ fn serial_reader(
 fn can_reader(
     request: &LiveRequest,
     queue: SyncSender<(Timestamp, BusInput)>,
-    dropped: Arc<AtomicU64>,
+    drops: Arc<Drops>,
 ) -> Result<Option<std::thread::JoinHandle<()>>> {
     if let Some(interface) = &request.can_interface {
         let mut source = dash2sim_can::source::SocketCanSource::open(interface).map_err(|e| {
@@ -232,7 +288,7 @@ fn can_reader(
         })?;
         return Ok(Some(std::thread::spawn(move || {
             while let Some(Ok(record)) = source.next_frame() {
-                if !send(&queue, &dropped, BusInput::Can(record.frame)) {
+                if !send(&queue, &drops, BusInput::Can(record.frame)) {
                     break;
                 }
             }
@@ -254,7 +310,7 @@ fn can_reader(
                     std::thread::sleep(wait);
                 }
             }
-            if !send(&queue, &dropped, BusInput::Can(record.frame)) {
+            if !send(&queue, &drops, BusInput::Can(record.frame)) {
                 break;
             }
         }
@@ -401,12 +457,12 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
 ) -> Result<LiveReport> {
     let camera = request.camera_prefix.as_deref().map(CameraSubscriber::new).transpose().map_err(Error::other)?;
     let (queue, inputs): (SyncSender<_>, Receiver<_>) = sync_channel(QUEUE);
-    let dropped = Arc::new(AtomicU64::new(0));
+    let drops = Arc::new(Drops::default());
     let mut readers = Vec::new();
     if let Some(path) = &request.serial {
-        readers.push(serial_reader(path, request.baud, queue.clone(), dropped.clone())?);
+        readers.push(serial_reader(path, request.baud, queue.clone(), drops.clone())?);
     }
-    readers.extend(can_reader(request, queue.clone(), dropped.clone())?);
+    readers.extend(can_reader(request, queue.clone(), drops.clone())?);
     drop(queue);
 
     let begun = Instant::now();
@@ -420,7 +476,7 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
                 request,
                 camera: camera.as_ref(),
                 inputs: &inputs,
-                dropped: &dropped,
+                drops: &drops,
                 stop,
                 begun,
                 camera_keep: &camera_keep,
@@ -446,6 +502,7 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
     }
     let (mut file_started, mut last_status) = (Instant::now(), Instant::now());
     let mut dropped_noted = 0u64;
+    let (mut skips_noted, mut skips_looked) = (ServiceCounts::default(), Instant::now());
     let log_error = |e: WriteError<S::Error>| Error::other(format!("log: {e}"));
     // A sink that fails (a full disk, an I/O error) does not stop the recording: its file
     // ends at its last complete frame, the pipeline runs on, and a new file is tried until
@@ -467,32 +524,35 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
             feed(&mut pipeline, t, &input).map_err(log_error)?;
         }
     }
+    // The camera's and the bus's inputs in the order of their stamps.
+    let mut interleave = Interleave::new(camera.is_some());
     loop {
-        let mut busy = false;
+        let mut released = Vec::new();
         if let Some(camera) = &camera {
-            let mut result = Ok(());
-            camera
-                .receive_in_order(|input| {
-                    busy = true;
-                    if result.is_ok() {
-                        result = feed_camera(&mut pipeline, input, &mut frames, &camera_keep);
-                    }
-                })
-                .map_err(Error::other)?;
-            failed(result, &mut failure)?;
+            camera.receive_in_order(|input| released.push(input)).map_err(Error::other)?;
         }
-        while let Ok((t, input)) = inputs.try_recv() {
+        let mut busy = !released.is_empty();
+        // At most a queue's worth a turn: a bus faster than the logger does not starve the
+        // camera's drain.
+        for (t, input) in inputs.try_iter().take(QUEUE) {
             busy = true;
-            let result = match input {
-                BusInput::Serial(bytes) => pipeline.push_serial(t, &bytes),
-                BusInput::Can(frame) => pipeline.push_can(t, &frame),
-            };
-            failed(result, &mut failure)?;
+            interleave.push_bus(t, input);
         }
-        let lost = dropped.load(Ordering::Relaxed);
+        let mut result = Ok(());
+        interleave.release(released, CameraInput::t, device_now(), |next| {
+            if result.is_ok() {
+                result = feed_next(&mut pipeline, next, &mut frames, &camera_keep);
+            }
+        });
+        failed(result, &mut failure)?;
+        let lost = drops.inputs.load(Ordering::Relaxed);
         if lost > dropped_noted {
-            failed(pipeline.note_dropped(device_now(), lost - dropped_noted), &mut failure)?;
+            failed(pipeline.note_dropped(lost - dropped_noted), &mut failure)?;
             dropped_noted = lost;
+        }
+        if let Some(camera) = camera.as_ref().filter(|_| skips_looked.elapsed() >= Duration::from_millis(500)) {
+            skips_looked = Instant::now();
+            failed(note_skipped(&mut pipeline, camera, &mut skips_noted), &mut failure)?;
         }
         let rotating = failure.is_none() && file_started.elapsed() >= request.segment;
         if let Some(f) = folder.as_mut() {
@@ -529,9 +589,12 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
             failed(pipeline.note(3, format_args!("storage: {problem}")), &mut failure)?;
         }
         if let Some(status) = request.status.filter(|_| last_status.elapsed() >= Duration::from_millis(500)) {
+            let (received, skipped) = camera.as_ref().map(CameraSubscriber::tally).unwrap_or_default();
             status(&LiveStatus {
                 frames,
                 dropped: lost,
+                lost: drops.lost(skipped),
+                camera: received,
                 anchored: pipeline.anchorer().estimate().is_some(),
                 stats: *pipeline.stats(),
             });
@@ -545,16 +608,29 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
             std::thread::sleep(Duration::from_millis(1));
         }
     }
-    // What the camera's inputs still held back for their order (the last frame's pose and
-    // detections): the recording ends.
+    // The recording ends: what the readers queued, what waits on the camera's services and
+    // what the camera's inputs held back for their order (the last frame's pose and
+    // detections) go in; what is still in the kernel's buffers does not.
+    let mut released = Vec::new();
     if let Some(camera) = &camera {
-        let mut result = Ok(());
-        camera.flush(|input| {
-            if result.is_ok() {
-                result = feed_camera(&mut pipeline, input, &mut frames, &camera_keep);
-            }
-        });
-        failed(result, &mut failure)?;
+        camera.flush(|input| released.push(input)).map_err(Error::other)?;
+    }
+    for (t, input) in inputs.try_iter() {
+        interleave.push_bus(t, input);
+    }
+    let mut result = Ok(());
+    interleave.flush(released, CameraInput::t, |next| {
+        if result.is_ok() {
+            result = feed_next(&mut pipeline, next, &mut frames, &camera_keep);
+        }
+    });
+    failed(result, &mut failure)?;
+    if let Some(camera) = &camera {
+        failed(note_skipped(&mut pipeline, camera, &mut skips_noted), &mut failure)?;
+    }
+    let lost = drops.inputs.load(Ordering::Relaxed);
+    if lost > dropped_noted {
+        failed(pipeline.note_dropped(lost - dropped_noted), &mut failure)?;
     }
     // What the last file earned since the last look keeps it (the pipeline's closing, below,
     // may still close a window: that protection is in the index only, as the log is closed).
@@ -565,6 +641,7 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
         }
     }
     let issues = pipeline.issues().total();
+    let refused = super::by_reason(pipeline.issues());
     let mut stats = *pipeline.stats();
     // Closing completes the last fix and writes the last segment: on a sink that fails,
     // that is lost like the rest.
@@ -580,7 +657,7 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
         write_failures += 1;
     }
     drop(inputs);
-    let dropped = dropped.load(Ordering::Relaxed);
+    let (camera_received, camera_skipped) = camera.as_ref().map(CameraSubscriber::tally).unwrap_or_default();
     let deleted_files = folder.as_ref().map_or(0, |f| f.deleted);
     if let Some(f) = folder.as_mut() {
         if let Some(reason) = f.earned(&stats) {
@@ -588,7 +665,53 @@ pub fn run_into<S: embedded_io::Write<Error: std::fmt::Display>>(
         }
         f.closed()?;
     }
-    Ok(LiveReport { stats, frames, dropped, files: index + 1, issues, write_failures, deleted_files })
+    Ok(LiveReport {
+        stats,
+        frames,
+        dropped: drops.inputs.load(Ordering::Relaxed),
+        lost: drops.lost(camera_skipped),
+        camera: camera_received,
+        files: index + 1,
+        issues,
+        refused,
+        write_failures,
+        deleted_files,
+    })
+}
+
+/// One input of either source into the pipeline (`frames` counts the camera's frames; its
+/// keep mark sets `camera_keep`).
+fn feed_next<S: embedded_io::Write>(
+    pipeline: &mut Pipeline<'_, S>,
+    next: Next<CameraInput, BusInput>,
+    frames: &mut u64,
+    camera_keep: &AtomicBool,
+) -> std::result::Result<(), WriteError<S::Error>> {
+    match next {
+        Next::Camera(input) => feed_camera(pipeline, input, frames, camera_keep),
+        Next::Bus(t, BusInput::Serial(bytes)) => pipeline.push_serial(t, &bytes),
+        Next::Bus(t, BusInput::Can(frame)) => pipeline.push_can(t, &frame),
+    }
+}
+
+/// The camera's messages skipped in their numbers since the last note, as an event.
+fn note_skipped<S: embedded_io::Write>(
+    pipeline: &mut Pipeline<'_, S>,
+    camera: &CameraSubscriber,
+    noted: &mut ServiceCounts,
+) -> std::result::Result<(), WriteError<S::Error>> {
+    let (_, skipped) = camera.tally();
+    if skipped.total() == noted.total() {
+        return Ok(());
+    }
+    *noted = skipped;
+    pipeline.note(
+        3,
+        format_args!(
+            "camera: skipped in the messages' numbers so far: {skipped} (lost to the bridge's buffers with the \
+             logger behind, or never published)"
+        ),
+    )
 }
 
 /// One camera input into the pipeline (`frames` counts the frames; a keep mark sets
@@ -620,7 +743,7 @@ struct Waiting<'a> {
     request: &'a LiveRequest,
     camera: Option<&'a CameraSubscriber>,
     inputs: &'a Receiver<(Timestamp, BusInput)>,
-    dropped: &'a AtomicU64,
+    drops: &'a Drops,
     stop: &'a AtomicBool,
     begun: Instant,
     /// Set by the camera process's "keep" mark.
@@ -632,7 +755,7 @@ impl Waiting<'_> {
     /// and the camera frames seen. An error when the recording is stopped first.
     fn for_fix(&self, gnss: Option<&GnssSignals>) -> Result<(dash2sim_core::geo::Geodetic, Vec<u8>, u64)> {
         let recorder = Recorder::new(Vec::new()).map_err(|e| match e {})?;
-        let mut kept = Kept { recorder, dropped: self.dropped };
+        let mut kept = Kept { recorder, drops: self.drops };
         let mut finder = FixFinder::new(gnss);
         let (mut frames, mut last_status) = (0u64, Instant::now());
         loop {
@@ -652,7 +775,7 @@ impl Waiting<'_> {
                     })
                     .map_err(Error::other)?;
             }
-            while let Ok((t, input)) = self.inputs.try_recv() {
+            for (t, input) in self.inputs.try_iter().take(QUEUE) {
                 busy = true;
                 let fix = match &input {
                     BusInput::Serial(bytes) => {
@@ -670,8 +793,15 @@ impl Waiting<'_> {
                 }
             }
             if let Some(status) = self.request.status.filter(|_| last_status.elapsed() >= Duration::from_millis(500)) {
-                let dropped = self.dropped.load(Ordering::Relaxed);
-                status(&LiveStatus { frames, dropped, anchored: false, stats: PipelineStats::default() });
+                let (received, skipped) = self.camera.map(CameraSubscriber::tally).unwrap_or_default();
+                status(&LiveStatus {
+                    frames,
+                    dropped: self.drops.inputs.load(Ordering::Relaxed),
+                    lost: self.drops.lost(skipped),
+                    camera: received,
+                    anchored: false,
+                    stats: PipelineStats::default(),
+                });
                 last_status = Instant::now();
             }
             let over = self.request.duration.is_some_and(|d| self.begun.elapsed() >= d);
@@ -692,7 +822,7 @@ impl Waiting<'_> {
 /// The inputs kept while waiting for the first fix, at most [`WAITING_BYTES`] of them.
 struct Kept<'a> {
     recorder: Recorder<Vec<u8>>,
-    dropped: &'a AtomicU64,
+    drops: &'a Drops,
 }
 
 impl Kept<'_> {
@@ -701,7 +831,8 @@ impl Kept<'_> {
         if self.recorder.get_ref().len() < WAITING_BYTES {
             let Ok(()) = write(&mut self.recorder);
         } else {
-            self.dropped.fetch_add(1, Ordering::Relaxed);
+            self.drops.inputs.fetch_add(1, Ordering::Relaxed);
+            self.drops.waiting.fetch_add(1, Ordering::Relaxed);
         }
     }
 }

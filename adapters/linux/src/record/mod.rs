@@ -6,6 +6,8 @@
 #[cfg(feature = "bridge")]
 pub mod bridge;
 #[cfg(feature = "bridge")]
+pub mod interleave;
+#[cfg(feature = "bridge")]
 pub mod live;
 pub mod sources;
 pub mod storage;
@@ -723,12 +725,14 @@ pub struct Summary {
 
 /// The summary of a recording.
 pub fn summary(recording: &Recording) -> Summary {
-    let issues = Issue::ALL
-        .iter()
-        .filter(|i| recording.issues.get(**i) > 0)
-        .map(|i| (format!("{i:?}"), recording.issues.get(*i)))
-        .collect();
+    let issues = by_reason(&recording.issues);
     Summary { stats: recording.stats, inputs: recording.inputs, log_bytes: recording.log.len(), issues, sources: None }
+}
+
+/// The pipeline's refused inputs by reason, the reasons that occurred only (named as
+/// `--json` names them).
+pub fn by_reason(issues: &Issues) -> BTreeMap<String, u64> {
+    Issue::ALL.iter().filter(|i| issues.get(**i) > 0).map(|i| (format!("{i:?}"), issues.get(*i))).collect()
 }
 
 /// The summary of a recording from files, with what the files held.

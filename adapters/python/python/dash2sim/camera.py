@@ -123,7 +123,7 @@ class KeepMsg(_Message):
 class ImuMsg(_Message):
     _fields_ = [
         ("version", ctypes.c_uint32),
-        ("reserved", ctypes.c_uint32),
+        ("sequence", ctypes.c_uint32),
         ("device_time_us", ctypes.c_int64),
         ("gyro", ctypes.c_float * 3),
         ("accel", ctypes.c_float * 3),
@@ -229,6 +229,8 @@ class Publisher:
             self._detections2d = self._publisher(prefix, "detections2d", Detections2dMsg)
             self._keep = self._publisher(prefix, "keep", KeepMsg)
             self._imu = self._service(prefix, "imu", ImuMsg, IMU_SUBSCRIBER_BUFFER).publisher_builder().create()
+            # IMU samples sent (numbered 1, 2, ...: the logger counts the ones it missed).
+            self._imu_sent = 0
             self._image = None
             if images:
                 service = self._service(prefix, "image", iox.Slice[ctypes.c_uint8], 2)
@@ -298,7 +300,8 @@ class Publisher:
         or deg/s with an error event; a value that is not finite is refused here."""
         g = _rows("gyro", gyro, None, 3)
         a = _rows("accel", accel, None, 3)
-        message = ImuMsg(LAYOUT_VERSION, 0, device_time_us)
+        self._imu_sent = (self._imu_sent + 1) % (1 << 32) or 1
+        message = ImuMsg(LAYOUT_VERSION, self._imu_sent, device_time_us)
         message.gyro[:] = g.tolist()
         message.accel[:] = a.tolist()
         self._send(self._imu, message)

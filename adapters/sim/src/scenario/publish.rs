@@ -59,6 +59,36 @@ pub struct PublishRequest {
     pub nmea_out: Option<PathBuf>,
     /// Write the wheel-speed CAN frames here as candump lines at their rate (a FIFO or file).
     pub can_out: Option<PathBuf>,
+    /// Also write this many CAN frames a second of a message the pipeline does not use
+    /// (J1939 EEC1, engine speed) to `can_out`, in bursts every 10 ms: a busy vehicle bus.
+    pub bus_load: u32,
+}
+
+/// What a run published: each kind as sent (the bridge's publishes that succeeded, the
+/// bytes and lines the serial and CAN outputs took), for a load run's accounting.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Published {
+    /// Frame metadata messages.
+    pub frames: u64,
+    /// VO poses (none while the VO has lost track).
+    pub vo_poses: u64,
+    /// 3D detection messages (one a frame).
+    pub detections3d: u64,
+    /// 3D detections in them.
+    pub objects3d: u64,
+    /// 2D detection messages (one a frame).
+    pub detections2d: u64,
+    /// IMU samples.
+    pub imu_samples: u64,
+    /// NMEA bytes written.
+    pub nmea_bytes: u64,
+    /// NMEA lines (sentences) written.
+    pub nmea_sentences: u64,
+    /// CAN frames written (wheel speed and the bus load).
+    pub can_frames: u64,
+    /// Lines the serial or CAN output did not take: due while their reader had gone (a
+    /// logger killed and not yet back).
+    pub unsent_lines: u64,
 }
 
 /// When the line or frame at drive time `t` of lap `lap` is due.
@@ -91,31 +121,84 @@ impl Pace {
     }
 }
 
+/// Lines, bytes written, and lines not taken by [`write_paced`].
+#[derive(Clone, Copy, Debug, Default)]
+struct Written {
+    lines: u64,
+    bytes: u64,
+    unsent: u64,
+}
+
+/// `path` opened again for writing if a reader has it open (a FIFO whose logger came back),
+/// without waiting for one.
+fn reopen(path: &std::path::Path) -> Option<std::fs::File> {
+    use rustix::fs::{fcntl_setfl, open, Mode, OFlags};
+    let fd = open(path, OFlags::WRONLY | OFlags::NONBLOCK | OFlags::CLOEXEC, Mode::empty()).ok()?;
+    // Blocking again: a line waits for a reader that is slow, not one that is gone.
+    fcntl_setfl(&fd, OFlags::WRONLY).ok()?;
+    Some(std::fs::File::from(fd))
+}
+
 /// Write `lines(lap)` (time, text) to `path` at their times, lap after lap, in a thread.
-/// A reader that goes away ends the writing, not the run.
+/// A reader that goes away (a logger killed) does not end the run: the lines due until a
+/// reader opens the FIFO again are not sent, and counted.
 fn write_paced(
     path: PathBuf,
     pace: Pace,
     laps: u32,
     lines: impl Fn(u32) -> Result<Vec<(f64, String)>> + Send + 'static,
-) -> std::thread::JoinHandle<Result<()>> {
+) -> std::thread::JoinHandle<Result<Written>> {
     std::thread::spawn(move || {
-        let mut out = std::fs::OpenOptions::new()
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(&path)
-            .map_err(|e| Error::file(&path, e))?;
+        let mut out = Some(
+            std::fs::OpenOptions::new()
+                .write(true)
+                .create(true)
+                .truncate(true)
+                .open(&path)
+                .map_err(|e| Error::file(&path, e))?,
+        );
+        let mut written = Written::default();
         for lap in 0..laps {
             for (t, line) in lines(lap)? {
                 pace.wait(lap, t);
-                if out.write_all(line.as_bytes()).and_then(|()| out.flush()).is_err() {
-                    return Ok(());
+                if out.is_none() {
+                    out = reopen(&path);
+                }
+                // A line is shorter than a pipe's atomic write (4 KB): it goes whole or not at all.
+                match out.as_mut().map(|o| o.write_all(line.as_bytes()).and_then(|()| o.flush())) {
+                    Some(Ok(())) => {
+                        written.lines += 1;
+                        written.bytes += line.len() as u64;
+                    }
+                    Some(Err(_)) | None => {
+                        out = None;
+                        written.unsent += 1;
+                    }
                 }
             }
         }
-        Ok(())
+        Ok(written)
     })
+}
+
+/// `bus_load` frames a second of J1939 EEC1 (engine speed 1500 rpm) over `seconds`, in
+/// bursts every 10 ms.
+fn bus_load_frames(bus_load: u32, seconds: f64) -> Vec<(f64, dash2sim_core::can::CanFrame)> {
+    let Some(id) = dash2sim_core::can::frame::id_from_raw(0x0CF0_0400, true) else { return Vec::new() };
+    let Some(frame) = dash2sim_core::can::CanFrame::data_frame(id, &[0xF0, 0x7D, 0x7D, 0xE0, 0x2E, 0x00, 0xF0, 0x7D])
+    else {
+        return Vec::new();
+    };
+    let bursts = (seconds * 100.0).floor() as u64;
+    let mut sent = 0u64;
+    let mut frames = Vec::new();
+    for burst in 0..bursts {
+        // Frames due by the end of this burst's 10 ms.
+        let due = (u64::from(bus_load) * (burst + 1)) / 100;
+        frames.extend((sent..due).map(|_| (burst as f64 * 0.01, frame)));
+        sent = due;
+    }
+    frames
 }
 
 /// Static cones beside the road for `--objects`: every 3 m of it, 7 m and 10 m to either
@@ -164,8 +247,8 @@ fn camera_detections(scenario: &Scenario, frame: usize, cones: &[[f64; 2]], obje
     detections
 }
 
-/// Publish the drive `args` names; the number of frames published.
-pub fn run(args: &PublishRequest) -> Result<u64> {
+/// Publish the drive `args` names: what was published.
+pub fn run(args: &PublishRequest) -> Result<Published> {
     let longest = super::command::MAX_DURATION_S;
     if !(args.seconds.is_finite() && (1.0..=longest).contains(&args.seconds)) {
         return Err(Error::invalid(format!("--seconds {} must be between 1 and {longest}", args.seconds)));
@@ -206,8 +289,11 @@ pub fn run(args: &PublishRequest) -> Result<u64> {
             Ok(lines.into_iter().map(|(t, [gga, rmc])| (t, format!("{gga}\r\n{rmc}\r\n"))).collect())
         }));
     }
+    let nmea_writer = writers.len();
     if let Some(path) = &args.can_out {
-        let frames = wheel_speed_frames(&scenario).map_err(Error::other)?;
+        let mut frames = wheel_speed_frames(&scenario).map_err(Error::other)?;
+        frames.extend(bus_load_frames(args.bus_load, scenario.speed.last().map_or(args.seconds, |(t, _)| *t)));
+        frames.sort_by(|a, b| a.0.total_cmp(&b.0));
         writers.push(write_paced(path.clone(), pace(), args.laps, move |lap| {
             frames
                 .iter()
@@ -223,7 +309,7 @@ pub fn run(args: &PublishRequest) -> Result<u64> {
         }));
     }
     let frames_per_lap = scenario.frames.len() as u64;
-    let mut published = 0u64;
+    let mut published = Published::default();
     for lap in 0..args.laps {
         let mut imu = scenario.imu.iter().peekable();
         for (i, frame) in scenario.frames.iter().enumerate() {
@@ -232,28 +318,40 @@ pub fn run(args: &PublishRequest) -> Result<u64> {
             // the sensor's FIFO in batches, once a frame.
             while let Some((t_imu, sample)) = imu.next_if(|(t_imu, _)| *t_imu <= frame.ego.t) {
                 camera.imu(pace().capture_time(lap, *t_imu), sample).map_err(Error::other)?;
+                published.imu_samples += 1;
             }
             let t = pace().capture_time(lap, frame.ego.t);
             let sequence = u64::from(lap) * frames_per_lap + u64::from(frame.index);
             camera.frame(sequence, t, 8_000, image.as_deref()).map_err(Error::other)?;
+            published.frames += 1;
             // While the VO has lost track there is no pose to publish.
             if let Some((pose, session)) = scenario.vo.at_frame(i) {
                 camera.vo(sequence, t, pose, session).map_err(Error::other)?;
+                published.vo_poses += 1;
             }
-            camera
-                .detections3d(sequence, t, &camera_detections(&scenario, i, &cones, args.objects))
-                .map_err(Error::other)?;
+            let detections = camera_detections(&scenario, i, &cones, args.objects);
+            camera.detections3d(sequence, t, &detections).map_err(Error::other)?;
+            published.detections3d += 1;
+            published.objects3d += detections.len().min(MAX_DETECTIONS) as u64;
             let detections2d: Vec<ImageDetection> = frame
                 .detections_2d
                 .iter()
                 .map(|d| ImageDetection { class: 0, detection: Detection { bbox: d.bbox, score: d.score } })
                 .collect();
             camera.detections2d(sequence, t, &detections2d).map_err(Error::other)?;
-            published += 1;
+            published.detections2d += 1;
         }
     }
-    for writer in writers {
-        writer.join().map_err(|_| Error::invalid("a writer thread panicked"))??;
+    for (i, writer) in writers.into_iter().enumerate() {
+        let written = writer.join().map_err(|_| Error::invalid("a writer thread panicked"))??;
+        if i < nmea_writer {
+            published.nmea_bytes = written.bytes;
+            // Two sentences a line (GGA and RMC).
+            published.nmea_sentences = 2 * written.lines;
+        } else {
+            published.can_frames = written.lines;
+        }
+        published.unsent_lines += written.unsent;
     }
     Ok(published)
 }

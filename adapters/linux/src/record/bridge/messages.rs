@@ -146,8 +146,10 @@ pub struct KeepMsg {
 pub struct ImuMsg {
     /// [`LAYOUT_VERSION`].
     pub version: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// The samples this publisher has sent, this one included (1, 2, …): a gap tells the
+    /// logger how many it missed. In what was the reserved field, so the layout and its
+    /// version are unchanged; an older publisher's 0 reads as "not numbered".
+    pub sequence: u32,
     /// Sample time, device clock, µs (the sensor's own time stamp mapped to it, when it
     /// has one).
     pub device_time_us: i64,
@@ -208,6 +210,6 @@ pub fn layouts() -> Vec<Layout> {
         layout!(Detection2dItem, class, reserved, score, bbox),
         layout!(Detections2dMsg, version, count, sequence, device_time_us, items),
         layout!(KeepMsg, version, reserved, device_time_us),
-        layout!(ImuMsg, version, reserved, device_time_us, gyro, accel),
+        layout!(ImuMsg, version, sequence, device_time_us, gyro, accel),
     ]
 }

@@ -28,6 +28,7 @@
 
 pub mod merge;
 pub mod messages;
+pub mod sequence;
 
 use dash2sim_core::box2d::Box2d;
 use dash2sim_core::box3d::Box3d;
@@ -46,6 +47,7 @@ use messages::{
     Detection2dItem, Detection3dItem, Detections2dMsg, Detections3dMsg, FrameMetaMsg, ImuMsg, KeepMsg, VoPoseMsg,
     LAYOUT_VERSION, MAX_DETECTIONS,
 };
+use sequence::{Service, ServiceCounts};
 
 /// The services' prefix unless told otherwise.
 pub const DEFAULT_PREFIX: &str = "dash2sim/camera";
@@ -136,6 +138,8 @@ pub struct CameraPublisher {
     detections2d: Publisher<ipc::Service, Detections2dMsg, ()>,
     keep: Publisher<ipc::Service, KeepMsg, ()>,
     imu: Publisher<ipc::Service, ImuMsg, ()>,
+    /// IMU samples sent (they are numbered: [`ImuMsg::sequence`]).
+    imu_sent: std::sync::atomic::AtomicU32,
     image: Option<Publisher<ipc::Service, [u8], ()>>,
 }
 
@@ -176,6 +180,7 @@ impl CameraPublisher {
             detections2d: detections2d.map_err(|e| iox("detections2d publisher")(&e))?,
             keep: keep.map_err(|e| iox("keep publisher")(&e))?,
             imu: imu.map_err(|e| iox("imu publisher")(&e))?,
+            imu_sent: std::sync::atomic::AtomicU32::new(0),
             image,
         })
     }
@@ -360,17 +365,20 @@ impl CameraPublisher {
     pub fn imu(&self, t: Timestamp, sample: &ImuSample) -> Result<(), BridgeError> {
         self.send_imu(ImuMsg {
             version: LAYOUT_VERSION,
-            reserved: 0,
+            sequence: 0,
             device_time_us: micros(t),
             gyro: sample.gyro.map(|v| v as f32),
             accel: sample.accel.map(|v| v as f32),
         })
     }
 
-    /// An IMU message as it is, stamped with [`LAYOUT_VERSION`]. The C ABI publishes
-    /// through this.
+    /// An IMU message as it is, stamped with [`LAYOUT_VERSION`] and numbered (the
+    /// logger counts the samples it missed). The C ABI publishes through this.
     pub fn send_imu(&self, mut message: ImuMsg) -> Result<(), BridgeError> {
         message.version = LAYOUT_VERSION;
+        // Numbered 1, 2, … (after 2³² samples, 124 days at 400 Hz, the number wraps and
+        // the logger reads one restart).
+        message.sequence = self.imu_sent.fetch_add(1, std::sync::atomic::Ordering::Relaxed).wrapping_add(1);
         let sample = self.imu.loan_uninit().map_err(|e| iox("imu loan")(&e))?;
         sample.write_payload(message).send().map_err(|e| iox("imu send")(&e))?;
         Ok(())
@@ -415,12 +423,27 @@ pub enum CameraInput {
     Imu(Timestamp, ImuSample),
 }
 
+impl CameraInput {
+    /// Its stamp (capture time, device clock).
+    pub fn t(&self) -> Timestamp {
+        match self {
+            CameraInput::Frame { t, .. }
+            | CameraInput::Vo(t, ..)
+            | CameraInput::Detections3d(t, ..)
+            | CameraInput::Detections2d(t, ..)
+            | CameraInput::Keep(t)
+            | CameraInput::Imu(t, _) => *t,
+        }
+    }
+}
+
 /// The logger's side: a subscriber per service, and the inputs held back to be released in
 /// the order they were published ([`CameraSubscriber::receive_in_order`]).
 #[derive(Debug)]
 pub struct CameraSubscriber {
     _node: Node<ipc::Service>,
     merge: std::cell::RefCell<merge::Merge>,
+    tally: std::cell::RefCell<sequence::Tally>,
     frame: Subscriber<ipc::Service, FrameMetaMsg, ()>,
     vo: Subscriber<ipc::Service, VoPoseMsg, ()>,
     detections3d: Subscriber<ipc::Service, Detections3dMsg, ()>,
@@ -451,6 +474,7 @@ impl CameraSubscriber {
         Ok(CameraSubscriber {
             _node: node,
             merge: std::cell::RefCell::default(),
+            tally: std::cell::RefCell::default(),
             frame: frame.map_err(|e| iox("frame subscriber")(&e))?,
             vo: vo.map_err(|e| iox("vo subscriber")(&e))?,
             detections3d: detections3d.map_err(|e| iox("detections3d subscriber")(&e))?,
@@ -470,6 +494,7 @@ impl CameraSubscriber {
         let mut n = 0;
         while let Some(s) = self.frame.receive().map_err(|e| iox("frame receive")(&e))? {
             check("frame", s.version)?;
+            self.tally.borrow_mut().count(Service::Frame, s.sequence);
             on(CameraInput::Frame {
                 sequence: s.sequence,
                 t: Timestamp::from_micros(s.device_time_us),
@@ -480,12 +505,14 @@ impl CameraSubscriber {
         }
         while let Some(s) = self.imu.receive().map_err(|e| iox("imu receive")(&e))? {
             check("imu", s.version)?;
+            self.tally.borrow_mut().count(Service::Imu, u64::from(s.sequence));
             let sample = ImuSample { gyro: s.gyro.map(f64::from), accel: s.accel.map(f64::from) };
             on(CameraInput::Imu(Timestamp::from_micros(s.device_time_us), sample));
             n += 1;
         }
         while let Some(s) = self.vo.receive().map_err(|e| iox("vo receive")(&e))? {
             check("vo", s.version)?;
+            self.tally.borrow_mut().count(Service::Vo, s.sequence);
             let r = &s.rotation;
             let pose = Pose {
                 rotation: Matrix3::new(r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]),
@@ -496,6 +523,7 @@ impl CameraSubscriber {
         }
         while let Some(s) = self.detections3d.receive().map_err(|e| iox("detections3d receive")(&e))? {
             check("detections3d", s.version)?;
+            self.tally.borrow_mut().count(Service::Detections3d, s.sequence);
             let count = (s.count as usize).min(MAX_DETECTIONS);
             let detections = s.items[..count]
                 .iter()
@@ -515,6 +543,7 @@ impl CameraSubscriber {
         }
         while let Some(s) = self.detections2d.receive().map_err(|e| iox("detections2d receive")(&e))? {
             check("detections2d", s.version)?;
+            self.tally.borrow_mut().count(Service::Detections2d, s.sequence);
             let count = (s.count as usize).min(MAX_DETECTIONS);
             let detections = s.items[..count]
                 .iter()
@@ -555,10 +584,18 @@ impl CameraSubscriber {
         Ok(n + merge.release(on))
     }
 
-    /// Everything [`CameraSubscriber::receive_in_order`] still holds, in order: the
-    /// recording ends.
-    pub fn flush(&self, on: impl FnMut(CameraInput)) -> usize {
-        self.merge.borrow_mut().flush(on)
+    /// Everything waiting and everything [`CameraSubscriber::receive_in_order`] still
+    /// holds, in order: the recording ends.
+    pub fn flush(&self, mut on: impl FnMut(CameraInput)) -> Result<usize, BridgeError> {
+        let n = self.receive_in_order(&mut on)?;
+        Ok(n + self.merge.borrow_mut().flush(on))
+    }
+
+    /// The messages received per service, and those skipped in their numbers (lost to the
+    /// subscriber's overflow, or never published: [`sequence`]).
+    pub fn tally(&self) -> (ServiceCounts, ServiceCounts) {
+        let tally = self.tally.borrow();
+        (tally.received, tally.skipped)
     }
 }
 
