@@ -387,6 +387,14 @@ struct RpeArgs {
 /// Parse the process arguments and run; the exit code tells success.
 pub fn run() -> ExitCode {
     let cli = Cli::parse();
+    // Output piped into `head` ends the process quietly, as for any Unix tool, instead of a
+    // panic in `println!` (Rust ignores SIGPIPE by default). Logs are closed before any
+    // command prints, so nothing is lost. Not for the camera process: its FIFOs' reader (a
+    // logger) may be killed and come back, and a write to a FIFO without one is an error it
+    // counts, not the end of the camera.
+    if !matches!(cli.command, Command::Scenario(ScenarioCommand::Publish(_))) {
+        sigpipe::reset();
+    }
     let result = match cli.command {
         Command::Traj(TrajCommand::Ape(args)) => traj_ape(&args),
         Command::Traj(TrajCommand::Rpe(args)) => traj_rpe(&args),

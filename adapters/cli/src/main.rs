@@ -17,9 +17,5 @@ mod signals;
 mod verify;
 
 fn main() -> std::process::ExitCode {
-    // Output piped into `head` ends the process quietly, as for any Unix tool, instead of a
-    // panic in `println!` (Rust ignores SIGPIPE by default). Logs are closed before any
-    // command prints, so nothing is lost.
-    sigpipe::reset();
     cli::run()
 }

@@ -426,3 +426,154 @@ fn a_harsh_drive_under_load_is_accounted_for_and_its_braking_keeps_its_file() {
     assert!(kept_because(&run, "harsh braking"));
     let _ = std::fs::remove_dir_all(run.logs.parent().unwrap_or(&run.logs));
 }
+
+/// `dash2sim record` at nice 19 into `logs`, as a process of its own.
+fn recorder(
+    logs: &std::path::Path,
+    prefix: &str,
+    gnss: &std::path::Path,
+    can: &std::path::Path,
+    map: &std::path::Path,
+) -> Child {
+    Command::new("nice")
+        .args(["-n", "19", env!("CARGO_BIN_EXE_dash2sim"), "record", "--camera", prefix, "--serial"])
+        .arg(gnss)
+        .arg("--can-replay")
+        .arg(can)
+        .arg("--map")
+        .arg(map)
+        .args(["--origin", ORIGIN, "--segment-minutes", "0.05", "--quota", "10M", "--json", "-o"])
+        .arg(logs)
+        .env("IOX2_LOG_LEVEL", "Error")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("dash2sim record")
+}
+
+/// The camera's skips the last "camera: skipped" note of `records` counts (frames).
+fn noted_skips(records: &[Record]) -> u64 {
+    records
+        .iter()
+        .filter_map(|r| match r {
+            Record::Event(e) => String::from_utf8_lossy(&e.text)
+                .strip_prefix("camera: skipped in the messages' numbers so far: ")
+                .and_then(|rest| rest.split(' ').next()?.parse().ok()),
+            _ => None,
+        })
+        .last()
+        .unwrap_or(0)
+}
+
+/// The gaps in `times` (µs) longer than `longest` (µs): (before, after).
+fn gaps(times: &[i64], longest: i64) -> Vec<(i64, i64)> {
+    times.windows(2).filter(|w| w[1] - w[0] > longest).map(|w| (w[0], w[1])).collect()
+}
+
+#[test]
+fn a_recorder_killed_mid_stress_and_restarted_into_its_folder_loses_only_the_kill() {
+    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(PoisonError::into_inner);
+    let (seed, seconds) = ("4", "16");
+    let dir = std::env::temp_dir().join(format!("dash2sim-stress-kill-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("dir");
+    run(dash2sim()
+        .args(["scenario", "generate", "--seed", seed, "--duration", seconds, "--profile", "ideal", "-o"])
+        .arg(dir.join("drive")));
+    let map = dir.join("road.map");
+    run(dash2sim().args(["map", "build"]).arg(dir.join("drive/road.osm")).args(["--origin", ORIGIN, "-o"]).arg(&map));
+    let (gnss, can) = (dir.join("gnss.fifo"), dir.join("can.fifo"));
+    run(Command::new("mkfifo").arg(&gnss).arg(&can));
+    let logs = dir.join("logs");
+    let prefix = format!("dash2sim-test/stress-kill/{}", std::process::id());
+    let hog = Hog::on_every_core();
+    let mut first = recorder(&logs, &prefix, &gnss, &can, &map);
+    // It subscribes before the camera process publishes (which first generates its drive).
+    std::thread::sleep(Duration::from_millis(1500));
+    let camera = dash2sim()
+        .args(["scenario", "publish", "--seed", seed, "--seconds", seconds, "--profile", "ideal"])
+        .args(["--fps", "30", "--objects", "64", "--bus-load", "1000", "--json", "--prefix", &prefix, "--nmea-out"])
+        .arg(&gnss)
+        .arg("--can-out")
+        .arg(&can)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("scenario publish");
+    std::thread::sleep(Duration::from_secs(8));
+    first.kill().expect("SIGKILL");
+    let _ = first.wait();
+    std::thread::sleep(Duration::from_millis(500));
+    let second = recorder(&logs, &prefix, &gnss, &can, &map);
+    let published = camera.wait_with_output().expect("publish");
+    assert!(published.status.success(), "{}", String::from_utf8_lossy(&published.stderr));
+    let sent: serde_json::Value = serde_json::from_slice(&published.stdout).expect("publish --json");
+    // The camera's last frames drain from the bridge, the FIFOs' ends from the readers.
+    std::thread::sleep(Duration::from_secs(3));
+    run(Command::new("kill").args(["-INT", &second.id().to_string()]));
+    let out = second.wait_with_output().expect("record");
+    drop(hog);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("record --json");
+    println!("sent {sent}\nsecond run {report}");
+
+    // The two runs' files, in the index's order (the killed run's first).
+    let index = read_index(&logs).expect("index");
+    let runs: Vec<Vec<Record>> = {
+        let starts: Vec<&str> = index.segments.iter().map(|e| e.file.split('-').nth(1).unwrap_or("")).collect();
+        let mut runs: Vec<Vec<Record>> = Vec::new();
+        for (i, e) in index.segments.iter().enumerate() {
+            if i == 0 || starts[i] != starts[i - 1] {
+                runs.push(Vec::new());
+            }
+            let contents = log::read(&logs.join(&e.file)).expect("a killed run's file reads");
+            if let Some(run) = runs.last_mut() {
+                run.extend(contents.records);
+            }
+        }
+        runs
+    };
+    assert_eq!(runs.len(), 2, "two runs in one folder: {index:?}");
+    let frames_of = |records: &[Record]| -> Vec<i64> {
+        records
+            .iter()
+            .filter_map(|r| match r {
+                Record::FrameMeta(f) if f.flags & FRAME_DEAD_RECKONED == 0 => Some(f.frame),
+                _ => None,
+            })
+            .collect()
+    };
+    let (before, after) = (frames_of(&runs[0]), frames_of(&runs[1]));
+    let (Some(&last_before), Some(&first_after)) = (before.last(), after.first()) else {
+        panic!("frames in both runs")
+    };
+    // Frames (numbered from 1): every number from the first run's first to the last
+    // published is logged, counted skipped, or between the kill and the restart's first.
+    let published_frames = sent["frames"].as_i64().expect("frames");
+    let last_after = after.last().copied().unwrap_or(0);
+    assert_eq!(last_after, published_frames, "the last frame published is the last logged");
+    let skipped = noted_skips(&runs[0]) + report["lost"]["camera_skipped"]["frames"].as_u64().expect("skipped");
+    let logged = (before.len() + after.len()) as i64;
+    let killed = first_after - last_before - 1;
+    assert!(before[0] <= 30, "the first run subscribed within a second of the camera: {}", before[0]);
+    assert_eq!(
+        logged + skipped as i64 + killed,
+        last_after - before[0] + 1,
+        "frames: {logged} logged, {skipped} skipped, {killed} in the kill ({}..={last_before}, {first_after}..={last_after})",
+        before[0]
+    );
+    assert!(
+        killed > 0 && killed < 150,
+        "the kill and restart (0.5 s, then starting up at nice 19) cost {killed} frames"
+    );
+    // Fixes and speeds: no gap but the kill's, unless a run counted inputs dropped.
+    let dropped = report["dropped"].as_u64().unwrap_or(0);
+    let times = |f: fn(&Record) -> Option<i64>| -> Vec<i64> { runs.iter().flatten().filter_map(f).collect() };
+    let fixes = times(|r| if let Record::GnssFix(g) = r { Some(g.t_us) } else { None });
+    let speeds = times(|r| if let Record::VehicleSpeed(v) = r { Some(v.t_us) } else { None });
+    for (kind, t, longest) in [("fixes", &fixes, 250_000), ("speeds", &speeds, 100_000)] {
+        let found = gaps(t, longest);
+        assert!(found.len() == 1 || dropped > 0, "{kind}: gaps {found:?}, only the kill's expected");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
