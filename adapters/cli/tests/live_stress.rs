@@ -455,13 +455,13 @@ fn recorder(
 fn noted_skips(records: &[Record]) -> u64 {
     records
         .iter()
-        .filter_map(|r| match r {
+        .rev()
+        .find_map(|r| match r {
             Record::Event(e) => String::from_utf8_lossy(&e.text)
                 .strip_prefix("camera: skipped in the messages' numbers so far: ")
                 .and_then(|rest| rest.split(' ').next()?.parse().ok()),
             _ => None,
         })
-        .last()
         .unwrap_or(0)
 }
 
