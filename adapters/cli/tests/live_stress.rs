@@ -119,6 +119,42 @@ fn rss() -> u64 {
         .map_or(0, |kb| kb * 1024)
 }
 
+/// `driver`'s generated drive in `dir` (ideal sensors), its map tile and two FIFOs for the
+/// camera process's NMEA and CAN: [map, gnss, can].
+fn drive_map_and_fifos(dir: &std::path::Path, driver: &str, seed: &str, seconds: &str) -> [std::path::PathBuf; 3] {
+    run(dash2sim()
+        .args(["scenario", "generate", "--seed", seed, "--duration", seconds, "--driver", driver])
+        .args(["--profile", "ideal", "-o"])
+        .arg(dir.join("drive")));
+    let map = dir.join("road.map");
+    run(dash2sim().args(["map", "build"]).arg(dir.join("drive/road.osm")).args(["--origin", ORIGIN, "-o"]).arg(&map));
+    let (gnss, can) = (dir.join("gnss.fifo"), dir.join("can.fifo"));
+    run(Command::new("mkfifo").arg(&gnss).arg(&can));
+    [map, gnss, can]
+}
+
+/// The camera process: `driver`'s drive at 30 fps with 64 objects a frame, its NMEA and a
+/// 1 kHz bus on the FIFOs; it prints what it sent (`--json`).
+fn camera_process(
+    driver: &str,
+    seed: &str,
+    seconds: &str,
+    prefix: &str,
+    gnss: &std::path::Path,
+    can: &std::path::Path,
+) -> Child {
+    dash2sim()
+        .args(["scenario", "publish", "--seed", seed, "--seconds", seconds, "--driver", driver, "--profile", "ideal"])
+        .args(["--fps", "30", "--objects", "64", "--bus-load", "1000", "--json", "--prefix", prefix, "--nmea-out"])
+        .arg(gnss)
+        .arg("--can-out")
+        .arg(can)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("scenario publish")
+}
+
 /// What the camera process sent, per kind (its `--json`).
 #[derive(Debug, Clone, Copy)]
 struct Sent {
@@ -188,17 +224,7 @@ fn stress(driver: &str, seed: &str) -> Run {
     let dir = std::env::temp_dir().join(format!("dash2sim-stress-{driver}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("dir");
-    run(dash2sim()
-        .args(["scenario", "generate", "--seed", seed, "--duration", &seconds, "--driver", driver])
-        .args(["--profile", "ideal", "-o"])
-        .arg(dir.join("drive")));
-    run(dash2sim()
-        .args(["map", "build"])
-        .arg(dir.join("drive/road.osm"))
-        .args(["--origin", ORIGIN, "-o"])
-        .arg(dir.join("road.map")));
-    let (gnss, can) = (dir.join("gnss.fifo"), dir.join("can.fifo"));
-    run(Command::new("mkfifo").arg(&gnss).arg(&can));
+    let [map, gnss, can] = drive_map_and_fifos(&dir, driver, seed, &seconds);
     // Held open read-write until the camera process has written its last line: the
     // recorder's open() does not wait for it, and its readers see the end only after it.
     let mut held: Option<Vec<File>> =
@@ -219,7 +245,7 @@ fn stress(driver: &str, seed: &str) -> Run {
         storage: StoragePolicy { quota: Some(QUOTA), min_free: None },
         keep: None,
     };
-    let map = std::fs::read(dir.join("road.map")).expect("map");
+    let map = std::fs::read(map).expect("map");
     let [lat, lon, h]: [f64; 3] =
         ORIGIN.split(',').map(|v| v.parse().expect("origin")).collect::<Vec<_>>().try_into().expect("origin");
     let setup = Setup::work_zone(Geodetic::new(lat, lon, h).expect("origin"), Some(map), *b"stress-test\0\0\0\0\0");
@@ -249,17 +275,7 @@ fn stress(driver: &str, seed: &str) -> Run {
             assert!(begun.elapsed() < Duration::from_secs(60), "the recorder never reported");
             std::thread::sleep(Duration::from_millis(50));
         }
-        let camera = dash2sim()
-            .args(["scenario", "publish", "--seed", seed, "--seconds", &seconds, "--driver", driver])
-            .args(["--profile", "ideal", "--fps", "30", "--objects", "64", "--bus-load", "1000", "--json"])
-            .args(["--prefix", &prefix, "--nmea-out"])
-            .arg(&gnss)
-            .arg("--can-out")
-            .arg(&can)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("scenario publish");
+        let camera = camera_process(driver, seed, &seconds, &prefix, &gnss, &can);
         // Memory once the recording is under way, and at its largest after.
         let mut baseline = None;
         let mut largest = 0i64;
@@ -403,28 +419,26 @@ fn holds_its_accounts(run: &Run) {
     assert!(run.rss_growth < 24 << 20, "resident memory grew by {} MB", run.rss_growth >> 20);
 }
 
-fn kept_because(run: &Run, reason: &str) -> bool {
-    read_index(&run.logs).expect("index").segments.iter().any(|e| e.protected.as_deref() == Some(reason))
+/// A stress run of `driver`'s drive: its accounts hold, the device saw what the drive does
+/// (`happened` of its totals) and the file that holds it is kept for `reason`.
+fn under_load_keeps(driver: &str, happened: fn(&dash2sim_core::pipeline::PipelineStats) -> u64, reason: &str) {
+    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(PoisonError::into_inner);
+    let run = stress(driver, "3");
+    holds_its_accounts(&run);
+    assert!(happened(&run.report.stats) >= 1, "{:?}", run.report.stats);
+    let index = read_index(&run.logs).expect("index");
+    assert!(index.segments.iter().any(|e| e.protected.as_deref() == Some(reason)), "{index:?}");
+    let _ = std::fs::remove_dir_all(run.logs.parent().unwrap_or(&run.logs));
 }
 
 #[test]
 fn a_careless_drive_under_load_is_accounted_for_and_its_collision_keeps_its_file() {
-    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(PoisonError::into_inner);
-    let run = stress("careless", "3");
-    holds_its_accounts(&run);
-    assert!(run.report.stats.collision_windows >= 1, "{:?}", run.report.stats);
-    assert!(kept_because(&run, "a collision in a verification window"));
-    let _ = std::fs::remove_dir_all(run.logs.parent().unwrap_or(&run.logs));
+    under_load_keeps("careless", |s| s.collision_windows, "a collision in a verification window");
 }
 
 #[test]
 fn a_harsh_drive_under_load_is_accounted_for_and_its_braking_keeps_its_file() {
-    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(PoisonError::into_inner);
-    let run = stress("harsh", "3");
-    holds_its_accounts(&run);
-    assert!(run.report.stats.harsh_brakings >= 1, "{:?}", run.report.stats);
-    assert!(kept_because(&run, "harsh braking"));
-    let _ = std::fs::remove_dir_all(run.logs.parent().unwrap_or(&run.logs));
+    under_load_keeps("harsh", |s| s.harsh_brakings, "harsh braking");
 }
 
 /// `dash2sim record` at nice 19 into `logs`, as a process of its own.
@@ -477,29 +491,14 @@ fn a_recorder_killed_mid_stress_and_restarted_into_its_folder_loses_only_the_kil
     let dir = std::env::temp_dir().join(format!("dash2sim-stress-kill-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("dir");
-    run(dash2sim()
-        .args(["scenario", "generate", "--seed", seed, "--duration", seconds, "--profile", "ideal", "-o"])
-        .arg(dir.join("drive")));
-    let map = dir.join("road.map");
-    run(dash2sim().args(["map", "build"]).arg(dir.join("drive/road.osm")).args(["--origin", ORIGIN, "-o"]).arg(&map));
-    let (gnss, can) = (dir.join("gnss.fifo"), dir.join("can.fifo"));
-    run(Command::new("mkfifo").arg(&gnss).arg(&can));
+    let [map, gnss, can] = drive_map_and_fifos(&dir, "careful", seed, seconds);
     let logs = dir.join("logs");
     let prefix = format!("dash2sim-test/stress-kill/{}", std::process::id());
     let hog = Hog::on_every_core();
     let mut first = recorder(&logs, &prefix, &gnss, &can, &map);
     // It subscribes before the camera process publishes (which first generates its drive).
     std::thread::sleep(Duration::from_millis(1500));
-    let camera = dash2sim()
-        .args(["scenario", "publish", "--seed", seed, "--seconds", seconds, "--profile", "ideal"])
-        .args(["--fps", "30", "--objects", "64", "--bus-load", "1000", "--json", "--prefix", &prefix, "--nmea-out"])
-        .arg(&gnss)
-        .arg("--can-out")
-        .arg(&can)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("scenario publish");
+    let camera = camera_process("careful", seed, seconds, &prefix, &gnss, &can);
     std::thread::sleep(Duration::from_secs(8));
     first.kill().expect("SIGKILL");
     let _ = first.wait();
