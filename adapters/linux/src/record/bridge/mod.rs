@@ -729,4 +729,30 @@ mod tests {
         assert_eq!(logged(&ordered).1, 0);
         assert_eq!(logged(&ordered).0, logged(&published).0);
     }
+
+    /// A logger further behind than the services keep loses the oldest messages to iceoryx2's
+    /// overflow, silently: the messages' numbers say how many (issue #57).
+    #[test]
+    fn what_the_buffers_overwrote_is_counted_per_service() {
+        let prefix = format!("dash2sim-test/bridge-skips/{}", std::process::id());
+        let camera = CameraPublisher::new(&prefix, false).expect("publisher");
+        let logger = CameraSubscriber::new(&prefix).expect("subscriber");
+        let imu = |n: u64| camera.imu(Timestamp::from_micros(n as i64 * 2_500), &ImuSample::default()).expect("imu");
+        let frame = |k: u64| camera.frame(k, Timestamp::from_micros(k as i64 * 33_000), 8_000, None).expect("frame");
+        // The logger sees the first of each, then falls behind by more than its buffers.
+        imu(1);
+        frame(1);
+        logger.receive(|_| ()).expect("receive");
+        let (frames, samples) = (1 + SUBSCRIBER_BUFFER as u64 + 36, 1 + IMU_SUBSCRIBER_BUFFER as u64 + 76);
+        (2..=samples).for_each(imu);
+        (2..=frames).for_each(frame);
+        let mut received = 1 + 1;
+        logger.receive(|_| received += 1).expect("receive");
+        let (got, skipped) = logger.tally();
+        assert_eq!(received, got.total());
+        assert_eq!((got.frames, skipped.frames), (1 + SUBSCRIBER_BUFFER as u64, 36), "frames: the oldest lost");
+        assert_eq!((got.imu_samples, skipped.imu_samples), (1 + IMU_SUBSCRIBER_BUFFER as u64, 76), "IMU samples");
+        assert_eq!(got.frames + skipped.frames, frames, "received + skipped = published");
+        assert_eq!(got.imu_samples + skipped.imu_samples, samples);
+    }
 }

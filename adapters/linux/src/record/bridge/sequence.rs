@@ -8,6 +8,8 @@
 //! camera process (nothing lost); an IMU number of 0 is a publisher that does not count.
 //! A VO pose the camera never published (its VO had lost track) is a gap too: the count is
 //! of frames without one, as the pipeline's "frame numbers skipped" issue counts them.
+//! What was lost before the first message the logger received is not counted: nothing
+//! says where the numbers began (a camera process that started before the logger).
 
 /// A count per camera service.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
