@@ -228,9 +228,12 @@ def test_an_imu_sample_arrives_as_the_logger_reads_it_and_a_nan_is_refused():
         publisher.imu(10_000, [0.01, -0.02, 0.3], np.array([0.5, -0.25, 9.81]))
         sample = samples.receive().payload().contents
         assert (sample.version, sample.device_time_us) == (camera.LAYOUT_VERSION, 10_000)
+        assert sample.sequence == 1, "numbered: the logger counts the samples it missed"
         assert np.allclose(list(sample.gyro), [0.01, -0.02, 0.3]) and np.allclose(list(sample.accel), [0.5, -0.25, 9.81])
         with pytest.raises(camera.BridgeError, match="not finite"):
             publisher.imu(20_000, [float("nan"), 0, 0], [0, 0, 9.81])
         with pytest.raises(camera.BridgeError, match="shape"):
             publisher.imu(20_000, [0, 0], [0, 0, 9.81])
         assert samples.receive() is None, "a refused sample is not sent"
+        publisher.imu(30_000, [0, 0, 0], [0, 0, 9.81])
+        assert samples.receive().payload().contents.sequence == 2, "a refused sample takes no number"
