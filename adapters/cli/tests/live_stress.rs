@@ -449,6 +449,19 @@ fn a_harsh_drive_under_load_is_accounted_for_and_its_braking_keeps_its_file() {
     under_load_keeps("harsh", |s| s.harsh_brakings, "harsh braking");
 }
 
+/// A process killed if the test ends first: a failed assertion must not leave a recorder
+/// blocked on a FIFO.
+struct Reaped(Option<Child>);
+
+impl Drop for Reaped {
+    fn drop(&mut self) {
+        if let Some(child) = self.0.as_mut() {
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+    }
+}
+
 /// `dash2sim record` at nice 19 into `logs`, as a process of its own.
 fn recorder(
     logs: &std::path::Path,
@@ -513,17 +526,18 @@ fn a_recorder_killed_mid_stress_and_restarted_into_its_folder_loses_only_the_kil
     let mut first = recorder(&logs, &prefix, &gnss, &can, &map);
     // It subscribes before the camera process publishes (which first generates its drive).
     std::thread::sleep(Duration::from_millis(1500));
-    let camera = camera_process("careful", seed, seconds, &prefix, &gnss, &can);
+    let mut camera = Reaped(Some(camera_process("careful", seed, seconds, &prefix, &gnss, &can)));
     std::thread::sleep(Duration::from_secs(8));
     first.kill().expect("SIGKILL");
     let _ = first.wait();
     std::thread::sleep(Duration::from_millis(500));
-    let second = recorder(&logs, &prefix, &gnss, &can, &map);
-    let published = camera.wait_with_output().expect("publish");
+    let mut second = Reaped(Some(recorder(&logs, &prefix, &gnss, &can, &map)));
+    let published = camera.0.take().expect("camera").wait_with_output().expect("publish");
     assert!(published.status.success(), "{}", String::from_utf8_lossy(&published.stderr));
     let sent: serde_json::Value = serde_json::from_slice(&published.stdout).expect("publish --json");
     // The camera's last frames drain from the bridge, the FIFOs' ends from the readers.
     std::thread::sleep(Duration::from_secs(3));
+    let second = second.0.take().expect("second run");
     run(Command::new("kill").args(["-INT", &second.id().to_string()]));
     let out = second.wait_with_output().expect("record");
     drop(hog);
