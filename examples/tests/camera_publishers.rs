@@ -11,6 +11,7 @@ use std::time::Duration;
 
 use dash2sim_core::binlog::Record;
 use dash2sim_linux::log;
+use dash2sim_linux::record::bridge;
 
 /// The tests here run real processes against the clock: one at a time.
 static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
@@ -83,19 +84,47 @@ fn c_publisher(dir: &Path) -> PathBuf {
     c_publisher_linked(dir, false)
 }
 
-/// `dash2sim record --camera PREFIX` into `out` for `seconds`, started and given time to
-/// subscribe (samples published before a subscriber exists are not kept for it).
-fn logger(prefix: &str, out: &Path, seconds: f64) -> Child {
-    let child = Command::new(dash2sim())
-        .args(["record", "--camera", prefix, "--origin", "60.2711,24.8572,20", "--seconds", &seconds.to_string()])
+/// How long a test waits for something that takes a moment on an idle machine (a logger
+/// subscribing, a publisher's first frames) before it gives up: generous, since these
+/// tests also run starved of CPU (issue #57: at nice 19 beside a CPU hog on every core).
+const PATIENCE: Duration = Duration::from_secs(300);
+
+/// Wait, polling, until `ready` holds; panics after [`PATIENCE`] saying `what`.
+fn wait_for(what: &str, mut ready: impl FnMut() -> bool) {
+    let start = std::time::Instant::now();
+    while !ready() {
+        assert!(start.elapsed() < PATIENCE, "gave up waiting for {what} after {PATIENCE:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// `dash2sim record --camera PREFIX` into `out`, returned once it is subscribed to every
+/// camera service (samples published before a subscriber exists are not kept for it), with
+/// no time limit: [`stopped`] ends it. Nothing here depends on how fast the logger runs.
+fn logger(prefix: &str, out: &Path) -> Child {
+    let mut child = Command::new(dash2sim())
+        .args(["record", "--camera", prefix, "--origin", "60.2711,24.8572,20"])
         .arg("-o")
         .arg(out)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .expect("dash2sim record");
-    std::thread::sleep(Duration::from_millis(1500));
+    wait_for("the logger to subscribe", || {
+        if let Ok(Some(status)) = child.try_wait() {
+            panic!("the logger ended before it subscribed: {status}");
+        }
+        bridge::listening(prefix).expect("the camera services")
+    });
     child
+}
+
+/// The logger stopped as a user stops it (SIGINT: it receives what is waiting, then closes
+/// the log), and its output once it has ended well.
+fn stopped(child: Child, what: &str) -> Output {
+    let pid = rustix::process::Pid::from_child(&child);
+    rustix::process::kill_process(pid, rustix::process::Signal::INT).expect("SIGINT");
+    finished(child, what)
 }
 
 fn finished(child: Child, what: &str) -> Output {
@@ -119,7 +148,7 @@ fn log_file(dir: &Path) -> PathBuf {
 fn logged_by(publisher: &Path, drive: &Path, dir: &Path, name: &str) -> Vec<u8> {
     let prefix = format!("dash2sim-test/publishers/{name}/{}", std::process::id());
     let out = dir.join(name);
-    let record = logger(&prefix, &out, 5.0);
+    let record = logger(&prefix, &out);
     let published = Command::new(publisher)
         .arg(drive)
         .args(["--prefix", &prefix, "--speedup", "4", "--file-times"])
@@ -127,7 +156,9 @@ fn logged_by(publisher: &Path, drive: &Path, dir: &Path, name: &str) -> Vec<u8> 
         .expect("publisher");
     assert!(published.status.success(), "{name}: {}", String::from_utf8_lossy(&published.stderr));
     assert_eq!(String::from_utf8_lossy(&published.stdout).trim(), "31 frames published", "{name}");
-    finished(record, "record");
+    // Everything published is in the logger's queues (it outlives the publisher): stopped
+    // now, however far behind it is, it logs all of it.
+    stopped(record, "record");
     std::fs::read(log_file(&out)).expect("log")
 }
 
@@ -192,15 +223,26 @@ fn a_c_camera_process_killed_mid_run_is_a_restart_in_the_log() {
     let c = c_publisher(&dir);
     let prefix = format!("dash2sim-test/publishers/killed/{}", std::process::id());
     let out = dir.join("log");
-    let record = logger(&prefix, &out, 6.0);
+    let record = logger(&prefix, &out);
+    // The test watches the frames too (its own subscriber, beside the logger's), to kill the
+    // first process once it has published and to stop the logger once the second has.
+    let watch = bridge::CameraSubscriber::new(&prefix).expect("the test's subscriber");
+    let mut frames = 0;
+    let mut count_frames = || {
+        watch
+            .receive(|input| frames += u64::from(matches!(input, bridge::CameraInput::Frame { .. })))
+            .expect("receive");
+        frames
+    };
     let publish = || Command::new(&c).arg(&drive).args(["--prefix", &prefix]).stdout(Stdio::null()).spawn().expect("C");
     let mut first = publish();
-    std::thread::sleep(Duration::from_millis(1500));
+    wait_for("the first camera process's frames", || count_frames() >= 3);
     first.kill().expect("SIGKILL");
     let _ = first.wait();
-    std::thread::sleep(Duration::from_millis(300));
+    let before = count_frames();
     let mut second = publish();
-    finished(record, "the logger kept running");
+    wait_for("the second camera process's frames", || count_frames() >= before + 3);
+    stopped(record, "the logger kept running");
     let _ = second.kill();
     let _ = second.wait();
 

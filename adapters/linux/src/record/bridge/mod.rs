@@ -460,6 +460,33 @@ fn check(service: &'static str, version: u32) -> Result<(), BridgeError> {
     }
 }
 
+/// Whether a logger is listening under `prefix`: every camera service (frames, VO poses, 3D
+/// and 2D detections, keep marks, IMU samples) has a subscriber. Samples published before a
+/// subscriber exists are not kept for it, so a camera process (or a test) that must not lose
+/// its first samples waits for this before it publishes; a logger takes a moment to
+/// subscribe, and longer on a busy machine.
+pub fn listening(prefix: &str) -> Result<bool, BridgeError> {
+    set_log_level_from_env_or(LogLevel::Error);
+    let node = NodeBuilder::new().create::<ipc::Service>().map_err(|e| iox("node")(&e))?;
+    fn subscribed<T: std::fmt::Debug + ZeroCopySend + IceoryxSend>(
+        node: &Node<ipc::Service>,
+        prefix: &str,
+        leaf: &str,
+    ) -> Result<bool, BridgeError> {
+        match node.service_builder(&service_name(prefix, leaf)?).publish_subscribe::<T>().open() {
+            Ok(service) => Ok(service.dynamic_config().number_of_subscribers() > 0),
+            Err(iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenError::DoesNotExist) => Ok(false),
+            Err(e) => Err(BridgeError::Iceoryx(format!("{prefix}/{leaf}: {e:?}"))),
+        }
+    }
+    Ok(subscribed::<FrameMetaMsg>(&node, prefix, "frame")?
+        && subscribed::<VoPoseMsg>(&node, prefix, "vo")?
+        && subscribed::<Detections3dMsg>(&node, prefix, "detections3d")?
+        && subscribed::<Detections2dMsg>(&node, prefix, "detections2d")?
+        && subscribed::<KeepMsg>(&node, prefix, "keep")?
+        && subscribed::<ImuMsg>(&node, prefix, "imu")?)
+}
+
 impl CameraSubscriber {
     /// Subscribers on the services under `prefix` (created if no publisher exists yet).
     pub fn new(prefix: &str) -> Result<Self, BridgeError> {
@@ -754,5 +781,18 @@ mod tests {
         assert_eq!((got.imu_samples, skipped.imu_samples), (1 + IMU_SUBSCRIBER_BUFFER as u64, 76), "IMU samples");
         assert_eq!(got.frames + skipped.frames, frames, "received + skipped = published");
         assert_eq!(got.imu_samples + skipped.imu_samples, samples);
+    }
+
+    #[test]
+    fn a_logger_is_listening_once_subscribed_to_every_service_and_not_after() {
+        let prefix = format!("dash2sim-test/bridge-listening/{}", std::process::id());
+        assert!(!listening(&prefix).expect("no services yet"), "nothing under the prefix");
+        let camera = CameraPublisher::new(&prefix, false).expect("publisher");
+        assert!(!listening(&prefix).expect("services"), "a publisher alone is not a logger");
+        let logger = CameraSubscriber::new(&prefix).expect("subscriber");
+        assert!(listening(&prefix).expect("services"), "subscribed to all six services");
+        drop(logger);
+        assert!(!listening(&prefix).expect("services"), "the logger gone");
+        drop(camera);
     }
 }
