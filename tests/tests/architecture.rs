@@ -378,3 +378,101 @@ fn a_circle_is_found_and_a_chain_is_not() {
     let source = "use super::{rows::Row, summary};\nlet x = super::super::finish::y;";
     assert_eq!(references_after(source, "super::").into_iter().collect::<Vec<_>>(), ["rows", "summary"]);
 }
+
+/// The library crates' source folders: everything below the binaries (the CLI, its argument
+/// words, the examples) — what Python users and other programs call.
+const LIBRARY_SOURCES: [&str; 10] = [
+    "core-nostd/src",
+    "adapters/linux/src",
+    "adapters/can/src",
+    "adapters/trajectory/src",
+    "adapters/verify/src",
+    "adapters/finish/src",
+    "adapters/export/src",
+    "adapters/sim/src",
+    "adapters/python/src",
+    "adapters/camera-c/src",
+];
+
+/// Strings a library writes into its outputs (not messages), which name the command that
+/// made the file: `(file, the string's start)`.
+const PROVENANCE: [(&str, &str); 1] = [("adapters/export/src/commonroad.rs", "<?xml version='1.0'")];
+
+/// The string literals of `source` (outside comments and before its unit tests) that name a
+/// command-line flag (`--word`).
+fn flags_in_strings(source: &str) -> Vec<String> {
+    let code = source.split("#[cfg(test)]\nmod tests").next().unwrap_or(source);
+    let code = without_comments(code);
+    let mut found = Vec::new();
+    let mut chars = code.chars().peekable();
+    let mut previous = ' ';
+    while let Some(c) = chars.next() {
+        // A character literal ('"') is not a string's start.
+        if c == '"' && previous != '\'' {
+            let mut literal = String::new();
+            while let Some(d) = chars.next() {
+                match d {
+                    '\\' => {
+                        chars.next();
+                    }
+                    '"' => break,
+                    _ => literal.push(d),
+                }
+            }
+            let names_a_flag = literal.match_indices("--").any(|(i, _)| {
+                let before = literal[..i].chars().next_back().unwrap_or(' ');
+                let after = literal[i + 2..].chars().next().unwrap_or(' ');
+                !before.is_alphanumeric() && before != '-' && after.is_ascii_lowercase()
+            });
+            if names_a_flag {
+                found.push(literal);
+            }
+            previous = '"';
+        } else {
+            previous = c;
+        }
+    }
+    found
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).expect("source folder").flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            rust_files(&path, out);
+        } else if path.extension().is_some_and(|e| e == "rs") {
+            out.push(path);
+        }
+    }
+}
+
+/// Issue #56: the libraries speak their own terms — a request's field is named by
+/// `dash2sim_linux::Field`, and the command line maps it to its flag — so no library string
+/// names a flag, whoever calls the library.
+#[test]
+fn no_library_string_names_a_command_line_flag() {
+    let mut problems = Vec::new();
+    for folder in LIBRARY_SOURCES {
+        let mut files = Vec::new();
+        rust_files(&repo().join(folder), &mut files);
+        for path in files {
+            let source = std::fs::read_to_string(&path).expect("source");
+            let name = path.strip_prefix(repo()).unwrap_or(&path).display().to_string().replace("../", "");
+            for literal in flags_in_strings(&source) {
+                let known = PROVENANCE.iter().any(|(file, start)| name.ends_with(file) && literal.starts_with(start));
+                if !known {
+                    problems.push(format!("{name}: {literal:?}"));
+                }
+            }
+        }
+    }
+    assert!(problems.is_empty(), "library strings naming a command-line flag:\n{}", problems.join("\n"));
+}
+
+#[test]
+fn a_flag_in_a_string_is_found_and_one_in_a_comment_or_a_test_is_not() {
+    let source = "// --map in a comment\nlet e = Error::invalid(\"--nuplan needs --map\");\n\
+                  let s = \"a well-known -- dash\";\nlet c = '\"';\nlet t = \"x\\\"--not-this\";\n\
+                  #[cfg(test)]\nmod tests {\n    const T: &str = \"--map\";\n}\n";
+    assert_eq!(flags_in_strings(source), ["--nuplan needs --map"]);
+}

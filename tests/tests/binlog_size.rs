@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use dash2sim_core::binlog::Kind;
 use dash2sim_linux::log::{self, import::ImportRequest, mcap_export};
-use dash2sim_sim::datasets::comma::{ublox_nmea, ORIGIN};
+use dash2sim_sim::datasets::comma::{self, ublox_nmea};
 use dash2sim_sim::scenario::write::{import_request, write_scenario};
 use dash2sim_sim::scenario::{generate, ScenarioConfig};
 
@@ -58,11 +58,11 @@ fn the_comma2k19_minute_is_a_third_of_its_mcap() {
         nmea_offset_s: nmea.offset_s,
         can: Some(dir.join("raw_can.candump.log")),
         dbc: vec![dir.join("opendbc-toyota/_toyota_2017.dbc")],
-        speed_signal: Some("SPEED.SPEED".to_owned()),
-        speed_unit: 1.0 / 3.6,
+        speed_signal: Some("SPEED.SPEED".parse().expect("signal")),
+        speed_unit: dash2sim_linux::ingest::can::SpeedUnit::KilometresPerHour,
         traj: Some(dir.join("expected/global_pose_camera_enu.tum")),
         objects: None,
-        origin: Some(format!("{},{},{}", ORIGIN[0], ORIGIN[1], ORIGIN[2])),
+        origin: Some(comma::origin().expect("origin")),
     };
     log::import::import(&request, &mut |problem| panic!("{problem}")).expect("import");
     let log = log::read(&output).expect("log");
@@ -78,7 +78,7 @@ fn a_work_zone_drive_with_3d_tracks_is_a_third_of_its_mcap() {
     let scenario = generate(&ScenarioConfig { seed: 1, duration_s: 40.0, ..ScenarioConfig::default() });
     write_scenario(&scenario, &drive).expect("scenario");
     let output = work.join("drive.d2slog");
-    let request = import_request(&scenario, &drive, output.clone());
+    let request = import_request(&scenario, &drive, output.clone()).expect("request");
     log::import::import(&request, &mut |problem| panic!("{problem}")).expect("import");
     let log = log::read(&output).expect("log");
     let tracks = log::export::tracks(&log).count();

@@ -10,12 +10,10 @@
 use dash2sim_core::binlog::{quantise, GnssFix, Record};
 use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::nalgebra::Vector3;
-use dash2sim_core::pipeline::CameraMount;
 use dash2sim_finish::anchors;
 use dash2sim_finish::solve::Settings;
 use dash2sim_finish::{finish, Finished};
 use dash2sim_linux::log::LogContents;
-use dash2sim_linux::record::parse_mount;
 use dash2sim_linux::trajectory::Trajectory;
 use dash2sim_sim::datasets::comma::{compare, mount, record_minute, truth_at, ORIGIN, UERE};
 use dash2sim_sim::datasets::device_times;
@@ -120,8 +118,7 @@ fn without_speed(log: &LogContents) -> LogContents {
 
 fn run(log: &LogContents, anchor_text: Option<&str>) -> Finished {
     let file = anchor_text.map(|text| anchors::parse(text).expect("anchors"));
-    let mount: CameraMount = parse_mount(&mount()).expect("mount");
-    finish(&log.compact(), "comma", file.as_ref().map(|f| ("anchors.csv", f)), None, mount, Settings::default(), UERE)
+    finish(&log.compact(), "comma", file.as_ref().map(|f| ("anchors.csv", f)), None, mount(), Settings::default(), UERE)
         .expect("finish")
 }
 

@@ -10,6 +10,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod errors;
 mod publish;
 
 pub use publish::PublishArgs;

@@ -10,6 +10,10 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use dash2sim_core::traj::{Delta, RpePairs, Statistics};
 use serde_json::json;
 
+use dash2sim_core::geo::Geodetic;
+use dash2sim_linux::ingest::can::{SignalName, SpeedUnit};
+use dash2sim_linux::ingest::map_tile::parse_bbox;
+use dash2sim_linux::ingest::origin::parse_origin;
 use dash2sim_linux::sync::DEFAULT_MAX_DIFF_S;
 use dash2sim_linux::trajectory::Format;
 use dash2sim_linux::{Error, Result};
@@ -130,10 +134,10 @@ struct ImportArgs {
     dbc: Vec<PathBuf>,
     /// The DBC signal carrying vehicle speed, `MESSAGE.SIGNAL`.
     #[arg(long, value_name = "MESSAGE.SIGNAL")]
-    speed_signal: Option<String>,
+    speed_signal: Option<SignalName>,
     /// Unit of that signal: km/h, m/s or mph.
     #[arg(long, default_value = "km/h")]
-    speed_unit: String,
+    speed_unit: SpeedUnit,
     /// TUM trajectory (ENU around --origin, rear axle) → ego poses.
     #[arg(long)]
     traj: Option<PathBuf>,
@@ -141,8 +145,8 @@ struct ImportArgs {
     #[arg(long)]
     objects: Option<PathBuf>,
     /// ENU origin `LAT,LON[,H]` of the header; default: the first GNSS fix.
-    #[arg(long, value_name = "LAT,LON[,H]", allow_hyphen_values = true)]
-    origin: Option<String>,
+    #[arg(long, value_name = "LAT,LON[,H]", allow_hyphen_values = true, value_parser = parse_origin)]
+    origin: Option<Geodetic>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -157,12 +161,12 @@ enum MapCommand {
         output: PathBuf,
         /// ENU origin `LAT,LON[,H]` (degrees, metres above the ellipsoid), kept in the tile
         /// (a log recorded with the tile takes it); default: the centre of the roads, height 0.
-        #[arg(long, value_name = "LAT,LON[,H]", allow_hyphen_values = true)]
-        origin: Option<String>,
+        #[arg(long, value_name = "LAT,LON[,H]", allow_hyphen_values = true, value_parser = parse_origin)]
+        origin: Option<Geodetic>,
         /// Keep only the part inside `WEST,SOUTH,EAST,NORTH` (degrees, as osmium and the
         /// OSM API order them); ways are cut at the box.
-        #[arg(long, value_name = "W,S,E,N")]
-        bbox: Option<String>,
+        #[arg(long, value_name = "W,S,E,N", allow_hyphen_values = true, value_parser = parse_bbox)]
+        bbox: Option<[f64; 4]>,
         /// Grid cell size, metres.
         #[arg(long, default_value_t = dash2sim_linux::ingest::map_tile::DEFAULT_CELL_M)]
         cell: f64,
@@ -414,35 +418,24 @@ pub fn run() -> ExitCode {
             crate::scenario::eval(seed, duration, profile, max_age, json)
         }
         Command::Map(MapCommand::Build { osm, output, origin, bbox, cell }) => {
-            crate::map::build(&osm, &output, origin.as_deref(), bbox.as_deref(), cell)
+            crate::map::build(&osm, &output, origin, bbox, cell)
         }
         Command::Map(MapCommand::Info { map, json }) => crate::map::info(&map, json),
         Command::Map(MapCommand::Lanes { map }) => crate::map::lanes(&map),
         Command::Map(MapCommand::Export { map, opendrive }) => crate::map::export(&map, &opendrive),
         Command::Map(MapCommand::Check { map, poses, passes, json }) => crate::map::check(&map, &poses, passes, json),
-        Command::Import(a) => {
-            let speed_unit = match a.speed_unit.as_str() {
-                "km/h" | "kph" => Some(1.0 / 3.6),
-                "m/s" => Some(1.0),
-                "mph" => Some(0.44704),
-                _ => None,
-            };
-            match speed_unit {
-                Some(speed_unit) => import(&dash2sim_linux::log::import::ImportRequest {
-                    output: a.output,
-                    nmea: a.nmea,
-                    nmea_offset_s: a.nmea_offset,
-                    can: a.can,
-                    dbc: a.dbc,
-                    speed_signal: a.speed_signal,
-                    speed_unit,
-                    traj: a.traj,
-                    objects: a.objects,
-                    origin: a.origin,
-                }),
-                None => Err(Error::invalid(format!("--speed-unit {:?}: expected km/h, m/s or mph", a.speed_unit))),
-            }
-        }
+        Command::Import(a) => import(&dash2sim_linux::log::import::ImportRequest {
+            output: a.output,
+            nmea: a.nmea,
+            nmea_offset_s: a.nmea_offset,
+            can: a.can,
+            dbc: a.dbc,
+            speed_signal: a.speed_signal,
+            speed_unit: a.speed_unit,
+            traj: a.traj,
+            objects: a.objects,
+            origin: a.origin,
+        }),
         Command::Demo(args) => crate::demo::run(&args),
         Command::Record(args) => crate::record::run(&args),
         Command::Finish(args) => crate::finish::run(&args),
@@ -455,8 +448,8 @@ pub fn run() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(message) => {
-            eprintln!("dash2sim: error: {message}");
+        Err(e) => {
+            eprintln!("dash2sim: error: {}", dash2sim_args::errors::message(&e));
             ExitCode::FAILURE
         }
     }
@@ -466,7 +459,7 @@ fn traj_ape(args: &ApeArgs) -> Result<()> {
     let c = &args.common;
     check_max_diff(c.max_diff)?;
     let (r, e) = load_pair(c)?;
-    let eval = evaluate::ape(&r, &e, c.align, c.pose_relation).map_err(Error::other)?;
+    let eval = evaluate::ape(&r, &e, c.align, c.pose_relation).map_err(eval_error)?;
     report("APE", c, &eval, None);
     Ok(())
 }
@@ -486,7 +479,7 @@ fn traj_rpe(args: &RpeArgs) -> Result<()> {
     };
     let pairs = RpePairs { delta, all_pairs: args.all_pairs, from_reference: args.pairs_from_reference };
     let (r, e) = load_pair(c)?;
-    let eval = evaluate::rpe(&r, &e, c.align, c.pose_relation, pairs).map_err(Error::other)?;
+    let eval = evaluate::rpe(&r, &e, c.align, c.pose_relation, pairs).map_err(eval_error)?;
     report("RPE", c, &eval, Some(args));
     Ok(())
 }
@@ -498,7 +491,18 @@ fn load_pair(
         return Err(Error::invalid(format!("--t-offset {} must be a number of seconds", c.t_offset)));
     }
     let association = evaluate::Association { max_diff: c.max_diff, t_offset: c.t_offset };
-    evaluate::load_pair(&c.reference, &c.estimate, c.format, association).map_err(Error::other)
+    evaluate::load_pair(&c.reference, &c.estimate, c.format, association).map_err(eval_error)
+}
+
+/// A comparison's error; where too few poses matched and the files' spans are known, the
+/// flag that shifts the estimate's times is named beside the offsets the message suggests.
+fn eval_error(e: evaluate::EvalError) -> Error {
+    match e {
+        evaluate::EvalError::TooFewMatches { spans: Some(_), .. } => {
+            Error::invalid(format!("{e} (the time offset is --t-offset)"))
+        }
+        other => Error::other(other),
+    }
 }
 
 fn mot_eval(gt: &std::path::Path, test: &std::path::Path, max_distance: f64, as_json: bool) -> Result<()> {

@@ -3,6 +3,7 @@
 use std::io::Write as _;
 use std::path::Path;
 
+use dash2sim_core::geo::Geodetic;
 use dash2sim_linux::ingest::map_tile::{self, check};
 use dash2sim_linux::{Error, Result};
 
@@ -10,7 +11,7 @@ use dash2sim_linux::{Error, Result};
 const WARNINGS_SHOWN: usize = 10;
 
 /// `dash2sim map build`.
-pub fn build(osm: &Path, output: &Path, origin: Option<&str>, bbox: Option<&str>, cell: f64) -> Result<()> {
+pub fn build(osm: &Path, output: &Path, origin: Option<Geodetic>, bbox: Option<[f64; 4]>, cell: f64) -> Result<()> {
     let built = map_tile::build_file(osm, output, origin, bbox, cell)?;
     for w in built.warnings.iter().take(WARNINGS_SHOWN) {
         eprintln!("warning: {w}");

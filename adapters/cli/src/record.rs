@@ -4,10 +4,14 @@ use std::io::IsTerminal as _;
 use std::path::PathBuf;
 
 use clap::Args;
+use dash2sim_core::geo::Geodetic;
 use dash2sim_core::imu::ImuMount;
-use dash2sim_core::pipeline::{Issue, RelativeMotion};
+use dash2sim_core::pipeline::{CameraMount, Issue, RelativeMotion};
+use dash2sim_linux::ingest::can::{SignalName, SpeedUnit};
+use dash2sim_linux::ingest::origin::parse_origin;
 use dash2sim_linux::record::live::{LiveRequest, LiveStatus};
-use dash2sim_linux::record::{self, Device, RecordRequest, Sources, SpeedMessage, VoFrame};
+use dash2sim_linux::record::storage::parse_size;
+use dash2sim_linux::record::{self, Device, GnssSignalNames, RecordRequest, Sources, SpeedMessage, VoFrame};
 use dash2sim_linux::{Error, Result};
 
 /// The recorded files `dash2sim record` reads.
@@ -62,11 +66,11 @@ pub struct RecordArgs {
     #[arg(long)]
     pub dbc: Vec<PathBuf>,
     /// `MESSAGE.SIGNAL` of a DBC carrying the vehicle speed (else `--speed-source`).
-    #[arg(long)]
-    pub speed_signal: Option<String>,
+    #[arg(long, value_name = "SPEED_SIGNAL")]
+    pub speed_signal: Option<SignalName>,
     /// Unit of `--speed-signal`: km/h, m/s or mph.
     #[arg(long, default_value = record::DEFAULT_SPEED_UNIT)]
-    pub speed_unit: String,
+    pub speed_unit: SpeedUnit,
     /// Built-in speed message when no `--speed-signal` is given.
     #[arg(long, value_parser = dash2sim_args::SpeedMessage::parser(), default_value = "ccvs1")]
     pub speed_source: SpeedMessage,
@@ -74,14 +78,14 @@ pub struct RecordArgs {
     /// `lat=MSG.SIG,lon=MSG.SIG[,valid=MSG.SIG][,accuracy=MSG.SIG][,time=MSG.SIG]` —
     /// degrees; a valid flag (0 = no fix); accuracy in m, taken as 1-σ; UTC in seconds
     /// since 1970. All but `time` from one message.
-    #[arg(long)]
-    pub gnss_signals: Option<String>,
+    #[arg(long, value_name = "GNSS_SIGNALS")]
+    pub gnss_signals: Option<GnssSignalNames>,
     /// Map tile to verify against on the way (windows of 15 s); its origin is the log's.
     #[arg(long)]
     pub map: Option<PathBuf>,
     /// ENU origin `LAT,LON[,H]` (default: the map's, else the first GNSS fix).
-    #[arg(long, value_name = "LAT,LON[,H]", allow_hyphen_values = true)]
-    pub origin: Option<String>,
+    #[arg(long, value_name = "LAT,LON[,H]", allow_hyphen_values = true, value_parser = parse_origin)]
+    pub origin: Option<Geodetic>,
     /// The dashcam: mount, VO frame, GNSS error model.
     #[command(flatten)]
     pub device: DeviceArgs,
@@ -93,8 +97,8 @@ pub struct RecordArgs {
     #[arg(long, conflicts_with_all = ["vo", "nmea", "can", "detections", "detections2d"])]
     pub replay: Option<PathBuf>,
     /// The device id written into the log's header (at most 16 bytes).
-    #[arg(long, default_value = record::DEFAULT_DEVICE_ID)]
-    pub device_id: String,
+    #[arg(long, default_value = record::DEFAULT_DEVICE_ID, value_parser = record::parse_device_id)]
+    pub device_id: [u8; 16],
     /// Live: subscribe to the camera process's services (shared memory) under this prefix.
     #[arg(long, num_args = 0..=1, default_missing_value = dash2sim_linux::record::bridge::DEFAULT_PREFIX)]
     pub camera: Option<String>,
@@ -121,11 +125,11 @@ pub struct RecordArgs {
     pub seconds: Option<f64>,
     /// Live: loop recording — the folder's log files stay below SIZE (`64k`, `500M`, `2G`);
     /// the oldest files go first, kept ones (a verified window, SIGUSR1, a `KEEP` file) last
-    #[arg(long, value_name = "SIZE")]
-    pub quota: Option<String>,
+    #[arg(long, value_name = "SIZE", value_parser = parse_size)]
+    pub quota: Option<u64>,
     /// Live: keep at least SIZE of the file system free, deleting as for `--quota`
-    #[arg(long, value_name = "SIZE")]
-    pub min_free: Option<String>,
+    #[arg(long, value_name = "SIZE", value_parser = parse_size)]
+    pub min_free: Option<u64>,
     /// Sign every segment of the log with the device's secret key in FILE (`dash2sim
     /// keygen`); the chain of signatures runs across the rotated files (docs/binlog.md)
     #[arg(long, value_name = "FILE")]
@@ -143,15 +147,15 @@ impl RecordArgs {
             sources: self.sources.clone().into(),
             dbc: self.dbc.clone(),
             speed_signal: self.speed_signal.clone(),
-            speed_unit: self.speed_unit.clone(),
+            speed_unit: self.speed_unit,
             speed_source: self.speed_source,
             gnss_signals: self.gnss_signals.clone(),
             map: self.map.clone(),
-            origin: self.origin.clone(),
+            origin: self.origin,
             device: self.device.clone().into(),
             save_inputs: self.save_inputs.clone(),
             replay: self.replay.clone(),
-            device_id: self.device_id.clone(),
+            device_id: self.device_id,
             camera: self.camera.clone(),
             serial: self.serial.clone(),
             baud: self.baud,
@@ -160,8 +164,8 @@ impl RecordArgs {
             realtime: self.realtime,
             segment_minutes: self.segment_minutes,
             seconds: self.seconds,
-            quota: self.quota.clone(),
-            min_free: self.min_free.clone(),
+            quota: self.quota,
+            min_free: self.min_free,
             key: self.key.clone(),
             status: std::io::stderr().is_terminal().then_some(status_line as fn(&LiveStatus)),
         }
@@ -174,8 +178,8 @@ impl RecordArgs {
 pub struct DeviceArgs {
     /// Camera position on the vehicle: `FORWARD,LEFT,UP` from the rear axle on the
     /// ground (m), optionally `,ROLL,PITCH,YAW` (rad, camera → body).
-    #[arg(long, default_value = record::DEFAULT_MOUNT)]
-    pub mount: String,
+    #[arg(long, default_value = record::DEFAULT_MOUNT, value_parser = record::parse_mount)]
+    pub mount: CameraMount,
     /// `gravity`: the VO frame's z is vertical (VIO, levelled VO); `full`: any orientation.
     #[arg(long, value_parser = dash2sim_args::VoFrame::parser(), default_value = "gravity")]
     pub mode: VoFrame,

@@ -59,7 +59,8 @@ fn generate_map_record_export_and_ape_against_the_truth_with_only_what_generate_
     assert!(!out.status.success());
     let e = stderr(&out);
     assert!(e.contains("only 0 poses matched") && e.contains("do not overlap"), "{e}");
-    let range = e.split("any --t-offset from ").nth(1).expect("the offsets that would do");
+    assert!(e.contains("--t-offset"), "the flag that shifts the estimate: {e}");
+    let range = e.split("any time offset from ").nth(1).expect("the offsets that would do");
     let bound = |i: usize| range.split(' ').nth(i).and_then(|v| v.parse::<f64>().ok()).expect("a number");
     assert!((bound(0)..=bound(2)).contains(&-1780300800.0), "{e}");
 

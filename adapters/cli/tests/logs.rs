@@ -250,7 +250,11 @@ fn export_nuplan_writes_the_devkits_tables_and_layers_and_refuses_bad_input() {
     let out = dash2sim(&["export", &path(&gnss_only), "--nuplan", &path(&fresh), "--map", &path(&map)]);
     assert!(!out.status.success() && stderr(&out).contains("no ego poses"), "{}", stderr(&out));
     let out = dash2sim(&["export", &path(&log), "--nuplan", &path(&fresh)]);
-    assert!(!out.status.success() && stderr(&out).contains("--nuplan needs --map"), "{}", stderr(&out));
+    assert!(
+        !out.status.success() && stderr(&out).contains("error: --map: the nuPlan export needs one"),
+        "the flag that fixes it: {}",
+        stderr(&out)
+    );
     let left: Vec<_> = walk(&fresh).into_iter().filter(|p| p.is_file()).collect();
     assert!(left.is_empty(), "left behind: {left:?}");
 }
@@ -310,7 +314,8 @@ fn assert_export_refuses_bad_input(dir: &Path, log: &Path, map: &Path, flag: &st
     let path = |p: &Path| p.display().to_string();
     let (log, map, target) = (path(log), path(map), path(target));
     let out = dash2sim(&["export", &log, flag, &target, "--map", &map, "--scenario-seconds", "0.5"]);
-    assert!(!out.status.success() && stderr(&out).contains("needs at least 1 s"), "{}", stderr(&out));
+    let e = stderr(&out);
+    assert!(!out.status.success() && e.contains("--scenario-seconds: ") && e.contains("needs at least 1 s"), "{e}");
     let out = dash2sim(&["export", &log, flag, &target, "--map", &map, "--scenario-seconds", "60"]);
     assert!(!out.status.success() && stderr(&out).contains("shorter than one scenario"), "{}", stderr(&out));
     let far = write(
@@ -328,7 +333,13 @@ fn assert_export_refuses_bad_input(dir: &Path, log: &Path, map: &Path, flag: &st
     let out = dash2sim(&["export", &path(&gnss_only), flag, &target, "--map", &map]);
     assert!(!out.status.success() && stderr(&out).contains("no ego poses"), "{}", stderr(&out));
     let out = dash2sim(&["export", &log, flag, &target]);
-    assert!(!out.status.success() && stderr(&out).contains(&format!("{flag} needs --map")), "{}", stderr(&out));
+    assert!(
+        !out.status.success()
+            && stderr(&out).contains("error: --map: the ")
+            && stderr(&out).contains("export needs one"),
+        "the flag that fixes it: {}",
+        stderr(&out)
+    );
     let left: Vec<_> = walk(fresh).into_iter().filter(|p| p.is_file()).collect();
     assert!(left.is_empty(), "left behind: {left:?}");
 }

@@ -31,7 +31,7 @@ use std::path::{Path, PathBuf};
 
 use dash2sim_linux::log::export::{ego_poses, geojson, tum};
 use dash2sim_linux::log::{frame, mcap_export, read, LogContents};
-use dash2sim_linux::{Error, Result};
+use dash2sim_linux::{Error, Field, Result};
 
 /// What to export (`dash2sim export`).
 #[derive(Clone, Debug)]
@@ -115,8 +115,9 @@ pub fn export(request: &ExportRequest) -> Result<Exported> {
         && request.scenarionet.is_none()
         && request.openscenario.is_none()
     {
-        return Err(Error::invalid(
-            "nothing to export: give --mcap, --tum, --geojson, --parquet, --nuplan, --commonroad, --scenarionet and/or --openscenario",
+        return Err(Error::request(
+            Field::Formats,
+            "nothing to export: ask for MCAP, TUM, GeoJSON, Parquet, nuPlan, CommonRoad, ScenarioNet and/or OpenSCENARIO",
         ));
     }
     let log = read(&request.log).map_err(Error::other)?;
@@ -135,7 +136,7 @@ pub fn export(request: &ExportRequest) -> Result<Exported> {
         if n == 0 {
             return Err(Error::file(
                 &request.log,
-                "no ego poses to write as TUM (a log of GNSS and speed only has none; --geojson and --mcap carry its fixes)",
+                "no ego poses to write as TUM (a log of GNSS and speed only has none; its GeoJSON and MCAP exports carry its fixes)",
             ));
         }
         write(path, &tum(&log))?;
@@ -153,34 +154,40 @@ pub fn export(request: &ExportRequest) -> Result<Exported> {
     let map = request.map.as_deref().map(|p| map_tile(p, origin)).transpose()?;
     if let Some(dir) = &request.nuplan {
         let (Some(tile), Some(map_path)) = (&map, &request.map) else {
-            return Err(Error::invalid("--nuplan needs --map (a tile or an OpenStreetMap file)"));
+            return Err(Error::request(Field::Map, "the nuPlan export needs one (a tile or an OpenStreetMap file)"));
         };
         exported.written.push(nuplan(&log, request, tile, map_path, dir)?);
     }
     if let Some(path) = &request.commonroad {
         let Some(tile) = &map else {
-            return Err(Error::invalid("--commonroad needs --map (a tile or an OpenStreetMap file)"));
+            return Err(Error::request(
+                Field::Map,
+                "the CommonRoad export needs one (a tile or an OpenStreetMap file)",
+            ));
         };
         exported.written.extend(commonroad(&log, request, tile, path)?);
     }
     if let Some(dir) = &request.scenarionet {
         let Some(tile) = &map else {
-            return Err(Error::invalid("--scenarionet needs --map (a tile or an OpenStreetMap file)"));
+            return Err(Error::request(
+                Field::Map,
+                "the ScenarioNet export needs one (a tile or an OpenStreetMap file)",
+            ));
         };
         exported.written.push(scenarionet(&log, request, tile, dir)?);
     }
     if let Some(dir) = &request.openscenario {
         let Some(tile) = &map else {
-            return Err(Error::invalid("--openscenario needs --map (a tile or an OpenStreetMap file)"));
+            return Err(Error::request(
+                Field::Map,
+                "the OpenSCENARIO export needs one (a tile or an OpenStreetMap file)",
+            ));
         };
         exported.written.extend(openscenario(&log, request, tile, dir)?);
     }
     if let Some(path) = &request.mcap {
-        let view = map
-            .as_deref()
-            .map(dash2sim_core::map::MapView::parse)
-            .transpose()
-            .map_err(|e| Error::refused("--map", e))?;
+        let view =
+            map.as_deref().map(dash2sim_core::map::MapView::parse).transpose().map_err(|e| Error::refused("map", e))?;
         let counts = mcap_export::write(&log, view.as_ref(), path, None)?;
         let total: u64 = counts.values().sum();
         let detail: Vec<String> = counts.iter().map(|(topic, n)| format!("{n} {topic}")).collect();
@@ -201,7 +208,7 @@ fn parquet(log: &LogContents, request: &ExportRequest, dir: &Path) -> Result<Str
 
 #[cfg(not(feature = "parquet"))]
 fn parquet(_: &LogContents, _: &ExportRequest, _: &Path) -> Result<String> {
-    Err(Error::FeatureMissing { option: "--parquet", part: "Parquet export", feature: "parquet" })
+    Err(Error::FeatureMissing { field: Field::Parquet, part: "Parquet export", feature: "parquet" })
 }
 
 /// The nuPlan log database and map written: what they hold.
@@ -335,5 +342,5 @@ pub fn opendrive_line(path: &Path, d: &opendrive::OpenDrive) -> String {
 
 #[cfg(not(feature = "nuplan"))]
 fn nuplan(_: &LogContents, _: &ExportRequest, _: &[u8], _: &Path, _: &Path) -> Result<String> {
-    Err(Error::FeatureMissing { option: "--nuplan", part: "nuPlan export", feature: "nuplan" })
+    Err(Error::FeatureMissing { field: Field::Nuplan, part: "nuPlan export", feature: "nuplan" })
 }

@@ -15,7 +15,7 @@ use dash2sim_core::obb::{Pose2, PACIFICA};
 use super::projection::Projection;
 use dash2sim_linux::log::export::{standing_objects, track_velocity};
 use dash2sim_linux::log::LogContents;
-use dash2sim_linux::{Error, Result};
+use dash2sim_linux::{Error, Field, Result};
 
 /// A pose farther than this from every lane is off the map, m.
 const OFF_MAP_M: f64 = 10.0;
@@ -347,10 +347,13 @@ pub fn windows(
         None => ticks,
         Some(s) if s.is_finite() && (s / step_s).round() as usize >= min_steps => (s / step_s).round() as usize,
         Some(s) => {
-            return Err(Error::invalid(format!(
-                "--scenario-seconds {s}: a {simulator} scenario needs at least {} s ({min_steps} steps of {step_s} s)",
-                min_steps as f64 * step_s
-            )))
+            return Err(Error::request(
+                Field::ScenarioSeconds,
+                format!(
+                    "{s} s: a {simulator} scenario needs at least {} s ({min_steps} steps of {step_s} s)",
+                    min_steps as f64 * step_s
+                ),
+            ))
         }
     };
     if ticks < window.max(min_steps) {

@@ -39,7 +39,7 @@ use dash2sim_core::sim3::Pose;
 use anchors::AnchorForm;
 use dash2sim_linux::log::{self, event, LogContents, RecordStore};
 use dash2sim_linux::record::{Device, VoFrame};
-use dash2sim_linux::{Error, Result};
+use dash2sim_linux::{Error, Field, Result};
 pub use report::*;
 use sessions::{bridge_gaps, frame_interval, join_sessions, solve_sessions, starting_velocity, PlanarPose, Solved};
 use solve::{Anchor, AnchorAt, Fix, Settings, Solution, VoSample};
@@ -632,9 +632,10 @@ struct FactorGraphFile<'a> {
 /// package's `finish`): the report (`--json`) with the output's path and size.
 pub fn finish_file(args: &FinishRequest) -> Result<FinishedFile> {
     if !(args.keyframe.is_finite() && (0.05..=10.0).contains(&args.keyframe)) {
-        return Err(Error::invalid(format!("--keyframe {} must be between 0.05 and 10 s", args.keyframe)));
+        return Err(Error::request(Field::Keyframe, format!("{} must be between 0.05 and 10 s", args.keyframe)));
     }
-    let (mount, uere) = args.device.parse()?;
+    let device = args.device.check()?;
+    let (mount, uere) = (device.mount, device.uere);
     let log = log::read_compact(&args.log).map_err(Error::other)?;
     let name = args.log.display().to_string();
     if let Some(public) = &args.require_signed {

@@ -42,14 +42,24 @@ pub enum Error {
         source: Source,
     },
     /// The request needs a part this build of the library was made without.
-    #[error("{option}: this build of dash2sim-linux has no {part} (its `{feature}` feature)")]
+    #[error("this build of dash2sim-linux has no {part} (its `{feature}` feature)")]
     FeatureMissing {
-        /// The option that asked for it (`--parquet`).
-        option: &'static str,
+        /// The field of the request that asked for it.
+        field: Field,
         /// The part (`Parquet export`).
         part: &'static str,
         /// The cargo feature that brings it.
         feature: &'static str,
+    },
+    /// One field of a request cannot be used as given, or is missing: which field, and
+    /// what is wrong with it, in the library's words. A front end names its own way of
+    /// setting the field (the command line its flag) beside the message.
+    #[error("{field}: {message}")]
+    Request {
+        /// The field.
+        field: Field,
+        /// What is wrong with it.
+        message: String,
     },
     /// The request or its inputs cannot be used as given: what is wrong, in words.
     #[error("{0}")]
@@ -57,6 +67,100 @@ pub enum Error {
     /// A part's own error, passed on as it is (its message is the whole story).
     #[error(transparent)]
     Other(Source),
+}
+
+/// A field of a request, named as the library knows it. The requests of every crate that
+/// shares this error (recording, import, finishing, verification, exports, the simulator)
+/// name their fields here, so that a front end can point at its own way of setting one:
+/// the command line maps each to the flag that fixes it, and the library's messages
+/// never speak any front end's vocabulary.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Field {
+    /// The GNSS error model's UERE.
+    Uere,
+    /// The log's ENU origin.
+    Origin,
+    /// The map tile (or OpenStreetMap file).
+    Map,
+    /// The DBC files.
+    Dbc,
+    /// The DBC signal carrying the vehicle speed.
+    SpeedSignal,
+    /// The DBC signals carrying GNSS fixes.
+    GnssSignals,
+    /// The recorded inputs (files, or live sources).
+    Sources,
+    /// The 2D detections.
+    Detections2d,
+    /// What an import reads (captures, a trajectory, objects).
+    ImportSources,
+    /// The live recording's segment length.
+    SegmentMinutes,
+    /// How long a live recording or a publisher runs.
+    Seconds,
+    /// The SocketCAN interface.
+    CanInterface,
+    /// The map's grid cell.
+    Cell,
+    /// How many passes a map check makes.
+    Passes,
+    /// The street anchors' σ.
+    Sigma,
+    /// The anchorer's forgetting time.
+    Forget,
+    /// The finished trajectory's key-frame spacing.
+    Keyframe,
+    /// The export formats asked for.
+    Formats,
+    /// The Parquet export.
+    Parquet,
+    /// The nuPlan export.
+    Nuplan,
+    /// The length of an exported scenario.
+    ScenarioSeconds,
+    /// A generated drive's length.
+    Duration,
+    /// How many drives run at once.
+    Jobs,
+    /// How much faster than real time a publisher runs.
+    Speedup,
+    /// A publisher's camera frame rate.
+    Fps,
+    /// How many times a publisher runs its drive.
+    Laps,
+}
+
+impl std::fmt::Display for Field {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Field::Uere => "the GNSS error model's UERE",
+            Field::Origin => "the ENU origin",
+            Field::Map => "the map",
+            Field::Dbc => "the DBC files",
+            Field::SpeedSignal => "the speed signal",
+            Field::GnssSignals => "the GNSS signals",
+            Field::Sources => "the inputs",
+            Field::Detections2d => "the 2D detections",
+            Field::ImportSources => "the inputs",
+            Field::SegmentMinutes => "the segment length",
+            Field::Seconds => "the run's length",
+            Field::CanInterface => "the CAN interface",
+            Field::Cell => "the grid cell",
+            Field::Passes => "the number of passes",
+            Field::Sigma => "the anchors' σ",
+            Field::Forget => "the forgetting time",
+            Field::Keyframe => "the key-frame spacing",
+            Field::Formats => "the export formats",
+            Field::Parquet => "the Parquet export",
+            Field::Nuplan => "the nuPlan export",
+            Field::ScenarioSeconds => "the scenario length",
+            Field::Duration => "the drive's length",
+            Field::Jobs => "the number of jobs",
+            Field::Speedup => "the speed-up",
+            Field::Fps => "the frame rate",
+            Field::Laps => "the number of laps",
+        })
+    }
 }
 
 /// The library's result.
@@ -76,6 +180,11 @@ impl Error {
     /// `context` was refused with `source`.
     pub fn refused(context: impl Into<String>, source: impl Into<Source>) -> Error {
         Error::Refused { context: context.into(), source: source.into() }
+    }
+
+    /// The request's `field` cannot be used as given: `message` says why.
+    pub fn request(field: Field, message: impl Into<String>) -> Error {
+        Error::Request { field, message: message.into() }
     }
 
     /// The request cannot be met: `message` says why.
@@ -112,10 +221,9 @@ mod tests {
         assert_eq!(e.to_string(), "map: not a dash2sim map tile (bad magic)");
         assert!(std::error::Error::source(&e).is_some());
         assert!(e.io().is_none());
-        let e = Error::FeatureMissing { option: "--parquet", part: "Parquet export", feature: "parquet" };
-        assert_eq!(
-            e.to_string(),
-            "--parquet: this build of dash2sim-linux has no Parquet export (its `parquet` feature)"
-        );
+        let e = Error::FeatureMissing { field: Field::Parquet, part: "Parquet export", feature: "parquet" };
+        assert_eq!(e.to_string(), "this build of dash2sim-linux has no Parquet export (its `parquet` feature)");
+        let e = Error::request(Field::Keyframe, "20 s is not between 0.05 and 10 s");
+        assert_eq!(e.to_string(), "the key-frame spacing: 20 s is not between 0.05 and 10 s");
     }
 }

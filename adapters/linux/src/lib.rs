@@ -22,4 +22,4 @@ pub mod sync;
 pub mod utc;
 /// Trajectory files (TUM, KITTI, EuRoC): the `dash2sim-trajectory` crate.
 pub use dash2sim_trajectory as trajectory;
-pub use error::{Error, Result};
+pub use error::{Error, Field, Result};

@@ -90,6 +90,7 @@ fn finish(
         "full" => VoFrame::Full,
         other => return Err(error(format!("mode {other:?}: give \"gravity\" or \"full\""))),
     };
+    let mount = dash2sim_linux::record::parse_mount(&mount).map_err(|e| error(format!("mount {mount:?}: {e}")))?;
     let device = Device { mount, mode, uere, ..Device::default() };
     let args = FinishRequest { log, output, anchors, map, device, keyframe, require_signed, factor_graph };
     py.detach(|| {

@@ -103,8 +103,11 @@ def test_errors_are_dash2sim_errors_carrying_the_rust_message(corpus, corpus_pla
     log, tile = paths(corpus, intact(corpus_plan)[0])
     with pytest.raises(dash2sim.Dash2SimError, match='mode "sideways"'):
         dash2sim.finish(log, tmp_path / "x.d2slog", mode="sideways")
-    with pytest.raises(dash2sim.Dash2SimError, match="nothing to export"):
+    with pytest.raises(dash2sim.Dash2SimError, match="nothing to export") as error:
         dash2sim.export(log)
+    assert "--" not in str(error.value), "a library message names no command-line flag"
+    with pytest.raises(dash2sim.Dash2SimError, match='mount "1,2": expected 3 or 6 numbers'):
+        dash2sim.finish(log, tmp_path / "x.d2slog", mount="1,2")
     assert issubclass(dash2sim.Dash2SimError, Exception)
 
 
@@ -137,8 +140,9 @@ def test_simulator_exports_are_the_command_line_s_bytes(corpus, corpus_plan, das
     assert any(p.suffix == ".xosc" for p in py_files) and any(p.suffix == ".xodr" for p in py_files)
     for name in py_files:
         assert (tmp_path / "py" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
-    with pytest.raises(dash2sim.Dash2SimError, match="--scenarionet needs --map"):
+    with pytest.raises(dash2sim.Dash2SimError, match="the map: the ScenarioNet export needs one") as error:
         dash2sim.export(log, scenarionet=tmp_path / "no-map")
+    assert "--" not in str(error.value), "a library message names no command-line flag"
 
 
 def test_the_gil_is_released_while_rust_works(corpus, corpus_plan, tmp_path):

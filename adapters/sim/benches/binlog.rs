@@ -14,7 +14,8 @@ fn throughput(c: &mut Criterion) {
     let scenario = generate(&ScenarioConfig { duration_s: 40.0, ..ScenarioConfig::default() });
     write_scenario(&scenario, &dir.join("drive")).expect("scenario");
     let output = dir.join("drive.d2slog");
-    log::import::import(&import_request(&scenario, &dir.join("drive"), output.clone()), &mut |_| {}).expect("import");
+    log::import::import(&import_request(&scenario, &dir.join("drive"), output.clone()).expect("request"), &mut |_| {})
+        .expect("import");
     let bytes = std::fs::read(&output).expect("log");
     let log = log::decode(&bytes, "bench").expect("log");
     let header = log.header.expect("header");

@@ -15,4 +15,4 @@ pub mod datasets;
 pub mod fidelity;
 pub mod scenario;
 
-pub use dash2sim_linux::{Error, Result};
+pub use dash2sim_linux::{Error, Field, Result};

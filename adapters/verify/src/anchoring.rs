@@ -11,7 +11,7 @@ use serde::Serialize;
 use crate::evaluate::Alignment;
 use dash2sim_linux::record::VoFrame;
 use dash2sim_linux::trajectory::{self, Format, Trajectory};
-use dash2sim_linux::{Error, Result};
+use dash2sim_linux::{Error, Field, Result};
 
 /// Anchoring of trajectory files (`dash2sim anchor`).
 #[derive(Clone, Debug)]
@@ -190,10 +190,10 @@ pub fn anchored_trajectory(vo: &Trajectory, frames: &[FrameEstimate]) -> Traject
 /// Anchor the VO file to the GNSS (and speed) files, write the anchored trajectory if asked.
 pub fn anchor_files(args: &AnchorRequest) -> Result<AnchorSummary> {
     if !(args.sigma.is_finite() && args.sigma > 0.0) {
-        return Err(Error::invalid(format!("--sigma {} must be a positive number of metres", args.sigma)));
+        return Err(Error::request(Field::Sigma, format!("{} must be a positive number of metres", args.sigma)));
     }
     if args.forget.is_nan() || args.forget <= 0.0 {
-        return Err(Error::invalid(format!("--forget {} must be positive (or inf)", args.forget)));
+        return Err(Error::request(Field::Forget, format!("{} must be positive (or inf)", args.forget)));
     }
     let vo = Trajectory::read(&args.vo, Format::Tum).map_err(Error::other)?;
     let gnss = Trajectory::read(&args.gnss, Format::Tum).map_err(Error::other)?;

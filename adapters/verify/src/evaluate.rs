@@ -122,19 +122,23 @@ impl Spans {
         let ((r0, r1), (e0, e1)) = (self.reference, self.estimate);
         write!(f, ". The reference spans {r0:.3}–{r1:.3} s, the estimate {e0:.3}–{e1:.3} s")?;
         if t_offset != 0.0 {
-            write!(f, " (then {:.3}–{:.3} s with --t-offset {t_offset})", e0 + t_offset, e1 + t_offset)?;
+            write!(f, " (then {:.3}–{:.3} s with the time offset {t_offset} s)", e0 + t_offset, e1 + t_offset)?;
         }
         if e1 + t_offset < r0 || e0 + t_offset > r1 {
             write!(f, ": they do not overlap. If the files count time from different starts, ")?;
             if e1 - e0 <= r1 - r0 {
                 write!(
                     f,
-                    "any --t-offset from {:.3} to {:.3} (added to the estimate's times) puts the estimate inside the reference's span",
+                    "any time offset from {:.3} to {:.3} s (added to the estimate's times) puts the estimate inside the reference's span",
                     r0 - e0,
                     r1 - e1
                 )?;
             } else {
-                write!(f, "--t-offset {:.3} (added to the estimate's times) lines up their first poses", r0 - e0)?;
+                write!(
+                    f,
+                    "a time offset of {:.3} s (added to the estimate's times) lines up their first poses",
+                    r0 - e0
+                )?;
             }
         }
         Ok(())

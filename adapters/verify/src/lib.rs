@@ -161,8 +161,8 @@ pub fn from_contents(
         .collect();
     if poses.is_empty() {
         return Err(Error::invalid(format!(
-            "{name}: no ego poses to verify (a log of GNSS and speed only has none: record it with VO, --vo or \
-             --camera, finish it, or verify a trajectory with --ego FILE)"
+            "{name}: no ego poses to verify (a log of GNSS and speed only has none: record it with VO (from a file \
+             or the camera process), finish it, or verify a trajectory file as the ego instead)"
         )));
     }
     let mut agents: BTreeMap<i64, Vec<Agent>> = BTreeMap::new();

@@ -31,7 +31,7 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(e) => {
-            eprintln!("camera_sim: {e}");
+            eprintln!("camera_sim: {}", dash2sim_args::errors::message(&e));
             ExitCode::FAILURE
         }
     }

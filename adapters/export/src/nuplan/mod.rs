@@ -17,7 +17,7 @@ use serde_json::json;
 use super::partial::Cleanup;
 use super::ticks::{on_map, OnMap};
 use dash2sim_linux::log::LogContents;
-use dash2sim_linux::{Error, Result};
+use dash2sim_linux::{Error, Field, Result};
 use gpkg::GeoPackage;
 
 /// The map version directory nuPlan's map reader expects.
@@ -62,17 +62,21 @@ pub struct NuplanExport {
 /// Export. Errors name what is missing; nothing is left behind on an error.
 pub fn export(request: &NuplanRequest<'_>) -> Result<NuplanExport> {
     if !(request.scene_s.is_finite() && request.scene_s >= 1.0) {
-        return Err(Error::invalid(format!("--scenario-seconds {} must be at least 1", request.scene_s)));
+        return Err(Error::request(Field::ScenarioSeconds, format!("{} s must be at least 1 s", request.scene_s)));
     }
     let OnMap { view, map_projection, log_projection, ticks, .. } =
         on_map(request.log, request.log_name, request.tile, logdb::RATE_HZ)?;
     let duration = ticks.len().saturating_sub(1) as f64 / logdb::RATE_HZ;
     let scenes = logdb::scene_count(ticks.len(), request.scene_s);
     if scenes < MIN_SCENES {
-        return Err(Error::invalid(format!(
-            "{}: {duration:.1} s of ego poses make {scenes} scenes of {} s; nuPlan needs at least {MIN_SCENES} (it drops the first two and the last): a longer log or shorter --scenario-seconds",
-            request.log_name, request.scene_s
-        )));
+        return Err(Error::request(
+            Field::ScenarioSeconds,
+            format!(
+                "{}: {duration:.1} s of ego poses make {scenes} scenes of {} s; nuPlan needs at least {MIN_SCENES} (it \
+                 drops the first two and the last): a longer log or shorter scenes",
+                request.log_name, request.scene_s
+            ),
+        ));
     }
     let (layers, ids) = map::layers(&view, &map_projection)?;
 

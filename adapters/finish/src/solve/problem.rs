@@ -166,7 +166,8 @@ impl std::fmt::Display for SolveError {
         match self {
             SolveError::NoVo => f.write_str("fewer than two VO poses: there is no trajectory to re-anchor"),
             SolveError::NothingToAnchorTo => f.write_str(
-                "nothing to anchor to: no GNSS fix and no anchor falls within the VO poses' time span (give --anchors)",
+                "nothing to anchor to: no GNSS fix and no anchor falls within the VO poses' time span (anchors from street \
+                 imagery would give some)",
             ),
             SolveError::Degenerate(why) => write!(f, "the fixes and anchors do not determine an alignment: {why}"),
             SolveError::Singular => f.write_str("the least-squares problem is singular"),

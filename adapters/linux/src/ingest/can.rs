@@ -11,7 +11,7 @@
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
 
-use crate::{Error, Result};
+use crate::{Error, Field, Result};
 use dash2sim_can::candump::CandumpReader;
 use dash2sim_can::source::SourceErrorKind;
 use dash2sim_can::{FrameSource, Record, SignalTable};
@@ -157,6 +157,70 @@ pub fn decode_source<R: BufRead>(
     Ok(decoder.summary())
 }
 
+/// The unit a DBC speed signal is in (km/h unless named).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SpeedUnit {
+    /// km/h (`km/h` or `kph`).
+    #[default]
+    KilometresPerHour,
+    /// m/s.
+    MetresPerSecond,
+    /// Miles per hour.
+    MilesPerHour,
+}
+
+impl SpeedUnit {
+    /// Metres per second in one of this unit.
+    pub fn to_mps(self) -> f64 {
+        match self {
+            SpeedUnit::KilometresPerHour => 1.0 / 3.6,
+            SpeedUnit::MetresPerSecond => 1.0,
+            SpeedUnit::MilesPerHour => 0.44704,
+        }
+    }
+}
+
+impl std::str::FromStr for SpeedUnit {
+    type Err = Error;
+
+    fn from_str(text: &str) -> Result<Self> {
+        match text {
+            "km/h" | "kph" => Ok(SpeedUnit::KilometresPerHour),
+            "m/s" => Ok(SpeedUnit::MetresPerSecond),
+            "mph" => Ok(SpeedUnit::MilesPerHour),
+            other => Err(Error::invalid(format!("{other:?} is not a speed unit: expected km/h, m/s or mph"))),
+        }
+    }
+}
+
+/// A DBC signal named `MESSAGE.SIGNAL`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SignalName {
+    /// The message's name.
+    pub message: String,
+    /// The signal's name within it.
+    pub signal: String,
+}
+
+impl std::str::FromStr for SignalName {
+    type Err = Error;
+
+    fn from_str(text: &str) -> Result<Self> {
+        match text.split_once('.') {
+            Some((message, signal)) if !message.is_empty() && !signal.is_empty() => {
+                Ok(SignalName { message: message.to_owned(), signal: signal.to_owned() })
+            }
+            _ => Err(Error::invalid(format!("{text:?}: expected MESSAGE.SIGNAL"))),
+        }
+    }
+}
+
+impl std::fmt::Display for SignalName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}.{}", self.message, self.signal)
+    }
+}
+
 /// Load and merge DBC files (later files win on equal ids); the warnings, `FILE: what`,
 /// of what was skipped in them. `FILE@+OFFSET` (or `@-OFFSET`, decimal or `0x` hex) moves
 /// every id of the file by the offset: a module configured to another base id.
@@ -173,7 +237,7 @@ pub fn load_tables(paths: &[PathBuf]) -> Result<(SignalTable, Vec<String>)> {
     Ok((table, warnings))
 }
 
-/// A `--dbc` argument split into the file and its id offset (`FILE@+0x64`); a file whose
+/// A DBC file as given split into the file and its id offset (`FILE@+0x64`); a file whose
 /// own name has such an ending is taken whole.
 fn id_offset(given: &Path) -> Result<(PathBuf, i64)> {
     let text = given.to_string_lossy();
@@ -187,7 +251,7 @@ fn id_offset(given: &Path) -> Result<(PathBuf, i64)> {
         None => digits.parse::<i64>(),
     }
     .map_err(|_| {
-        Error::invalid(format!("--dbc {text}: the id offset {suffix:?} is not +N or -N (decimal or 0x hex)"))
+        Error::request(Field::Dbc, format!("{text}: the id offset {suffix:?} is not +N or -N (decimal or 0x hex)"))
     })?;
     Ok((PathBuf::from(file), if sign == "-" { -value } else { value }))
 }

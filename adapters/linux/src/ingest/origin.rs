@@ -1,5 +1,6 @@
-//! `--origin LAT,LON[,H]`: the ENU origin in the one form every command takes it (`map
-//! build`, `record`, `import`), the height above the ellipsoid in metres (0 when absent).
+//! An ENU origin written `LAT,LON[,H]`: the one form every front end takes it in (the
+//! command line's `map build`, `record`, `import`), the height above the ellipsoid in
+//! metres (0 when absent).
 
 use dash2sim_core::geo::Geodetic;
 
@@ -11,15 +12,13 @@ pub fn parse_origin(text: &str) -> Result<Geodetic> {
         .split(',')
         .map(|v| v.trim().parse::<f64>())
         .collect::<std::result::Result<_, _>>()
-        .map_err(|_| Error::invalid(format!("--origin {text:?}: expected LAT,LON[,H] numbers")))?;
+        .map_err(|_| Error::invalid("expected LAT,LON[,H] numbers"))?;
     match values[..] {
         [lat, lon] | [lat, lon, _] if (-90.0..=90.0).contains(&lat) && (-180.0..=180.0).contains(&lon) => {
             Geodetic::new(lat, lon, values.get(2).copied().unwrap_or(0.0))
-                .map_err(|e| Error::refused(format!("--origin {text:?}"), e))
+                .map_err(|e| Error::refused(format!("origin {text:?}"), e))
         }
-        _ => {
-            Err(Error::invalid(format!("--origin {text:?}: expected LAT,LON[,H] with a valid latitude and longitude")))
-        }
+        _ => Err(Error::invalid("expected LAT,LON[,H] with a valid latitude and longitude")),
     }
 }
 

@@ -1,15 +1,14 @@
 //! `dash2sim import`: existing recordings → a 4D log, in time order.
 //!
-//! * `--nmea FILE`: NMEA 0183 → GNSS fixes (the core's epoch assembly, as `nmea decode`);
-//!   `--nmea-offset S` moves their UTC times onto the other sources' clock.
-//! * `--can FILE [--dbc F.dbc]...`: candump → vehicle speeds from NMEA 2000 SOG, J1939
-//!   CCVS1, OBD-II PID 0x0D, and `--speed-signal MESSAGE.SIGNAL` of a DBC (in
-//!   `--speed-unit`, default km/h).
-//! * `--traj F.tum`: ego poses in the log's ENU frame (x east, y north; heading from the
-//!   body x axis).
-//! * `--objects F.csv`: 3D tracks (the objects CSV).
+//! * an NMEA 0183 capture → GNSS fixes (the core's epoch assembly, as `nmea decode`); an
+//!   offset moves their UTC times onto the other sources' clock;
+//! * a candump capture (and DBC files) → vehicle speeds from NMEA 2000 SOG, J1939 CCVS1,
+//!   OBD-II PID 0x0D, and a DBC signal in its unit;
+//! * a TUM trajectory → ego poses in the log's ENU frame (x east, y north; heading from the
+//!   body x axis);
+//! * the objects CSV → 3D tracks.
 //!
-//! The header's origin is `--origin LAT,LON[,H]` or the first GNSS fix.
+//! The header's origin is the one given, else the first GNSS fix.
 
 use std::path::{Path, PathBuf};
 
@@ -19,9 +18,9 @@ use dash2sim_core::binlog::{
 use dash2sim_core::nmea::{Event as NmeaEvent, Stream, StreamEvent};
 
 use super::quantise;
-use crate::ingest::origin::parse_origin;
+use crate::ingest::can::{SignalName, SpeedUnit};
 use crate::trajectory::{Format, Trajectory};
-use crate::{Error, Result};
+use crate::{Error, Field, Result};
 
 /// What to import.
 #[derive(Clone, Debug, Default)]
@@ -36,16 +35,16 @@ pub struct ImportRequest {
     pub can: Option<PathBuf>,
     /// DBC files.
     pub dbc: Vec<PathBuf>,
-    /// `MESSAGE.SIGNAL` carrying vehicle speed.
-    pub speed_signal: Option<String>,
-    /// m/s per unit of that signal.
-    pub speed_unit: f64,
+    /// The DBC signal carrying vehicle speed.
+    pub speed_signal: Option<SignalName>,
+    /// That signal's unit.
+    pub speed_unit: SpeedUnit,
     /// TUM trajectory.
     pub traj: Option<PathBuf>,
     /// Objects CSV.
     pub objects: Option<PathBuf>,
-    /// `LAT,LON[,H]`.
-    pub origin: Option<String>,
+    /// The log's ENU origin (else the first GNSS fix).
+    pub origin: Option<dash2sim_core::geo::Geodetic>,
 }
 
 /// Records from one source (as `import` reads it).
@@ -98,13 +97,7 @@ fn can_records(
 ) -> Result<()> {
     let (table, warnings) = crate::ingest::can::load_tables(&request.dbc)?;
     warnings.iter().for_each(|w| problem(w));
-    let (message, signal) = match &request.speed_signal {
-        Some(s) => match s.split_once('.') {
-            Some((m, g)) => (Some(m.to_owned()), Some(g.to_owned())),
-            None => return Err(Error::invalid(format!("--speed-signal {s:?}: expected MESSAGE.SIGNAL"))),
-        },
-        None => (None, None),
-    };
+    let to_mps = request.speed_unit.to_mps();
     let file = std::fs::File::open(path).map_err(|e| Error::file(path, e))?;
     let mut source = dash2sim_can::candump::CandumpReader::new(std::io::BufReader::new(file));
     let mut decoder = crate::ingest::can::CanDecoder::new(table);
@@ -117,9 +110,9 @@ fn can_records(
             let Some(t) = m["t"].as_f64() else { return Ok(()) };
             let f = &m["fields"];
             let found = if m["message"].as_str().is_some() {
-                match (&message, &signal) {
-                    (Some(msg), Some(sig)) if m["message"].as_str() == Some(msg) => {
-                        f[sig.as_str()].as_f64().map(|v| (v * request.speed_unit, 3))
+                match &request.speed_signal {
+                    Some(SignalName { message, signal }) if m["message"].as_str() == Some(message) => {
+                        f[signal.as_str()].as_f64().map(|v| (v * to_mps, 3))
                     }
                     _ => None,
                 }
@@ -241,11 +234,7 @@ pub struct Imported {
 /// a capture that could not be read (the import goes on) and the DBC files' warnings.
 pub fn import(request: &ImportRequest, problem: &mut dyn FnMut(&str)) -> Result<Imported> {
     let mut records = Vec::new();
-    let mut origin = request
-        .origin
-        .as_deref()
-        .map(|text| parse_origin(text).map(|g| [g.lat_deg, g.lon_deg, g.height_m]))
-        .transpose()?;
+    let mut origin = request.origin.map(|g| [g.lat_deg, g.lon_deg, g.height_m]);
     if let Some(path) = &request.nmea {
         let first = nmea_records(path, request.nmea_offset_s, &mut records, problem)?;
         origin = origin.or(first);
@@ -255,7 +244,10 @@ pub fn import(request: &ImportRequest, problem: &mut dyn FnMut(&str)) -> Result<
     }
     if let Some(path) = &request.traj {
         if origin.is_none() {
-            return Err(Error::invalid("--traj needs the ENU origin: give --origin LAT,LON[,H] or an --nmea capture"));
+            return Err(Error::request(
+                Field::Origin,
+                "a trajectory is placed in the log's ENU frame: give its origin, or an NMEA capture to take it from",
+            ));
         }
         traj_records(path, &mut records)?;
     }
@@ -263,8 +255,9 @@ pub fn import(request: &ImportRequest, problem: &mut dyn FnMut(&str)) -> Result<
         object_records(path, &mut records)?;
     }
     if records.is_empty() {
-        return Err(Error::invalid(
-            "nothing to import: give --nmea, --can, --traj or --objects (with records in them)",
+        return Err(Error::request(
+            Field::ImportSources,
+            "nothing to import: give an NMEA or CAN capture, a trajectory or objects (with records in them)",
         ));
     }
     // Say where the log came from, as its first event.

@@ -30,7 +30,7 @@ use super::storage::{self, Storage, StoragePolicy};
 use super::{FixFinder, Setup};
 use crate::record::bridge::sequence::ServiceCounts;
 use crate::record::bridge::{device_now, CameraInput, CameraSubscriber};
-use crate::{Error, Result};
+use crate::{Error, Field, Result};
 
 /// Inputs waiting between the reader threads and the pipeline.
 pub const QUEUE: usize = 4096;
@@ -284,7 +284,13 @@ fn can_reader(
 ) -> Result<Option<std::thread::JoinHandle<()>>> {
     if let Some(interface) = &request.can_interface {
         let mut source = dash2sim_can::source::SocketCanSource::open(interface).map_err(|e| {
-            Error::invalid(format!("CAN interface {interface}: {e} (no such interface, or a kernel without SocketCAN; --can-replay FILE replays a candump capture instead)"))
+            Error::request(
+                Field::CanInterface,
+                format!(
+                    "{interface}: {e} (no such interface, or a kernel without SocketCAN; a candump capture can be \
+                     replayed instead)"
+                ),
+            )
         })?;
         return Ok(Some(std::thread::spawn(move || {
             while let Some(Ok(record)) = source.next_frame() {
@@ -806,11 +812,14 @@ impl Waiting<'_> {
             }
             let over = self.request.duration.is_some_and(|d| self.begun.elapsed() >= d);
             if self.stop.load(Ordering::Relaxed) || over {
-                return Err(Error::invalid(format!(
-                    "no GNSS fix arrived in {:.0} s, so the log has no ENU origin and nothing was written; give \
-                     --origin LAT,LON[,H] or a --map to record without a fix",
-                    self.begun.elapsed().as_secs_f64()
-                )));
+                return Err(Error::request(
+                    Field::Origin,
+                    format!(
+                        "no GNSS fix arrived in {:.0} s, so the log has none and nothing was written; give one, or a \
+                         map, to record without a fix",
+                        self.begun.elapsed().as_secs_f64()
+                    ),
+                ));
             }
             if !busy {
                 std::thread::sleep(Duration::from_millis(1));

@@ -9,9 +9,12 @@ pub mod bridge;
 pub mod interleave;
 #[cfg(feature = "bridge")]
 pub mod live;
+mod request;
 pub mod sources;
 pub mod storage;
 pub mod track2d;
+
+pub use request::*;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -28,233 +31,10 @@ use dash2sim_core::pipeline::{
     PipelineConfig, PipelineStats, RelativeMotion, SpeedSource, Trackers,
 };
 
-use crate::ingest::origin::parse_origin;
+use crate::ingest::can::SignalName;
 use crate::log::signing::SecretKey;
-use crate::{Error, Result};
+use crate::{Error, Field, Result};
 use dash2sim_core::pipeline::profile::{self, work_zone_meta, work_zone_pipeline, work_zone_trackers};
-
-/// The recorded files `record` reads (see [`sources`] for their forms).
-#[derive(Clone, Debug, Default)]
-pub struct Sources {
-    /// VO poses of the camera: TUM (device-clock stamps; frame k is the k-th pose), or a CSV
-    /// `frame,t_s,x,y,z,qx,qy,qz,qw,session` with each pose's frame number.
-    pub vo: Option<PathBuf>,
-    /// The GNSS serial capture: `(device seconds) $SENTENCE*CS` per line.
-    pub nmea: Option<PathBuf>,
-    /// candump captures of the vehicle bus (device-clock stamps), in order.
-    pub can: Vec<PathBuf>,
-    /// 3D detections in the camera frame (the detections CSV).
-    pub detections: Option<PathBuf>,
-    /// 2D detections, MOTChallenge CSV (frames numbered as the VO poses).
-    pub detections2d: Option<PathBuf>,
-    /// IMU samples: a CSV `t_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z` (device
-    /// seconds, rad/s and m/s² on the sensor's axes; [`sources::IMU_CSV_HEADER`]).
-    pub imu: Option<PathBuf>,
-}
-
-impl Sources {
-    /// The files `dash2sim scenario generate` writes into `dir` (a folder generated before
-    /// the simulator had an IMU has no `imu.csv`, and is recorded without one).
-    pub fn scenario(dir: &Path) -> Self {
-        let imu = dir.join("imu.csv");
-        Sources {
-            vo: Some(dir.join("vo.csv")),
-            nmea: Some(dir.join("gnss.serial.log")),
-            can: vec![dir.join("speed.can.log")],
-            detections: Some(dir.join("detections3d.csv")),
-            detections2d: Some(dir.join("det2d.txt")),
-            imu: imu.exists().then_some(imu),
-        }
-    }
-}
-
-/// The unit of a DBC speed signal when none is named.
-pub const DEFAULT_SPEED_UNIT: &str = "km/h";
-/// The device id a recording's header gets when none is named.
-pub const DEFAULT_DEVICE_ID: &str = "dash2sim-record";
-/// The GNSS serial device's baud rate when none is named.
-pub const DEFAULT_BAUD: u32 = 115_200;
-/// A live recording's file length when none is named, minutes.
-pub const DEFAULT_SEGMENT_MINUTES: f64 = 10.0;
-/// The camera's place on the car when none is named (`FORWARD,LEFT,UP`, m).
-pub const DEFAULT_MOUNT: &str = "1.8,0,1.3";
-/// The GNSS error model's UERE when none is named, m.
-pub const DEFAULT_UERE_M: f64 = 2.5;
-
-/// A recording: where the log goes, what it is recorded from (files, a saved input stream,
-/// or live sources) and how the device is set up. `dash2sim record` fills it from its
-/// arguments; [`RecordRequest::from_files`] gives the defaults.
-#[derive(Clone, Debug)]
-pub struct RecordRequest {
-    /// The 4D log (a folder of segments when live).
-    pub output: PathBuf,
-    /// The recorded inputs.
-    pub sources: Sources,
-    /// DBC files for `speed_signal` and `gnss_signals`.
-    pub dbc: Vec<PathBuf>,
-    /// `MESSAGE.SIGNAL` of a DBC carrying the vehicle speed (else `speed_source`).
-    pub speed_signal: Option<String>,
-    /// Unit of `speed_signal`: km/h, m/s or mph.
-    pub speed_unit: String,
-    /// Built-in speed message when no `speed_signal` is given.
-    pub speed_source: SpeedMessage,
-    /// GNSS from DBC signals (a CAN GNSS module):
-    /// `lat=MSG.SIG,lon=MSG.SIG[,valid=MSG.SIG][,accuracy=MSG.SIG][,time=MSG.SIG]`.
-    pub gnss_signals: Option<String>,
-    /// Map tile to verify against on the way (windows of 15 s); its origin is the log's.
-    pub map: Option<PathBuf>,
-    /// ENU origin `LAT,LON[,H]` (default: the map's, else the first GNSS fix).
-    pub origin: Option<String>,
-    /// The dashcam: mount, VO frame, GNSS error model.
-    pub device: Device,
-    /// Also write the merged input stream (the core's replay format) here.
-    pub save_inputs: Option<PathBuf>,
-    /// Read a saved input stream instead of the file sources.
-    pub replay: Option<PathBuf>,
-    /// The device id written into the log's header (at most 16 bytes).
-    pub device_id: String,
-    /// Live: subscribe to the camera process's services (shared memory) under this prefix.
-    pub camera: Option<String>,
-    /// Live: the GNSS receiver's serial device (raw mode), or a file of raw NMEA bytes.
-    pub serial: Option<PathBuf>,
-    /// Live: the serial device's baud rate.
-    pub baud: u32,
-    /// Live: a SocketCAN interface.
-    pub can_iface: Option<String>,
-    /// Live: replay a candump capture as the vehicle bus.
-    pub can_replay: Option<PathBuf>,
-    /// Live: replay the capture at its own pace.
-    pub realtime: bool,
-    /// Live: start a new log file every N minutes (`output` is then a folder).
-    pub segment_minutes: f64,
-    /// Live: stop after S seconds (else on SIGINT / SIGTERM).
-    pub seconds: Option<f64>,
-    /// Live: the folder's log files stay below this size (`64k`, `500M`, `2G`): the oldest
-    /// unprotected files are deleted first (loop recording).
-    pub quota: Option<String>,
-    /// Live: keep at least this much of the file system free, deleting as for the quota.
-    pub min_free: Option<String>,
-    /// Sign every segment with the device's secret key in this file (`dash2sim keygen`).
-    pub key: Option<PathBuf>,
-    /// Live: told how the recording goes twice a second (a status line), if set.
-    #[cfg(feature = "bridge")]
-    pub status: Option<fn(&live::LiveStatus)>,
-}
-
-impl RecordRequest {
-    /// A recording from `sources` into `output` with the defaults for everything else (the
-    /// command line's defaults are these constants).
-    pub fn from_files(output: &Path, sources: Sources) -> Self {
-        RecordRequest {
-            output: output.to_path_buf(),
-            sources,
-            dbc: Vec::new(),
-            speed_signal: None,
-            speed_unit: DEFAULT_SPEED_UNIT.to_owned(),
-            speed_source: SpeedMessage::Ccvs1,
-            gnss_signals: None,
-            map: None,
-            origin: None,
-            device: Device::default(),
-            save_inputs: None,
-            replay: None,
-            device_id: DEFAULT_DEVICE_ID.to_owned(),
-            camera: None,
-            serial: None,
-            baud: DEFAULT_BAUD,
-            can_iface: None,
-            can_replay: None,
-            realtime: false,
-            segment_minutes: DEFAULT_SEGMENT_MINUTES,
-            seconds: None,
-            quota: None,
-            min_free: None,
-            key: None,
-            #[cfg(feature = "bridge")]
-            status: None,
-        }
-    }
-}
-
-/// The built-in vehicle-speed message (`--speed-source`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum SpeedMessage {
-    /// J1939 CCVS1 wheel-based speed.
-    Ccvs1,
-    /// OBD-II PID 0x0D responses.
-    Obd,
-}
-
-/// How the dashcam is set up: `record` takes it, and `finish` needs the same (the log
-/// does not carry it).
-#[derive(Debug, Clone)]
-pub struct Device {
-    /// Camera position on the vehicle: `FORWARD,LEFT,UP` from the rear axle on the
-    /// ground (m), optionally `,ROLL,PITCH,YAW` (rad, camera → body).
-    pub mount: String,
-    /// The VO frame: gravity-aligned or any orientation.
-    pub mode: VoFrame,
-    /// 1-σ GNSS error model: UERE, m (σ = HDOP × UERE unless the receiver sends GST).
-    pub uere: f64,
-    /// The IMU's axes on the camera (sensor → camera rotation).
-    pub imu_mount: ImuMount,
-    /// Where the relative motion comes from: the camera's VO, or gyro + wheels.
-    pub relative_motion: RelativeMotion,
-}
-
-impl Default for Device {
-    fn default() -> Self {
-        Device {
-            mount: DEFAULT_MOUNT.to_owned(),
-            mode: VoFrame::Gravity,
-            uere: DEFAULT_UERE_M,
-            imu_mount: ImuMount::default(),
-            relative_motion: RelativeMotion::Vo,
-        }
-    }
-}
-
-impl Device {
-    /// The mount, and the UERE checked.
-    pub fn parse(&self) -> Result<(CameraMount, f64)> {
-        if !(self.uere.is_finite() && self.uere > 0.0) {
-            return Err(Error::invalid(format!("--uere {} must be a positive number of metres", self.uere)));
-        }
-        Ok((parse_mount(&self.mount)?, self.uere))
-    }
-}
-
-/// What the VO frame is (`--mode`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum VoFrame {
-    /// 7-DoF Sim(3).
-    Full,
-    /// Yaw, scale, translation.
-    Gravity,
-}
-
-impl VoFrame {
-    /// The anchorer's mode for this frame.
-    pub fn anchor_mode(self) -> AnchorMode {
-        match self {
-            VoFrame::Full => AnchorMode::Full,
-            VoFrame::Gravity => AnchorMode::GravityAligned,
-        }
-    }
-}
-
-/// Parse `--mount`: `FORWARD,LEFT,UP[,ROLL,PITCH,YAW]`.
-pub fn parse_mount(text: &str) -> Result<CameraMount> {
-    let v: Vec<f64> =
-        text.split(',').map(|x| x.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| {
-            Error::invalid(format!("--mount {text:?}: expected FORWARD,LEFT,UP[,ROLL,PITCH,YAW] numbers"))
-        })?;
-    match v[..] {
-        [f, l, u] => Ok(CameraMount { position: [f, l, u], roll_pitch_yaw: [0.0; 3] }),
-        [f, l, u, r, p, y] => Ok(CameraMount { position: [f, l, u], roll_pitch_yaw: [r, p, y] }),
-        _ => Err(Error::invalid(format!("--mount {text:?}: expected 3 or 6 numbers"))),
-    }
-}
 
 /// The first fix of an input stream (NMEA, or CAN through `gnss`), for the origin when
 /// none is given.
@@ -301,10 +81,10 @@ impl<'a> FixFinder<'a> {
     }
 }
 
-/// The frames `--gnss-signals` reads, named by the option.
+/// The frames the GNSS signals are read from, named.
 fn gnss_frames(g: &GnssSignals) -> Vec<(&'static str, FrameId)> {
-    let mut frames = vec![("--gnss-signals (lat, lon)", g.position)];
-    frames.extend(g.time.map(|(frame, _)| ("--gnss-signals (time)", frame)));
+    let mut frames = vec![("the GNSS signals' position (lat, lon)", g.position)];
+    frames.extend(g.time.map(|(frame, _)| ("the GNSS signals' time", frame)));
     frames
 }
 
@@ -329,7 +109,7 @@ fn absent_frames(stream: &[u8], wanted: &[(&str, FrameId)]) -> Vec<String> {
         .map(|(option, f)| {
             format!(
                 "{option}: no frame with id {} in {frames} CAN frames; ids seen: {}–{} ({} ids). A module at \
-                 another base id? --dbc FILE@+OFFSET moves the DBC's ids",
+                 another base id? A DBC file given as FILE@+OFFSET has its ids moved",
                 hex((f.extended, f.id)),
                 hex(*first),
                 hex(*last),
@@ -450,30 +230,22 @@ fn speed_source(args: &RecordRequest, table: &SignalTable) -> Result<Option<Spee
             SpeedMessage::Obd => SpeedSource::Obd,
         }));
     };
-    let to_mps = match args.speed_unit.as_str() {
-        "km/h" | "kph" => 1.0 / 3.6,
-        "m/s" => 1.0,
-        "mph" => 0.44704,
-        other => return Err(Error::invalid(format!("--speed-unit {other:?}: expected km/h, m/s or mph"))),
-    };
-    let (frame, signal) = dbc_signal(table, name, "--speed-signal")?;
-    Ok(Some(SpeedSource::Signal { frame, signal, to_mps }))
+    let (frame, signal) = dbc_signal(table, name, Field::SpeedSignal)?;
+    Ok(Some(SpeedSource::Signal { frame, signal, to_mps: args.speed_unit.to_mps() }))
 }
 
-/// The frame and signal `MESSAGE.SIGNAL` names in the DBC files; `option` says who asked.
-fn dbc_signal(table: &SignalTable, name: &str, option: &str) -> Result<(FrameId, Signal)> {
-    let (message, signal) =
-        name.split_once('.').ok_or_else(|| Error::invalid(format!("{option} {name:?}: expected MESSAGE.SIGNAL")))?;
-    let m = table.message_by_name(message).ok_or_else(|| {
-        Error::invalid(if table.is_empty() {
-            format!("{option}: no DBC files given (--dbc FILE)")
-        } else {
-            format!("{option}: no message {message:?} in the DBC files")
-        })
-    })?;
+/// The frame and signal `name` names in the DBC files; `field` says who asked.
+fn dbc_signal(table: &SignalTable, name: &SignalName, field: Field) -> Result<(FrameId, Signal)> {
+    let SignalName { message, signal } = name;
+    if table.is_empty() {
+        return Err(Error::request(Field::Dbc, format!("{field} name {name}, but no DBC files were given")));
+    }
+    let m = table
+        .message_by_name(message)
+        .ok_or_else(|| Error::request(field, format!("no message {message:?} in the DBC files")))?;
     let i = m
         .signal_index(signal)
-        .ok_or_else(|| Error::invalid(format!("{option}: message {message} has no signal {signal:?}")))?;
+        .ok_or_else(|| Error::request(field, format!("message {message} has no signal {signal:?}")))?;
     let frame = match m.id {
         embedded_can::Id::Standard(s) => FrameId { id: u32::from(s.as_raw()), extended: false },
         embedded_can::Id::Extended(e) => FrameId { id: e.as_raw(), extended: true },
@@ -481,42 +253,19 @@ fn dbc_signal(table: &SignalTable, name: &str, option: &str) -> Result<(FrameId,
     Ok((frame, m.signals[i]))
 }
 
-/// The GNSS signals of a request (`KEY=MESSAGE.SIGNAL` pairs), found in the DBC files.
+/// The GNSS signals of a request, found in the DBC files.
 pub fn gnss_signals(args: &RecordRequest, table: &SignalTable) -> Result<Option<GnssSignals>> {
-    const OPTION: &str = "--gnss-signals";
-    let Some(text) = &args.gnss_signals else { return Ok(None) };
-    let mut found: BTreeMap<&str, (FrameId, Signal)> = BTreeMap::new();
-    for pair in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-        let (key, name) = pair
-            .split_once('=')
-            .ok_or_else(|| Error::invalid(format!("{OPTION}: {pair:?} is not KEY=MESSAGE.SIGNAL")))?;
-        if !matches!(key, "lat" | "lon" | "valid" | "accuracy" | "time") {
-            return Err(Error::invalid(format!("{OPTION}: unknown key {key:?} (lat, lon, valid, accuracy, time)")));
-        }
-        if found.insert(key, dbc_signal(table, name, OPTION)?).is_some() {
-            return Err(Error::invalid(format!("{OPTION}: {key} given twice")));
-        }
-    }
-    let required = |key: &str| {
-        found.get(key).copied().ok_or_else(|| Error::invalid(format!("{OPTION}: {key}=MESSAGE.SIGNAL is required")))
-    };
-    let ((position, latitude), (lon_frame, longitude)) = (required("lat")?, required("lon")?);
-    let in_position = |key: &str| match found.get(key) {
-        Some((frame, _)) if *frame != position => Err(Error::invalid(format!(
-            "{OPTION}: {key} must be in the latitude's message (the fix is read from one frame)"
-        ))),
-        other => Ok(other.map(|(_, s)| *s)),
-    };
-    if lon_frame != position {
-        return Err(Error::invalid(format!("{OPTION}: lat and lon must be in one message")));
-    }
+    let Some(names) = &args.gnss_signals else { return Ok(None) };
+    let find = |name: &SignalName| dbc_signal(table, name, Field::GnssSignals);
+    let signal = |name: &Option<SignalName>| name.as_ref().map(|n| find(n).map(|(_, s)| s)).transpose();
+    let (position, latitude) = find(&names.lat)?;
     Ok(Some(GnssSignals {
         position,
         latitude,
-        longitude,
-        valid: in_position("valid")?,
-        accuracy: in_position("accuracy")?,
-        time: found.get("time").copied(),
+        longitude: find(&names.lon)?.1,
+        valid: signal(&names.valid)?,
+        accuracy: signal(&names.accuracy)?,
+        time: names.time.as_ref().map(find).transpose()?,
     }))
 }
 
@@ -537,9 +286,10 @@ pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts)> 
     }
     if let Some(p) = &args.detections2d {
         if args.vo.is_none() && args.detections.is_none() {
-            return Err(Error::invalid(
-                "--detections2d needs --vo or --detections: 2D detections are stamped with their frame's VO time \
-                 (or, without VO, its 3D detections' time)",
+            return Err(Error::request(
+                Field::Detections2d,
+                "they need VO poses or 3D detections beside them: 2D detections are stamped with their frame's VO \
+                 time (or, without VO, its 3D detections' time)",
             ));
         }
         inputs.detections2d(p)?;
@@ -548,9 +298,11 @@ pub fn read_sources(args: &Sources) -> Result<(Vec<u8>, sources::SourceCounts)> 
         inputs.imu(p)?;
     }
     if inputs.is_empty() {
-        return Err(Error::invalid(
-            "nothing to record: give files (--vo, --nmea, --can, --detections, --imu, or --replay of a saved input stream) \
-             or live sources (--camera, --serial, --can-iface, --can-replay), with inputs in them",
+        return Err(Error::request(
+            Field::Sources,
+            "nothing to record: give files (VO poses, NMEA, CAN, detections, IMU samples, or a saved input stream \
+             to replay) or live sources (the camera process, a serial port, a CAN interface or capture), with \
+             inputs in them",
         ));
     }
     Ok((inputs.stream()?, inputs.counts))
@@ -565,16 +317,20 @@ pub fn live_request(args: &RecordRequest) -> Result<Option<live::LiveRequest>> {
     }
     let s = &args.sources;
     if s.vo.is_some() || s.nmea.is_some() || !s.can.is_empty() || s.detections.is_some() || args.replay.is_some() {
-        return Err(Error::invalid(
-            "live sources (--camera, --serial, --can-iface, --can-replay) and file sources do not mix",
+        return Err(Error::request(
+            Field::Sources,
+            "live sources (the camera process, a serial port, a CAN interface or capture) and file sources do not mix",
         ));
     }
     if !(args.segment_minutes.is_finite() && args.segment_minutes > 0.0) {
-        return Err(Error::invalid(format!("--segment-minutes {} must be positive", args.segment_minutes)));
+        return Err(Error::request(
+            Field::SegmentMinutes,
+            format!("{} minutes must be positive", args.segment_minutes),
+        ));
     }
     let duration = match args.seconds {
         Some(s) if s.is_finite() && s > 0.0 => Some(std::time::Duration::from_secs_f64(s)),
-        Some(s) => return Err(Error::invalid(format!("--seconds {s} must be positive"))),
+        Some(s) => return Err(Error::request(Field::Seconds, format!("{s} s must be positive"))),
         None => None,
     };
     Ok(Some(live::LiveRequest {
@@ -588,10 +344,7 @@ pub fn live_request(args: &RecordRequest) -> Result<Option<live::LiveRequest>> {
         segment: std::time::Duration::from_secs_f64(args.segment_minutes * 60.0),
         duration,
         status: args.status,
-        storage: storage::StoragePolicy {
-            quota: args.quota.as_deref().map(storage::parse_size).transpose()?,
-            min_free: args.min_free.as_deref().map(storage::parse_size).transpose()?,
-        },
+        storage: storage::StoragePolicy { quota: args.quota, min_free: args.min_free },
         keep: None,
     }))
 }
@@ -610,15 +363,19 @@ pub fn record_files(args: &RecordRequest) -> Result<(Recording, sources::SourceC
     let setup = setup_from_args(args, &mut counts.problems, |gnss| {
         first_fix(&stream, gnss).ok_or_else(|| {
             let hints = gnss.map(|g| absent_frames(&stream, &gnss_frames(g))).unwrap_or_default();
-            Error::invalid(format!(
-                "no ENU origin: give --origin LAT,LON[,H], a --map, or GNSS with a fix (--nmea, or --can with --gnss-signals){}",
-                hints.iter().map(|h| format!("; {h}")).collect::<String>()
-            ))
+            Error::request(
+                Field::Origin,
+                format!(
+                    "none given, and nothing to take it from: give one, a map, or GNSS with a fix (NMEA, or CAN with \
+                     GNSS signals){}",
+                    hints.iter().map(|h| format!("; {h}")).collect::<String>()
+                ),
+            )
         })
     })?;
     let mut wanted = setup.gnss_signals.as_ref().map(gnss_frames).unwrap_or_default();
     if let Some(SpeedSource::Signal { frame, .. }) = setup.speed {
-        wanted.push(("--speed-signal", frame));
+        wanted.push(("the speed signal", frame));
     }
     counts.problems.extend(absent_frames(&stream, &wanted));
     Ok((run_stream(&stream, &setup)?, counts))
@@ -636,8 +393,8 @@ fn setup_from_args(
     warnings.extend(dbc_warnings);
     let gnss_signals = gnss_signals(args, &table)?;
     let map = args.map.as_ref().map(|p| std::fs::read(p).map_err(|e| Error::file(p, e))).transpose()?;
-    let origin = match (&args.origin, &map) {
-        (Some(text), _) => parse_origin(text)?,
+    let origin = match (args.origin, &map) {
+        (Some(origin), _) => origin,
         (None, Some(bytes)) => {
             let h =
                 MapView::parse(bytes).map_err(|e| Error::refused(display(&args.map).to_string(), e))?.header().origin;
@@ -645,29 +402,20 @@ fn setup_from_args(
         }
         (None, None) => fallback(gnss_signals.as_ref())?,
     };
-    let (mount, uere) = args.device.parse()?;
+    let device = args.device.check()?;
     Ok(Setup {
         origin,
-        mount,
-        mode: args.device.mode.anchor_mode(),
-        gnss: GnssErrorModel { uere_m: uere, ..GnssErrorModel::default() },
+        mount: device.mount,
+        mode: device.mode.anchor_mode(),
+        gnss: GnssErrorModel { uere_m: device.uere, ..GnssErrorModel::default() },
         speed: speed_source(args, &table)?,
         gnss_signals,
         map,
-        device_id: device_id(&args.device_id)?,
+        device_id: args.device_id,
         key: args.key.as_deref().map(SecretKey::read).transpose()?,
         imu_mount: args.device.imu_mount,
         relative_motion: args.device.relative_motion,
     })
-}
-
-fn device_id(text: &str) -> Result<[u8; 16]> {
-    if text.len() > 16 {
-        return Err(Error::invalid(format!("--device-id {text:?} is longer than 16 bytes")));
-    }
-    let mut id = [0u8; 16];
-    id[..text.len()].copy_from_slice(text.as_bytes());
-    Ok(id)
 }
 
 /// The live logger: records until the request's duration is over or `stop` is set (the
@@ -687,9 +435,10 @@ pub fn record_live(
     let mut origin = live::Origin::Given;
     let setup = setup_from_args(args, &mut warnings, |gnss| {
         if request.serial.is_none() && gnss.is_none() {
-            return Err(Error::invalid(
-                "a live recording needs its ENU origin: give --origin LAT,LON[,H], a --map, or a GNSS source to take \
-                 it from the first fix (--serial with NMEA, or --can-iface / --can-replay with --gnss-signals)",
+            return Err(Error::request(
+                Field::Origin,
+                "a live recording needs one: give it, a map, or a GNSS source to take it from the first fix (a \
+                 serial port with NMEA, or a CAN interface or capture with GNSS signals)",
             ));
         }
         origin = live::Origin::FirstFix;

@@ -16,6 +16,8 @@ use serde_json::Value;
 use super::{device_times, write, OutputFile};
 use crate::scenario::vo::VoModel;
 use crate::{Error, Result};
+use dash2sim_core::geo::Geodetic;
+use dash2sim_core::pipeline::CameraMount;
 use dash2sim_linux::log::{self, LogContents};
 use dash2sim_linux::record::{self, Device, RecordRequest, VoFrame};
 use dash2sim_linux::trajectory::{Format, Trajectory};
@@ -38,8 +40,14 @@ pub const UERE: f64 = 2.5 / 0.9;
 
 /// The mount for these poses: the camera's axes (x forward, y right, z down), and the ego
 /// taken at the camera so that positions compare with the poses.
-pub fn mount() -> String {
-    format!("0,0,0,{},0,0", std::f64::consts::PI)
+pub fn mount() -> CameraMount {
+    CameraMount { position: [0.0; 3], roll_pitch_yaw: [std::f64::consts::PI, 0.0, 0.0] }
+}
+
+/// The minute's ENU origin.
+pub fn origin() -> Result<Geodetic> {
+    let [lat, lon, h] = ORIGIN;
+    Geodetic::new(lat, lon, h).map_err(|e| Error::refused("the minute's origin", e))
 }
 
 fn nmea_line(body: &str) -> String {
@@ -139,7 +147,6 @@ pub fn record_minute(dir: &Path, work: &Path, model: &VoModel, noise_seed: u64) 
     let nmea = ublox_nmea(&dir.join("expected/live_gnss_ublox.csv"))?;
     let nmea_path = work.join("ublox.serial.log");
     write(&nmea_path, &nmea.stamped)?;
-    let [lat, lon, h] = ORIGIN;
     let sources = record::Sources {
         vo: Some(vo_path),
         nmea: Some(nmea_path),
@@ -148,8 +155,8 @@ pub fn record_minute(dir: &Path, work: &Path, model: &VoModel, noise_seed: u64) 
     };
     let args = RecordRequest {
         dbc: vec![dir.join("opendbc-toyota/_toyota_2017.dbc")],
-        speed_signal: Some("SPEED.SPEED".to_owned()),
-        origin: Some(format!("{lat},{lon},{h}")),
+        speed_signal: Some("SPEED.SPEED".parse()?),
+        origin: Some(origin()?),
         device: Device { mount: mount(), mode: VoFrame::Full, uere: UERE, ..Device::default() },
         ..RecordRequest::from_files(&work.join("comma.d2slog"), sources)
     };
@@ -334,9 +341,8 @@ pub fn run(dir: &Path, out: &Path) -> Result<Report> {
         _ => None,
     });
 
-    let mount = record::parse_mount(&mount())?;
     let name = minute.path.display().to_string();
-    let finished = dash2sim_finish::finish(&log.compact(), &name, None, None, mount, Default::default(), UERE)?;
+    let finished = dash2sim_finish::finish(&log.compact(), &name, None, None, mount(), Default::default(), UERE)?;
     let finished_records = finished.records.to_vec();
     let finished_device = device_times(&finished_records)?;
     let finished_compared = compare(&finished_records, &finished_device, truth)?;

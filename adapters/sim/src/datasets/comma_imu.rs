@@ -16,7 +16,7 @@ use dash2sim_core::imu::so3;
 use dash2sim_core::nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
-use super::comma::{self, compare, Compared, ORIGIN, UERE};
+use super::comma::{self, compare, Compared, UERE};
 use super::{device_times, write};
 use crate::{Error, Result};
 use dash2sim_core::pipeline::RelativeMotion;
@@ -184,7 +184,6 @@ pub fn run(dir: &Path, work: &Path, receiver: Receiver) -> Result<ImuMinute> {
     let nmea = comma::receiver_nmea(&dir.join(receiver.csv()), receiver.hdop())?;
     let nmea_path = work.join("gnss.serial.log");
     write(&nmea_path, &nmea.stamped)?;
-    let [lat, lon, h] = ORIGIN;
     let sources = record::Sources {
         nmea: Some(nmea_path),
         can: vec![dir.join("raw_can.candump.log")],
@@ -200,8 +199,8 @@ pub fn run(dir: &Path, work: &Path, receiver: Receiver) -> Result<ImuMinute> {
     };
     let args = RecordRequest {
         dbc: vec![dir.join("opendbc-toyota/_toyota_2017.dbc")],
-        speed_signal: Some("SPEED.SPEED".to_owned()),
-        origin: Some(format!("{lat},{lon},{h}")),
+        speed_signal: Some("SPEED.SPEED".parse()?),
+        origin: Some(comma::origin()?),
         device: device.clone(),
         ..RecordRequest::from_files(&work.join("imu.d2slog"), sources)
     };
@@ -233,7 +232,7 @@ pub fn run(dir: &Path, work: &Path, receiver: Receiver) -> Result<ImuMinute> {
     // Sensor axes (forward, right, down) → body (forward, left, up): z changes sign.
     let reference_gyro_bias_z = -reference_bias.last().map_or(f64::NAN, |b| b[2]);
 
-    let (mount, uere) = device.parse()?;
+    let (mount, uere) = (device.mount, device.uere);
     let name = args.output.display().to_string();
     // Finished as `dash2sim finish` would, in the frame the device recorded in.
     let settings = Settings { gravity_aligned: device.mode == VoFrame::Gravity, ..Settings::default() };

@@ -226,7 +226,7 @@ pub fn run(dir: &Path, out: &Path) -> Result<Report> {
     let log_path = out.join("css.d2slog");
     let args = RecordRequest {
         dbc: vec![dir.join("dbc/canmod-gps.dbc")],
-        gnss_signals: Some(GNSS_SIGNALS.to_owned()),
+        gnss_signals: Some(GNSS_SIGNALS.parse()?),
         speed_source: record::SpeedMessage::Obd,
         ..RecordRequest::from_files(&log_path, sources)
     };
@@ -329,7 +329,7 @@ mod tests {
         std::fs::write(&path, dbc).expect("write");
         let args = RecordRequest {
             dbc: vec![path.clone()],
-            gnss_signals: Some(GNSS_SIGNALS.to_owned()),
+            gnss_signals: Some(GNSS_SIGNALS.parse().expect("names")),
             ..RecordRequest::from_files(Path::new("out.d2slog"), Sources::default())
         };
         let from_dbc =

@@ -17,7 +17,7 @@ use super::summary::Summary;
 use crate::scenario::command::{config, MAX_DURATION_S};
 use crate::scenario::write::{road_tile, write_scenario};
 use crate::scenario::{generate, Driver};
-use crate::{Error, Result};
+use crate::{Error, Field, Result};
 use dash2sim_core::binlog::Record;
 use dash2sim_linux::log;
 use dash2sim_linux::record::{self, Setup};
@@ -202,13 +202,13 @@ fn write(path: &Path, contents: impl AsRef<[u8]>) -> Result<()> {
 /// many have ended and how many there are.
 pub fn sweep(args: &SweepRequest, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<(Vec<Row>, Summary)> {
     if !(args.duration.is_finite() && (10.0..=MAX_DURATION_S).contains(&args.duration)) {
-        return Err(Error::invalid(format!(
-            "--duration {} must be between 10 and {MAX_DURATION_S} seconds",
-            args.duration
-        )));
+        return Err(Error::request(
+            Field::Duration,
+            format!("{} s must be between 10 and {MAX_DURATION_S} seconds", args.duration),
+        ));
     }
     if args.jobs == Some(0) {
-        return Err(Error::invalid("--jobs must be at least 1"));
+        return Err(Error::request(Field::Jobs, "at least 1 is needed"));
     }
     let out = &args.output;
     std::fs::create_dir_all(out)

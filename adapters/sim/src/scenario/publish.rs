@@ -24,7 +24,7 @@ use super::profile::{Profile, Receiver};
 use super::road::Road;
 use super::write::{receiver_output, wheel_speed_frames};
 use super::{generate, Driver, Scenario, ScenarioConfig};
-use crate::{Error, Result};
+use crate::{Error, Field, Result};
 use dash2sim_linux::record::bridge::messages::MAX_DETECTIONS;
 use dash2sim_linux::record::bridge::{device_now, CameraPublisher, MAX_IMAGE_BYTES};
 
@@ -251,19 +251,19 @@ fn camera_detections(scenario: &Scenario, frame: usize, cones: &[[f64; 2]], obje
 pub fn run(args: &PublishRequest) -> Result<Published> {
     let longest = super::command::MAX_DURATION_S;
     if !(args.seconds.is_finite() && (1.0..=longest).contains(&args.seconds)) {
-        return Err(Error::invalid(format!("--seconds {} must be between 1 and {longest}", args.seconds)));
+        return Err(Error::request(Field::Seconds, format!("{} s must be between 1 and {longest}", args.seconds)));
     }
     if !(args.speedup.is_finite() && args.speedup > 0.0) {
-        return Err(Error::invalid(format!("--speedup {} must be positive", args.speedup)));
+        return Err(Error::request(Field::Speedup, format!("{} must be positive", args.speedup)));
     }
     if args.fps == 0 || !args.fps.is_multiple_of(5) || args.fps > 60 {
-        return Err(Error::invalid(format!(
-            "--fps {} must be a multiple of 5 (the receiver's rate), at most 60",
-            args.fps
-        )));
+        return Err(Error::request(
+            Field::Fps,
+            format!("{} must be a multiple of 5 (the receiver's rate), at most 60", args.fps),
+        ));
     }
     if args.laps == 0 {
-        return Err(Error::invalid("--laps must be at least 1"));
+        return Err(Error::request(Field::Laps, "at least 1 is needed"));
     }
     let scenario = generate(&ScenarioConfig {
         driver: args.driver,

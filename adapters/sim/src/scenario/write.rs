@@ -27,17 +27,21 @@ pub const START_UNIX_S: f64 = 1_780_300_800.0;
 
 /// How `dash2sim import` reads a scenario written to `dir` into a 4D log at `output`:
 /// GNSS from the NMEA capture (moved onto the scenario clock), ego truth, objects.
-pub fn import_request(scenario: &Scenario, dir: &Path, output: PathBuf) -> dash2sim_linux::log::import::ImportRequest {
-    dash2sim_linux::log::import::ImportRequest {
+pub fn import_request(
+    scenario: &Scenario,
+    dir: &Path,
+    output: PathBuf,
+) -> Result<dash2sim_linux::log::import::ImportRequest> {
+    Ok(dash2sim_linux::log::import::ImportRequest {
         output,
         nmea: Some(dir.join("gnss.nmea")),
         nmea_offset_s: -START_UNIX_S,
-        speed_unit: 1.0,
+        speed_unit: dash2sim_linux::ingest::can::SpeedUnit::MetresPerSecond,
         traj: Some(dir.join("ego.tum")),
         objects: Some(dir.join("objects.csv")),
-        origin: Some(origin_option(scenario.config.origin)),
+        origin: Some(origin(scenario).map_err(Error::other)?),
         ..Default::default()
-    }
+    })
 }
 
 fn create(dir: &Path, name: &str, written: &mut Vec<PathBuf>) -> io::Result<BufWriter<fs::File>> {

@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use crate::{Error, Result};
+use crate::{Error, Field, Result};
 use dash2sim_core::drivable::{Channel, Checker, LaneSet};
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Pose2, PACIFICA};
@@ -54,7 +54,7 @@ const CHANNEL_WORDS: usize = 8192;
 /// channel mode.
 pub fn check_file(map: &Path, poses: &Path, passes: u32) -> Result<Checked> {
     if passes == 0 {
-        return Err(Error::invalid("--passes must be at least 1"));
+        return Err(Error::request(Field::Passes, "at least 1 is needed"));
     }
     let bytes = std::fs::read(map).map_err(|e| Error::file(map, e))?;
     let view = MapView::parse(&bytes).map_err(|e| Error::file(map, e))?;

@@ -21,10 +21,9 @@ use dash2sim_core::geo::{Geodetic, LocalFrame};
 use dash2sim_core::map::{body_checksum, Header, CRC_AT, HEADER_LEN, NONE, POLYGON_BIT, VERSION_MAJOR};
 
 use crate::geometry::offset_polyline;
-use crate::ingest::origin::parse_origin;
 use crate::ingest::osm::highway::{interpret, RoadSpec};
 use crate::ingest::osm::OsmData;
-use crate::{Error, Result};
+use crate::{Error, Field, Result};
 use serde::Serialize;
 
 /// Road classes as stored in the tile (`docs/map-tile.md`).
@@ -363,20 +362,21 @@ fn item_box(points: impl Iterator<Item = (f64, f64)>, margin: f64) -> [f32; 4] {
     [down(lo.0), down(lo.1), up(hi.0), up(hi.1)]
 }
 
-fn parse_bbox(text: &str) -> Result<[f64; 4]> {
+/// A bounding box written `WEST,SOUTH,EAST,NORTH` (degrees), as `[west, south, east, north]`.
+pub fn parse_bbox(text: &str) -> Result<[f64; 4]> {
     let values: Vec<f64> = text
         .split(',')
         .map(|v| v.trim().parse::<f64>())
         .collect::<Result<_, _>>()
-        .map_err(|_| Error::invalid(format!("--bbox {text:?}: expected four numbers WEST,SOUTH,EAST,NORTH")))?;
+        .map_err(|_| Error::invalid("expected four numbers WEST,SOUTH,EAST,NORTH"))?;
     let [west, south, east, north] = values[..] else {
-        return Err(Error::invalid(format!("--bbox {text:?}: expected four numbers WEST,SOUTH,EAST,NORTH")));
+        return Err(Error::invalid(format!("expected four numbers WEST,SOUTH,EAST,NORTH, not {}", values.len())));
     };
     if !((-180.0..=180.0).contains(&west) && (-180.0..=180.0).contains(&east) && west < east) {
-        return Err(Error::invalid(format!("--bbox {text:?}: WEST and EAST must be longitudes with WEST < EAST")));
+        return Err(Error::invalid("WEST and EAST must be longitudes with WEST < EAST"));
     }
     if !((-90.0..=90.0).contains(&south) && (-90.0..=90.0).contains(&north) && south < north) {
-        return Err(Error::invalid(format!("--bbox {text:?}: SOUTH and NORTH must be latitudes with SOUTH < NORTH")));
+        return Err(Error::invalid("SOUTH and NORTH must be latitudes with SOUTH < NORTH"));
     }
     Ok([west, south, east, north])
 }
@@ -394,20 +394,19 @@ pub struct Built {
     pub warnings: Vec<String>,
 }
 
-/// `dash2sim map build`: a tile from an OSM file (`origin` `LAT,LON[,H]`, `bbox`
-/// `WEST,SOUTH,EAST,NORTH` as the command line takes them), written to `output`.
+/// `dash2sim map build`: a tile from an OSM file, with its ENU origin (else the data's
+/// centre) and cut to `bbox` (`[west, south, east, north]`, degrees, [`parse_bbox`]) if
+/// given, written to `output`.
 pub fn build_file(
     osm: &std::path::Path,
     output: &std::path::Path,
-    origin: Option<&str>,
-    bbox: Option<&str>,
+    origin: Option<Geodetic>,
+    bbox: Option<[f64; 4]>,
     cell: f64,
 ) -> Result<Built> {
     if !(cell.is_finite() && (1.0..=10_000.0).contains(&cell)) {
-        return Err(Error::invalid(format!("--cell {cell} must be between 1 and 10000 metres")));
+        return Err(Error::request(Field::Cell, format!("{cell} must be between 1 and 10000 metres")));
     }
-    let origin = origin.map(parse_origin).transpose()?;
-    let bbox = bbox.map(parse_bbox).transpose()?;
     let mut data = crate::ingest::osm::read(osm).map_err(Error::other)?;
     // The counts describe the source file, before any clipping.
     let source_counts = source_counts(&data);
@@ -421,7 +420,7 @@ pub fn build_file(
         return Err(Error::file(
             osm,
             "no drivable highway ways or Lanelet2 lanelets (an OpenStreetMap extract with highway=* roads, or a \
-             Lanelet2 map; with --bbox, one that covers them)",
+             Lanelet2 map; cut to a bounding box, one that covers them)",
         ));
     }
     let bytes = encode(&content, cell);
