@@ -7,11 +7,13 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
-use std::time::Duration;
 
 use dash2sim_core::binlog::Record;
 use dash2sim_linux::log;
 use dash2sim_linux::record::bridge;
+
+mod common;
+use common::wait_for;
 
 /// The tests here run real processes against the clock: one at a time.
 static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
@@ -84,25 +86,11 @@ fn c_publisher(dir: &Path) -> PathBuf {
     c_publisher_linked(dir, false)
 }
 
-/// How long a test waits for something that takes a moment on an idle machine (a logger
-/// subscribing, a publisher's first frames) before it gives up: generous, since these
-/// tests also run starved of CPU (issue #57: at nice 19 beside a CPU hog on every core).
-const PATIENCE: Duration = Duration::from_secs(300);
-
-/// Wait, polling, until `ready` holds; panics after [`PATIENCE`] saying `what`.
-fn wait_for(what: &str, mut ready: impl FnMut() -> bool) {
-    let start = std::time::Instant::now();
-    while !ready() {
-        assert!(start.elapsed() < PATIENCE, "gave up waiting for {what} after {PATIENCE:?}");
-        std::thread::sleep(Duration::from_millis(20));
-    }
-}
-
 /// `dash2sim record --camera PREFIX` into `out`, returned once it is subscribed to every
 /// camera service (samples published before a subscriber exists are not kept for it), with
 /// no time limit: [`stopped`] ends it. Nothing here depends on how fast the logger runs.
 fn logger(prefix: &str, out: &Path) -> Child {
-    let mut child = Command::new(dash2sim())
+    let mut child = common::recorder(&dash2sim())
         .args(["record", "--camera", prefix, "--origin", "60.2711,24.8572,20"])
         .arg("-o")
         .arg(out)
@@ -163,13 +151,13 @@ fn logged_by(publisher: &Path, drive: &Path, dir: &Path, name: &str) -> Vec<u8> 
 }
 
 #[test]
-fn the_rust_and_the_c_publisher_are_logged_byte_identically() {
+fn the_rust_and_the_c_publisher_shared_or_static_are_logged_byte_identically() {
     let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let dir = scratch("identical");
     let drive = drive(&dir, 3);
-    let c = c_publisher(&dir);
     let from_rust = logged_by(Path::new(env!("CARGO_BIN_EXE_camera_files")), &drive, &dir, "rust");
-    let from_c = logged_by(&c, &drive, &dir, "c");
+    let from_c = logged_by(&c_publisher(&dir), &drive, &dir, "c");
+    let from_static = logged_by(&c_publisher_linked(&dir, true), &drive, &dir, "static");
 
     // The log holds what was published: every frame, VO pose and 3D detection of the files,
     // and the 2D tracks made of the 2D detections.
@@ -201,17 +189,7 @@ fn the_rust_and_the_c_publisher_are_logged_byte_identically() {
         from_c.len(),
         from_rust.len()
     );
-    let _ = std::fs::remove_dir_all(&dir);
-}
-
-#[test]
-fn the_c_publisher_linked_statically_is_logged_as_the_shared_one() {
-    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-    let dir = scratch("static");
-    let drive = drive(&dir, 3);
-    let from_static = logged_by(&c_publisher_linked(&dir, true), &drive, &dir, "static");
-    let from_shared = logged_by(&c_publisher(&dir), &drive, &dir, "shared");
-    assert!(from_static == from_shared, "the statically linked C publisher's log differs");
+    assert!(from_static == from_c, "the statically linked C publisher's log differs from the shared one's");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

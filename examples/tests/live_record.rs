@@ -5,23 +5,53 @@
 
 use std::io::{Read, Write};
 use std::process::Command;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
 use std::time::Duration;
 
 use dash2sim_core::binlog::Record;
 use dash2sim_linux::log;
-use dash2sim_linux::record::live::{self, LiveRequest};
-use dash2sim_linux::record::{self, Setup, Sources};
+use dash2sim_linux::record::live::{self, LiveReport, LiveRequest, LiveStatus};
+use dash2sim_linux::record::{self, bridge, Setup, Sources};
 use dash2sim_sim::scenario::judge::judge_log;
 use dash2sim_sim::scenario::sensors::GnssModel;
 use dash2sim_sim::scenario::write::write_scenario;
 use dash2sim_sim::scenario::{generate, ScenarioConfig};
+
+mod common;
+use common::wait_for;
 
 const SECONDS: f64 = 8.0;
 
 /// The tests here run real processes against the clock: one at a time, so that they do
 /// not slow each other down.
 static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// The logger's thread, recording until `stop` is set, returned once it has subscribed to
+/// every camera service under the request's prefix (a frame published before that is not
+/// kept for it).
+fn logger(
+    request: LiveRequest,
+    setup: Setup,
+    stop: &Arc<AtomicBool>,
+) -> JoinHandle<dash2sim_linux::Result<LiveReport>> {
+    let prefix = request.camera_prefix.clone().expect("a camera prefix");
+    let stop = Arc::clone(stop);
+    let logger = std::thread::spawn(move || live::run(&request, &setup, &live::Origin::Given, &stop));
+    wait_for("the logger to subscribe", || {
+        assert!(!logger.is_finished(), "the logger ended before it subscribed");
+        bridge::listening(&prefix).expect("the camera services")
+    });
+    logger
+}
+
+/// CAN frames the logger has seen, as its last status said.
+static CAN_FRAMES_SEEN: AtomicU64 = AtomicU64::new(0);
+
+fn note_can_frames(status: &LiveStatus) {
+    CAN_FRAMES_SEEN.store(status.stats.can_frames, Ordering::Relaxed);
+}
 
 /// A pseudo-terminal pair: the master to write to, the slave's path for the logger.
 fn pty() -> (std::fs::File, String) {
@@ -78,13 +108,13 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
         can_replay: Some(drive.join("speed.can.log")),
         realtime: true,
         segment: Duration::from_secs(600),
-        duration: Some(Duration::from_secs_f64(SECONDS + 2.5)),
-        status: None,
+        duration: None,
+        status: Some(note_can_frames),
         storage: Default::default(),
         keep: None,
     };
-    let logger = std::thread::spawn(move || live::run(&request, &setup, &live::Origin::Given, &AtomicBool::new(false)));
-    std::thread::sleep(Duration::from_millis(300));
+    let stop = Arc::new(AtomicBool::new(false));
+    let logger = logger(request, setup, &stop);
     let camera = Command::new(env!("CARGO_BIN_EXE_camera_sim"))
         .args(["--profile", "ideal", "--seconds", &SECONDS.to_string(), "--prefix", &prefix, "--nmea-out"])
         .arg(&nmea)
@@ -106,6 +136,12 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
     assert_eq!(sentences, serial.lines().count(), "every sentence of the receiver went through");
     let camera = camera.wait_with_output().expect("camera_sim");
     assert!(camera.status.success());
+    // Stopped once the camera process has published every frame and the logger has seen
+    // every frame of the wheel-speed replay (it began with the logger, before the camera
+    // process): however slowly it runs, the logger then has every input.
+    let can_frames = std::fs::read_to_string(drive.join("speed.can.log")).expect("candump").lines().count() as u64;
+    wait_for("the replay's CAN frames", || CAN_FRAMES_SEEN.load(Ordering::Relaxed) >= can_frames);
+    stop.store(true, Ordering::Relaxed);
     let report = logger.join().expect("logger thread").expect("live record");
     let frames = (SECONDS * 10.0) as u64 + 1;
     println!("live: {report:?}");
@@ -166,13 +202,23 @@ fn the_camera_process_killed_and_restarted_is_a_gap_in_the_log_not_the_end_of_it
         can_replay: None,
         realtime: false,
         segment: Duration::from_secs(600),
-        duration: Some(Duration::from_secs(6)),
+        duration: None,
         status: None,
         storage: Default::default(),
         keep: None,
     };
-    let logger = std::thread::spawn(move || live::run(&request, &setup, &live::Origin::Given, &AtomicBool::new(false)));
-    std::thread::sleep(Duration::from_millis(300));
+    let stop = Arc::new(AtomicBool::new(false));
+    let logger = logger(request, setup, &stop);
+    // The test watches the frames too (its own subscriber, beside the logger's), to kill the
+    // first process once it has published a second of them.
+    let watch = bridge::CameraSubscriber::new(&prefix).expect("the test's subscriber");
+    let mut frames_seen = 0;
+    let mut count_frames = || {
+        watch
+            .receive(|input| frames_seen += u64::from(matches!(input, bridge::CameraInput::Frame { .. })))
+            .expect("receive");
+        frames_seen
+    };
     let camera = |seconds: &str| {
         Command::new(env!("CARGO_BIN_EXE_camera_sim"))
             .args(["--seconds", seconds, "--speedup", "2", "--prefix", &prefix])
@@ -181,12 +227,14 @@ fn the_camera_process_killed_and_restarted_is_a_gap_in_the_log_not_the_end_of_it
             .expect("camera_sim")
     };
     let mut first = camera("10");
-    std::thread::sleep(Duration::from_millis(1500));
+    wait_for("the first camera process's frames", || count_frames() >= 12);
     first.kill().expect("SIGKILL");
     let _ = first.wait();
-    std::thread::sleep(Duration::from_millis(300));
     let second = camera("3").wait().expect("second camera_sim");
     assert!(second.success());
+    // Everything the second process published is in the logger's queues: stopped now, it
+    // logs all of it.
+    stop.store(true, Ordering::Relaxed);
     let report = logger.join().expect("logger thread").expect("the logger kept running");
     let files: Vec<_> = std::fs::read_dir(&dir)
         .expect("log dir")

@@ -88,6 +88,16 @@ const char *d2s_last_error(void);
 // `prefix` is null or a NUL-terminated string; `status` is null or points to an `int32_t`.
 struct d2s_publisher *d2s_publisher_open(const char *prefix, bool images, int32_t *status);
 
+// Whether a logger (`dash2sim record --camera`) is listening under `prefix`: 1 once it has
+// subscribed to every camera service, 0 before, a negative status on failure (with
+// [`d2s_last_error`]). A sample published before the logger subscribes is not kept for it,
+// and a logger takes a moment to subscribe (longer on a busy machine): a camera process that
+// must not lose its first frames polls this before it publishes them.
+//
+// # Safety
+// `prefix` is null or a NUL-terminated string.
+int32_t d2s_logger_listening(const char *prefix);
+
 // Closes a publisher (null is allowed); an image loaned and not sent goes back.
 //
 // # Safety

@@ -149,6 +149,19 @@ unsafe fn items<'a, T>(items: *const T, count: usize, what: &str) -> Result<&'a 
     }
 }
 
+/// The services' prefix as text.
+///
+/// # Safety
+/// `prefix` is null or a NUL-terminated string that outlives the returned text.
+unsafe fn prefix_text<'a>(prefix: *const c_char) -> Result<&'a str, Failure> {
+    if prefix.is_null() {
+        return fail(D2S_ERR_NULL, "the prefix is null");
+    }
+    // SAFETY: the caller's promise: a NUL-terminated string.
+    let prefix = unsafe { CStr::from_ptr(prefix) };
+    prefix.to_str().or_else(|_| fail(D2S_ERR_RANGE, "the prefix is not UTF-8"))
+}
+
 /// The text of the last failure on this thread (empty after a success). The pointer stays
 /// valid until the thread's next call into this library.
 #[no_mangle]
@@ -169,15 +182,34 @@ pub unsafe extern "C" fn d2s_publisher_open(
     status: *mut i32,
 ) -> *mut D2sPublisher {
     guarded("d2s_publisher_open", std::ptr::null_mut(), status, || {
-        if prefix.is_null() {
-            return fail(D2S_ERR_NULL, "the prefix is null");
-        }
         // SAFETY: the caller's promise: a NUL-terminated string.
-        let prefix = unsafe { CStr::from_ptr(prefix) };
-        let Ok(prefix) = prefix.to_str() else { return fail(D2S_ERR_RANGE, "the prefix is not UTF-8") };
+        let prefix = unsafe { prefix_text(prefix) }?;
         let camera = CameraPublisher::new(prefix, images).map_err(shared_memory)?;
         Ok(Box::into_raw(Box::new(D2sPublisher { camera, image: None })))
     })
+}
+
+/// Whether a logger (`dash2sim record --camera`) is listening under `prefix`: 1 once it has
+/// subscribed to every camera service, 0 before, a negative status on failure (with
+/// [`d2s_last_error`]). A sample published before the logger subscribes is not kept for it,
+/// and a logger takes a moment to subscribe (longer on a busy machine): a camera process that
+/// must not lose its first frames polls this before it publishes them.
+///
+/// # Safety
+/// `prefix` is null or a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn d2s_logger_listening(prefix: *const c_char) -> i32 {
+    let mut status = D2S_OK;
+    let listening = guarded("d2s_logger_listening", false, &mut status, || {
+        // SAFETY: the caller's promise: null or a NUL-terminated string.
+        let prefix = unsafe { prefix_text(prefix) }?;
+        bridge::listening(prefix).map_err(shared_memory)
+    });
+    if status == D2S_OK {
+        i32::from(listening)
+    } else {
+        status
+    }
 }
 
 /// Closes a publisher (null is allowed); an image loaned and not sent goes back.

@@ -74,6 +74,21 @@ fn null_and_out_of_range_arguments_are_refused_with_a_code_and_a_reason() {
 }
 
 #[test]
+fn a_logger_is_listening_once_it_has_subscribed_and_not_after() {
+    let name = prefix("listening");
+    // SAFETY: a NUL-terminated prefix, or null (refused).
+    unsafe {
+        assert_eq!(d2s_logger_listening(std::ptr::null()), D2S_ERR_NULL);
+        assert_eq!(last_error(), "d2s_logger_listening: the prefix is null");
+        assert_eq!(d2s_logger_listening(name.as_ptr()), 0, "{}", last_error());
+        let logger = CameraSubscriber::new(name.to_str().expect("utf-8")).expect("subscriber");
+        assert_eq!(d2s_logger_listening(name.as_ptr()), 1, "{}", last_error());
+        drop(logger);
+        assert_eq!(d2s_logger_listening(name.as_ptr()), 0, "{}", last_error());
+    }
+}
+
+#[test]
 fn what_c_publishes_arrives_at_the_logger_with_its_image() {
     let name = prefix("arrives");
     let subscriber = CameraSubscriber::new(name.to_str().expect("utf-8")).expect("subscriber");

@@ -187,25 +187,12 @@ pub struct DeviceArgs {
     #[arg(long, default_value_t = record::DEFAULT_UERE_M)]
     pub uere: f64,
     /// The IMU's axes on the camera: `ROLL,PITCH,YAW` (rad, sensor → camera).
-    #[arg(long, default_value = "0,0,0", value_parser = parse_imu_mount)]
+    #[arg(long, default_value = "0,0,0", value_parser = record::parse_imu_mount)]
     pub imu_mount: ImuMount,
     /// Where the relative motion comes from: the camera's VO, or gyro + wheels dead
     /// reckoning (`imu-wheels`: a dashcam without VO; needs --imu and a vehicle speed).
     #[arg(long, value_parser = dash2sim_args::RelativeMotion::parser(), default_value = "vo")]
     pub relative_motion: RelativeMotion,
-}
-
-/// `--imu-mount ROLL,PITCH,YAW`.
-fn parse_imu_mount(text: &str) -> std::result::Result<ImuMount, String> {
-    let v: Vec<f64> = text
-        .split(',')
-        .map(|x| x.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
-        .collect::<Option<_>>()
-        .ok_or_else(|| format!("{text:?}: expected ROLL,PITCH,YAW numbers (rad)"))?;
-    match v[..] {
-        [r, p, y] => Ok(ImuMount { roll_pitch_yaw: [r, p, y] }),
-        _ => Err(format!("{text:?}: expected 3 numbers, ROLL,PITCH,YAW (rad)")),
-    }
 }
 
 impl From<DeviceArgs> for Device {

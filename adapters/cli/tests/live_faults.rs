@@ -368,3 +368,49 @@ fn record_on_a_real_full_file_system_resumes_when_space_returns() {
         "the failure is an event in the file written after the card freed up"
     );
 }
+
+/// A serial port that is a FIFO nobody writes to yet (a GNSS process that has not started):
+/// the logger records meanwhile and stops on SIGTERM as always. Opening a FIFO's read end
+/// waits for a writer; the logger used to wait so, deaf to SIGTERM until killed.
+#[test]
+fn a_logger_waiting_for_its_fifos_writer_stops_on_sigterm() {
+    let dir = std::env::temp_dir().join(format!("dash2sim-fifo-term-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("dir");
+    let fifo = dir.join("gnss.fifo");
+    rustix::fs::mkfifoat(rustix::fs::CWD, &fifo, rustix::fs::Mode::RUSR | rustix::fs::Mode::WUSR).expect("mkfifo");
+    let prefix = format!("dash2sim-test/fifo-term/{}", std::process::id());
+    let mut record = Command::new(env!("CARGO_BIN_EXE_dash2sim"))
+        .args(["record", "--camera", &prefix, "--serial"])
+        .arg(&fifo)
+        .args(["--origin", "60.2711,24.8572", "-o"])
+        .arg(dir.join("log"))
+        .env("IOX2_LOG_LEVEL", "Error")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("dash2sim record");
+    // Subscribed to the camera: its signal handlers are in place (installed before).
+    let start = Instant::now();
+    while !dash2sim_linux::record::bridge::listening(&prefix).expect("the camera services") {
+        assert!(record.try_wait().expect("record").is_none(), "the logger ended before it subscribed");
+        assert!(start.elapsed() < Duration::from_secs(300), "the logger never subscribed");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    rustix::process::kill_process(rustix::process::Pid::from_child(&record), rustix::process::Signal::TERM)
+        .expect("SIGTERM");
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = record.try_wait().expect("record") {
+            break status;
+        }
+        if start.elapsed() > Duration::from_secs(300) {
+            let _ = record.kill();
+            panic!("the logger did not stop on SIGTERM while its FIFO had no writer");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let output = record.wait_with_output().expect("record");
+    assert!(status.success(), "{status}: {}", String::from_utf8_lossy(&output.stderr));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -17,6 +17,7 @@ pub mod error;
 pub mod geometry;
 pub mod ingest;
 pub mod log;
+mod numbers;
 pub mod record;
 pub mod sync;
 pub mod utc;

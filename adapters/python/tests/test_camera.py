@@ -68,16 +68,47 @@ def test_the_rotation_is_the_one_record_reads_from_a_quaternion():
     assert (camera.rotation_from_quaternion(0, 0, 0, 0) == np.eye(3)).all()
 
 
-def record(dash2sim_bin: Path, prefix: str, out: Path, seconds: float) -> subprocess.Popen:
-    """`dash2sim record --camera`, given time to subscribe before anything is published."""
+# How long a test waits for a process that is slow because the machine is busy, not stuck.
+PATIENCE_S = 300.0
+
+
+def wait_for(what: str, ready) -> None:
+    """Poll `ready` until it holds; fail after PATIENCE_S saying `what`."""
+    start = time.monotonic()
+    while not ready():
+        assert time.monotonic() - start < PATIENCE_S, f"gave up waiting for {what} after {PATIENCE_S} s"
+        time.sleep(0.02)
+
+
+def record(dash2sim_bin: Path, prefix: str, out: Path) -> subprocess.Popen:
+    """`dash2sim record --camera`, returned once it has subscribed to every camera service
+    (a sample published before that is not kept for it), with no time limit: `stopped` ends
+    it. Nothing here depends on how fast the logger runs."""
+    # The starved runs of issue #57 put the recorder (only it) at low priority beside a CPU hog.
+    nice = os.environ.get("DASH2SIM_TEST_RECORDER_NICE")
     process = subprocess.Popen(
-        [str(dash2sim_bin), "record", "--camera", prefix, "--origin", ORIGIN, "--seconds", str(seconds), "-o", str(out)],
+        [*(["nice", "-n", nice] if nice else []), str(dash2sim_bin), "record", "--camera", prefix, "--origin", ORIGIN,
+         "-o", str(out)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
     )
-    time.sleep(1.5)
+
+    def subscribed() -> bool:
+        assert process.poll() is None, f"the logger ended before it subscribed: {process.communicate()[1]}"
+        return camera.logger_listening(prefix)
+
+    wait_for("the logger to subscribe", subscribed)
     return process
+
+
+def stopped(logger: subprocess.Popen) -> str:
+    """The logger stopped as a user stops it (SIGINT: it receives what is waiting, then
+    closes the log); its standard error, once it has ended well."""
+    logger.send_signal(signal.SIGINT)
+    _, err = logger.communicate(timeout=PATIENCE_S)
+    assert logger.returncode == 0, err
+    return err
 
 
 def publish(prefix: str, drive: Path, *args: str) -> subprocess.Popen:
@@ -104,14 +135,15 @@ def drive(dash2sim_bin, tmp_path_factory) -> Path:
 
 
 def logged_by(dash2sim_bin: Path, command: list, drive: Path, out: Path, prefix: str) -> bytes:
-    logger = record(dash2sim_bin, prefix, out, 5)
+    logger = record(dash2sim_bin, prefix, out)
     published = subprocess.run(
         [*command, str(drive), "--prefix", prefix, "--speedup", "4", "--file-times"], capture_output=True, text=True
     )
     assert published.returncode == 0, published.stderr
     assert published.stdout.strip() == "31 frames published"
-    _, err = logger.communicate(timeout=30)
-    assert logger.returncode == 0, err
+    # Everything published is in the logger's queues (it outlives the publisher): stopped
+    # now, however far behind it is, it logs all of it.
+    stopped(logger)
     return only_file(out).read_bytes()
 
 
@@ -133,11 +165,11 @@ def test_the_python_publisher_is_logged_as_the_rust_one(dash2sim_bin, drive, tmp
 
 def test_a_message_of_another_layout_version_is_refused_with_its_message(dash2sim_bin, tmp_path):
     prefix = f"dash2sim-test/python-layout/{os.getpid()}"
-    logger = record(dash2sim_bin, prefix, tmp_path / "log", 10)
+    logger = record(dash2sim_bin, prefix, tmp_path / "log")
     with camera.Publisher(prefix) as publisher:
         message = camera.FrameMetaMsg(camera.LAYOUT_VERSION + 1, 0, 1, 1_000_000, 0, 0)
         publisher._send(publisher._frame, message)
-        _, err = logger.communicate(timeout=30)
+        _, err = logger.communicate(timeout=PATIENCE_S)
     assert logger.returncode != 0
     assert f"the publisher sends message layout {camera.LAYOUT_VERSION + 1}, this logger reads layout" in err, err
 
@@ -150,17 +182,30 @@ def test_a_python_camera_process_killed_mid_run_is_a_restart_in_the_log(dash2sim
         check=True,
     )
     prefix = f"dash2sim-test/python-killed/{os.getpid()}"
-    logger = record(dash2sim_bin, prefix, tmp_path / "log", 7)
+    logger = record(dash2sim_bin, prefix, tmp_path / "log")
+    # The test watches the frames too (its own subscriber, beside the logger's), to kill the
+    # first process once it has published and to stop the logger once the second has.
+    import iceoryx2 as iox
+
+    watch = subscriber(iox.NodeBuilder.new().create(iox.ServiceType.Ipc), f"{prefix}/frame", camera.FrameMetaMsg)
+    frames = 0
+
+    def count_frames() -> int:
+        nonlocal frames
+        while watch.receive() is not None:
+            frames += 1
+        return frames
+
     first = publish(prefix, drive)
-    time.sleep(2.0)
+    wait_for("the first camera process's frames", lambda: count_frames() >= 3)
     first.send_signal(signal.SIGKILL)
     first.wait()
-    time.sleep(0.3)
+    before = count_frames()
     second = publish(prefix, drive)
-    _, err = logger.communicate(timeout=30)
+    wait_for("the second camera process's frames", lambda: count_frames() >= before + 3)
+    stopped(logger)
     second.kill()
     second.wait()
-    assert logger.returncode == 0, err
     summary = subprocess.run(
         [str(dash2sim_bin), "inspect", str(only_file(tmp_path / "log"))], capture_output=True, text=True
     ).stdout

@@ -315,6 +315,34 @@ pub fn factor_graph(
     ] {
         cost.plain(&[(value - prior.mean) / prior.sigma]);
     }
+    add_measurements(&inputs, anchor_enabled, &s, solution, &mut factors, &mut cost);
+    Ok(FactorGraph {
+        vo: inputs
+            .vo
+            .iter()
+            .map(|v| VoRow { t: v.t, position: array3(&v.position), rotation: array9(&v.rotation) })
+            .collect(),
+        keyframe_vo,
+        lever: array3(&inputs.lever),
+        initial,
+        finish,
+        finish_cost: cost.0,
+        factors,
+    })
+}
+
+/// The GNSS fixes and the anchors the solution used, as factors with their cost at it.
+fn add_measurements(
+    inputs: &Inputs<'_>,
+    anchor_enabled: &[bool],
+    s: &Settings,
+    solution: &Solution,
+    factors: &mut Factors,
+    cost: &mut Cost,
+) {
+    let geometry = solution.geometry(inputs.vo);
+    let keyframe_vo = &solution.keyframe_vo;
+    let vo_position = |k: usize| inputs.vo[keyframe_vo[k]].position;
     // A fix's weight is Cauchy in u = |r ÷ σ| / √3 with σ before the inflation; on the
     // whitened residual e = |r ÷ (σ·inflation)| that is a Cauchy of scale c·√3 / inflation.
     let inflation = fix_inflation(inputs.fixes, s.gnss_correlation_s);
@@ -337,7 +365,7 @@ pub fn factor_graph(
                 factors.anchor_time.push(AnchorTime { t, enu: array3(&anchor.enu), sigma: anchor.sigma, cauchy });
             }
             AnchorAt::VoPoint(x) => {
-                let k = nearest_keyframe(inputs.vo, &keyframe_vo, &x);
+                let k = nearest_keyframe(inputs.vo, keyframe_vo, &x);
                 let offset = x - vo_position(k);
                 let r = solution.positions[k] + geometry.scale_rotation(k) * offset - anchor.enu;
                 cost.cauchy((r / anchor.sigma).as_slice(), cauchy);
@@ -351,19 +379,6 @@ pub fn factor_graph(
             }
         }
     }
-    Ok(FactorGraph {
-        vo: inputs
-            .vo
-            .iter()
-            .map(|v| VoRow { t: v.t, position: array3(&v.position), rotation: array9(&v.rotation) })
-            .collect(),
-        keyframe_vo,
-        lever: array3(&inputs.lever),
-        initial,
-        finish,
-        finish_cost: cost.0,
-        factors,
-    })
 }
 
 #[cfg(test)]

@@ -121,12 +121,22 @@ impl State<'_> {
     /// The normal equations at this state with its current weights, and every weighted
     /// residual's size in σ.
     fn assemble(&self) -> Assembled {
+        let mut normal = Normal::new(self.keyframe_t.len());
+        let wheel_u = self.add_motion(&mut normal);
+        self.add_global_priors(&mut normal);
+        let geometry = self.geometry();
+        let fix_u = self.add_fixes(&mut normal, &geometry);
+        let anchor_u = self.add_anchors(&mut normal, &geometry);
+        Assembled { normal, fix_u, anchor_u, wheel_u }
+    }
+
+    /// The motion priors between neighbouring segments (scale and rotation walks), the VO
+    /// chords and the wheel-speed odometer; each segment's normalised wheel residual.
+    fn add_motion(&self, normal: &mut Normal) -> Vec<f64> {
         let s = &self.settings;
         let blocks = self.keyframe_t.len();
-        let mut normal = Normal::new(blocks);
         let global = blocks * BLOCK;
         let mut wheel_u = vec![f64::NAN; blocks];
-        // Motion priors between neighbouring segments and the VO chords.
         for (k, wheel) in wheel_u.iter_mut().enumerate().take(blocks - 1) {
             let dt = (self.keyframe_t[k + 1] - self.keyframe_t[k]).max(1e-3);
             let (b0, b1) = (k * BLOCK, (k + 1) * BLOCK);
@@ -197,14 +207,24 @@ impl State<'_> {
                 }
             }
         }
-        // Priors on the globals.
+        wheel_u
+    }
+
+    /// The priors on the global unknowns: latency, odometer scale, heading drift.
+    fn add_global_priors(&self, normal: &mut Normal) {
+        let s = &self.settings;
+        let global = self.keyframe_t.len() * BLOCK;
         let (mean, sigma) = s.latency_prior;
         normal.plain(&Row::new((self.tau - mean) / sigma).with(global + TAU, 1.0 / sigma));
         normal.plain(&Row::new(self.omega / s.wheel_factor_sigma).with(global + OMEGA, 1.0 / s.wheel_factor_sigma));
         let sigma = s.heading_drift_sigma;
         normal.plain(&Row::new(self.heading_drift / sigma).with(global + HEADING_DRIFT, 1.0 / sigma));
-        let geometry = self.geometry();
-        // GNSS.
+    }
+
+    /// The GNSS fixes (with the latency's column); each fix's normalised residual.
+    fn add_fixes(&self, normal: &mut Normal, geometry: &Geometry<'_>) -> Vec<f64> {
+        let s = &self.settings;
+        let global = self.keyframe_t.len() * BLOCK;
         let inflation = fix_inflation(self.inputs.fixes, s.gnss_correlation_s);
         let mut fix_u = vec![f64::NAN; self.inputs.fixes.len()];
         for (i, fix) in self.inputs.fixes.iter().enumerate() {
@@ -218,32 +238,36 @@ impl State<'_> {
             let w = self.fix_weight[i];
             let v = -geometry.velocity(&at);
             geometry.add_position_rows(
-                &mut normal,
+                normal,
                 &at,
                 Measured { residual: r, sigma: raw * inflation, weight: w },
                 &[(global + TAU, &[v])],
                 None,
             );
         }
-        // Anchors.
+        fix_u
+    }
+
+    /// The street-imagery anchors; each anchor's normalised residual.
+    fn add_anchors(&self, normal: &mut Normal, geometry: &Geometry<'_>) -> Vec<f64> {
         let mut anchor_u = vec![f64::NAN; self.inputs.anchors.len()];
         for (i, anchor) in self.inputs.anchors.iter().enumerate() {
             let w = self.anchor_weight[i];
             let sigma = Vector3::repeat(anchor.sigma);
-            let (r, u) = match anchor.at {
+            let u = match anchor.at {
                 AnchorAt::Time(t) => {
                     let Some(at) = geometry.place(t) else { continue };
                     let lever = geometry.lever(&at, &self.inputs.lever);
                     let r = geometry.camera(&at) - lever - anchor.enu;
                     let u = r.norm() / anchor.sigma / 3f64.sqrt();
                     geometry.add_position_rows(
-                        &mut normal,
+                        normal,
                         &at,
                         Measured { residual: r, sigma, weight: w },
                         &[],
                         Some(lever),
                     );
-                    (r, u)
+                    u
                 }
                 AnchorAt::VoPoint(x) => {
                     let k = self.anchor_keyframe[i];
@@ -257,16 +281,15 @@ impl State<'_> {
                         [m.column(0).into(), m.column(1).into(), m.column(2).into()];
                     let b = k * BLOCK;
                     normal.push3(&r, &sigma, &[(b, &identity), (b + 3, &[su]), (b + 4, &rotation_columns)], w);
-                    (r, u)
+                    u
                 }
             };
-            let _ = r;
             anchor_u[i] = u;
             if self.anchor_enabled[i] {
                 normal.cost += self.measurement_cost(u, 3.0);
             }
         }
-        Assembled { normal, fix_u, anchor_u, wheel_u }
+        anchor_u
     }
 
     /// Weights from the residuals of this state: Cauchy when `robust`, zero beyond the

@@ -4,15 +4,12 @@
 
 use dash2sim_core::geo::Geodetic;
 
+use crate::numbers::comma_separated;
 use crate::{Error, Result};
 
 /// Parse `LAT,LON[,H]` (degrees, degrees, metres above the WGS84 ellipsoid).
 pub fn parse_origin(text: &str) -> Result<Geodetic> {
-    let values: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>())
-        .collect::<std::result::Result<_, _>>()
-        .map_err(|_| Error::invalid("expected LAT,LON[,H] numbers"))?;
+    let values = comma_separated(text, "LAT,LON[,H] numbers")?;
     match values[..] {
         [lat, lon] | [lat, lon, _] if (-90.0..=90.0).contains(&lat) && (-180.0..=180.0).contains(&lon) => {
             Geodetic::new(lat, lon, values.get(2).copied().unwrap_or(0.0))

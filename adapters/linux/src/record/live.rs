@@ -11,6 +11,7 @@
 
 use std::fs::File;
 use std::io::{Read, Write as _};
+use std::os::unix::fs::FileTypeExt;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
@@ -24,6 +25,7 @@ use dash2sim_core::pipeline::profile::{work_zone_meta, work_zone_trackers};
 use dash2sim_core::pipeline::replay::{feed, Input, Reader, Recorder};
 use dash2sim_core::pipeline::{GnssSignals, Pipeline, PipelineStats, Trackers};
 use dash2sim_core::time::Timestamp;
+use rustix::fs::{Mode, OFlags};
 
 use super::interleave::{Interleave, Next};
 use super::storage::{self, Storage, StoragePolicy};
@@ -264,9 +266,22 @@ fn serial_reader(
     queue: SyncSender<(Timestamp, BusInput)>,
     drops: Arc<Drops>,
 ) -> Result<std::thread::JoinHandle<()>> {
-    let mut file = File::open(path).map_err(|e| Error::file(path, e))?;
-    raw_mode(&file, baud).map_err(|e| Error::file(path, e))?;
+    let fifo = std::fs::metadata(path).map_err(|e| Error::file(path, e))?.file_type().is_fifo();
+    let opened = if fifo {
+        // Opening a FIFO's read end waits for a writer, for ever if none comes: it is opened
+        // in the reader's thread, so that the logger runs (and a signal stops it) meanwhile.
+        // That it can be opened is checked here, without waiting.
+        rustix::fs::open(path, OFlags::RDONLY | OFlags::NONBLOCK | OFlags::CLOEXEC, Mode::empty())
+            .map_err(|e| Error::file(path, std::io::Error::from(e)))?;
+        None
+    } else {
+        let file = File::open(path).map_err(|e| Error::file(path, e))?;
+        raw_mode(&file, baud).map_err(|e| Error::file(path, e))?;
+        Some(file)
+    };
+    let path = path.to_path_buf();
     Ok(std::thread::spawn(move || {
+        let Some(mut file) = opened.or_else(|| File::open(&path).ok()) else { return };
         let mut buffer = [0u8; 1024];
         // A pty whose writer closed reads as an error (EIO), a file as its end: both end input.
         while let Ok(n) = file.read(&mut buffer) {

@@ -13,6 +13,7 @@ use dash2sim_core::imu::ImuMount;
 use dash2sim_core::pipeline::{CameraMount, RelativeMotion};
 
 use crate::ingest::can::{SignalName, SpeedUnit};
+use crate::numbers::comma_separated;
 use crate::{Error, Field, Result};
 
 /// The recorded files `record` reads (see [`super::sources`] for their forms).
@@ -229,17 +230,22 @@ impl VoFrame {
 /// A camera mount written `FORWARD,LEFT,UP[,ROLL,PITCH,YAW]`: the camera's place from the
 /// rear axle on the ground (m), and optionally its rotation (rad, camera → body).
 pub fn parse_mount(text: &str) -> Result<CameraMount> {
-    let v: Vec<f64> = text
-        .split(',')
-        .map(|x| x.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| Error::invalid("expected FORWARD,LEFT,UP[,ROLL,PITCH,YAW] numbers"))?;
+    let v = comma_separated(text, "FORWARD,LEFT,UP[,ROLL,PITCH,YAW] numbers")?;
     match v[..] {
         [f, l, u] => Ok(CameraMount { position: [f, l, u], roll_pitch_yaw: [0.0; 3] }),
         [f, l, u, r, p, y] => Ok(CameraMount { position: [f, l, u], roll_pitch_yaw: [r, p, y] }),
         _ => {
             Err(Error::invalid(format!("expected 3 or 6 numbers (FORWARD,LEFT,UP[,ROLL,PITCH,YAW]), not {}", v.len())))
         }
+    }
+}
+
+/// An IMU mount written `ROLL,PITCH,YAW`: the rotation from the sensor's axes to the
+/// camera's (rad).
+pub fn parse_imu_mount(text: &str) -> Result<ImuMount> {
+    match comma_separated(text, "ROLL,PITCH,YAW numbers (rad)")?[..] {
+        [r, p, y] => Ok(ImuMount { roll_pitch_yaw: [r, p, y] }),
+        ref v => Err(Error::invalid(format!("expected 3 numbers, ROLL,PITCH,YAW (rad), not {}", v.len()))),
     }
 }
 
@@ -315,5 +321,30 @@ impl std::str::FromStr for GnssSignalNames {
             }
         }
         Ok(names)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_default_mount_as_written_is_the_default_mount() {
+        let written = parse_mount(DEFAULT_MOUNT).expect("the default mount parses");
+        assert_eq!(written, CameraMount { position: DEFAULT_MOUNT_M, roll_pitch_yaw: [0.0; 3] });
+        assert_eq!(RecordRequest::from_files(Path::new("out.d2slog"), Sources::default()).device.mount, written);
+    }
+
+    #[test]
+    fn mounts_take_three_or_six_numbers_and_an_imu_mount_three() {
+        let tilted = parse_mount("1,0,1.2,0,0.1,0").expect("six numbers");
+        assert_eq!((tilted.position, tilted.roll_pitch_yaw), ([1.0, 0.0, 1.2], [0.0, 0.1, 0.0]));
+        for bad in ["1,2", "1,2,3,4", "1,2,x", "1,2,inf"] {
+            assert!(parse_mount(bad).is_err(), "{bad}");
+        }
+        assert_eq!(parse_imu_mount("0, 0.5,-1").expect("three").roll_pitch_yaw, [0.0, 0.5, -1.0]);
+        for bad in ["0,0", "0,0,0,0", "0,nan,0", ""] {
+            assert!(parse_imu_mount(bad).is_err(), "{bad}");
+        }
     }
 }

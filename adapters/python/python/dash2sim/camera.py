@@ -153,6 +153,19 @@ def class_id(name: str) -> int:
     return 0xFFFF if found is None else found
 
 
+def logger_listening(prefix: str = DEFAULT_PREFIX) -> bool:
+    """Whether a logger (``dash2sim record --camera``) has subscribed to every camera service
+    under ``prefix``. A sample published before the logger subscribes is not kept for it, and
+    a logger takes a moment to subscribe (longer on a busy machine): a camera process that
+    must not lose its first frames polls this before it publishes them."""
+    from . import _native
+
+    try:
+        return _native.logger_listening(prefix)
+    except _native.Dash2SimError as e:
+        raise BridgeError(str(e)) from e
+
+
 def device_now_us() -> int:
     """The device clock the logger stamps its other inputs with (CLOCK_MONOTONIC), µs."""
     return time.clock_gettime_ns(time.CLOCK_MONOTONIC) // 1000

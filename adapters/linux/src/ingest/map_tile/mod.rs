@@ -364,11 +364,7 @@ fn item_box(points: impl Iterator<Item = (f64, f64)>, margin: f64) -> [f32; 4] {
 
 /// A bounding box written `WEST,SOUTH,EAST,NORTH` (degrees), as `[west, south, east, north]`.
 pub fn parse_bbox(text: &str) -> Result<[f64; 4]> {
-    let values: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| Error::invalid("expected four numbers WEST,SOUTH,EAST,NORTH"))?;
+    let values = crate::numbers::comma_separated(text, "four numbers WEST,SOUTH,EAST,NORTH")?;
     let [west, south, east, north] = values[..] else {
         return Err(Error::invalid(format!("expected four numbers WEST,SOUTH,EAST,NORTH, not {}", values.len())));
     };
