@@ -118,6 +118,9 @@ fn what_c_publishes_arrives_at_the_logger_with_its_image() {
         let nan = [f32::NAN, 0.0, 0.0];
         assert_eq!(d2s_publish_imu(publisher, 1_020_000, nan.as_ptr(), accel.as_ptr()), D2S_ERR_RANGE);
         assert!(last_error().contains("not finite"), "{}", last_error());
+        // The next frame says how many IMU samples went before it (one: the refused ones
+        // were not sent).
+        assert_eq!(d2s_publish_frame(publisher, 6, 1_100_000, 8000), D2S_OK);
     }
     let mut inputs = Vec::new();
     subscriber.receive(|input| inputs.push(input)).expect("receive");
@@ -125,17 +128,25 @@ fn what_c_publishes_arrives_at_the_logger_with_its_image() {
     unsafe { d2s_publisher_close(publisher) };
     let expected = dash2sim_core::sim3::Pose::from_quaternion_wxyz(q, [1.0, 2.0, 3.0].into());
     let t = dash2sim_core::time::Timestamp::from_micros(1_000_000);
-    assert_eq!(inputs.len(), 5, "{inputs:?}");
+    assert_eq!(inputs.len(), 6, "{inputs:?}");
     let imu = dash2sim_core::imu::ImuSample {
         gyro: [0.01f32, -0.02, 0.3].map(f64::from),
         accel: [0.5f32, -0.25, 9.81].map(f64::from),
     };
     // `receive` drains the frame service first (`CameraSubscriber::receive`).
-    assert_eq!(inputs[0], CameraInput::Frame { sequence: 5, t, exposure_us: 8000, image_bytes: 1000 });
-    assert_eq!(inputs[1], CameraInput::Imu(dash2sim_core::time::Timestamp::from_micros(1_010_000), imu));
-    assert_eq!(inputs[4], CameraInput::Keep(dash2sim_core::time::Timestamp::from_micros(1_050_000)));
-    assert_eq!(inputs[2], CameraInput::Vo(t, 5, 2, expected), "the rotation bit for bit as record reads it");
-    let CameraInput::Detections3d(_, 5, ref d) = inputs[3] else { panic!("{:?}", inputs[3]) };
+    assert_eq!(
+        inputs[0],
+        CameraInput::Frame { sequence: 5, t, exposure_us: 8000, image_bytes: 1000, imu_published: 0 }
+    );
+    let t6 = dash2sim_core::time::Timestamp::from_micros(1_100_000);
+    assert_eq!(
+        inputs[1],
+        CameraInput::Frame { sequence: 6, t: t6, exposure_us: 8000, image_bytes: 0, imu_published: 1 }
+    );
+    assert_eq!(inputs[2], CameraInput::Imu(dash2sim_core::time::Timestamp::from_micros(1_010_000), imu));
+    assert_eq!(inputs[5], CameraInput::Keep(dash2sim_core::time::Timestamp::from_micros(1_050_000)));
+    assert_eq!(inputs[3], CameraInput::Vo(t, 5, 2, expected), "the rotation bit for bit as record reads it");
+    let CameraInput::Detections3d(_, 5, ref d) = inputs[4] else { panic!("{:?}", inputs[4]) };
     assert_eq!((d.len(), d[0].class, d[0].bbox.x), (1, 2, 10.0));
 }
 

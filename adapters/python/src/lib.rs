@@ -197,12 +197,6 @@ fn class_id(name: &str) -> Option<u16> {
     dash2sim_core::pipeline::profile::class_id(name)
 }
 
-/// Whether a logger is listening under `prefix` (`dash2sim.camera.logger_listening`).
-#[pyfunction]
-fn logger_listening(prefix: &str) -> PyResult<bool> {
-    dash2sim_linux::record::bridge::listening(prefix).map_err(error)
-}
-
 /// The module `dash2sim._native`.
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -214,6 +208,5 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(verify, m)?)?;
     m.add_function(wrap_pyfunction!(export, m)?)?;
     m.add_function(wrap_pyfunction!(class_id, m)?)?;
-    m.add_function(wrap_pyfunction!(logger_listening, m)?)?;
     Ok(())
 }

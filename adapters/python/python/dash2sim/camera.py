@@ -58,7 +58,9 @@ class FrameMetaMsg(_Message):
         ("sequence", ctypes.c_uint64),
         ("device_time_us", ctypes.c_int64),
         ("image_bytes", ctypes.c_uint32),
-        ("reserved", ctypes.c_uint32),
+        # IMU samples sent before this frame (their numbering): the logger holds the frame
+        # until that sample is in.
+        ("imu_published", ctypes.c_uint32),
     ]
 
 
@@ -142,6 +144,16 @@ MESSAGES = (
     ImuMsg,
 )
 
+#: The camera services under a prefix and their messages (a logger subscribes to all six).
+_SERVICES = (
+    ("frame", FrameMetaMsg),
+    ("vo", VoPoseMsg),
+    ("detections3d", Detections3dMsg),
+    ("detections2d", Detections2dMsg),
+    ("keep", KeepMsg),
+    ("imu", ImuMsg),
+)
+
 
 def class_id(name: str) -> int:
     """The tracker's class id of a class name (``"car"``, ``"cone"``, ...: the work-zone
@@ -157,13 +169,22 @@ def logger_listening(prefix: str = DEFAULT_PREFIX) -> bool:
     """Whether a logger (``dash2sim record --camera``) has subscribed to every camera service
     under ``prefix``. A sample published before the logger subscribes is not kept for it, and
     a logger takes a moment to subscribe (longer on a busy machine): a camera process that
-    must not lose its first frames polls this before it publishes them."""
-    from . import _native
-
-    try:
-        return _native.logger_listening(prefix)
-    except _native.Dash2SimError as e:
-        raise BridgeError(str(e)) from e
+    must not lose its first frames polls this before it publishes them (the Rust side's
+    ``record::bridge::listening``)."""
+    iox = _iceoryx2()
+    iox.set_log_level_from_env_or(iox.LogLevel.Error)
+    node = iox.NodeBuilder.new().create(iox.ServiceType.Ipc)
+    for leaf, message in _SERVICES:
+        builder = node.service_builder(iox.ServiceName.new(f"{prefix}/{leaf}")).publish_subscribe(message)
+        try:
+            service = builder.open()
+        except iox.PublishSubscribeOpenError as e:
+            if "DoesNotExist" in str(e):
+                return False
+            raise BridgeError(f"{prefix}/{leaf}: {e!r}") from e
+        if service.dynamic_config.number_of_subscribers == 0:
+            return False
+    return True
 
 
 def device_now_us() -> int:
@@ -299,7 +320,7 @@ class Publisher:
             loan.array[:] = data
             self.send_image(loan, sequence, device_time_us, exposure_us)
             return
-        self._send(self._frame, FrameMetaMsg(LAYOUT_VERSION, exposure_us, sequence, device_time_us, 0, 0))
+        self._send(self._frame, FrameMetaMsg(LAYOUT_VERSION, exposure_us, sequence, device_time_us, 0, self._imu_sent))
 
     def keep(self, device_time_us: int) -> None:
         """"Keep the file being recorded" (a button press, an event the camera saw): the
@@ -338,7 +359,7 @@ class Publisher:
         except Exception as e:
             raise BridgeError(f"image send: {e!r}") from e
         size = loan.array.size
-        self._send(self._frame, FrameMetaMsg(LAYOUT_VERSION, exposure_us, sequence, device_time_us, size, 0))
+        self._send(self._frame, FrameMetaMsg(LAYOUT_VERSION, exposure_us, sequence, device_time_us, size, self._imu_sent))
 
     def vo(self, sequence: int, device_time_us: int, position: Sequence[float], rotation: Any, session: int = 0) -> None:
         """The VO pose of frame ``sequence``: the camera's position in the VO frame (any

@@ -18,9 +18,18 @@
 //! What is published after it waits for the next frame — one frame period — or, when no
 //! frame comes (a camera that stalls, an IMU-only process), until it is [`HOLD_US`] older
 //! than the newest stamp held. The recording's end releases the rest.
+//!
+//! Draining the frame service first is not enough for the IMU: a starved logger has seen a
+//! frame while the IMU samples published before it were not yet there to drain (iceoryx2
+//! orders each service's samples, not one service's against another's), and released the
+//! frame ahead of them — two runs of the same publication gave logs of the same records in
+//! another order (issue #57). So a frame says how many IMU samples its publisher had sent
+//! ([`CameraInput::Frame`]'s `imu_published`, the IMU's own numbering), and it waits until
+//! the sample of that number has been received — or, if it was lost, until it is
+//! [`HOLD_US`] old.
 
 use std::cmp::Reverse;
-use std::collections::BinaryHeap;
+use std::collections::{BinaryHeap, VecDeque};
 
 use super::CameraInput;
 
@@ -75,8 +84,12 @@ pub struct Merge {
     held: BinaryHeap<Reverse<Held>>,
     /// Per service: its epoch and its last stamp.
     clocks: [(u32, Option<i64>); SERVICES],
-    /// The newest frame drained.
+    /// The newest frame released up to: every frame drained before it has its IMU samples.
     barrier: Option<Key>,
+    /// Frames drained after the barrier, in order, with the IMU number each waits for.
+    framed: VecDeque<(Key, u32)>,
+    /// The newest IMU number received (the publisher's count).
+    imu_received: u32,
     /// The newest key held.
     newest: Option<Key>,
     arrivals: u64,
@@ -105,22 +118,37 @@ impl Merge {
         *last = Some(t_us);
         let key = Key { epoch: *epoch, t_us, rank, arrival: self.arrivals };
         self.arrivals += 1;
-        if rank == 1 {
-            self.barrier = self.barrier.max(Some(key));
+        if let CameraInput::Frame { imu_published, .. } = input {
+            self.framed.push_back((key, imu_published));
         }
         self.newest = self.newest.max(Some(key));
         self.held.push(Reverse(Held { key, input }));
     }
 
-    /// Everything that can go now, in order: up to the newest frame, and what has waited
-    /// [`HOLD_US`].
+    /// The IMU sample numbered `number` (the publisher's count, [`super::sequence`]) has been
+    /// drained: frames published after it may go.
+    pub fn imu_received(&mut self, number: u32) {
+        self.imu_received = number;
+    }
+
+    /// Everything that can go now, in order: up to the newest frame whose IMU samples are in,
+    /// and what has waited [`HOLD_US`].
     pub fn release(&mut self, mut on: impl FnMut(CameraInput)) -> usize {
         let waited = self.newest.map(|n| (n.epoch, n.t_us.saturating_sub(HOLD_US)));
+        let stale = |key: &Key| waited.is_some_and(|(epoch, t)| (key.epoch, key.t_us) < (epoch, t));
+        while let Some(&(key, wanted)) = self.framed.front() {
+            // 0: a publisher that does not count; numbers compare across their wrap.
+            let imu_in = wanted == 0 || self.imu_received.wrapping_sub(wanted) < 1 << 31;
+            if !(imu_in || stale(&key)) {
+                break;
+            }
+            self.barrier = self.barrier.max(Some(key));
+            self.framed.pop_front();
+        }
         let mut n = 0;
         while let Some(Reverse(next)) = self.held.peek() {
             let framed = self.barrier.is_some_and(|b| next.key <= b);
-            let stale = waited.is_some_and(|(epoch, t)| (next.key.epoch, next.key.t_us) < (epoch, t));
-            if !(framed || stale) {
+            if !(framed || stale(&next.key)) {
                 break;
             }
             let Some(Reverse(next)) = self.held.pop() else { break };
@@ -132,6 +160,7 @@ impl Merge {
 
     /// Everything held, in order (the recording ends).
     pub fn flush(&mut self, mut on: impl FnMut(CameraInput)) -> usize {
+        self.framed.clear();
         let mut n = 0;
         while let Some(Reverse(next)) = self.held.pop() {
             on(next.input);
@@ -157,13 +186,14 @@ mod tests {
         Timestamp::from_micros(ms * 1000)
     }
 
-    /// A frame's messages as a camera publishes them: two IMU samples up to it, then the
-    /// frame, its pose, its detections.
+    /// A frame's messages as a camera publishes them: two IMU samples up to it (numbered
+    /// 2k + 1 and 2k + 2), then the frame, its pose, its detections.
     fn frame(k: u64, ms: i64) -> Vec<CameraInput> {
+        let imu_published = 2 * k as u32 + 2;
         vec![
             CameraInput::Imu(at(ms - 25), ImuSample::default()),
             CameraInput::Imu(at(ms), ImuSample::default()),
-            CameraInput::Frame { sequence: k, t: at(ms), exposure_us: 0, image_bytes: 0 },
+            CameraInput::Frame { sequence: k, t: at(ms), exposure_us: 0, image_bytes: 0, imu_published },
             CameraInput::Vo(at(ms), k, 0, Pose::identity()),
             CameraInput::Detections3d(at(ms), k, Vec::new()),
             CameraInput::Detections2d(at(ms), k, Vec::new()),
@@ -189,6 +219,9 @@ mod tests {
                     merge.push((*input).clone());
                 }
                 taken[r] = cut[r].min(of_service.len()).max(taken[r]);
+                if rank == 0 {
+                    merge.imu_received(taken[0] as u32);
+                }
             }
             merge.release(|i| out.push(label(&i)));
         }
@@ -204,6 +237,11 @@ mod tests {
         // pass saw frame 2's pose but not its detections, and frame 3's IMU but not its frame:
         // a starved logger's view.
         let cuts = [[2, 1, 1, 1, 0, 0], [6, 2, 3, 2, 2, 0], [8, 4, 4, 3, 3, 0], [8, 4, 4, 4, 4, 0]];
+        assert_eq!(drained(&published, &cuts), in_order);
+        // The frame service ahead of the IMU's: frames 1 and 2 drained while the samples
+        // published before them were not yet there (the live failure of issue #57; without
+        // the frames' IMU numbers they went first).
+        let cuts = [[2, 3, 3, 3, 3, 0], [8, 4, 4, 4, 4, 0]];
         assert_eq!(drained(&published, &cuts), in_order);
         // And a logger that drains once at the end, or after every message.
         assert_eq!(drained(&published, &[[8, 4, 4, 4, 4, 0]]), in_order);
@@ -224,6 +262,38 @@ mod tests {
         let in_order: Vec<String> = published.iter().map(label).collect();
         assert_eq!(drained(&published, &[[10, 5, 5, 5, 5, 0]]), in_order);
         assert_eq!(drained(&published, &[[6, 3, 3, 2, 2, 0], [10, 5, 5, 5, 5, 0]]), in_order);
+    }
+
+    #[test]
+    fn a_frame_whose_imu_sample_never_comes_waits_half_a_second_of_stamps() {
+        let mut merge = Merge::default();
+        let mut released = Vec::new();
+        // Frame 0 wants IMU sample 2; sample 1 came, then the IMU went silent.
+        merge.push(CameraInput::Imu(at(75), ImuSample::default()));
+        merge.imu_received(1);
+        let frame = |k: u64, ms: i64| CameraInput::Frame {
+            sequence: k,
+            t: at(ms),
+            exposure_us: 0,
+            image_bytes: 0,
+            imu_published: 2,
+        };
+        merge.push(frame(0, 100));
+        merge.release(|i| released.push(label(&i)));
+        assert!(released.is_empty(), "the frame waits for its IMU sample, and the sample for the frame");
+        // A later sample's number says the wanted one was lost: the frame goes.
+        merge.imu_received(3);
+        merge.release(|i| released.push(label(&i)));
+        assert_eq!(released, ["imu@75", "frame@100"]);
+        // No sample comes: frames wait until half a second of stamps has passed them.
+        let mut silent = Merge::default();
+        let mut out = Vec::new();
+        silent.imu_received(1);
+        for k in 0..7 {
+            silent.push(frame(k, 100 * (k as i64 + 1)));
+        }
+        silent.release(|i| out.push(label(&i)));
+        assert_eq!(out, ["frame@100"], "older than the newest (700 ms) by more than 500 ms");
     }
 
     #[test]

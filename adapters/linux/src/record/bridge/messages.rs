@@ -30,8 +30,11 @@ pub struct FrameMetaMsg {
     pub device_time_us: i64,
     /// Bytes of the image published with this frame on the image service (0: none).
     pub image_bytes: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// The IMU samples this publisher had sent when it sent this frame ([`ImuMsg`]'s
+    /// numbering, wrapping): the logger holds the frame until that sample is in (issue #57).
+    /// In what was the reserved field, so the layout and its version are unchanged; an older
+    /// publisher's 0 reads as "not said".
+    pub imu_published: u32,
 }
 
 /// The VO pose of a frame: camera → VO frame, unknown scale.
@@ -203,7 +206,7 @@ macro_rules! layout {
 /// header and the Python structures are checked against.
 pub fn layouts() -> Vec<Layout> {
     vec![
-        layout!(FrameMetaMsg, version, exposure_us, sequence, device_time_us, image_bytes, reserved),
+        layout!(FrameMetaMsg, version, exposure_us, sequence, device_time_us, image_bytes, imu_published),
         layout!(VoPoseMsg, version, session, sequence, device_time_us, position, rotation),
         layout!(Detection3dItem, class, reserved, score, bbox, covariance),
         layout!(Detections3dMsg, version, count, sequence, device_time_us, items),

@@ -210,7 +210,7 @@ impl CameraPublisher {
             sequence,
             device_time_us: micros(t),
             image_bytes: 0,
-            reserved: 0,
+            imu_published: 0,
         };
         self.send_frame(message, image)
     }
@@ -232,6 +232,7 @@ impl CameraPublisher {
     /// is one (`image_bytes` is then the image's length). The C ABI publishes through this.
     pub fn send_frame(&self, mut message: FrameMetaMsg, image: Option<ImageLoan>) -> Result<(), BridgeError> {
         message.version = LAYOUT_VERSION;
+        message.imu_published = self.imu_sent.load(std::sync::atomic::Ordering::Relaxed);
         message.image_bytes = 0;
         if let Some(ImageLoan(sample)) = image {
             message.image_bytes = sample.payload().len() as u32;
@@ -410,6 +411,8 @@ pub enum CameraInput {
         exposure_us: u32,
         /// Bytes of the image sent with it (0: none).
         image_bytes: u32,
+        /// The IMU samples its publisher had sent before it (their numbering; 0: not said).
+        imu_published: u32,
     },
     /// The VO pose of a frame: capture time, frame, VO session, pose.
     Vo(Timestamp, u64, u32, Pose),
@@ -527,6 +530,7 @@ impl CameraSubscriber {
                 t: Timestamp::from_micros(s.device_time_us),
                 exposure_us: s.exposure_us,
                 image_bytes: s.image_bytes,
+                imu_published: s.imu_published,
             });
             n += 1;
         }
@@ -606,6 +610,9 @@ impl CameraSubscriber {
             CameraInput::Keep(_) => marks.push(input),
             input => merge.push(input),
         })?;
+        if let Some(number) = self.tally.borrow().last_imu() {
+            merge.imu_received(number);
+        }
         let n = marks.len();
         marks.into_iter().for_each(&mut on);
         Ok(n + merge.release(on))
@@ -646,7 +653,13 @@ mod tests {
         vec![
             CameraInput::Imu(Timestamp::from_micros(t - 25_000), sample),
             CameraInput::Imu(at, sample),
-            CameraInput::Frame { sequence: k, t: at, exposure_us: 8_000, image_bytes: 0 },
+            CameraInput::Frame {
+                sequence: k,
+                t: at,
+                exposure_us: 8_000,
+                image_bytes: 0,
+                imu_published: 2 * k as u32 + 2,
+            },
             CameraInput::Vo(at, k, 0, pose),
             CameraInput::Detections3d(
                 at,
@@ -723,6 +736,7 @@ mod tests {
         assert!(published, "the trigger came");
         publish(&camera, 2 + burst);
         logger.receive(&mut take).expect("receive");
+        merge.imu_received(logger.tally.borrow().last_imu().expect("numbered IMU samples"));
         let mut ordered = Vec::new();
         merge.release(|input| ordered.push(input));
         merge.flush(|input| ordered.push(input));

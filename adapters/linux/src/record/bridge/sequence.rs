@@ -87,6 +87,12 @@ pub enum Service {
 }
 
 impl Tally {
+    /// The last IMU sample's number (`None` before one, or from a publisher that does not
+    /// number them).
+    pub fn last_imu(&self) -> Option<u32> {
+        self.numbers[4].last.and_then(|n| u32::try_from(n).ok())
+    }
+
     /// One message of `service` numbered `number`.
     pub fn count(&mut self, service: Service, number: u64) {
         let (received, skipped, sequence) = match service {
