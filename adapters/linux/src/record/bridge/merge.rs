@@ -27,6 +27,14 @@
 //! ([`CameraInput::Frame`]'s `imu_published`, the IMU's own numbering), and it waits until
 //! the sample of that number has been received — or, if it was lost, until it is
 //! [`HOLD_US`] old.
+//!
+//! "Old" is measured against the newest stamp held when the pass began, not the newest one
+//! drained in it: a starved logger's pass can drain the frame service before the camera
+//! publishes frames 1–9 and the other services after it has; measured against what those
+//! drained, the 2D detections of frames 1–5 looked half a second old and went before their
+//! frames (the Python publisher's contract test, starved, issue #57). What is older than
+//! the previous pass's newest stamp by [`HOLD_US`] was published before that pass ended, and
+//! so was its frame: this pass's frame drain has it.
 
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, VecDeque};
@@ -92,6 +100,9 @@ pub struct Merge {
     imu_received: u32,
     /// The newest key held.
     newest: Option<Key>,
+    /// [`Merge::newest`] as the previous [`Merge::release`] left it: what staleness is
+    /// measured against.
+    settled: Option<Key>,
     arrivals: u64,
 }
 
@@ -134,7 +145,8 @@ impl Merge {
     /// Everything that can go now, in order: up to the newest frame whose IMU samples are in,
     /// and what has waited [`HOLD_US`].
     pub fn release(&mut self, mut on: impl FnMut(CameraInput)) -> usize {
-        let waited = self.newest.map(|n| (n.epoch, n.t_us.saturating_sub(HOLD_US)));
+        let waited = self.settled.map(|n| (n.epoch, n.t_us.saturating_sub(HOLD_US)));
+        self.settled = self.newest;
         let stale = |key: &Key| waited.is_some_and(|(epoch, t)| (key.epoch, key.t_us) < (epoch, t));
         while let Some(&(key, wanted)) = self.framed.front() {
             // 0: a publisher that does not count; numbers compare across their wrap.
@@ -254,6 +266,19 @@ mod tests {
         assert_eq!(drained(&published, &one_by_one), in_order);
     }
 
+    /// The Python publisher's contract test, starved (issue #57): a pass drained the frame
+    /// service before the camera published its first frames and the other services after;
+    /// their 2D detections, half a second older than the newest IMU sample drained, went
+    /// before their frames.
+    #[test]
+    fn a_pass_that_drained_the_frames_before_they_were_published_releases_nothing_ahead_of_them() {
+        let published: Vec<CameraInput> = (0..14).flat_map(|k| frame(k, 100 + 50 * k as i64)).collect();
+        let in_order: Vec<String> = published.iter().map(label).collect();
+        // Pass 1: no frame yet when the frame service was drained; everything else by then.
+        let cuts = [[28, 0, 14, 14, 14, 0], [28, 14, 14, 14, 14, 0]];
+        assert_eq!(drained(&published, &cuts), in_order);
+    }
+
     #[test]
     fn a_restarted_camera_s_earlier_stamps_come_after_the_old_process_s() {
         let mut published: Vec<CameraInput> = (0..3).flat_map(|k| frame(k, 5000 + 50 * k as i64)).collect();
@@ -293,6 +318,8 @@ mod tests {
             silent.push(frame(k, 100 * (k as i64 + 1)));
         }
         silent.release(|i| out.push(label(&i)));
+        assert!(out.is_empty(), "staleness is measured from the next pass");
+        silent.release(|i| out.push(label(&i)));
         assert_eq!(out, ["frame@100"], "older than the newest (700 ms) by more than 500 ms");
     }
 
@@ -303,6 +330,8 @@ mod tests {
             merge.push(CameraInput::Imu(at(ms), ImuSample::default()));
         }
         let mut released = Vec::new();
+        merge.release(|i| released.push(rank_and_stamp(&i).1 / 1000));
+        assert!(released.is_empty(), "staleness is measured against the newest stamp of the pass before");
         merge.release(|i| released.push(rank_and_stamp(&i).1 / 1000));
         assert_eq!(released.first(), Some(&0));
         assert_eq!(released.last(), Some(&490), "older than the newest (1000 ms) by more than 500 ms");
