@@ -204,14 +204,8 @@ fn a_c_camera_process_killed_mid_run_is_a_restart_in_the_log() {
     let record = logger(&prefix, &out);
     // The test watches the frames too (its own subscriber, beside the logger's), to kill the
     // first process once it has published and to stop the logger once the second has.
-    let watch = bridge::CameraSubscriber::new(&prefix).expect("the test's subscriber");
-    let mut frames = 0;
-    let mut count_frames = || {
-        watch
-            .receive(|input| frames += u64::from(matches!(input, bridge::CameraInput::Frame { .. })))
-            .expect("receive");
-        frames
-    };
+    let mut watch = common::FrameWatch::new(&prefix);
+    let mut count_frames = || watch.frames();
     let publish = || Command::new(&c).arg(&drive).args(["--prefix", &prefix]).stdout(Stdio::null()).spawn().expect("C");
     let mut first = publish();
     wait_for("the first camera process's frames", || count_frames() >= 3);

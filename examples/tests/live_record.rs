@@ -211,14 +211,8 @@ fn the_camera_process_killed_and_restarted_is_a_gap_in_the_log_not_the_end_of_it
     let logger = logger(request, setup, &stop);
     // The test watches the frames too (its own subscriber, beside the logger's), to kill the
     // first process once it has published a second of them.
-    let watch = bridge::CameraSubscriber::new(&prefix).expect("the test's subscriber");
-    let mut frames_seen = 0;
-    let mut count_frames = || {
-        watch
-            .receive(|input| frames_seen += u64::from(matches!(input, bridge::CameraInput::Frame { .. })))
-            .expect("receive");
-        frames_seen
-    };
+    let mut watch = common::FrameWatch::new(&prefix);
+    let mut count_frames = || watch.frames();
     let camera = |seconds: &str| {
         Command::new(env!("CARGO_BIN_EXE_camera_sim"))
             .args(["--seconds", seconds, "--speedup", "2", "--prefix", &prefix])

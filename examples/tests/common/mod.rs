@@ -30,3 +30,30 @@ pub fn recorder(program: &std::path::Path) -> std::process::Command {
         Err(_) => std::process::Command::new(program),
     }
 }
+
+/// A test's own subscriber to a camera's services, beside the logger's: it counts the
+/// frames published, so a test acts on what happened (kill a camera process once it has
+/// published) rather than on how long it waited.
+pub struct FrameWatch {
+    subscriber: dash2sim_linux::record::bridge::CameraSubscriber,
+    frames: u64,
+}
+
+impl FrameWatch {
+    /// Subscribed to the services under `prefix`.
+    pub fn new(prefix: &str) -> Self {
+        let subscriber = dash2sim_linux::record::bridge::CameraSubscriber::new(prefix).expect("the test's subscriber");
+        FrameWatch { subscriber, frames: 0 }
+    }
+
+    /// Frames received so far.
+    pub fn frames(&mut self) -> u64 {
+        let frames = &mut self.frames;
+        self.subscriber
+            .receive(|input| {
+                *frames += u64::from(matches!(input, dash2sim_linux::record::bridge::CameraInput::Frame { .. }))
+            })
+            .expect("receive");
+        *frames
+    }
+}
