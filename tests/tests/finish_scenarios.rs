@@ -37,7 +37,7 @@ fn ego_rmse(online: &LogContents, finished: &[Record], recorded: &Recorded) -> (
     let finished = LogContents { records: finished.to_vec(), damage: Vec::new(), signing: Vec::new(), ..*online };
     let b = judge_log(&recorded.scenario, &finished).ego_errors;
     let common: Vec<usize> = a.keys().filter(|k| b.contains_key(k)).copied().collect();
-    let rms = |m: &std::collections::HashMap<usize, f64>| {
+    let rms = |m: &std::collections::BTreeMap<usize, f64>| {
         (common.iter().map(|k| m[k] * m[k]).sum::<f64>() / common.len().max(1) as f64).sqrt()
     };
     assert!(common.len() > 100, "{} frames in common", common.len());

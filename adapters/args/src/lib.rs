@@ -11,7 +11,7 @@
 #![deny(missing_docs)]
 
 pub mod errors;
-mod publish;
+pub mod publish;
 
 pub use publish::PublishArgs;
 

@@ -1,6 +1,7 @@
 //! `PublishRequest` as arguments: `dash2sim scenario publish` and the `camera_sim` example
 //! take the same.
 
+use std::ffi::OsString;
 use std::path::PathBuf;
 
 use dash2sim_sim::scenario::publish::PublishRequest;
@@ -88,5 +89,77 @@ impl From<&PublishArgs> for PublishRequest {
             can_out: a.can_out.clone(),
             bus_load: a.bus_load,
         }
+    }
+}
+
+/// The arguments of `scenario publish` (after those two words) that publish `request`: what
+/// a program starting `dash2sim` as its camera process passes (the demo).
+pub fn arguments(request: &PublishRequest) -> Vec<OsString> {
+    fn name(value: impl clap::ValueEnum) -> String {
+        value.to_possible_value().map(|v| v.get_name().to_owned()).unwrap_or_default()
+    }
+    let mut args: Vec<OsString> = [
+        ("--seed", request.seed.to_string()),
+        ("--driver", name(Driver::from(request.driver))),
+        ("--seconds", request.seconds.to_string()),
+        ("--profile", name(Profile::from(request.profile))),
+        ("--receiver", name(Receiver::from(request.receiver))),
+        ("--fps", request.fps.to_string()),
+        ("--laps", request.laps.to_string()),
+        ("--objects", request.objects.to_string()),
+        ("--speedup", request.speedup.to_string()),
+        ("--prefix", request.prefix.clone()),
+        ("--bus-load", request.bus_load.to_string()),
+    ]
+    .into_iter()
+    .flat_map(|(flag, value)| [OsString::from(flag), OsString::from(value)])
+    .collect();
+    for (flag, path) in [("--nmea-out", &request.nmea_out), ("--can-out", &request.can_out)] {
+        if let Some(path) = path {
+            args.extend([OsString::from(flag), path.clone().into_os_string()]);
+        }
+    }
+    if request.images {
+        args.push("--images".into());
+    }
+    args
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Publish {
+        #[command(flatten)]
+        args: PublishArgs,
+    }
+
+    #[test]
+    fn a_request_s_arguments_parse_back_into_the_same_request() {
+        let request = PublishRequest {
+            seed: 7,
+            driver: dash2sim_sim::scenario::Driver::KnifeEdge,
+            seconds: 12.5,
+            profile: dash2sim_sim::scenario::profile::Profile::Hard,
+            receiver: dash2sim_sim::scenario::profile::Receiver::Phone,
+            fps: 20,
+            laps: 2,
+            objects: 9,
+            speedup: 3.0,
+            prefix: "dash2sim-test/args".to_owned(),
+            images: true,
+            nmea_out: Some(PathBuf::from("/tmp/gnss.fifo")),
+            can_out: Some(PathBuf::from("/tmp/can.fifo")),
+            bus_load: 400,
+        };
+        let parsed = Publish::try_parse_from(std::iter::once(OsString::from("publish")).chain(arguments(&request)))
+            .expect("the arguments parse");
+        assert_eq!(PublishRequest::from(&parsed.args), request);
+        let default = PublishRequest { images: false, nmea_out: None, can_out: None, ..request };
+        let parsed = Publish::try_parse_from(std::iter::once(OsString::from("publish")).chain(arguments(&default)))
+            .expect("the arguments parse");
+        assert_eq!(PublishRequest::from(&parsed.args), default);
     }
 }

@@ -22,7 +22,7 @@ pub struct OutputFile {
 }
 
 impl OutputFile {
-    fn new(what: &'static str, dir: &Path, name: &str) -> Self {
+    pub(crate) fn new(what: &'static str, dir: &Path, name: &str) -> Self {
         Self { what, path: dir.join(name).display().to_string() }
     }
 }

@@ -2,7 +2,7 @@
 //! anchored ego was, and how its 3D tracks score (motmetrics' metrics, 2 m gate). The demo
 //! reports these figures; the tests assert them. Nothing here feeds back into the log.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 
 use dash2sim_core::binlog::Record;
 use dash2sim_core::box3d::Box3d;
@@ -17,8 +17,9 @@ use dash2sim_linux::log::LogContents;
 /// What the log's ego and tracks measure against the truth.
 #[derive(Clone, Debug, Default)]
 pub struct LogJudgement {
-    /// Horizontal ego (rear axle) error per anchored frame index (from 0), m.
-    pub ego_errors: HashMap<usize, f64>,
+    /// Horizontal ego (rear axle) error per anchored frame index (from 0), m; in frame order,
+    /// so that its RMS is summed in one order and the same drive gives the same figure.
+    pub ego_errors: BTreeMap<usize, f64>,
     /// RMS of `ego_errors`, m.
     pub ego_rmse: f64,
     /// Largest of `ego_errors`, m.
@@ -33,7 +34,7 @@ pub struct LogJudgement {
     /// tracker's own error, without the anchoring's.
     pub tracks_relative: (f64, f64),
     /// Track states per class name.
-    pub tracks_by_class: std::collections::BTreeMap<String, u64>,
+    pub tracks_by_class: BTreeMap<String, u64>,
     /// How well the poses' stated σ covers their error, over the poses that state one.
     pub sigma: SigmaCoverage,
     /// The log's UTC against the drive's: the log's time of each frame less the frame's

@@ -172,6 +172,13 @@ impl Driver {
     }
 }
 
+/// A driver is written by its name ([`Driver::name`]), as a summary names it.
+impl serde::Serialize for Driver {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.name())
+    }
+}
+
 /// Which drivers a command drives each seed with: `careful`, `careless`, any other kind,
 /// `both` (careful and careless) or `all` ([`Driver::ALL`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -30,7 +30,7 @@ use dash2sim_linux::record::bridge::{device_now, CameraPublisher, MAX_IMAGE_BYTE
 
 /// What to publish and how fast. Two binaries take it as their arguments (`dash2sim scenario
 /// publish` and the `camera_sim` example), through `dash2sim-args`'s `PublishArgs`.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct PublishRequest {
     /// Seed of the generated drive.
     pub seed: u64,

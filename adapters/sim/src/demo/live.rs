@@ -1,5 +1,5 @@
 //! The demo's recording step with real processes, as on a dashcam: the camera process
-//! (`dash2sim scenario publish`, a child process) publishes the drive's frames, VO poses
+//! (`dash2sim scenario publish`, a child process of the executable the caller names) publishes the drive's frames, VO poses
 //! and detections over shared memory (iceoryx2) and writes the GNSS receiver's NMEA and the
 //! wheel-speed CAN frames into two FIFOs at their rates; the logger (`record`'s live loop,
 //! a thread of this process) subscribes, reads the FIFOs as its serial port and its bus,
@@ -10,13 +10,13 @@ use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use indicatif::ProgressBar;
-
+use super::Progress;
+use crate::scenario::profile::{Profile, Receiver};
+use crate::scenario::publish::PublishRequest;
+use crate::scenario::Driver;
+use crate::{Error, Result};
 use dash2sim_linux::record::live::{self, FileSink, LiveReport, LiveRequest};
 use dash2sim_linux::record::Setup;
-use dash2sim_linux::{Error, Result};
-use dash2sim_sim::scenario::profile::Profile;
-use dash2sim_sim::scenario::Driver;
 
 /// What to publish: the generated drive's seed, length, driver and sensor profile.
 #[derive(Clone, Copy, Debug)]
@@ -29,6 +29,30 @@ pub struct Drive {
     pub driver: Driver,
     /// Sensor profile.
     pub profile: Profile,
+}
+
+impl Drive {
+    /// What the camera process publishes: this drive at the demo's rates (10 frames a
+    /// second, the good receiver, in real time) under `prefix`, its NMEA and CAN frames into
+    /// the FIFOs `gnss` and `can`.
+    fn request(&self, prefix: &str, gnss: &Path, can: &Path) -> PublishRequest {
+        PublishRequest {
+            seed: self.seed,
+            driver: self.driver,
+            seconds: self.seconds,
+            profile: self.profile,
+            receiver: Receiver::Good,
+            fps: 10,
+            laps: 1,
+            objects: 0,
+            speedup: 1.0,
+            prefix: prefix.to_owned(),
+            images: false,
+            nmea_out: Some(gnss.to_path_buf()),
+            can_out: Some(can.to_path_buf()),
+            bus_load: 0,
+        }
+    }
 }
 
 /// What the live recording did.
@@ -49,8 +73,21 @@ fn fifo(path: &Path) -> Result<()> {
         .map_err(|e| Error::refused(format!("mkfifo {}", path.display()), e))
 }
 
-/// Record `drive` live into `log_path`; `bar` counts the drive's seconds.
-pub fn record(drive: Drive, dir: &Path, log_path: &Path, setup: &Setup, bar: &ProgressBar) -> Result<LiveRecording> {
+/// How to start a camera process that publishes a request: a command the caller knows (the
+/// command line: its own executable's `scenario publish`), to which the demo adds its
+/// environment and pipes.
+pub type CameraCommand = fn(&PublishRequest) -> std::io::Result<Command>;
+
+/// Record `drive` live into `log_path`, the camera process started by `camera`; `progress`
+/// is told the drive's seconds as they pass.
+pub fn record(
+    drive: Drive,
+    camera: CameraCommand,
+    dir: &Path,
+    log_path: &Path,
+    setup: &Setup,
+    progress: &dyn Progress,
+) -> Result<LiveRecording> {
     let (gnss, can) = (dir.join("gnss.fifo"), dir.join("can.fifo"));
     fifo(&gnss)?;
     fifo(&can)?;
@@ -82,7 +119,7 @@ pub fn record(drive: Drive, dir: &Path, log_path: &Path, setup: &Setup, bar: &Pr
         });
         // The logger subscribes before the camera publishes its first frame.
         std::thread::sleep(Duration::from_millis(300));
-        let camera = publish(drive, &prefix, &gnss, &can, bar, started, &|| logger.is_finished());
+        let camera = publish(camera, &drive.request(&prefix, &gnss, &can), progress, started, &|| logger.is_finished());
         if camera.is_err() {
             // A camera process that never opened the FIFOs leaves the logger waiting in
             // open(): open them here so that it can see their end.
@@ -107,33 +144,27 @@ pub fn record(drive: Drive, dir: &Path, log_path: &Path, setup: &Setup, bar: &Pr
     Ok(LiveRecording { report, published, seconds: started.elapsed().as_secs_f64() })
 }
 
-/// Run the camera process until it ends, or until the logger has (a logger that failed
-/// reads nothing, and the camera process would wait for a reader of its FIFOs forever);
-/// the frames it published.
+/// Run the camera process publishing `request` until it ends, or until the logger has (a
+/// logger that failed reads nothing, and the camera process would wait for a reader of its
+/// FIFOs forever); the frames it published. `progress` is told the drive's seconds.
 fn publish(
-    drive: Drive,
-    prefix: &str,
-    gnss: &Path,
-    can: &Path,
-    bar: &ProgressBar,
+    camera: CameraCommand,
+    request: &PublishRequest,
+    progress: &dyn Progress,
     started: Instant,
     logger_ended: &dyn Fn() -> bool,
 ) -> Result<u64> {
-    let exe = std::env::current_exe().map_err(|e| Error::refused("the dash2sim executable", e))?;
-    let mut child = Command::new(exe)
-        .args(["scenario", "publish", "--seed", &drive.seed.to_string(), "--seconds", &drive.seconds.to_string()])
-        .args(["--driver", drive.driver.name(), "--profile", drive.profile.name(), "--prefix", prefix])
-        .arg("--nmea-out")
-        .arg(gnss)
-        .arg("--can-out")
-        .arg(can)
-        .env("IOX2_LOG_LEVEL", std::env::var("IOX2_LOG_LEVEL").unwrap_or_else(|_| "Error".to_owned()))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
+    let mut child = camera(request)
+        .and_then(|mut command| {
+            command
+                .env("IOX2_LOG_LEVEL", std::env::var("IOX2_LOG_LEVEL").unwrap_or_else(|_| "Error".to_owned()))
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+        })
         .map_err(|e| Error::refused("starting the camera process", e))?;
     loop {
-        bar.set_position(started.elapsed().as_secs().min(drive.seconds as u64));
+        progress.at(started.elapsed().as_secs().min(request.seconds as u64));
         match child.try_wait() {
             Ok(Some(_)) => break,
             Ok(None) if logger_ended() => {
