@@ -91,7 +91,8 @@ fn c_publisher(dir: &Path) -> PathBuf {
 /// no time limit: [`stopped`] ends it. Nothing here depends on how fast the logger runs.
 fn logger(prefix: &str, out: &Path) -> Child {
     let mut child = common::recorder(&dash2sim())
-        .args(["record", "--camera", prefix, "--origin", "60.2711,24.8572,20"])
+        // --json: a failure shows what the logger received per service.
+        .args(["record", "--json", "--camera", prefix, "--origin", "60.2711,24.8572,20"])
         .arg("-o")
         .arg(out)
         .stdout(Stdio::piped())
@@ -214,13 +215,20 @@ fn a_c_camera_process_killed_mid_run_is_a_restart_in_the_log() {
     let before = count_frames();
     let mut second = publish();
     wait_for("the second camera process's frames", || count_frames() >= before + 3);
-    stopped(record, "the logger kept running");
+    let output = stopped(record, "the logger kept running");
     let _ = second.kill();
     let _ = second.wait();
 
     let log = log::read(&log_file(&out)).expect("log");
     let frames = log::inspect::frames(&log);
-    assert_eq!(frames.restarts, 1, "the restart is in the frame numbers: {frames:?}");
+    assert_eq!(
+        frames.restarts,
+        1,
+        "the restart is in the frame numbers: {frames:?}; the test saw {} frames; the logger said: {}{}",
+        count_frames(),
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
     let restarted = dash2sim_core::pipeline::Issue::CameraRestarted.text().as_bytes();
     assert!(
         log.records.iter().any(|r| matches!(r, Record::Event(e) if e.text.starts_with(restarted))),
