@@ -230,7 +230,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             self.anchoring.last_camera_gyro = self.inertial.heading();
             self.anchoring.turn_rate.push(t.as_secs_f64(), anchored.heading);
             if self.log.stats.anchored_frames == 0 {
-                self.windows.open_from = t.as_secs_f64() + super::windows::SETTLE_AFTER_ANCHORED_S;
+                self.windows.anchored_first_at(t.as_secs_f64());
             }
             self.log.stats.anchored_frames = self.log.stats.anchored_frames.saturating_add(1);
         }
@@ -242,9 +242,9 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             yaw_e4: quantise(ego.pose.heading, 1e-4),
             sigma_mm: quantise(sigma.min(1e6), 1e-3),
         }))?;
-        self.windows.doubt_m = self.config.window_doubt_sigmas * sigma;
+        self.windows.ego_in_doubt(self.config.window_doubt_sigmas * sigma);
         for (at, smoothed) in self.anchoring.lag.push(t, eased) {
-            self.score(at, &smoothed)?;
+            self.windows.score(&self.config, &mut self.log, at, &smoothed)?;
         }
         Ok(())
     }

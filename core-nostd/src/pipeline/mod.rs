@@ -619,9 +619,9 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
         }
         let now = state.log.now;
         for (at, smoothed) in state.anchoring.lag.flush() {
-            state.score(at, &smoothed)?;
+            state.windows.score(&state.config, &mut state.log, at, &smoothed)?;
         }
-        state.close_window(now)?;
+        state.windows.close(&mut state.log, now)?;
         state.close_calibration(now)?;
         let tail: heapless::Vec<(Issue, u64), { Issue::ALL.len() }> = state.log.issues.unreported().collect();
         for (issue, count) in tail {

@@ -6,7 +6,6 @@ use embedded_io::Write;
 
 use super::anchoring::Ego;
 use super::issues::Issue;
-use super::windows::{KEEP_LOST_S, KEPT_AGENTS};
 use super::{ease, mount, quantise, ImageDetection, PipelineError, State, Trackers};
 use crate::binlog::{Detection3d as DetectionRecord, Record, Track2d, Track3d, Tracks3d, MAX_TRACKS};
 use crate::box2d::Box2d;
@@ -160,28 +159,6 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
     ) -> Result<(), PipelineError<W::Error>> {
         let t_us = self.log.time(t);
         let per_second = 1.0 / self.anchoring.frame_interval;
-        // Agents the tracker stopped reporting stay a while, moved on by their velocity: the
-        // windows score the ego a second back, when the cone the car passed was still
-        // beside it (most leave the camera's view, not the road).
-        let now = t.as_secs_f64();
-        let dt = now - self.windows.agents_t;
-        let mut kept: heapless::Vec<(Agent, f64), KEPT_AGENTS> = heapless::Vec::new();
-        for a in &self.windows.agents {
-            if outputs.iter().any(|o| o.id == a.id) {
-                continue;
-            }
-            let since = self.windows.lost.iter().find(|(id, _)| *id == a.id).map_or(now, |l| l.1);
-            if now - since <= KEEP_LOST_S {
-                let mut a = *a;
-                a.bbox.centre.x += a.velocity.0 * dt;
-                a.bbox.centre.y += a.velocity.1 * dt;
-                // At most KEPT_AGENTS kept; beyond, the rest are forgotten.
-                let _ = kept.push((a, since));
-            }
-        }
-        self.windows.agents.clear();
-        self.windows.lost.clear();
-        self.windows.agents_t = now;
         // The tracks live in the eased ego's frame; the log has them beside its anchored one.
         let to_log = ease::Reframe::new(ego.eased, ego.pose);
         for chunk in outputs.chunks(MAX_TRACKS) {
@@ -207,24 +184,25 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                     vy_mm_s: quantise(log_vy, 1e-3),
                     is_static: i64::from(o.is_static),
                 });
-                let kind = meta.map_or(AgentKind::Object, |m| m.kind);
-                // A track reported static is scored standing still: its filtered velocity
-                // is the ego's anchoring corrections seen against the world, not motion.
-                let velocity = if o.is_static { (0.0, 0.0) } else { (vx, vy) };
-                let _ = self.windows.agents.push(Agent {
-                    id: o.id,
-                    kind,
-                    bbox: OrientedBox { centre: Pose2::new(b.x, b.y, b.yaw), length: b.l, width: b.w },
-                    velocity,
-                });
             }
             self.log.write(&Record::Tracks3d(batch))?;
         }
-        for (a, since) in kept {
-            if self.windows.agents.push(a).is_ok() {
-                let _ = self.windows.lost.push((a.id, since));
+        let classes = self.config.classes;
+        let agents = outputs.iter().map(|o| {
+            let kind = classes.get(usize::from(o.class)).map_or(AgentKind::Object, |m| m.kind);
+            // A track reported static is scored standing still: its filtered velocity is the
+            // ego's anchoring corrections seen against the world, not motion.
+            let velocity =
+                if o.is_static { (0.0, 0.0) } else { (o.velocity[0] * per_second, o.velocity[1] * per_second) };
+            let b = &o.bbox;
+            Agent {
+                id: o.id,
+                kind,
+                bbox: OrientedBox { centre: Pose2::new(b.x, b.y, b.yaw), length: b.l, width: b.w },
+                velocity,
             }
-        }
+        });
+        self.windows.agents_reported(t.as_secs_f64(), |id| outputs.iter().any(|o| o.id == id), agents);
         self.log.stats.track_states = self.log.stats.track_states.saturating_add(outputs.len() as u64);
         Ok(())
     }
