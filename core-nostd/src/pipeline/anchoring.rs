@@ -132,7 +132,9 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         if let Some(v) = self.anchoring.vo.filter(|v| v.session != session) {
             self.new_session(t, &v, session, pose)?;
         }
-        self.level_session(t, session, pose)?;
+        let up_in_camera = self.inertial.up_in_camera(&self.config.mount.rotation());
+        let motion = self.config.relative_motion;
+        self.anchoring.level_session(&mut self.log, motion, up_in_camera, t, session, pose)?;
         if self.anchoring.anchorer.push_vo(t, pose.translation).is_err() {
             return self.log.issue(t, Issue::VoOutOfOrder, 1);
         }

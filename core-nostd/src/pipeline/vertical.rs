@@ -8,7 +8,9 @@
 use embedded_io::Write;
 use nalgebra::Vector3;
 
-use super::{PipelineError, RelativeMotion, State};
+use super::anchoring::Anchoring;
+use super::sink::LogSink;
+use super::{PipelineError, RelativeMotion};
 use crate::anchor::AnchorMode;
 use crate::sim3::Pose;
 use crate::time::Timestamp;
@@ -45,30 +47,33 @@ impl Vertical {
     }
 }
 
-impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, T3, T2, BUF> {
+impl Anchoring {
     /// A VO pose's vertical into the session's mean, and the mean to the anchorer when due:
-    /// only for a camera's VO whose frame is not declared gravity-aligned already, and once
-    /// the IMU's attitude has settled.
-    pub(super) fn level_session(
+    /// `up_in_camera` is the IMU's vertical in the camera's axes (none before its attitude
+    /// has settled). Only for a camera's VO (`relative_motion`) whose frame is not declared
+    /// gravity-aligned already.
+    pub(super) fn level_session<W: Write, const BUF: usize>(
         &mut self,
+        log: &mut LogSink<W, BUF>,
+        relative_motion: RelativeMotion,
+        up_in_camera: Option<Vector3<f64>>,
         t: Timestamp,
         session: u32,
         pose: &Pose,
     ) -> Result<(), PipelineError<W::Error>> {
-        let anchorer = &self.anchoring.anchorer;
-        if self.config.relative_motion != RelativeMotion::Vo || anchorer.config().mode != AnchorMode::Full {
+        if relative_motion != RelativeMotion::Vo || self.anchorer.config().mode != AnchorMode::Full {
             return Ok(());
         }
-        let Some(up_in_camera) = self.inertial.up_in_camera(&self.config.mount.rotation()) else { return Ok(()) };
-        let Some(sum) = self.anchoring.vertical.push(session, &(pose.rotation * up_in_camera)) else {
+        let Some(up_in_camera) = up_in_camera else { return Ok(()) };
+        let Some(sum) = self.vertical.push(session, &(pose.rotation * up_in_camera)) else {
             return Ok(());
         };
-        let first = self.anchoring.anchorer.mode() == AnchorMode::Full;
-        if self.anchoring.anchorer.level(&sum).is_err() || !first {
+        let first = self.anchorer.mode() == AnchorMode::Full;
+        if self.anchorer.level(&sum).is_err() || !first {
             return Ok(());
         }
-        let poses = self.anchoring.vertical.poses();
-        self.log.event(
+        let poses = self.vertical.poses();
+        log.event(
             t,
             2,
             format_args!("VO session {session} levelled by the IMU's gravity over {poses} poses: anchored gravity-aligned from here"),
