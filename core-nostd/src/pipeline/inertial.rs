@@ -9,7 +9,9 @@ use nalgebra::{Matrix3, Vector3};
 
 use super::carry::Turn;
 use super::issues::Issue;
-use super::{quantise, PipelineConfig, PipelineError, RelativeMotion, State};
+use super::mount::CameraMount;
+use super::sink::LogSink;
+use super::{quantise, PipelineConfig, PipelineError, RelativeMotion};
 use crate::binlog::{ImuDelta, ImuEstimate, Record};
 use crate::decimal::Decimal;
 use crate::imu::attitude::{motion_acceleration, Attitude};
@@ -188,28 +190,37 @@ impl Inertial {
     }
 }
 
-impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, T3, T2, BUF> {
-    pub(super) fn on_imu(&mut self, t: Timestamp, sample: &ImuSample) -> Result<(), PipelineError<W::Error>> {
+impl Inertial {
+    /// One sample: checked, preintegrated into the log, and into the attitude, the gyro's
+    /// bias, the impact trigger and the dead reckoning. Returns the frame number of a
+    /// dead-reckoned pose that is due on the dead reckoning's own clock (gyro + wheels, no
+    /// camera frames): the pipeline anchors it in place of a VO pose.
+    pub(super) fn push<W: Write, const BUF: usize>(
+        &mut self,
+        log: &mut LogSink<W, BUF>,
+        config: &PipelineConfig<'_>,
+        t: Timestamp,
+        sample: &ImuSample,
+    ) -> Result<Option<u64>, PipelineError<W::Error>> {
         if check(sample).is_err() {
-            return self.log.issue(t, Issue::ImuRefused, 1);
+            return log.issue(t, Issue::ImuRefused, 1).map(|()| None);
         }
-        let imu = &mut self.inertial;
-        if imu.last.is_some_and(|last| t <= last) {
-            return self.log.issue(t, Issue::ImuOutOfOrder, 1);
+        if self.last.is_some_and(|last| t <= last) {
+            return log.issue(t, Issue::ImuOutOfOrder, 1).map(|()| None);
         }
-        let dt = imu.last.map_or(0.0, |last| (t - last).as_secs_f64());
+        let dt = self.last.map_or(0.0, |last| (t - last).as_secs_f64());
         let dt = if dt > MAX_SAMPLE_GAP_S { 0.0 } else { dt };
-        imu.last = Some(t);
-        if let Some(issue) = imu.refused {
-            return self.log.issue(t, issue, 1);
+        self.last = Some(t);
+        if let Some(issue) = self.refused {
+            return log.issue(t, issue, 1).map(|()| None);
         }
-        self.log.stats.imu_samples = self.log.stats.imu_samples.saturating_add(1);
+        log.stats.imu_samples = log.stats.imu_samples.saturating_add(1);
         let (gyro, force) = (Vector3::from(sample.gyro), Vector3::from(sample.accel));
-        imu.preintegrator.push(dt, &gyro, &force);
-        if imu.preintegrator.elapsed() >= self.config.imu.delta_interval.as_secs_f64() {
-            let d = imu.preintegrator.take();
-            self.log.write(&Record::ImuDelta(ImuDelta {
-                t_us: self.log.time(t),
+        self.preintegrator.push(dt, &gyro, &force);
+        if self.preintegrator.elapsed() >= config.imu.delta_interval.as_secs_f64() {
+            let d = self.preintegrator.take();
+            log.write(&Record::ImuDelta(ImuDelta {
+                t_us: log.time(t),
                 dt_us: quantise(d.dt, 1e-6),
                 dtheta_x_e6: quantise(d.dtheta.x, 1e-6),
                 dtheta_y_e6: quantise(d.dtheta.y, 1e-6),
@@ -220,153 +231,157 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                 samples: i64::from(d.samples),
             }))?;
         }
-        let imu = &mut self.inertial;
-        let gyro = imu.sensor_to_body * gyro;
-        let force = imu.sensor_to_body * force;
-        match imu.units.push(&gyro, &force) {
-            UnitVerdict::Undecided => return Ok(()),
+        let gyro = self.sensor_to_body * gyro;
+        let force = self.sensor_to_body * force;
+        match self.units.push(&gyro, &force) {
+            UnitVerdict::Undecided => return Ok(None),
             UnitVerdict::Consistent => {}
             UnitVerdict::InG => {
-                imu.refused = Some(Issue::ImuUnits);
-                return self.log.event(
-                    t,
-                    4,
-                    format_args!("IMU refused: its specific force at rest is about 1, not 9.8 m/s² (given in g?)"),
-                );
+                self.refused = Some(Issue::ImuUnits);
+                return log
+                    .event(
+                        t,
+                        4,
+                        format_args!("IMU refused: its specific force at rest is about 1, not 9.8 m/s² (given in g?)"),
+                    )
+                    .map(|()| None);
             }
             UnitVerdict::AxesOff(tilt) => {
-                imu.refused = Some(Issue::ImuAxes);
-                return self.log.event(
+                self.refused = Some(Issue::ImuAxes);
+                return log
+                    .event(
+                        t,
+                        4,
+                        format_args!(
+                            "IMU refused: gravity is {}° off the body's up (its axes or its mount are not as configured)",
+                            Decimal::new(tilt.to_degrees(), 1)
+                        ),
+                    )
+                    .map(|()| None);
+            }
+        }
+        let speed = self.speed_at(t);
+        let up = self.up();
+        if self.bias.push(dt, &gyro, &up, speed) {
+            // The standstill's mean has the bias about every axis.
+            self.attitude.reset_tilt_bias();
+        }
+        if let Some(scale) = self.bias.scale().filter(|s| !(1.0 / MAX_GYRO_SCALE..MAX_GYRO_SCALE).contains(s)) {
+            self.refused = Some(Issue::ImuUnits);
+            return log
+                .event(
                     t,
                     4,
                     format_args!(
-                        "IMU refused: gravity is {}° off the body's up (its axes or its mount are not as configured)",
-                        Decimal::new(tilt.to_degrees(), 1)
+                        "IMU refused: the gyro turns {} times as fast as the GNSS course (rates in °/s, or the wrong axis?)",
+                        Decimal::new(scale, 1)
                     ),
-                );
-            }
+                )
+                .map(|()| None);
         }
-        let speed = imu.speed_at(t);
-        let up = imu.up();
-        if imu.bias.push(dt, &gyro, &up, speed) {
-            // The standstill's mean has the bias about every axis.
-            imu.attitude.reset_tilt_bias();
-        }
-        if let Some(scale) = imu.bias.scale().filter(|s| !(1.0 / MAX_GYRO_SCALE..MAX_GYRO_SCALE).contains(s)) {
-            imu.refused = Some(Issue::ImuUnits);
-            return self.log.event(
-                t,
-                4,
-                format_args!(
-                    "IMU refused: the gyro turns {} times as fast as the GNSS course (rates in °/s, or the wrong axis?)",
-                    Decimal::new(scale, 1)
-                ),
-            );
-        }
-        let rate = gyro - imu.bias.bias();
+        let rate = gyro - self.bias.bias();
         if let Some(v) = speed {
             // The sensor rides in the camera's housing, as far ahead of the rear axle.
-            imu.forward.push(dt, &force, v, rate.z, self.config.mount.position[0]);
+            self.forward.push(dt, &force, v, rate.z, config.mount.position[0]);
         }
-        let motion = motion_acceleration(speed.unwrap_or(0.0), imu.acceleration, &(rate - imu.attitude.tilt_bias()));
-        imu.attitude.update(dt, &rate, &force, &motion);
-        let unexplained = force - motion - imu.up() * GRAVITY;
-        if let Some(g) = imu.impact.push(dt, &unexplained, self.config.imu.impact_threshold_mps2) {
-            self.log.stats.impacts = self.log.stats.impacts.saturating_add(1);
-            self.log.event(t, 3, format_args!("impact: {} g past gravity and motion", Decimal::new(g / GRAVITY, 2)))?;
+        let motion = motion_acceleration(speed.unwrap_or(0.0), self.acceleration, &(rate - self.attitude.tilt_bias()));
+        self.attitude.update(dt, &rate, &force, &motion);
+        let unexplained = force - motion - self.up() * GRAVITY;
+        if let Some(g) = self.impact.push(dt, &unexplained, config.imu.impact_threshold_mps2) {
+            log.stats.impacts = log.stats.impacts.saturating_add(1);
+            log.event(t, 3, format_args!("impact: {} g past gravity and motion", Decimal::new(g / GRAVITY, 2)))?;
         }
-        self.estimate_due(t)?;
-        if self.config.relative_motion == RelativeMotion::ImuWheels {
-            self.dead_reckon(t, dt, speed)?;
+        self.estimate_due(log, config, t)?;
+        if config.relative_motion != RelativeMotion::ImuWheels {
+            return Ok(None);
         }
-        Ok(())
+        Ok(self.dead_reckon(config, t, dt, speed))
     }
 
     /// The tilt and bias as a record, once per `estimate_interval`.
-    fn estimate_due(&mut self, t: Timestamp) -> Result<(), PipelineError<W::Error>> {
-        let imu = &mut self.inertial;
-        if imu.last_estimate.is_some_and(|last| t - last < self.config.imu.estimate_interval) {
+    fn estimate_due<W: Write, const BUF: usize>(
+        &mut self,
+        log: &mut LogSink<W, BUF>,
+        config: &PipelineConfig<'_>,
+        t: Timestamp,
+    ) -> Result<(), PipelineError<W::Error>> {
+        if self.last_estimate.is_some_and(|last| t - last < config.imu.estimate_interval) {
             return Ok(());
         }
-        let Some([pitch, roll]) = imu.pitch_roll() else { return Ok(()) };
-        imu.last_estimate = Some(t);
-        let b = imu.gyro_bias();
-        let (standstills, courses) = imu.bias.evidence();
+        let Some([pitch, roll]) = self.pitch_roll() else { return Ok(()) };
+        self.last_estimate = Some(t);
+        let b = self.gyro_bias();
+        let (standstills, courses) = self.bias.evidence();
         let record = ImuEstimate {
-            t_us: self.log.time(t),
+            t_us: log.time(t),
             pitch_e6: quantise(pitch, 1e-6),
             roll_e6: quantise(roll, 1e-6),
             bias_x_e7: quantise(b.x, 1e-7),
             bias_y_e7: quantise(b.y, 1e-7),
             bias_z_e7: quantise(b.z, 1e-7),
-            bias_sigma_e7: quantise(imu.bias.sigma(), 1e-7),
+            bias_sigma_e7: quantise(self.bias.sigma(), 1e-7),
             standstills: i64::from(standstills),
             courses: i64::from(courses),
         };
-        self.log.write(&Record::ImuEstimate(record))
+        log.write(&Record::ImuEstimate(record))
     }
 
-    /// Gyro + wheels: the body moved along its heading; a camera pose anchored in
-    /// place of a VO pose every `pose_interval` — until the camera's frames come (with
-    /// their detections): from then on a pose is made at each of them instead
-    /// ([`State::dead_reckoned_frame`]).
-    fn dead_reckon(&mut self, t: Timestamp, dt: f64, speed: Option<f64>) -> Result<(), PipelineError<W::Error>> {
-        let imu = &mut self.inertial;
-        let Some(speed) = speed else { return Ok(()) };
-        imu.dead_reckoning.advance(dt, speed, &imu.attitude);
-        let since = *imu.reckoning.get_or_insert(t);
+    /// Gyro + wheels: the body moved along its heading; the frame number of a camera pose
+    /// due in place of a VO pose every `pose_interval` — until the camera's frames come
+    /// (with their detections): from then on a pose is made at each of them instead
+    /// ([`Inertial::frame_due`]).
+    fn dead_reckon(&mut self, config: &PipelineConfig<'_>, t: Timestamp, dt: f64, speed: Option<f64>) -> Option<u64> {
+        let speed = speed?;
+        self.dead_reckoning.advance(dt, speed, &self.attitude);
+        let since = *self.reckoning.get_or_insert(t);
         // Its own poses only where no camera frame comes: not while a camera's first frame
         // may still be on its way (a pose of each clock at the start is an uneven step, and
         // the comfort metrics read it as a jerk).
         let waiting = t - since < CAMERA_FRAME_WAIT;
         if waiting
-            || imu.camera_frame.is_some()
-            || imu.last_pose.is_some_and(|last| t - last < self.config.imu.pose_interval)
+            || self.camera_frame.is_some()
+            || self.last_pose.is_some_and(|last| t - last < config.imu.pose_interval)
         {
-            return Ok(());
+            return None;
         }
-        imu.last_pose = Some(t);
-        let pose = self.dead_reckoned_pose();
-        let frame = self.inertial.frame;
-        self.inertial.frame = frame.saturating_add(1);
-        self.on_vo(t, frame, DEAD_RECKONING_SESSION, &pose)
+        self.last_pose = Some(t);
+        let frame = self.frame;
+        self.frame = frame.saturating_add(1);
+        Some(frame)
     }
 
-    /// The camera's pose as dead reckoning has it now. The car moves along the body's x as
-    /// the nominal mounts make it; once the car's own forward axis is known (the housing
-    /// turned on the car by `δ`: [`ForwardAxis`]), the camera is turned by `−δ` about the
-    /// vertical in the dead reckoning's frame — the same as moving along the car's axis in
-    /// a frame turned by `δ`, without a kink in the trajectory — so that the mount
+    /// The camera's pose as dead reckoning has it now, and whether the car's forward axis
+    /// has just become known (the mount calibration then starts again). The car moves along
+    /// the body's x as the nominal mounts make it; once the car's own forward axis is known
+    /// (the housing turned on the car by `δ`: [`ForwardAxis`]), the camera is turned by `−δ`
+    /// about the vertical in the dead reckoning's frame — the same as moving along the car's
+    /// axis in a frame turned by `δ`, without a kink in the trajectory — so that the mount
     /// calibration finds the camera's yaw on the car, with which the detections are placed.
-    /// The first time it is known, the calibration starts again.
-    fn dead_reckoned_pose(&mut self) -> Pose {
-        let (imu, mount) = (&mut self.inertial, &self.config.mount);
-        let mut pose = imu.dead_reckoning.camera_pose(&imu.attitude, &mount.rotation(), &Vector3::from(mount.position));
-        if let Some(yaw) = imu.forward.yaw() {
+    pub(super) fn camera_pose(&mut self, mount: &CameraMount) -> (Pose, bool) {
+        let mut pose =
+            self.dead_reckoning.camera_pose(&self.attitude, &mount.rotation(), &Vector3::from(mount.position));
+        let mut newly_known = false;
+        if let Some(yaw) = self.forward.yaw() {
             pose.rotation = crate::sim3::rotation_z(-yaw) * pose.rotation;
-            if !imu.forward_known {
-                imu.forward_known = true;
-                self.anchoring.calibration.restart();
-            }
+            newly_known = !self.forward_known;
+            self.forward_known = true;
         }
-        pose
+        (pose, newly_known)
     }
 
-    /// Under gyro + wheels, the pose of camera frame `frame` (its detections arrive at `t`),
-    /// once per frame: the detections are placed with the pose of their own frame, and the
+    /// Under gyro + wheels (`relative_motion`), whether camera frame `frame` (its detections
+    /// arrive at `t`, `later` than the last pose) is due a dead-reckoned pose: once per
+    /// frame, so that the detections are placed with the pose of their own frame and the
     /// log's frames are the camera's (each flagged dead-reckoned), as a VO camera's are.
-    pub(super) fn dead_reckoned_frame(&mut self, t: Timestamp, frame: u64) -> Result<(), PipelineError<W::Error>> {
-        let imu = &self.inertial;
-        let later = self.anchoring.vo.is_none_or(|v| t > v.t);
-        if self.config.relative_motion != RelativeMotion::ImuWheels
-            || imu.reckoning.is_none()
-            || imu.camera_frame == Some(frame)
+    pub(super) fn frame_due(&mut self, relative_motion: RelativeMotion, frame: u64, later: bool) -> bool {
+        if relative_motion != RelativeMotion::ImuWheels
+            || self.reckoning.is_none()
+            || self.camera_frame == Some(frame)
             || !later
         {
-            return Ok(());
+            return false;
         }
-        self.inertial.camera_frame = Some(frame);
-        let pose = self.dead_reckoned_pose();
-        self.on_vo(t, frame, DEAD_RECKONING_SESSION, &pose)
+        self.camera_frame = Some(frame);
+        true
     }
 }
