@@ -195,7 +195,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                 (anchor, false)
             }
             None => {
-                let speed = self.gnss.last_speed * self.anchoring.anchorer.wheel_factor().unwrap_or(1.0);
+                let speed = self.gnss.last_speed() * self.anchoring.anchorer.wheel_factor().unwrap_or(1.0);
                 let turn = self.gap_turn(t).map_or(0.0, |turn| turn.angle);
                 match self.anchoring.carry.as_mut().and_then(|c| c.push(t.as_secs_f64(), pose, speed, turn)) {
                     Some(anchor) => (anchor, true),

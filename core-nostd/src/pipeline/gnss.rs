@@ -7,8 +7,8 @@ use embedded_io::Write;
 use super::clock::OffsetChange;
 use super::issues::Issue;
 use super::signals::{self, GnssFrame};
-use super::{quantise, PipelineError, SpeedSource, State};
-use crate::anchor::gnss_sigma;
+use super::sink::LogSink;
+use super::{quantise, PipelineError, SpeedSource};
 use crate::binlog::{ClockOffset, GnssFix, Record, VehicleSpeed};
 use crate::can::{Decoded, Message};
 use crate::decimal::Decimal;
@@ -27,15 +27,15 @@ use crate::time::Timestamp;
 #[derive(Debug, Default)]
 pub(super) struct GnssIngest {
     /// The latest HDOP from a full fix, for position-only CAN fixes.
-    pub(super) hdop: Option<f64>,
+    hdop: Option<f64>,
     /// Receive time of the NMEA sentence before the current one (the epoch's last).
-    pub(super) last_sentence: Option<Timestamp>,
+    last_sentence: Option<Timestamp>,
     /// A DBC-defined GNSS source's latest time frame: (receive time, UTC of the fix).
-    pub(super) signal_epoch: Option<(Timestamp, Timestamp)>,
+    signal_epoch: Option<(Timestamp, Timestamp)>,
     /// The latest vehicle speed, m/s.
-    pub(super) last_speed: f64,
+    last_speed: f64,
     /// Harsh braking from the vehicle speed.
-    pub(super) braking: super::braking::Braking,
+    braking: super::braking::Braking,
 }
 
 /// A GNSS fix from NMEA or NMEA 2000, in the form the pipeline uses.
@@ -69,46 +69,80 @@ pub(super) fn nmea_fix(f: &crate::nmea::GnssFix) -> Fix {
     }
 }
 
-impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, T3, T2, BUF> {
-    pub(super) fn on_nmea(&mut self, t: Timestamp, event: &StreamEvent<'_>) -> Result<(), PipelineError<W::Error>> {
+/// What a CAN frame gives the pipeline.
+pub(super) enum Reading {
+    /// A vehicle speed, m/s, and its source's code in the log.
+    Speed { mps: f64, source: i64 },
+    /// A fix.
+    Fix(Fix),
+}
+
+/// A fix's course over ground given to the anchorer: its σ, rad, from the fix's speed (none
+/// below [`MIN_COURSE_SPEED_MPS`]).
+pub(super) fn course_sigma(speed: f64) -> Option<f64> {
+    (speed >= MIN_COURSE_SPEED_MPS).then(|| (COURSE_SPEED_SIGMA_MPS / speed).max(MIN_COURSE_SIGMA_RAD))
+}
+
+impl GnssIngest {
+    /// The latest vehicle speed, m/s (0 before the first).
+    pub(super) fn last_speed(&self) -> f64 {
+        self.last_speed
+    }
+
+    /// Receive time of the last NMEA sentence: an epoch still open at the end was received
+    /// then.
+    pub(super) fn last_sentence(&self) -> Option<Timestamp> {
+        self.last_sentence
+    }
+
+    /// An NMEA stream's event at `t`: a finished epoch's fix, with the receive time of its
+    /// last sentence, when it has one.
+    pub(super) fn nmea<W: Write, const BUF: usize>(
+        &mut self,
+        log: &mut LogSink<W, BUF>,
+        t: Timestamp,
+        event: &StreamEvent<'_>,
+    ) -> Result<Option<(Timestamp, Fix)>, PipelineError<W::Error>> {
         match event {
             StreamEvent::Sentence(NmeaEvent::Message { fix, .. }) => {
-                if let Some(fix) = fix {
-                    let rx = self.gnss.last_sentence.unwrap_or(t);
-                    self.on_fix(rx, &nmea_fix(fix))?;
-                }
-                self.gnss.last_sentence = Some(t);
-                Ok(())
+                let rx = self.last_sentence.unwrap_or(t);
+                self.last_sentence = Some(t);
+                Ok(fix.as_ref().map(|fix| (rx, nmea_fix(fix))))
             }
-            StreamEvent::Sentence(_) => self.log.issue(t, Issue::NmeaBadSentence, 1),
-            StreamEvent::Dropped(_) => self.log.issue(t, Issue::NmeaDropped, 1),
+            StreamEvent::Sentence(_) => log.issue(t, Issue::NmeaBadSentence, 1).map(|()| None),
+            StreamEvent::Dropped(_) => log.issue(t, Issue::NmeaDropped, 1).map(|()| None),
         }
     }
 
-    pub(super) fn on_can(&mut self, t: Timestamp, event: crate::can::Event) -> Result<(), PipelineError<W::Error>> {
+    /// A decoded CAN frame at `t`: a speed of the configured `source` or a fix, when it is
+    /// one.
+    pub(super) fn can<W: Write, const BUF: usize>(
+        &mut self,
+        log: &mut LogSink<W, BUF>,
+        source: Option<SpeedSource>,
+        t: Timestamp,
+        event: crate::can::Event,
+    ) -> Result<Option<Reading>, PipelineError<W::Error>> {
         let Decoded { message, .. } = match event {
             crate::can::Event::Decoded(d) => d,
             crate::can::Event::Error(_) | crate::can::Event::Dropped(_) => {
-                return self.log.issue(t, Issue::CanBadFrame, 1);
+                return log.issue(t, Issue::CanBadFrame, 1).map(|()| None);
             }
         };
-        let source = self.config.speed;
-        match message {
-            Message::WheelSpeed(w) if source == Some(SpeedSource::Ccvs1) => match w.speed_kmh {
-                Some(kmh) => self.speed(t, kmh / 3.6, 1),
-                None => Ok(()),
-            },
-            Message::Obd(r) if source == Some(SpeedSource::Obd) => match r.vehicle_speed_kmh() {
-                Some(kmh) => self.speed(t, f64::from(kmh) / 3.6, 2),
-                None => Ok(()),
-            },
+        Ok(match message {
+            Message::WheelSpeed(w) if source == Some(SpeedSource::Ccvs1) => {
+                w.speed_kmh.map(|kmh| Reading::Speed { mps: kmh / 3.6, source: 1 })
+            }
+            Message::Obd(r) if source == Some(SpeedSource::Obd) => {
+                r.vehicle_speed_kmh().map(|kmh| Reading::Speed { mps: f64::from(kmh) / 3.6, source: 2 })
+            }
             Message::GnssPosition(p) => {
                 let utc = p
                     .date
                     .zip(p.time)
                     .map(|(d, s)| Timestamp::from_micros(i64::from(d) * 86_400_000_000 + i64::from(s) * 100));
                 if p.hdop.is_some() {
-                    self.gnss.hdop = p.hdop;
+                    self.hdop = p.hdop;
                 }
                 let fix = Fix {
                     utc,
@@ -126,55 +160,68 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                     },
                     ..Fix::default()
                 };
-                self.on_fix(t, &fix)
+                Some(Reading::Fix(fix))
             }
-            Message::PositionRapid(p) => {
-                let fix = Fix { lat: p.latitude, lon: p.longitude, hdop: self.gnss.hdop, mode: 2, ..Fix::default() };
-                self.on_fix(t, &fix)
-            }
-            Message::VehiclePosition(p) => {
-                let fix = Fix { lat: p.latitude, lon: p.longitude, hdop: self.gnss.hdop, mode: 2, ..Fix::default() };
-                self.on_fix(t, &fix)
-            }
-            _ => Ok(()),
-        }
+            Message::PositionRapid(p) => Some(Reading::Fix(Fix {
+                lat: p.latitude,
+                lon: p.longitude,
+                hdop: self.hdop,
+                mode: 2,
+                ..Fix::default()
+            })),
+            Message::VehiclePosition(p) => Some(Reading::Fix(Fix {
+                lat: p.latitude,
+                lon: p.longitude,
+                hdop: self.hdop,
+                mode: 2,
+                ..Fix::default()
+            })),
+            _ => None,
+        })
     }
 
-    pub(super) fn on_gnss_signals(&mut self, t: Timestamp, read: GnssFrame) -> Result<(), PipelineError<W::Error>> {
+    /// A frame of DBC-defined GNSS signals at `t`: a fix once its position has come.
+    pub(super) fn signals<W: Write, const BUF: usize>(
+        &mut self,
+        log: &mut LogSink<W, BUF>,
+        t: Timestamp,
+        read: GnssFrame,
+    ) -> Result<Option<Fix>, PipelineError<W::Error>> {
         match read {
             GnssFrame::Time(utc) => {
-                self.gnss.signal_epoch = Some((t, utc));
-                Ok(())
+                self.signal_epoch = Some((t, utc));
+                Ok(None)
             }
             GnssFrame::Position { lat, lon, valid, sigma_m } => {
-                let utc =
-                    self.gnss.signal_epoch.take().and_then(|(rx, utc)| (t - rx <= signals::EPOCH_GAP).then_some(utc));
-                let fix = Fix {
+                let utc = self.signal_epoch.take().and_then(|(rx, utc)| (t - rx <= signals::EPOCH_GAP).then_some(utc));
+                Ok(Some(Fix {
                     utc,
                     lat: Some(lat),
                     lon: Some(lon),
                     gst: sigma_m.map(|s| (s, s)),
                     mode: if valid { 2 } else { 0 },
                     ..Fix::default()
-                };
-                self.on_fix(t, &fix)
+                }))
             }
-            GnssFrame::Unreadable => self.log.issue(t, Issue::CanBadFrame, 1),
+            GnssFrame::Unreadable => log.issue(t, Issue::CanBadFrame, 1).map(|()| None),
         }
     }
 
-    pub(super) fn speed(&mut self, t: Timestamp, mps: f64, source: i64) -> Result<(), PipelineError<W::Error>> {
-        if self.anchoring.anchorer.push_speed(t, mps).is_err() {
-            return self.log.issue(t, Issue::SpeedRefused, 1);
-        }
-        self.log.stats.speeds = self.log.stats.speeds.saturating_add(1);
-        self.gnss.last_speed = mps;
-        self.inertial.on_speed(t, mps);
-        let record = VehicleSpeed { t_us: self.log.time(t), speed_mm_s: quantise(mps, 1e-3), source };
-        self.log.write(&Record::VehicleSpeed(record))?;
-        let Some(from) = self.gnss.braking.push(t, mps) else { return Ok(()) };
-        self.log.stats.harsh_brakings = self.log.stats.harsh_brakings.saturating_add(1);
-        self.log.event(
+    /// A vehicle speed the anchorer took, `mps` from `source`: its record, and harsh braking.
+    pub(super) fn speed<W: Write, const BUF: usize>(
+        &mut self,
+        log: &mut LogSink<W, BUF>,
+        t: Timestamp,
+        mps: f64,
+        source: i64,
+    ) -> Result<(), PipelineError<W::Error>> {
+        log.stats.speeds = log.stats.speeds.saturating_add(1);
+        self.last_speed = mps;
+        let record = VehicleSpeed { t_us: log.time(t), speed_mm_s: quantise(mps, 1e-3), source };
+        log.write(&Record::VehicleSpeed(record))?;
+        let Some(from) = self.braking.push(t, mps) else { return Ok(()) };
+        log.stats.harsh_brakings = log.stats.harsh_brakings.saturating_add(1);
+        log.event(
             t,
             3,
             format_args!(
@@ -185,14 +232,21 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         )
     }
 
-    pub(super) fn on_fix(&mut self, rx: Timestamp, fix: &Fix) -> Result<(), PipelineError<W::Error>> {
+    /// A fix received at `rx`: its UTC into the log's clock, its record; its position
+    /// (heights missing taken as `default_height_m`), none when it has none.
+    pub(super) fn fix<W: Write, const BUF: usize>(
+        log: &mut LogSink<W, BUF>,
+        default_height_m: f64,
+        rx: Timestamp,
+        fix: &Fix,
+    ) -> Result<Option<Geodetic>, PipelineError<W::Error>> {
         let mut utc_trusted = false;
         if let Some(utc) = fix.utc {
-            match self.log.clock.utc_sample(utc, rx) {
+            match log.clock.utc_sample(utc, rx) {
                 OffsetChange::None => utc_trusted = true,
                 OffsetChange::Ignored(by) => {
-                    self.log.issue(rx, Issue::GnssTimeIgnored, 1)?;
-                    self.log.event(
+                    log.issue(rx, Issue::GnssTimeIgnored, 1)?;
+                    log.event(
                         rx,
                         3,
                         format_args!(
@@ -207,28 +261,26 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                         OffsetChange::First(o) => (o, 0, "UTC known from the first fix: the log is in UTC from here"),
                         OffsetChange::Drift(o) => (o, 1, ""),
                         OffsetChange::Step { offset, .. } => (offset, 2, "GNSS time stepped; the clock offset follows"),
-                        _ => (self.log.clock.offset().unwrap_or(0), 3, "UTC taken again after the device clock reset"),
+                        _ => (log.clock.offset().unwrap_or(0), 3, "UTC taken again after the device clock reset"),
                     };
-                    let record = ClockOffset { t_us: self.log.time(rx), offset_us: offset, reason };
-                    self.log.write(&Record::ClockOffset(record))?;
+                    let record = ClockOffset { t_us: log.time(rx), offset_us: offset, reason };
+                    log.write(&Record::ClockOffset(record))?;
                     if !text.is_empty() {
-                        self.log.event(rx, 2, format_args!("{text} (offset {} µs)", offset))?;
+                        log.event(rx, 2, format_args!("{text} (offset {} µs)", offset))?;
                     }
                 }
             }
         }
         let position = match (fix.lat, fix.lon, fix.mode >= 2) {
-            (Some(lat), Some(lon), true) => {
-                Geodetic::new(lat, lon, fix.alt.unwrap_or(self.config.origin.height_m)).ok()
-            }
+            (Some(lat), Some(lon), true) => Geodetic::new(lat, lon, fix.alt.unwrap_or(default_height_m)).ok(),
             _ => None,
         };
         let Some(position) = position else {
-            return self.log.issue(rx, Issue::GnssNoPosition, 1);
+            return log.issue(rx, Issue::GnssNoPosition, 1).map(|()| None);
         };
         let t_us = match fix.utc {
             Some(utc) if utc_trusted => utc.micros(),
-            _ => self.log.time(rx),
+            _ => log.time(rx),
         };
         let record = GnssFix {
             t_us,
@@ -241,25 +293,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             satellites: fix.satellites.map_or(-1, i64::from),
             mode: fix.mode,
         };
-        self.log.write(&Record::GnssFix(record))?;
-        if let (Some(speed), Some(track)) = (fix.speed, fix.track_deg) {
-            let up = self.inertial.up();
-            self.inertial.bias.push_course(rx.as_secs_f64(), track.to_radians(), speed, &up);
-            if speed >= MIN_COURSE_SPEED_MPS {
-                // A session not yet anchored takes its yaw from the course.
-                let sigma = (COURSE_SPEED_SIGMA_MPS / speed).max(MIN_COURSE_SIGMA_RAD);
-                if self.anchoring.anchorer.push_course(rx, track.to_radians(), sigma) {
-                    self.log.event(rx, 2, format_args!("anchor: the VO session's yaw from the GNSS course"))?;
-                }
-            }
-        }
-        let g = &self.config.gnss;
-        let sigma = gnss_sigma(fix.hdop, fix.gst, g.uere_m).unwrap_or(g.default_sigma_m);
-        let enu = self.anchoring.local.geodetic_to_enu(&position);
-        if self.anchoring.anchorer.push_gnss(rx, enu, sigma).is_err() {
-            return self.log.issue(rx, Issue::GnssRefused, 1);
-        }
-        self.log.stats.fixes = self.log.stats.fixes.saturating_add(1);
-        Ok(())
+        log.write(&Record::GnssFix(record))?;
+        Ok(Some(position))
     }
 }

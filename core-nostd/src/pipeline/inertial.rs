@@ -80,7 +80,7 @@ pub(super) struct Inertial {
     refused: Option<Issue>,
     preintegrator: Preintegrator,
     attitude: Attitude,
-    pub(super) bias: GyroBias,
+    bias: GyroBias,
     impact: Impact,
     dead_reckoning: DeadReckoning,
     /// The car's forward axis in the body frame, from its accelerations.
@@ -182,6 +182,11 @@ impl Inertial {
     /// The gyro's bias, every axis: the course's (or a standstill's) and the tilt's.
     pub(super) fn gyro_bias(&self) -> Vector3<f64> {
         self.bias.bias() + self.attitude.tilt_bias()
+    }
+
+    /// The σ of the gyro's bias about the vertical, rad/s.
+    pub(super) fn gyro_bias_sigma(&self) -> f64 {
+        self.bias.sigma()
     }
 
     /// The body's pitch and roll from gravity, once levelled.
@@ -348,6 +353,13 @@ impl Inertial {
         let frame = self.frame;
         self.frame = frame.saturating_add(1);
         Some(frame)
+    }
+
+    /// A GNSS course over ground (`track`, rad, at `speed`, m/s) at `t` s, for the gyro's
+    /// bias.
+    pub(super) fn course(&mut self, t: f64, track: f64, speed: f64) {
+        let up = self.up();
+        self.bias.push_course(t, track, speed, &up);
     }
 
     /// The camera's pose as dead reckoning has it now, and whether the car's forward axis

@@ -45,6 +45,7 @@ pub mod lag;
 pub mod mount;
 pub mod profile;
 pub mod replay;
+mod routes;
 pub mod signals;
 mod sink;
 mod tracking;
@@ -353,37 +354,6 @@ struct State<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> {
     inertial: inertial::Inertial,
 }
 
-/// The routes between the stages: what one stage's output makes another do.
-impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, T3, T2, BUF> {
-    /// An IMU sample; a dead-reckoned pose it makes due is anchored as a VO pose.
-    fn on_imu(&mut self, t: Timestamp, sample: &crate::imu::ImuSample) -> Result<(), PipelineError<W::Error>> {
-        match self.inertial.push(&mut self.log, &self.config, t, sample)? {
-            Some(frame) => self.dead_reckoned_vo(t, frame),
-            None => Ok(()),
-        }
-    }
-
-    /// Under gyro + wheels, camera frame `frame` (its detections arrive at `t`): its
-    /// dead-reckoned pose, once per frame.
-    fn dead_reckoned_frame(&mut self, t: Timestamp, frame: u64) -> Result<(), PipelineError<W::Error>> {
-        let later = self.anchoring.vo.is_none_or(|v| t > v.t);
-        if !self.inertial.frame_due(self.config.relative_motion, frame, later) {
-            return Ok(());
-        }
-        self.dead_reckoned_vo(t, frame)
-    }
-
-    /// The dead reckoning's camera pose at `t`, anchored as frame `frame`'s VO pose; the
-    /// mount calibration starts again when the car's forward axis has just become known.
-    fn dead_reckoned_vo(&mut self, t: Timestamp, frame: u64) -> Result<(), PipelineError<W::Error>> {
-        let (pose, forward_known) = self.inertial.camera_pose(&self.config.mount);
-        if forward_known {
-            self.anchoring.calibration.restart();
-        }
-        self.on_vo(t, frame, inertial::DEAD_RECKONING_SESSION, &pose)
-    }
-}
-
 /// The pipeline: `T3` 3D tracks (and 3D detections per frame), `T2` 2D tracks (and 2D
 /// detections per frame) in caller-kept [`Trackers`], a `BUF`-byte log buffer.
 #[derive(Debug)]
@@ -520,7 +490,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
     /// The gyro's bias as estimated so far (body axes, rad/s) and its σ about the vertical.
     pub fn gyro_bias(&self) -> (Vector3<f64>, f64) {
         let imu = &self.state.inertial;
-        (imu.gyro_bias(), imu.bias.sigma())
+        (imu.gyro_bias(), imu.gyro_bias_sigma())
     }
 
     /// The camera mount as calibrated so far.
@@ -645,7 +615,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
     pub fn close(&mut self) -> Result<(), PipelineError<W::Error>> {
         let state = &mut self.state;
         if let Some(fix) = self.nmea.decoder.finish() {
-            let rx = state.gnss.last_sentence.unwrap_or(state.log.now);
+            let rx = state.gnss.last_sentence().unwrap_or(state.log.now);
             state.on_fix(rx, &gnss::nmea_fix(&fix))?;
         }
         let now = state.log.now;
