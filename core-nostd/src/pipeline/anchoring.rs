@@ -3,57 +3,57 @@
 //! eased ego written to the log and handed on to the windows.
 
 use embedded_io::Write;
+use nalgebra::Vector3;
 
 use super::anchor_record;
 use super::calibration::{CalibrationConfig, MountCalibration, MountEstimate};
+use super::inertial::Inertial;
 use super::issues::Issue;
-use super::{
-    carry, ease, euler, lag, mount, mount_record, quantise, PipelineConfig, PipelineError, RelativeMotion, State,
-};
-use crate::anchor::{Anchorer, Observability};
+use super::sink::LogSink;
+use super::{carry, ease, euler, mount, mount_record, quantise, PipelineConfig, PipelineError, RelativeMotion};
+use crate::anchor::{AnchorMode, Anchorer, Observability};
 use crate::binlog::{EgoPose, FrameMeta, Record, VoPose, FRAME_DEAD_RECKONED};
 use crate::decimal::Decimal;
-use crate::geo::LocalFrame;
+use crate::geo::{Geodetic, LocalFrame};
 use crate::obb::Pose2;
 use crate::sim3::Pose;
-use crate::time::Timestamp;
+use crate::time::{Duration, Timestamp};
+use crate::track3d::Detection3d;
 
 /// What anchoring keeps between VO poses.
 #[derive(Debug)]
 pub(super) struct Anchoring {
-    pub(super) local: LocalFrame,
-    pub(super) anchorer: Anchorer,
-    pub(super) observability: Observability,
-    pub(super) last_anchor_record: Option<Timestamp>,
-    pub(super) calibration: MountCalibration,
+    local: LocalFrame,
+    anchorer: Anchorer,
+    observability: Observability,
+    last_anchor_record: Option<Timestamp>,
+    calibration: MountCalibration,
     /// The ego carried across a VO re-initialisation until the new session is anchored.
-    pub(super) carry: Option<carry::Carry>,
+    carry: Option<carry::Carry>,
     /// The camera's world pose, the ego heading and the position's σ (m) at the latest
     /// anchored frame.
-    pub(super) last_camera: Option<(Timestamp, Pose, f64, f64)>,
+    last_camera: Option<(Timestamp, Pose, f64, f64)>,
     /// The gyro's heading at that frame (rad), when the dashcam has an IMU: the turn across
     /// a VO gap is measured from it.
-    pub(super) last_camera_gyro: Option<f64>,
+    last_camera_gyro: Option<f64>,
     /// The anchored ego's turn rate, carried with the attitude across a VO gap.
-    pub(super) turn_rate: carry::TurnRate,
+    turn_rate: carry::TurnRate,
     /// The ego the windows score, with the corrections eased in, and the VO session and
     /// pose it was last given.
-    pub(super) ease: ease::Ease,
-    pub(super) eased_vo: Option<(u32, Pose)>,
-    /// The eased ego, smoothed a second late for the windows.
-    pub(super) lag: lag::FixedLag,
+    ease: ease::Ease,
+    eased_vo: Option<(u32, Pose)>,
     /// The mount poses and detections are placed with (the calibration's estimate).
-    pub(super) mount: MountEstimate,
-    pub(super) last_mount_record: Option<Timestamp>,
+    mount: MountEstimate,
+    last_mount_record: Option<Timestamp>,
     /// Internal frame number = the camera's + this (raised when the camera restarts).
-    pub(super) frame_offset: u64,
+    frame_offset: u64,
     /// The latest VO pose, with its internal frame number.
-    pub(super) vo: Option<LastVo>,
-    pub(super) ego: Option<Ego>,
+    vo: Option<LastVo>,
+    ego: Option<Ego>,
     /// Seconds per frame number (for track velocities in m/s).
-    pub(super) frame_interval: f64,
+    frame_interval: f64,
     /// The VO session's vertical from gravity.
-    pub(super) vertical: super::vertical::Vertical,
+    vertical: super::vertical::Vertical,
 }
 
 impl Anchoring {
@@ -63,7 +63,7 @@ impl Anchoring {
             anchorer: Anchorer::new(match config.relative_motion {
                 RelativeMotion::Vo => config.anchor,
                 RelativeMotion::ImuWheels => {
-                    crate::anchor::AnchorConfig { mode: crate::anchor::AnchorMode::GravityAligned, ..config.anchor }
+                    crate::anchor::AnchorConfig { mode: AnchorMode::GravityAligned, ..config.anchor }
                 }
             }),
             observability: Observability::TooFewAnchors,
@@ -81,7 +81,6 @@ impl Anchoring {
             turn_rate: carry::TurnRate::default(),
             ease: ease::Ease::new(config.ease_s),
             eased_vo: None,
-            lag: lag::FixedLag::new(),
             mount: MountCalibration::new(config.mount, config.calibration).estimate(),
             last_mount_record: None,
             frame_offset: 0,
@@ -100,6 +99,17 @@ pub(super) struct LastVo {
     pub(super) session: u32,
 }
 
+/// What a VO pose made of the ego, for the windows.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Anchored {
+    /// The drive's first anchored pose.
+    pub(super) first: bool,
+    /// The position's σ (m), anchored or carried.
+    pub(super) sigma: f64,
+    /// The eased ego.
+    pub(super) eased: Pose2,
+}
+
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Ego {
     pub(super) t: Timestamp,
@@ -112,62 +122,127 @@ pub(super) struct Ego {
     pub(super) z: f64,
 }
 
-impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, T3, T2, BUF> {
-    pub(super) fn on_vo(
+impl Anchoring {
+    /// The anchorer (the pipeline's accessor).
+    pub(super) fn anchorer(&self) -> &Anchorer {
+        &self.anchorer
+    }
+
+    /// The mount poses and detections are placed with.
+    pub(super) fn mount(&self) -> &MountEstimate {
+        &self.mount
+    }
+
+    /// The pipeline's internal number of the camera's frame `frame` (raised past a restart).
+    pub(super) fn frame(&self, frame: u64) -> u64 {
+        frame.saturating_add(self.frame_offset)
+    }
+
+    /// Frame numbers per second (for track velocities in m/s).
+    pub(super) fn frames_per_second(&self) -> f64 {
+        1.0 / self.frame_interval
+    }
+
+    /// Whether `t` is later than the latest VO pose (or there is none).
+    pub(super) fn later_than_vo(&self, t: Timestamp) -> bool {
+        self.vo.is_none_or(|v| t > v.t)
+    }
+
+    /// The mount calibration starts again (the car's forward axis has just become known).
+    pub(super) fn restart_calibration(&mut self) {
+        self.calibration.restart();
+    }
+
+    /// 3D detections placed with the ego: to the mount calibration (its pitch from the
+    /// ground, when configured).
+    pub(super) fn detections_seen(&mut self, detections: &[Detection3d]) {
+        for d in detections {
+            self.calibration.push_detection(d);
+        }
+    }
+
+    /// A vehicle speed, m/s, to the anchorer; `false`: refused.
+    pub(super) fn speed(&mut self, t: Timestamp, mps: f64) -> bool {
+        self.anchorer.push_speed(t, mps).is_ok()
+    }
+
+    /// A GNSS course, rad, with its σ: a session not yet anchored takes its yaw from it
+    /// (`true` when it did).
+    pub(super) fn course(&mut self, rx: Timestamp, track: f64, sigma: f64) -> bool {
+        self.anchorer.push_course(rx, track, sigma)
+    }
+
+    /// A fix's position, with its σ (m), to the anchorer; `false`: refused.
+    pub(super) fn fix(&mut self, rx: Timestamp, position: &Geodetic, sigma: f64) -> bool {
+        let enu = self.local.geodetic_to_enu(position);
+        self.anchorer.push_gnss(rx, enu, sigma).is_ok()
+    }
+
+    /// A VO pose of frame `frame` (the camera's number) in VO session `session`: into the
+    /// mount calibration and the anchorer, the frame, the pose and the anchored (or
+    /// carried) ego to the log. `imu` is the IMU stage, read for its vertical, heading and
+    /// turn; `speed` the latest vehicle speed (m/s). Returns what the windows take of the
+    /// ego, when there is one.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn vo<W: Write, const BUF: usize>(
         &mut self,
+        log: &mut LogSink<W, BUF>,
+        config: &PipelineConfig<'_>,
+        imu: &Inertial,
+        speed: f64,
         t: Timestamp,
         frame: u64,
         session: u32,
         pose: &Pose,
-    ) -> Result<(), PipelineError<W::Error>> {
+    ) -> Result<Option<Anchored>, PipelineError<W::Error>> {
         if !pose.is_finite() {
-            return self.log.issue(t, Issue::VoNotFinite, 1);
+            return log.issue(t, Issue::VoNotFinite, 1).map(|()| None);
         }
-        if self.anchoring.vo.is_some_and(|v| t <= v.t) {
-            return self.log.issue(t, Issue::VoOutOfOrder, 1);
+        if self.vo.is_some_and(|v| t <= v.t) {
+            return log.issue(t, Issue::VoOutOfOrder, 1).map(|()| None);
         }
         let raw_frame = frame;
-        let mut frame = raw_frame.saturating_add(self.anchoring.frame_offset);
-        let restarted = self.anchoring.vo.is_some_and(|v| frame <= v.frame);
-        if let Some(v) = self.anchoring.vo.filter(|v| v.session != session) {
-            self.new_session(t, &v, session, pose)?;
+        let mut frame = raw_frame.saturating_add(self.frame_offset);
+        let restarted = self.vo.is_some_and(|v| frame <= v.frame);
+        if let Some(v) = self.vo.filter(|v| v.session != session) {
+            self.new_session(log, imu, t, &v, session, pose)?;
         }
-        let up_in_camera = self.inertial.up_in_camera(&self.config.mount.rotation());
-        let motion = self.config.relative_motion;
-        self.anchoring.level_session(&mut self.log, motion, up_in_camera, t, session, pose)?;
-        if self.anchoring.anchorer.push_vo(t, pose.translation).is_err() {
-            return self.log.issue(t, Issue::VoOutOfOrder, 1);
+        let up_in_camera = imu.up_in_camera(&config.mount.rotation());
+        let motion = config.relative_motion;
+        self.level_session(log, motion, up_in_camera, t, session, pose)?;
+        if self.anchorer.push_vo(t, pose.translation).is_err() {
+            return log.issue(t, Issue::VoOutOfOrder, 1).map(|()| None);
         }
-        if let Some(v) = self.anchoring.vo {
+        if let Some(v) = self.vo {
             if restarted {
                 // Frame numbers went back while time went on: the camera process restarted.
                 // Internally frames go on counting, so that the trackers keep their tracks.
-                self.anchoring.frame_offset = v.frame.saturating_add(1).saturating_sub(raw_frame);
-                frame = raw_frame.saturating_add(self.anchoring.frame_offset);
-                self.log.issue(t, Issue::CameraRestarted, 1)?;
+                self.frame_offset = v.frame.saturating_add(1).saturating_sub(raw_frame);
+                frame = raw_frame.saturating_add(self.frame_offset);
+                log.issue(t, Issue::CameraRestarted, 1)?;
             }
             // Saturating: frame numbers near u64::MAX (untrusted) leave `frame` no further on
             // than the last one.
             let skipped = frame.saturating_sub(v.frame).saturating_sub(1);
             if skipped > 0 {
-                self.log.issue(t, Issue::FramesMissing, skipped)?;
+                log.issue(t, Issue::FramesMissing, skipped)?;
             }
             let per_frame = (t - v.t).as_secs_f64() / frame.saturating_sub(v.frame) as f64;
             if per_frame.is_finite() && per_frame > 0.0 {
-                self.anchoring.frame_interval = per_frame;
+                self.frame_interval = per_frame;
             }
         }
-        self.anchoring.vo = Some(LastVo { t, frame, session });
-        self.log.stats.vo_poses = self.log.stats.vo_poses.saturating_add(1);
-        let t_us = self.log.time(t);
+        self.vo = Some(LastVo { t, frame, session });
+        log.stats.vo_poses = log.stats.vo_poses.saturating_add(1);
+        let t_us = log.time(t);
         // The log keeps the camera's own numbers (sequence gaps and restarts show there).
         let frame_i64 = i64::try_from(raw_frame).unwrap_or(i64::MAX);
         // Under gyro + wheels every pose is dead-reckoned (the camera's VO is not used).
-        let flags = if self.config.relative_motion == RelativeMotion::ImuWheels { FRAME_DEAD_RECKONED } else { 0 };
-        self.log.write(&Record::FrameMeta(FrameMeta { t_us, frame: frame_i64, flags }))?;
+        let flags = if config.relative_motion == RelativeMotion::ImuWheels { FRAME_DEAD_RECKONED } else { 0 };
+        log.write(&Record::FrameMeta(FrameMeta { t_us, frame: frame_i64, flags }))?;
         let [yaw, pitch, roll] = euler(&pose.rotation);
         let p = &pose.translation;
-        self.log.write(&Record::VoPose(VoPose {
+        log.write(&Record::VoPose(VoPose {
             t_us,
             x: quantise(p.x, 1e-3),
             y: quantise(p.y, 1e-3),
@@ -177,13 +252,13 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             roll_e4: quantise(roll, 1e-4),
             session: i64::from(session),
         }))?;
-        self.calibrate(t, session, pose)?;
-        self.anchor_changes(t)?;
-        let (anchor, carried) = match self.anchoring.anchorer.estimate().copied() {
+        self.calibrate(log, config, t, session, pose)?;
+        self.anchor_changes(log, config, t)?;
+        let (anchor, carried) = match self.anchorer.estimate().copied() {
             Some(anchor) => {
-                if let Some(c) = self.anchoring.carry.take() {
+                if let Some(c) = self.carry.take() {
                     let after = t.as_secs_f64() - c.since();
-                    self.log.event(
+                    log.event(
                         t,
                         2,
                         format_args!(
@@ -195,48 +270,47 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                 (anchor, false)
             }
             None => {
-                let speed = self.gnss.last_speed() * self.anchoring.anchorer.wheel_factor().unwrap_or(1.0);
-                let turn = self.gap_turn(t).map_or(0.0, |turn| turn.angle);
-                match self.anchoring.carry.as_mut().and_then(|c| c.push(t.as_secs_f64(), pose, speed, turn)) {
+                let speed = speed * self.anchorer.wheel_factor().unwrap_or(1.0);
+                let turn = self.gap_turn(imu, t).map_or(0.0, |turn| turn.angle);
+                match self.carry.as_mut().and_then(|c| c.push(t.as_secs_f64(), pose, speed, turn)) {
                     Some(anchor) => (anchor, true),
-                    None => return Ok(()),
+                    None => return Ok(None),
                 }
             }
         };
         let camera = mount::camera_in_world(&anchor, pose);
-        let body = self.anchoring.mount.mount.body_pose(&camera);
+        let body = self.mount.mount.body_pose(&camera);
         let b = &body.translation;
         let anchored = Pose2::new(b.x, b.y, mount::heading(&body.rotation));
         if !(anchored.is_finite() && b.z.is_finite()) {
-            return Ok(());
+            return Ok(None);
         }
         // The previous eased frame's VO pose through this frame's similarity and mount: the
         // VO's motion since, apart from the anchorer's correction.
-        let moved_from = self.anchoring.eased_vo.filter(|(s, _)| *s == session).map(|(_, previous)| {
-            let body = self.anchoring.mount.mount.body_pose(&mount::camera_in_world(&anchor, &previous));
+        let moved_from = self.eased_vo.filter(|(s, _)| *s == session).map(|(_, previous)| {
+            let body = self.mount.mount.body_pose(&mount::camera_in_world(&anchor, &previous));
             Pose2::new(body.translation.x, body.translation.y, mount::heading(&body.rotation))
         });
-        let eased = self.anchoring.ease.push(t.as_secs_f64(), anchored, moved_from);
-        self.anchoring.eased_vo = Some((session, *pose));
+        let eased = self.ease.push(t.as_secs_f64(), anchored, moved_from);
+        self.eased_vo = Some((session, *pose));
         // A carried pose is the last anchored one's σ plus what dead reckoning may add.
-        let sigma = match self.anchoring.last_camera.filter(|_| carried) {
+        let sigma = match self.last_camera.filter(|_| carried) {
             Some((tc, _, _, sigma)) => sigma + carry::CARRY_SPEED_SIGMA * (t - tc).as_secs_f64(),
-            None => self.anchoring.anchorer.quality().position_sigma_m,
+            None => self.anchorer.quality().position_sigma_m,
         };
         let ego = Ego { t, frame, pose: anchored, eased, z: b.z };
-        self.anchoring.ego = Some(ego);
+        self.ego = Some(ego);
+        let mut first = false;
         if carried {
-            self.log.stats.carried_frames = self.log.stats.carried_frames.saturating_add(1);
+            log.stats.carried_frames = log.stats.carried_frames.saturating_add(1);
         } else {
-            self.anchoring.last_camera = Some((t, camera, anchored.heading, sigma));
-            self.anchoring.last_camera_gyro = self.inertial.heading();
-            self.anchoring.turn_rate.push(t.as_secs_f64(), anchored.heading);
-            if self.log.stats.anchored_frames == 0 {
-                self.windows.anchored_first_at(t.as_secs_f64());
-            }
-            self.log.stats.anchored_frames = self.log.stats.anchored_frames.saturating_add(1);
+            self.last_camera = Some((t, camera, anchored.heading, sigma));
+            self.last_camera_gyro = imu.heading();
+            self.turn_rate.push(t.as_secs_f64(), anchored.heading);
+            first = log.stats.anchored_frames == 0;
+            log.stats.anchored_frames = log.stats.anchored_frames.saturating_add(1);
         }
-        self.log.write(&Record::EgoPose(EgoPose {
+        log.write(&Record::EgoPose(EgoPose {
             t_us,
             x_mm: quantise(b.x, 1e-3),
             y_mm: quantise(b.y, 1e-3),
@@ -244,48 +318,76 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             yaw_e4: quantise(ego.pose.heading, 1e-4),
             sigma_mm: quantise(sigma.min(1e6), 1e-3),
         }))?;
-        self.windows.ego_in_doubt(self.config.window_doubt_sigmas * sigma);
-        for (at, smoothed) in self.anchoring.lag.push(t, eased) {
-            self.windows.score(&self.config, &mut self.log, at, &smoothed)?;
+        Ok(Some(Anchored { first, sigma, eased }))
+    }
+
+    /// A VO pose's vertical into the session's mean, and the mean to the anchorer when due:
+    /// `up_in_camera` is the IMU's vertical in the camera's axes (none before its attitude
+    /// has settled). Only for a camera's VO (`relative_motion`) whose frame is not declared
+    /// gravity-aligned already.
+    pub(super) fn level_session<W: Write, const BUF: usize>(
+        &mut self,
+        log: &mut LogSink<W, BUF>,
+        relative_motion: RelativeMotion,
+        up_in_camera: Option<Vector3<f64>>,
+        t: Timestamp,
+        session: u32,
+        pose: &Pose,
+    ) -> Result<(), PipelineError<W::Error>> {
+        if relative_motion != RelativeMotion::Vo || self.anchorer.config().mode != AnchorMode::Full {
+            return Ok(());
         }
-        Ok(())
+        let Some(up_in_camera) = up_in_camera else { return Ok(()) };
+        let Some(sum) = self.vertical.push(session, &(pose.rotation * up_in_camera)) else {
+            return Ok(());
+        };
+        let first = self.anchorer.mode() == AnchorMode::Full;
+        if self.anchorer.level(&sum).is_err() || !first {
+            return Ok(());
+        }
+        let poses = self.vertical.poses();
+        log.event(
+            t,
+            2,
+            format_args!("VO session {session} levelled by the IMU's gravity over {poses} poses: anchored gravity-aligned from here"),
+        )
     }
 
     /// The VO started again under a new session number, `first` its first pose: anchoring
     /// starts afresh (the old similarity's position and scale say nothing of the new VO
     /// frame), with the camera's attitude carried across the gap as the prior on the new
     /// rotation; until the new session is observable the ego is carried.
-    pub(super) fn new_session(
+    fn new_session<W: Write, const BUF: usize>(
         &mut self,
+        log: &mut LogSink<W, BUF>,
+        imu: &Inertial,
         t: Timestamp,
         last: &LastVo,
         session: u32,
         first: &Pose,
     ) -> Result<(), PipelineError<W::Error>> {
         if session < last.session {
-            self.log.issue(t, Issue::VoSessionBackwards, 1)?;
+            log.issue(t, Issue::VoSessionBackwards, 1)?;
         }
-        let old_rotation_sigma = self.anchoring.anchorer.quality().rotation_sigma_rad;
-        self.anchoring.anchorer.new_vo_session();
-        if let Some((tc, camera, _, _)) = self.anchoring.last_camera {
+        let old_rotation_sigma = self.anchorer.quality().rotation_sigma_rad;
+        self.anchorer.new_vo_session();
+        if let Some((tc, camera, _, _)) = self.last_camera {
             let gap = (t - tc).as_secs_f64();
-            let turn = self.gap_turn(t).unwrap_or(carry::Turn::extrapolated(self.anchoring.turn_rate.rate(), gap));
+            let turn = self.gap_turn(imu, t).unwrap_or(carry::Turn::extrapolated(self.turn_rate.rate(), gap));
             let (rotation, sigma) = carry::rotation_prior(&camera, turn, first, old_rotation_sigma);
             // Refused only when the old session's rotation σ is not finite: then no prior.
-            let _ = self.anchoring.anchorer.set_rotation_prior(rotation, sigma);
+            let _ = self.anchorer.set_rotation_prior(rotation, sigma);
         }
-        self.anchoring.ego = None;
-        self.anchoring.carry = self
-            .anchoring
-            .last_camera
-            .map(|(tc, camera, heading, _)| carry::Carry::new(camera, tc.as_secs_f64(), heading));
+        self.ego = None;
+        self.carry =
+            self.last_camera.map(|(tc, camera, heading, _)| carry::Carry::new(camera, tc.as_secs_f64(), heading));
         let gap = (t - last.t).as_secs_f64();
-        let until = if self.anchoring.carry.is_some() {
+        let until = if self.carry.is_some() {
             "; until it is observable (for at most 10 s) the ego is carried by the last anchored pose and wheel speed"
         } else {
             ""
         };
-        self.log.event(
+        log.event(
             t,
             3,
             format_args!(
@@ -298,24 +400,31 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
 
     /// How far the car turned since the last anchored frame, by the gyro (none without an
     /// IMU, or before its attitude settled then).
-    fn gap_turn(&self, t: Timestamp) -> Option<carry::Turn> {
-        let (tc, ..) = self.anchoring.last_camera?;
-        self.inertial.turn_since(self.anchoring.last_camera_gyro?, (t - tc).as_secs_f64())
+    fn gap_turn(&self, imu: &Inertial, t: Timestamp) -> Option<carry::Turn> {
+        let (tc, ..) = self.last_camera?;
+        imu.turn_since(self.last_camera_gyro?, (t - tc).as_secs_f64())
     }
 
     /// The pose into the mount calibration; the estimate as a record when it is due, an
     /// event when it is first calibrated.
-    pub(super) fn calibrate(&mut self, t: Timestamp, session: u32, pose: &Pose) -> Result<(), PipelineError<W::Error>> {
-        if !self.anchoring.calibration.push(t.as_secs_f64(), session, pose) {
+    fn calibrate<W: Write, const BUF: usize>(
+        &mut self,
+        log: &mut LogSink<W, BUF>,
+        config: &PipelineConfig<'_>,
+        t: Timestamp,
+        session: u32,
+        pose: &Pose,
+    ) -> Result<(), PipelineError<W::Error>> {
+        if !self.calibration.push(t.as_secs_f64(), session, pose) {
             return Ok(());
         }
-        let was_calibrated = self.anchoring.mount.calibrated;
-        self.anchoring.mount = self.anchoring.calibration.estimate();
-        if self.anchoring.mount.calibrated && !was_calibrated {
-            let [_, pitch, yaw] = self.anchoring.mount.mount.roll_pitch_yaw;
-            let [sy, sp] = self.anchoring.mount.sigma;
-            let samples = self.anchoring.mount.samples;
-            self.log.event(
+        let was_calibrated = self.mount.calibrated;
+        self.mount = self.calibration.estimate();
+        if self.mount.calibrated && !was_calibrated {
+            let [_, pitch, yaw] = self.mount.mount.roll_pitch_yaw;
+            let [sy, sp] = self.mount.sigma;
+            let samples = self.mount.samples;
+            log.event(
                 t,
                 2,
                 format_args!(
@@ -327,24 +436,28 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                     Decimal::new(sp.to_degrees(), 2)
                 ),
             )?;
-        } else if self.anchoring.last_mount_record.is_some_and(|last| t - last < self.config.anchor_interval) {
+        } else if self.last_mount_record.is_some_and(|last| t - last < config.anchor_interval) {
             return Ok(());
         }
-        self.anchoring.last_mount_record = Some(t);
-        self.log.write(&Record::MountEstimate(mount_record(self.log.time(t), &self.anchoring.mount)))
+        self.last_mount_record = Some(t);
+        log.write(&Record::MountEstimate(mount_record(log.time(t), &self.mount)))
     }
 
     /// At the end: the last estimate, and an event when the drive never calibrated it.
-    pub(super) fn close_calibration(&mut self, t: Timestamp) -> Result<(), PipelineError<W::Error>> {
-        let m = self.anchoring.mount;
+    pub(super) fn close_calibration<W: Write, const BUF: usize>(
+        &mut self,
+        log: &mut LogSink<W, BUF>,
+        t: Timestamp,
+    ) -> Result<(), PipelineError<W::Error>> {
+        let m = self.mount;
         if m.samples > 0 {
-            self.log.write(&Record::MountEstimate(mount_record(self.log.time(t), &m)))?;
+            log.write(&Record::MountEstimate(mount_record(log.time(t), &m)))?;
         }
         if m.calibrated {
             return Ok(());
         }
         let kept = if m.samples == 0 { "the nominal mount was kept" } else { "the nominal mount still weighs in" };
-        self.log.event(
+        log.event(
             t,
             3,
             format_args!(
@@ -357,13 +470,18 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
     }
 
     /// Observability changes as events, the estimate as a record when it is due.
-    pub(super) fn anchor_changes(&mut self, t: Timestamp) -> Result<(), PipelineError<W::Error>> {
-        let quality = *self.anchoring.anchorer.quality();
-        let changed = quality.observability != self.anchoring.observability;
+    fn anchor_changes<W: Write, const BUF: usize>(
+        &mut self,
+        log: &mut LogSink<W, BUF>,
+        config: &PipelineConfig<'_>,
+        t: Timestamp,
+    ) -> Result<(), PipelineError<W::Error>> {
+        let quality = *self.anchorer.quality();
+        let changed = quality.observability != self.observability;
         if changed {
-            self.anchoring.observability = quality.observability;
-            let scale = self.anchoring.anchorer.estimate().map_or(f64::NAN, |e| e.scale);
-            self.log.event(
+            self.observability = quality.observability;
+            let scale = self.anchorer.estimate().map_or(f64::NAN, |e| e.scale);
+            log.event(
                 t,
                 2,
                 format_args!(
@@ -376,21 +494,20 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                 ),
             )?;
         }
-        let Some(estimate) = self.anchoring.anchorer.estimate().copied() else { return Ok(()) };
-        let due = self.anchoring.last_anchor_record.is_none_or(|last| t - last >= self.config.anchor_interval);
+        let Some(estimate) = self.anchorer.estimate().copied() else { return Ok(()) };
+        let due = self.last_anchor_record.is_none_or(|last| t - last >= config.anchor_interval);
         if !(changed || due) {
             return Ok(());
         }
-        self.anchoring.last_anchor_record = Some(t);
-        self.log.write(&Record::AnchorEstimate(anchor_record(self.log.time(t), &estimate, &quality)))
+        self.last_anchor_record = Some(t);
+        log.write(&Record::AnchorEstimate(anchor_record(log.time(t), &estimate, &quality)))
     }
 
-    /// The VO pose a detection of `frame` at `t` belongs with: the anchored ego, or none.
-    pub(super) fn pose_for(&self, t: Timestamp, frame: u64) -> (bool, Option<Ego>) {
-        let near = |ft: Timestamp, f: u64| {
-            f == frame || (t - ft).micros().saturating_abs() <= self.config.max_pose_age.micros()
-        };
-        let has_vo = self.anchoring.vo.is_some_and(|v| near(v.t, v.frame));
-        (has_vo, self.anchoring.ego.filter(|e| near(e.t, e.frame)))
+    /// The VO pose a detection of `frame` at `t` belongs with, one of the same frame or at
+    /// most `max_age` apart: whether there is one, and the anchored ego, or none.
+    pub(super) fn pose_for(&self, max_age: Duration, t: Timestamp, frame: u64) -> (bool, Option<Ego>) {
+        let near = |ft: Timestamp, f: u64| f == frame || (t - ft).micros().saturating_abs() <= max_age.micros();
+        let has_vo = self.vo.is_some_and(|v| near(v.t, v.frame));
+        (has_vo, self.ego.filter(|e| near(e.t, e.frame)))
     }
 }

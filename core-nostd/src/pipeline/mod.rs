@@ -412,7 +412,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
 
     /// The anchorer (its estimate and quality).
     pub fn anchorer(&self) -> &Anchorer {
-        &self.state.anchoring.anchorer
+        self.state.anchoring.anchorer()
     }
 
     /// Bytes from the GNSS receiver's serial port, received at device time `t`.
@@ -495,7 +495,7 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
 
     /// The camera mount as calibrated so far.
     pub fn mount(&self) -> &MountEstimate {
-        &self.state.anchoring.mount
+        self.state.anchoring.mount()
     }
 
     /// The 3D detections of camera frame `frame` in the camera frame. At most `T3` are
@@ -619,11 +619,8 @@ impl<'a, W: Write, const T3: usize, const T2: usize, const BUF: usize> Pipeline<
             state.on_fix(rx, &gnss::nmea_fix(&fix))?;
         }
         let now = state.log.now;
-        for (at, smoothed) in state.anchoring.lag.flush() {
-            state.windows.score(&state.config, &mut state.log, at, &smoothed)?;
-        }
-        state.windows.close(&mut state.log, now)?;
-        state.close_calibration(now)?;
+        state.windows.finish(&state.config, &mut state.log, now)?;
+        state.anchoring.close_calibration(&mut state.log, now)?;
         let tail: heapless::Vec<(Issue, u64), { Issue::ALL.len() }> = state.log.issues.unreported().collect();
         for (issue, count) in tail {
             state.log.event(now, 3, format_args!("{} ({count} in all)", issue.text()))?;

@@ -7,10 +7,12 @@ use embedded_io::Write;
 use super::gnss::{self, Fix, Reading};
 use super::issues::Issue;
 use super::signals::GnssFrame;
-use super::{inertial, PipelineError, State};
+use super::{inertial, tracking, ImageDetection, PipelineError, State};
 use crate::anchor::gnss_sigma;
 use crate::nmea::StreamEvent;
+use crate::sim3::Pose;
 use crate::time::Timestamp;
+use crate::track3d::Detection3d;
 
 impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, T3, T2, BUF> {
     /// An NMEA stream's event; a finished epoch's fix goes on.
@@ -40,7 +42,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
 
     /// A vehicle speed, m/s: to the anchorer (refused: an issue), the IMU, the log.
     pub(super) fn speed(&mut self, t: Timestamp, mps: f64, source: i64) -> Result<(), PipelineError<W::Error>> {
-        if self.anchoring.anchorer.push_speed(t, mps).is_err() {
+        if !self.anchoring.speed(t, mps) {
             return self.log.issue(t, Issue::SpeedRefused, 1);
         }
         self.inertial.on_speed(t, mps);
@@ -58,15 +60,14 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             self.inertial.course(rx.as_secs_f64(), track.to_radians(), speed);
             if let Some(sigma) = gnss::course_sigma(speed) {
                 // A session not yet anchored takes its yaw from the course.
-                if self.anchoring.anchorer.push_course(rx, track.to_radians(), sigma) {
+                if self.anchoring.course(rx, track.to_radians(), sigma) {
                     self.log.event(rx, 2, format_args!("anchor: the VO session's yaw from the GNSS course"))?;
                 }
             }
         }
         let g = &self.config.gnss;
         let sigma = gnss_sigma(fix.hdop, fix.gst, g.uere_m).unwrap_or(g.default_sigma_m);
-        let enu = self.anchoring.local.geodetic_to_enu(&position);
-        if self.anchoring.anchorer.push_gnss(rx, enu, sigma).is_err() {
+        if !self.anchoring.fix(rx, &position, sigma) {
             return self.log.issue(rx, Issue::GnssRefused, 1);
         }
         self.log.stats.fixes = self.log.stats.fixes.saturating_add(1);
@@ -88,7 +89,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
     /// Under gyro + wheels, camera frame `frame` (its detections arrive at `t`): its
     /// dead-reckoned pose, once per frame.
     pub(super) fn dead_reckoned_frame(&mut self, t: Timestamp, frame: u64) -> Result<(), PipelineError<W::Error>> {
-        let later = self.anchoring.vo.is_none_or(|v| t > v.t);
+        let later = self.anchoring.later_than_vo(t);
         if !self.inertial.frame_due(self.config.relative_motion, frame, later) {
             return Ok(());
         }
@@ -100,8 +101,70 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
     fn dead_reckoned_vo(&mut self, t: Timestamp, frame: u64) -> Result<(), PipelineError<W::Error>> {
         let (pose, forward_known) = self.inertial.camera_pose(&self.config.mount);
         if forward_known {
-            self.anchoring.calibration.restart();
+            self.anchoring.restart_calibration();
         }
         self.on_vo(t, frame, inertial::DEAD_RECKONING_SESSION, &pose)
+    }
+
+    /// A VO pose: anchored; the ego it makes to the windows.
+    pub(super) fn on_vo(
+        &mut self,
+        t: Timestamp,
+        frame: u64,
+        session: u32,
+        pose: &Pose,
+    ) -> Result<(), PipelineError<W::Error>> {
+        let speed = self.gnss.last_speed();
+        let anchored =
+            self.anchoring.vo(&mut self.log, &self.config, &self.inertial, speed, t, frame, session, pose)?;
+        let Some(anchored) = anchored else { return Ok(()) };
+        if anchored.first {
+            self.windows.anchored_first_at(t.as_secs_f64());
+        }
+        self.windows.ego_in_doubt(self.config.window_doubt_sigmas * anchored.sigma);
+        self.windows.ego(&self.config, &mut self.log, t, anchored.eased)
+    }
+
+    /// A frame's 3D detections: placed through the anchoring's ego and mount into the
+    /// tracker (written raw without an ego), their tracks to the windows as agents.
+    pub(super) fn on_detections(
+        &mut self,
+        t: Timestamp,
+        frame: u64,
+        detections: &[Detection3d],
+    ) -> Result<(), PipelineError<W::Error>> {
+        let frame = self.anchoring.frame(frame);
+        if !self.tracking.frame3d_in_order(frame) {
+            return self.log.issue(t, Issue::DetectionsOutOfOrder, 1);
+        }
+        let (has_vo, ego) = self.anchoring.pose_for(self.config.max_pose_age, t, frame);
+        let classes = self.config.classes;
+        let Some(ego) = ego else {
+            if !has_vo {
+                self.log.issue(t, Issue::DetectionsWithoutPose, detections.len().max(1) as u64)?;
+            }
+            return self.tracking.write_raw(&mut self.log, classes, t, frame, detections);
+        };
+        self.anchoring.detections_seen(detections);
+        let camera_mount = self.anchoring.mount().mount;
+        let Some(outputs) = self.tracking.track(&mut self.log, t, frame, &ego, &camera_mount, detections)? else {
+            return self.log.issue(t, Issue::DetectionsOutOfOrder, 1);
+        };
+        let per_second = self.anchoring.frames_per_second();
+        tracking::write_tracks(&mut self.log, classes, t, &ego, per_second, &outputs)?;
+        let reports = |id| outputs.iter().any(|o| o.id == id);
+        self.windows.agents_reported(t.as_secs_f64(), reports, tracking::agents(classes, per_second, &outputs));
+        Ok(())
+    }
+
+    /// A frame's 2D detections into the IoU tracker.
+    pub(super) fn on_detections2d(
+        &mut self,
+        t: Timestamp,
+        frame: u64,
+        detections: &[ImageDetection],
+    ) -> Result<(), PipelineError<W::Error>> {
+        let frame = self.anchoring.frame(frame);
+        self.tracking.detections2d(&mut self.log, t, frame, detections)
     }
 }

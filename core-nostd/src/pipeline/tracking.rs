@@ -1,12 +1,15 @@
 //! Tracking: 3D detections placed in the world by the anchored ego and the mount, into the
 //! EKF track manager; 2D detections into the IoU tracker; the tracks written to the log and
-//! handed to the windows as agents.
+//! given out as the agents the windows score. The stage keeps its trackers and the latest
+//! frame of each kind; the pipeline's route ([`super::routes`]) hands it the frame's ego
+//! and mount from the anchoring and its agents on to the windows.
 
 use embedded_io::Write;
 
 use super::anchoring::Ego;
 use super::issues::Issue;
-use super::{ease, mount, quantise, ImageDetection, PipelineError, State, Trackers};
+use super::sink::LogSink;
+use super::{ease, mount, quantise, CameraMount, ClassMeta, ImageDetection, PipelineError, Trackers};
 use crate::binlog::{Detection3d as DetectionRecord, Record, Track2d, Track3d, Tracks3d, MAX_TRACKS};
 use crate::box2d::Box2d;
 use crate::frame_order::FrameOrder;
@@ -20,17 +23,11 @@ use crate::track3d::Detection3d;
 /// each kind.
 #[derive(Debug)]
 pub(super) struct Tracking<'a, const T3: usize, const T2: usize> {
-    pub(super) trackers: &'a mut Trackers<'a, T3, T2>,
+    trackers: &'a mut Trackers<'a, T3, T2>,
     /// The latest frame of 3D detections (those without a pose too, written raw).
-    pub(super) frames3d: FrameOrder,
+    frames3d: FrameOrder,
     /// The latest frame of 2D detections.
-    pub(super) frames2d: FrameOrder,
-}
-
-impl<'a, const T3: usize, const T2: usize> Tracking<'a, T3, T2> {
-    pub(super) fn new(trackers: &'a mut Trackers<'a, T3, T2>) -> Self {
-        Tracking { trackers, frames3d: FrameOrder::new(), frames2d: FrameOrder::new() }
-    }
+    frames2d: FrameOrder,
 }
 
 /// A reported 3D track, as the log and the score use it.
@@ -44,28 +41,15 @@ pub(super) struct TrackState {
     pub(super) is_static: bool,
 }
 
-impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, T3, T2, BUF> {
-    pub(super) fn on_detections(
-        &mut self,
-        t: Timestamp,
-        frame: u64,
-        detections: &[Detection3d],
-    ) -> Result<(), PipelineError<W::Error>> {
-        let frame = frame.saturating_add(self.anchoring.frame_offset);
-        if self.tracking.frames3d.advance(frame).is_err() {
-            return self.log.issue(t, Issue::DetectionsOutOfOrder, 1);
-        }
-        let (has_vo, ego) = self.pose_for(t, frame);
-        let Some(ego) = ego else {
-            if !has_vo {
-                self.log.issue(t, Issue::DetectionsWithoutPose, detections.len().max(1) as u64)?;
-            }
-            return self.write_raw(t, frame, detections);
-        };
-        let Some(outputs) = self.track(t, frame, &ego, detections)? else {
-            return self.log.issue(t, Issue::DetectionsOutOfOrder, 1);
-        };
-        self.write_tracks(t, &ego, &outputs)
+impl<'a, const T3: usize, const T2: usize> Tracking<'a, T3, T2> {
+    pub(super) fn new(trackers: &'a mut Trackers<'a, T3, T2>) -> Self {
+        Tracking { trackers, frames3d: FrameOrder::new(), frames2d: FrameOrder::new() }
+    }
+
+    /// Whether 3D detections of `frame` (the pipeline's internal number) come in order;
+    /// the latest frame moves on to it when they do.
+    pub(super) fn frame3d_in_order(&mut self, frame: u64) -> bool {
+        self.frames3d.advance(frame).is_ok()
     }
 
     /// The detections placed through `ego` and the mount into the tracker; the tracks it
@@ -73,29 +57,29 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
     /// (6.7 KB at 64) live in its frame, popped before the tracks are written — on a
     /// microcontroller the two frames would otherwise sit on the stack together.
     #[inline(never)]
-    fn track(
+    pub(super) fn track<W: Write, const BUF: usize>(
         &mut self,
+        log: &mut LogSink<W, BUF>,
         t: Timestamp,
         frame: u64,
         ego: &Ego,
+        camera_mount: &CameraMount,
         detections: &[Detection3d],
     ) -> Result<Option<heapless::Vec<TrackState, T3>>, PipelineError<W::Error>> {
         let mut placed: heapless::Vec<Detection3d, T3> = heapless::Vec::new();
         let mut excess = 0u64;
         for d in detections {
-            self.anchoring.calibration.push_detection(d);
-            let world = mount::to_world(&ego.eased, &self.anchoring.mount.mount.to_body(d));
+            let world = mount::to_world(&ego.eased, &camera_mount.to_body(d));
             if placed.push(world).is_err() {
                 excess += 1;
             }
         }
-        self.log.stats.detections_placed = self.log.stats.detections_placed.saturating_add(placed.len() as u64);
-        let rejected_before = self.tracking.trackers.tracker3d.stats().rejected;
+        log.stats.detections_placed = log.stats.detections_placed.saturating_add(placed.len() as u64);
+        let rejected_before = self.trackers.tracker3d.stats().rejected;
         // Only what the log needs of each track: the filter's posterior is 0.9 KB a track,
         // too much to keep 64 of on a microcontroller's stack.
         let mut outputs: heapless::Vec<TrackState, T3> = heapless::Vec::new();
         if self
-            .tracking
             .trackers
             .tracker3d
             .update(frame, &placed, |o| {
@@ -112,28 +96,30 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
         {
             return Ok(None);
         }
-        let refused =
-            self.tracking.trackers.tracker3d.stats().rejected.saturating_sub(rejected_before).saturating_add(excess);
+        let refused = self.trackers.tracker3d.stats().rejected.saturating_sub(rejected_before).saturating_add(excess);
         if refused > 0 {
-            self.log.issue(t, Issue::DetectionsRefused, refused)?;
+            log.issue(t, Issue::DetectionsRefused, refused)?;
         }
         Ok(Some(outputs))
     }
 
-    pub(super) fn write_raw(
-        &mut self,
+    /// Detections without an anchored ego, as the camera gave them.
+    pub(super) fn write_raw<W: Write, const BUF: usize>(
+        &self,
+        log: &mut LogSink<W, BUF>,
+        classes: &[ClassMeta],
         t: Timestamp,
         frame: u64,
         detections: &[Detection3d],
     ) -> Result<(), PipelineError<W::Error>> {
-        let t_us = self.log.time(t);
+        let t_us = log.time(t);
         for d in detections.iter().take(T3) {
             let b = &d.bbox;
             let [xx, xy, yy] = d.position_covariance.unwrap_or([0.0; 3]);
-            self.log.write(&Record::Detection3d(DetectionRecord {
+            log.write(&Record::Detection3d(DetectionRecord {
                 t_us,
                 frame: i64::try_from(frame).unwrap_or(i64::MAX),
-                class: self.config.classes.get(usize::from(d.class)).map_or(255, |m| m.code),
+                class: classes.get(usize::from(d.class)).map_or(255, |m| m.code),
                 score_e3: quantise(d.score, 1e-3),
                 x_mm: quantise(b.x, 1e-3),
                 y_mm: quantise(b.y, 1e-3),
@@ -146,76 +132,22 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                 cov_xy_mm2: quantise(xy, 1e-6),
                 cov_yy_mm2: quantise(yy, 1e-6),
             }))?;
-            self.log.stats.detections_raw = self.log.stats.detections_raw.saturating_add(1);
+            log.stats.detections_raw = log.stats.detections_raw.saturating_add(1);
         }
         Ok(())
     }
 
-    pub(super) fn write_tracks(
+    /// Frame `frame`'s 2D detections (the pipeline's internal number) into the IoU tracker;
+    /// its tracks to the log.
+    pub(super) fn detections2d<W: Write, const BUF: usize>(
         &mut self,
-        t: Timestamp,
-        ego: &Ego,
-        outputs: &[TrackState],
-    ) -> Result<(), PipelineError<W::Error>> {
-        let t_us = self.log.time(t);
-        let per_second = 1.0 / self.anchoring.frame_interval;
-        // The tracks live in the eased ego's frame; the log has them beside its anchored one.
-        let to_log = ease::Reframe::new(ego.eased, ego.pose);
-        for chunk in outputs.chunks(MAX_TRACKS) {
-            let mut batch = Tracks3d { t_us, tracks: heapless::Vec::new() };
-            for o in chunk {
-                let b = &o.bbox;
-                let (vx, vy) = (o.velocity[0] * per_second, o.velocity[1] * per_second);
-                let meta = self.config.classes.get(usize::from(o.class)).copied();
-                let (x, y) = to_log.point(b.x, b.y);
-                let (log_vx, log_vy) = to_log.vector(vx, vy);
-                // At most MAX_TRACKS per chunk.
-                let _ = batch.tracks.push(Track3d {
-                    id: i64::from(o.id),
-                    class: meta.map_or(255, |m| m.code),
-                    x_mm: quantise(x, 1e-3),
-                    y_mm: quantise(y, 1e-3),
-                    z_mm: quantise(ego.z + b.z, 1e-3),
-                    l_mm: quantise(b.l, 1e-3),
-                    w_mm: quantise(b.w, 1e-3),
-                    h_mm: quantise(b.h, 1e-3),
-                    yaw_e4: quantise(to_log.heading(b.yaw), 1e-4),
-                    vx_mm_s: quantise(log_vx, 1e-3),
-                    vy_mm_s: quantise(log_vy, 1e-3),
-                    is_static: i64::from(o.is_static),
-                });
-            }
-            self.log.write(&Record::Tracks3d(batch))?;
-        }
-        let classes = self.config.classes;
-        let agents = outputs.iter().map(|o| {
-            let kind = classes.get(usize::from(o.class)).map_or(AgentKind::Object, |m| m.kind);
-            // A track reported static is scored standing still: its filtered velocity is the
-            // ego's anchoring corrections seen against the world, not motion.
-            let velocity =
-                if o.is_static { (0.0, 0.0) } else { (o.velocity[0] * per_second, o.velocity[1] * per_second) };
-            let b = &o.bbox;
-            Agent {
-                id: o.id,
-                kind,
-                bbox: OrientedBox { centre: Pose2::new(b.x, b.y, b.yaw), length: b.l, width: b.w },
-                velocity,
-            }
-        });
-        self.windows.agents_reported(t.as_secs_f64(), |id| outputs.iter().any(|o| o.id == id), agents);
-        self.log.stats.track_states = self.log.stats.track_states.saturating_add(outputs.len() as u64);
-        Ok(())
-    }
-
-    pub(super) fn on_detections2d(
-        &mut self,
+        log: &mut LogSink<W, BUF>,
         t: Timestamp,
         frame: u64,
         detections: &[ImageDetection],
     ) -> Result<(), PipelineError<W::Error>> {
-        let frame = frame.saturating_add(self.anchoring.frame_offset);
-        if self.tracking.frames2d.advance(frame).is_err() {
-            return self.log.issue(t, Issue::DetectionsOutOfOrder, 1);
+        if self.frames2d.advance(frame).is_err() {
+            return log.issue(t, Issue::DetectionsOutOfOrder, 1);
         }
         let mut boxes: heapless::Vec<Detection, T2> = heapless::Vec::new();
         let mut excess = 0;
@@ -225,11 +157,10 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             }
         }
         if excess > 0 {
-            self.log.issue(t, Issue::DetectionsRefused, excess)?;
+            log.issue(t, Issue::DetectionsRefused, excess)?;
         }
         let mut outputs: heapless::Vec<crate::track2d::TrackOutput, T2> = heapless::Vec::new();
         if self
-            .tracking
             .trackers
             .tracker2d
             .update(frame, &boxes, |o| {
@@ -237,9 +168,9 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             })
             .is_err()
         {
-            return self.log.issue(t, Issue::DetectionsOutOfOrder, 1);
+            return log.issue(t, Issue::DetectionsOutOfOrder, 1);
         }
-        let t_us = self.log.time(t);
+        let t_us = log.time(t);
         for o in &outputs {
             // The class of the detection that fits the track's box best.
             let class = detections
@@ -250,7 +181,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                 .0
                 .map_or(-1, i64::from);
             let b: &Box2d = &o.bbox;
-            self.log.write(&Record::Track2d(Track2d {
+            log.write(&Record::Track2d(Track2d {
                 t_us,
                 id: i64::from(o.id),
                 class,
@@ -261,7 +192,71 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
                 h_e1: quantise(b.h, 0.1),
             }))?;
         }
-        self.log.stats.track2d_states = self.log.stats.track2d_states.saturating_add(outputs.len() as u64);
+        log.stats.track2d_states = log.stats.track2d_states.saturating_add(outputs.len() as u64);
         Ok(())
     }
+}
+
+/// The tracks reported, in the log's frame beside the anchored ego; `per_second`: frame
+/// numbers per second (for their velocities in m/s).
+pub(super) fn write_tracks<W: Write, const BUF: usize>(
+    log: &mut LogSink<W, BUF>,
+    classes: &[ClassMeta],
+    t: Timestamp,
+    ego: &Ego,
+    per_second: f64,
+    outputs: &[TrackState],
+) -> Result<(), PipelineError<W::Error>> {
+    let t_us = log.time(t);
+    // The tracks live in the eased ego's frame; the log has them beside its anchored one.
+    let to_log = ease::Reframe::new(ego.eased, ego.pose);
+    for chunk in outputs.chunks(MAX_TRACKS) {
+        let mut batch = Tracks3d { t_us, tracks: heapless::Vec::new() };
+        for o in chunk {
+            let b = &o.bbox;
+            let (vx, vy) = (o.velocity[0] * per_second, o.velocity[1] * per_second);
+            let meta = classes.get(usize::from(o.class)).copied();
+            let (x, y) = to_log.point(b.x, b.y);
+            let (log_vx, log_vy) = to_log.vector(vx, vy);
+            // At most MAX_TRACKS per chunk.
+            let _ = batch.tracks.push(Track3d {
+                id: i64::from(o.id),
+                class: meta.map_or(255, |m| m.code),
+                x_mm: quantise(x, 1e-3),
+                y_mm: quantise(y, 1e-3),
+                z_mm: quantise(ego.z + b.z, 1e-3),
+                l_mm: quantise(b.l, 1e-3),
+                w_mm: quantise(b.w, 1e-3),
+                h_mm: quantise(b.h, 1e-3),
+                yaw_e4: quantise(to_log.heading(b.yaw), 1e-4),
+                vx_mm_s: quantise(log_vx, 1e-3),
+                vy_mm_s: quantise(log_vy, 1e-3),
+                is_static: i64::from(o.is_static),
+            });
+        }
+        log.write(&Record::Tracks3d(batch))?;
+    }
+    log.stats.track_states = log.stats.track_states.saturating_add(outputs.len() as u64);
+    Ok(())
+}
+
+/// The tracks reported as the agents the windows score.
+pub(super) fn agents<'o>(
+    classes: &'o [ClassMeta],
+    per_second: f64,
+    outputs: &'o [TrackState],
+) -> impl Iterator<Item = Agent> + 'o {
+    outputs.iter().map(move |o| {
+        let kind = classes.get(usize::from(o.class)).map_or(AgentKind::Object, |m| m.kind);
+        // A track reported static is scored standing still: its filtered velocity is the
+        // ego's anchoring corrections seen against the world, not motion.
+        let velocity = if o.is_static { (0.0, 0.0) } else { (o.velocity[0] * per_second, o.velocity[1] * per_second) };
+        let b = &o.bbox;
+        Agent {
+            id: o.id,
+            kind,
+            bbox: OrientedBox { centre: Pose2::new(b.x, b.y, b.yaw), length: b.l, width: b.w },
+            velocity,
+        }
+    })
 }

@@ -5,15 +5,7 @@
 //! what anchors a phone-grade receiver's fixes at all: the roll about the road is
 //! gravity's to give, no position shows it.
 
-use embedded_io::Write;
 use nalgebra::Vector3;
-
-use super::anchoring::Anchoring;
-use super::sink::LogSink;
-use super::{PipelineError, RelativeMotion};
-use crate::anchor::AnchorMode;
-use crate::sim3::Pose;
-use crate::time::Timestamp;
 
 /// The numbers of poses after which the mean is handed on (at 10 Hz: 1, 3, 10 and 30 s).
 const LEVEL_AT: [u32; 4] = [10, 30, 100, 300];
@@ -44,40 +36,6 @@ impl Vertical {
     /// The poses of the current session it rests on.
     pub(super) fn poses(&self) -> u32 {
         self.poses
-    }
-}
-
-impl Anchoring {
-    /// A VO pose's vertical into the session's mean, and the mean to the anchorer when due:
-    /// `up_in_camera` is the IMU's vertical in the camera's axes (none before its attitude
-    /// has settled). Only for a camera's VO (`relative_motion`) whose frame is not declared
-    /// gravity-aligned already.
-    pub(super) fn level_session<W: Write, const BUF: usize>(
-        &mut self,
-        log: &mut LogSink<W, BUF>,
-        relative_motion: RelativeMotion,
-        up_in_camera: Option<Vector3<f64>>,
-        t: Timestamp,
-        session: u32,
-        pose: &Pose,
-    ) -> Result<(), PipelineError<W::Error>> {
-        if relative_motion != RelativeMotion::Vo || self.anchorer.config().mode != AnchorMode::Full {
-            return Ok(());
-        }
-        let Some(up_in_camera) = up_in_camera else { return Ok(()) };
-        let Some(sum) = self.vertical.push(session, &(pose.rotation * up_in_camera)) else {
-            return Ok(());
-        };
-        let first = self.anchorer.mode() == AnchorMode::Full;
-        if self.anchorer.level(&sum).is_err() || !first {
-            return Ok(());
-        }
-        let poses = self.vertical.poses();
-        log.event(
-            t,
-            2,
-            format_args!("VO session {session} levelled by the IMU's gravity over {poses} poses: anchored gravity-aligned from here"),
-        )
     }
 }
 

@@ -2,8 +2,8 @@
 //! scored as nuPlan scores a log replay, one window after another; each closed window a
 //! record and an event. The stage keeps its own state (the open window, the agents, the
 //! ego's doubt); the anchoring tells it when the device first anchored and how far the ego
-//! is in doubt, the tracking which agents it reports, and the pipeline hands it each
-//! smoothed pose with the log to write to.
+//! is in doubt, the tracking which agents it reports, and the pipeline hands it each eased
+//! pose (smoothed here, [`lag`]) with the log to write to.
 
 use embedded_io::Write;
 
@@ -31,6 +31,8 @@ pub const SETTLE_AFTER_ANCHORED_S: f64 = 3.0;
 /// The open window and the agents it scores.
 #[derive(Debug)]
 pub(super) struct Windows<'a, const T3: usize> {
+    /// The eased ego, smoothed a second late ([`lag`]).
+    lag: lag::FixedLag,
     agents: heapless::Vec<Agent, T3>,
     /// Of `agents`, those the tracker no longer reports, and since when (s).
     lost: heapless::Vec<(u32, f64), KEPT_AGENTS>,
@@ -49,6 +51,7 @@ pub(super) struct Windows<'a, const T3: usize> {
 impl<const T3: usize> Default for Windows<'_, T3> {
     fn default() -> Self {
         Windows {
+            lag: lag::FixedLag::new(),
             agents: heapless::Vec::new(),
             lost: heapless::Vec::new(),
             agents_t: 0.0,
@@ -123,10 +126,38 @@ impl<'a, const T3: usize> Windows<'a, T3> {
         }
     }
 
+    /// The eased ego at `t`: into the smoother, and what it gives out (a second back) scored.
+    pub(super) fn ego<W: Write, const BUF: usize>(
+        &mut self,
+        config: &PipelineConfig<'a>,
+        log: &mut LogSink<W, BUF>,
+        t: Timestamp,
+        eased: Pose2,
+    ) -> Result<(), PipelineError<W::Error>> {
+        for (at, smoothed) in self.lag.push(t, eased) {
+            self.score(config, log, at, &smoothed)?;
+        }
+        Ok(())
+    }
+
+    /// The drive ends at `t`: the poses the smoother still holds scored, the open window
+    /// closed.
+    pub(super) fn finish<W: Write, const BUF: usize>(
+        &mut self,
+        config: &PipelineConfig<'a>,
+        log: &mut LogSink<W, BUF>,
+        t: Timestamp,
+    ) -> Result<(), PipelineError<W::Error>> {
+        for (at, smoothed) in self.lag.flush() {
+            self.score(config, log, at, &smoothed)?;
+        }
+        self.close(log, t)
+    }
+
     /// One smoothed ego pose (of `t`, a second back) into the open verification window: the
     /// agents moved to `t` by their velocity (back, from their latest update); a window
     /// that reached its length is closed at `t`.
-    pub(super) fn score<W: Write, const BUF: usize>(
+    fn score<W: Write, const BUF: usize>(
         &mut self,
         config: &PipelineConfig<'a>,
         log: &mut LogSink<W, BUF>,
@@ -179,7 +210,7 @@ impl<'a, const T3: usize> Windows<'a, T3> {
     /// Closes the open window: its scores with the ego's doubt given to it (the record's
     /// score, as before windows were decided) and held against it bound the window's score,
     /// and decide it (verified, rejected or undecided, as `verify --decide-at` does).
-    pub(super) fn close<W: Write, const BUF: usize>(
+    fn close<W: Write, const BUF: usize>(
         &mut self,
         log: &mut LogSink<W, BUF>,
         t: Timestamp,
