@@ -116,6 +116,20 @@ macro_rules! service {
     };
 }
 
+/// How long opening a service waits for another process still creating it (iceoryx2's
+/// default is 1 s). A logger starved of CPU — a dashcam's busy processor, the recorder at
+/// low priority — can take longer than that between the steps of creating its services:
+/// the camera process's open then failed with `HangsInCreation` where it should have
+/// waited (issue #57).
+pub const CREATION_TIMEOUT: core::time::Duration = core::time::Duration::from_secs(10);
+
+/// A node of this process, its creation timeout [`CREATION_TIMEOUT`].
+fn node() -> Result<Node<ipc::Service>, BridgeError> {
+    let mut config = Config::global_config().clone();
+    config.global.creation_timeout = CREATION_TIMEOUT;
+    NodeBuilder::new().config(&config).create::<ipc::Service>().map_err(|e| iox("node")(&e))
+}
+
 fn micros(t: Timestamp) -> i64 {
     t.micros()
 }
@@ -147,7 +161,7 @@ impl CameraPublisher {
     /// Publishers on the services under `prefix`; `images` adds the image service.
     pub fn new(prefix: &str, images: bool) -> Result<Self, BridgeError> {
         set_log_level_from_env_or(LogLevel::Error);
-        let node = NodeBuilder::new().create::<ipc::Service>().map_err(|e| iox("node")(&e))?;
+        let node = node()?;
         let frame = service!(node, prefix, "frame", FrameMetaMsg).publisher_builder().create();
         let vo = service!(node, prefix, "vo", VoPoseMsg).publisher_builder().create();
         let detections3d = service!(node, prefix, "detections3d", Detections3dMsg).publisher_builder().create();
@@ -470,7 +484,7 @@ fn check(service: &'static str, version: u32) -> Result<(), BridgeError> {
 /// subscribe, and longer on a busy machine.
 pub fn listening(prefix: &str) -> Result<bool, BridgeError> {
     set_log_level_from_env_or(LogLevel::Error);
-    let node = NodeBuilder::new().create::<ipc::Service>().map_err(|e| iox("node")(&e))?;
+    let node = node()?;
     fn subscribed<T: std::fmt::Debug + ZeroCopySend + IceoryxSend>(
         node: &Node<ipc::Service>,
         prefix: &str,
@@ -478,7 +492,11 @@ pub fn listening(prefix: &str) -> Result<bool, BridgeError> {
     ) -> Result<bool, BridgeError> {
         match node.service_builder(&service_name(prefix, leaf)?).publish_subscribe::<T>().open() {
             Ok(service) => Ok(service.dynamic_config().number_of_subscribers() > 0),
-            Err(iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenError::DoesNotExist) => Ok(false),
+            // Not yet, or not yet done: a logger starved of CPU creates its services slowly.
+            Err(
+                iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenError::DoesNotExist
+                | iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenError::HangsInCreation,
+            ) => Ok(false),
             Err(e) => Err(BridgeError::Iceoryx(format!("{prefix}/{leaf}: {e:?}"))),
         }
     }
@@ -494,7 +512,7 @@ impl CameraSubscriber {
     /// Subscribers on the services under `prefix` (created if no publisher exists yet).
     pub fn new(prefix: &str) -> Result<Self, BridgeError> {
         set_log_level_from_env_or(LogLevel::Error);
-        let node = NodeBuilder::new().create::<ipc::Service>().map_err(|e| iox("node")(&e))?;
+        let node = node()?;
         let frame = service!(node, prefix, "frame", FrameMetaMsg).subscriber_builder().create();
         let vo = service!(node, prefix, "vo", VoPoseMsg).subscriber_builder().create();
         let detections3d = service!(node, prefix, "detections3d", Detections3dMsg).subscriber_builder().create();
