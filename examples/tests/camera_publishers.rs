@@ -194,6 +194,49 @@ fn the_rust_and_the_c_publisher_shared_or_static_are_logged_byte_identically() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// What a camera process published before it died waits for a logger that has not drained
+/// it yet (issue #57): the camera process started after it leaves its predecessor's
+/// publishers alone, where iceoryx2's default had it remove them — and with them what a
+/// logger starved of CPU had not yet connected to. Here the late logger is the test's own,
+/// drained only once the second process has published: deterministic, no starving needed.
+#[test]
+fn what_a_killed_camera_process_published_waits_for_a_late_logger() {
+    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let dir = scratch("late");
+    let drive = drive(&dir, 10);
+    let c = c_publisher(&dir);
+    let prefix = format!("dash2sim-test/publishers/late/{}", std::process::id());
+    // Subscribed before either camera process starts, so each publishes to it too.
+    let late = bridge::CameraSubscriber::new(&prefix).expect("the late logger");
+    let mut watch = common::FrameWatch::new(&prefix);
+    let mut count_frames = || watch.frames();
+    let publish = || Command::new(&c).arg(&drive).args(["--prefix", &prefix]).stdout(Stdio::null()).spawn().expect("C");
+    let mut first = publish();
+    wait_for("the first camera process's frames", || count_frames() >= 3);
+    first.kill().expect("SIGKILL");
+    let _ = first.wait();
+    let before = count_frames();
+    let mut second = publish();
+    wait_for("the second camera process's frames", || count_frames() >= before + 3);
+    let mut poses = Vec::new();
+    late.receive(|input| {
+        if let bridge::CameraInput::Vo(_, frame, ..) = input {
+            poses.push(frame);
+        }
+    })
+    .expect("receive");
+    let _ = second.kill();
+    let _ = second.wait();
+    // Both processes number their frames from the drive's first, and each published the
+    // poses of its first two frames at least (a frame's pose follows its metadata, and the
+    // watch saw three frames of each): they are there twice when the first process's reached
+    // the late logger.
+    let first_frame = poses.iter().copied().min().unwrap_or_default();
+    let twice = (first_frame..first_frame + 2).filter(|f| poses.iter().filter(|p| *p == f).count() == 2).count();
+    assert_eq!(twice, 2, "the first process's VO poses and the second's reached the late logger: {poses:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn a_c_camera_process_killed_mid_run_is_a_restart_in_the_log() {
     let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);

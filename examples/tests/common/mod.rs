@@ -42,7 +42,8 @@ pub struct FrameWatch {
 impl FrameWatch {
     /// Subscribed to the services under `prefix`.
     pub fn new(prefix: &str) -> Self {
-        let subscriber = dash2sim_linux::record::bridge::CameraSubscriber::new(prefix).expect("the test's subscriber");
+        let subscriber =
+            dash2sim_linux::record::bridge::CameraSubscriber::beside(prefix).expect("the test's subscriber");
         FrameWatch { subscriber, frames: 0 }
     }
 

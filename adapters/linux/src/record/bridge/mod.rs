@@ -123,11 +123,55 @@ macro_rules! service {
 /// waited (issue #57).
 pub const CREATION_TIMEOUT: core::time::Duration = core::time::Duration::from_secs(10);
 
-/// A node of this process, its creation timeout [`CREATION_TIMEOUT`].
-fn node() -> Result<Node<ipc::Service>, BridgeError> {
+/// Which side of the bridge a node is on: who clears away the resources of a camera process
+/// that died.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Side {
+    /// A camera process (its publishers, its wait for the logger) or a subscriber beside
+    /// the logger: it leaves a dead camera process's publishers alone. iceoryx2's default is to remove every dead node's resources when a
+    /// node is created, a service opened or a node dropped — so a camera process restarted
+    /// after a crash removed its predecessor's publishers, and with them whatever the
+    /// predecessor had published that a logger starved of CPU had not yet connected to and
+    /// drained: lost without a trace (issue #57).
+    Camera,
+    /// The logger: it removes dead nodes' resources once it has drained them
+    /// ([`CameraSubscriber::receive`], at most every [`CLEAR_DEAD_EVERY`]).
+    Logger,
+}
+
+/// How often the logger clears away the resources of camera processes that died, once
+/// drained.
+pub const CLEAR_DEAD_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
+
+/// A node of this process on `side`, its creation timeout [`CREATION_TIMEOUT`].
+fn node(side: Side) -> Result<Node<ipc::Service>, BridgeError> {
     let mut config = Config::global_config().clone();
     config.global.creation_timeout = CREATION_TIMEOUT;
+    if side == Side::Camera {
+        config.global.node.cleanup_dead_nodes_on_creation = false;
+        config.global.node.cleanup_dead_nodes_on_destruction = false;
+        config.global.service.cleanup_dead_nodes_on_open = false;
+    }
     NodeBuilder::new().config(&config).create::<ipc::Service>().map_err(|e| iox("node")(&e))
+}
+
+/// A publisher on `service`. When the service already has its most publishers — those of
+/// camera processes that died, left for a logger to drain, and no logger clearing them — the
+/// dead ones are removed and the publisher made again.
+fn publisher<T: std::fmt::Debug + ZeroCopySend>(
+    service: &iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>,
+    what: &str,
+) -> Result<Publisher<ipc::Service, T, ()>, BridgeError> {
+    use iceoryx2::port::publisher::PublisherCreateError;
+    use iceoryx2::service::port_factory::PortFactory as _;
+    match service.publisher_builder().create() {
+        Err(PublisherCreateError::ExceedsMaxSupportedPublishers) => {
+            service.try_cleanup_dead_nodes();
+            service.publisher_builder().create()
+        }
+        created => created,
+    }
+    .map_err(|e| iox(what)(&e))
 }
 
 fn micros(t: Timestamp) -> i64 {
@@ -161,13 +205,15 @@ impl CameraPublisher {
     /// Publishers on the services under `prefix`; `images` adds the image service.
     pub fn new(prefix: &str, images: bool) -> Result<Self, BridgeError> {
         set_log_level_from_env_or(LogLevel::Error);
-        let node = node()?;
-        let frame = service!(node, prefix, "frame", FrameMetaMsg).publisher_builder().create();
-        let vo = service!(node, prefix, "vo", VoPoseMsg).publisher_builder().create();
-        let detections3d = service!(node, prefix, "detections3d", Detections3dMsg).publisher_builder().create();
-        let detections2d = service!(node, prefix, "detections2d", Detections2dMsg).publisher_builder().create();
-        let keep = service!(node, prefix, "keep", KeepMsg).publisher_builder().create();
-        let imu = service!(node, prefix, "imu", ImuMsg, IMU_SUBSCRIBER_BUFFER).publisher_builder().create();
+        let node = node(Side::Camera)?;
+        let frame = publisher(&service!(node, prefix, "frame", FrameMetaMsg), "frame publisher")?;
+        let vo = publisher(&service!(node, prefix, "vo", VoPoseMsg), "vo publisher")?;
+        let detections3d =
+            publisher(&service!(node, prefix, "detections3d", Detections3dMsg), "detections3d publisher")?;
+        let detections2d =
+            publisher(&service!(node, prefix, "detections2d", Detections2dMsg), "detections2d publisher")?;
+        let keep = publisher(&service!(node, prefix, "keep", KeepMsg), "keep publisher")?;
+        let imu = publisher(&service!(node, prefix, "imu", ImuMsg, IMU_SUBSCRIBER_BUFFER), "imu publisher")?;
         let image = if images {
             let service = node
                 .service_builder(&service_name(prefix, "image")?)
@@ -188,12 +234,12 @@ impl CameraPublisher {
         };
         Ok(CameraPublisher {
             _node: node,
-            frame: frame.map_err(|e| iox("frame publisher")(&e))?,
-            vo: vo.map_err(|e| iox("vo publisher")(&e))?,
-            detections3d: detections3d.map_err(|e| iox("detections3d publisher")(&e))?,
-            detections2d: detections2d.map_err(|e| iox("detections2d publisher")(&e))?,
-            keep: keep.map_err(|e| iox("keep publisher")(&e))?,
-            imu: imu.map_err(|e| iox("imu publisher")(&e))?,
+            frame,
+            vo,
+            detections3d,
+            detections2d,
+            keep,
+            imu,
             imu_sent: std::sync::atomic::AtomicU32::new(0),
             image,
         })
@@ -458,7 +504,11 @@ impl CameraInput {
 /// the order they were published ([`CameraSubscriber::receive_in_order`]).
 #[derive(Debug)]
 pub struct CameraSubscriber {
-    _node: Node<ipc::Service>,
+    node: Node<ipc::Service>,
+    /// Whether it clears away dead camera processes' resources ([`Side::Logger`]).
+    clears: bool,
+    /// When it last did.
+    cleared: std::cell::Cell<std::time::Instant>,
     merge: std::cell::RefCell<merge::Merge>,
     tally: std::cell::RefCell<sequence::Tally>,
     frame: Subscriber<ipc::Service, FrameMetaMsg, ()>,
@@ -484,7 +534,7 @@ fn check(service: &'static str, version: u32) -> Result<(), BridgeError> {
 /// subscribe, and longer on a busy machine.
 pub fn listening(prefix: &str) -> Result<bool, BridgeError> {
     set_log_level_from_env_or(LogLevel::Error);
-    let node = node()?;
+    let node = node(Side::Camera)?;
     fn subscribed<T: std::fmt::Debug + ZeroCopySend + IceoryxSend>(
         node: &Node<ipc::Service>,
         prefix: &str,
@@ -509,10 +559,21 @@ pub fn listening(prefix: &str) -> Result<bool, BridgeError> {
 }
 
 impl CameraSubscriber {
-    /// Subscribers on the services under `prefix` (created if no publisher exists yet).
+    /// The logger's subscribers on the services under `prefix` (created if no publisher
+    /// exists yet); it clears away what camera processes that died leave, once drained.
     pub fn new(prefix: &str) -> Result<Self, BridgeError> {
+        Self::on(prefix, Side::Logger)
+    }
+
+    /// Subscribers beside the logger's (a monitor, a test watching the camera): they leave
+    /// what camera processes that died leave to the logger, which may not have drained it.
+    pub fn beside(prefix: &str) -> Result<Self, BridgeError> {
+        Self::on(prefix, Side::Camera)
+    }
+
+    fn on(prefix: &str, side: Side) -> Result<Self, BridgeError> {
         set_log_level_from_env_or(LogLevel::Error);
-        let node = node()?;
+        let node = node(side)?;
         let frame = service!(node, prefix, "frame", FrameMetaMsg).subscriber_builder().create();
         let vo = service!(node, prefix, "vo", VoPoseMsg).subscriber_builder().create();
         let detections3d = service!(node, prefix, "detections3d", Detections3dMsg).subscriber_builder().create();
@@ -520,7 +581,9 @@ impl CameraSubscriber {
         let keep = service!(node, prefix, "keep", KeepMsg).subscriber_builder().create();
         let imu = service!(node, prefix, "imu", ImuMsg, IMU_SUBSCRIBER_BUFFER).subscriber_builder().create();
         Ok(CameraSubscriber {
-            _node: node,
+            node,
+            clears: side == Side::Logger,
+            cleared: std::cell::Cell::new(std::time::Instant::now()),
             merge: std::cell::RefCell::default(),
             tally: std::cell::RefCell::default(),
             frame: frame.map_err(|e| iox("frame subscriber")(&e))?,
@@ -611,6 +674,12 @@ impl CameraSubscriber {
             check("keep", s.version)?;
             on(CameraInput::Keep(Timestamp::from_micros(s.device_time_us)));
             n += 1;
+        }
+        // Every service drained, from every publisher registered — those of camera processes
+        // that died too ([`Side`]): what they left is in hand, their resources can go.
+        if self.clears && self.cleared.get().elapsed() >= CLEAR_DEAD_EVERY {
+            self.node.try_cleanup_dead_nodes();
+            self.cleared.set(std::time::Instant::now());
         }
         Ok(n)
     }
