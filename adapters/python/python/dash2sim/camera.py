@@ -173,13 +173,14 @@ def logger_listening(prefix: str = DEFAULT_PREFIX) -> bool:
     ``record::bridge::listening``)."""
     iox = _iceoryx2()
     iox.set_log_level_from_env_or(iox.LogLevel.Error)
-    node = iox.NodeBuilder.new().create(iox.ServiceType.Ipc)
+    node = _camera_node(iox)
     for leaf, message in _SERVICES:
         builder = node.service_builder(iox.ServiceName.new(f"{prefix}/{leaf}")).publish_subscribe(message)
         try:
             service = builder.open()
         except iox.PublishSubscribeOpenError as e:
-            if "DoesNotExist" in str(e):
+            # Not yet, or not yet done: a logger starved of CPU creates its services slowly.
+            if "DoesNotExist" in str(e) or "HangsInCreation" in str(e):
                 return False
             raise BridgeError(f"{prefix}/{leaf}: {e!r}") from e
         if service.dynamic_config.number_of_subscribers == 0:
@@ -228,6 +229,25 @@ def _iceoryx2() -> Any:
     return iceoryx2
 
 
+#: How long opening a service waits for another process still creating it, s (iceoryx2's
+#: default is 1 s; a logger starved of CPU takes longer: the Rust side's
+#: ``record::bridge::CREATION_TIMEOUT``).
+CREATION_TIMEOUT_S = 10
+
+
+def _camera_node(iox: Any) -> Any:
+    """A node of the camera's side, as the Rust side's (``record::bridge``, issue #57): it
+    leaves the resources of camera processes that died to the logger, which removes them once
+    it has drained them — iceoryx2's default has every new node remove them, and with them
+    what a starved logger had not yet received."""
+    config = iox.config.default()
+    config.global_cfg.node.cleanup_dead_nodes_on_creation = False
+    config.global_cfg.node.cleanup_dead_nodes_on_destruction = False
+    config.global_cfg.service.cleanup_dead_nodes_on_open = False
+    config.global_cfg.creation_timeout = iox.Duration.from_secs(CREATION_TIMEOUT_S)
+    return iox.NodeBuilder.new().config(config).create(iox.ServiceType.Ipc)
+
+
 def _rows(name: str, values: Any, width: Optional[int], count: int) -> np.ndarray:
     array = np.asarray(values, dtype=np.float64)
     shape = (count, width) if width else (count,)
@@ -256,7 +276,7 @@ class Publisher:
         self._iox = iox
         iox.set_log_level_from_env_or(iox.LogLevel.Error)
         try:
-            self._node = iox.NodeBuilder.new().create(iox.ServiceType.Ipc)
+            self._node = _camera_node(iox)
             self._frame = self._publisher(prefix, "frame", FrameMetaMsg)
             self._vo = self._publisher(prefix, "vo", VoPoseMsg)
             self._detections3d = self._publisher(prefix, "detections3d", Detections3dMsg)
@@ -286,7 +306,17 @@ class Publisher:
         )
 
     def _publisher(self, prefix: str, leaf: str, message: type) -> Any:
-        return self._service(prefix, leaf, message).publisher_builder().create()
+        """A publisher on the service; when it already has its most publishers — those of camera
+        processes that died, left for a logger to drain, and no logger clearing them — the dead
+        ones are removed and it is made again."""
+        service = self._service(prefix, leaf, message)
+        try:
+            return service.publisher_builder().create()
+        except self._iox.PublisherCreateError as e:
+            if "ExceedsMaxSupportedPublishers" not in str(e):
+                raise
+            service.try_cleanup_dead_nodes()
+            return service.publisher_builder().create()
 
     def __enter__(self) -> "Publisher":
         return self
