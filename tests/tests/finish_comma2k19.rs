@@ -235,7 +235,7 @@ fn typical_minute(dir: &std::path::Path, model: &VoModel, seed: u64, label: &str
 /// tracking loss and re-initialisation (a new origin, heading and scale) and without, over
 /// five noise seeds. Each VO session is anchored on its own, so the re-initialised minute
 /// finishes as well as the steady one (it had been hundreds of metres off). The figures are
-/// in docs/fidelity.md (`cargo test --release -p dash2sim-tests --test integration finish_comma2k19:: --
+/// in docs/fidelity.md (`cargo test --release -p dash2sim-tests --test finish_comma2k19 --
 /// --nocapture`).
 #[test]
 fn the_comma2k19_minute_with_a_typical_vo_over_five_noise_seeds() {

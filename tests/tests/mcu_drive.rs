@@ -16,7 +16,7 @@ use dash2sim_sim::scenario::write::write_scenario;
 use dash2sim_sim::scenario::{generate, ScenarioConfig};
 use dash2sim_tests::recorded::scratch;
 
-const REBUILD: &str = "rebuild the stream with DASH2SIM_BLESS=1 cargo test --release -p dash2sim-tests --test integration mcu_drive:: \
+const REBUILD: &str = "rebuild the stream with DASH2SIM_BLESS=1 cargo test --release -p dash2sim-tests --test mcu_drive \
 (the scenario's inputs with its IMU quantised as the LSM6DSO delivers it), the tile with dash2sim scenario generate -o D \
 --seed 1 --duration 20 --receiver good --profile ideal && dash2sim map build D/road.osm -o examples/mcu/drive.d2smap \
 --origin 60.2711,24.8572";

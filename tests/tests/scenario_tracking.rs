@@ -3,7 +3,7 @@
 //! filtered and the RTS-smoothed tracks on the same object-frames, and the static/dynamic
 //! label. Targets: error ≥ 30 % lower after the filter, static/dynamic ≥ 95 % right.
 //!
-//! `cargo test --release -p dash2sim-tests --test integration scenario_tracking:: -- --nocapture` prints
+//! `cargo test --release -p dash2sim-tests --test scenario_tracking -- --nocapture` prints
 //! the figures quoted in docs/tracking.md.
 
 use dash2sim_core::track3d::Config3d;
