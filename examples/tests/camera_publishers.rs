@@ -199,6 +199,23 @@ fn the_rust_and_the_c_publisher_shared_or_static_are_logged_byte_identically() {
 /// publishers alone, where iceoryx2's default had it remove them — and with them what a
 /// logger starved of CPU had not yet connected to. Here the late logger is the test's own,
 /// drained only once the second process has published: deterministic, no starving needed.
+/// The C camera process publishing `drive`, SIGKILLed once three of its frames are out, and a
+/// second one started in its place, returned once three of its frames are out with the number
+/// of frames seen by then. The test watches the frames itself (its own subscriber, beside the
+/// logger's).
+fn killed_and_restarted(c: &Path, drive: &Path, prefix: &str) -> (Child, u64) {
+    let mut watch = common::FrameWatch::new(prefix);
+    let publish = || Command::new(c).arg(drive).args(["--prefix", prefix]).stdout(Stdio::null()).spawn().expect("C");
+    let mut first = publish();
+    wait_for("the first camera process's frames", || watch.frames() >= 3);
+    first.kill().expect("SIGKILL");
+    let _ = first.wait();
+    let before = watch.frames();
+    let second = publish();
+    wait_for("the second camera process's frames", || watch.frames() >= before + 3);
+    (second, watch.frames())
+}
+
 #[test]
 fn what_a_killed_camera_process_published_waits_for_a_late_logger() {
     let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -208,16 +225,7 @@ fn what_a_killed_camera_process_published_waits_for_a_late_logger() {
     let prefix = format!("dash2sim-test/publishers/late/{}", std::process::id());
     // Subscribed before either camera process starts, so each publishes to it too.
     let late = bridge::CameraSubscriber::new(&prefix).expect("the late logger");
-    let mut watch = common::FrameWatch::new(&prefix);
-    let mut count_frames = || watch.frames();
-    let publish = || Command::new(&c).arg(&drive).args(["--prefix", &prefix]).stdout(Stdio::null()).spawn().expect("C");
-    let mut first = publish();
-    wait_for("the first camera process's frames", || count_frames() >= 3);
-    first.kill().expect("SIGKILL");
-    let _ = first.wait();
-    let before = count_frames();
-    let mut second = publish();
-    wait_for("the second camera process's frames", || count_frames() >= before + 3);
+    let (mut second, _) = killed_and_restarted(&c, &drive, &prefix);
     let mut poses = Vec::new();
     late.receive(|input| {
         if let bridge::CameraInput::Vo(_, frame, ..) = input {
@@ -246,18 +254,7 @@ fn a_c_camera_process_killed_mid_run_is_a_restart_in_the_log() {
     let prefix = format!("dash2sim-test/publishers/killed/{}", std::process::id());
     let out = dir.join("log");
     let record = logger(&prefix, &out);
-    // The test watches the frames too (its own subscriber, beside the logger's), to kill the
-    // first process once it has published and to stop the logger once the second has.
-    let mut watch = common::FrameWatch::new(&prefix);
-    let mut count_frames = || watch.frames();
-    let publish = || Command::new(&c).arg(&drive).args(["--prefix", &prefix]).stdout(Stdio::null()).spawn().expect("C");
-    let mut first = publish();
-    wait_for("the first camera process's frames", || count_frames() >= 3);
-    first.kill().expect("SIGKILL");
-    let _ = first.wait();
-    let before = count_frames();
-    let mut second = publish();
-    wait_for("the second camera process's frames", || count_frames() >= before + 3);
+    let (mut second, seen) = killed_and_restarted(&c, &drive, &prefix);
     let output = stopped(record, "the logger kept running");
     let _ = second.kill();
     let _ = second.wait();
@@ -267,8 +264,7 @@ fn a_c_camera_process_killed_mid_run_is_a_restart_in_the_log() {
     assert_eq!(
         frames.restarts,
         1,
-        "the restart is in the frame numbers: {frames:?}; the test saw {} frames; the logger said: {}{}",
-        count_frames(),
+        "the restart is in the frame numbers: {frames:?}; the test saw {seen} frames; the logger said: {}{}",
         String::from_utf8_lossy(&output.stdout),
         String::from_utf8_lossy(&output.stderr)
     );
