@@ -194,11 +194,6 @@ fn the_rust_and_the_c_publisher_shared_or_static_are_logged_byte_identically() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// What a camera process published before it died waits for a logger that has not drained
-/// it yet (issue #57): the camera process started after it leaves its predecessor's
-/// publishers alone, where iceoryx2's default had it remove them — and with them what a
-/// logger starved of CPU had not yet connected to. Here the late logger is the test's own,
-/// drained only once the second process has published: deterministic, no starving needed.
 /// The C camera process publishing `drive`, SIGKILLed once three of its frames are out, and a
 /// second one started in its place, returned once three of its frames are out with the number
 /// of frames seen by then. The test watches the frames itself (its own subscriber, beside the
@@ -216,6 +211,11 @@ fn killed_and_restarted(c: &Path, drive: &Path, prefix: &str) -> (Child, u64) {
     (second, watch.frames())
 }
 
+/// What a camera process published before it died waits for a logger that has not drained
+/// it yet (issue #57): the camera process started after it leaves its predecessor's
+/// publishers alone, where iceoryx2's default had it remove them — and with them what a
+/// logger starved of CPU had not yet connected to. Here the late logger is the test's own,
+/// drained only once the second process has published: deterministic, no starving needed.
 #[test]
 fn what_a_killed_camera_process_published_waits_for_a_late_logger() {
     let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
