@@ -89,10 +89,15 @@ mod tests {
         let e = Error::request(Field::Map, "the nuPlan export needs one (a tile or an OpenStreetMap file)");
         assert_eq!(e.to_string(), "the map: the nuPlan export needs one (a tile or an OpenStreetMap file)");
         assert_eq!(message(&e), "--map: the nuPlan export needs one (a tile or an OpenStreetMap file)");
-        let e = Error::FeatureMissing { field: Field::Parquet, part: "Parquet export", feature: "parquet" };
+        let e = Error::FeatureMissing {
+            field: Field::Parquet,
+            krate: "dash2sim-export",
+            part: "Parquet export",
+            feature: "parquet",
+        };
         assert_eq!(
             message(&e),
-            "--parquet: this build of dash2sim-linux has no Parquet export (its `parquet` feature)"
+            "--parquet: this build of dash2sim-export has no Parquet export (its `parquet` feature)"
         );
         let e = Error::request(Field::ImportSources, "nothing to import");
         assert_eq!(message(&e), "nothing to import (--nmea, --can, --traj or --objects)");

@@ -2,8 +2,8 @@
 //! [--commonroad F.xml] [--scenarionet DIR] [--openscenario DIR] [--map MAP|OSM]`: one log into
 //! every format asked for — Foxglove (MCAP), evo (TUM), QGIS (GeoJSON), DuckDB/pandas/Spark
 //! (Parquet), nuPlan, CommonRoad, ScenarioNet, OpenSCENARIO with OpenDRIVE. The exporters are
-//! in the host library's `log` and here (`nuplan`, `commonroad`, `scenarionet`, `openscenario` and `opendrive`, on
-//! the shared `road` and `ticks`); this module only reads the request and calls them.
+//! in the host library's `log` (MCAP, TUM, GeoJSON) and here (`parquet`, `nuplan`, `commonroad`, `scenarionet`,
+//! `openscenario` and `opendrive`, on the shared `road` and `ticks`); this module only reads the request and calls them.
 //!
 //! The crate `dash2sim-export` (issue #56: the exports out of the host library).
 #![forbid(unsafe_code)]
@@ -16,6 +16,8 @@ pub mod junctions;
 pub mod nuplan;
 pub mod opendrive;
 pub mod openscenario;
+#[cfg(feature = "parquet")]
+pub mod parquet;
 mod partial;
 pub mod pickle;
 pub mod plan_view;
@@ -201,14 +203,19 @@ pub fn export(request: &ExportRequest) -> Result<Exported> {
 fn parquet(log: &LogContents, request: &ExportRequest, dir: &Path) -> Result<String> {
     let stem = request.log.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let id = request.log_id.clone().unwrap_or(stem);
-    let rows = dash2sim_linux::log::parquet_export::write(log, &id, dir)?;
+    let rows = parquet::write(log, &id, dir)?;
     let each: Vec<String> = rows.iter().map(|(name, n)| format!("{n} {name}")).collect();
     Ok(format!("{}: {} (log id {id:?})", dir.display(), each.join(", ")))
 }
 
 #[cfg(not(feature = "parquet"))]
 fn parquet(_: &LogContents, _: &ExportRequest, _: &Path) -> Result<String> {
-    Err(Error::FeatureMissing { field: Field::Parquet, part: "Parquet export", feature: "parquet" })
+    Err(Error::FeatureMissing {
+        field: Field::Parquet,
+        krate: env!("CARGO_PKG_NAME"),
+        part: "Parquet export",
+        feature: "parquet",
+    })
 }
 
 /// The nuPlan log database and map written: what they hold.
@@ -342,5 +349,10 @@ pub fn opendrive_line(path: &Path, d: &opendrive::OpenDrive) -> String {
 
 #[cfg(not(feature = "nuplan"))]
 fn nuplan(_: &LogContents, _: &ExportRequest, _: &[u8], _: &Path, _: &Path) -> Result<String> {
-    Err(Error::FeatureMissing { field: Field::Nuplan, part: "nuPlan export", feature: "nuplan" })
+    Err(Error::FeatureMissing {
+        field: Field::Nuplan,
+        krate: env!("CARGO_PKG_NAME"),
+        part: "nuPlan export",
+        feature: "nuplan",
+    })
 }

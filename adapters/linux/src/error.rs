@@ -42,10 +42,12 @@ pub enum Error {
         source: Source,
     },
     /// The request needs a part this build of the library was made without.
-    #[error("this build of dash2sim-linux has no {part} (its `{feature}` feature)")]
+    #[error("this build of {krate} has no {part} (its `{feature}` feature)")]
     FeatureMissing {
         /// The field of the request that asked for it.
         field: Field,
+        /// The crate whose feature it is (`dash2sim-export`).
+        krate: &'static str,
         /// The part (`Parquet export`).
         part: &'static str,
         /// The cargo feature that brings it.
@@ -221,8 +223,13 @@ mod tests {
         assert_eq!(e.to_string(), "map: not a dash2sim map tile (bad magic)");
         assert!(std::error::Error::source(&e).is_some());
         assert!(e.io().is_none());
-        let e = Error::FeatureMissing { field: Field::Parquet, part: "Parquet export", feature: "parquet" };
-        assert_eq!(e.to_string(), "this build of dash2sim-linux has no Parquet export (its `parquet` feature)");
+        let e = Error::FeatureMissing {
+            field: Field::Parquet,
+            krate: "dash2sim-export",
+            part: "Parquet export",
+            feature: "parquet",
+        };
+        assert_eq!(e.to_string(), "this build of dash2sim-export has no Parquet export (its `parquet` feature)");
         let e = Error::request(Field::Keyframe, "20 s is not between 0.05 and 10 s");
         assert_eq!(e.to_string(), "the key-frame spacing: 20 s is not between 0.05 and 10 s");
     }

@@ -11,9 +11,10 @@
 use std::path::PathBuf;
 
 use dash2sim_core::obb::{Footprint, PACIFICA};
+use dash2sim_export::parquet;
 use dash2sim_export::ExportRequest;
 use dash2sim_finish::FinishRequest;
-use dash2sim_linux::log::{self, parquet_export};
+use dash2sim_linux::log;
 use dash2sim_linux::record::{Device, VoFrame};
 use dash2sim_verify::{EgoSource, VerifyRequest};
 use pyo3::create_exception;
@@ -45,11 +46,11 @@ fn read_log(py: Python<'_>, path: PathBuf, log_id: Option<String>) -> PyResult<V
     let streams = py
         .detach(|| -> dash2sim_linux::Result<Vec<(&'static str, Vec<u8>)>> {
             let log = log::read(&path).map_err(dash2sim_linux::Error::other)?;
-            let tables = parquet_export::tables(&log, &id_of(&path, log_id))?;
+            let tables = parquet::tables(&log, &id_of(&path, log_id))?;
             tables
                 .tables
                 .iter()
-                .map(|(name, batch)| Ok((*name, parquet_export::ipc_stream(batch, &tables.metadata)?)))
+                .map(|(name, batch)| Ok((*name, parquet::ipc_stream(batch, &tables.metadata)?)))
                 .collect()
         })
         .map_err(error)?;

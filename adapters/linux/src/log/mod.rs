@@ -6,8 +6,6 @@ pub mod export;
 pub mod import;
 pub mod inspect;
 pub mod mcap_export;
-#[cfg(feature = "parquet")]
-pub mod parquet_export;
 pub mod signing;
 pub mod store;
 

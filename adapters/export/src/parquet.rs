@@ -19,10 +19,10 @@ use parquet::basic::{Compression, ZstdLevel};
 use parquet::file::metadata::KeyValue;
 use parquet::file::properties::WriterProperties;
 
-use super::export::tracks;
-use super::LogContents;
-use crate::{Error, Result};
 use dash2sim_core::class::name_of as class_name;
+use dash2sim_linux::log::export::tracks;
+use dash2sim_linux::log::{frame, LogContents};
+use dash2sim_linux::{Error, Result};
 
 /// The version of the schema in `docs/parquet.md`, in every file's metadata.
 pub const SCHEMA_VERSION: &str = "1";
@@ -168,7 +168,7 @@ pub fn write(log: &LogContents, log_id: &str, dir: &Path) -> Result<Vec<(&'stati
 /// `log` as Arrow tables, `log_id` in every row.
 pub fn tables(log: &LogContents, log_id: &str) -> Result<LogTables> {
     let header = log.header.ok_or_else(|| Error::invalid("the log's header is damaged: no origin to place it"))?;
-    let frame = super::frame(&header).ok_or_else(|| Error::invalid("the header's origin is not a position"))?;
+    let frame = frame(&header).ok_or_else(|| Error::invalid("the header's origin is not a position"))?;
     let [lat0, lon0, h0] =
         [header.origin[0] as f64 * 1e-7, header.origin[1] as f64 * 1e-7, header.origin[2] as f64 * 1e-3];
     let device = String::from_utf8_lossy(&header.device_id).trim_end_matches('\0').to_owned();
