@@ -5,7 +5,7 @@ PDM-Closed runs on the nuPlan export (docs/verify.md).
 
 For each scenario (its planning problem: the logged ego's state at the first step, a goal
 region around where the ego is at the last), the reactive planner (commonroad-reactive-planner,
-its default configuration: sampling in a Frenet frame along the route planner's reference path
+its default configuration, its kinematic checks in one process: sampling in a Frenet frame along the route planner's reference path
 to the goal, replanning every step) drives closed-loop from the initial state until the goal is
 reached, no feasible trajectory is left, or twice the scenario's steps have passed. Its driven
 states are then judged by the drivability checker as `scripts/commonroad_check.py` judges the
@@ -48,6 +48,11 @@ def plan(path: Path) -> dict:
     problem = next(iter(problems.planning_problem_dict.values()))
     config = ReactivePlannerConfiguration()
     config.update(scenario=scenario, planning_problem=problem)
+    # The kinematic checks in this process: by default the planner forks six worker processes
+    # (copies of this one, a GB each) at every step and merges their lists before sorting them
+    # by cost, which on CI's two cores cost more than the checks themselves. Same trajectories,
+    # same order after the sort.
+    config.debug.multiproc = False
     route = generate_reference_path_from_scenario_and_planning_problem(scenario, problem)
     planner = ReactivePlanner(config)
     cosys = CoordinateSystem(route.reference_path, clcs_params=CLCSParams(processing_option=ProcessingOption.SPLINE_SMOOTHING))
