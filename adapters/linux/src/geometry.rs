@@ -1,6 +1,11 @@
 //! Plane geometry of lanes and map layers: polylines offset, cut and measured; bands,
 //! capsules, hulls; point-in-polygon. Metres in a plane (a tile's ENU frame, nuPlan's UTM).
 //! A leaf: map tiles, the nuPlan export and the plot share it.
+//!
+//! The small measures called per segment in the map lookups (`length`, `point_at`,
+//! `heading_at`, `segment_distance`, `nearest_arc`, `contains`) are `#[inline]`: since issue
+//! #56 their callers live in other crates (verify, export, sim), where a non-generic function
+//! is not inlined without it (perf showed `segment_distance` called, not inlined, in verify).
 
 /// The polyline `points` moved `offset` metres to its left (miter joins, limited to 4×).
 pub fn offset_polyline(points: &[(f64, f64)], offset: f64) -> Vec<(f64, f64)> {
@@ -41,6 +46,7 @@ const CAP_POINTS: usize = 16;
 pub type Line = Vec<(f64, f64)>;
 
 /// Arc length of `line`.
+#[inline]
 pub fn length(line: &[(f64, f64)]) -> f64 {
     line.windows(2).map(|w| (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1)).sum()
 }
@@ -122,6 +128,7 @@ pub fn hull(mut points: Vec<(f64, f64)>) -> Line {
 }
 
 /// The point at arc length `s` along `line` (clamped to its ends).
+#[inline]
 pub fn point_at(line: &[(f64, f64)], s: f64) -> (f64, f64) {
     let mut at = 0.0;
     for w in line.windows(2) {
@@ -136,6 +143,7 @@ pub fn point_at(line: &[(f64, f64)], s: f64) -> (f64, f64) {
 }
 
 /// The direction of travel at arc length `s`, rad (that of the segment holding `s`).
+#[inline]
 pub fn heading_at(line: &[(f64, f64)], s: f64) -> f64 {
     let mut at = 0.0;
     let mut heading = 0.0;
@@ -153,6 +161,7 @@ pub fn heading_at(line: &[(f64, f64)], s: f64) -> f64 {
 }
 
 /// Distance from `p` to the segment `a`–`b`, and the fraction along it of the nearest point.
+#[inline]
 pub fn segment_distance(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> (f64, f64) {
     let (dx, dy) = (b.0 - a.0, b.1 - a.1);
     let l2 = dx * dx + dy * dy;
@@ -177,6 +186,7 @@ pub fn convex_gap(a: &[(f64, f64)], b: &[(f64, f64)]) -> f64 {
 }
 
 /// Arc length along `line` of the point nearest `p`.
+#[inline]
 pub fn nearest_arc(line: &[(f64, f64)], p: (f64, f64)) -> f64 {
     let (mut best, mut best_s, mut at) = (f64::INFINITY, 0.0, 0.0);
     for w in line.windows(2) {
@@ -191,6 +201,7 @@ pub fn nearest_arc(line: &[(f64, f64)], p: (f64, f64)) -> f64 {
 }
 
 /// Whether `p` lies inside the ring (even-odd rule; the ring need not be closed).
+#[inline]
 pub fn contains(ring: &[(f64, f64)], p: (f64, f64)) -> bool {
     let mut inside = false;
     let n = ring.len();
