@@ -11,7 +11,8 @@
 use std::path::{Path, PathBuf};
 
 use dash2sim_core::binlog::Kind;
-use dash2sim_linux::log::{self, import::ImportRequest, mcap_export};
+use dash2sim_export::mcap;
+use dash2sim_linux::log::{self, import::ImportRequest};
 use dash2sim_sim::datasets::comma::{self, ublox_nmea};
 use dash2sim_sim::scenario::write::{import_request, write_scenario};
 use dash2sim_sim::scenario::{generate, ScenarioConfig};
@@ -27,7 +28,7 @@ fn scratch(name: &str) -> PathBuf {
 fn check_size(name: &str, log_path: &Path, mcap_path: &Path) {
     let log = log::read(log_path).expect("a log");
     assert_eq!(log.stats.damaged, 0);
-    mcap_export::write(&log, None, mcap_path, Some(&mcap_export::ONE_TOPIC_PER_KIND)).expect("mcap");
+    mcap::write(&log, None, mcap_path, Some(&mcap::ONE_TOPIC_PER_KIND)).expect("mcap");
     let (a, b) = log.stats.time_span.expect("records");
     let minutes = (b - a) as f64 / 60e6;
     let i = Kind::ALL.iter().position(|k| *k == Kind::EgoPose).expect("kind");
@@ -81,7 +82,7 @@ fn a_work_zone_drive_with_3d_tracks_is_a_third_of_its_mcap() {
     let request = import_request(&scenario, &drive, output.clone()).expect("request");
     log::import::import(&request, &mut |problem| panic!("{problem}")).expect("import");
     let log = log::read(&output).expect("log");
-    let tracks = log::export::tracks(&log).count();
+    let tracks = log::views::tracks(&log).count();
     assert!(tracks > 10_000, "{tracks} 3D track records");
     check_size(&format!("work zone ({tracks} tracks)"), &output, &work.join("same.mcap"));
 }

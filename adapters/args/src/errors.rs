@@ -50,6 +50,7 @@ pub fn words(field: Field) -> Words {
         Field::Forget => Words::flag("--forget"),
         Field::Keyframe => Words::flag("--keyframe"),
         Field::Formats => Words::choice("--mcap, --tum, --geojson, --parquet, --nuplan, --commonroad, --scenarionet and/or --openscenario"),
+        Field::Mcap => Words::flag("--mcap"),
         Field::Parquet => Words::flag("--parquet"),
         Field::Nuplan => Words::flag("--nuplan"),
         Field::ScenarioSeconds => Words::flag("--scenario-seconds"),

@@ -1,9 +1,10 @@
 //! `dash2sim export LOG [--mcap F] [--tum F] [--geojson F] [--parquet DIR] [--nuplan DIR]
 //! [--commonroad F.xml] [--scenarionet DIR] [--openscenario DIR] [--map MAP|OSM]`: one log into
 //! every format asked for — Foxglove (MCAP), evo (TUM), QGIS (GeoJSON), DuckDB/pandas/Spark
-//! (Parquet), nuPlan, CommonRoad, ScenarioNet, OpenSCENARIO with OpenDRIVE. The exporters are
-//! in the host library's `log` (MCAP, TUM, GeoJSON) and here (`parquet`, `nuplan`, `commonroad`, `scenarionet`,
-//! `openscenario` and `opendrive`, on the shared `road` and `ticks`); this module only reads the request and calls them.
+//! (Parquet), nuPlan, CommonRoad, ScenarioNet, OpenSCENARIO with OpenDRIVE. Each exporter is a
+//! module (`mcap`, `tum`, `geojson`, `parquet`, `nuplan`, `commonroad`, `scenarionet`,
+//! `openscenario` and `opendrive`, on the shared `road` and `ticks`; the log's views they read
+//! are the host library's `log::views`); this module only reads the request and calls them.
 //!
 //! The crate `dash2sim-export` (issue #56: the exports out of the host library).
 #![forbid(unsafe_code)]
@@ -11,7 +12,10 @@
 #![deny(clippy::print_stdout, clippy::print_stderr)]
 
 pub mod commonroad;
+pub mod geojson;
 pub mod junctions;
+#[cfg(feature = "mcap")]
+pub mod mcap;
 #[cfg(feature = "nuplan")]
 pub mod nuplan;
 pub mod opendrive;
@@ -26,13 +30,14 @@ mod request;
 pub mod road;
 pub mod scenarionet;
 pub mod ticks;
+pub mod tum;
 
 pub use request::ScenarioRequest;
 
 use std::path::{Path, PathBuf};
 
-use dash2sim_linux::log::export::{ego_poses, geojson, tum};
-use dash2sim_linux::log::{frame, mcap_export, read, LogContents};
+use dash2sim_linux::log::views::ego_poses;
+use dash2sim_linux::log::{frame, read, LogContents};
 use dash2sim_linux::{Error, Field, Result};
 
 /// What to export (`dash2sim export`).
@@ -141,11 +146,11 @@ pub fn export(request: &ExportRequest) -> Result<Exported> {
                 "no ego poses to write as TUM (a log of GNSS and speed only has none; its GeoJSON and MCAP exports carry its fixes)",
             ));
         }
-        write(path, &tum(&log))?;
+        write(path, &tum::tum(&log))?;
         exported.written.push(format!("{}: {n} ego poses", path.display()));
     }
     if let Some(path) = &request.geojson {
-        let g = geojson(&log)?;
+        let g = geojson::geojson(&log)?;
         write(path, &g.to_string())?;
         exported.written.push(format!("{}: {} features", path.display(), g["features"].as_array().map_or(0, Vec::len)));
     }
@@ -188,14 +193,29 @@ pub fn export(request: &ExportRequest) -> Result<Exported> {
         exported.written.extend(openscenario(&log, request, tile, dir)?);
     }
     if let Some(path) = &request.mcap {
-        let view =
-            map.as_deref().map(dash2sim_core::map::MapView::parse).transpose().map_err(|e| Error::refused("map", e))?;
-        let counts = mcap_export::write(&log, view.as_ref(), path, None)?;
-        let total: u64 = counts.values().sum();
-        let detail: Vec<String> = counts.iter().map(|(topic, n)| format!("{n} {topic}")).collect();
-        exported.written.push(format!("{}: {total} messages ({})", path.display(), detail.join(", ")));
+        exported.written.push(mcap(&log, map.as_deref(), path)?);
     }
     Ok(exported)
+}
+
+/// The MCAP file written: how many messages on which topics.
+#[cfg(feature = "mcap")]
+fn mcap(log: &LogContents, map: Option<&[u8]>, path: &Path) -> Result<String> {
+    let view = map.map(dash2sim_core::map::MapView::parse).transpose().map_err(|e| Error::refused("map", e))?;
+    let counts = mcap::write(log, view.as_ref(), path, None)?;
+    let total: u64 = counts.values().sum();
+    let detail: Vec<String> = counts.iter().map(|(topic, n)| format!("{n} {topic}")).collect();
+    Ok(format!("{}: {total} messages ({})", path.display(), detail.join(", ")))
+}
+
+#[cfg(not(feature = "mcap"))]
+fn mcap(_: &LogContents, _: Option<&[u8]>, _: &Path) -> Result<String> {
+    Err(Error::FeatureMissing {
+        field: Field::Mcap,
+        krate: env!("CARGO_PKG_NAME"),
+        part: "MCAP export",
+        feature: "mcap",
+    })
 }
 
 /// The Parquet folder written: what it holds.

@@ -20,7 +20,7 @@ use parquet::file::metadata::KeyValue;
 use parquet::file::properties::WriterProperties;
 
 use dash2sim_core::class::name_of as class_name;
-use dash2sim_linux::log::export::tracks;
+use dash2sim_linux::log::views::tracks;
 use dash2sim_linux::log::{frame, LogContents};
 use dash2sim_linux::{Error, Result};
 

@@ -13,7 +13,7 @@ use dash2sim_core::nalgebra::Vector3;
 use dash2sim_core::obb::{Pose2, PACIFICA};
 
 use super::projection::Projection;
-use dash2sim_linux::log::export::{standing_objects, track_velocity};
+use dash2sim_linux::log::views::{standing_objects, track_velocity};
 use dash2sim_linux::log::LogContents;
 use dash2sim_linux::{Error, Field, Result};
 

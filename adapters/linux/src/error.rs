@@ -114,6 +114,8 @@ pub enum Field {
     Keyframe,
     /// The export formats asked for.
     Formats,
+    /// The MCAP export.
+    Mcap,
     /// The Parquet export.
     Parquet,
     /// The nuPlan export.
@@ -153,6 +155,7 @@ impl std::fmt::Display for Field {
             Field::Forget => "the forgetting time",
             Field::Keyframe => "the key-frame spacing",
             Field::Formats => "the export formats",
+            Field::Mcap => "the MCAP export",
             Field::Parquet => "the Parquet export",
             Field::Nuplan => "the nuPlan export",
             Field::ScenarioSeconds => "the scenario length",

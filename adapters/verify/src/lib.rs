@@ -80,7 +80,7 @@ pub struct StatedUncertainty {
 impl StatedUncertainty {
     /// What `log` states.
     pub fn of(log: &dash2sim_linux::log::LogContents) -> Self {
-        let ego = dash2sim_linux::log::export::ego_poses(log).map(|p| p.sigma_mm.max(0) as f64 * 1e-3).collect();
+        let ego = dash2sim_linux::log::views::ego_poses(log).map(|p| p.sigma_mm.max(0) as f64 * 1e-3).collect();
         let tracks = log
             .records
             .iter()
@@ -132,7 +132,7 @@ pub fn from_contents(
 ) -> Result<(Vec<(f64, Pose2)>, AgentsByTime)> {
     use dash2sim_core::geo::{Geodetic, LocalFrame};
     use dash2sim_core::nalgebra::Vector3;
-    use dash2sim_linux::log::export::{ego_enu, ego_poses, standing_objects, tracks};
+    use dash2sim_linux::log::views::{ego_enu, ego_poses, standing_objects, tracks};
     let header = log.header.ok_or_else(|| Error::invalid(format!("{name}: the header is damaged (no origin)")))?;
     let log_frame =
         dash2sim_linux::log::frame(&header).ok_or_else(|| Error::invalid(format!("{name}: invalid origin")))?;
@@ -185,7 +185,7 @@ pub fn from_contents(
 }
 
 /// The agent a logged track state is, its centre at `at` in the map's frame; a track the
-/// log reports static stands still ([`dash2sim_linux::log::export::track_velocity`]).
+/// log reports static stands still ([`dash2sim_linux::log::views::track_velocity`]).
 fn agent_of(t: &dash2sim_core::binlog::Track3d, at: (f64, f64)) -> Agent {
     Agent {
         id: u32::try_from(t.id).unwrap_or(u32::MAX),
@@ -195,7 +195,7 @@ fn agent_of(t: &dash2sim_core::binlog::Track3d, at: (f64, f64)) -> Agent {
             length: t.l_mm as f64 * 1e-3,
             width: t.w_mm as f64 * 1e-3,
         },
-        velocity: dash2sim_linux::log::export::track_velocity(t),
+        velocity: dash2sim_linux::log::views::track_velocity(t),
     }
 }
 

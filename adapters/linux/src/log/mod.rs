@@ -1,13 +1,13 @@
 //! The 4D log on the desktop: reading a whole file through the core's push decoder,
-//! `dash2sim import` (existing recordings → log), `inspect` and `export` (MCAP with
-//! Foxglove schemas, TUM, GeoJSON). The format is the core's (`docs/binlog.md`).
+//! `dash2sim import` (existing recordings → log), `inspect`, and the views of a log its
+//! readers share (`views`). The format is the core's (`docs/binlog.md`); the writers of other
+//! formats are the `dash2sim-export` crate.
 
-pub mod export;
 pub mod import;
 pub mod inspect;
-pub mod mcap_export;
 pub mod signing;
 pub mod store;
+pub mod views;
 
 use std::path::Path;
 

@@ -356,10 +356,10 @@ pub fn run(dir: &Path, out: &Path) -> Result<Report> {
     write(&finished_path, &finished_bytes)?;
     let finished_log = log::decode(&finished_bytes, "finished").map_err(Error::other)?;
 
-    write(&out.join("ego.tum"), log::export::tum(log))?;
-    write(&out.join("finished.tum"), log::export::tum(&finished_log))?;
-    write(&out.join("drive.geojson"), log::export::geojson(&finished_log)?.to_string())?;
-    log::mcap_export::write(&finished_log, None, &out.join("finished.mcap"), None)?;
+    write(&out.join("ego.tum"), dash2sim_export::tum::tum(log))?;
+    write(&out.join("finished.tum"), dash2sim_export::tum::tum(&finished_log))?;
+    write(&out.join("drive.geojson"), dash2sim_export::geojson::geojson(&finished_log)?.to_string())?;
+    dash2sim_export::mcap::write(&finished_log, None, &out.join("finished.mcap"), None)?;
 
     let evo_path = dir.join("expected/evo_ape_gnss_vs_pose.json");
     let evo: Value = serde_json::from_str(&std::fs::read_to_string(&evo_path).map_err(|e| Error::file(&evo_path, e))?)

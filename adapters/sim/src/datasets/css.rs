@@ -256,8 +256,8 @@ pub fn run(dir: &Path, out: &Path) -> Result<Report> {
     let pairs = speed_pairs(&log.records, &fixes);
     let mean_abs = pairs.iter().map(|(a, b)| (a - b).abs()).sum::<f64>() / pairs.len().max(1) as f64;
 
-    write(&out.join("drive.geojson"), log::export::geojson(&log)?.to_string())?;
-    log::mcap_export::write(&log, None, &out.join("drive.mcap"), None)?;
+    write(&out.join("drive.geojson"), dash2sim_export::geojson::geojson(&log)?.to_string())?;
+    dash2sim_export::mcap::write(&log, None, &out.join("drive.mcap"), None)?;
 
     let expected = |name: &str| Csv::read(&dir.join("expected").join(format!("3BA199E2_session164.{name}.csv")));
     let (positions, odo) = (expected("gnss_pos")?, expected("gnss_odo")?);

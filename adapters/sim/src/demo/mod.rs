@@ -146,7 +146,7 @@ fn write_file(path: &Path, contents: impl AsRef<[u8]>) -> Result<()> {
 /// Distinct 3D tracks per class name.
 fn tracks_by_class(log: &LogContents) -> BTreeMap<&'static str, usize> {
     let mut ids: BTreeMap<&'static str, BTreeSet<i64>> = BTreeMap::new();
-    for (_, track) in log::export::tracks(log) {
+    for (_, track) in log::views::tracks(log) {
         ids.entry(dash2sim_core::class::name_of(track.class)).or_default().insert(track.id);
     }
     ids.into_iter().map(|(class, set)| (class, set.len())).collect()
@@ -271,11 +271,11 @@ pub fn run(request: &DemoRequest, progress: &dyn Progress) -> Result<DemoReport>
     let truth_tracking = evaluate_tracking::<64>(&scenario, tracker_config(&classes));
 
     progress.step(6, STEPS, "exporting MCAP (Foxglove), TUM (evo), GeoJSON (QGIS) and the nuPlan database and map");
-    let messages: u64 = log::mcap_export::write(&log, Some(&map), &out.join("drive.mcap"), None)?.values().sum();
-    log::mcap_export::write(finished_log, Some(&map), &out.join("finished.mcap"), None)?;
-    write_file(&out.join("ego.tum"), log::export::tum(&log))?;
-    write_file(&out.join("finished.tum"), log::export::tum(finished_log))?;
-    write_file(&out.join("drive.geojson"), log::export::geojson(&log)?.to_string())?;
+    let messages: u64 = dash2sim_export::mcap::write(&log, Some(&map), &out.join("drive.mcap"), None)?.values().sum();
+    dash2sim_export::mcap::write(finished_log, Some(&map), &out.join("finished.mcap"), None)?;
+    write_file(&out.join("ego.tum"), dash2sim_export::tum::tum(&log))?;
+    write_file(&out.join("finished.tum"), dash2sim_export::tum::tum(finished_log))?;
+    write_file(&out.join("drive.geojson"), dash2sim_export::geojson::geojson(&log)?.to_string())?;
     let nuplan_dir = out.join("nuplan");
     let _ = std::fs::remove_dir_all(&nuplan_dir);
     let nuplan = dash2sim_export::nuplan::export(&dash2sim_export::nuplan::NuplanRequest {

@@ -10,7 +10,7 @@ use dash2sim_core::score::Decision;
 
 use dash2sim_core::class::name_of as class_name;
 use dash2sim_linux::geometry::capsule;
-use dash2sim_linux::log::export::last_tracks;
+use dash2sim_linux::log::views::last_tracks;
 use dash2sim_linux::log::{frame, LogContents};
 use dash2sim_linux::{Error, Result};
 
@@ -111,7 +111,7 @@ impl Reframe {
 }
 
 fn ego(log: &LogContents, reframe: &Reframe, t0_us: i64, label: &'static str) -> Series {
-    let points = dash2sim_linux::log::export::ego_poses(log)
+    let points = dash2sim_linux::log::views::ego_poses(log)
         .filter_map(|p| {
             let (x, y) = reframe.point(p.x_mm as f64 * 1e-3, p.y_mm as f64 * 1e-3)?;
             Some(((p.t_us - t0_us) as f64 * 1e-6, x, y))
@@ -175,7 +175,7 @@ impl Scene {
         let header =
             log.header.ok_or_else(|| Error::invalid("the header is damaged: no geodetic origin to draw in"))?;
         let here = frame(&header).ok_or_else(|| Error::invalid("the log's origin is not a valid position"))?;
-        let t0_us = dash2sim_linux::log::export::ego_poses(log).next().map(|p| p.t_us).ok_or_else(|| {
+        let t0_us = dash2sim_linux::log::views::ego_poses(log).next().map(|p| p.t_us).ok_or_else(|| {
             Error::invalid("no ego poses to plot (a log with GNSS and speed only has no anchored trajectory)")
         })?;
         let online = ego(log, &Reframe::new(here, here, true), t0_us, "online anchored ego");

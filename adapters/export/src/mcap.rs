@@ -27,10 +27,10 @@ use dash2sim_core::map::MapView;
 use mcap::records::MessageHeader;
 use serde_json::{json, Value};
 
-use super::export::ego_enu;
-use super::{frame, LogContents};
-use crate::{Error, Result};
 use dash2sim_core::class::name_of as class_name;
+use dash2sim_linux::log::views::ego_enu;
+use dash2sim_linux::log::{frame, LogContents};
+use dash2sim_linux::{Error, Result};
 
 /// JSON schemas for the messages written (the fields used, typed as Foxglove defines them).
 const TIME: &str = r#"{"type":"object","properties":{"sec":{"type":"integer","minimum":0},"nsec":{"type":"integer","minimum":0,"maximum":999999999}}}"#;

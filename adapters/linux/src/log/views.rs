@@ -1,16 +1,13 @@
-//! The views of a log every exporter shares (its ego poses, its tracks, class names) and the
-//! two small exports, TUM (evo) and GeoJSON (QGIS). The MCAP and Parquet writers are beside
-//! this module; `dash2sim export` itself is the `dash2sim-export` crate.
+//! The views of a log that verification and every exporter share: its ego poses, its tracks
+//! (their velocities, the static objects that stay standing). The writers of the formats are
+//! the `dash2sim-export` crate.
 
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 
 use dash2sim_core::binlog::{EgoPose, Record, Track3d};
 use dash2sim_core::nalgebra::Vector3;
-use serde_json::{json, Value};
 
-use super::{frame, seconds, LogContents};
-use crate::{Error, Result};
+use super::LogContents;
 
 /// The ego poses of a log.
 pub fn ego_poses(log: &LogContents) -> impl Iterator<Item = &EgoPose> {
@@ -23,17 +20,6 @@ pub fn ego_poses(log: &LogContents) -> impl Iterator<Item = &EgoPose> {
 /// ENU position (m) and heading (rad) of an ego pose.
 pub fn ego_enu(p: &EgoPose) -> (Vector3<f64>, f64) {
     (Vector3::new(p.x_mm as f64, p.y_mm as f64, p.z_mm as f64) * 1e-3, p.yaw_e4 as f64 * 1e-4)
-}
-
-/// The ego trajectory as TUM text (`t x y z qx qy qz qw`, heading about z).
-pub fn tum(log: &LogContents) -> String {
-    let mut out = String::from("# dash2sim export: ego (rear axle) in the log's ENU frame\n");
-    for p in ego_poses(log) {
-        let (v, yaw) = ego_enu(p);
-        let (s, c) = (yaw / 2.0).sin_cos();
-        let _ = writeln!(out, "{:.6} {:.3} {:.3} {:.3} 0 0 {s:.9} {c:.9}", seconds(p.t_us), v.x, v.y, v.z);
-    }
-    out
 }
 
 /// A track state's velocity (east, north), m/s — none when the log reports it static:
@@ -94,63 +80,6 @@ pub fn standing_objects(log: &LogContents) -> BTreeMap<i64, (i64, Track3d)> {
 /// The last state of every 3D track, by id, with its time.
 pub fn last_tracks(log: &LogContents) -> BTreeMap<i64, (i64, &Track3d)> {
     tracks(log).map(|(t, track)| (track.id, (t, track))).collect()
-}
-
-/// GeoJSON: the ego trajectory and the GNSS fixes as LineStrings, every 3D track's last
-/// position as a Point with its properties.
-pub fn geojson(log: &LogContents) -> Result<Value> {
-    let header = log.header.ok_or_else(|| Error::invalid("the log's header is damaged: no geodetic origin"))?;
-    let frame = frame(&header).ok_or_else(|| Error::invalid("the log's origin is not a valid position"))?;
-    let to_lonlat = |x: f64, y: f64, z: f64| -> Option<[f64; 2]> {
-        frame.enu_to_geodetic(&Vector3::new(x, y, z)).ok().map(|g| [g.lon_deg, g.lat_deg])
-    };
-    let mut features = Vec::new();
-    let ego: Vec<(i64, [f64; 2])> = ego_poses(log)
-        .filter_map(|p| {
-            let (v, _) = ego_enu(p);
-            Some((p.t_us, to_lonlat(v.x, v.y, v.z)?))
-        })
-        .collect();
-    if let (Some(first), Some(last)) = (ego.first(), ego.last()) {
-        features.push(json!({
-            "type": "Feature",
-            "geometry": {"type": "LineString", "coordinates": ego.iter().map(|(_, c)| c).collect::<Vec<_>>()},
-            "properties": {"name": "ego", "poses": ego.len(), "t_start": seconds(first.0), "t_end": seconds(last.0)},
-        }));
-    }
-    let gnss: Vec<[f64; 2]> = log
-        .records
-        .iter()
-        .filter_map(|r| match r {
-            Record::GnssFix(f) => Some([f.lon_e7 as f64 * 1e-7, f.lat_e7 as f64 * 1e-7]),
-            _ => None,
-        })
-        .collect();
-    if gnss.len() >= 2 {
-        features.push(json!({
-            "type": "Feature",
-            "geometry": {"type": "LineString", "coordinates": gnss},
-            "properties": {"name": "gnss", "fixes": gnss.len()},
-        }));
-    }
-    for (id, (t_us, t)) in last_tracks(log) {
-        let Some(c) = to_lonlat(t.x_mm as f64 * 1e-3, t.y_mm as f64 * 1e-3, t.z_mm as f64 * 1e-3) else { continue };
-        features.push(json!({
-            "type": "Feature",
-            "geometry": {"type": "Point", "coordinates": c},
-            "properties": {
-                "id": id,
-                "class": dash2sim_core::class::name_of(t.class),
-                "static": t.is_static != 0,
-                "t": seconds(t_us),
-                "length_m": t.l_mm as f64 * 1e-3,
-                "width_m": t.w_mm as f64 * 1e-3,
-                "height_m": t.h_mm as f64 * 1e-3,
-                "heading_rad": t.yaw_e4 as f64 * 1e-4,
-            },
-        }));
-    }
-    Ok(json!({"type": "FeatureCollection", "features": features}))
 }
 
 #[cfg(test)]
