@@ -174,11 +174,13 @@ fn a_live_recording_logs_every_published_frame_and_matches_the_file_recording() 
         from_files.tracks_relative.1
     );
     // Real processes stamp with a real clock: the times jitter, and with them which fixes a
-    // frame's anchor has seen. The anchoring must agree closely; the tracks (36 anchored
-    // frames of 8 s: a small sample, seen IDF1 0.69–0.87 against 0.87 from the files) must
-    // be as many and of the same kind of quality.
+    // frame's anchor has seen. The anchoring must be no worse than from the files; the
+    // tracks (36 anchored frames of 8 s: a small sample, seen IDF1 0.69–0.87 against 0.87
+    // from the files) must be as many and of the same kind of quality. (Better is no defect
+    // of the live path: on 8 s the first fixes a frame sees weigh on the whole RMSE, and a
+    // CI run under load saw 1.40 m live against 2.20 m from the files, issue #57.)
     assert!(live.ego_errors.len().abs_diff(from_files.ego_errors.len()) <= 8);
-    assert!((live.ego_rmse - from_files.ego_rmse).abs() < 0.25 * from_files.ego_rmse + 0.1);
+    assert!(live.ego_rmse < 1.25 * from_files.ego_rmse + 0.1, "live RMSE {} m", live.ego_rmse);
     let states = |j: &dash2sim_sim::scenario::judge::LogJudgement| j.tracks_by_class.values().sum::<u64>() as f64;
     assert!((states(&live) - states(&from_files)).abs() <= 0.3 * states(&from_files));
     assert!(live.tracks_relative.1 > 0.5, "IDF1 seen from the ego {}", live.tracks_relative.1);
