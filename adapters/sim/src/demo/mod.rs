@@ -57,7 +57,7 @@ use dash2sim_core::map::MapView;
 use serde::Serialize;
 
 use crate::datasets::OutputFile;
-use crate::fidelity::drive::{assess, Anchors, Recorded};
+use crate::fidelity::drive::{assess, Anchors, Assessment, Recorded};
 use crate::scenario::evaluate::evaluate_tracking;
 use crate::scenario::profile::{Profile, Receiver};
 use crate::scenario::write::{road_tile, write_scenario};
@@ -161,10 +161,12 @@ fn finished_windows(report: &FinishReport) -> Vec<WindowVerdict> {
         .collect()
 }
 
+/// The demo's steps, as its progress counts them.
+const STEPS: u32 = 7;
+
 /// Run the demo on the generated drive `request` asks for, into its output folder (with
 /// `summary.json`); what it came to.
 pub fn run(request: &DemoRequest, progress: &dyn Progress) -> Result<DemoReport> {
-    const STEPS: u32 = 7;
     let (out, seed, duration_s) = (&request.output, request.seed, request.duration_s);
     if !(duration_s.is_finite() && (MIN_DURATION_S..=MAX_DURATION_S).contains(&duration_s)) {
         return Err(Error::request(
@@ -203,40 +205,7 @@ pub fn run(request: &DemoRequest, progress: &dyn Progress) -> Result<DemoReport>
     let log_path = out.join("drive.d2slog");
     let _ = std::fs::remove_file(&log_path);
     let setup = Setup::work_zone(origin, Some(tile.clone()), *b"dash2sim-demo\0\0\0");
-    let recording = match &request.recording {
-        Recording::Offline => {
-            progress.step(
-                3,
-                STEPS,
-                "recording from the drive's files: the on-device pipeline over VO, NMEA, CAN and detections",
-            );
-            let (stream, _) = record::read_sources(&record::Sources::scenario(&drive_dir))?;
-            let recording = record::run_stream(&stream, &setup)?;
-            write_file(&log_path, &recording.log)?;
-            RecordingReport::Offline { inputs: recording.inputs, pipeline: record::summary(&recording) }
-        }
-        Recording::Live { camera } => {
-            progress.step(
-                3,
-                STEPS,
-                "recording live: the camera process publishes over shared memory, GNSS arrives as NMEA on a FIFO, speed as CAN frames",
-            );
-            progress.begin(Some(duration_s.ceil() as u64), "s of the drive");
-            let drive = live::Drive { seed, seconds: duration_s, driver: request.driver, profile: request.profile };
-            let live = live::record(drive, *camera, out, &log_path, &setup, progress);
-            progress.end();
-            let live = live?;
-            let r = &live.report;
-            RecordingReport::Live {
-                frames_published: live.published,
-                frames_received: r.frames,
-                inputs_dropped: r.dropped,
-                issues: r.issues,
-                wall_s: live.seconds,
-                pipeline: r.stats,
-            }
-        }
-    };
+    let recording = record_drive(request, progress, &drive_dir, &log_path, &setup)?;
     let log = log::read(&log_path).map_err(Error::other)?;
 
     progress.step(
@@ -271,21 +240,7 @@ pub fn run(request: &DemoRequest, progress: &dyn Progress) -> Result<DemoReport>
     let truth_tracking = evaluate_tracking::<64>(&scenario, tracker_config(&classes));
 
     progress.step(6, STEPS, "exporting MCAP (Foxglove), TUM (evo), GeoJSON (QGIS) and the nuPlan database and map");
-    let messages: u64 = dash2sim_export::mcap::write(&log, Some(&map), &out.join("drive.mcap"), None)?.values().sum();
-    dash2sim_export::mcap::write(finished_log, Some(&map), &out.join("finished.mcap"), None)?;
-    write_file(&out.join("ego.tum"), dash2sim_export::tum::tum(&log))?;
-    write_file(&out.join("finished.tum"), dash2sim_export::tum::tum(finished_log))?;
-    write_file(&out.join("drive.geojson"), dash2sim_export::geojson::geojson(&log)?.to_string())?;
-    let nuplan_dir = out.join("nuplan");
-    let _ = std::fs::remove_dir_all(&nuplan_dir);
-    let nuplan = dash2sim_export::nuplan::export(&dash2sim_export::nuplan::NuplanRequest {
-        log: finished_log,
-        log_name: &finished_path.display().to_string(),
-        tile: &tile,
-        map_name: &dash2sim_export::nuplan::map_name("road"),
-        out: &nuplan_dir,
-        scene_s: 5.0,
-    });
+    let (messages, nuplan) = export_logs(out, &log, finished_log, &finished_path, &map, &tile)?;
 
     progress.step(7, STEPS, "drawing the drive (plot.png, plot.svg)");
     for name in ["plot.png", "plot.svg"] {
@@ -297,39 +252,8 @@ pub fn run(request: &DemoRequest, progress: &dyn Progress) -> Result<DemoReport>
         })?;
     }
 
-    let file = |what, name: &str| OutputFile::new(what, out, name);
-    let mut files = vec![
-        file("the generated drive (truth, sensor streams, road OSM)", "drive"),
-        file("map tile", "road.map"),
-        file("the device's 4D log", "drive.d2slog"),
-        file("the finished 4D log", "finished.d2slog"),
-        file("MCAP for Foxglove (the device's log)", "drive.mcap"),
-        file("MCAP for Foxglove (finished)", "finished.mcap"),
-        file("TUM for evo (the device's log)", "ego.tum"),
-        file("TUM for evo (finished)", "finished.tum"),
-        file("GeoJSON for QGIS", "drive.geojson"),
-        file("the picture", "plot.png"),
-        file("the picture (vector)", "plot.svg"),
-        file("this summary", SUMMARY_FILE),
-    ];
-    if assessed.anchors_text.is_some() {
-        files.insert(3, file("street-imagery anchors (simulated from the true path)", "anchors.csv"));
-    }
-    let nuplan = match nuplan {
-        Ok(n) => {
-            files.push(OutputFile { what: "nuPlan log database", path: n.db.display().to_string() });
-            files.push(OutputFile { what: "nuPlan map (GeoPackage)", path: n.gpkg.display().to_string() });
-            NuplanOutcome::Written {
-                db: n.db.display().to_string(),
-                map: n.gpkg.display().to_string(),
-                scenes: n.scenes,
-                ego_states: n.ego_states,
-            }
-        }
-        Err(e) => NuplanOutcome::NotWritten { error: e.to_string() },
-    };
+    let (files, nuplan) = output_files(out, assessed.anchors_text.is_some(), nuplan);
     let (online, finished) = (&assessed.online, &assessed.finished);
-    let (finished_scale, true_mean_scale, finished_scale_error) = assessed.finished_scale;
     let report = DemoReport {
         seed,
         duration_s,
@@ -337,26 +261,7 @@ pub fn run(request: &DemoRequest, progress: &dyn Progress) -> Result<DemoReport>
         profile: request.profile,
         anchors: request.anchors,
         recording,
-        anchoring: AnchoringReport {
-            online: OnlineAnchoring {
-                observable_after_s: online.judgement.first_anchored_s,
-                anchored_frames: online.judgement.ego_errors.len(),
-                frames: scenario.frames.len(),
-                ape_rmse_m: online.judgement.ego_rmse,
-                ape_max_m: online.judgement.ego_max,
-                scale_at_end: assessed.online_scale.map(|(scale, _)| scale),
-                scale_error: assessed.online_scale.map(|(_, error)| error),
-            },
-            finished: FinishedAnchoring {
-                anchors_used: assessed.finish_report.anchors.used,
-                ape_rmse_m: finished.judgement.ego_rmse,
-                ape_max_m: finished.judgement.ego_max,
-                scale: finished_scale,
-                scale_sigma_relative: assessed.finish_report.anchoring.scale_sigma_relative,
-                true_mean_scale,
-                scale_error: finished_scale_error,
-            },
-        },
+        anchoring: anchoring_report(&assessed, scenario.frames.len()),
         tracking: TrackingReport {
             online: (&online.judgement).into(),
             finished: (&finished.judgement).into(),
@@ -387,6 +292,152 @@ pub fn run(request: &DemoRequest, progress: &dyn Progress) -> Result<DemoReport>
     };
     write_file(&out.join(SUMMARY_FILE), summary_json(&report)?)?;
     Ok(report)
+}
+
+/// Step 3: the drive recorded from its files or live (a camera process over shared memory,
+/// NMEA on a FIFO, CAN frames), its log written to `log_path`.
+fn record_drive(
+    request: &DemoRequest,
+    progress: &dyn Progress,
+    drive_dir: &Path,
+    log_path: &Path,
+    setup: &Setup,
+) -> Result<RecordingReport> {
+    Ok(match &request.recording {
+        Recording::Offline => {
+            progress.step(
+                3,
+                STEPS,
+                "recording from the drive's files: the on-device pipeline over VO, NMEA, CAN and detections",
+            );
+            let (stream, _) = record::read_sources(&record::Sources::scenario(drive_dir))?;
+            let recording = record::run_stream(&stream, setup)?;
+            write_file(log_path, &recording.log)?;
+            RecordingReport::Offline { inputs: recording.inputs, pipeline: record::summary(&recording) }
+        }
+        Recording::Live { camera } => {
+            progress.step(
+                3,
+                STEPS,
+                "recording live: the camera process publishes over shared memory, GNSS arrives as NMEA on a FIFO, speed as CAN frames",
+            );
+            progress.begin(Some(request.duration_s.ceil() as u64), "s of the drive");
+            let drive = live::Drive {
+                seed: request.seed,
+                seconds: request.duration_s,
+                driver: request.driver,
+                profile: request.profile,
+            };
+            let live = live::record(drive, *camera, &request.output, log_path, setup, progress);
+            progress.end();
+            let live = live?;
+            let r = &live.report;
+            RecordingReport::Live {
+                frames_published: live.published,
+                frames_received: r.frames,
+                inputs_dropped: r.dropped,
+                issues: r.issues,
+                wall_s: live.seconds,
+                pipeline: r.stats,
+            }
+        }
+    })
+}
+
+/// Step 6: the device's and the finished log exported (MCAP, TUM, GeoJSON; the finished one
+/// to nuPlan, whose failure is reported, not fatal). The MCAP messages written, and nuPlan's
+/// outcome.
+fn export_logs(
+    out: &Path,
+    log: &LogContents,
+    finished_log: &LogContents,
+    finished_path: &Path,
+    map: &MapView<'_>,
+    tile: &[u8],
+) -> Result<(u64, Result<dash2sim_export::nuplan::NuplanExport>)> {
+    let messages: u64 = dash2sim_export::mcap::write(log, Some(map), &out.join("drive.mcap"), None)?.values().sum();
+    dash2sim_export::mcap::write(finished_log, Some(map), &out.join("finished.mcap"), None)?;
+    write_file(&out.join("ego.tum"), dash2sim_export::tum::tum(log))?;
+    write_file(&out.join("finished.tum"), dash2sim_export::tum::tum(finished_log))?;
+    write_file(&out.join("drive.geojson"), dash2sim_export::geojson::geojson(log)?.to_string())?;
+    let nuplan_dir = out.join("nuplan");
+    let _ = std::fs::remove_dir_all(&nuplan_dir);
+    let nuplan = dash2sim_export::nuplan::export(&dash2sim_export::nuplan::NuplanRequest {
+        log: finished_log,
+        log_name: &finished_path.display().to_string(),
+        tile,
+        map_name: &dash2sim_export::nuplan::map_name("road"),
+        out: &nuplan_dir,
+        scene_s: 5.0,
+    });
+
+    Ok((messages, nuplan))
+}
+
+/// What the demo wrote, for its summary, and nuPlan's outcome (its two files when written).
+fn output_files(
+    out: &Path,
+    with_anchors: bool,
+    nuplan: Result<dash2sim_export::nuplan::NuplanExport>,
+) -> (Vec<OutputFile>, NuplanOutcome) {
+    let file = |what, name: &str| OutputFile::new(what, out, name);
+    let mut files = vec![
+        file("the generated drive (truth, sensor streams, road OSM)", "drive"),
+        file("map tile", "road.map"),
+        file("the device's 4D log", "drive.d2slog"),
+        file("the finished 4D log", "finished.d2slog"),
+        file("MCAP for Foxglove (the device's log)", "drive.mcap"),
+        file("MCAP for Foxglove (finished)", "finished.mcap"),
+        file("TUM for evo (the device's log)", "ego.tum"),
+        file("TUM for evo (finished)", "finished.tum"),
+        file("GeoJSON for QGIS", "drive.geojson"),
+        file("the picture", "plot.png"),
+        file("the picture (vector)", "plot.svg"),
+        file("this summary", SUMMARY_FILE),
+    ];
+    if with_anchors {
+        files.insert(3, file("street-imagery anchors (simulated from the true path)", "anchors.csv"));
+    }
+    let nuplan = match nuplan {
+        Ok(n) => {
+            files.push(OutputFile { what: "nuPlan log database", path: n.db.display().to_string() });
+            files.push(OutputFile { what: "nuPlan map (GeoPackage)", path: n.gpkg.display().to_string() });
+            NuplanOutcome::Written {
+                db: n.db.display().to_string(),
+                map: n.gpkg.display().to_string(),
+                scenes: n.scenes,
+                ego_states: n.ego_states,
+            }
+        }
+        Err(e) => NuplanOutcome::NotWritten { error: e.to_string() },
+    };
+    (files, nuplan)
+}
+
+/// How the device's log and the finished one are anchored against the truth.
+fn anchoring_report(assessed: &Assessment, frames: usize) -> AnchoringReport {
+    let (online, finished) = (&assessed.online, &assessed.finished);
+    let (finished_scale, true_mean_scale, finished_scale_error) = assessed.finished_scale;
+    AnchoringReport {
+        online: OnlineAnchoring {
+            observable_after_s: online.judgement.first_anchored_s,
+            anchored_frames: online.judgement.ego_errors.len(),
+            frames,
+            ape_rmse_m: online.judgement.ego_rmse,
+            ape_max_m: online.judgement.ego_max,
+            scale_at_end: assessed.online_scale.map(|(scale, _)| scale),
+            scale_error: assessed.online_scale.map(|(_, error)| error),
+        },
+        finished: FinishedAnchoring {
+            anchors_used: assessed.finish_report.anchors.used,
+            ape_rmse_m: finished.judgement.ego_rmse,
+            ape_max_m: finished.judgement.ego_max,
+            scale: finished_scale,
+            scale_sigma_relative: assessed.finish_report.anchoring.scale_sigma_relative,
+            true_mean_scale,
+            scale_error: finished_scale_error,
+        },
+    }
 }
 
 #[cfg(test)]
