@@ -100,6 +100,13 @@ mod tests {
             message(&e),
             "--parquet: this build of dash2sim-export has no Parquet export (its `parquet` feature)"
         );
+        let e = Error::FeatureMissing {
+            field: Field::Mcap,
+            krate: "dash2sim-export",
+            part: "MCAP export",
+            feature: "mcap",
+        };
+        assert_eq!(message(&e), "--mcap: this build of dash2sim-export has no MCAP export (its `mcap` feature)");
         let e = Error::request(Field::ImportSources, "nothing to import");
         assert_eq!(message(&e), "nothing to import (--nmea, --can, --traj or --objects)");
         let e = Error::request(Field::CanInterface, "vcan0: No such device");
