@@ -291,6 +291,14 @@ fn savitzky_golay(values: impl Iterator<Item = f64>, dt: f64) -> (f64, f64) {
 /// hole is scored on either side of it, and never verified: `verify`).
 pub const HOLE_S: f64 = 1.0;
 
+/// A pose closer than this after the last one the comfort window took is left out of it, s.
+/// nuPlan scores its simulations sampled at 10 Hz; the window's [`COMFORT_WINDOW`] poses at
+/// a camera's 30 fps would span 0.2 s and turn centimetres of the poses' jitter into jerks
+/// far past the bounds (every window of a 30 fps device failed comfort). Short of 0.1 s so
+/// that a 10 Hz camera's jitter leaves none of its poses out; any frame rate above it is
+/// taken at an even step (30 and 20 fps every 0.1 s, 25 fps every 0.12 s).
+pub const COMFORT_STEP_S: f64 = 0.09;
+
 /// Sliding-window comfort derivatives.
 #[derive(Clone, Debug)]
 struct ComfortWindow {
@@ -312,6 +320,9 @@ impl ComfortWindow {
         if self.poses.back().is_some_and(|&(previous, ..)| t - previous > HOLE_S) {
             self.poses.clear();
             self.accels.clear();
+        }
+        if self.poses.back().is_some_and(|&(previous, ..)| t - previous < COMFORT_STEP_S) {
+            return;
         }
         let heading = match self.poses.back() {
             Some(&(_, _, _, previous)) => previous + wrap(pose.heading - previous),
@@ -918,5 +929,33 @@ mod tests {
         assert!(cruise.extremes.within(&bounds), "{:?}", cruise.extremes);
         assert!(!brake.extremes.within(&bounds));
         assert!((brake.extremes.lon_accel.0 - -6.0).abs() < 1e-6, "{:?}", brake.extremes);
+    }
+
+    /// A steady cruise whose poses jitter by up to a centimetre (a camera's anchored poses),
+    /// and a hard brake, sampled at `fps`: (the cruise's extremes, the brake's).
+    fn jittery_drives(fps: u32) -> (Comfort, Comfort) {
+        let (mut cruise, mut brake) = (ComfortWindow::new(), ComfortWindow::new());
+        let mut state = 12_345u32;
+        let mut jitter = || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (f64::from(state >> 8) / f64::from(1u32 << 24) - 0.5) * 0.02
+        };
+        for i in 0..4 * fps {
+            let t = f64::from(i) / f64::from(fps);
+            let (dx, dy) = (jitter(), jitter());
+            cruise.push(t, &Pose2::new(15.0 * t + dx, dy, 0.0));
+            brake.push(t, &Pose2::new(20.0 * t - 3.0 * t * t + dx, dy, 0.0));
+        }
+        (cruise.extremes, brake.extremes)
+    }
+
+    #[test]
+    fn comfort_is_judged_at_nuplans_10_hz_whatever_the_camera_rate() {
+        let bounds = ScoreConfig::default().comfort;
+        for fps in [10, 20, 25, 30] {
+            let (cruise, brake) = jittery_drives(fps);
+            assert!(cruise.within(&bounds), "{fps} fps: a steady cruise {cruise:?}");
+            assert!(!brake.within(&bounds), "{fps} fps: a hard brake {brake:?}");
+        }
     }
 }

@@ -414,3 +414,28 @@ fn a_logger_waiting_for_its_fifos_writer_stops_on_sigterm() {
     assert!(status.success(), "{status}: {}", String::from_utf8_lossy(&output.stderr));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A live recording refuses what it would otherwise silently ignore: a file source beside
+/// the live ones (the 2D detections and the IMU too), and `--save-inputs` (only a recording
+/// from files saves its input stream). Each is an error naming the flag, before anything runs.
+#[test]
+fn a_live_recording_refuses_file_sources_and_saving_its_inputs() {
+    let dir = std::env::temp_dir().join(format!("dash2sim-live-refuses-{}", std::process::id()));
+    let refused = |extra: &[&str]| {
+        let output = Command::new(env!("CARGO_BIN_EXE_dash2sim"))
+            .args(["record", "--camera", "dash2sim-test/refused", "-o"])
+            .arg(&dir)
+            .args(extra)
+            .output()
+            .expect("dash2sim record");
+        assert!(!output.status.success(), "{extra:?} was accepted");
+        String::from_utf8_lossy(&output.stderr).into_owned()
+    };
+    for flag in ["--imu", "--detections2d", "--vo"] {
+        let stderr = refused(&[flag, "inputs.csv"]);
+        assert!(stderr.contains("do not mix") && stderr.contains(flag), "{flag}: {stderr}");
+    }
+    let stderr = refused(&["--save-inputs", "inputs.d2sin"]);
+    assert!(stderr.contains("--save-inputs") && stderr.contains("does not save its input stream"), "{stderr}");
+    assert!(!dir.exists(), "nothing was recorded");
+}

@@ -94,6 +94,8 @@ pub enum Field {
     Sources,
     /// The 2D detections.
     Detections2d,
+    /// Where the merged input stream is saved.
+    SaveInputs,
     /// What an import reads (captures, a trajectory, objects).
     ImportSources,
     /// The live recording's segment length.
@@ -145,6 +147,7 @@ impl std::fmt::Display for Field {
             Field::GnssSignals => "the GNSS signals",
             Field::Sources => "the inputs",
             Field::Detections2d => "the 2D detections",
+            Field::SaveInputs => "the saved input stream",
             Field::ImportSources => "the inputs",
             Field::SegmentMinutes => "the segment length",
             Field::Seconds => "the run's length",

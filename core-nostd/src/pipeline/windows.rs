@@ -37,6 +37,9 @@ pub(super) struct Windows<'a, const T3: usize> {
     /// Of `agents`, those the tracker no longer reports, and since when (s).
     lost: heapless::Vec<(u32, f64), KEPT_AGENTS>,
     agents_t: f64,
+    /// Where the ego last scored was (east, north): the agents nearest it are the ones kept
+    /// when there are more than the stage holds.
+    scored_at: Option<(f64, f64)>,
     window: Option<Window<'a>>,
     /// The windows' latest at-fault collision, carried across a window's end ([`edge`]).
     edge_collisions: edge::EdgeCollisions,
@@ -55,6 +58,7 @@ impl<const T3: usize> Default for Windows<'_, T3> {
             agents: heapless::Vec::new(),
             lost: heapless::Vec::new(),
             agents_t: 0.0,
+            scored_at: None,
             window: None,
             edge_collisions: edge::EdgeCollisions::default(),
             doubt_m: 0.0,
@@ -91,6 +95,11 @@ impl<'a, const T3: usize> Windows<'a, T3> {
     /// [`KEEP_LOST_S`] (at most [`KEPT_AGENTS`]), moved on by their velocity — the windows
     /// score the ego a second back, when the cone the car passed was still beside it (most
     /// leave the camera's view, not the road).
+    ///
+    /// When there are more than `T3` of them (a camera reporting as many objects as the
+    /// tracker holds, and the ones just passed beside), the ones nearest the ego last scored
+    /// are kept: a cone 60 m ahead of the camera is 75 m ahead of the ego being scored, the
+    /// drum it just passed is beside it.
     pub(super) fn agents_reported(
         &mut self,
         now: f64,
@@ -115,12 +124,12 @@ impl<'a, const T3: usize> Windows<'a, T3> {
         self.agents.clear();
         self.lost.clear();
         self.agents_t = now;
-        for a in reported {
-            // At most T3, as the tracker has.
-            let _ = self.agents.push(a);
+        for a in reported.chain(kept.iter().map(|(a, _)| *a)) {
+            admit_nearest(&mut self.agents, a, self.scored_at);
         }
         for (a, since) in kept {
-            if self.agents.push(a).is_ok() {
+            if self.agents.iter().any(|held| held.id == a.id) {
+                // Cannot fail: `lost` holds as many as `kept`.
                 let _ = self.lost.push((a.id, since));
             }
         }
@@ -165,6 +174,7 @@ impl<'a, const T3: usize> Windows<'a, T3> {
         ego: &Pose2,
     ) -> Result<(), PipelineError<W::Error>> {
         let Some(map) = config.map else { return Ok(()) };
+        self.scored_at = Some((ego.x, ego.y));
         let ts = t.as_secs_f64();
         // A gap in the ego (a VO re-initialisation's missing frames, or a new session not yet
         // observable after the carry gave up) ends the window at its last pose: the device
@@ -252,5 +262,53 @@ impl<'a, const T3: usize> Windows<'a, T3> {
                 decision.name()
             ),
         )
+    }
+}
+
+/// `agent` into `agents`; when they are full, in place of the one farthest from `near` if it
+/// is nearer than that one (without `near`, the first ones in stay). Bounded: one pass over
+/// the `N` held.
+fn admit_nearest<const N: usize>(agents: &mut heapless::Vec<Agent, N>, agent: Agent, near: Option<(f64, f64)>) {
+    let Err(agent) = agents.push(agent) else { return };
+    let Some((x, y)) = near else { return };
+    let distance = |a: &Agent| libm::hypot(a.bbox.centre.x - x, a.bbox.centre.y - y);
+    let farthest = agents.iter_mut().max_by(|a, b| distance(a).total_cmp(&distance(b)));
+    if let Some(farthest) = farthest.filter(|f| distance(&agent) < distance(f)) {
+        *farthest = agent;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::obb::OrientedBox;
+    use crate::score::AgentKind;
+
+    fn cone(id: u32, x: f64, y: f64) -> Agent {
+        let bbox = OrientedBox { centre: Pose2::new(x, y, 0.0), length: 0.4, width: 0.4 };
+        Agent { id, kind: AgentKind::Object, bbox, velocity: (0.0, 0.0) }
+    }
+
+    /// Four agents held; the drum beside the ego leaves the camera's view while four cones
+    /// far ahead are reported: `scored_at` the ego being scored. The ids held after.
+    fn held_after_passing_a_drum(scored_at: Option<(f64, f64)>) -> heapless::Vec<u32, 4> {
+        let mut windows = Windows::<'static, 4> { scored_at, ..Windows::default() };
+        let first = [cone(1, 2.0, 1.5), cone(10, 50.0, 7.0), cone(11, 53.0, 7.0), cone(12, 56.0, 7.0)];
+        windows.agents_reported(0.0, |id| first.iter().any(|a| a.id == id), first.into_iter());
+        let next = [cone(10, 50.0, 7.0), cone(11, 53.0, 7.0), cone(12, 56.0, 7.0), cone(13, 59.0, 7.0)];
+        windows.agents_reported(0.1, |id| next.iter().any(|a| a.id == id), next.into_iter());
+        assert!(windows.lost.iter().all(|(id, _)| windows.agents.iter().any(|a| a.id == *id)));
+        windows.agents.iter().map(|a| a.id).collect()
+    }
+
+    #[test]
+    fn a_full_stage_keeps_the_agents_nearest_the_ego_scored() {
+        // The drum just passed stays (in place of the cone 59 m ahead): the ego scored a
+        // second back is beside it.
+        let mut held = held_after_passing_a_drum(Some((0.0, 0.0)));
+        held.sort_unstable();
+        assert_eq!(held, [1, 10, 11, 12]);
+        // Before anything was scored there is nothing to be near: the first reported stay.
+        assert_eq!(held_after_passing_a_drum(None), [10, 11, 12, 13]);
     }
 }

@@ -316,10 +316,17 @@ pub fn live_request(args: &RecordRequest) -> Result<Option<live::LiveRequest>> {
         return Ok(None);
     }
     let s = &args.sources;
-    if s.vo.is_some() || s.nmea.is_some() || !s.can.is_empty() || s.detections.is_some() || args.replay.is_some() {
+    let files = [&s.vo, &s.nmea, &s.detections, &s.detections2d, &s.imu, &args.replay];
+    if files.iter().any(|f| f.is_some()) || !s.can.is_empty() {
         return Err(Error::request(
             Field::Sources,
             "live sources (the camera process, a serial port, a CAN interface or capture) and file sources do not mix",
+        ));
+    }
+    if args.save_inputs.is_some() {
+        return Err(Error::request(
+            Field::SaveInputs,
+            "a live recording does not save its input stream (only a recording from files does)",
         ));
     }
     if !(args.segment_minutes.is_finite() && args.segment_minutes > 0.0) {
