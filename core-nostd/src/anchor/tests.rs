@@ -419,37 +419,3 @@ fn a_course_on_a_bend_or_before_the_vo_has_moved_is_not_taken() {
     let mut full: Anchorer = Anchorer::new(AnchorConfig::default());
     assert!(!full.push_course(ts(1.0), 0.3, 0.02));
 }
-
-/// Horizontal RMS error (m) of the anchored position over the last minute of 90 s on a
-/// straight road at 15 m/s, gravity-aligned, a fix a second stating `fix_sigma` with noise
-/// of that σ per axis.
-fn position_rms_on_a_straight_road(fix_sigma: f64) -> f64 {
-    let truth = Sim3 { rotation: rotation_z(0.7), translation: Vector3::new(10.0, 5.0, 0.0), scale: 2.0 };
-    let config = AnchorConfig { mode: AnchorMode::GravityAligned, ..AnchorConfig::default() };
-    let mut anchorer: Anchorer = Anchorer::new(config);
-    let road = StraightRoad { truth, speed: 15.0, heading: 0.4, fix_every: 100, fix_sigma };
-    let direction = Vector3::new(libm::cos(road.heading), libm::sin(road.heading), 0.0);
-    let (mut sum, mut n) = (0.0, 0.0);
-    road.drive(&mut anchorer, 90.0, |t, a| {
-        let at_second = (t - libm::round(t)).abs() < 0.005;
-        if let (true, true, Some(p)) = (at_second, t > 30.0, a.current_position()) {
-            // The latest VO pose is 10 ms old at this step.
-            sum += (p - direction * road.speed * (t - 0.01)).xy().norm_squared();
-            n += 1.0;
-        }
-    });
-    assert!(n > 50.0, "anchored for the last minute: {:?}", anchorer.quality());
-    libm::sqrt(sum / n)
-}
-
-#[test]
-fn a_phones_fixes_are_averaged_over_a_longer_window_than_a_good_receivers() {
-    // A fix of σ 8 m (horizontal error 11 m RMS): the reported translation's window grows
-    // with the stated σ (16 s, held to the rotation's 12) where a 2 s one would average
-    // about two fixes and leave ~8 m.
-    let phone = position_rms_on_a_straight_road(8.0);
-    assert!(phone < 4.0, "{phone}");
-    // A good receiver's 1 m fixes keep the 2 s window: the position follows them closely.
-    let good = position_rms_on_a_straight_road(1.0);
-    assert!(good < 1.1, "{good}");
-}
