@@ -417,7 +417,8 @@ fn a_logger_waiting_for_its_fifos_writer_stops_on_sigterm() {
 
 /// A live recording refuses what it would otherwise silently ignore: a file source beside
 /// the live ones (the 2D detections and the IMU too), and `--save-inputs` (only a recording
-/// from files saves its input stream). Each is an error naming the flag, before anything runs.
+/// from files saves its input stream). Each is an error before anything runs: the sources'
+/// names the choices, `--save-inputs`' names its flag.
 #[test]
 fn a_live_recording_refuses_file_sources_and_saving_its_inputs() {
     let dir = std::env::temp_dir().join(format!("dash2sim-live-refuses-{}", std::process::id()));
@@ -433,7 +434,7 @@ fn a_live_recording_refuses_file_sources_and_saving_its_inputs() {
     };
     for flag in ["--imu", "--detections2d", "--vo"] {
         let stderr = refused(&[flag, "inputs.csv"]);
-        assert!(stderr.contains("do not mix") && stderr.contains(flag), "{flag}: {stderr}");
+        assert!(stderr.contains("file sources do not mix"), "{flag}: {stderr}");
     }
     let stderr = refused(&["--save-inputs", "inputs.d2sin"]);
     assert!(stderr.contains("--save-inputs") && stderr.contains("does not save its input stream"), "{stderr}");
