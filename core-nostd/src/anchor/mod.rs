@@ -92,6 +92,15 @@ const MAX_COURSE_BEND_RAD: f64 = 2.0 * core::f64::consts::PI / 180.0;
 const MIN_COURSE_TRAVEL_M: f64 = 5.0;
 /// Residual components per fix (east, north, up) in the a-posteriori variance factor.
 const RESIDUAL_COMPONENTS: f64 = 3.0;
+/// The fix σ (m) at which the reported translation's window is
+/// `translation_time_constant_s`; a noisier fix lengthens it in proportion, up to the
+/// rotation's `forgetting_time_constant_s`. The window trades the relative motion's drift,
+/// which grows with its length, against the fixes' noise, which it averages: for a drift
+/// that walks and a noise of σ, the best window is proportional to σ. The σ is the stated
+/// one, lowered where the residuals show the fixes scatter less than they state (comma2k19's
+/// u-blox): lengthened by a stated σ alone, the window averaged a real dead reckoning's
+/// drift on that minute (device ATE 1.75 → 2.59 m).
+const STEADY_REFERENCE_SIGMA_M: f64 = 1.0;
 
 /// Which similarity the anchorer estimates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -264,6 +273,9 @@ struct Hypothesis {
     moments: Moments,
     /// Weighted means over the short translation window.
     recent: RecentMeans,
+    /// Weighted means over a window that lengthens with the fixes' σ
+    /// ([`STEADY_REFERENCE_SIGMA_M`]): the reported translation.
+    steady: RecentMeans,
     /// Latest Umeyama fit of the long window (GNSS only: the hypotheses are scored on
     /// what the fixes alone predict).
     fit: Option<Sim3>,
@@ -355,6 +367,7 @@ impl<const K: usize> Anchorer<K> {
             latency: Duration::from_micros(step.micros().saturating_mul(k as i64)),
             moments: Moments::new(),
             recent: RecentMeans::default(),
+            steady: RecentMeans::default(),
             fit: None,
             prediction_sse: 0.0,
         });
@@ -447,6 +460,7 @@ impl<const K: usize> Anchorer<K> {
         for h in &mut self.hypotheses {
             h.moments.turn_x(&turn);
             h.recent.mean_x = turn * h.recent.mean_x;
+            h.steady.mean_x = turn * h.steady.mean_x;
             h.fit = h.moments.align(align_mode(mode)).ok();
         }
         if let Some((rotation, scale)) = self.held {
@@ -674,6 +688,14 @@ impl<const K: usize> Anchorer<K> {
         let since_last = self.last_accepted.map_or(0.0, |(t0, _, _)| (fix.t - t0).as_secs_f64());
         let forget = libm::exp(-since_last / self.config.forgetting_time_constant_s);
         let keep_recent = libm::exp(-since_last / self.config.translation_time_constant_s);
+        let shortest = self.config.translation_time_constant_s;
+        // σ0 of the last estimate: how the residuals compare with the stated σ. Never above
+        // 1, so a jump of the fixes (which swells the residuals) does not lengthen the window.
+        let residual_ratio = libm::sqrt(self.variance_factor / RESIDUAL_UNDERSTATEMENT).min(1.0);
+        let steady_s = (shortest * fix.sigma * residual_ratio / STEADY_REFERENCE_SIGMA_M)
+            .min(self.config.forgetting_time_constant_s)
+            .max(shortest);
+        let keep_steady = libm::exp(-since_last / steady_s);
         let align_mode = align_mode(self.mode());
         let scoring = self.quality.observability == Observability::Observable;
         let gate2 = self.config.gate_sigma * self.config.gate_sigma;
@@ -687,6 +709,7 @@ impl<const K: usize> Anchorer<K> {
             }
             h.moments.forget(forget);
             h.recent.push(keep_recent, &x, &fix.enu, weight);
+            h.steady.push(keep_steady, &x, &fix.enu, weight);
             // Finite by the checks in push_gnss / push_vo.
             let _ = h.moments.push(&x, &fix.enu, weight);
             h.fit = h.moments.align(align_mode).ok();
@@ -777,15 +800,17 @@ impl<const K: usize> Anchorer<K> {
         let fit = prior.and_then(|p| with_rotation_prior(fit, m, inflation, &p, self.mode())).unwrap_or(fit);
         let sxx = m.covariance_x() * m.weight();
         let trace = sxx.trace().max(0.0);
-        // The translation is pinned at the recent centroid: rotation and scale errors act
-        // through the lever arm from there to the current point.
+        // The translation is pinned at a centroid of recent pairs: rotation and scale errors
+        // act through the lever arm from there to the current point — from the short
+        // window's for observability, from the steady window's for the reported position.
         let offset = current - h.recent.mean_x;
+        let steady_offset = current - h.steady.mean_x;
         let c = fit.scale;
         // Rotation information (rad⁻²) about unit axis a is c²·aᵀ(tr(S)·I − S)a / inflation
         // (S = Σw x'x'ᵀ) from the fixes, plus the prior's, the same about every axis, so
         // the eigen-axes are those of S. A rotation error θ about a moves the current point
         // by θ·c·‖a × offset‖.
-        let (rotation_sigma, rotation_var_m2) = match self.mode() {
+        let (rotation_sigma, rotation_var_m2, steady_rotation_var_m2) = match self.mode() {
             AnchorMode::Full => {
                 let Some(eig) =
                     nalgebra::SymmetricEigen::try_new(sxx, f64::EPSILON * 5.0, MAX_DECOMPOSITION_ITERATIONS)
@@ -794,20 +819,22 @@ impl<const K: usize> Anchorer<K> {
                     return;
                 };
                 let mut weakest = 0.0f64;
-                let mut var = 0.0;
+                let (mut var, mut steady_var) = (0.0, 0.0);
                 for i in 0..3 {
                     let info = c * c * (trace - eig.eigenvalues[i]).max(0.0) / inflation + prior_information;
                     let axis = eig.eigenvectors.column(i);
-                    let lever2 = axis.cross(&offset).norm_squared();
                     weakest = weakest.max(1.0 / info);
-                    var += if lever2 > 0.0 { c * c * lever2 / info } else { 0.0 };
+                    for (lever, sum) in [(&offset, &mut var), (&steady_offset, &mut steady_var)] {
+                        let lever2 = axis.cross(lever).norm_squared();
+                        *sum += if lever2 > 0.0 { c * c * lever2 / info } else { 0.0 };
+                    }
                 }
-                (libm::sqrt(weakest), var)
+                (libm::sqrt(weakest), var, steady_var)
             }
             AnchorMode::GravityAligned => {
                 let info = c * c * (sxx[(0, 0)] + sxx[(1, 1)]) / inflation + prior_information;
-                let lever2 = offset.x * offset.x + offset.y * offset.y;
-                (libm::sqrt(1.0 / info), c * c * lever2 / info)
+                let lever2 = |o: &Vector3<f64>| o.x * o.x + o.y * o.y;
+                (libm::sqrt(1.0 / info), c * c * lever2(&offset) / info, c * c * lever2(&steady_offset) / info)
             }
         };
         let (fused, scale_var) = fuse_wheel_scale(fit, m, inflation, self.wheel_prior());
@@ -817,11 +844,12 @@ impl<const K: usize> Anchorer<K> {
         };
         let scale_rel_sigma = libm::sqrt(scale_var) / fit.scale;
         let geometry_sigma = libm::sqrt(rotation_var_m2 + scale_var * offset.norm_squared());
+        let steady_geometry_sigma = libm::sqrt(steady_rotation_var_m2 + scale_var * steady_offset.norm_squared());
         self.quality.rotation_sigma_rad = rotation_sigma;
         self.quality.geometry_sigma_m = geometry_sigma;
         self.quality.scale_rel_sigma = scale_rel_sigma;
         self.quality.position_sigma_m =
-            libm::sqrt(2.0 * fix_sigma * fix_sigma * variance_factor + geometry_sigma * geometry_sigma);
+            libm::sqrt(2.0 * fix_sigma * fix_sigma * variance_factor + steady_geometry_sigma * steady_geometry_sigma);
         let long_window = Sim3 { translation: m.mean_y() - fit.rotation * m.mean_x() * fit.scale, ..fit };
         self.quality.rms_residual_m =
             if m.weight() > 0.0 { libm::sqrt(m.weighted_sse(&long_window) / m.weight()) } else { 0.0 };
@@ -841,10 +869,10 @@ impl<const K: usize> Anchorer<K> {
         if self.quality.observability == Observability::Observable && fit.is_valid() {
             self.held = Some((fit.rotation, fit.scale));
         }
-        let recent = &self.hypotheses[best].recent;
+        let steady = &self.hypotheses[best].steady;
         let candidate = self.held.map(|(rotation, scale)| Sim3 {
             rotation,
-            translation: recent.translation(&rotation, scale),
+            translation: steady.translation(&rotation, scale),
             scale,
         });
         // Extreme (finite) inputs can still overflow the product: never report that. The
