@@ -214,6 +214,11 @@ struct StraightRoad {
 }
 
 impl StraightRoad {
+    /// Fixes whose noise is the σ they state, the VO exact.
+    fn new(truth: Sim3, speed: f64, heading: f64, fix_every: usize, fix_sigma: f64) -> Self {
+        StraightRoad { truth, speed, heading, fix_every, fix_sigma, noise_sigma: fix_sigma, vo_step_m: 0.0 }
+    }
+
     /// `seconds` of it into `anchorer`, `before(t, anchorer)` at each 10 ms step: the time
     /// the anchorer first became observable.
     fn drive(&self, anchorer: &mut Anchorer, seconds: f64, mut before: impl FnMut(f64, &mut Anchorer)) -> Option<f64> {
@@ -258,15 +263,7 @@ fn straight_session(prior: Option<(f64, f64)>, seconds: f64) -> (Anchorer, Optio
     if let Some((yaw_error, sigma)) = prior {
         anchorer.set_rotation_prior(rotation_z(2.0 + yaw_error), sigma).expect("a rotation");
     }
-    let road = StraightRoad {
-        truth,
-        speed: 10.0,
-        heading: 0.3,
-        fix_every: 20,
-        fix_sigma: 1.5,
-        noise_sigma: 1.5,
-        vo_step_m: 0.0,
-    };
+    let road = StraightRoad::new(truth, 10.0, 0.3, 20, 1.5);
     let observable = road.drive(&mut anchorer, seconds, |_, _| {});
     (anchorer, observable, truth)
 }
@@ -321,15 +318,7 @@ fn phone_session(level_at: Option<f64>, seconds: f64) -> (Anchorer, Option<f64>,
     let truth = arbitrary();
     let mut anchorer: Anchorer = Anchorer::new(AnchorConfig::default());
     let up_in_vo = truth.rotation.transpose() * Vector3::z();
-    let road = StraightRoad {
-        truth,
-        speed: 25.0,
-        heading: 1.1,
-        fix_every: 200,
-        fix_sigma: 8.3,
-        noise_sigma: 8.3,
-        vo_step_m: 0.0,
-    };
+    let road = StraightRoad::new(truth, 25.0, 1.1, 200, 8.3);
     let observable = road.drive(&mut anchorer, seconds, |t, a| {
         if level_at.is_some_and(|at| (t - at).abs() < 0.005) {
             a.level(&(up_in_vo * 3.0)).expect("a vertical");
@@ -399,15 +388,7 @@ fn the_gnss_course_gives_an_unanchored_session_its_yaw() {
     // The phone's straight road, gravity-aligned: its fixes alone take a while; with the
     // course of each fix (σ 1°) the session's yaw is known from the first fix on.
     let truth = Sim3 { rotation: rotation_z(-2.5), translation: Vector3::new(3.0, 4.0, 0.0), scale: 0.4 };
-    let road = StraightRoad {
-        truth,
-        speed: 25.0,
-        heading: 1.1,
-        fix_every: 200,
-        fix_sigma: 8.3,
-        noise_sigma: 8.3,
-        vo_step_m: 0.0,
-    };
+    let road = StraightRoad::new(truth, 25.0, 1.1, 200, 8.3);
     let config = AnchorConfig { mode: AnchorMode::GravityAligned, ..AnchorConfig::default() };
     let course = core::f64::consts::FRAC_PI_2 - 1.1;
     let mut alone: Anchorer = Anchorer::new(config);
@@ -458,7 +439,7 @@ fn position_rms_on_a_straight_road(fix_sigma: f64, noise_sigma: f64, vo_step_m: 
     let truth = Sim3 { rotation: rotation_z(0.7), translation: Vector3::new(10.0, 5.0, 0.0), scale: 2.0 };
     let config = AnchorConfig { mode: AnchorMode::GravityAligned, ..AnchorConfig::default() };
     let mut anchorer: Anchorer = Anchorer::new(config);
-    let road = StraightRoad { truth, speed: 15.0, heading: 0.4, fix_every: 100, fix_sigma, noise_sigma, vo_step_m };
+    let road = StraightRoad { noise_sigma, vo_step_m, ..StraightRoad::new(truth, 15.0, 0.4, 100, fix_sigma) };
     let direction = Vector3::new(libm::cos(road.heading), libm::sin(road.heading), 0.0);
     let (mut sum, mut n) = (0.0, 0.0);
     road.drive(&mut anchorer, 90.0, |t, a| {
