@@ -1,7 +1,11 @@
 //! The finished log's clock: its UTC moved onto the world's.
 //!
 //! A device reads UTC off each GNSS fix as it arrives, so its log's UTC is early by the
-//! receiver's latency (`pipeline::clock`). The latency is measured two ways. The solve finds
+//! receiver's latency (`pipeline::clock`) until its anchorer has estimated the latency and
+//! slewed it in. Finishing measures the latency over the whole drive, on one time base: the
+//! device's slew is taken out first ([`DeviceSlew`]), so that every record
+//! is on the fixes' arrivals as the device first stamped them. The latency is then measured
+//! two ways. The solve finds
 //! it from where the fixes put the car (`solve`), where an along-track error of the fixes
 //! looks like a latency at constant speed. The fixes' motion says it more directly: the
 //! finished ego (from the camera's frames, on the device's clock) speeds up, slows down and
@@ -14,9 +18,11 @@ use std::f64::consts::FRAC_PI_2;
 
 use dash2sim_core::binlog::{quantise, EgoPose, GnssFix, Record};
 use dash2sim_core::track3d::wrap_angle;
-use dash2sim_linux::log::RecordStore;
+use dash2sim_linux::log::{LogContents, RecordStore};
 
+use crate::anchors::{AnchorFile, AnchorForm};
 use crate::timeline::index_after;
+use crate::Source;
 
 /// Latencies tried, s: from a receiver whose clock runs ahead to one half a second late.
 const LATENCY_RANGE_S: (f64, f64) = (-0.2, 0.6);
@@ -342,11 +348,92 @@ pub fn wheel_latency(speeds: &[(f64, f64)], track: Vec<(f64, f64, f64)>) -> Opti
     wheels.latency().filter(|(_, sigma)| *sigma <= MAX_SIGMA_S)
 }
 
-/// A device reads UTC off each fix as it arrives (`pipeline::clock`): its log's UTC is
-/// early by the receiver's latency, and everything in it — the ego, the tracks, the fixes'
-/// arrivals — is stamped that much before the instant it describes. Every record and clock
-/// offset is moved later by the latency (`latency_s`, [`latency_from_motion`] or the solve's), so that the
-/// finished log's UTC is the world's. A log that never learnt UTC (no clock offset) is on
+/// The receiver latency a device slewed into its log's clock (`pipeline::clock`): the
+/// `ClockOffset` records of reason 4, each a step of the latency (its offset less the one in
+/// force before it). Taken out of the log and of its anchors, everything is on one time
+/// base, the fixes' arrivals, as the device first stamped them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DeviceSlew {
+    /// From this log time on (µs), this latency was in the log's clock (µs).
+    steps: Vec<(i64, i64)>,
+}
+
+impl DeviceSlew {
+    /// The slew of `log`'s device; `None` when it slewed nothing.
+    pub fn of(log: &Source) -> Option<DeviceSlew> {
+        let (mut latency, mut offset, mut steps) = (0i64, None, vec![]);
+        for r in log.records.iter() {
+            let Record::ClockOffset(c) = r else { continue };
+            if c.reason == SLEW_REASON {
+                latency = latency.saturating_add(c.offset_us.saturating_sub(offset.unwrap_or(c.offset_us)));
+                steps.push((c.t_us, latency));
+            }
+            offset = Some(c.offset_us);
+        }
+        (!steps.is_empty()).then_some(DeviceSlew { steps })
+    }
+
+    /// The latency in the log's clock at log time `t_us`, µs.
+    pub fn latency_at(&self, t_us: i64) -> i64 {
+        let k = self.steps.partition_point(|s| s.0 <= t_us);
+        k.checked_sub(1).and_then(|k| self.steps.get(k)).map_or(0, |s| s.1)
+    }
+
+    /// `log` with the slew taken out, record by record in the order the device wrote them;
+    /// a fix keeps its stamp (the receiver's UTC), the slew's records are left out.
+    pub fn taken_out_of(&self, log: &Source) -> Source {
+        let (mut latency, mut offset) = (0i64, None);
+        let records = log
+            .records
+            .iter()
+            .filter_map(|mut r| {
+                match &mut r {
+                    Record::ClockOffset(c) if c.reason == SLEW_REASON => {
+                        latency = latency.saturating_add(c.offset_us.saturating_sub(offset.unwrap_or(c.offset_us)));
+                        offset = Some(c.offset_us);
+                        return None;
+                    }
+                    Record::ClockOffset(c) => {
+                        offset = Some(c.offset_us);
+                        c.offset_us = c.offset_us.saturating_sub(latency);
+                    }
+                    Record::GnssFix(_) => return Some(r),
+                    _ => {}
+                }
+                r.set_t_us(r.t_us().saturating_sub(latency));
+                Some(r)
+            })
+            .collect();
+        LogContents {
+            header: log.header,
+            records,
+            damage: log.damage.clone(),
+            stats: log.stats,
+            bytes: log.bytes,
+            signing: log.signing.clone(),
+        }
+    }
+
+    /// `file`'s anchors at a log time moved onto the log with the slew taken out.
+    pub fn taken_out_of_anchors(&self, file: &AnchorFile) -> AnchorFile {
+        let mut moved = file.clone();
+        for a in &mut moved.anchors {
+            if let AnchorForm::Time(t) = &mut a.at {
+                *t -= self.latency_at(quantise(*t, 1e-6)) as f64 * 1e-6;
+            }
+        }
+        moved
+    }
+}
+
+/// A `ClockOffset` record's reason when the device slewed the receiver's latency in.
+const SLEW_REASON: i64 = 4;
+
+/// A device reads UTC off each fix as it arrives (`pipeline::clock`): its log's UTC, the
+/// device's slew taken out, is early by the receiver's latency, and everything in it — the
+/// ego, the tracks, the fixes' arrivals — is stamped that much before the instant it
+/// describes. Every record and clock offset is moved later by the latency (`latency_s`,
+/// [`latency_from_motion`] or the solve's), so that the finished log's UTC is the world's. A log that never learnt UTC (no clock offset) is on
 /// the device's clock and is left there. Returns the shift, µs.
 pub fn utc_onto_the_fixes(records: &mut RecordStore, latency_s: f64) -> i64 {
     if !records.iter().any(|r| matches!(r, Record::ClockOffset(_))) || !latency_s.is_finite() {
@@ -485,5 +572,66 @@ mod tests {
         let mut device_clock: RecordStore = [speed(5)].into_iter().collect();
         assert_eq!(utc_onto_the_fixes(&mut device_clock, 0.1), 0);
         assert_eq!(device_clock.get(0).map(|r| r.t_us()), Some(5));
+    }
+
+    #[test]
+    fn the_devices_slew_is_taken_out_and_a_fix_keeps_its_stamp() {
+        use dash2sim_core::binlog::{ClockOffset, VehicleSpeed};
+        let speed = |t_us| Record::VehicleSpeed(VehicleSpeed { t_us, ..VehicleSpeed::default() });
+        let offset = |t_us, offset_us, reason| Record::ClockOffset(ClockOffset { t_us, offset_us, reason });
+        let fix = Record::GnssFix(GnssFix { t_us: 1_350_000, mode: 3, ..GnssFix::default() });
+        let source = |records: Vec<Record>| LogContents {
+            header: None,
+            records: records.into_iter().collect(),
+            damage: vec![],
+            stats: Default::default(),
+            bytes: 0,
+            signing: vec![],
+        };
+        // The first offset, a millisecond of slew, a fix, a drift of 0.5 ms, a millisecond more.
+        let slewed = source(vec![
+            offset(1_000_000, 900, 0),
+            speed(1_100_000),
+            offset(1_200_000, 1_900, 4),
+            speed(1_300_000),
+            fix,
+            offset(1_400_000, 2_400, 1),
+            offset(1_500_000, 3_400, 4),
+            speed(1_600_000),
+        ]);
+        let slew = DeviceSlew::of(&slewed).expect("slewed");
+        assert_eq!(
+            (slew.latency_at(1_199_999), slew.latency_at(1_200_000), slew.latency_at(1_600_000)),
+            (0, 1_000, 2_000)
+        );
+        let unslewed = slew.taken_out_of(&slewed);
+        let times: Vec<(i64, Option<i64>)> = unslewed
+            .records
+            .iter()
+            .map(|r| (r.t_us(), if let Record::ClockOffset(c) = r { Some(c.offset_us) } else { None }))
+            .collect();
+        assert_eq!(
+            times,
+            [
+                (1_000_000, Some(900)),
+                (1_100_000, None),
+                (1_299_000, None),
+                (1_350_000, None),
+                (1_399_000, Some(1_400)),
+                (1_598_000, None)
+            ]
+        );
+        // A log its device never slewed is read as it is.
+        assert!(DeviceSlew::of(&source(vec![offset(1_000_000, 900, 0), speed(1_100_000)])).is_none());
+        // An anchor at a log time moves with the records about it.
+        let line = |t| crate::anchors::AnchorLine {
+            line: 3,
+            at: AnchorForm::Time(t),
+            position: dash2sim_core::geo::Geodetic { lat_deg: 60.0, lon_deg: 25.0, height_m: 0.0 },
+            sigma: 0.3,
+        };
+        let file = AnchorFile { anchors: vec![line(1.1), line(1.6)], refused: vec![] };
+        let moved: Vec<AnchorForm> = slew.taken_out_of_anchors(&file).anchors.iter().map(|a| a.at).collect();
+        assert_eq!(moved, [AnchorForm::Time(1.1), AnchorForm::Time(1.6 - 0.002)]);
     }
 }

@@ -103,6 +103,8 @@ pub fn factor_graphs(
     settings: Settings,
     uere: f64,
 ) -> Result<Vec<SessionGraph>> {
+    let unslewed = Unslewed::of(log, anchor_file);
+    let (log, anchor_file) = unslewed.or(log, anchor_file);
     let Prepared { drive, anchors, lever, .. } = prepare(log, name, anchor_file, mount, uere)?;
     let Solved { sessions, .. } = solve_sessions(&drive, &anchors, lever, settings);
     sessions
@@ -123,6 +125,36 @@ pub fn factor_graphs(
         .collect()
 }
 
+/// A log and its anchors at log times with the receiver latency its device slewed into its
+/// clock taken out ([`clock::DeviceSlew`]); empty when it slewed none.
+struct Unslewed {
+    log: Option<Source>,
+    anchors: Option<anchors::AnchorFile>,
+}
+
+impl Unslewed {
+    fn of(log: &Source, anchor_file: Option<(&str, &anchors::AnchorFile)>) -> Unslewed {
+        let Some(slew) = clock::DeviceSlew::of(log) else { return Unslewed { log: None, anchors: None } };
+        Unslewed {
+            log: Some(slew.taken_out_of(log)),
+            anchors: anchor_file.map(|(_, file)| slew.taken_out_of_anchors(file)),
+        }
+    }
+
+    /// The log and anchors to finish: these, or the ones given when the device slewed none.
+    fn or<'a>(
+        &'a self,
+        log: &'a Source,
+        anchor_file: Option<(&'a str, &'a anchors::AnchorFile)>,
+    ) -> (&'a Source, Option<(&'a str, &'a anchors::AnchorFile)>) {
+        let anchors = match (&self.anchors, anchor_file) {
+            (Some(moved), Some((path, _))) => Some((path, moved)),
+            _ => anchor_file,
+        };
+        (self.log.as_ref().unwrap_or(log), anchors)
+    }
+}
+
 /// Finish a log that has been read. `anchor_file` and `map` are optional inputs.
 pub fn finish(
     log: &Source,
@@ -133,6 +165,8 @@ pub fn finish(
     settings: Settings,
     uere: f64,
 ) -> Result<Finished> {
+    let unslewed = Unslewed::of(log, anchor_file);
+    let (log, anchor_file) = unslewed.or(log, anchor_file);
     let Prepared { drive, anchors, calibrated, lever } = prepare(log, name, anchor_file, mount, uere)?;
     let nominal_yaw = mount.roll_pitch_yaw[2];
     let mount = calibrated.mount;

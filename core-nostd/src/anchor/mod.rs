@@ -57,6 +57,13 @@ use crate::time::{Duration, Timestamp};
 use history::{Odometer, VoHistory, VoSample};
 use wheel::WheelScale;
 
+/// The hypotheses' summed prediction errors (squares of residuals over the fixes' stated
+/// σ) tell the latency once the worst exceeds the best by this, as a χ² rises by 1 at one
+/// σ. Not inflated for the fixes' correlated errors as the fit's σ is: an error common to
+/// all hypotheses cancels in their difference (inflated, the device's clock gained on 26 of
+/// the 200 tuning drives, against 117 so; docs/pipeline.md#clocks).
+pub const LATENCY_SHOWN_CHI2: f64 = 1.0;
+
 /// VO samples kept for latency look-back (3.2 s at 20 Hz).
 const VO_HISTORY: usize = 64;
 /// GNSS fixes waiting for the VO sample that brackets them.
@@ -214,6 +221,9 @@ pub struct Quality {
     pub position_sigma_m: f64,
     /// Estimated GNSS latency, s (when latency estimation is on and data suffice).
     pub latency_s: Option<f64>,
+    /// Whether the drive has shown that latency: not at a steady speed on a straight road,
+    /// where every hypothesis fits alike ([`LATENCY_SHOWN_CHI2`]).
+    pub latency_shown: bool,
     /// Calibrated wheel factor (true / odometer distance), when speed is fed.
     pub wheel_factor: Option<f64>,
 }
@@ -271,8 +281,8 @@ struct PendingFix {
 struct Hypothesis {
     latency: Duration,
     moments: Moments,
-    /// Weighted means over the short translation window.
-    recent: RecentMeans,
+    /// The VO's centroid over the short translation window.
+    recent: RecentCentroid,
     /// Weighted means over a window that lengthens with the fixes' σ
     /// ([`STEADY_REFERENCE_SIGMA_M`]): the reported translation.
     steady: RecentMeans,
@@ -290,6 +300,34 @@ struct RotationPrior {
     information: f64,
 }
 
+/// The weight an exponentially weighted mean has after forgetting by `keep` and adding
+/// `w`, and the share of the new sample in it; `None` when the weight is not positive or
+/// not finite (the update is then refused).
+fn forgetful_weight(weight: f64, keep: f64, w: f64) -> Option<(f64, f64)> {
+    let weight = weight * keep + w;
+    (weight > 0.0 && weight.is_finite()).then(|| (weight, w / weight))
+}
+
+/// Exponentially weighted mean of recent VO positions: the short window's centroid, the
+/// lever arm the observability is judged on.
+#[derive(Clone, Copy, Debug, Default)]
+struct RecentCentroid {
+    weight: f64,
+    mean: Vector3<f64>,
+}
+
+impl RecentCentroid {
+    /// Forget by `keep` and add `x`; an update that would overflow is refused and leaves
+    /// the mean as it was.
+    fn push(&mut self, keep: f64, x: &Vector3<f64>, w: f64) {
+        let Some((weight, f)) = forgetful_weight(self.weight, keep, w) else { return };
+        let mean = self.mean + (x - self.mean) * f;
+        if mean.iter().all(|v| v.is_finite()) {
+            *self = RecentCentroid { weight, mean };
+        }
+    }
+}
+
 /// Exponentially weighted means of recent pairs.
 #[derive(Clone, Copy, Debug, Default)]
 struct RecentMeans {
@@ -302,17 +340,13 @@ impl RecentMeans {
     /// Forget by `keep` and add the pair; an update that would overflow is refused and
     /// leaves the means as they were.
     fn push(&mut self, keep: f64, x: &Vector3<f64>, y: &Vector3<f64>, w: f64) {
-        let weight = self.weight * keep + w;
-        if weight <= 0.0 {
-            return;
-        }
-        let f = w / weight;
+        let Some((weight, f)) = forgetful_weight(self.weight, keep, w) else { return };
         let next = RecentMeans {
             weight,
             mean_x: self.mean_x + (x - self.mean_x) * f,
             mean_y: self.mean_y + (y - self.mean_y) * f,
         };
-        if next.weight.is_finite() && next.mean_x.iter().chain(next.mean_y.iter()).all(|v| v.is_finite()) {
+        if next.mean_x.iter().chain(next.mean_y.iter()).all(|v| v.is_finite()) {
             *self = next;
         }
     }
@@ -366,7 +400,7 @@ impl<const K: usize> Anchorer<K> {
         let hypotheses = core::array::from_fn(|k| Hypothesis {
             latency: Duration::from_micros(step.micros().saturating_mul(k as i64)),
             moments: Moments::new(),
-            recent: RecentMeans::default(),
+            recent: RecentCentroid::default(),
             steady: RecentMeans::default(),
             fit: None,
             prediction_sse: 0.0,
@@ -402,6 +436,7 @@ impl<const K: usize> Anchorer<K> {
                 scale_rel_sigma: f64::INFINITY,
                 position_sigma_m: f64::INFINITY,
                 latency_s: None,
+                latency_shown: false,
                 wheel_factor: None,
             },
         }
@@ -459,7 +494,7 @@ impl<const K: usize> Anchorer<K> {
         let mode = self.mode();
         for h in &mut self.hypotheses {
             h.moments.turn_x(&turn);
-            h.recent.mean_x = turn * h.recent.mean_x;
+            h.recent.mean = turn * h.recent.mean;
             h.steady.mean_x = turn * h.steady.mean_x;
             h.fit = h.moments.align(align_mode(mode)).ok();
         }
@@ -708,7 +743,7 @@ impl<const K: usize> Anchorer<K> {
                 h.prediction_sse += u2.min(gate2);
             }
             h.moments.forget(forget);
-            h.recent.push(keep_recent, &x, &fix.enu, weight);
+            h.recent.push(keep_recent, &x, weight);
             h.steady.push(keep_steady, &x, &fix.enu, weight);
             // Finite by the checks in push_gnss / push_vo.
             let _ = h.moments.push(&x, &fix.enu, weight);
@@ -762,9 +797,17 @@ impl<const K: usize> Anchorer<K> {
         Some(base + offset.clamp(-0.5, 0.5) * step)
     }
 
+    /// Whether the hypotheses' prediction errors tell the latency: the worst's sum exceeds
+    /// the best's by [`LATENCY_SHOWN_CHI2`].
+    fn latency_shown(&self, best: usize) -> bool {
+        let worst = self.hypotheses.iter().map(|h| h.prediction_sse).fold(0.0, f64::max);
+        worst - self.hypotheses[best].prediction_sse >= LATENCY_SHOWN_CHI2
+    }
+
     fn update_estimate(&mut self, best: usize, current: &Vector3<f64>, fix_sigma: f64) {
-        let h = &self.hypotheses[best];
         self.quality.latency_s = self.latency_estimate(best);
+        self.quality.latency_shown = self.quality.latency_s.is_some() && self.latency_shown(best);
+        let h = &self.hypotheses[best];
         self.quality.wheel_factor = self.wheel_factor();
         let Some(gnss_fit) = h.fit else {
             self.quality.observability = Observability::TooFewAnchors;
@@ -803,7 +846,7 @@ impl<const K: usize> Anchorer<K> {
         // The translation is pinned at a centroid of recent pairs: rotation and scale errors
         // act through the lever arm from there to the current point — from the short
         // window's for observability, from the steady window's for the reported position.
-        let offset = current - h.recent.mean_x;
+        let offset = current - h.recent.mean;
         let steady_offset = current - h.steady.mean_x;
         let c = fit.scale;
         // Rotation information (rad⁻²) about unit axis a is c²·aᵀ(tr(S)·I − S)a / inflation

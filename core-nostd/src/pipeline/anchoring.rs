@@ -172,6 +172,13 @@ impl Anchoring {
         self.anchorer.push_course(rx, track, sigma)
     }
 
+    /// The GNSS receiver's latency, s, as the anchorer estimates it once anchored, where
+    /// the drive has shown it.
+    pub(super) fn receiver_latency(&self) -> Option<f64> {
+        let quality = self.anchorer.quality();
+        quality.latency_s.filter(|_| quality.latency_shown && quality.observability == Observability::Observable)
+    }
+
     /// A fix's position, with its σ (m), to the anchorer; `false`: refused.
     pub(super) fn fix(&mut self, rx: Timestamp, position: &Geodetic, sigma: f64) -> bool {
         let enu = self.local.geodetic_to_enu(position);

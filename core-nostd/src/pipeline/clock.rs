@@ -12,7 +12,13 @@
 //! * **UTC offset.** Each fix gives `UTC − receive time`, which is the true offset minus
 //!   the receiver's latency. The largest sample of the last [`WINDOW`] fixes is the one
 //!   with the least latency, so it is the estimate (as NTP keeps the sample with the least
-//!   delay). The GNSS latency the anchorer estimates stays separate.
+//!   delay). It is the true offset less the receiver's latency.
+//! * **Receiver latency.** The latency as the device knows it (the anchorer's estimate,
+//!   [`Clock::receiver_latency`]) is added to the offset, so that the log's UTC is the
+//!   world's and not early by it. It is slewed in, as NTP slews a clock: a millisecond per
+//!   [`SLEW_INTERVAL_US`] of input time ([`Clock::slew`]), so the log's time never jumps
+//!   by the latency (a 0.1 s jump would be a jolt in every speed and acceleration read
+//!   off the poses); its speeds read 1 % slow (or fast) while it does.
 //! * **GNSS time step.** A sample more than [`STEP_THRESHOLD_US`] from the estimate is
 //!   ignored — unless [`STEP_CONFIRMATIONS`] in a row agree with each other, in which case
 //!   UTC really stepped (a leap second, a receiver that fixed its time) and the offset
@@ -34,6 +40,14 @@ const STEP_AGREEMENT_US: i64 = 100_000;
 pub const WINDOW: usize = 16;
 /// A change of the estimate smaller than this is neither reported nor applied, µs.
 pub const REPORT_CHANGE_US: i64 = 1_000;
+/// A new latency estimate closer than this to the one aimed at is not taken, µs: the
+/// estimate wanders by some milliseconds from fix to fix.
+pub const LATENCY_CHANGE_US: i64 = 10_000;
+/// The applied latency moves by [`SLEW_STEP_US`] each time this much input time has passed,
+/// µs: 1 %.
+pub const SLEW_INTERVAL_US: i64 = 100_000;
+/// One step of the slew, µs.
+pub const SLEW_STEP_US: i64 = 1_000;
 
 /// What a UTC sample did to the offset.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -54,6 +68,8 @@ pub enum OffsetChange {
     },
     /// After a device clock reset, the first fix set the offset anew.
     AfterReset(i64),
+    /// The receiver's latency as estimated was slewed in by a step; the new offset.
+    Latency(i64),
     /// A sample this far from the estimate was ignored (a step candidate), µs.
     Ignored(i64),
 }
@@ -64,9 +80,15 @@ pub struct Clock {
     latest_device: Option<i64>,
     /// monotonic = device + correction.
     correction: i64,
-    /// UTC − monotonic.
+    /// UTC − monotonic − the receiver's latency: what the fixes' arrivals say.
     offset: Option<i64>,
-    /// The offset last reported.
+    /// The receiver's latency applied, µs.
+    latency: i64,
+    /// The receiver's latency the slew is heading for, µs.
+    latency_target: i64,
+    /// Monotonic time of the slew's last step (or of the last input while none was due).
+    slewed_at: i64,
+    /// The offset last reported (the latency included).
     reported: i64,
     samples: Deque<i64, WINDOW>,
     candidates: heapless::Vec<i64, STEP_CONFIRMATIONS>,
@@ -123,11 +145,12 @@ impl Clock {
     /// A fix stamped `utc` was received at monotonic time `received`.
     pub fn utc_sample(&mut self, utc: Timestamp, received: Timestamp) -> OffsetChange {
         let sample = utc.micros().saturating_sub(received.micros());
+        let in_force = sample.saturating_add(self.latency);
         let Some(offset) = self.offset else {
-            return self.restart(sample, OffsetChange::First(sample));
+            return self.restart(sample, OffsetChange::First(in_force));
         };
         if self.after_reset {
-            return self.restart(sample, OffsetChange::AfterReset(sample));
+            return self.restart(sample, OffsetChange::AfterReset(in_force));
         }
         let off_by = sample.saturating_sub(offset);
         if off_by.saturating_abs() < STEP_THRESHOLD_US {
@@ -139,9 +162,10 @@ impl Clock {
             let _ = self.samples.push_back(sample);
             let estimate = self.samples.iter().copied().max().unwrap_or(sample);
             self.offset = Some(estimate);
-            if estimate.saturating_sub(self.reported).saturating_abs() >= REPORT_CHANGE_US {
-                self.reported = estimate;
-                return OffsetChange::Drift(estimate);
+            let in_force = estimate.saturating_add(self.latency);
+            if in_force.saturating_sub(self.reported).saturating_abs() >= REPORT_CHANGE_US {
+                self.reported = in_force;
+                return OffsetChange::Drift(in_force);
             }
             return OffsetChange::None;
         }
@@ -154,17 +178,57 @@ impl Clock {
         if self.candidates.is_full() {
             let step = self.candidates.iter().copied().max().unwrap_or(sample);
             self.candidates.clear();
-            return self.restart(step, OffsetChange::Step { offset: step, by: step.saturating_sub(offset) });
+            let by = step.saturating_sub(offset);
+            return self.restart(step, OffsetChange::Step { offset: step.saturating_add(self.latency), by });
         }
         OffsetChange::Ignored(off_by)
     }
 
+    /// The receiver's latency as the device now estimates it, µs (the time from a fix's
+    /// UTC to its arrival): the slew heads for it when it differs by [`LATENCY_CHANGE_US`]
+    /// or more from the latency it heads for now (`true` then). A latency outside 0–1 s is
+    /// no receiver's and is ignored.
+    pub fn receiver_latency(&mut self, latency_us: i64) -> bool {
+        let far = latency_us.saturating_sub(self.latency_target).saturating_abs() >= LATENCY_CHANGE_US;
+        if (0..=1_000_000).contains(&latency_us) && far {
+            self.latency_target = latency_us;
+            return true;
+        }
+        false
+    }
+
+    /// One step of the slew towards the receiver's latency, when one is due at monotonic
+    /// time `now`: [`OffsetChange::Latency`] with the new offset (to be written), or
+    /// [`OffsetChange::None`].
+    pub fn slew(&mut self, now: Timestamp) -> OffsetChange {
+        let now = now.micros();
+        let Some(offset) = self.offset.filter(|_| self.latency != self.latency_target) else {
+            self.slewed_at = now;
+            return OffsetChange::None;
+        };
+        if now.saturating_sub(self.slewed_at) < SLEW_INTERVAL_US {
+            return OffsetChange::None;
+        }
+        let step = self.latency_target.saturating_sub(self.latency).clamp(-SLEW_STEP_US, SLEW_STEP_US);
+        self.latency = self.latency.saturating_add(step);
+        self.slewed_at = now;
+        self.reported = offset.saturating_add(self.latency);
+        OffsetChange::Latency(self.reported)
+    }
+
+    /// The receiver's latency in force, µs.
+    pub fn latency(&self) -> i64 {
+        self.latency
+    }
+
+    /// UTC from `offset` (the fixes' arrivals) on, after its first fix, a step or a reset;
+    /// `change` says which, with the offset in force.
     fn restart(&mut self, offset: i64, change: OffsetChange) -> OffsetChange {
         self.samples.clear();
         let _ = self.samples.push_back(offset);
         self.candidates.clear();
         self.offset = Some(offset);
-        self.reported = offset;
+        self.reported = offset.saturating_add(self.latency);
         self.after_reset = false;
         change
     }
@@ -192,6 +256,45 @@ mod tests {
         assert_eq!(c.utc_sample(t(utc0 + 600_000), t(659_500)), OffsetChange::None);
         assert_eq!(c.offset(), Some(utc0 - 60_000));
         assert_eq!(c.log_time(t(1_000_000)), utc0 - 60_000 + 1_000_000);
+    }
+
+    #[test]
+    fn the_receivers_latency_is_slewed_in_a_millisecond_per_tenth_of_a_second() {
+        let mut c = Clock::new();
+        let base = 1_000_000_000_000;
+        // Within 10 ms of none: not taken.
+        assert!(!c.receiver_latency(3_000));
+        // Known before UTC is: kept, and slewed in once UTC is known.
+        assert!(c.receiver_latency(12_000));
+        assert_eq!(c.slew(t(0)), OffsetChange::None);
+        assert_eq!(c.utc_sample(t(base), t(0)), OffsetChange::First(base));
+        let mut steps: heapless::Vec<(i64, i64), 16> = heapless::Vec::new();
+        for k in 1..=100 {
+            if let OffsetChange::Latency(o) = c.slew(t(k * 20_000)) {
+                steps.push((k * 20_000, o)).expect("twelve steps");
+            }
+        }
+        assert_eq!(steps.len(), 12);
+        assert_eq!(steps[..2], [(100_000, base + 1_000), (200_000, base + 2_000)]);
+        assert_eq!(steps.last(), Some(&(1_200_000, base + 12_000)));
+        assert_eq!(c.offset(), Some(base + 12_000));
+        // Within 10 ms of the latency aimed at: not taken; nor a latency beyond 1 s or below 0.
+        assert!(!c.receiver_latency(21_000));
+        assert!(!c.receiver_latency(1_500_000));
+        assert!(!c.receiver_latency(-20_000));
+        assert_eq!(c.slew(t(5_000_000)), OffsetChange::None);
+        // A new estimate 11 ms lower: down by a millisecond a tenth of a second.
+        assert!(c.receiver_latency(1_000));
+        assert_eq!(c.slew(t(5_050_000)), OffsetChange::None);
+        assert_eq!(c.slew(t(5_100_000)), OffsetChange::Latency(base + 11_000));
+        assert_eq!(c.slew(t(5_200_000)), OffsetChange::Latency(base + 10_000));
+        for k in 3..=12 {
+            c.slew(t(5_000_000 + k * 100_000));
+        }
+        assert_eq!(c.offset(), Some(base + 1_000));
+        assert_eq!(c.slew(t(6_300_000)), OffsetChange::None);
+        // The fixes' arrivals move the offset with the latency kept in it.
+        assert_eq!(c.utc_sample(t(base + 7_000_000 + 5_000), t(7_000_000)), OffsetChange::Drift(base + 6_000));
     }
 
     #[test]

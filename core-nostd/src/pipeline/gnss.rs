@@ -9,7 +9,7 @@ use super::issues::Issue;
 use super::signals::{self, GnssFrame};
 use super::sink::LogSink;
 use super::{quantise, PipelineError, SpeedSource};
-use crate::binlog::{ClockOffset, GnssFix, Record, VehicleSpeed};
+use crate::binlog::{GnssFix, Record, VehicleSpeed};
 use crate::can::{Decoded, Message};
 use crate::decimal::Decimal;
 use crate::geo::Geodetic;
@@ -257,17 +257,7 @@ impl GnssIngest {
                 }
                 change => {
                     utc_trusted = true;
-                    let (offset, reason, text) = match change {
-                        OffsetChange::First(o) => (o, 0, "UTC known from the first fix: the log is in UTC from here"),
-                        OffsetChange::Drift(o) => (o, 1, ""),
-                        OffsetChange::Step { offset, .. } => (offset, 2, "GNSS time stepped; the clock offset follows"),
-                        _ => (log.clock.offset().unwrap_or(0), 3, "UTC taken again after the device clock reset"),
-                    };
-                    let record = ClockOffset { t_us: log.time(rx), offset_us: offset, reason };
-                    log.write(&Record::ClockOffset(record))?;
-                    if !text.is_empty() {
-                        log.event(rx, 2, format_args!("{text} (offset {} µs)", offset))?;
-                    }
+                    log.offset_changed(rx, change)?;
                 }
             }
         }

@@ -9,6 +9,7 @@ use super::issues::Issue;
 use super::signals::GnssFrame;
 use super::{inertial, tracking, ImageDetection, PipelineError, State};
 use crate::anchor::gnss_sigma;
+use crate::decimal::Decimal;
 use crate::nmea::StreamEvent;
 use crate::sim3::Pose;
 use crate::time::Timestamp;
@@ -71,7 +72,18 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             return self.log.issue(rx, Issue::GnssRefused, 1);
         }
         self.log.stats.fixes = self.log.stats.fixes.saturating_add(1);
-        Ok(())
+        let Some(latency) = self.anchoring.receiver_latency() else { return Ok(()) };
+        if !self.log.clock.receiver_latency(super::quantise(latency, 1e-6)) {
+            return Ok(());
+        }
+        self.log.event(
+            rx,
+            2,
+            format_args!(
+                "GNSS receiver latency {} s, as anchoring finds it: the log's UTC slews by it",
+                Decimal::new(latency, 3)
+            ),
+        )
     }
 
     /// An IMU sample; a dead-reckoned pose it makes due is anchored as a VO pose.

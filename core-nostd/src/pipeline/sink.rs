@@ -5,10 +5,10 @@ use core::fmt::Write as _;
 
 use embedded_io::Write;
 
-use super::clock::Clock;
+use super::clock::{Clock, OffsetChange};
 use super::issues::{Issue, Issues};
 use super::{PipelineError, PipelineStats};
-use crate::binlog::{EventRecord, Header, Record, WriteError, Writer, WriterConfig, MAX_TEXT};
+use crate::binlog::{ClockOffset, EventRecord, Header, Record, WriteError, Writer, WriterConfig, MAX_TEXT};
 use crate::decimal::Decimal;
 use crate::time::Timestamp;
 
@@ -79,11 +79,31 @@ impl<W: Write, const BUF: usize> LogSink<W, BUF> {
         }
     }
 
+    /// A change of the clock's offset at `t`: its `ClockOffset` record, and an event where
+    /// it says something a reader should know.
+    pub(super) fn offset_changed(&mut self, t: Timestamp, change: OffsetChange) -> Result<(), PipelineError<W::Error>> {
+        let (offset, reason, text) = match change {
+            OffsetChange::None | OffsetChange::Ignored(_) => return Ok(()),
+            OffsetChange::First(o) => (o, 0, "UTC known from the first fix: the log is in UTC from here"),
+            OffsetChange::Drift(o) => (o, 1, ""),
+            OffsetChange::Step { offset, .. } => (offset, 2, "GNSS time stepped; the clock offset follows"),
+            OffsetChange::AfterReset(o) => (o, 3, "UTC taken again after the device clock reset"),
+            OffsetChange::Latency(o) => (o, 4, ""),
+        };
+        self.write(&Record::ClockOffset(ClockOffset { t_us: self.time(t), offset_us: offset, reason }))?;
+        if text.is_empty() {
+            return Ok(());
+        }
+        self.event(t, 2, format_args!("{text} (offset {offset} µs)"))
+    }
+
     pub(super) fn monotonic(&mut self, device: Timestamp) -> Result<Timestamp, PipelineError<W::Error>> {
         let (t, reset) = self.clock.monotonic(device);
         if t > self.now {
             self.now = t;
         }
+        let slewed = self.clock.slew(self.now);
+        self.offset_changed(self.now, slewed)?;
         if let Some(back) = reset {
             self.issues.count(Issue::ClockReset, 1, t.micros());
             self.event(

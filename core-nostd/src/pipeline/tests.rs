@@ -143,7 +143,13 @@ struct Decoded {
     counts: [u64; Kind::ALL.len()],
     damaged: u64,
     events: heapless::Vec<heapless::String<255>, 64>,
+    /// The reasons of the clock offsets, the latency's slew (reason 4) left out.
     clock_reasons: heapless::Vec<i64, 16>,
+    /// The latency slewed into the log's clock, µs, and in how many steps; whether every
+    /// step was at most a millisecond, one way, at least 0.1 s after the one before.
+    slewed_us: i64,
+    slew_steps: u32,
+    slew_steps_even: bool,
     last_ego: Option<EgoPose>,
     /// The VO sessions, in the order they first appear.
     sessions: heapless::Vec<i64, 8>,
@@ -153,7 +159,8 @@ struct Decoded {
 }
 
 fn decode(log: &[u8]) -> Decoded {
-    let mut out = Decoded::default();
+    let mut out = Decoded { slew_steps_even: true, ..Decoded::default() };
+    let (mut offset, mut last_step) = (None::<i64>, None::<i64>);
     let mut decoder: Decoder = Decoder::default();
     let mut carrying = false;
     let mut on = |e: LogEvent| match e {
@@ -173,13 +180,23 @@ fn decode(log: &[u8]) -> Decoded {
                         heapless::String::try_from(core::str::from_utf8(&e.text).unwrap_or("?")).unwrap_or_default(),
                     );
                 }
+                Record::ClockOffset(c) if c.reason == 4 => {
+                    let step = c.offset_us - offset.unwrap_or(c.offset_us);
+                    let apart = last_step.is_none_or(|t| c.t_us - t >= 100_000 + step);
+                    let one_way = out.slewed_us == 0 || (out.slewed_us > 0) == (step > 0);
+                    out.slew_steps_even &= step != 0 && step.abs() <= 1_000 && one_way && apart;
+                    out.slewed_us += step;
+                    out.slew_steps += 1;
+                    (offset, last_step) = (Some(c.offset_us), Some(c.t_us));
+                }
                 Record::ClockOffset(c) => {
                     let _ = out.clock_reasons.push(c.reason);
+                    offset = Some(c.offset_us);
                 }
                 Record::EgoPose(p) => {
                     if carrying {
                         // The rear axle at device time t: 10 t m east, 100 m north.
-                        let t = (p.t_us - UTC0 + LATENCY_US) as f64 * 1e-6;
+                        let t = (p.t_us - UTC0 + LATENCY_US - out.slewed_us) as f64 * 1e-6;
                         let error = (p.x_mm as f64 * 1e-3 - 10.0 * t).hypot(p.y_mm as f64 * 1e-3 - 100.0);
                         let _ = out.carried_error_m.push(error);
                     }
@@ -363,7 +380,50 @@ fn a_clean_drive_is_anchored_tracked_and_timed_in_utc() {
     let ego = log.last_ego.unwrap_or_default();
     assert!((ego.x_mm as f64 * 1e-3 - 199.0).abs() < 2.1, "{ego:?}");
     assert!((ego.y_mm - 100_000).abs() < 500 && ego.yaw_e4.abs() < 100, "{ego:?}");
+    // Its UTC: the fixes' arrivals, early by the receiver's latency, which the drive does
+    // not show — so none is slewed in.
+    assert_eq!(log.slew_steps, 0);
     assert!((ego.t_us - (UTC0 + 19_900_000 - LATENCY_US)).abs() < 1_000, "{ego:?}");
+}
+
+#[test]
+fn a_latency_the_drive_shows_is_slewed_into_the_logs_utc() {
+    // The car's speed swings between 3.7 and 16.3 m/s every 8 s: where the fixes lag the
+    // VO shows.
+    let omega = core::f64::consts::TAU / 8.0;
+    let x = |t_us: i64| {
+        let t = t_us as f64 * 1e-6;
+        10.0 * t + 8.0 * (1.0 - libm::cos(omega * t)) + 1.8
+    };
+    let camera = |t_us: i64| Vector3::new(x(t_us), 100.0, 1.3);
+    let classes = cone_class();
+    let mut trackers = trackers(&classes);
+    let mut buffer = [0u8; 262_144];
+    let total = buffer.len();
+    let mut p: Pipeline<'_, &mut [u8], 8, 4, 4096> = Pipeline::new(&mut buffer[..], config(), &mut trackers);
+    for step in 0..40 * 50 {
+        let t = step * 20_000;
+        let speed = 10.0 + 8.0 * omega * libm::sin(omega * t as f64 * 1e-6);
+        let _ = p.push_can(us(t), &ccvs1(speed));
+        if step % 10 == 0 {
+            let _ = p.push_serial(us(t + LATENCY_US), nmea_fix(&camera(t), 90.0, UTC0 + t).as_bytes());
+        }
+        if step % 5 == 0 {
+            let to_vo = rotation_z(-1.0);
+            let pose = Pose { rotation: to_vo, translation: to_vo * camera(t) * 2.0 };
+            let _ = p.push_vo(us(t), step as u64 / 5 + 1, 0, &pose);
+        }
+    }
+    let (rest, _, _) = p.finish().unwrap_or_else(|_| unreachable!());
+    let len = total - rest.len();
+    let log = decode(&buffer[..len]);
+    assert!(log.events.iter().any(|e| e.starts_with("GNSS receiver latency 0.0")), "{:?}", log.events);
+    // The 80 ms slewed in a millisecond per 0.1 s, without going back and forth.
+    assert!((log.slewed_us - LATENCY_US).abs() <= 10_000 && log.slew_steps_even, "{} µs", log.slewed_us);
+    assert!(i64::from(log.slew_steps) <= log.slewed_us / 1_000 + 1, "{} steps", log.slew_steps);
+    // The last pose, at device time 39.9 s, stamped in the world's UTC.
+    let ego = log.last_ego.unwrap_or_default();
+    assert!((ego.t_us - (UTC0 + 39_900_000)).abs() <= 10_000, "{ego:?}");
 }
 
 #[test]
@@ -454,7 +514,8 @@ fn a_device_clock_reset_keeps_the_log_going_in_utc() {
     assert_eq!(log.damaged, 0);
     assert!(log.clock_reasons.contains(&3), "UTC taken again after the reset: {:?}", log.clock_reasons);
     let ego = log.last_ego.unwrap_or_default();
-    assert!((ego.t_us - (UTC0 + 19_900_000 - LATENCY_US)).abs() < 1_000, "the last pose in UTC: {ego:?}");
+    let utc = UTC0 + 19_900_000 - LATENCY_US + log.slewed_us;
+    assert!((ego.t_us - utc).abs() < 1_000, "the last pose in UTC: {ego:?}");
     assert!(stats.anchored_frames > 130, "{stats:?}");
 }
 
