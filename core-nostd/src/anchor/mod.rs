@@ -217,7 +217,9 @@ pub struct Quality {
     /// Horizontal 1-σ error of the current position (DRMS, m): the latest fix's stated σ
     /// scaled by the a-posteriori variance factor — the translation rests on the recent
     /// fixes, whose errors are correlated far beyond its window, so no averaging is
-    /// credited — and the geometry's σ.
+    /// credited — the geometry's σ, and the speed times the latency's σ (the fixes pair
+    /// with the VO at `t_rx − latency`, so a latency error moves the translation along the
+    /// road).
     pub position_sigma_m: f64,
     /// Estimated GNSS latency, s (when latency estimation is on and data suffice).
     pub latency_s: Option<f64>,
@@ -797,6 +799,25 @@ impl<const K: usize> Anchorer<K> {
         Some(base + offset.clamp(-0.5, 0.5) * step)
     }
 
+    /// The σ of a latency known only to lie within the hypotheses' span, s: a uniform
+    /// distribution's, span/√12. The fixes pair with the VO that long before their arrival,
+    /// so the translation carries that latency's error times the speed along the road — an
+    /// error the fixes' residuals cannot show (the fit absorbs it), which the reported
+    /// position's σ adds. The best hypothesis narrows it only where the drive shows the
+    /// latency, and then by less than its parabola says (docs/anchoring.md), so the span's
+    /// σ is kept throughout.
+    fn latency_span_sigma_s(&self) -> f64 {
+        self.config.latency_step.as_secs_f64() * (K - 1) as f64 / libm::sqrt(12.0)
+    }
+
+    /// The VO's speed over its latest half second, m/s at `scale` metres per VO unit; 0
+    /// before it has moved that long.
+    fn vo_speed_mps(&self, scale: f64) -> f64 {
+        let Some(latest) = self.history.latest() else { return 0.0 };
+        let half = Duration::from_millis(500);
+        self.history.at(latest.t - half).map_or(0.0, |(p, _)| scale * (latest.position - p).norm() / half.as_secs_f64())
+    }
+
     /// Whether the hypotheses' prediction errors tell the latency: the worst's sum exceeds
     /// the best's by [`LATENCY_SHOWN_CHI2`].
     fn latency_shown(&self, best: usize) -> bool {
@@ -891,8 +912,12 @@ impl<const K: usize> Anchorer<K> {
         self.quality.rotation_sigma_rad = rotation_sigma;
         self.quality.geometry_sigma_m = geometry_sigma;
         self.quality.scale_rel_sigma = scale_rel_sigma;
-        self.quality.position_sigma_m =
-            libm::sqrt(2.0 * fix_sigma * fix_sigma * variance_factor + steady_geometry_sigma * steady_geometry_sigma);
+        let latency_sigma_m = self.vo_speed_mps(fit.scale) * self.latency_span_sigma_s();
+        self.quality.position_sigma_m = libm::sqrt(
+            2.0 * fix_sigma * fix_sigma * variance_factor
+                + steady_geometry_sigma * steady_geometry_sigma
+                + latency_sigma_m * latency_sigma_m,
+        );
         let long_window = Sim3 { translation: m.mean_y() - fit.rotation * m.mean_x() * fit.scale, ..fit };
         self.quality.rms_residual_m =
             if m.weight() > 0.0 { libm::sqrt(m.weighted_sse(&long_window) / m.weight()) } else { 0.0 };

@@ -77,9 +77,14 @@ fn recovers_the_similarity_of_a_noise_free_drive() {
     assert!(q.rms_residual_m < 1e-2, "{q:?}");
     assert_eq!(q.latency_s, Some(0.0));
     // The position rests on the latest fixes (σ 1 m stated, the residuals' variance
-    // factor at its floor of 0.1): √(2·0.1) m and the geometry's share.
-    assert!(q.position_sigma_m >= q.geometry_sigma_m, "{q:?}");
-    assert!((q.position_sigma_m - libm::sqrt(0.2 + q.geometry_sigma_m * q.geometry_sigma_m)).abs() < 1e-9, "{q:?}");
+    // factor at its floor of 0.1): √(2·0.1) m, the geometry's share, and the speed times
+    // the latency's σ (nine hypotheses 25 ms apart: 0.2 s/√12) — the speed over the VO's
+    // last half second, 29.5–30 s (the last fix waits for the VO of its instant).
+    let speed = (truth_at(30.0) - truth_at(29.5)).norm() / 0.5;
+    let latency_m = speed * 0.2 / libm::sqrt(12.0);
+    assert!(latency_m > 1.4, "{latency_m}");
+    let expected = libm::sqrt(0.2 + q.geometry_sigma_m * q.geometry_sigma_m + latency_m * latency_m);
+    assert!((q.position_sigma_m - expected).abs() < 1e-5, "{q:?} against {expected}");
 }
 
 #[test]
