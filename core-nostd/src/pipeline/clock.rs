@@ -216,11 +216,6 @@ impl Clock {
         OffsetChange::Latency(self.reported)
     }
 
-    /// The receiver's latency in force, µs.
-    pub fn latency(&self) -> i64 {
-        self.latency
-    }
-
     /// UTC from `offset` (the fixes' arrivals) on, after its first fix, a step or a reset;
     /// `change` says which, with the offset in force.
     fn restart(&mut self, offset: i64, change: OffsetChange) -> OffsetChange {
