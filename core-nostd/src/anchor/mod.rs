@@ -804,8 +804,9 @@ impl<const K: usize> Anchorer<K> {
     /// so the translation carries that latency's error times the speed along the road — an
     /// error the fixes' residuals cannot show (the fit absorbs it), which the reported
     /// position's σ adds. The best hypothesis narrows it only where the drive shows the
-    /// latency, and then by less than its parabola says (docs/anchoring.md), so the span's
-    /// σ is kept throughout.
+    /// latency, and a parabola's σ through the best and its neighbours was about twice the
+    /// real error on the tuning seeds (docs/pipeline.md#clocks), so the span's σ is kept
+    /// throughout.
     fn latency_span_sigma_s(&self) -> f64 {
         self.config.latency_step.as_secs_f64() * (K - 1) as f64 / libm::sqrt(12.0)
     }
