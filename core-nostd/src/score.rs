@@ -66,6 +66,35 @@ pub struct Agent {
     pub bbox: OrientedBox,
     /// Velocity (east, north), m/s.
     pub velocity: (f64, f64),
+    /// How well its place is known across the ego's path ([`PlaceSigma::NONE`]: as placed).
+    /// [`Scorer::step_both_ways`] shrinks and grows its box by a multiple of it.
+    pub sigma_across: PlaceSigma,
+}
+
+/// The σ of an agent's place across the ego's path, in 5 cm steps rounded up (so never
+/// less than stated) up to 12.75 m: one byte, which rides in an [`Agent`]'s padding — a
+/// device holds 64 agents in its windows and has no room for more.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PlaceSigma(u8);
+
+impl PlaceSigma {
+    /// No σ: the agent is where it was placed.
+    pub const NONE: PlaceSigma = PlaceSigma(0);
+    const STEP_M: f64 = 0.05;
+
+    /// `sigma` m, rounded up to the next 5 cm (12.75 m at most; none when not > 0 or NaN).
+    pub fn from_m(sigma: f64) -> Self {
+        if sigma.is_nan() || sigma <= 0.0 {
+            return PlaceSigma::NONE;
+        }
+        PlaceSigma(libm::ceil(sigma / Self::STEP_M - 1e-9).clamp(1.0, 255.0) as u8)
+    }
+
+    /// The σ, m.
+    pub fn m(self) -> f64 {
+        f64::from(self.0) * Self::STEP_M
+    }
 }
 
 impl Agent {
@@ -516,23 +545,55 @@ pub struct Scorer<'a, 's, const WORDS: usize> {
     last: Option<(f64, Pose2)>,
     /// The map's metrics, with the ego's doubt taken the way each step says.
     map: MapTally,
-    /// The same held against the ego, kept beside them by [`Scorer::step_both_ways`].
-    against: Option<MapTally>,
+    /// The collisions and times to collision with the agents as each step placed them
+    /// (smaller by their doubt, [`Scorer::step_both_ways`]).
+    contacts: Contacts,
+    /// The map's metrics and the contacts with the doubt held against the ego, kept beside
+    /// them by [`Scorer::step_both_ways`].
+    against: Option<Against>,
     /// Each step's time and its progress along the lane, for `map` and for `against`.
     direction: Deque<(f64, [f64; 2]), DIRECTION_CAPACITY>,
-    collided: heapless::Vec<u32, COLLISION_CAPACITY>,
     comfort: ComfortWindow,
     poses: u32,
     worst_corner: f64,
-    min_ttc: f64,
-    collisions: (u32, u32, u32),
     distance: f64,
 }
 
+/// The ego's contacts with the agents: the collisions nuPlan counts and the shortest time
+/// to collision.
+#[derive(Clone, Debug)]
+struct Contacts {
+    /// Agents already collided with (each collision counts once).
+    collided: heapless::Vec<u32, COLLISION_CAPACITY>,
+    /// At-fault collisions with vehicles and VRUs, at-fault collisions with objects, all.
+    collisions: (u32, u32, u32),
+    min_ttc: f64,
+}
+
+/// The ego at one step, as its contacts with the agents are judged.
+#[derive(Clone, Copy)]
+struct EgoStep<'c, 'a> {
+    checker: &'c Checker<'a>,
+    config: &'c ScoreConfig,
+    pose: &'c Pose2,
+    /// Its speed, m/s.
+    speed: f64,
+    /// Its drivable-area check (whether it is between lanes or off the road).
+    check: &'c PoseCheck,
+}
+
+/// What the doubt held against the ego decides: the map's metrics and the contacts with
+/// the agents grown by theirs.
+#[derive(Clone, Debug)]
+struct Against {
+    map: MapTally,
+    contacts: Contacts,
+}
+
 /// The metrics a drive's footprint on the map decides — drivable area, driving direction,
-/// speed limit — with the ego's doubt taken one way. Every other metric (collisions, time
-/// to collision, comfort, progress) is the same either way: the objects' doubt is the
-/// caller's to place, and the speed and path shape are taken as logged.
+/// speed limit — with the ego's doubt taken one way. The collisions and the time to
+/// collision are the objects' doubt's ([`Contacts`]); comfort and progress are the same
+/// either way: the speed and path shape are taken as logged.
 #[derive(Clone, Copy, Debug)]
 struct MapTally {
     /// Poses whose footprint was not compliant.
@@ -559,14 +620,12 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
             first_t: None,
             last: None,
             map: MapTally::NONE,
+            contacts: Contacts::NONE,
             against: None,
             direction: Deque::new(),
-            collided: heapless::Vec::new(),
             comfort: ComfortWindow::new(),
             poses: 0,
             worst_corner: f64::NEG_INFINITY,
-            min_ttc: f64::INFINITY,
-            collisions: (0, 0, 0),
             distance: 0.0,
         }
     }
@@ -610,32 +669,39 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         agents: &[Agent],
         doubt: Doubt,
     ) -> Result<StepReport, ScoreError> {
-        self.step_sides(t, pose, agents, doubt, None)
+        self.step_sides(t, pose, agents, (doubt, None), 0.0)
     }
 
-    /// [`Scorer::step_in_doubt`], and beside it the map's metrics with the same doubt held
-    /// against the ego ([`Doubt::Against`]): one pass gives the drive's score both ways
-    /// ([`Scorer::finish`], [`Scorer::finish_against`]) where two scorers would run the
-    /// collisions and the time to collision twice and hold two of everything (a device's
-    /// windows decide so, in 1 KB more than one scorer).
+    /// [`Scorer::step_in_doubt`] with each agent smaller by `agent_sigmas` of its
+    /// [`Agent::sigma_across`] on every side, and beside it the same doubts held against the
+    /// ego ([`Doubt::Against`], each agent larger by as much): one pass gives the drive's
+    /// score both ways ([`Scorer::finish`], [`Scorer::finish_against`]) where two scorers
+    /// would hold two of everything (a device's windows decide so, in 1.3 KB more than one
+    /// scorer). The report is the benefit of the doubt's.
     pub fn step_both_ways(
         &mut self,
         t: f64,
         pose: &Pose2,
         agents: &[Agent],
         doubt: f64,
+        agent_sigmas: f64,
     ) -> Result<StepReport, ScoreError> {
-        self.step_sides(t, pose, agents, Doubt::For { ego: doubt }, Some(Doubt::Against { ego: doubt }))
+        let sides = (Doubt::For { ego: doubt }, Some(Doubt::Against { ego: doubt }));
+        self.step_sides(t, pose, agents, sides, agent_sigmas)
     }
 
+    /// One step with the ego's doubt taken `sides.0`'s way and, when there is a second,
+    /// that way too beside it; each agent smaller by `agent_sigmas` of its σ for the first
+    /// side and larger by as much for the second.
     fn step_sides(
         &mut self,
         t: f64,
         pose: &Pose2,
         agents: &[Agent],
-        doubt: Doubt,
-        against: Option<Doubt>,
+        sides: (Doubt, Option<Doubt>),
+        agent_sigmas: f64,
     ) -> Result<StepReport, ScoreError> {
+        let (doubt, against) = sides;
         if !(t.is_finite() && pose.is_finite()) {
             return Err(ScoreError::NotFinite);
         }
@@ -655,12 +721,10 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         let check = self.checker.check(pose, self.channel, self.map.lane.map(|(l, _)| l));
         self.worst_corner = self.worst_corner.max(check.worst());
         let (map, compliant, progress) = self.map_step(self.map, pose, &check, doubt, speed, dt);
-        let against = match (against, self.against) {
-            (Some(doubt), tally) => {
-                Some(self.map_step(tally.unwrap_or(MapTally::NONE), pose, &check, doubt, speed, dt))
-            }
-            _ => None,
-        };
+        let against = against.map(|doubt| {
+            let tally = self.against.as_ref().map_or(MapTally::NONE, |a| a.map);
+            self.map_step(tally, pose, &check, doubt, speed, dt)
+        });
         self.map = map;
 
         // Driving direction: progress along the lane the centre stays in, over the window.
@@ -677,19 +741,15 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         self.map.min_direction = self.map.min_direction.min(direction_progress);
         if let Some((mut tally, _, _)) = against {
             tally.min_direction = tally.min_direction.min(sum(1));
-            self.against = Some(tally);
+            self.against.get_or_insert(Against { map: tally, contacts: Contacts::NONE }).map = tally;
         }
 
         self.comfort.push(t, pose);
-        let collision = self.collide(pose, speed, agents, &check);
-        let ttc = match collision {
-            // nuPlan: an at-fault collision is a TTC of 0.
-            Some(c) if c.at_fault => Some((0.0, c.id)),
-            _ if self.poses > 1 && speed > self.config.ttc_stopped_speed => self.ttc(pose, speed, agents, &check),
-            _ => None,
-        };
-        if let Some((ttc, _)) = ttc {
-            self.min_ttc = self.min_ttc.min(ttc);
+        let moving = self.poses > 1 && speed > self.config.ttc_stopped_speed;
+        let ego = EgoStep { checker: &self.checker, config: &self.config, pose, speed, check: &check };
+        let (collision, ttc) = self.contacts.step(&ego, moving, agents, -agent_sigmas);
+        if let (Some(_), Some(held)) = (against, self.against.as_mut()) {
+            held.contacts.step(&ego, moving, agents, agent_sigmas);
         }
         Ok(StepReport {
             check,
@@ -754,9 +814,102 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         })
     }
 
+    /// The scores of the drive so far. `expert_progress` is the expert's path length
+    /// (m); `None` when the replayed ego is the expert.
+    pub fn finish(&self, expert_progress: Option<f64>) -> Scores {
+        self.scores(&self.map, &self.contacts, expert_progress)
+    }
+
+    /// The scores of the drive so far with the ego's doubt held against it, where it was
+    /// scored [`Scorer::step_both_ways`]; `None` otherwise.
+    pub fn finish_against(&self, expert_progress: Option<f64>) -> Option<Scores> {
+        self.against.as_ref().map(|a| self.scores(&a.map, &a.contacts, expert_progress))
+    }
+
+    fn scores(&self, map: &MapTally, contacts: &Contacts, expert_progress: Option<f64>) -> Scores {
+        let cfg = &self.config;
+        let duration = match (self.first_t, self.last) {
+            (Some(t0), Some((t1, _))) => t1 - t0,
+            _ => 0.0,
+        };
+        let no_at_fault_collisions =
+            if contacts.collisions.0 > 0 { 0.0 } else { (1.0 - 0.5 * f64::from(contacts.collisions.1)).max(0.0) };
+        let drivable_area = if map.noncompliant == 0 { 1.0 } else { 0.0 };
+        let backwards = -map.min_direction;
+        let driving_direction = if backwards < cfg.direction_compliant {
+            1.0
+        } else if backwards < cfg.direction_violation {
+            0.5
+        } else {
+            0.0
+        };
+        let expert = expert_progress.unwrap_or(self.distance);
+        let progress = (self.distance.max(cfg.min_progress) / expert.max(cfg.min_progress)).min(1.0);
+        let making_progress = if progress >= cfg.min_progress_ratio { 1.0 } else { 0.0 };
+        let ttc = if contacts.min_ttc > cfg.ttc_threshold { 1.0 } else { 0.0 };
+        let speed_limit =
+            if duration > 0.0 { (1.0 - map.overspeed / (cfg.overspeed_scale * duration)).max(0.0) } else { 1.0 };
+        let comfort = if self.comfort.extremes.within(&cfg.comfort) { 1.0 } else { 0.0 };
+        let weighted = (WEIGHTS[0] * progress + WEIGHTS[1] * ttc + WEIGHTS[2] * speed_limit + WEIGHTS[3] * comfort)
+            / WEIGHTS.iter().sum::<f64>();
+        let score = 100.0 * no_at_fault_collisions * drivable_area * driving_direction * making_progress * weighted;
+        Scores {
+            no_at_fault_collisions,
+            drivable_area,
+            driving_direction,
+            making_progress,
+            progress,
+            ttc,
+            speed_limit,
+            comfort,
+            score,
+            verified: score > VERIFIED_ABOVE,
+            poses: self.poses,
+            noncompliant_poses: map.noncompliant,
+            worst_corner: self.worst_corner,
+            min_direction_progress: map.min_direction,
+            min_ttc: contacts.min_ttc,
+            collisions: contacts.collisions,
+            overspeed_integral: map.overspeed,
+            ego_progress: self.distance,
+            duration,
+            comfort_extremes: self.comfort.extremes,
+        }
+    }
+}
+
+impl Contacts {
+    const NONE: Contacts = Contacts { collided: heapless::Vec::new(), collisions: (0, 0, 0), min_ttc: f64::INFINITY };
+
+    /// The ego's contacts at one step with `agents`, each larger by `grow_sigmas` of its
+    /// [`Agent::sigma_across`] (smaller when negative): the step's first new collision, and
+    /// its time to collision (0 at an at-fault collision; projected only while `moving`)
+    /// with the agent it is to.
+    fn step(
+        &mut self,
+        ego: &EgoStep<'_, '_>,
+        moving: bool,
+        agents: &[Agent],
+        grow_sigmas: f64,
+    ) -> (Option<Collision>, Option<(f64, u32)>) {
+        let placed = |a: &Agent| a.grown(grow_sigmas * a.sigma_across.m());
+        let collision = self.collide(ego, agents.iter().map(placed));
+        let ttc = match collision {
+            // nuPlan: an at-fault collision is a TTC of 0.
+            Some(c) if c.at_fault => Some((0.0, c.id)),
+            _ if moving => self.ttc(ego, agents.iter().map(placed)),
+            _ => None,
+        };
+        if let Some((ttc, _)) = ttc {
+            self.min_ttc = self.min_ttc.min(ttc);
+        }
+        (collision, ttc)
+    }
+
     /// nuPlan's collision classification for each agent's first contact.
-    fn collide(&mut self, pose: &Pose2, speed: f64, agents: &[Agent], check: &PoseCheck) -> Option<Collision> {
-        let ego = self.checker.footprint().at(pose);
+    fn collide(&mut self, step: &EgoStep<'_, '_>, agents: impl Iterator<Item = Agent>) -> Option<Collision> {
+        let EgoStep { checker, config, pose, speed, check } = *step;
+        let ego = checker.footprint().at(pose);
         let mut first = None;
         for agent in agents {
             if self.collided.contains(&agent.id) || !ego.overlaps(&agent.bbox) {
@@ -764,8 +917,8 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
             }
             // Full: later contacts with further agents count again, never fewer.
             let _ = self.collided.push(agent.id);
-            let stopped = libm::hypot(agent.velocity.0, agent.velocity.1) <= self.config.stopped_speed;
-            let at_fault = if speed <= self.config.stopped_speed {
+            let stopped = libm::hypot(agent.velocity.0, agent.velocity.1) <= config.stopped_speed;
+            let at_fault = if speed <= config.stopped_speed {
                 false
             } else if agent.kind == AgentKind::Object || stopped || agent.bbox.touches_segment(ego.front_edge()) {
                 true
@@ -792,12 +945,13 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
     /// agents beside count too while the ego is between lanes or off the drivable area;
     /// agents behind (beyond 150°) and agents already collided with never do. Each agent
     /// moves along its heading at its speed. The time and the agent it is to.
-    fn ttc(&self, pose: &Pose2, speed: f64, agents: &[Agent], check: &PoseCheck) -> Option<(f64, u32)> {
-        let ego = self.checker.footprint().at(pose);
+    fn ttc(&self, step: &EgoStep<'_, '_>, agents: impl Iterator<Item = Agent>) -> Option<(f64, u32)> {
+        let EgoStep { checker, config, pose, speed, check } = *step;
+        let ego = checker.footprint().at(pose);
         let (s, c) = libm::sincos(pose.heading);
         let between_lanes = check.occupied.len() != 1 || !check.compliant();
         // The horizon itself is excluded, as numpy's arange(step, horizon, step).
-        let steps = libm::ceil(self.config.ttc_horizon / self.config.ttc_step - 1e-9).clamp(1.0, 1000.0) as u32 - 1;
+        let steps = libm::ceil(config.ttc_horizon / config.ttc_step - 1e-9).clamp(1.0, 1000.0) as u32 - 1;
         let mut best: Option<(f64, u32)> = None;
         for agent in agents {
             let (dx, dy) = (agent.bbox.centre.x - pose.x, agent.bbox.centre.y - pose.y);
@@ -816,11 +970,11 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
             let closing = (agent_speed * ca - speed * c, agent_speed * sa - speed * s);
             let reach = half_diagonal(&ego) + half_diagonal(&agent.bbox) + DISC_MARGIN;
             let Some((enter, leave)) = disc_contact(relative, closing, reach) else { continue };
-            let step = self.config.ttc_step;
+            let step = config.ttc_step;
             let first = (libm::floor(enter / step).clamp(1.0, f64::from(steps.max(1))) as u32).max(1);
             let last = libm::ceil(leave / step).clamp(0.0, f64::from(steps)) as u32;
             for k in first..=last {
-                let tk = f64::from(k) * self.config.ttc_step;
+                let tk = f64::from(k) * config.ttc_step;
                 if best.is_some_and(|(b, _)| tk >= b) {
                     break;
                 }
@@ -833,69 +987,6 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
             }
         }
         best
-    }
-
-    /// The scores of the drive so far. `expert_progress` is the expert's path length
-    /// (m); `None` when the replayed ego is the expert.
-    pub fn finish(&self, expert_progress: Option<f64>) -> Scores {
-        self.scores(&self.map, expert_progress)
-    }
-
-    /// The scores of the drive so far with the ego's doubt held against it, where it was
-    /// scored [`Scorer::step_both_ways`]; `None` otherwise.
-    pub fn finish_against(&self, expert_progress: Option<f64>) -> Option<Scores> {
-        self.against.as_ref().map(|tally| self.scores(tally, expert_progress))
-    }
-
-    fn scores(&self, map: &MapTally, expert_progress: Option<f64>) -> Scores {
-        let cfg = &self.config;
-        let duration = match (self.first_t, self.last) {
-            (Some(t0), Some((t1, _))) => t1 - t0,
-            _ => 0.0,
-        };
-        let no_at_fault_collisions =
-            if self.collisions.0 > 0 { 0.0 } else { (1.0 - 0.5 * f64::from(self.collisions.1)).max(0.0) };
-        let drivable_area = if map.noncompliant == 0 { 1.0 } else { 0.0 };
-        let backwards = -map.min_direction;
-        let driving_direction = if backwards < cfg.direction_compliant {
-            1.0
-        } else if backwards < cfg.direction_violation {
-            0.5
-        } else {
-            0.0
-        };
-        let expert = expert_progress.unwrap_or(self.distance);
-        let progress = (self.distance.max(cfg.min_progress) / expert.max(cfg.min_progress)).min(1.0);
-        let making_progress = if progress >= cfg.min_progress_ratio { 1.0 } else { 0.0 };
-        let ttc = if self.min_ttc > cfg.ttc_threshold { 1.0 } else { 0.0 };
-        let speed_limit =
-            if duration > 0.0 { (1.0 - map.overspeed / (cfg.overspeed_scale * duration)).max(0.0) } else { 1.0 };
-        let comfort = if self.comfort.extremes.within(&cfg.comfort) { 1.0 } else { 0.0 };
-        let weighted = (WEIGHTS[0] * progress + WEIGHTS[1] * ttc + WEIGHTS[2] * speed_limit + WEIGHTS[3] * comfort)
-            / WEIGHTS.iter().sum::<f64>();
-        let score = 100.0 * no_at_fault_collisions * drivable_area * driving_direction * making_progress * weighted;
-        Scores {
-            no_at_fault_collisions,
-            drivable_area,
-            driving_direction,
-            making_progress,
-            progress,
-            ttc,
-            speed_limit,
-            comfort,
-            score,
-            verified: score > VERIFIED_ABOVE,
-            poses: self.poses,
-            noncompliant_poses: map.noncompliant,
-            worst_corner: self.worst_corner,
-            min_direction_progress: map.min_direction,
-            min_ttc: self.min_ttc,
-            collisions: self.collisions,
-            overspeed_integral: map.overspeed,
-            ego_progress: self.distance,
-            duration,
-            comfort_extremes: self.comfort.extremes,
-        }
     }
 }
 

@@ -7,7 +7,7 @@
 use dash2sim_core::drivable::{Channel, Checker};
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{OrientedBox, Pose2, PACIFICA};
-use dash2sim_core::score::{Agent, AgentKind, Doubt, ScoreConfig, Scorer, Scores};
+use dash2sim_core::score::{Agent, AgentKind, Doubt, PlaceSigma, ScoreConfig, Scorer, Scores};
 use dash2sim_tests::road::{straight_road, tile};
 
 /// A two-way road along the x axis: the forward lane (heading east) from y = −3.5 to 0, the
@@ -71,6 +71,7 @@ fn drive_past_a_drum(map: MapView<'_>, y: f64, drum_y: f64, grown: f64, doubt: D
         kind: AgentKind::Object,
         bbox: OrientedBox { centre: Pose2::new(115.0, drum_y, 0.0), length: 0.6, width: 0.6 },
         velocity: (0.0, 0.0),
+        sigma_across: PlaceSigma::NONE,
     }
     .grown(grown);
     let mut scorer: Scorer<'_, '_, 1> =
@@ -111,14 +112,14 @@ fn a_doubt_held_against_the_ego_grows_the_objects_and_moves_it_aside() {
     assert_eq!(given.score, point.score);
 }
 
-/// A drive weaving towards the divider and over the road's edge by 0.4 m, past a drum, scored
-/// with `doubt` m one way by a scorer of its own.
-fn weave(map: MapView<'_>, doubt: Doubt) -> Scores {
+/// A drive weaving towards the divider and over the road's edge by 0.4 m, past `agent`,
+/// scored with `doubt` m one way by a scorer of its own.
+fn weave(map: MapView<'_>, doubt: Doubt, agent: Agent) -> Scores {
     let mut scorer: Scorer<'_, '_, 1> =
         Scorer::new(Checker::new(map, PACIFICA), Channel::Insensitive, ScoreConfig::default());
     for k in 0..60 {
         let t = 0.1 * f64::from(k);
-        scorer.step_with(t, &weaving_pose(t), &[drum()], doubt).expect("a finite pose");
+        scorer.step_with(t, &weaving_pose(t), &[agent], doubt).expect("a finite pose");
     }
     scorer.finish(None)
 }
@@ -133,6 +134,7 @@ fn drum() -> Agent {
         kind: AgentKind::Object,
         bbox: OrientedBox { centre: Pose2::new(150.0, -5.5, 0.0), length: 0.6, width: 0.6 },
         velocity: (0.0, 0.0),
+        sigma_across: PlaceSigma::NONE,
     }
 }
 
@@ -140,20 +142,38 @@ fn drum() -> Agent {
 fn one_pass_both_ways_scores_as_two_scorers_do() {
     let bytes = two_way();
     let map = MapView::parse(&bytes).expect("valid tile");
-    for doubt in [0.0, 0.3, 0.8, 1.5] {
-        let mut both: Scorer<'_, '_, 1> =
-            Scorer::new(Checker::new(map, PACIFICA), Channel::Insensitive, ScoreConfig::default());
-        for k in 0..60 {
-            let t = 0.1 * f64::from(k);
-            both.step_both_ways(t, &weaving_pose(t), &[drum()], doubt).expect("a finite pose");
-        }
-        let (lenient, strict) = (weave(map, Doubt::For { ego: doubt }), weave(map, Doubt::Against { ego: doubt }));
-        assert_eq!(both.finish(None), lenient, "doubt {doubt}");
-        assert_eq!(both.finish_against(None), Some(strict), "doubt {doubt}");
-        if doubt == 0.8 {
-            // The weave's excursions are forgiven within 0.8 m of doubt and not held against
-            // the ego with it.
-            assert_eq!((lenient.drivable_area, strict.drivable_area), (1.0, 0.0), "{lenient:?} {strict:?}");
+    // The weave's rightmost pass (y = −2.95 m, 162.8 m east) 0.4 m clear of a drum's edge,
+    // its place known to σ 0.25 m across the path.
+    let right_side = -1.75 - 1.2 - PACIFICA.width / 2.0;
+    let tight = Agent {
+        bbox: OrientedBox { centre: Pose2::new(162.8, right_side - 0.4 - 0.3, 0.0), length: 0.6, width: 0.6 },
+        sigma_across: PlaceSigma::from_m(0.25),
+        ..drum()
+    };
+    for (agent, agent_sigmas) in [(drum(), 0.0), (drum(), 2.0), (tight, 0.0), (tight, 2.0)] {
+        let by = agent_sigmas * agent.sigma_across.m();
+        for doubt in [0.0, 0.3, 0.8, 1.5] {
+            let mut both: Scorer<'_, '_, 1> =
+                Scorer::new(Checker::new(map, PACIFICA), Channel::Insensitive, ScoreConfig::default());
+            for k in 0..60 {
+                let t = 0.1 * f64::from(k);
+                both.step_both_ways(t, &weaving_pose(t), &[agent], doubt, agent_sigmas).expect("a finite pose");
+            }
+            let lenient = weave(map, Doubt::For { ego: doubt }, agent.grown(-by));
+            let strict = weave(map, Doubt::Against { ego: doubt }, agent.grown(by));
+            assert_eq!(both.finish(None), lenient, "doubt {doubt}, {agent:?} × {agent_sigmas}");
+            assert_eq!(both.finish_against(None), Some(strict), "doubt {doubt}, {agent:?} × {agent_sigmas}");
+            if doubt == 0.8 && agent_sigmas == 0.0 {
+                // The weave's excursions are forgiven within 0.8 m of doubt and not held
+                // against the ego with it.
+                assert_eq!((lenient.drivable_area, strict.drivable_area), (1.0, 0.0), "{lenient:?} {strict:?}");
+            }
+            // The tight drum is passed clear as placed and shrunk by 2σ; grown by 2σ (0.5 m)
+            // it is hit — the collision is in doubt.
+            let hit_against = agent == tight && agent_sigmas == 2.0;
+            assert_eq!(lenient.no_at_fault_collisions, 1.0, "{agent:?} × {agent_sigmas}: {lenient:?}");
+            let expected = if hit_against { 0.5 } else { 1.0 };
+            assert_eq!(strict.no_at_fault_collisions, expected, "{agent:?} × {agent_sigmas}: {strict:?}");
         }
     }
     // A scorer stepped one way has nothing held against the ego.
@@ -161,4 +181,16 @@ fn one_pass_both_ways_scores_as_two_scorers_do() {
         Scorer::new(Checker::new(map, PACIFICA), Channel::Insensitive, ScoreConfig::default());
     one.step_in_doubt(0.0, &weaving_pose(0.0), &[], 1.0).expect("a finite pose");
     assert_eq!(one.finish_against(None), None);
+}
+
+#[test]
+fn a_place_sigma_is_rounded_up_to_five_centimetres_and_saturates() {
+    assert_eq!(PlaceSigma::from_m(0.25).m(), 0.25);
+    assert!((PlaceSigma::from_m(0.251).m() - 0.30).abs() < 1e-12);
+    assert!((PlaceSigma::from_m(0.001).m() - 0.05).abs() < 1e-12);
+    assert!((PlaceSigma::from_m(40.0).m() - 12.75).abs() < 1e-12);
+    for none in [0.0, -1.0, f64::NAN] {
+        assert_eq!(PlaceSigma::from_m(none), PlaceSigma::NONE);
+    }
+    assert_eq!(PlaceSigma::from_m(f64::INFINITY).m(), PlaceSigma::from_m(40.0).m());
 }

@@ -6,7 +6,7 @@
 use dash2sim_core::drivable::{Channel, Checker};
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{OrientedBox, Pose2, PACIFICA};
-use dash2sim_core::score::{Agent, AgentKind, ScoreConfig, ScoreError, Scorer};
+use dash2sim_core::score::{Agent, AgentKind, PlaceSigma, ScoreConfig, ScoreError, Scorer};
 use dash2sim_tests::road::{straight_road, tile};
 use proptest::prelude::*;
 
@@ -28,6 +28,7 @@ fn agent() -> impl Strategy<Value = Agent> {
             kind: [AgentKind::Vehicle, AgentKind::Vru, AgentKind::Object][usize::from(kind)],
             bbox: OrientedBox { centre: Pose2::new(x, y, heading), length, width },
             velocity: (vx, vy),
+            sigma_across: PlaceSigma::NONE,
         },
     )
 }

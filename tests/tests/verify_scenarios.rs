@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{OrientedBox, Pose2, PACIFICA};
-use dash2sim_core::score::{Agent, AgentKind};
+use dash2sim_core::score::{Agent, AgentKind, PlaceSigma};
 use dash2sim_tests::road::{straight_road, tile, tile_of_ways};
 use dash2sim_verify::{replay, Verification};
 
@@ -161,6 +161,7 @@ fn cone(id: u32, x: f64, y: f64) -> Agent {
         kind: AgentKind::Object,
         bbox: OrientedBox { centre: Pose2::new(x, y, 0.0), length: 0.4, width: 0.4 },
         velocity: (0.0, 0.0),
+        sigma_across: PlaceSigma::NONE,
     }
 }
 
@@ -238,6 +239,7 @@ fn collisions_are_classified_as_nuplan_does() {
         kind: AgentKind::Vehicle,
         bbox: OrientedBox { centre: Pose2::new(x, -1.75, 0.0), length: 4.6, width: 1.9 },
         velocity: (vx, 0.0),
+        sigma_across: PlaceSigma::NONE,
     };
     let stopped = verify(&map, &poses, &everywhere(&poses, &[car(2, 150.0, 0.0)]), false).scores;
     assert_eq!((stopped.no_at_fault_collisions, stopped.collisions.0, stopped.score), (0.0, 1, 0.0));

@@ -29,7 +29,7 @@ use dash2sim_core::class;
 use dash2sim_core::drivable::{Channel, Checker, LaneSet};
 use dash2sim_core::map::MapView;
 use dash2sim_core::obb::{Footprint, OrientedBox, Pose2};
-use dash2sim_core::score::{Agent, AgentKind, Doubt, ScoreConfig, Scorer, Scores, StepReport};
+use dash2sim_core::score::{Agent, AgentKind, Doubt, PlaceSigma, ScoreConfig, Scorer, Scores, StepReport};
 use dash2sim_linux::ingest::map_tile::fine_index;
 use dash2sim_linux::{Error, Result};
 use decide::{Decided, DoubtSettings, NearestPass, OffRoadInDoubt};
@@ -196,6 +196,7 @@ fn agent_of(t: &dash2sim_core::binlog::Track3d, at: (f64, f64)) -> Agent {
             width: t.w_mm as f64 * 1e-3,
         },
         velocity: dash2sim_linux::log::views::track_velocity(t),
+        sigma_across: PlaceSigma::NONE,
     }
 }
 
@@ -212,6 +213,7 @@ pub fn read_objects(path: &Path) -> Result<BTreeMap<i64, Vec<Agent>>> {
                 width: row.size[1],
             },
             velocity: (row.velocity[0], row.velocity[1]),
+            sigma_across: PlaceSigma::NONE,
         };
         by_time.entry((row.t * 1000.0).round() as i64).or_default().push(agent);
     }

@@ -14,7 +14,7 @@ use crate::binlog::{Detection3d as DetectionRecord, Record, Track2d, Track3d, Tr
 use crate::box2d::Box2d;
 use crate::frame_order::FrameOrder;
 use crate::obb::{OrientedBox, Pose2};
-use crate::score::{Agent, AgentKind};
+use crate::score::{Agent, AgentKind, PlaceSigma};
 use crate::time::Timestamp;
 use crate::track2d::Detection;
 use crate::track3d::Detection3d;
@@ -39,6 +39,9 @@ pub(super) struct TrackState {
     /// Velocity (x, y) per frame.
     pub(super) velocity: [f64; 2],
     pub(super) is_static: bool,
+    /// The filter's σ of its place across the ego's path as the ego headed when it was
+    /// updated (one byte: 64 of these are on a microcontroller's stack).
+    pub(super) sigma_across: PlaceSigma,
 }
 
 impl<'a, const T3: usize, const T2: usize> Tracking<'a, T3, T2> {
@@ -90,6 +93,7 @@ impl<'a, const T3: usize, const T2: usize> Tracking<'a, T3, T2> {
                     bbox: o.bbox,
                     velocity: [o.velocity[0], o.velocity[1]],
                     is_static: o.is_static,
+                    sigma_across: PlaceSigma::from_m(sigma_across(&o.state.p, ego.eased.heading)),
                 });
             })
             .is_err()
@@ -257,6 +261,34 @@ pub(super) fn agents<'o>(
             kind,
             bbox: OrientedBox { centre: Pose2::new(b.x, b.y, b.yaw), length: b.l, width: b.w },
             velocity,
+            sigma_across: o.sigma_across,
         }
     })
+}
+
+/// The σ (m) of a track's place across a path heading `heading` (rad): its position
+/// covariance (the state's x and y, [`crate::track3d`]) seen along the path's normal.
+fn sigma_across(p: &nalgebra::SMatrix<f64, 10, 10>, heading: f64) -> f64 {
+    let (nx, ny) = (-libm::sin(heading), libm::cos(heading));
+    libm::sqrt((p[(0, 0)] * nx * nx + 2.0 * p[(0, 1)] * nx * ny + p[(1, 1)] * ny * ny).max(0.0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_tracks_doubt_across_the_path_is_its_covariance_along_the_paths_normal() {
+        // Known to 2 m east–west (a camera's range, looking east) and 0.5 m north–south.
+        let mut p = nalgebra::SMatrix::<f64, 10, 10>::identity();
+        p[(0, 0)] = 4.0;
+        p[(1, 1)] = 0.25;
+        assert!((sigma_across(&p, 0.0) - 0.5).abs() < 1e-12, "heading east: across is north");
+        assert!((sigma_across(&p, core::f64::consts::FRAC_PI_2) - 2.0).abs() < 1e-12, "heading north");
+        // Correlated: along the diagonal the variance is (4 + 0.25)/2 ± the covariance.
+        p[(0, 1)] = 0.5;
+        p[(1, 0)] = 0.5;
+        let diagonal = sigma_across(&p, core::f64::consts::FRAC_PI_4);
+        assert!((diagonal - (2.125f64 - 0.5).sqrt()).abs() < 1e-12, "{diagonal}");
+    }
 }

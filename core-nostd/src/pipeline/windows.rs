@@ -204,8 +204,10 @@ impl<'a, const T3: usize> Windows<'a, T3> {
         self.agents_t = ts;
         let Some(window) = self.window.as_mut() else { return Ok(()) };
         // A refused pose (not finite, time not increasing) leaves the window as it was. The
-        // ego's doubt is given to it and, beside, held against it: the window is decided.
-        if let Ok(report) = window.scorer.step_both_ways(ts, ego, &self.agents, self.doubt_m) {
+        // ego's doubt and the agents' (as many of their σ as of the ego's) are given to it
+        // and, beside, held against it: the window is decided.
+        let agent_sigmas = config.window_doubt_sigmas;
+        if let Ok(report) = window.scorer.step_both_ways(ts, ego, &self.agents, self.doubt_m, agent_sigmas) {
             window.last = t;
             if let Some(collision) = &report.collision {
                 self.edge_collisions.push(ts, collision);
@@ -282,11 +284,11 @@ fn admit_nearest<const N: usize>(agents: &mut heapless::Vec<Agent, N>, agent: Ag
 mod tests {
     use super::*;
     use crate::obb::OrientedBox;
-    use crate::score::AgentKind;
+    use crate::score::{AgentKind, PlaceSigma};
 
     fn cone(id: u32, x: f64, y: f64) -> Agent {
         let bbox = OrientedBox { centre: Pose2::new(x, y, 0.0), length: 0.4, width: 0.4 };
-        Agent { id, kind: AgentKind::Object, bbox, velocity: (0.0, 0.0) }
+        Agent { id, kind: AgentKind::Object, bbox, velocity: (0.0, 0.0), sigma_across: PlaceSigma::NONE }
     }
 
     /// Four agents held; the drum beside the ego leaves the camera's view while four cones
