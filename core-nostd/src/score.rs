@@ -33,7 +33,8 @@ pub const VERIFIED_ABOVE: f64 = 90.0;
 pub const WEIGHTS: [f64; 4] = [5.0, 5.0, 4.0, 2.0];
 /// Poses in the comfort derivative window.
 pub const COMFORT_WINDOW: usize = 7;
-/// Poses kept for the driving-direction window (enough for 1 s at 100 Hz).
+/// Poses kept for the driving-direction window by default (enough for 1 s at 100 Hz; a
+/// scorer's `DIRECTION` parameter).
 pub const DIRECTION_CAPACITY: usize = 128;
 /// Agents remembered as already collided with (each collision counts once).
 pub const COLLISION_CAPACITY: usize = 64;
@@ -535,9 +536,11 @@ pub struct Scores {
     pub comfort_extremes: Comfort,
 }
 
-/// Scores a drive pose by pose.
+/// Scores a drive pose by pose. `DIRECTION` poses are kept for the driving direction's
+/// one-second window: a source of more poses a second than that judges it over the last
+/// `DIRECTION` (a device scoring a camera's frames needs its frame rate, not a log's 100 Hz).
 #[derive(Clone, Debug)]
-pub struct Scorer<'a, 's, const WORDS: usize> {
+pub struct Scorer<'a, 's, const WORDS: usize, const DIRECTION: usize = DIRECTION_CAPACITY> {
     checker: Checker<'a>,
     channel: Channel<'s, WORDS>,
     config: ScoreConfig,
@@ -552,8 +555,11 @@ pub struct Scorer<'a, 's, const WORDS: usize> {
     /// them by [`Scorer::step_both_ways`].
     against: Option<Against>,
     /// Each step's time and its progress along the lane, for `map` and for `against`.
-    direction: Deque<(f64, [f64; 2]), DIRECTION_CAPACITY>,
+    direction: Deque<(f64, [f64; 2]), DIRECTION>,
     comfort: ComfortWindow,
+    /// The comfort of the ego's path without the corrections its anchoring eased in (the
+    /// camera's own motion), where a device feeds it ([`Scorer::motion_beside`]).
+    motion_comfort: Option<ComfortWindow>,
     poses: u32,
     worst_corner: f64,
     distance: f64,
@@ -592,8 +598,9 @@ struct Against {
 
 /// The metrics a drive's footprint on the map decides — drivable area, driving direction,
 /// speed limit — with the ego's doubt taken one way. The collisions and the time to
-/// collision are the objects' doubt's ([`Contacts`]); comfort and progress are the same
-/// either way: the speed and path shape are taken as logged.
+/// collision are the objects' doubt's ([`Contacts`]); comfort is the stepped path's, or
+/// with the benefit of the doubt also the motion's beside it ([`Scorer::motion_beside`]);
+/// the speed and progress are taken as logged.
 #[derive(Clone, Copy, Debug)]
 struct MapTally {
     /// Poses whose footprint was not compliant.
@@ -611,8 +618,16 @@ impl MapTally {
 }
 
 impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
-    /// A scorer for drives on `checker`'s map with `channel` as the drivable lanes.
+    /// A scorer for drives on `checker`'s map with `channel` as the drivable lanes, keeping
+    /// [`DIRECTION_CAPACITY`] poses for the driving direction.
     pub fn new(checker: Checker<'a>, channel: Channel<'s, WORDS>, config: ScoreConfig) -> Self {
+        Self::keeping_direction_poses(checker, channel, config)
+    }
+}
+
+impl<'a, 's, const WORDS: usize, const DIRECTION: usize> Scorer<'a, 's, WORDS, DIRECTION> {
+    /// [`Scorer::new`] keeping `DIRECTION` poses for the driving direction's window.
+    pub fn keeping_direction_poses(checker: Checker<'a>, channel: Channel<'s, WORDS>, config: ScoreConfig) -> Self {
         Scorer {
             checker,
             channel,
@@ -624,6 +639,7 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
             against: None,
             direction: Deque::new(),
             comfort: ComfortWindow::new(),
+            motion_comfort: None,
             poses: 0,
             worst_corner: f64::NEG_INFINITY,
             distance: 0.0,
@@ -814,19 +830,26 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         })
     }
 
+    /// Beside the step at `t`, the ego's pose as its own motion alone put it (a device's
+    /// VO path, without the corrections its anchoring eased in): with the benefit of the
+    /// doubt the drive is comfortable when this path is or the stepped one is.
+    pub fn motion_beside(&mut self, t: f64, pose: &Pose2) {
+        self.motion_comfort.get_or_insert_with(ComfortWindow::new).push(t, pose);
+    }
+
     /// The scores of the drive so far. `expert_progress` is the expert's path length
     /// (m); `None` when the replayed ego is the expert.
     pub fn finish(&self, expert_progress: Option<f64>) -> Scores {
-        self.scores(&self.map, &self.contacts, expert_progress)
+        self.scores(&self.map, &self.contacts, expert_progress, true)
     }
 
     /// The scores of the drive so far with the ego's doubt held against it, where it was
     /// scored [`Scorer::step_both_ways`]; `None` otherwise.
     pub fn finish_against(&self, expert_progress: Option<f64>) -> Option<Scores> {
-        self.against.as_ref().map(|a| self.scores(&a.map, &a.contacts, expert_progress))
+        self.against.as_ref().map(|a| self.scores(&a.map, &a.contacts, expert_progress, false))
     }
 
-    fn scores(&self, map: &MapTally, contacts: &Contacts, expert_progress: Option<f64>) -> Scores {
+    fn scores(&self, map: &MapTally, contacts: &Contacts, expert_progress: Option<f64>, lenient: bool) -> Scores {
         let cfg = &self.config;
         let duration = match (self.first_t, self.last) {
             (Some(t0), Some((t1, _))) => t1 - t0,
@@ -849,7 +872,9 @@ impl<'a, 's, const WORDS: usize> Scorer<'a, 's, WORDS> {
         let ttc = if contacts.min_ttc > cfg.ttc_threshold { 1.0 } else { 0.0 };
         let speed_limit =
             if duration > 0.0 { (1.0 - map.overspeed / (cfg.overspeed_scale * duration)).max(0.0) } else { 1.0 };
-        let comfort = if self.comfort.extremes.within(&cfg.comfort) { 1.0 } else { 0.0 };
+        let motion_comfortable =
+            lenient && self.motion_comfort.as_ref().is_some_and(|m| m.extremes.within(&cfg.comfort));
+        let comfort = if self.comfort.extremes.within(&cfg.comfort) || motion_comfortable { 1.0 } else { 0.0 };
         let weighted = (WEIGHTS[0] * progress + WEIGHTS[1] * ttc + WEIGHTS[2] * speed_limit + WEIGHTS[3] * comfort)
             / WEIGHTS.iter().sum::<f64>();
         let score = 100.0 * no_at_fault_collisions * drivable_area * driving_direction * making_progress * weighted;

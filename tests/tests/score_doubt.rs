@@ -194,3 +194,26 @@ fn a_place_sigma_is_rounded_up_to_five_centimetres_and_saturates() {
     }
     assert_eq!(PlaceSigma::from_m(f64::INFINITY).m(), PlaceSigma::from_m(40.0).m());
 }
+
+#[test]
+fn the_motion_beside_gives_comfort_the_benefit_of_the_doubt_only() {
+    let bytes = two_way();
+    let map = MapView::parse(&bytes).expect("valid tile");
+    let checker = Checker::new(map, PACIFICA);
+    // A cruise at 12 m/s in the forward lane whose stepped ego is pulled 0.5 m sideways
+    // within 0.3 s at 2 s (a correction eased in hard), its motion alone straight.
+    let mut scorer: Scorer<'_, '_, 1> = Scorer::new(checker, Channel::Insensitive, ScoreConfig::default());
+    let mut plain: Scorer<'_, '_, 1> = Scorer::new(checker, Channel::Insensitive, ScoreConfig::default());
+    for k in 0..60 {
+        let t = 0.1 * f64::from(k);
+        let pulled = 0.5 * ((t - 2.0) / 0.3).clamp(0.0, 1.0);
+        let stepped = Pose2::new(100.0 + 12.0 * t, -1.75 + pulled, 0.0);
+        scorer.step_both_ways(t, &stepped, &[], 0.0, 0.0).expect("a finite pose");
+        scorer.motion_beside(t, &Pose2::new(100.0 + 12.0 * t, -1.75, 0.0));
+        plain.step_both_ways(t, &stepped, &[], 0.0, 0.0).expect("a finite pose");
+    }
+    let against = scorer.finish_against(None).expect("stepped both ways");
+    assert_eq!(against.comfort, 0.0, "held against the ego, the stepped path's comfort: {against:?}");
+    assert_eq!(scorer.finish(None).comfort, 1.0, "its motion alone is comfortable");
+    assert_eq!(plain.finish(None).comfort, 0.0, "with no motion beside, the stepped path decides");
+}

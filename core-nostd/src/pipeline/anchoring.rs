@@ -108,6 +108,8 @@ pub(super) struct Anchored {
     pub(super) sigma: f64,
     /// The eased ego.
     pub(super) eased: Pose2,
+    /// The eased ego less the corrections eased in: the relative motion's path alone.
+    pub(super) motion: Pose2,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -325,7 +327,8 @@ impl Anchoring {
             yaw_e4: quantise(ego.pose.heading, 1e-4),
             sigma_mm: quantise(sigma.min(1e6), 1e-3),
         }))?;
-        Ok(Some(Anchored { first, sigma, eased }))
+        let motion = self.ease.motion().unwrap_or(eased);
+        Ok(Some(Anchored { first, sigma, eased, motion }))
     }
 
     /// A VO pose's vertical into the session's mean, and the mean to the anchorer when due:

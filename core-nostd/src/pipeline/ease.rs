@@ -26,6 +26,11 @@
 //!
 //! A correction larger than [`SNAP_M`] (or [`SNAP_RAD`]), a gap in the poses longer than
 //! [`MAX_GAP_S`], or the first pose start the eased ego afresh at the anchored one.
+//!
+//! Beside the eased ego the ease keeps the VO's motion alone ([`Ease::motion`]): the same
+//! steps without the corrections. Its path shape is the camera's own, which the windows'
+//! comfort is given the benefit of (`Scorer::motion_beside`): a window whose eased ego fails
+//! comfort only through the corrections eased into it is not rejected for it.
 
 use crate::obb::Pose2;
 
@@ -79,6 +84,9 @@ struct State {
     t: f64,
     anchored: Pose2,
     eased: Pose2,
+    /// The VO's motion alone accumulated since the ease started afresh: the eased ego less
+    /// the corrections eased in.
+    motion: Pose2,
     /// The correction's rate: east, north (m/s) and heading (rad/s).
     rate: [f64; 3],
 }
@@ -114,7 +122,7 @@ impl Ease {
     pub fn push(&mut self, t: f64, anchored: Pose2, moved_from: Option<Pose2>) -> Pose2 {
         let ease = self.ease_s.is_finite() && self.ease_s > 0.0;
         let Some(previous) = self.state.filter(|s| ease && t > s.t && t - s.t <= MAX_GAP_S) else {
-            self.state = Some(State { t, anchored, eased: anchored, rate: [0.0; 3] });
+            self.state = Some(State { t, anchored, eased: anchored, motion: anchored, rate: [0.0; 3] });
             return anchored;
         };
         let dt = t - previous.t;
@@ -127,9 +135,15 @@ impl Ease {
         );
         let error = [anchored.x - predicted.x, anchored.y - predicted.y, wrap(anchored.heading - predicted.heading)];
         if libm::hypot(error[0], error[1]) > SNAP_M || error[2].abs() > SNAP_RAD {
-            self.state = Some(State { t, anchored, eased: anchored, rate: [0.0; 3] });
+            self.state = Some(State { t, anchored, eased: anchored, motion: anchored, rate: [0.0; 3] });
             return anchored;
         }
+        let m = previous.motion;
+        let motion = Pose2::new(
+            m.x + (anchored.x - from.x),
+            m.y + (anchored.y - from.y),
+            wrap(m.heading + wrap(anchored.heading - from.heading)),
+        );
         // Critically damped: rate' = ω² e − 2ω rate, integrated semi-implicitly (stable for
         // any dt; a step longer than the time constant is followed in one go).
         let omega = 1.0 / self.ease_s;
@@ -143,8 +157,14 @@ impl Ease {
             *p += if step.abs() > e.abs() { e } else { step };
         }
         let eased = Pose2::new(eased[0], eased[1], wrap(eased[2]));
-        self.state = Some(State { t, anchored, eased, rate });
+        self.state = Some(State { t, anchored, eased, motion, rate });
         eased
+    }
+
+    /// The VO's motion alone since the ease last started afresh, as of the last pose: the
+    /// eased ego less the corrections eased in (none before the first pose).
+    pub fn motion(&self) -> Option<Pose2> {
+        self.state.map(|s| s.motion)
     }
 }
 
@@ -202,6 +222,29 @@ mod tests {
         assert!(north.windows(2).all(|w| w[1] >= w[0] && w[1] <= 0.5), "monotone, never past");
         // A 0.5 m step at once is 5 m/s between two frames; eased, at most d/(e·τ) ≈ 0.18.
         assert!(max_speed < 0.25, "{max_speed}");
+    }
+
+    #[test]
+    fn the_motion_alone_is_the_eased_ego_less_the_corrections() {
+        let mut ease = Ease::new(1.0);
+        assert_eq!(ease.motion(), None);
+        for k in 0..30 {
+            let t = k as f64 * 0.1;
+            // 10 m/s east; the anchored pose jumps 0.5 m north at 1 s.
+            let jump = if t >= 1.0 { 0.5 } else { 0.0 };
+            let moved_from = Pose2::new(10.0 * (t - 0.1), jump, 0.0);
+            let eased = ease.push(t, Pose2::new(10.0 * t, jump, 0.0), (k > 0).then_some(moved_from));
+            let motion = ease.motion().expect("a pose was pushed");
+            assert!((motion.x - 10.0 * t).abs() < 1e-9, "the VO's motion: {motion:?}");
+            assert_eq!(motion.y, 0.0, "no correction in it, at {t} s (eased {eased:?})");
+        }
+        let eased_at_end = ease.push(3.0, Pose2::new(30.0, 0.5, 0.0), Some(Pose2::new(29.0, 0.5, 0.0)));
+        assert!(eased_at_end.y > 0.3, "the eased ego took most of the correction: {eased_at_end:?}");
+        // A correction taken at once (the similarity moved 12 m north, the VO 1 m east)
+        // starts it afresh at the anchored pose.
+        let far = Pose2::new(31.0, 12.5, 0.0);
+        ease.push(3.1, far, Some(Pose2::new(30.0, 12.5, 0.0)));
+        assert_eq!(ease.motion(), Some(far));
     }
 
     #[test]

@@ -8,7 +8,8 @@
 //! in time over the poses within [`LAG`] frames either side of it: the windows are judged
 //! one second late, on an ego whose noise is averaged over two. The agents are moved back
 //! to the smoothed pose's time by their velocity (`Pipeline::score`), so the tracks of the
-//! lag need not be kept; what it costs is the buffer, [`SPAN`] poses of 32 bytes.
+//! lag need not be kept; what it costs is the buffer, [`SPAN`] poses of 32 bytes (the
+//! windows keep two: the eased ego's and its relative motion's, [`super::ease`]).
 //!
 //! A gap longer than [`MAX_GAP_S`] between two poses gives out the poses still held (each
 //! fitted over the ones either side of it that there are) and starts afresh.

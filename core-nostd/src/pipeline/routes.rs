@@ -134,7 +134,7 @@ impl<W: Write, const T3: usize, const T2: usize, const BUF: usize> State<'_, W, 
             self.windows.anchored_first_at(t.as_secs_f64());
         }
         self.windows.ego_in_doubt(self.config.window_doubt_sigmas * anchored.sigma);
-        self.windows.ego(&self.config, &mut self.log, t, anchored.eased)
+        self.windows.ego(&self.config, &mut self.log, t, anchored.eased, anchored.motion)
     }
 
     /// A frame's 3D detections: placed through the anchoring's ego and mount into the

@@ -23,6 +23,10 @@ const KEEP_LOST_S: f64 = 1.5;
 /// At most this many of them.
 const KEPT_AGENTS: usize = 16;
 
+/// Poses a window's scorer keeps for the driving direction's one-second window: a camera's
+/// frames, up to 64 fps (a log's 100 Hz needs the default 128; 1.5 KB less RAM).
+const WINDOW_DIRECTION_POSES: usize = 64;
+
 /// The first window opens this long after the device's first anchored pose, s: the
 /// anchor's first corrections (its rotation and scale still settling, eased in) are its
 /// own motion, not the driver's, and would be scored as jerks and speeds.
@@ -33,6 +37,9 @@ pub const SETTLE_AFTER_ANCHORED_S: f64 = 3.0;
 pub(super) struct Windows<'a, const T3: usize> {
     /// The eased ego, smoothed a second late ([`lag`]).
     lag: lag::FixedLag,
+    /// The relative motion's path alone (the eased ego less its corrections), smoothed the
+    /// same way beside it.
+    motion_lag: lag::FixedLag,
     agents: heapless::Vec<Agent, T3>,
     /// Of `agents`, those the tracker no longer reports, and since when (s).
     lost: heapless::Vec<(u32, f64), KEPT_AGENTS>,
@@ -55,6 +62,7 @@ impl<const T3: usize> Default for Windows<'_, T3> {
     fn default() -> Self {
         Windows {
             lag: lag::FixedLag::new(),
+            motion_lag: lag::FixedLag::new(),
             agents: heapless::Vec::new(),
             lost: heapless::Vec::new(),
             agents_t: 0.0,
@@ -73,7 +81,7 @@ struct Window<'a> {
     start: f64,
     /// The time of the last pose it scored.
     last: Timestamp,
-    scorer: Scorer<'a, 'static, 1>,
+    scorer: Scorer<'a, 'static, 1, WINDOW_DIRECTION_POSES>,
     /// The multiplier of a collision in the last second of the window before ([`edge`]).
     inherited_collision: Option<f64>,
 }
@@ -142,9 +150,12 @@ impl<'a, const T3: usize> Windows<'a, T3> {
         log: &mut LogSink<W, BUF>,
         t: Timestamp,
         eased: Pose2,
+        motion: Pose2,
     ) -> Result<(), PipelineError<W::Error>> {
+        let motions = self.motion_lag.push(t, motion);
         for (at, smoothed) in self.lag.push(t, eased) {
-            self.score(config, log, at, &smoothed)?;
+            let motion = motions.iter().find(|(m, _)| *m == at).map(|(_, p)| *p);
+            self.score(config, log, at, &smoothed, motion)?;
         }
         Ok(())
     }
@@ -157,8 +168,10 @@ impl<'a, const T3: usize> Windows<'a, T3> {
         log: &mut LogSink<W, BUF>,
         t: Timestamp,
     ) -> Result<(), PipelineError<W::Error>> {
+        let motions = self.motion_lag.flush();
         for (at, smoothed) in self.lag.flush() {
-            self.score(config, log, at, &smoothed)?;
+            let motion = motions.iter().find(|(m, _)| *m == at).map(|(_, p)| *p);
+            self.score(config, log, at, &smoothed, motion)?;
         }
         self.close(log, t)
     }
@@ -172,6 +185,7 @@ impl<'a, const T3: usize> Windows<'a, T3> {
         log: &mut LogSink<W, BUF>,
         t: Timestamp,
         ego: &Pose2,
+        motion: Option<Pose2>,
     ) -> Result<(), PipelineError<W::Error>> {
         let Some(map) = config.map else { return Ok(()) };
         self.scored_at = Some((ego.x, ego.y));
@@ -190,7 +204,7 @@ impl<'a, const T3: usize> Windows<'a, T3> {
             self.window = Some(Window {
                 start: ts,
                 last: t,
-                scorer: Scorer::new(checker, Channel::Insensitive, config.score),
+                scorer: Scorer::keeping_direction_poses(checker, Channel::Insensitive, config.score),
                 inherited_collision: self.edge_collisions.carried_into(ts),
             });
         }
@@ -209,6 +223,9 @@ impl<'a, const T3: usize> Windows<'a, T3> {
         let agent_sigmas = config.window_doubt_sigmas;
         if let Ok(report) = window.scorer.step_both_ways(ts, ego, &self.agents, self.doubt_m, agent_sigmas) {
             window.last = t;
+            if let Some(motion) = motion {
+                window.scorer.motion_beside(ts, &motion);
+            }
             if let Some(collision) = &report.collision {
                 self.edge_collisions.push(ts, collision);
             }
