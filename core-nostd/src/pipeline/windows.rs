@@ -143,7 +143,8 @@ impl<'a, const T3: usize> Windows<'a, T3> {
         }
     }
 
-    /// The eased ego at `t`: into the smoother, and what it gives out (a second back) scored.
+    /// The eased ego at `t` and its relative motion alone (`motion`, [`super::ease`]): each
+    /// into its smoother, and what they give out (a second back) scored together.
     pub(super) fn ego<W: Write, const BUF: usize>(
         &mut self,
         config: &PipelineConfig<'a>,
@@ -176,9 +177,10 @@ impl<'a, const T3: usize> Windows<'a, T3> {
         self.close(log, t)
     }
 
-    /// One smoothed ego pose (of `t`, a second back) into the open verification window: the
-    /// agents moved to `t` by their velocity (back, from their latest update); a window
-    /// that reached its length is closed at `t`.
+    /// One smoothed ego pose (of `t`, a second back) into the open verification window, with
+    /// the relative motion's of the same time beside it for comfort: the agents moved to `t`
+    /// by their velocity (back, from their latest update); a window that reached its length
+    /// is closed at `t`.
     fn score<W: Write, const BUF: usize>(
         &mut self,
         config: &PipelineConfig<'a>,
